@@ -1,0 +1,149 @@
+"""Cells of the matrix: one problem x scheme x parameter point, and how one is run.
+
+``expand`` validates everything up front (names, flags, --set keys, values), so bad input
+fails before anything runs; ``run_cell`` never raises: whatever happens becomes a row with
+a status (ok, diverged, failed, skipped).
+"""
+from __future__ import annotations
+
+import itertools
+import json
+import traceback
+from dataclasses import dataclass, field
+from typing import Any, Iterable, Mapping
+
+from . import metrics, registry
+from .params import InputError, check_time_span
+from .problem import Problem
+from .reference import has_reference, reference_states
+
+# parameters that have a flag of their own on the command line, swept as lists
+SWEEP_PARAMETERS = ("dt", "tol", "eps_res", "order")
+DEFAULT_MAX_SAMPLES = 100_001
+
+
+@dataclass(frozen=True)
+class Cell:
+    problem: str
+    integrator: str
+    problem_settings: dict[str, Any] = field(default_factory=dict)
+    integrator_settings: dict[str, Any] = field(default_factory=dict)
+    t_final: float | None = None
+    skip_reason: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "problem": self.problem,
+            "integrator": self.integrator,
+            "problem_settings": dict(sorted(self.problem_settings.items())),
+            "integrator_settings": dict(sorted(self.integrator_settings.items())),
+            "t_final": self.t_final,
+            "skip_reason": self.skip_reason,
+        }
+
+    @property
+    def key(self) -> str:
+        d = self.to_dict()
+        d.pop("skip_reason")
+        return json.dumps(d, sort_keys=True)
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> "Cell":
+        return cls(d["problem"], d["integrator"], dict(d["problem_settings"]),
+                   dict(d["integrator_settings"]), d["t_final"], d.get("skip_reason"))
+
+
+def check_set_keys(sets: Mapping[str, Any], problem_names: Iterable[str],
+                   integrator_names: Iterable[str]) -> None:
+    """Every --set key must be a parameter of a selected problem or scheme."""
+    pclasses = [registry.problem_class(n) for n in problem_names]
+    iclasses = [registry.integrator_class(n) for n in integrator_names]
+    for key in sets:
+        if not any(key in c.parameters for c in pclasses + iclasses):
+            valid = sorted({k for c in pclasses + iclasses for k in c.parameters} - set(SWEEP_PARAMETERS))
+            raise InputError(f"--set {key}: unknown parameter for the selected problems and "
+                             f"integrators; valid keys: {', '.join(valid) or 'none'}")
+
+
+def expand(problem_names: list[str], integrator_names: list[str], *,
+           sweeps: Mapping[str, list] | None = None, t_final: float | None = None,
+           sets: Mapping[str, Any] | None = None, default_sweep: bool = False,
+           strict: bool = False) -> list[Cell]:
+    """All cells of problems x integrators x the sweep.
+
+    Without a flag for a swept parameter, a cell takes the parameter's default (or, with
+    ``default_sweep``, the problem's ``sweep_dt`` and the scheme's ``sweep``). An
+    incompatible pair becomes one cell with a skip reason, or an error when ``strict``.
+    """
+    sweeps = {k: list(v) for k, v in (sweeps or {}).items() if v}
+    sets = dict(sets or {})
+    check_set_keys(sets, problem_names, integrator_names)
+    for flag in sweeps:
+        if flag not in SWEEP_PARAMETERS:
+            raise InputError(f"unknown sweep parameter '{flag}'; valid: {', '.join(SWEEP_PARAMETERS)}")
+        if not any(flag in registry.integrator_class(n).parameters for n in integrator_names):
+            raise InputError(f"--{flag.replace('_', '-')} is not a parameter of any selected integrator "
+                             f"({', '.join(integrator_names)})")
+    cells = []
+    for pname in problem_names:
+        pcls = registry.problem_class(pname)
+        psets = {k: v for k, v in sets.items() if k in pcls.parameters}
+        problem = pcls(**psets)  # validates the problem's settings
+        tf = t_final if t_final is not None else (
+            pcls.sweep_t_final if default_sweep and pcls.sweep_t_final else pcls.default_t_final)
+        check_time_span(pcls.t0, tf)
+        for iname in integrator_names:
+            icls = registry.integrator_class(iname)
+            isets = {k: v for k, v in sets.items() if k in icls.parameters}
+            reason = icls(**isets).incompatibility(problem)
+            if reason:
+                if strict:
+                    raise InputError(f"incompatible pair {iname} x {pname}: {reason}")
+                cells.append(Cell(pname, iname, psets, isets, tf, skip_reason=reason))
+                continue
+            axes = []
+            for flag in SWEEP_PARAMETERS:
+                if flag not in icls.parameters:
+                    continue
+                values = sweeps.get(flag)
+                if values is None and default_sweep:
+                    values = list(pcls.sweep_dt) if flag == "dt" else list(icls.sweep.get(flag, ()))
+                if values:
+                    axes.append([(flag, v) for v in values])
+            for point in itertools.product(*axes):
+                settings = {**isets, **dict(point)}
+                icls(**settings)  # validates dt > 0, tol > 0, ...
+                cells.append(Cell(pname, iname, psets, settings, tf))
+    return cells
+
+
+def base_row(cell: Cell) -> dict[str, Any]:
+    s = cell.integrator_settings
+    row = {"problem": cell.problem, "integrator": cell.integrator, "status": "", "message": "",
+           **{k: s.get(k) for k in SWEEP_PARAMETERS}, "t_final": cell.t_final}
+    extra = {k: v for k, v in {**cell.problem_settings, **s}.items() if k not in SWEEP_PARAMETERS}
+    row["settings"] = json.dumps(extra, sort_keys=True) if extra else ""
+    return row
+
+
+def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool = True) -> dict[str, Any]:
+    """Run one cell; every outcome is a row, nothing raises."""
+    row = base_row(cell)
+    if cell.skip_reason:
+        row.update(status="skipped", message=cell.skip_reason)
+        return row
+    try:
+        problem: Problem = registry.problem_class(cell.problem)(**cell.problem_settings)
+        integrator = registry.integrator_class(cell.integrator)(**cell.integrator_settings)
+        if row["dt"] is None and "dt" in integrator.parameters and integrator.kind == "fixed":
+            row["dt"] = float(problem.default_dt)
+        traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples)
+        ref = None
+        if reference and has_reference(problem):
+            ref = reference_states(problem, traj.t)
+        row.update(metrics.evaluate(problem, traj, ref))
+        row["status"], row["message"] = traj.status, traj.message
+    except Exception as exc:  # a failing cell never takes the matrix down
+        row["status"] = "failed"
+        row["message"] = "".join(traceback.format_exception_only(type(exc), exc)).strip()
+    return row

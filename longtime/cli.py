@@ -1,0 +1,234 @@
+"""The ``longtime`` command: list | run | matrix | report (and commands added by modules).
+
+Exit codes: 0 done; 1 a requested cell failed (``run``); 2 bad input; 130 interrupted.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import shlex
+import sys
+from typing import Callable
+
+from . import registry
+from .cells import SWEEP_PARAMETERS, expand
+from .matrix import EXECUTORS, ExecOptions, run_matrix
+from .params import InputError
+from .report import complete, render
+from .store import Store, default_path
+
+# modules that add subcommands: each defines add_parser(subparsers) and sets func
+COMMAND_MODULES: tuple[str, ...] = ()
+
+
+def _floats(flag: str) -> Callable[[str], list[float]]:
+    def parse(text: str) -> list[float]:
+        try:
+            values = [float(x) for x in text.split(",") if x.strip()]
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{flag} takes comma-separated numbers, got {text!r}") from None
+        if not values:
+            raise argparse.ArgumentTypeError(f"{flag} needs at least one value")
+        return values
+
+    return parse
+
+
+def _ints(text: str) -> list[int]:
+    try:
+        return [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--order takes comma-separated integers, got {text!r}") from None
+
+
+def _names(text: str) -> list[str]:
+    return [x.strip() for x in text.split(",") if x.strip()]
+
+
+def _key_value(text: str) -> tuple[str, str]:
+    if "=" not in text:
+        raise argparse.ArgumentTypeError(f"--set takes key=value, got {text!r}")
+    key, value = text.split("=", 1)
+    return key.strip(), value.strip()
+
+
+def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
+    p.add_argument("-p", "--problem", type=_names, required=required, metavar="PROBLEM[,..]",
+                   help="problem names (see `longtime list`)")
+    p.add_argument("-i", "--integrator", type=_names, required=required, metavar="SCHEME[,..]",
+                   help="scheme names (see `longtime list`)")
+    p.add_argument("--dt", type=_floats("--dt"), metavar="X[,..]", help="time steps (fixed-step schemes)")
+    p.add_argument("--tol", type=_floats("--tol"), metavar="X[,..]", help="tolerances (adaptive schemes)")
+    p.add_argument("--eps-res", type=_floats("--eps-res"), metavar="X[,..]", help="BPL residual bounds")
+    p.add_argument("--order", type=_ints, metavar="N[,..]", help="series orders N (taylor, bpl)")
+    p.add_argument("--t-final", type=float, metavar="T", help="final time (default: the problem's)")
+    p.add_argument("--set", type=_key_value, action="append", default=[], metavar="KEY=VALUE",
+                   help="any other parameter of a problem or scheme (repeatable)")
+    p.add_argument("--executor", choices=sorted(EXECUTORS), help="where cells run")
+    p.add_argument("--jobs", type=int, default=0, help="worker processes (default: one per core)")
+    p.add_argument("--max-samples", type=int, default=100_001,
+                   help="states kept per run for the metrics (every step below this)")
+    p.add_argument("--db", default=None, help=f"SQLite store (default: $LONGTIME_DB or {default_path()})")
+
+
+def _sweeps(args) -> dict[str, list]:
+    return {k: getattr(args, k) for k in SWEEP_PARAMETERS if getattr(args, k, None)}
+
+
+def _options(args) -> ExecOptions:
+    return ExecOptions(jobs=args.jobs, max_samples=args.max_samples,
+                       cell_timeout=getattr(args, "cell_timeout", None),
+                       scheduler=getattr(args, "scheduler", None))
+
+
+def _warn_broken() -> None:
+    for b in registry.broken():
+        print(f"warning: plugin {b.group} '{b.name}' ({b.target}) failed to load: {b.error}", file=sys.stderr)
+
+
+def cmd_list(args) -> int:
+    problems, schemes = registry.problems(), registry.integrators()
+    data = {
+        "problems": [{"name": n, "summary": c.summary, "capabilities": sorted(c.capabilities()),
+                      "parameters": {k: p.default for k, p in c.parameters.items()}}
+                     for n, c in problems.items()],
+        "integrators": [{"name": n, "summary": c.summary, "kind": c.kind, "order": c.order,
+                         "symplectic": c.symplectic, "requires": sorted(c.requires),
+                         "parameters": {k: p.default for k, p in c.parameters.items()}}
+                        for n, c in schemes.items()],
+        "broken": [vars(b) for b in registry.broken()],
+    }
+    if args.format == "json":
+        print(json.dumps(data, indent=1))
+        return 0
+    print("problems:")
+    for p in data["problems"]:
+        print(f"  {p['name']:24s} {p['summary']}\n  {'':24s} provides: {', '.join(p['capabilities'])}")
+    print("integrators:")
+    for i in data["integrators"]:
+        needs = ", ".join(i["requires"]) or "-"
+        sym = " symplectic" if i["symplectic"] else ""
+        print(f"  {i['name']:24s} {i['kind']:8s} order {i['order']}{sym}; needs {needs}\n"
+              f"  {'':24s} {i['summary']}; parameters: {', '.join(i['parameters']) or '-'}")
+    if data["broken"]:
+        print("broken plugins:")
+        for b in data["broken"]:
+            print(f"  {b['group']} '{b['name']}' ({b['target']}): {b['error']}")
+    return 0
+
+
+def cmd_run(args) -> int:
+    _warn_broken()
+    cells = expand(args.problem, args.integrator, sweeps=_sweeps(args), t_final=args.t_final,
+                   sets=dict(args.set), strict=True)
+    store = None if args.no_store else Store(args.db)
+    run_id = store.begin_run("run " + shlex.join(sys.argv[1:]), cells) if store else None
+    status = "interrupted"
+    try:
+        rows = run_matrix(cells, store, run_id, args.executor or "serial", _options(args))
+        status = "done"
+    finally:
+        if store:
+            store.finish_run(run_id, status)
+    rows = [complete(r) for r in rows]
+    if args.format == "json":
+        print(json.dumps(rows, indent=1))
+    else:
+        print(render(rows, args.format))
+    return 1 if any(r["status"] == "failed" for r in rows) else 0
+
+
+def cmd_matrix(args) -> int:
+    _warn_broken()
+    store = Store(args.db)
+    if args.resume is not None:
+        run_id = args.resume if args.resume > 0 else store.latest_run("matrix")
+        if run_id is None:
+            raise InputError(f"--resume: no matrix run in {store.path}")
+        cells = store.pending(run_id)
+        print(f"resuming run {run_id}: {len(cells)} cells left", file=sys.stderr)
+    else:
+        problems = args.problem or sorted(registry.problems())
+        schemes = args.integrator or sorted(registry.integrators())
+        cells = expand(problems, schemes, sweeps=_sweeps(args), t_final=args.t_final,
+                       sets=dict(args.set), default_sweep=True)
+        run_id = store.begin_run("matrix " + shlex.join(sys.argv[2:]), cells)
+        print(f"run {run_id}: {len(cells)} cells into {store.path}", file=sys.stderr)
+    status = "interrupted"
+    try:
+        run_matrix(cells, store, run_id, args.executor or "process", _options(args),
+                   progress=not args.no_progress)
+        status = "done"
+    finally:
+        store.finish_run(run_id, status)
+    if not args.no_report:
+        print(render(store.rows(run_id), "table"))
+    return 0
+
+
+def cmd_report(args) -> int:
+    store = Store(args.db)
+    if args.run == "all":
+        rows = store.rows()
+    else:
+        run_id = int(args.run) if args.run else store.latest_run()
+        if run_id is None:
+            raise InputError(f"no runs in {store.path}: run `longtime matrix` first")
+        rows = store.rows(run_id)
+    if args.problem:
+        rows = [r for r in rows if r["problem"] in args.problem]
+    print(render(rows, args.format))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="longtime", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("list", help="problems, schemes, their capabilities and broken plugins")
+    p.add_argument("--format", choices=["table", "json"], default="table")
+    p.set_defaults(func=cmd_list)
+
+    p = sub.add_parser("run", help="run problems x schemes and print one row per cell")
+    add_selection(p, required=True)
+    p.add_argument("--format", choices=["table", "csv", "json", "markdown"], default="table")
+    p.add_argument("--no-store", action="store_true", help="do not append the rows to the store")
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("matrix", help="every scheme on every problem over the default sweep")
+    add_selection(p, required=False)
+    p.add_argument("--resume", type=int, nargs="?", const=0, default=None, metavar="RUN_ID",
+                   help="finish an interrupted run (default: the latest)")
+    p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--no-report", action="store_true", help="do not print the report at the end")
+    p.set_defaults(func=cmd_matrix)
+
+    p = sub.add_parser("report", help="tables of stored rows: accuracy against cost per problem")
+    p.add_argument("--db", default=None)
+    p.add_argument("--run", default=None, help="run id, or 'all' (default: the latest run)")
+    p.add_argument("-p", "--problem", type=_names, default=None)
+    p.add_argument("--format", choices=["table", "csv", "json", "markdown"], default="table")
+    p.set_defaults(func=cmd_report)
+
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except InputError as exc:
+        print(f"longtime {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted: finished cells are in the store; `longtime matrix --resume` completes the rest",
+              file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,118 @@
+"""Compiled step loops shared by every scheme.
+
+A scheme supplies one compiled step function; a factory here closes the loop over it, so
+the whole run is one call into compiled code (numba inlines the step). Factories are
+plain Python: nothing compiles until a loop is first called.
+
+Step contracts
+--------------
+fixed step:     step(t, u, h, params, work, counters, first) -> status
+                advances u in place by h; ``first`` is True on the first step of a run
+                (multi-step and FSAL schemes re-initialise their memory then).
+adaptive step:  try_step(t, u, h, params, work, counters, u_new) -> (code, h_taken, h_next)
+                code 1: accepted, u_new holds the state at t + h_taken (h_taken <= h);
+                code 0: rejected, retry with h_next; code < 0: failure.
+"""
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+# counters: one int64 array per run, filled by the compiled code
+STEPS, RHS_EVALS, NL_ITERS, REJECTED, FALLBACKS, JAC_EVALS, EXTRA1, EXTRA2 = range(8)
+N_COUNTERS = 8
+COUNTER_NAMES = ("steps", "rhs_evals", "nl_iters", "rejected", "fallbacks", "jac_evals")
+
+# status codes returned by loops and steps
+OK, DIVERGED, FAILED, BUFFER_FULL = 0, 1, 2, 3
+
+
+@numba.njit(cache=True, inline="always")
+def is_blown_up(u, blowup):
+    """True when a component is non-finite or larger than ``blowup``."""
+    for i in range(u.size):
+        if not abs(u[i]) <= blowup:  # also catches NaN
+            return True
+    return False
+
+
+def fixed_step_loop(step):
+    """Compiled loop: ``nsteps`` steps of size dt, the last one clipped to t_final.
+
+    Every ``stride``-th state (and the last) goes to out_t/out_u, whose row 0 is the
+    initial state. Returns (status, samples written, time reached).
+    """
+
+    @numba.njit
+    def loop(u, t0, t_final, dt, nsteps, stride, params, work, out_t, out_u, counters, blowup):
+        out_t[0] = t0
+        out_u[0, :] = u
+        n_out = 1
+        t = t0
+        for k in range(nsteps):
+            t = t0 + k * dt
+            h = dt if k < nsteps - 1 else t_final - t
+            status = step(t, u, h, params, work, counters, k == 0)
+            counters[STEPS] += 1
+            t = t0 + (k + 1) * dt if k < nsteps - 1 else t_final
+            if status != OK or is_blown_up(u, blowup):
+                out_t[n_out] = t
+                out_u[n_out, :] = u
+                return (FAILED if status != OK else DIVERGED), n_out + 1, t
+            if (k + 1) % stride == 0 or k == nsteps - 1:
+                out_t[n_out] = t
+                out_u[n_out, :] = u
+                n_out += 1
+        return OK, n_out, t
+
+    return loop
+
+
+def adaptive_loop(try_step):
+    """Compiled loop over accepted steps from t to t_end, at most ``h_max`` each.
+
+    Writes every ``stride``-th accepted state (and the last) to out_t/out_u, and returns
+    BUFFER_FULL when they are full so that the caller can continue with fresh buffers.
+    hstats holds (min, max) of accepted steps. Returns (status, samples, t, next h).
+    """
+
+    @numba.njit
+    def loop(u, t, t_end, h, h_max, stride, params, work, u_new, out_t, out_u, counters,
+             hstats, blowup):
+        n_out = 0
+        cap = out_t.size
+        span = abs(t_end) + 1.0
+        while t < t_end:
+            hh = min(h, h_max, t_end - t)
+            if hh <= 1e-15 * span:
+                return FAILED, n_out, t, h
+            code, h_taken, h_next = try_step(t, u, hh, params, work, counters, u_new)
+            if code < 0:
+                return FAILED, n_out, t, h_next
+            if code == 1:
+                t = t_end if t_end - (t + h_taken) <= 1e-14 * span else t + h_taken
+                u[:] = u_new
+                counters[STEPS] += 1
+                if h_taken < hstats[0]:
+                    hstats[0] = h_taken
+                if h_taken > hstats[1]:
+                    hstats[1] = h_taken
+                diverged = is_blown_up(u, blowup)
+                if counters[STEPS] % stride == 0 or t >= t_end or diverged:
+                    out_t[n_out] = t
+                    out_u[n_out, :] = u
+                    n_out += 1
+                if diverged:
+                    return DIVERGED, n_out, t, h_next
+                if n_out == cap and t < t_end:
+                    return BUFFER_FULL, n_out, t, h_next
+            else:
+                counters[REJECTED] += 1
+            h = h_next
+        return OK, n_out, t, h
+
+    return loop
+
+
+def new_counters() -> np.ndarray:
+    return np.zeros(N_COUNTERS, dtype=np.int64)

@@ -1,0 +1,222 @@
+"""The scheme contract and the two shared drivers (fixed step, adaptive).
+
+A scheme declares what it needs from a problem (``requires``), its order, whether it is
+symplectic and its parameters, and implements ``integrate``. Most schemes only implement
+the compiled step: ``FixedStepIntegrator.make_step`` or ``AdaptiveIntegrator.make_try_step``,
+and inherit validation, allocation, warm-up (compilation outside the timing), timing and
+counters. Failures come back as a status in the ``Trajectory``, never as an exception
+from inside the loop.
+"""
+from __future__ import annotations
+
+import math
+import time
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import Any, Callable, ClassVar
+
+import numpy as np
+
+from . import drivers
+from .params import InputError, Param, check_time_span, resolve
+from .problem import Problem
+
+STATUS_NAMES = {drivers.OK: "ok", drivers.DIVERGED: "diverged", drivers.FAILED: "failed"}
+
+
+@dataclass
+class Trajectory:
+    """What a scheme returns: samples of the state, the outcome and the cost."""
+
+    status: str  # ok | diverged | failed
+    message: str
+    t: np.ndarray  # (n,)
+    u: np.ndarray  # (n, dim)
+    cpu_s: float
+    wall_s: float
+    counters: dict[str, int] = field(default_factory=dict)
+    min_dt: float | None = None
+    max_dt: float | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def t_reached(self) -> float:
+        return float(self.t[-1])
+
+    @property
+    def steps(self) -> int:
+        return int(self.counters.get("steps", 0))
+
+
+class Integrator(ABC):
+    name: ClassVar[str] = ""  # the registry sets it from the entry point when empty
+    summary: ClassVar[str] = ""
+    requires: ClassVar[frozenset[str]] = frozenset()
+    order: ClassVar[int | None] = None
+    symplectic: ClassVar[bool] = False
+    kind: ClassVar[str] = "fixed"  # fixed | adaptive | external
+    parameters: ClassVar[dict[str, Param]] = {}
+    # default matrix sweep of parameters other than dt, e.g. {"tol": (1e-6, 1e-9)}
+    sweep: ClassVar[dict[str, tuple]] = {}
+    # names of counters EXTRA1, EXTRA2 when a scheme uses them
+    extra_counters: ClassVar[tuple[str, ...]] = ()
+
+    def __init__(self, **settings: Any) -> None:
+        self.settings = resolve(self.parameters, settings, owner=f"integrator '{self.name}'")
+
+    def incompatibility(self, problem: Problem) -> str | None:
+        """Why this scheme cannot treat ``problem`` (None when it can)."""
+        missing = sorted(set(self.requires) - problem.capabilities())
+        if missing:
+            return f"{self.name} needs {', '.join(missing)}, which {problem.name} does not provide"
+        return None
+
+    def integrate(self, problem: Problem, t_final: float, max_samples: int = 100_001) -> Trajectory:
+        check_time_span(problem.t0, t_final)
+        reason = self.incompatibility(problem)
+        if reason:
+            raise InputError(reason)
+        if max_samples < 2:
+            raise InputError(f"max_samples={max_samples} is not valid: must be >= 2")
+        return self._integrate(problem, float(t_final), int(max_samples))
+
+    @abstractmethod
+    def _integrate(self, problem: Problem, t_final: float, max_samples: int) -> Trajectory: ...
+
+    def _counters(self, raw: np.ndarray) -> dict[str, int]:
+        out = {n: int(raw[i]) for i, n in enumerate(drivers.COUNTER_NAMES)}
+        for i, n in enumerate(self.extra_counters):
+            out[n] = int(raw[drivers.EXTRA1 + i])
+        return out
+
+    def kernel_variant(self) -> Any:
+        """Settings that change the compiled code (most schemes: none)."""
+        return None
+
+
+# compiled loops, shared by every instance of a scheme on problems of equal kernel_key
+_LOOPS: dict[tuple, Callable] = {}
+
+
+def _cached_loop(integrator: Integrator, problem: Problem, build: Callable[[], Callable]) -> Callable:
+    key = (type(integrator), integrator.kernel_variant(), problem.kernel_key())
+    loop = _LOOPS.get(key)
+    if loop is None:
+        loop = _LOOPS[key] = build()
+    return loop
+
+
+class FixedStepIntegrator(Integrator):
+    """A one-step (or self-starting multi-step) scheme with a constant step dt."""
+
+    kind = "fixed"
+    parameters = {"dt": Param(None, "time step (default: the problem's)", float, positive=True)}
+
+    @abstractmethod
+    def make_step(self, problem: Problem) -> Callable:
+        """Compiled ``step(t, u, h, params, work, counters, first) -> status``."""
+
+    def work_shape(self, problem: Problem) -> tuple[int, ...]:
+        """Shape of the scratch array handed to every step."""
+        return (1, problem.dim)
+
+    def dt_for(self, problem: Problem) -> float:
+        dt = self.settings.get("dt")
+        return float(problem.default_dt if dt is None else dt)
+
+    def _integrate(self, problem, t_final, max_samples):
+        dt = self.dt_for(problem)
+        span = t_final - problem.t0
+        nsteps = max(1, math.ceil(span / dt - 1e-9))
+        stride = max(1, math.ceil(nsteps / (max_samples - 1)))
+        loop = _cached_loop(self, problem, lambda: drivers.fixed_step_loop(self.make_step(problem)))
+        work = np.zeros(self.work_shape(problem))
+        n_out = nsteps // stride + 2
+        out_t = np.empty(n_out)
+        out_u = np.empty((n_out, problem.dim))
+        counters = drivers.new_counters()
+        # warm-up: compile outside the timing, on a throw-away state
+        loop(problem.u0.copy(), problem.t0, problem.t0 + dt, dt, 1, 1, problem.params, work.copy(),
+             out_t.copy(), out_u.copy(), counters.copy(), problem.blowup)
+        u = problem.u0.copy()
+        c0, w0 = time.process_time(), time.perf_counter()
+        status, n, t_end = loop(u, problem.t0, t_final, dt, nsteps, stride, problem.params, work,
+                                out_t, out_u, counters, problem.blowup)
+        cpu, wall = time.process_time() - c0, time.perf_counter() - w0
+        return Trajectory(
+            status=STATUS_NAMES[status], message=_status_message(status, t_end), t=out_t[:n],
+            u=out_u[:n], cpu_s=cpu, wall_s=wall, counters=self._counters(counters),
+            min_dt=dt, max_dt=dt)
+
+
+class AdaptiveIntegrator(Integrator):
+    """A one-step scheme that chooses its own steps; runs in chunks of recorded samples."""
+
+    kind = "adaptive"
+    chunk = 4096  # samples per compiled call
+
+    @abstractmethod
+    def make_try_step(self, problem: Problem) -> Callable:
+        """Compiled ``try_step(t, u, h, params, work, counters, u_new) -> (code, h_taken, h_next)``."""
+
+    def work_shape(self, problem: Problem) -> tuple[int, ...]:
+        return (1, problem.dim)
+
+    def prepare_work(self, problem: Problem, work: np.ndarray) -> None:
+        """Fill constant data (coefficients, tolerances) into the scratch array."""
+
+    def initial_step(self, problem: Problem, t_final: float) -> float:
+        return float(self.settings.get("dt") or problem.default_dt)
+
+    def max_step(self, problem: Problem, t_final: float) -> float:
+        return float(self.settings.get("max_dt") or (t_final - problem.t0))
+
+    def _integrate(self, problem, t_final, max_samples):
+        loop = _cached_loop(self, problem, lambda: drivers.adaptive_loop(self.make_try_step(problem)))
+        work = np.zeros(self.work_shape(problem))
+        self.prepare_work(problem, work)
+        h0, h_max = self.initial_step(problem, t_final), self.max_step(problem, t_final)
+        dim, t0 = problem.dim, problem.t0
+
+        def fresh():
+            return np.empty(self.chunk), np.empty((self.chunk, dim))
+
+        # warm-up: compile outside the timing
+        bt, bu = fresh()
+        loop(problem.u0.copy(), t0, t0 + 1e-3 * h0, h0, h_max, 1, problem.params, work.copy(),
+             np.empty(dim), bt, bu, drivers.new_counters(), np.array([np.inf, 0.0]), problem.blowup)
+
+        u, u_new = problem.u0.copy(), np.empty(dim)
+        counters, hstats = drivers.new_counters(), np.array([np.inf, 0.0])
+        ts, us = [np.array([t0])], [u[None, :].copy()]
+        total, stride, t, h = 1, 1, t0, h0
+        cpu = wall = 0.0
+        while True:
+            bt, bu = fresh()
+            c0, w0 = time.process_time(), time.perf_counter()
+            status, n, t, h = loop(u, t, t_final, h, h_max, stride, problem.params, work, u_new,
+                                   bt, bu, counters, hstats, problem.blowup)
+            cpu += time.process_time() - c0
+            wall += time.perf_counter() - w0
+            ts.append(bt[:n].copy())
+            us.append(bu[:n].copy())
+            total += n
+            if total > max_samples:  # keep every other sample, record half as often
+                tt, uu = np.concatenate(ts), np.concatenate(us)
+                keep = np.r_[np.arange(0, tt.size - 1, 2), tt.size - 1]
+                ts, us, total, stride = [tt[keep]], [uu[keep]], keep.size, 2 * stride
+            if status != drivers.BUFFER_FULL:
+                break
+        steps = int(counters[drivers.STEPS])
+        return Trajectory(
+            status=STATUS_NAMES[status], message=_status_message(status, t), t=np.concatenate(ts),
+            u=np.concatenate(us), cpu_s=cpu, wall_s=wall, counters=self._counters(counters),
+            min_dt=float(hstats[0]) if steps else None, max_dt=float(hstats[1]) if steps else None)
+
+
+def _status_message(status: int, t: float) -> str:
+    if status == drivers.DIVERGED:
+        return f"state blew up (non-finite or beyond the problem's bound) at t={t:.6g}"
+    if status == drivers.FAILED:
+        return f"step failed at t={t:.6g} (nonlinear solve did not converge or step size underflow)"
+    return ""

@@ -1,0 +1,1 @@
+"""Built-in schemes. Each registers through the ``longtime.integrators`` entry point group."""

@@ -1,0 +1,133 @@
+"""Implicit Runge-Kutta schemes (tableaus) with stages solved to round-off.
+
+The stage equations K_i = f(t + c_i h, u + h sum_j a_ij K_j) are solved by fixed-point
+iteration with Gauss-Seidel sweeps (for a diagonally implicit tableau such as rk4sym this
+solves the stages one after another). Iteration stops when the increment vanishes, reaches
+round-off, or stops decreasing at round-off level; the sweeps are counted in ``nl_iters``.
+A solve that does not converge in ``max_iter`` sweeps fails the step (status ``failed``).
+"""
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from ..drivers import FAILED, NL_ITERS, OK, RHS_EVALS
+from ..integrator import FixedStepIntegrator
+from ..params import Param
+
+_EPS = np.finfo(float).eps
+
+
+class ImplicitRungeKutta(FixedStepIntegrator):
+    A: np.ndarray
+    b: np.ndarray
+    c: np.ndarray
+    parameters = {
+        **FixedStepIntegrator.parameters,
+        "max_iter": Param(100, "fixed-point sweeps allowed per step", int, positive=True),
+    }
+
+    def work_shape(self, problem):
+        return (len(self.b) + 2, problem.dim)  # stage slopes K, stage state, new slope
+
+    def make_step(self, problem):
+        rhs = problem.rhs
+        A, b, c = (np.ascontiguousarray(x, dtype=np.float64) for x in (self.A, self.b, self.c))
+        s = b.size
+        max_iter = int(self.settings["max_iter"])
+
+        @numba.njit
+        def step(t, u, h, params, work, counters, first):
+            n = u.size
+            y, k_new = work[s], work[s + 1]
+            scale = 1.0
+            for m in range(n):
+                scale = max(scale, abs(u[m]))
+            rhs(t, u, params, work[0])
+            for i in range(1, s):
+                work[i, :] = work[0]
+            evals = 1
+            converged = False
+            previous = np.inf
+            for sweep in range(max_iter):
+                delta = 0.0
+                for i in range(s):
+                    for m in range(n):
+                        acc = 0.0
+                        for j in range(s):
+                            acc += A[i, j] * work[j, m]
+                        y[m] = u[m] + h * acc
+                    rhs(t + c[i] * h, y, params, k_new)
+                    for m in range(n):
+                        delta = max(delta, abs(h * (k_new[m] - work[i, m])))
+                        work[i, m] = k_new[m]
+                evals += s
+                counters[NL_ITERS] += 1
+                if delta <= 2.0 * _EPS * scale or (delta >= previous and delta <= 1e-8 * scale):
+                    converged = True
+                    break
+                previous = delta
+            counters[RHS_EVALS] += evals
+            if not converged:
+                return FAILED
+            for m in range(n):
+                acc = 0.0
+                for i in range(s):
+                    acc += b[i] * work[i, m]
+                u[m] += h * acc
+            return OK
+
+        return step
+
+    def kernel_variant(self):
+        return self.settings["max_iter"]
+
+
+class Midpoint(ImplicitRungeKutta):
+    name = "midpoint"
+    summary = "implicit midpoint (order 2, symplectic)"
+    order = 2
+    symplectic = True
+    A = np.array([[0.5]])
+    b = np.array([1.0])
+    c = np.array([0.5])
+
+
+_B = (2 + 2 ** (1 / 3) + 2 ** (-1 / 3)) / 3  # 1.3512071919596578 (SPEC: the paper prints 2^(1/2))
+
+
+class RK4Sym(ImplicitRungeKutta):
+    name = "rk4sym"
+    summary = "3-stage symplectic DIRK of order 4: midpoint steps b h, (1-2b) h, b h"
+    order = 4
+    symplectic = True
+    A = np.array([[_B / 2, 0, 0], [_B, 0.5 - _B, 0], [_B, 1 - 2 * _B, _B / 2]])
+    b = np.array([_B, 1 - 2 * _B, _B])
+    c = A.sum(axis=1)
+
+
+_S3, _S15 = np.sqrt(3.0), np.sqrt(15.0)
+
+
+class Gauss4(ImplicitRungeKutta):
+    name = "gauss4"
+    summary = "2-stage Gauss-Legendre collocation (order 4, symplectic)"
+    order = 4
+    symplectic = True
+    A = np.array([[0.25, 0.25 - _S3 / 6], [0.25 + _S3 / 6, 0.25]])
+    b = np.array([0.5, 0.5])
+    c = np.array([0.5 - _S3 / 6, 0.5 + _S3 / 6])
+
+
+class Gauss6(ImplicitRungeKutta):
+    name = "gauss6"
+    summary = "3-stage Gauss-Legendre collocation (order 6, symplectic)"
+    order = 6
+    symplectic = True
+    A = np.array([
+        [5 / 36, 2 / 9 - _S15 / 15, 5 / 36 - _S15 / 30],
+        [5 / 36 + _S15 / 24, 2 / 9, 5 / 36 - _S15 / 24],
+        [5 / 36 + _S15 / 30, 2 / 9 + _S15 / 15, 5 / 36],
+    ])
+    b = np.array([5 / 18, 4 / 9, 5 / 18])
+    c = np.array([0.5 - _S15 / 10, 0.5, 0.5 + _S15 / 10])

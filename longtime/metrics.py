@@ -1,0 +1,92 @@
+"""The quantities of SPEC.md section 3, computed the same way for every scheme.
+
+e_I(t) = |I(u(t)) - I(u0)| / |I(u0)| (a vector invariant: Euclidean norms), the absolute
+error where I(u0) = 0. Per invariant NAME: NAME.max, NAME.final, NAME.mean (time average of
+e_I by the trapezoid rule over the samples, which are every step up to max_samples),
+NAME.t_1pct, NAME.t_50pct (first sample time with e_I > 1 % / 50 %, null if never).
+Non-finite values become null: a diverged run is a status, never a NaN in a table.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from .integrator import Trajectory
+from .problem import Problem
+
+
+def finite_or_none(x) -> float | None:
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def relative_error(values: np.ndarray) -> np.ndarray:
+    values = np.asarray(values, dtype=float)
+    v0 = values[0]
+    diff = values - v0
+    if values.ndim == 1:
+        num, den = np.abs(diff), abs(float(v0))
+    else:
+        num, den = np.linalg.norm(diff, axis=1), float(np.linalg.norm(v0))
+    return num / den if den > 0 else num
+
+
+def time_mean(t: np.ndarray, y: np.ndarray) -> float:
+    span = float(t[-1] - t[0])
+    if t.size < 2 or span <= 0:
+        return float(y[-1])
+    return float(np.trapezoid(y, t) / span)
+
+
+def first_crossing(t: np.ndarray, err: np.ndarray, level: float) -> float | None:
+    above = np.flatnonzero(~(err <= level))  # NaN counts as crossed
+    return float(t[above[0]]) if above.size else None
+
+
+def drift_fields(name: str, t: np.ndarray, err: np.ndarray) -> dict[str, Any]:
+    finite = np.isfinite(err)
+    upto = int(np.argmin(finite)) if not finite.all() else err.size
+    tt, ee = t[:upto], err[:upto]
+    if upto == 0:
+        return {f"{name}.{k}": None for k in ("max", "mean", "final", "t_1pct", "t_50pct")}
+    return {
+        f"{name}.max": finite_or_none(np.max(ee)),
+        f"{name}.mean": finite_or_none(time_mean(tt, ee)),
+        f"{name}.final": finite_or_none(err[-1]),
+        f"{name}.t_1pct": first_crossing(t, err, 0.01),
+        f"{name}.t_50pct": first_crossing(t, err, 0.5),
+    }
+
+
+def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None) -> dict[str, Any]:
+    """Row fields of one trajectory; ``reference`` holds the true states at traj.t."""
+    t, U = traj.t, traj.u
+    steps = traj.steps
+    span = float(t[-1] - problem.t0)
+    row: dict[str, Any] = {
+        "steps": steps,
+        **{k: v for k, v in traj.counters.items() if k != "steps"},
+        "cpu_s": traj.cpu_s,
+        "wall_s": traj.wall_s,
+        "mean_dt": span / steps if steps else None,
+        "min_dt": traj.min_dt,
+        "max_dt": traj.max_dt,
+        "t_reached": float(t[-1]),
+        "samples": int(t.size),
+    }
+    with np.errstate(all="ignore"):
+        for name, values in problem.invariants(t, U).items():
+            row.update(drift_fields(name, t, relative_error(values)))
+        for name, values in problem.violations(t, U).items():
+            values = np.asarray(values, dtype=float)
+            row[f"{name}.max"] = finite_or_none(np.max(values))
+            row[f"{name}.final"] = finite_or_none(values[-1])
+        if reference is not None:
+            diff = np.linalg.norm(U - reference, axis=1)
+            ref = np.linalg.norm(reference, axis=1)
+            row["l2_error"] = finite_or_none(np.sqrt(np.sum(diff**2) / np.sum(ref**2)))
+            row["final_error"] = finite_or_none(diff[-1] / ref[-1] if ref[-1] > 0 else diff[-1])
+    row.update(traj.extra)
+    return row

@@ -1,0 +1,102 @@
+"""Declared parameters of problems and schemes, and their validation.
+
+A problem or a scheme lists its parameters as ``Param`` objects; ``resolve`` merges user
+settings over the defaults and checks every value, so that a bad value is reported with
+the argument's name and what is allowed.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+
+class InputError(ValueError):
+    """Bad user input: unknown names, invalid values, incompatible pairs."""
+
+
+@dataclass(frozen=True)
+class Param:
+    default: Any
+    doc: str
+    kind: type = float
+    positive: bool = False  # strictly > 0
+    minimum: float | None = None  # inclusive
+    maximum: float | None = None  # inclusive
+    choices: tuple | None = None
+
+    def allowed(self) -> str:
+        if self.choices is not None:
+            return "one of " + ", ".join(map(str, self.choices))
+        parts = [self.kind.__name__]
+        if self.positive:
+            parts.append("> 0")
+        if self.minimum is not None:
+            parts.append(f">= {self.minimum}")
+        if self.maximum is not None:
+            parts.append(f"<= {self.maximum}")
+        return " ".join(parts)
+
+    def parse(self, name: str, value: Any) -> Any:
+        """Convert (from a string too) and check one value; raise InputError naming `name`."""
+        try:
+            if self.kind is bool and isinstance(value, str):
+                if value.lower() not in ("true", "false", "1", "0", "yes", "no"):
+                    raise ValueError(value)
+                v = value.lower() in ("true", "1", "yes")
+            elif self.kind is int and isinstance(value, float) and value.is_integer():
+                v = int(value)
+            elif self.kind is int and isinstance(value, str):
+                v = int(float(value)) if float(value).is_integer() else int(value)
+            else:
+                v = self.kind(value)
+        except (TypeError, ValueError):
+            raise InputError(f"{name}={value!r} is not valid: expected {self.allowed()}") from None
+        if self.choices is not None and v not in self.choices:
+            raise InputError(f"{name}={value!r} is not valid: expected {self.allowed()}")
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            if isinstance(v, float) and not math.isfinite(v):
+                raise InputError(f"{name}={value!r} is not valid: must be finite ({self.allowed()})")
+            bad = (
+                (self.positive and not v > 0)
+                or (self.minimum is not None and v < self.minimum)
+                or (self.maximum is not None and v > self.maximum)
+            )
+            if bad:
+                raise InputError(f"{name}={value!r} is not valid: expected {self.allowed()}")
+        return v
+
+
+def resolve(declared: Mapping[str, Param], given: Mapping[str, Any], owner: str) -> dict[str, Any]:
+    """Defaults overridden by `given`; every given key must be declared."""
+    unknown = sorted(set(given) - set(declared))
+    if unknown:
+        valid = ", ".join(sorted(declared)) or "none"
+        raise InputError(f"unknown parameter {', '.join(unknown)} for {owner}; valid parameters: {valid}")
+    out = {}
+    for key, spec in declared.items():
+        out[key] = spec.parse(f"{owner}: {key}", given[key]) if key in given else spec.default
+    return out
+
+
+def check_choice(argument: str, value: str, allowed) -> str:
+    allowed = sorted(allowed)
+    if value not in allowed:
+        raise InputError(f"unknown {argument} '{value}'; valid {argument}s: {', '.join(allowed)}")
+    return value
+
+
+def check_time_span(t0: float, t_final: float) -> None:
+    if not math.isfinite(t_final) or not t_final > t0:
+        raise InputError(f"t_final={t_final!r} is not valid: must be finite and > t0={t0}")
+
+
+def check_state(name: str, u) -> None:
+    import numpy as np
+
+    u = np.asarray(u, dtype=float)
+    if u.ndim != 1 or u.size == 0:
+        raise InputError(f"{name} must be a non-empty 1-D array, got shape {u.shape}")
+    if not np.all(np.isfinite(u)):
+        bad = np.flatnonzero(~np.isfinite(u))
+        raise InputError(f"{name} is not finite at components {bad.tolist()}")

@@ -1,0 +1,128 @@
+"""The problem contract.
+
+A problem models only what its scene needs and says so by what it provides. Every
+capability is an attribute that is ``None`` on this base class; a subclass provides it by
+defining it. ``Problem.capabilities`` reads them off, and a scheme's ``requires`` is
+matched against that set.
+
+Compiled functions (numba ``njit``) take the state and a float64 ``params`` array and
+write into ``out``; they never allocate. They are attached as ``staticmethod``s so that
+schemes can close compiled loops over them.
+
+    rhs(t, u, params, out)              u' = f(t, u)                    (required)
+    grad_T(p, params, out)              dT/dp       } separable H = T(p) + V(q),
+    grad_V(q, params, out)              dV/dq       } u = (q, p), q = u[:n], p = u[n:]
+    jac(t, u, params, out)              df/du, out of shape (dim, dim)   ("jacobian")
+
+Python-level capabilities (vectorised over samples; ``U`` has shape (n, dim)):
+
+    invariants(t, U) -> {name: (n,) or (n, k) array}     conserved quantities
+    violations(t, U) -> {name: (n,) array}              non-negative residuals (constraints)
+    exact(t) -> U                                       exact solution at the times t
+    heyoka_system() -> (vars, rhs expressions)          for the heyoka reference
+    taylor, constraints, linear_part, nonlinear         see the series, constrained and
+                                                        exponential schemes
+"""
+from __future__ import annotations
+
+import json
+from abc import ABC, abstractmethod
+from typing import Any, Callable, ClassVar
+
+import numpy as np
+
+from .params import Param, check_state, resolve
+
+# capability name -> attribute(s) that provide it
+CAPABILITIES: dict[str, tuple[str, ...]] = {
+    "separable": ("grad_T", "grad_V"),
+    "jacobian": ("jac",),
+    "exact": ("exact",),
+    "heyoka": ("heyoka_system",),
+    "taylor": ("taylor",),
+    "constraints": ("constraints",),
+    "linear_part": ("linear_part", "nonlinear"),
+}
+
+
+class Problem(ABC):
+    name: ClassVar[str] = ""  # the registry sets it from the entry point when empty
+    summary: ClassVar[str] = ""
+    parameters: ClassVar[dict[str, Param]] = {}
+    t0: ClassVar[float] = 0.0
+    default_t_final: ClassVar[float] = 10.0
+    default_dt: ClassVar[float] = 0.01
+    # the default matrix sweep: time steps and final time
+    sweep_dt: ClassVar[tuple[float, ...]] = ()
+    sweep_t_final: ClassVar[float | None] = None
+    autonomous: ClassVar[bool] = True
+    # |u|_inf above blowup_factor * max(1, |u0|_inf) is a divergence
+    blowup_factor: ClassVar[float] = 1e10
+
+    rhs: ClassVar[Callable | None] = None
+    grad_T: ClassVar[Callable | None] = None
+    grad_V: ClassVar[Callable | None] = None
+    jac: ClassVar[Callable | None] = None
+    exact: ClassVar[Callable | None] = None
+    heyoka_system: ClassVar[Callable | None] = None
+    taylor: ClassVar[Callable | None] = None
+    constraints: ClassVar[Any] = None
+    linear_part: ClassVar[Any] = None
+    nonlinear: ClassVar[Any] = None
+
+    def __init__(self, **settings: Any) -> None:
+        self.settings = resolve(self.parameters, settings, owner=f"problem '{self.name}'")
+        self.setup()
+        u0 = np.array(self.initial_state(), dtype=np.float64)
+        check_state(f"initial state of problem '{self.name}'", u0)
+        self.u0 = u0
+        self.params = np.ascontiguousarray(self.kernel_params(), dtype=np.float64)
+
+    def setup(self) -> None:
+        """Derive whatever the settings imply (called before ``initial_state``)."""
+
+    @abstractmethod
+    def initial_state(self) -> np.ndarray: ...
+
+    def kernel_params(self) -> np.ndarray:
+        """Constants passed to the compiled functions as a float64 array."""
+        return np.zeros(1)
+
+    def invariants(self, t: np.ndarray, U: np.ndarray) -> dict[str, np.ndarray]:
+        """Conserved quantities at the samples: {name: (n,) or (n, k)}."""
+        return {}
+
+    def violations(self, t: np.ndarray, U: np.ndarray) -> dict[str, np.ndarray]:
+        """Residuals that should stay zero (constraints): {name: (n,)}."""
+        return {}
+
+    @property
+    def dim(self) -> int:
+        return int(self.u0.size)
+
+    @property
+    def blowup(self) -> float:
+        return self.blowup_factor * max(1.0, float(np.max(np.abs(self.u0))))
+
+    @classmethod
+    def capabilities(cls) -> frozenset[str]:
+        caps = {"rhs"}
+        for cap, attrs in CAPABILITIES.items():
+            if all(getattr(cls, a, None) is not None for a in attrs):
+                caps.add(cap)
+        if cls.invariants is not Problem.invariants:
+            caps.add("invariants")
+        if cls.autonomous:
+            caps.add("autonomous")
+        return frozenset(caps)
+
+    def kernel_key(self) -> Any:
+        """Compiled kernels are shared between instances with equal keys."""
+        return type(self)
+
+    def identity(self) -> str:
+        """Canonical text of what defines the trajectory (for caches)."""
+        return json.dumps({"problem": self.name, "settings": self.settings}, sort_keys=True)
+
+    def describe(self) -> str:
+        return f"{self.name}({', '.join(f'{k}={v}' for k, v in self.settings.items())})"

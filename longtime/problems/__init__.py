@@ -1,0 +1,1 @@
+"""Built-in problems. Each registers through the ``longtime.problems`` entry point group."""

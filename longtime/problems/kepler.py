@@ -1,0 +1,91 @@
+"""Kepler two-body problem in relative coordinates, H = |p|^2/2 - 1/|q| (mu = 1, a = 1).
+
+Starts at pericentre (1 - e, 0) with p = (0, sqrt((1+e)/(1-e))): period 2 pi. Invariants:
+H, angular momentum L and the Runge-Lenz vector A. Exact solution via Kepler's equation.
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from ..params import Param
+from ..problem import Problem
+
+
+@numba.njit(cache=True)
+def _grad_V(q, params, out):
+    r2 = q[0] * q[0] + q[1] * q[1]
+    inv_r3 = 1.0 / (r2 * math.sqrt(r2))
+    out[0] = q[0] * inv_r3
+    out[1] = q[1] * inv_r3
+
+
+@numba.njit(cache=True)
+def _grad_T(p, params, out):
+    out[0] = p[0]
+    out[1] = p[1]
+
+
+@numba.njit(cache=True)
+def _rhs(t, u, params, out):
+    _grad_T(u[2:], params, out[:2])
+    _grad_V(u[:2], params, out[2:])
+    out[2] = -out[2]
+    out[3] = -out[3]
+
+
+def solve_kepler(M: np.ndarray, e: float) -> np.ndarray:
+    """Eccentric anomaly E with E - e sin E = M, by Newton's method to round-off."""
+    M = np.remainder(M, 2 * np.pi)
+    E = np.where(e > 0.8, np.pi, M)
+    for _ in range(50):
+        step = (E - e * np.sin(E) - M) / (1 - e * np.cos(E))
+        E = E - step
+        if np.max(np.abs(step)) < 1e-15:
+            break
+    return E
+
+
+class Kepler(Problem):
+    name = "kepler"
+    summary = "Kepler orbit of eccentricity e (e = 0.9 is the hard case), exact solution"
+    parameters = {"e": Param(0.6, "eccentricity, 0 <= e < 1", float, minimum=0.0, maximum=0.99)}
+    default_t_final = 20 * np.pi
+    default_dt = 0.01
+    sweep_dt = (0.02, 0.01, 0.005)
+    sweep_t_final = 40 * np.pi
+
+    rhs = staticmethod(_rhs)
+    grad_T = staticmethod(_grad_T)
+    grad_V = staticmethod(_grad_V)
+
+    def initial_state(self):
+        e = self.settings["e"]
+        return [1 - e, 0.0, 0.0, math.sqrt((1 + e) / (1 - e))]
+
+    def invariants(self, t, U):
+        x, y, px, py = U.T
+        r = np.hypot(x, y)
+        L = x * py - y * px
+        return {
+            "H": 0.5 * (px**2 + py**2) - 1 / r,
+            "L": L,
+            "A": np.stack([py * L - x / r, -px * L - y / r], axis=1),
+        }
+
+    def exact(self, t):
+        e = self.settings["e"]
+        E = solve_kepler(np.asarray(t, dtype=float) - self.t0, e)
+        c, s = np.cos(E), np.sin(E)
+        w = math.sqrt(1 - e * e)
+        den = 1 - e * c
+        return np.stack([c - e, w * s, -s / den, w * c / den], axis=1)
+
+    def heyoka_system(self):
+        import heyoka as hy
+
+        x, y, px, py = hy.make_vars("x", "y", "px", "py")
+        r3 = (x * x + y * y) ** 1.5
+        return [x, y, px, py], [px, py, -x / r3, -y / r3]

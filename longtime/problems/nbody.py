@@ -1,0 +1,154 @@
+"""Gravitational N-body problems, H = sum |p_k|^2/(2 m_k) - sum_{k<l} G m_k m_l / |q_k - q_l|.
+
+State u = (q_1..q_N, p_1..p_N), each q_k, p_k in R^s (s = 2 or 3). The compiled functions
+read s, G and the masses from ``params = (s, G, m_1..m_N)``.
+Invariants: H, the angular momentum L (a scalar in the plane, a vector in space) and the
+linear momentum P.
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from ..params import Param
+from ..problem import Problem
+
+
+@numba.njit(cache=True)
+def _grad_V(q, params, out):
+    s = int(params[0])
+    G = params[1]
+    n = q.size // s
+    for i in range(q.size):
+        out[i] = 0.0
+    for k in range(n):
+        for l in range(k + 1, n):
+            r2 = 0.0
+            for c in range(s):
+                dx = q[k * s + c] - q[l * s + c]
+                r2 += dx * dx
+            f = G * params[2 + k] * params[2 + l] / (r2 * math.sqrt(r2))
+            for c in range(s):
+                dx = q[k * s + c] - q[l * s + c]
+                out[k * s + c] += f * dx
+                out[l * s + c] -= f * dx
+
+
+@numba.njit(cache=True)
+def _grad_T(p, params, out):
+    s = int(params[0])
+    for i in range(p.size):
+        out[i] = p[i] / params[2 + i // s]
+
+
+@numba.njit(cache=True)
+def _rhs(t, u, params, out):
+    h = u.size // 2
+    _grad_T(u[h:], params, out[:h])
+    _grad_V(u[:h], params, out[h:])
+    for i in range(h, 2 * h):
+        out[i] = -out[i]
+
+
+class NBody(Problem):
+    """Base of the gravitational problems: subclasses give masses, s, G and the state."""
+
+    space_dim: int = 2
+    G: float = 1.0
+
+    rhs = staticmethod(_rhs)
+    grad_T = staticmethod(_grad_T)
+    grad_V = staticmethod(_grad_V)
+
+    def masses(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def kernel_params(self):
+        return np.r_[self.space_dim, self.G, self.masses()]
+
+    def _split(self, U):
+        m = self.masses()
+        n, s = m.size, self.space_dim
+        q = U[:, : n * s].reshape(-1, n, s)
+        p = U[:, n * s :].reshape(-1, n, s)
+        return m, q, p
+
+    def invariants(self, t, U):
+        m, q, p = self._split(U)
+        kinetic = np.sum(np.sum(p**2, axis=2) / (2 * m), axis=1)
+        potential = np.zeros(U.shape[0])
+        for k in range(m.size):
+            for l in range(k + 1, m.size):
+                potential -= self.G * m[k] * m[l] / np.linalg.norm(q[:, k] - q[:, l], axis=1)
+        if self.space_dim == 2:
+            L = np.sum(q[:, :, 0] * p[:, :, 1] - q[:, :, 1] * p[:, :, 0], axis=1)
+        else:
+            L = np.sum(np.cross(q, p), axis=1)
+        return {"H": kinetic + potential, "L": L, "P": np.sum(p, axis=1)}
+
+    def heyoka_system(self):
+        import heyoka as hy
+
+        m = self.masses()
+        n, s = m.size, self.space_dim
+        q = hy.make_vars(*[f"q{k}_{c}" for k in range(n) for c in range(s)])
+        p = hy.make_vars(*[f"p{k}_{c}" for k in range(n) for c in range(s)])
+        dq = [p[i] / float(m[i // s]) for i in range(n * s)]
+        dp = [0.0 * q[0] for _ in range(n * s)]
+        for k in range(n):
+            for l in range(k + 1, n):
+                d = [q[k * s + c] - q[l * s + c] for c in range(s)]
+                r3 = hy.sum([x * x for x in d]) ** 1.5
+                f = self.G * float(m[k] * m[l])
+                for c in range(s):
+                    dp[k * s + c] = dp[k * s + c] - f * d[c] / r3
+                    dp[l * s + c] = dp[l * s + c] + f * d[c] / r3
+        return list(q) + list(p), dq + dp
+
+
+# Chenciner-Montgomery figure-eight (Simo's digits), m = 1, G = 1
+_Q1 = np.array([0.97000436, -0.24308753])
+_V3 = np.array([-0.93240737, -0.86473146])
+FIGURE_EIGHT_PERIOD = 6.32591398
+
+
+def figure_eight_state() -> np.ndarray:
+    q = np.r_[_Q1, -_Q1, 0.0, 0.0]
+    v = np.r_[-_V3 / 2, -_V3 / 2, _V3]
+    return np.r_[q, v]
+
+
+class FigureEight(NBody):
+    name = "figure-eight"
+    summary = "three-body figure-eight choreography (planar, m = G = 1)"
+    period = FIGURE_EIGHT_PERIOD
+    default_t_final = 2200 * FIGURE_EIGHT_PERIOD
+    default_dt = 0.002 * FIGURE_EIGHT_PERIOD  # SPEC 1.2: the paper prints 0.02 T
+    sweep_dt = (0.004 * FIGURE_EIGHT_PERIOD, 0.002 * FIGURE_EIGHT_PERIOD)
+    sweep_t_final = 20 * FIGURE_EIGHT_PERIOD
+
+    def masses(self):
+        return np.ones(3)
+
+    def initial_state(self):
+        return figure_eight_state()
+
+
+class FigureEightPerturbed(FigureEight):
+    """Body 3 takes the state it has at t = T/shift on the exact figure-eight; chaotic."""
+
+    name = "figure-eight-perturbed"
+    summary = "figure-eight with the middle body shifted along its orbit (chaotic, hard)"
+    parameters = {"shift": Param(80.0, "body 3 moved to t = T/shift on the orbit", float, positive=True)}
+    default_t_final = 200 * FIGURE_EIGHT_PERIOD
+    sweep_t_final = 20 * FIGURE_EIGHT_PERIOD
+
+    def initial_state(self):
+        from ..reference import reference_states
+
+        u = figure_eight_state()
+        shifted = reference_states(FigureEight(), np.array([0.0, self.period / self.settings["shift"]]))[-1]
+        u[4:6], u[10:12] = shifted[4:6], shifted[10:12]
+        return u

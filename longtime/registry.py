@@ -1,0 +1,96 @@
+"""Discovery of problems and schemes through entry points.
+
+Groups ``longtime.problems`` and ``longtime.integrators``. A plugin that fails to import
+(or is not a Problem / Integrator subclass) is recorded with its error in ``broken()``;
+the others go on.
+"""
+from __future__ import annotations
+
+import traceback
+from dataclasses import dataclass
+from importlib.metadata import entry_points
+
+from .integrator import Integrator
+from .params import check_choice
+from .problem import Problem
+
+GROUPS = {"problems": ("longtime.problems", Problem), "integrators": ("longtime.integrators", Integrator)}
+
+
+@dataclass(frozen=True)
+class BrokenPlugin:
+    group: str
+    name: str
+    target: str
+    error: str
+
+
+_loaded: dict[str, dict[str, type]] | None = None
+_broken: list[BrokenPlugin] = []
+
+
+def _load() -> dict[str, dict[str, type]]:
+    global _loaded
+    if _loaded is not None:
+        return _loaded
+    loaded: dict[str, dict[str, type]] = {}
+    _broken.clear()
+    for kind, (group, base) in GROUPS.items():
+        found: dict[str, type] = {}
+        for ep in sorted(entry_points(group=group), key=lambda e: e.name):
+            try:
+                cls = ep.load()
+                if not (isinstance(cls, type) and issubclass(cls, base)):
+                    raise TypeError(f"{ep.value} is not a subclass of {base.__module__}.{base.__name__}")
+                if not cls.name:
+                    cls.name = ep.name
+                elif cls.name != ep.name:
+                    raise TypeError(f"{ep.value} is named '{cls.name}' but registered as '{ep.name}'")
+                found[ep.name] = cls
+            except Exception as exc:  # a broken plugin must not take the suite down
+                last = traceback.format_exception_only(type(exc), exc)[-1].strip()
+                _broken.append(BrokenPlugin(group, ep.name, ep.value, last))
+        loaded[kind] = found
+    _loaded = loaded
+    return loaded
+
+
+def reload() -> None:
+    global _loaded
+    _loaded = None
+    _load()
+
+
+def problems() -> dict[str, type[Problem]]:
+    return dict(_load()["problems"])
+
+
+def integrators() -> dict[str, type[Integrator]]:
+    return dict(_load()["integrators"])
+
+
+def broken() -> list[BrokenPlugin]:
+    _load()
+    return list(_broken)
+
+
+def problem_class(name: str) -> type[Problem]:
+    found = problems()
+    _check_known("problem", name, found)
+    return found[name]
+
+
+def integrator_class(name: str) -> type[Integrator]:
+    found = integrators()
+    _check_known("integrator", name, found)
+    return found[name]
+
+
+def _check_known(kind: str, name: str, found: dict) -> None:
+    if name not in found:
+        bad = [b for b in broken() if b.name == name]
+        if bad:
+            from .params import InputError
+
+            raise InputError(f"{kind} '{name}' is a broken plugin: {bad[0].error}")
+        check_choice(kind, name, found)
