@@ -13,6 +13,10 @@ schemes can close compiled loops over them.
     grad_T(p, params, out)              dT/dp       } separable H = T(p) + V(q),
     grad_V(q, params, out)              dV/dq       } u = (q, p), q = u[:n], p = u[n:]
     jac(t, u, params, out)              df/du, out of shape (dim, dim)   ("jacobian")
+    taylor(t0, u, params, coeffs, work) ("taylor") normalised Taylor coefficients of the
+                                        solution through (t0, u): coeffs[k] = u^(k)(t0)/k!
+                                        for k = 0..N, N = coeffs.shape[0] - 1 (row 0 = u);
+                                        work: scratch of shape taylor_work_shape(N)
 
 Python-level capabilities (vectorised over samples; ``U`` has shape (n, dim)):
 
@@ -20,7 +24,7 @@ Python-level capabilities (vectorised over samples; ``U`` has shape (n, dim)):
     violations(t, U) -> {name: (n,) array}              non-negative residuals (constraints)
     exact(t) -> U                                       exact solution at the times t
     heyoka_system() -> (vars, rhs expressions)          for the heyoka reference
-    taylor, constraints, linear_part, nonlinear         see the series, constrained and
+    constraints, linear_part, nonlinear                 see the constrained and
                                                         exponential schemes
 """
 from __future__ import annotations
@@ -87,6 +91,10 @@ class Problem(ABC):
     def kernel_params(self) -> np.ndarray:
         """Constants passed to the compiled functions as a float64 array."""
         return np.zeros(1)
+
+    def taylor_work_shape(self, order: int) -> tuple[int, ...]:
+        """Scratch array shape for ``taylor`` at series order N (auxiliary series)."""
+        return (1, self.dim)
 
     def invariants(self, t: np.ndarray, U: np.ndarray) -> dict[str, np.ndarray]:
         """Conserved quantities at the samples: {name: (n,) or (n, k)}."""
