@@ -20,6 +20,16 @@ def _grad_T(p, params, out):
 
 
 @numba.njit(cache=True)
+def _taylor(t0, u, params, coeffs, work):
+    # q' = p, p' = -omega^2 q: linear, no auxiliary series
+    w2 = params[0] * params[0]
+    coeffs[0, 0], coeffs[0, 1] = u[0], u[1]
+    for k in range(coeffs.shape[0] - 1):
+        coeffs[k + 1, 0] = coeffs[k, 1] / (k + 1)
+        coeffs[k + 1, 1] = -w2 * coeffs[k, 0] / (k + 1)
+
+
+@numba.njit(cache=True)
 def _grad_V(q, params, out):
     out[0] = params[0] * params[0] * q[0]
 
@@ -40,6 +50,7 @@ class Harmonic(Problem):
     rhs = staticmethod(_rhs)
     grad_T = staticmethod(_grad_T)
     grad_V = staticmethod(_grad_V)
+    taylor = staticmethod(_taylor)
 
     def initial_state(self):
         return [self.settings["q0"], self.settings["p0"]]

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..params import Param
 from ..problem import Problem
+from ..series import exp_coeff
 
 
 @numba.njit(cache=True)
@@ -41,6 +42,22 @@ def _rhs(t, u, params, out):
         out[k] = -out[k]
 
 
+@numba.njit(cache=True)
+def _taylor(t0, u, params, coeffs, work):
+    # q_k' = p_k, p_k' = e_{k-1} - e_k with e_k = exp(q_k - q_{k+1}): work[k] holds the
+    # series of q_k - q_{k+1}, work[d + k] that of its exponential
+    d = u.size // 2
+    for i in range(2 * d):
+        coeffs[0, i] = u[i]
+    for n in range(coeffs.shape[0] - 1):
+        for k in range(d):
+            work[k, n] = coeffs[n, k] - coeffs[n, (k + 1) % d]
+            work[d + k, n] = exp_coeff(work[k], work[d + k], n)
+        for k in range(d):
+            coeffs[n + 1, k] = coeffs[n, d + k] / (n + 1)
+            coeffs[n + 1, d + k] = (work[d + (k - 1) % d, n] - work[d + k, n]) / (n + 1)
+
+
 class Toda(Problem):
     name = "toda"
     summary = "periodic Toda lattice (integrable; H and Lax eigenvalues conserved)"
@@ -53,6 +70,10 @@ class Toda(Problem):
     rhs = staticmethod(_rhs)
     grad_T = staticmethod(_grad_T)
     grad_V = staticmethod(_grad_V)
+    taylor = staticmethod(_taylor)
+
+    def taylor_work_shape(self, order):
+        return (2 * self.settings["d"], order + 1)
 
     def initial_state(self):
         d = self.settings["d"]

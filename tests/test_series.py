@@ -1,0 +1,90 @@
+"""Series recurrences against heyoka's own Taylor coefficients, and the series building blocks."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from longtime import registry, series
+
+ORDER = 20  # heyoka's order at machine-epsilon tolerance
+
+
+def heyoka_coefficients(problem, system=None, t0=None):
+    """heyoka's normalised Taylor coefficients (order+1, dim) at the problem's initial point."""
+    import heyoka as hy
+
+    variables, rhs = system if system is not None else problem.heyoka_system()
+    ta = hy.taylor_adaptive(list(zip(variables, rhs)), problem.u0.copy(), tol=np.finfo(float).eps,
+                            time=problem.t0 if t0 is None else t0, compact_mode=True)
+    assert ta.order == ORDER
+    ta.step(write_tc=True)
+    return ta.tc.T.copy()
+
+
+def our_coefficients(problem, order=ORDER, t0=None):
+    coeffs = np.full((order + 1, problem.dim), np.nan)
+    work = np.full(problem.taylor_work_shape(order), np.nan)  # no reliance on zeroed scratch
+    problem.taylor(problem.t0 if t0 is None else t0, problem.u0.copy(), problem.params, coeffs, work)
+    return coeffs
+
+
+def assert_coefficients_match(ours, theirs, rtol=1e-12):
+    """Order by order, relative to the size of that order's coefficients over the state
+    (a component-wise ratio is meaningless where a coefficient cancels to near zero)."""
+    scale = np.max(np.abs(theirs), axis=1)
+    err = np.max(np.abs(ours - theirs), axis=1)
+    bad = err > rtol * np.maximum(scale, 1e-300)
+    assert not np.any(bad), f"orders {np.flatnonzero(bad).tolist()}: rel. errors {(err / scale)[bad]}"
+
+
+def harmonic_system(omega):
+    import heyoka as hy
+
+    q, p = hy.make_vars("q", "p")
+    return [q, p], [p, -omega * omega * q]
+
+
+def test_harmonic_matches_heyoka():
+    problem = registry.problem_class("harmonic")(omega=1.7, q0=0.3, p0=-1.1)
+    assert_coefficients_match(our_coefficients(problem), heyoka_coefficients(problem, harmonic_system(1.7)))
+
+
+@pytest.mark.parametrize("d", [3, 5])
+def test_toda_matches_heyoka(d):
+    problem = registry.problem_class("toda")(d=d)
+    assert_coefficients_match(our_coefficients(problem), heyoka_coefficients(problem))
+
+
+def test_building_blocks_against_closed_forms():
+    n = 15
+    k = np.arange(n + 1)
+    fact = np.array([math.factorial(i) for i in k], dtype=float)
+    a = np.zeros(n + 1)
+    a[0], a[1] = 2.0, 3.0  # a(s) = 2 + 3 s
+    out = np.zeros(n + 1)
+    for i in range(n + 1):  # exp(2 + 3 s)
+        out[i] = series.exp_coeff(a, out, i)
+    np.testing.assert_allclose(out, np.exp(2.0) * 3.0**k / fact, rtol=1e-14)
+    for i in range(n + 1):  # (2 + 3 s)^(-3/2)
+        out[i] = series.power_coeff(a, out, -1.5, i)
+    binom = np.array([math.prod(-1.5 - j for j in range(i)) / math.factorial(i) for i in k])
+    np.testing.assert_allclose(out, 2.0**-1.5 * binom * 1.5**k, rtol=1e-13)
+    for i in range(n + 1):  # sqrt(2 + 3 s)
+        out[i] = series.sqrt_coeff(a, out, i)
+    binom = np.array([math.prod(0.5 - j for j in range(i)) / math.factorial(i) for i in k])
+    np.testing.assert_allclose(out, 2.0**0.5 * binom * 1.5**k, rtol=1e-13)
+    one = np.zeros(n + 1)
+    one[0] = 1.0
+    for i in range(n + 1):  # 1 / (2 + 3 s)
+        out[i] = series.divide_coeff(one, a, out, i)
+    np.testing.assert_allclose(out, 0.5 * (-1.5) ** k, rtol=1e-14)
+    sq = np.array([series.square(out, i) for i in range(n + 1)])
+    pr = np.array([series.product(out, out, i) for i in range(n + 1)])
+    np.testing.assert_allclose(sq, pr, rtol=1e-14)
+    np.testing.assert_allclose(pr, 0.25 * (k + 1) * (-1.5) ** k, rtol=1e-13)
+    t0, w = 0.7, 1.2
+    cw = np.array([series.cos_wt_coeff(math.cos(w * t0), math.sin(w * t0), w**i / fact[i], i) for i in k])
+    s = 0.05
+    assert abs(np.polyval(cw[::-1], s) - math.cos(w * (t0 + s))) < 1e-15
