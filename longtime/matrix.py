@@ -14,7 +14,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Callable, Iterator
 
-from .cells import DEFAULT_MAX_SAMPLES, Cell, run_cell
+from .cells import DEFAULT_MAX_SAMPLES, Cell, base_row, run_cell
 from .params import InputError, check_choice
 from .store import Store
 
@@ -38,9 +38,16 @@ def serial(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict
         yield cell, run_cell(cell, options.max_samples)
 
 
-def _order_for_reuse(cells: list[Cell]) -> list[Cell]:
-    """Cells of one pair next to each other, so a worker reuses its compiled kernel."""
-    return sorted(cells, key=lambda c: (c.problem, c.integrator))
+def batches_by_pair(cells: list[Cell]) -> list[list[Cell]]:
+    """Cells of one problem x scheme pair together: one worker compiles each kernel once."""
+    groups: dict[tuple[str, str], list[Cell]] = {}
+    for c in cells:
+        groups.setdefault((c.problem, c.integrator), []).append(c)
+    return list(groups.values())
+
+
+def run_batch(cells: list[Cell], max_samples: int) -> list[dict]:
+    return [run_cell(c, max_samples) for c in cells]
 
 
 def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
@@ -58,25 +65,92 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
         return
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
     try:
-        futures = {pool.submit(run_cell, c, options.max_samples): c for c in _order_for_reuse(runnable)}
+        futures = {pool.submit(run_batch, batch, options.max_samples): batch
+                   for batch in batches_by_pair(runnable)}
         pending = set(futures)
         while pending:
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             for fut in done:
-                cell = futures[fut]
+                batch = futures[fut]
                 try:
-                    row = fut.result()
+                    rows = fut.result()
                 except Exception as exc:  # the worker died (segfault, out of memory)
-                    from .cells import base_row
-
-                    row = base_row(cell)
-                    row.update(status="failed", message=f"worker process failed: {exc!r}")
-                yield cell, row
+                    rows = [{**base_row(c), "status": "failed", "message": f"worker process failed: {exc!r}"}
+                            for c in batch]
+                yield from zip(batch, rows)
     finally:
         pool.shutdown(wait=False, cancel_futures=True)
 
 
-EXECUTORS: dict[str, Executor] = {"serial": serial, "process": process_pool}
+def isolated(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
+    """Each cell in a fresh child process, killed past ``cell_timeout`` (a ``timeout`` row);
+    a child that dies (os._exit, segfault) gives a ``failed`` row. See longtime.isolation."""
+    from .isolation import run_isolated
+
+    yield from run_isolated(cells, options.max_samples, options.cell_timeout, options.workers())
+
+
+def dask_cluster(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
+    """Cells as tasks on a Dask cluster: ``scheduler`` is its address (without one, a local
+    cluster of ``jobs`` single-threaded worker processes). Workers need longtime and the
+    plugins installed. With ``cell_timeout`` each task runs its cell in a child process of
+    the worker (longtime.isolation), so a hung cell cannot hold a worker."""
+    try:
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        raise InputError("executor 'dask' needs dask.distributed: pip install 'longtime[dask]'") from None
+    from .isolation import run_cell_isolated
+
+    for cell in cells:
+        if cell.skip_reason:
+            yield cell, run_cell(cell)
+    runnable = _order_for_reuse([c for c in cells if not c.skip_reason])
+    if not runnable:
+        return
+    cluster = None
+    if options.scheduler:
+        client = Client(options.scheduler)
+    else:
+        cluster = LocalCluster(n_workers=min(options.workers(), len(runnable)), threads_per_worker=1,
+                               dashboard_address=None)
+        client = Client(cluster)
+    try:
+        if options.cell_timeout:
+            futures = {client.submit(run_cell_isolated, c, options.max_samples, options.cell_timeout,
+                                     pure=False): c for c in runnable}
+        else:
+            futures = {client.submit(run_cell, c, options.max_samples, pure=False): c for c in runnable}
+        for fut in as_completed(futures):
+            cell = futures[fut]
+            try:
+                row = fut.result()
+            except Exception as exc:  # the worker died or the task could not run there
+                from .cells import base_row
+
+                row = base_row(cell)
+                row.update(status="failed", message=f"dask task failed: {exc!r}")
+            yield cell, row
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _with_limits(default: Executor) -> Executor:
+    """``default`` unless a time limit is set: a pool worker or this process cannot stop a
+    hung cell, so the cells then run isolated (one process each)."""
+
+    def run(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
+        if options.cell_timeout:
+            return isolated(cells, options)
+        return default(cells, options)
+
+    run.__doc__ = default.__doc__
+    return run
+
+
+EXECUTORS: dict[str, Executor] = {"serial": _with_limits(serial), "process": _with_limits(process_pool),
+                                  "isolated": isolated, "dask": dask_cluster}
 
 
 def get_executor(name: str) -> Executor:

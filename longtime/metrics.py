@@ -76,6 +76,13 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None) -
         "t_reached": float(t[-1]),
         "samples": int(t.size),
     }
+    # a diverged run ends on a non-finite state: measure the finite part (until the blow-up)
+    finite = int(np.argmin(np.isfinite(U).all(axis=1))) if not np.isfinite(U).all() else t.size
+    t, U = t[:finite], U[:finite]
+    if reference is not None:
+        reference = reference[:finite]
+    if finite == 0:
+        return row
     with np.errstate(all="ignore"):
         for name, values in problem.invariants(t, U).items():
             row.update(drift_fields(name, t, relative_error(values)))
