@@ -12,6 +12,7 @@ import numpy as np
 
 from ..params import Param
 from ..problem import Problem
+from ..series import power_coeff, product, square
 
 
 @numba.njit(cache=True)
@@ -34,6 +35,20 @@ def _rhs(t, u, params, out):
     _grad_V(u[:2], params, out[2:])
     out[2] = -out[2]
     out[3] = -out[3]
+
+
+@numba.njit(cache=True)
+def _taylor(t0, u, params, coeffs, work):
+    # x'' = -x r^-3: work[0] is the series of r^2 = x^2 + y^2, work[1] that of r^-3 = (r^2)^(-3/2)
+    for i in range(4):
+        coeffs[0, i] = u[i]
+    for n in range(coeffs.shape[0] - 1):
+        work[0, n] = square(coeffs[:, 0], n) + square(coeffs[:, 1], n)
+        work[1, n] = power_coeff(work[0], work[1], -1.5, n)
+        coeffs[n + 1, 0] = coeffs[n, 2] / (n + 1)
+        coeffs[n + 1, 1] = coeffs[n, 3] / (n + 1)
+        coeffs[n + 1, 2] = -product(coeffs[:, 0], work[1], n) / (n + 1)
+        coeffs[n + 1, 3] = -product(coeffs[:, 1], work[1], n) / (n + 1)
 
 
 def solve_kepler(M: np.ndarray, e: float) -> np.ndarray:
@@ -60,6 +75,10 @@ class Kepler(Problem):
     rhs = staticmethod(_rhs)
     grad_T = staticmethod(_grad_T)
     grad_V = staticmethod(_grad_V)
+    taylor = staticmethod(_taylor)
+
+    def taylor_work_shape(self, order):
+        return (2, order + 1)
 
     def initial_state(self):
         e = self.settings["e"]

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..params import Param
 from ..problem import Problem
+from ..series import power_coeff, product, square
 
 
 @numba.njit(cache=True)
@@ -52,6 +53,39 @@ def _rhs(t, u, params, out):
         out[i] = -out[i]
 
 
+@numba.njit(cache=True)
+def _taylor(t0, u, params, coeffs, work):
+    # for each pair k < l, rows of work hold the series of q_k - q_l (s rows), of
+    # r_kl^2 and of r_kl^-3 = (r_kl^2)^(-3/2); p_k' = -sum_l G m_k m_l (q_k - q_l) r_kl^-3
+    s = int(params[0])
+    G = params[1]
+    h = u.size // 2
+    nb = h // s
+    for i in range(u.size):
+        coeffs[0, i] = u[i]
+    for n in range(coeffs.shape[0] - 1):
+        for i in range(h, 2 * h):
+            coeffs[n + 1, i] = 0.0
+        row = 0
+        for k in range(nb):
+            for l in range(k + 1, nb):
+                r2 = 0.0
+                for c in range(s):
+                    work[row + c, n] = coeffs[n, k * s + c] - coeffs[n, l * s + c]
+                    r2 += square(work[row + c], n)
+                work[row + s, n] = r2
+                work[row + s + 1, n] = power_coeff(work[row + s], work[row + s + 1], -1.5, n)
+                f = G * params[2 + k] * params[2 + l]
+                for c in range(s):
+                    g = f * product(work[row + c], work[row + s + 1], n)
+                    coeffs[n + 1, h + k * s + c] -= g
+                    coeffs[n + 1, h + l * s + c] += g
+                row += s + 2
+        for i in range(h):
+            coeffs[n + 1, i] = coeffs[n, h + i] / (params[2 + i // s] * (n + 1))
+            coeffs[n + 1, h + i] /= n + 1
+
+
 class NBody(Problem):
     """Base of the gravitational problems: subclasses give masses, s, G and the state."""
 
@@ -61,6 +95,11 @@ class NBody(Problem):
     rhs = staticmethod(_rhs)
     grad_T = staticmethod(_grad_T)
     grad_V = staticmethod(_grad_V)
+    taylor = staticmethod(_taylor)
+
+    def taylor_work_shape(self, order):
+        n = self.masses().size
+        return (max(1, n * (n - 1) // 2) * (self.space_dim + 2), order + 1)
 
     def masses(self) -> np.ndarray:
         raise NotImplementedError

@@ -1,0 +1,77 @@
+"""Duffing problems: exact solution, first integrals, parameters; series schemes on them."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from longtime import registry
+from longtime.params import InputError
+from longtime.reference import reference_states
+
+
+def rhs_of(problem, t, U):
+    out = np.empty_like(U)
+    for i in range(U.shape[0]):
+        problem.rhs(t[i], U[i], problem.params, out[i])
+    return out
+
+
+def test_duffing2_exact_solves_the_ode_and_keeps_H():
+    problem = registry.problem_class("duffing-2")()
+    t = np.linspace(0.0, 3000.0, 30001)
+    U = problem.exact(t)
+    np.testing.assert_allclose(U[0], [1.0, 0.0], atol=1e-15)
+    # the exact state's time derivative (central differences) is the ODE's right-hand side
+    ts = t[t <= 30.0]
+    F = rhs_of(problem, ts, U[: ts.size])
+    h = 1e-4
+    dU = (problem.exact(ts + h) - problem.exact(ts - h)) / (2 * h)
+    assert np.max(np.abs(dU - F)) < 1e-7
+    H = problem.invariants(t, U)["H"]
+    assert np.max(np.abs(H - 0.75)) < 5e-14
+
+
+@pytest.mark.parametrize("amplitude", [0.3, 2.5])
+def test_duffing2_exact_other_amplitudes_against_heyoka(amplitude):
+    problem = registry.problem_class("duffing-2")(amplitude=amplitude)
+    t = np.linspace(0.0, 20.0, 41)
+    import heyoka as hy
+
+    variables, rhs = problem.heyoka_system()
+    ta = hy.taylor_adaptive(list(zip(variables, rhs)), problem.u0.copy(), tol=1e-16)
+    ref = ta.propagate_grid(t)[-1]
+    assert np.max(np.abs(problem.exact(t) - ref)) < 1e-11 * max(1.0, amplitude**2)
+
+
+def test_duffing1_first_integral_is_conserved_by_the_reference():
+    problem = registry.problem_class("duffing-1")()
+    t = np.linspace(0.0, 20.0, 201)
+    U = reference_states(problem, t)
+    I = problem.invariants(t, U)["I"]
+    assert abs(I[0] - (1 / 9 + 1 / 2)) < 1e-15
+    assert np.max(np.abs(I / I[0] - 1)) < 1e-10
+    assert np.max(np.abs(U[:, 0])) > 20  # the amplitude does grow (the hard case)
+
+
+def test_duffing_forced_parameter_and_capabilities():
+    cls = registry.problem_class("duffing-forced")
+    assert cls().params[3] == 0.5
+    assert cls(c="0.37").params[3] == 0.37
+    assert cls(c=-2.0).params[3] == -2.0
+    with pytest.raises(InputError, match="c"):
+        cls(c="nan")
+    with pytest.raises(InputError, match="c"):
+        cls(c="abc")
+    caps = cls.capabilities()
+    assert "autonomous" not in caps and "separable" not in caps and {"taylor", "heyoka"} <= caps
+    assert "separable" in registry.problem_class("duffing-2").capabilities()
+    assert "separable" not in registry.problem_class("duffing-1").capabilities()
+
+
+def test_duffing_forced_rhs_matches_heyoka_reference():
+    """The forcing enters with the right phase: rk4 at a small step against heyoka."""
+    problem = registry.problem_class("duffing-forced")(c=0.37)
+    rk4 = registry.integrator_class("rk4")(dt=1e-3)
+    traj = rk4.integrate(problem, 10.0, max_samples=11)
+    ref = reference_states(problem, traj.t)
+    assert np.max(np.abs(traj.u - ref)) < 1e-9
