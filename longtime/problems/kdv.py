@@ -1,0 +1,344 @@
+"""Korteweg-de Vries, Fourier-Galerkin in space (SPEC.md 1.5).
+
+    u_t + c0 u_x + beta u_xxx + (alpha/2) (u^2)_x = 0,   x periodic of period X = 24 pi,
+
+with modes |m| <= M, d = 2M (d = 128: 2M + 1 = 129 real unknowns), w = 2 pi / X:
+
+    d/dt u_m = i omega_m u_m - (alpha/2) i w m (u^2)_m,   omega_m = -c0 w m + beta w^3 m^3.
+
+State representation: packed, scaled complex Fourier coefficients. With
+u(x) = sum_m uh_m e^{i m w x}, the state holds s_m = sigma_m uh_m for m = 0..M as (Re, Im)
+pairs: u = [Re s_0, Im s_0, Re s_1, Im s_1, ..., Re s_M, Im s_M] (dim = 2M + 2; Im s_0 is
+identically 0 for a real field, so there are 2M + 1 real unknowns as in the SPEC), with
+sigma_0 = sqrt(X), sigma_m = sqrt(2X): the basis is orthonormal in L2(0, X), so the
+Euclidean norm of the state is the L2 norm of u(x), and the harness's relative errors
+(``final_error``) are relative L2 errors in x. In this basis the linear part is diagonal
+(a rotation of each pair), which exponential schemes need, and every other scheme sees an
+ordinary real ODE.
+
+Aliasing of u^2 (parameter ``dealias``): "3/2" (default) evaluates u^2 on a padded grid of
+n >= 3M + 1 points, so the projection of u^2 onto |m| <= M is exact: a true Galerkin
+scheme, which conserves mass, momentum and H. "2/3" is the classical truncation: the
+nonlinear term sees only the modes |m| <= 2M/3 of u and keeps only those of u^2 (alias-free
+too; the top third of the modes then evolves linearly).
+
+FFT inside compiled code: the rhs is called inside the shared compiled loops, and numba
+cannot call scipy.fft (nor numpy.fft). Leaving numba per evaluation (objmode) costs
+microseconds per call, comparable with the whole transform at these sizes (n = 256 for
+d = 128), so the nonlinear term uses a small hand-written iterative radix-2 FFT (the grid is
+padded to a power of two, which the 3/2 rule needs anyway), packing the real signal of
+length n into a complex one of length n/2 (the standard real-FFT trick). Its twiddle
+factors, bit-reversal table and a scratch buffer live in the tail of ``params``: the rhs
+contract has no work array, so the scratch is part of the problem's kernel data (kernels
+are single-threaded; each process has its own copy). Python-level code (invariants, the
+initial state) uses scipy.fft. tests/test_kdv.py checks the compiled transform against it.
+
+Capabilities beyond ``rhs``:
+  ``exact``        the soliton u0(x - c t), c = c0 (1 + h/(2 delta)), projected on the modes
+                   (the reference; the periodic prolongation of the soliton differs from a
+                   true periodic solution by about 3e-7).
+  ``linear_part``  compiled ``linear_part(params, out)``: the diagonal of L in the complex
+                   view of the state (z_k = u[2k] + i u[2k+1]), written as (Re, Im) pairs
+                   into ``out`` (length dim): here (0, omega_k).
+  ``nonlinear``    compiled ``nonlinear(t, u, params, out)``: N(u) with rhs = L u + N(u).
+  ``taylor``       the series recurrence (SPEC 1.5, corrected sign):
+                   u_{k+1} = [i omega u_k - (alpha/2) i w m sum_{j<=k} (u_j u_{k-j})_m] / (k+1),
+                   the products in physical space (one inverse FFT per order, one forward
+                   FFT of the Cauchy sum per order).
+Invariants: ``mass`` (integral of u), ``momentum`` (integral of u^2, the squared L2 norm) and
+``H``, the Hamiltonian integral of (c0 u^2/2 + alpha u^3/6 - beta u_x^2/2), with
+u_t = -d/dx (dH/du).
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+import scipy.fft
+
+from ..params import InputError, Param
+from ..problem import Problem
+
+# constants (SPEC 1.5): depth delta, gravity g, soliton amplitude h, period X
+DEPTH, GRAVITY, AMPLITUDE, PERIOD_X = 2.0, 10.0, 0.5, 24.0 * math.pi
+C0 = math.sqrt(GRAVITY * DEPTH)
+ALPHA = 1.5 * math.sqrt(GRAVITY / DEPTH)
+BETA = DEPTH**2 * C0 / 6.0
+KAPPA = math.sqrt(3.0 * AMPLITUDE / (4.0 * DEPTH**3))
+SPEED = C0 * (1.0 + AMPLITUDE / (2.0 * DEPTH))
+SOLITON_PERIOD = PERIOD_X / SPEED  # T = 14.98627...
+
+# layout of params: scalars, then offsets of the tables (stored as floats)
+(P_C0, P_BETA, P_ALPHA, P_W, P_M, P_N, P_K, P_X,
+ P_COS, P_SIN, P_WC, P_WS, P_REV, P_SCALE, P_SCRATCH) = range(15)
+N_HEADER = 16
+
+
+# ---------------------------------------------------------------- compiled FFT kernels
+
+
+@numba.njit(cache=True)
+def _cfft(re, im, params, inverse):
+    """In-place unnormalised complex DFT of length N2 = re.size (a power of two):
+    X_r = sum_k x_k exp(-+ 2 pi i k r / N2) (minus: forward, plus: inverse)."""
+    n = re.size
+    rev = int(params[P_REV])
+    for i in range(n):
+        j = int(params[rev + i])
+        if j > i:
+            tr, ti = re[i], im[i]
+            re[i], im[i] = re[j], im[j]
+            re[j], im[j] = tr, ti
+    oc, os_ = int(params[P_COS]), int(params[P_SIN])
+    sign = 1.0 if inverse else -1.0
+    size = 2
+    while size <= n:
+        half = size // 2
+        stride = n // size
+        for k in range(half):
+            c = params[oc + k * stride]
+            s = sign * params[os_ + k * stride]
+            for start in range(0, n, size):
+                i1 = start + k
+                i2 = i1 + half
+                tr = c * re[i2] - s * im[i2]
+                ti = c * im[i2] + s * re[i2]
+                re[i2] = re[i1] - tr
+                im[i2] = im[i1] - ti
+                re[i1] += tr
+                im[i1] += ti
+        size *= 2
+
+
+@numba.njit(cache=True)
+def _to_physical(u, params, re, im):
+    """Values of u(x) on the grid x_j = j X / n from the state (modes |m| <= K), packed as
+    re[k] = u(x_{2k}), im[k] = u(x_{2k+1}) (a real signal of length n in n/2 complex)."""
+    n2 = re.size
+    K = int(params[P_K])
+    oc, os_ = int(params[P_WC]), int(params[P_WS])
+    osc = int(params[P_SCALE])
+    for r in range(n2):
+        # A_r, B_r: the modes m = r and m = r - n2 folded onto r (see the module docstring)
+        ar = ai = br = bi = 0.0
+        if r <= K:
+            sc = params[osc + r]
+            xr, xi = u[2 * r] / sc, u[2 * r + 1] / sc
+            ar += xr
+            ai += xi
+            br += xr
+            bi += xi
+        q = n2 - r
+        if r >= 1 and q <= K:
+            sc = params[osc + q]
+            yr, yi = u[2 * q] / sc, -u[2 * q + 1] / sc  # conj(uh_q) is mode -q
+            ar += yr
+            ai += yi
+            br -= yr  # exp(2 pi i (r - n2) / n) = -exp(2 pi i r / n)
+            bi -= yi
+        c, s = params[oc + r], params[os_ + r]
+        br, bi = c * br - s * bi, c * bi + s * br
+        re[r] = ar - bi  # Z_r = A_r + i B_r
+        im[r] = ai + br
+    _cfft(re, im, params, True)
+
+
+@numba.njit(cache=True)
+def _nonlinear_from_physical(re, im, params, out, factor):
+    """out = factor * N for the packed real signal y (the grid values of u^2 or of a
+    Cauchy sum): N_m = sigma_m (-(alpha/2) i w m) (1/n) sum_j y_j e^{-i m w x_j}, |m| <= K;
+    the modes K < m <= M get 0. Destroys re, im."""
+    n2 = re.size
+    n = 2 * n2
+    K, M = int(params[P_K]), int(params[P_M])
+    _cfft(re, im, params, False)
+    oc, os_ = int(params[P_WC]), int(params[P_WS])
+    osc = int(params[P_SCALE])
+    half_alpha_w = 0.5 * params[P_ALPHA] * params[P_W]
+    for m in range(K + 1):
+        q = (n2 - m) % n2
+        # even and odd parts: E = (Z_m + conj Z_q)/2, O = (Z_m - conj Z_q)/(2i)
+        er, ei = 0.5 * (re[m] + re[q]), 0.5 * (im[m] - im[q])
+        orr, oi = 0.5 * (im[m] + im[q]), -0.5 * (re[m] - re[q])
+        c, s = params[oc + m], -params[os_ + m]  # exp(-2 pi i m / n)
+        yr = (er + c * orr - s * oi) / n
+        yi = (ei + c * oi + s * orr) / n
+        g = factor * params[osc + m] * half_alpha_w * m
+        out[2 * m] = g * yi  # -(i g) (yr + i yi)
+        out[2 * m + 1] = -g * yr
+    for m in range(K + 1, M + 1):
+        out[2 * m] = 0.0
+        out[2 * m + 1] = 0.0
+
+
+@numba.njit(cache=True)
+def _nonlinear(t, u, params, out):
+    """N(u) = -(alpha/2) (u^2)_x in the state's basis."""
+    n2 = int(params[P_N]) // 2
+    o = int(params[P_SCRATCH])
+    re, im = params[o:o + n2], params[o + n2:o + 2 * n2]
+    _to_physical(u, params, re, im)
+    for k in range(n2):
+        re[k] *= re[k]
+        im[k] *= im[k]
+    _nonlinear_from_physical(re, im, params, out, 1.0)
+
+
+@numba.njit(cache=True)
+def _linear_part(params, out):
+    """Diagonal of L in the complex view of the state, as (Re, Im) pairs: (0, omega_m)."""
+    c0w, bw3 = params[P_C0] * params[P_W], params[P_BETA] * params[P_W] ** 3
+    for m in range(int(params[P_M]) + 1):
+        out[2 * m] = 0.0
+        out[2 * m + 1] = -c0w * m + bw3 * m * m * m
+
+
+@numba.njit(cache=True)
+def _add_linear(u, params, out, factor):
+    """out += factor * L u, L a rotation of each pair by omega_m."""
+    c0w, bw3 = params[P_C0] * params[P_W], params[P_BETA] * params[P_W] ** 3
+    for m in range(int(params[P_M]) + 1):
+        om = factor * (-c0w * m + bw3 * m * m * m)
+        a, b = u[2 * m], u[2 * m + 1]
+        out[2 * m] -= om * b
+        out[2 * m + 1] += om * a
+
+
+@numba.njit(cache=True)
+def _rhs(t, u, params, out):
+    _nonlinear(t, u, params, out)
+    _add_linear(u, params, out, 1.0)
+
+
+@numba.njit(cache=True)
+def _taylor(t0, u, params, coeffs, work):
+    """Normalised Taylor coefficients: rows 0..N-1 of ``work`` keep the grid values of
+    coefficients 0..N-1, row N the Cauchy sum of order k (SPEC 1.5, corrected sign)."""
+    order = coeffs.shape[0] - 1
+    n2 = int(params[P_N]) // 2
+    coeffs[0, :] = u
+    acc = work[order]
+    for k in range(order):
+        row = work[k]
+        _to_physical(coeffs[k], params, row[:n2], row[n2:2 * n2])
+        # grid values of sum_{j=0..k} u_j u_{k-j}, by symmetry
+        for i in range(2 * n2):
+            s = 0.0
+            for j in range((k + 1) // 2):
+                s += work[j, i] * work[k - j, i]
+            s *= 2.0
+            if k % 2 == 0:
+                s += work[k // 2, i] * work[k // 2, i]
+            acc[i] = s
+        inv = 1.0 / (k + 1)
+        _nonlinear_from_physical(acc[:n2], acc[n2:2 * n2], params, coeffs[k + 1], inv)
+        _add_linear(coeffs[k], params, coeffs[k + 1], inv)
+
+
+# ---------------------------------------------------------------- the problem
+
+
+def _grid_size(modes: int, dealias: str) -> int:
+    """Power-of-two grid on which the kept product modes are alias-free."""
+    cutoff = modes if dealias == "3/2" else (2 * modes) // 3
+    need = max(3 * cutoff + 1, 2 * modes + 1, 8)
+    return 1 << (need - 1).bit_length()
+
+
+class KdV(Problem):
+    name = "kdv"
+    summary = "Korteweg-de Vries soliton, Fourier-Galerkin (stiff), exact solution"
+    parameters = {
+        "d": Param(128, "number of Fourier modes d = 2M (2M + 1 real unknowns), even", int, minimum=4),
+        "dealias": Param("3/2", "aliasing of u^2: 3/2 padding (exact Galerkin) or the 2/3 rule",
+                         str, choices=("3/2", "2/3")),
+    }
+    default_t_final = SOLITON_PERIOD
+    # explicit schemes are stability-limited: |L| is about 452 at d = 128 (RK4 needs dt < 6e-3)
+    default_dt = 1e-3
+    sweep_dt = (2e-3, 1e-3)
+    sweep_t_final = SOLITON_PERIOD
+
+    rhs = staticmethod(_rhs)
+    taylor = staticmethod(_taylor)
+    linear_part = staticmethod(_linear_part)
+    nonlinear = staticmethod(_nonlinear)
+
+    def setup(self):
+        d = self.settings["d"]
+        if d % 2:
+            raise InputError(f"problem 'kdv': d={d} is not valid: must be even (d = 2M modes)")
+        self.modes = d // 2
+        self.grid = _grid_size(self.modes, self.settings["dealias"])
+        self.cutoff = self.modes if self.settings["dealias"] == "3/2" else (2 * self.modes) // 3
+        M = self.modes
+        self.sigma = np.full(M + 1, math.sqrt(2 * PERIOD_X))
+        self.sigma[0] = math.sqrt(PERIOD_X)
+        self.wavenumbers = 2 * np.pi / PERIOD_X * np.arange(M + 1)
+
+    # -- kernel data
+    def kernel_params(self):
+        M, n = self.modes, self.grid
+        n2 = n // 2
+        k = np.arange(n2 // 2)
+        r = np.arange(n2 + 1)
+        bits = n2.bit_length() - 1
+        rev = np.array([int(format(i, f"0{bits}b")[::-1], 2) if bits else 0 for i in range(n2)])
+        tables = [np.cos(2 * np.pi * k / n2), np.sin(2 * np.pi * k / n2),
+                  np.cos(2 * np.pi * r / n), np.sin(2 * np.pi * r / n), rev.astype(float),
+                  self.sigma, np.zeros(n)]
+        header = np.zeros(N_HEADER)
+        header[[P_C0, P_BETA, P_ALPHA, P_W, P_M, P_N, P_K, P_X]] = (
+            C0, BETA, ALPHA, 2 * np.pi / PERIOD_X, M, n, self.cutoff, PERIOD_X)
+        offset = N_HEADER
+        for slot, table in zip((P_COS, P_SIN, P_WC, P_WS, P_REV, P_SCALE, P_SCRATCH), tables):
+            header[slot] = offset
+            offset += table.size
+        return np.concatenate([header, *tables])
+
+    def taylor_work_shape(self, order):
+        return (order + 1, self.grid)
+
+    # -- conversions (Python level, scipy.fft)
+    def to_coefficients(self, U):
+        """Complex Fourier coefficients uh_m, m = 0..M, of states U (n, dim)."""
+        U = np.atleast_2d(U)
+        return (U[:, 0::2] + 1j * U[:, 1::2]) / self.sigma
+
+    def from_coefficients(self, C):
+        C = np.atleast_2d(C) * self.sigma
+        U = np.empty((C.shape[0], 2 * C.shape[1]))
+        U[:, 0::2], U[:, 1::2] = C.real, C.imag
+        return U
+
+    def values(self, U, n_points=None):
+        """u(x_j) at x_j = j X / n_points, for states U (n, dim)."""
+        n_points = n_points or 2 * self.modes + 1
+        C = self.to_coefficients(U)
+        return scipy.fft.irfft(C * n_points, n=n_points, axis=1)
+
+    def soliton_coefficients(self):
+        """Fourier coefficients of the (periodically prolonged) soliton u0, |m| <= M."""
+        n_fine = max(4096, 1 << (8 * self.modes).bit_length())
+        x = PERIOD_X * np.arange(n_fine) / n_fine
+        x = np.where(x >= PERIOD_X / 2, x - PERIOD_X, x)
+        u0 = AMPLITUDE / np.cosh(KAPPA * x) ** 2
+        return scipy.fft.rfft(u0)[: self.modes + 1] / n_fine
+
+    def initial_state(self):
+        return self.from_coefficients(self.soliton_coefficients())[0]
+
+    def exact(self, t):
+        t = np.asarray(t, dtype=float).reshape(-1) - self.t0
+        C = self.soliton_coefficients()[None, :] * np.exp(-1j * np.outer(SPEED * t, self.wavenumbers))
+        return self.from_coefficients(C)
+
+    def invariants(self, t, U):
+        C = self.to_coefficients(U)
+        momentum = np.sum(U**2, axis=1)  # orthonormal basis: the integral of u^2
+        ux2 = np.sum((self.wavenumbers * np.abs(C * self.sigma)) ** 2, axis=1)
+        n3 = 3 * self.modes + 2  # u^3 has modes up to 3M: its mean is exact on this grid
+        cube = PERIOD_X * np.mean(self.values(U, n3) ** 3, axis=1)
+        H = 0.5 * C0 * momentum + ALPHA / 6.0 * cube - 0.5 * BETA * ux2
+        return {"mass": PERIOD_X * C[:, 0].real, "momentum": momentum, "H": H}
