@@ -53,6 +53,25 @@ def _key_value(text: str) -> tuple[str, str]:
     return key.strip(), value.strip()
 
 
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"--cell-timeout takes a finite number of seconds > 0, got {text!r}")
+    return value
+
+
+class _SchedulerAction(argparse.Action):
+    """--scheduler ADDRESS selects the dask executor unless --executor says otherwise."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        setattr(namespace, self.dest, values)
+        if getattr(namespace, "executor", None) is None:
+            namespace.executor = "dask"
+
+
 def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
     p.add_argument("-p", "--problem", type=_names, required=required, metavar="PROBLEM[,..]",
                    help="problem names (see `longtime list`)")
@@ -66,6 +85,11 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
     p.add_argument("--set", type=_key_value, action="append", default=[], metavar="KEY=VALUE",
                    help="any other parameter of a problem or scheme (repeatable)")
     p.add_argument("--executor", choices=sorted(EXECUTORS), help="where cells run")
+    p.add_argument("--scheduler", action=_SchedulerAction, default=None, metavar="ADDRESS",
+                   help="run the cells on this Dask cluster (implies --executor dask)")
+    p.add_argument("--cell-timeout", type=_seconds, default=None, metavar="SECONDS",
+                   help="time limit per cell: each cell runs in its own process and one that "
+                        "passes the limit becomes a 'timeout' row")
     p.add_argument("--jobs", type=int, default=0, help="worker processes (default: one per core)")
     p.add_argument("--max-samples", type=int, default=100_001,
                    help="states kept per run for the metrics (every step below this)")

@@ -104,7 +104,8 @@ def dask_cluster(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
     for cell in cells:
         if cell.skip_reason:
             yield cell, run_cell(cell)
-    runnable = _order_for_reuse([c for c in cells if not c.skip_reason])
+    # cells of one pair submitted together, so a worker tends to reuse its compiled kernel
+    runnable = [c for batch in batches_by_pair(cells) for c in batch if not c.skip_reason]
     if not runnable:
         return
     cluster = None

@@ -1,0 +1,35 @@
+"""The dask executor: a small matrix on a distributed LocalCluster gives the serial rows."""
+from __future__ import annotations
+
+import pytest
+
+from longtime.cells import expand
+from longtime.cli import build_parser
+from longtime.matrix import ExecOptions, run_matrix
+
+distributed = pytest.importorskip("distributed")
+
+# fields that do not depend on timing
+DETERMINISTIC = ("problem", "integrator", "status", "message", "dt", "steps", "rhs_evals", "nl_iters",
+                 "H.max", "H.mean", "L.max", "l2_error", "final_error")
+
+
+def _deterministic(rows):
+    return [{k: r.get(k) for k in DETERMINISTIC} for r in rows]
+
+
+def test_dask_matrix_gives_the_serial_rows(tmp_path):
+    cells = expand(["harmonic", "kepler"], ["rk4", "midpoint"], sweeps={"dt": [0.1, 0.05]}, t_final=3.0)
+    serial = run_matrix(cells, None, None, "serial", ExecOptions())
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
+                                  dashboard_address=None) as cluster:
+        rows = run_matrix(cells, None, None, "dask", ExecOptions(scheduler=cluster.scheduler_address))
+    assert all(r["status"] == "ok" for r in rows)
+    assert _deterministic(rows) == _deterministic(serial)
+
+
+def test_scheduler_flag_selects_the_dask_executor():
+    args = build_parser().parse_args(["matrix", "--scheduler", "tcp://127.0.0.1:8786"])
+    assert args.executor == "dask" and args.scheduler == "tcp://127.0.0.1:8786"
+    args = build_parser().parse_args(["matrix", "--executor", "process", "--scheduler", "tcp://h:1"])
+    assert args.executor == "process"
