@@ -26,6 +26,18 @@ Python-level capabilities (vectorised over samples; ``U`` has shape (n, dim)):
     heyoka_system() -> (vars, rhs expressions)          for the heyoka reference
     constraints, linear_part, nonlinear                 see the constrained and
                                                         exponential schemes
+
+The ``constraints`` capability (holonomic constraints phi(q) = 0, state u = (q, p) with
+n = dim/2 coordinates and p = M v; example: longtime/problems/double_pendulum.py) is an
+object whose compiled functions are
+
+    n_constraints                       m (0 < m < n)
+    phi(q, params, out)                 out[a] = phi_a(q), shape (m,)
+    grad_phi(q, params, out)            out[a, i] = d phi_a/d q_i, shape (m, n): rows of G
+    mass(params, out)                   constant diagonal mass matrix, out[i] = M_ii, (n,)
+    grad_U(q, params, out)              gradient of the potential, shape (n,)
+
+and ``rhs`` stays the index-1 ODE (multipliers from phi'' = 0) for unconstrained schemes.
 """
 from __future__ import annotations
 
