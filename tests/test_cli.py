@@ -1,0 +1,149 @@
+"""Bad input: a clear message naming the argument, exit code 2, and nothing in the store lost."""
+import json
+import sqlite3
+
+import numba
+import numpy as np
+import pytest
+
+from longtime import Problem, registry
+from longtime.cli import main
+from longtime.params import InputError
+
+
+def run_cli(capsys, *argv):
+    code = main(list(argv))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.fixture
+def db(tmp_path, capsys):
+    path = tmp_path / "store.sqlite"
+    code, _, _ = run_cli(capsys, "run", "-p", "harmonic", "-i", "rk4", "--t-final", "10", "--db", str(path))
+    assert code == 0
+    return path
+
+
+def stored_rows(path):
+    with sqlite3.connect(path) as con:
+        return con.execute("SELECT row FROM rows ORDER BY id").fetchall()
+
+
+BAD = [
+    (["-p", "nope", "-i", "rk4"], ["unknown problem 'nope'", "harmonic", "toda"]),
+    (["-p", "toda", "-i", "rk5"], ["unknown integrator 'rk5'", "rk4sym"]),
+    (["-p", "toda", "-i", "rk4", "--dt", "0"], ["dt=0.0", "> 0"]),
+    (["-p", "toda", "-i", "rk4", "--dt", "-0.1"], ["dt=-0.1", "> 0"]),
+    (["-p", "toda", "-i", "rk4", "--dt", "nan"], ["dt=nan", "finite"]),
+    (["-p", "toda", "-i", "rk4", "--t-final", "0"], ["t_final=0.0", "> t0"]),
+    (["-p", "toda", "-i", "rk4", "--t-final", "inf"], ["t_final=inf"]),
+    (["-p", "harmonic", "-i", "rk4", "--set", "q0=nan"], ["q0", "finite"]),
+    (["-p", "toda", "-i", "rk4", "--set", "bogus=1"], ["--set bogus", "valid keys: d"]),
+    (["-p", "toda", "-i", "rk4", "--set", "d=2"], ["d=", ">= 3"]),
+    (["-p", "toda", "-i", "rk4", "--eps-res", "1e-6"], ["--eps-res", "not a parameter"]),
+    (["-p", "toda", "-i", "midpoint", "--set", "max_iter=0"], ["max_iter", "> 0"]),
+]
+
+
+@pytest.mark.parametrize("args, words", BAD, ids=[" ".join(a) for a, _ in BAD])
+def test_bad_input_is_a_clear_error_and_keeps_the_store(capsys, db, args, words):
+    before = stored_rows(db)
+    code, out, err = run_cli(capsys, "run", *args, "--db", str(db))
+    assert code == 2
+    assert out == ""
+    for word in words:
+        assert word in err, err
+    assert stored_rows(db) == before
+
+
+def test_argument_syntax_errors_exit_non_zero(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "-p", "toda", "-i", "rk4", "--dt", "abc"])
+    assert exc.value.code == 2
+    assert "--dt takes comma-separated numbers" in capsys.readouterr().err
+
+
+@numba.njit
+def _rhs_nonseparable(t, u, params, out):
+    out[0] = u[1]
+    out[1] = -u[0] - 0.1 * u[1]
+
+
+class Damped(Problem):
+    name = "test-damped"
+    summary = "damped oscillator with no separable split"
+    rhs = staticmethod(_rhs_nonseparable)
+
+    def initial_state(self):
+        return [1.0, 0.0]
+
+
+class NotFinite(Damped):
+    name = "test-not-finite"
+
+    def initial_state(self):
+        return [np.nan, 0.0]
+
+
+@pytest.fixture
+def extra_problems():
+    found = registry._load()["problems"]
+    found.update({"test-damped": Damped, "test-not-finite": NotFinite})
+    yield
+    found.pop("test-damped")
+    found.pop("test-not-finite")
+
+
+def test_incompatible_pair_asked_for_explicitly(capsys, db, extra_problems):
+    before = stored_rows(db)
+    code, _, err = run_cli(capsys, "run", "-p", "test-damped", "-i", "verlet", "--db", str(db))
+    assert code == 2
+    assert "incompatible pair verlet x test-damped" in err and "separable" in err
+    assert stored_rows(db) == before
+
+
+def test_incompatible_pair_in_a_matrix_is_a_skipped_row(capsys, tmp_path, extra_problems):
+    code, out, _ = run_cli(capsys, "matrix", "-p", "test-damped", "-i", "verlet,rk4", "--executor", "serial",
+                           "--db", str(tmp_path / "m.sqlite"), "--no-progress", "--t-final", "1")
+    assert code == 0
+    rows = {json.loads(r[0])["integrator"]: json.loads(r[0]) for r in stored_rows(tmp_path / "m.sqlite")}
+    assert rows["verlet"]["status"] == "skipped" and "separable" in rows["verlet"]["message"]
+    assert rows["rk4"]["status"] == "ok"
+
+
+def test_non_finite_initial_state(capsys, db, extra_problems):
+    with pytest.raises(InputError, match="initial state of problem 'test-not-finite' is not finite"):
+        NotFinite()
+    code, _, err = run_cli(capsys, "run", "-p", "test-not-finite", "-i", "rk4", "--db", str(db))
+    assert code == 2 and "not finite at components [0]" in err
+
+
+def test_run_formats(capsys):
+    for fmt, check in [("json", lambda s: json.loads(s)[0]["integrator"] == "verlet"),
+                       ("csv", lambda s: s.splitlines()[0].startswith("problem,integrator,status")),
+                       ("table", lambda s: "harmonic: accuracy against cost" in s)]:
+        code, out, _ = run_cli(capsys, "run", "-p", "harmonic", "-i", "verlet", "--t-final", "5",
+                               "--format", fmt, "--no-store")
+        assert code == 0 and check(out), out
+
+
+def test_sweeps_expand_to_one_row_per_point(capsys):
+    code, out, _ = run_cli(capsys, "run", "-p", "harmonic", "-i", "verlet,rk4", "--dt", "0.1,0.05",
+                           "--t-final", "5", "--format", "json", "--no-store")
+    rows = json.loads(out)
+    assert code == 0
+    assert sorted((r["integrator"], r["dt"]) for r in rows) == [
+        ("rk4", 0.05), ("rk4", 0.1), ("verlet", 0.05), ("verlet", 0.1)]
+    assert all(r["steps"] == round(5 / r["dt"]) for r in rows)
+
+
+def test_list_shows_capabilities_and_requirements(capsys):
+    code, out, _ = run_cli(capsys, "list", "--format", "json")
+    data = json.loads(out)
+    problems = {p["name"]: p for p in data["problems"]}
+    schemes = {s["name"]: s for s in data["integrators"]}
+    assert code == 0
+    assert "separable" in problems["toda"]["capabilities"]
+    assert schemes["verlet"]["requires"] == ["separable"]
+    assert schemes["rk4sym"]["symplectic"] and schemes["rk4sym"]["order"] == 4

@@ -1,0 +1,62 @@
+"""Metrics of SPEC.md section 3 on known signals, and divergence as a status."""
+import json
+
+import numpy as np
+import pytest
+
+from longtime import registry
+from longtime.cells import Cell, run_cell
+from longtime.metrics import first_crossing, relative_error, time_mean
+
+
+def test_relative_error_scalar_vector_and_zero_initial_value():
+    assert relative_error(np.array([2.0, 2.2, 1.0])) == pytest.approx([0, 0.1, 0.5])
+    v = np.array([[3.0, 4.0], [3.0, 4.5], [0.0, 0.0]])
+    assert relative_error(v) == pytest.approx([0, 0.1, 1.0])
+    # I(u0) = 0: the absolute error
+    assert relative_error(np.array([0.0, 1e-3, -2e-3])) == pytest.approx([0, 1e-3, 2e-3])
+
+
+def test_time_mean_is_the_trapezoid_average():
+    t = np.linspace(0, 10, 1001)
+    assert time_mean(t, 3 * t) == pytest.approx(15.0, rel=1e-12)
+    t = np.r_[0.0, 1.0, 4.0]  # uneven samples
+    assert time_mean(t, np.array([0.0, 2.0, 2.0])) == pytest.approx((1.0 + 6.0) / 4)
+
+
+def test_first_crossing():
+    t = np.arange(5.0)
+    err = np.array([0, 0.005, 0.02, 0.6, 0.7])
+    assert first_crossing(t, err, 0.01) == 2.0
+    assert first_crossing(t, err, 0.5) == 3.0
+    assert first_crossing(t, err, 0.9) is None
+
+
+def test_blow_up_is_a_diverged_row_without_nan():
+    # explicit Euler amplifies the harmonic oscillator by sqrt(1 + dt^2) per step
+    row = run_cell(Cell("harmonic", "euler", {}, {"dt": 1.5}, 1000.0))
+    assert row["status"] == "diverged"
+    assert "blew up" in row["message"]
+    assert row["t_reached"] < 1000.0
+    assert row["steps"] == pytest.approx(row["t_reached"] / 1.5)
+    json.dumps(row, allow_nan=False)  # every number is finite or null
+
+
+def test_overflow_to_inf_is_diverged_and_measured_until_then():
+    row = run_cell(Cell("toda", "euler", {}, {"dt": 0.5}, 5000.0))
+    assert row["status"] == "diverged"
+    assert row["H.max"] is not None and row["H.t_50pct"] is not None
+    assert row["H.t_50pct"] <= row["t_reached"]
+    json.dumps(row, allow_nan=False)
+
+
+def test_a_raising_cell_is_a_failed_row():
+    row = run_cell(Cell("harmonic", "no-such-scheme", {}, {}, 1.0))
+    assert row["status"] == "failed" and "no-such-scheme" in row["message"]
+
+
+def test_l2_error_against_exact_solution_decreases_with_dt():
+    rows = [run_cell(Cell("kepler", "rk4", {}, {"dt": dt}, 20.0)) for dt in (0.02, 0.01)]
+    assert rows[1]["l2_error"] < rows[0]["l2_error"] / 10  # order 4: a factor ~16
+    assert rows[0]["final_error"] > 0
+    assert rows[0]["L.max"] < 1e-5 and rows[0]["A.max"] < 1e-3

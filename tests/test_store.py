@@ -1,0 +1,89 @@
+"""The store keeps every finished cell of an interrupted matrix; --resume runs the rest."""
+import json
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+
+import pytest
+
+from longtime import matrix
+from longtime.cli import main
+from longtime.store import Store
+
+
+def rows_by_key(path):
+    with sqlite3.connect(path) as con:
+        return dict(con.execute("SELECT cell_key, row FROM rows").fetchall())
+
+
+def test_ctrl_c_keeps_finished_cells_and_resume_completes(tmp_path, monkeypatch, capsys):
+    db = tmp_path / "m.sqlite"
+    real = matrix.run_cell
+    calls = []
+
+    def interrupted_on_third(cell, *args, **kwargs):
+        calls.append(cell)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(cell, *args, **kwargs)
+
+    monkeypatch.setattr(matrix, "run_cell", interrupted_on_third)
+    argv = ["matrix", "-p", "harmonic", "-i", "rk4,verlet,euler", "--executor", "serial",
+            "--db", str(db), "--no-progress", "--t-final", "10"]
+    assert main(argv) == 130
+    store = Store(db)
+    run = store.runs()[-1]
+    assert run["status"] == "interrupted" and run["planned"] == 9 and run["done"] == 2
+    first_two = rows_by_key(db)
+    monkeypatch.setattr(matrix, "run_cell", real)
+
+    assert main(["matrix", "--resume", "--executor", "serial", "--db", str(db), "--no-progress"]) == 0
+    run = store.runs()[-1]
+    assert len(store.runs()) == 1 and run["done"] == 9 and run["status"] == "done"
+    after = rows_by_key(db)
+    assert all(after[k] == v for k, v in first_two.items())  # nothing measured is redone
+    assert {json.loads(r)["status"] for r in after.values()} == {"ok"}
+    assert "resuming run 1: 7 cells left" in capsys.readouterr().err
+
+
+def test_killed_matrix_keeps_finished_cells(tmp_path):
+    db = tmp_path / "killed.sqlite"
+    env = {**os.environ, "LONGTIME_DB": str(db)}
+    cmd = [sys.executable, "-m", "longtime.cli", "matrix", "-p", "toda", "-i", "rk4sym,gauss6,rk4",
+           "--dt", "0.1,0.05,0.025,0.0125", "--t-final", "3000", "--executor", "serial", "--no-progress"]
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 240
+    done = 0
+    while time.time() < deadline and proc.poll() is None:
+        if db.exists():
+            try:
+                done = len(rows_by_key(db))
+            except sqlite3.OperationalError:
+                done = 0
+            if done >= 2:
+                break
+        time.sleep(0.05)
+    if proc.poll() is not None:
+        pytest.fail("the matrix finished before it could be killed: make its cells longer")
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    kept = rows_by_key(db)
+    assert 2 <= len(kept) < 12
+    assert main(["matrix", "--resume", "--executor", "serial", "--db", str(db), "--no-progress",
+                 "--no-report"]) == 0
+    final = rows_by_key(db)
+    assert len(final) == 12
+    assert all(final[k] == v for k, v in kept.items())
+
+
+def test_runs_record_metadata(tmp_path, capsys):
+    db = tmp_path / "meta.sqlite"
+    assert main(["run", "-p", "harmonic", "-i", "verlet", "--t-final", "1", "--db", str(db)]) == 0
+    run = Store(db).runs()[-1]
+    versions = json.loads(run["versions"])
+    machine = json.loads(run["machine"])
+    assert versions["numpy"] and versions["numba"] and machine["cpus"] >= 1
+    assert run["command"].startswith("run ") and run["started"] and run["finished"]
