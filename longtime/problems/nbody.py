@@ -191,3 +191,39 @@ class FigureEightPerturbed(FigureEight):
         shifted = reference_states(FigureEight(), np.array([0.0, self.period / self.settings["shift"]]))[-1]
         u[4:6], u[10:12] = shifted[4:6], shifted[10:12]
         return u
+
+
+# Hairer, Lubich, Wanner, Geometric Numerical Integration, section I.2.4: the Sun (with the
+# inner planets' mass) and the five outer planets on 5 September 1994; AU, days, solar masses.
+_OSS_G = 2.95912208286e-4
+_OSS_MASSES = np.array([1.00000597682, 0.000954786104043, 0.000285583733151,
+                        0.0000437273164546, 0.0000517759138449, 1 / 1.3e8])
+_OSS_Q = np.array([[0.0, 0.0, 0.0],
+                   [-3.5023653, -3.8169847, -1.5507963],
+                   [9.0755314, -3.0458353, -1.6483708],
+                   [8.3101420, -16.2901086, -7.2521278],
+                   [11.4707666, -25.7294829, -10.8169456],
+                   [-15.5387357, -25.2225594, -3.1902382]])
+_OSS_V = np.array([[0.0, 0.0, 0.0],
+                   [0.00565429, -0.00412490, -0.00190589],
+                   [0.00168318, 0.00483525, 0.00192462],
+                   [0.00354178, 0.00137102, 0.00055029],
+                   [0.00288930, 0.00114527, 0.00039677],
+                   [0.00276725, -0.00170702, -0.00136504]])
+
+
+class OuterSolarSystem(NBody):
+    name = "outer-solar-system"
+    summary = "Sun and the five outer planets (Hairer-Lubich-Wanner's data; days, AU)"
+    space_dim = 3
+    G = _OSS_G
+    default_t_final = 200_000.0
+    default_dt = 10.0
+    sweep_dt = (200.0, 100.0)
+    sweep_t_final = 100_000.0
+
+    def masses(self):
+        return _OSS_MASSES
+
+    def initial_state(self):
+        return np.r_[_OSS_Q.ravel(), (_OSS_MASSES[:, None] * _OSS_V).ravel()]
