@@ -195,3 +195,13 @@ def test_index1_rhs_keeps_the_constraints_to_second_order():
     # phi is quadratic: phi(q + d) = phi(q) + G d + Q(d), and phi'' = G a + 2 Q(v)
     second = G @ a + 2 * (phi(u[:4] + v) - phi(u[:4]) - G @ v)
     assert np.max(np.abs(second)) < 1e-12 * np.max(np.abs(G @ a))
+
+
+def test_region_figure_is_written(tmp_path):
+    from longtime.figures.pendulum import pendulum_region
+
+    paths = pendulum_region(schemes=("dirac-2", "rattle"), dt=1e-3, times=(1.0, 2.0), out=tmp_path / "region")
+    assert [p.suffix for p in paths] == [".png", ".svg"]
+    assert all(p.stat().st_size > 10_000 for p in paths)
+    with pytest.raises(InputError, match="space"):
+        pendulum_region(space="polar", out=tmp_path / "bad")
