@@ -7,10 +7,12 @@ State u = (q, p), p = M v (the problem's ``constraints`` contract). One step of 
     p_{n+1} = p_half - h/2 (grad U(q_{n+1}) + G(q_{n+1})^T mu),  G(q_{n+1}) M^{-1} p_{n+1} = 0
 
 The position multipliers solve phi(q_{n+1}(lambda)) = 0 by Newton's method with the exact
-Jacobian -(h^2/2) G(q_{n+1}) M^{-1} G(q_n)^T, to round-off (iterations counted in
-``nl_iters``; a solve that does not converge in ``max_iter`` fails the step). The momentum
-multipliers are one M-orthogonal projection onto ker G(q_{n+1}) (a linear m x m solve).
-grad U and G at q_{n+1} are kept for the next step (one force evaluation per step).
+Jacobian -(h^2/2) G(q_{n+1}) M^{-1} G(q_n)^T, to round-off: until the residual is at
+round-off level or the Newton corrections stop shrinking at round-off (residual
+evaluations counted in ``nl_iters``; no convergence in ``max_iter`` fails the step).
+The momentum multipliers are one M-orthogonal projection onto ker G(q_{n+1}) (a linear m x m solve).
+grad U and G at q_{n+1} are kept for the next step (one force evaluation per step), and
+the Newton iteration starts from the previous step's multipliers.
 """
 from __future__ import annotations
 
@@ -46,8 +48,8 @@ class Rattle(ConstrainedIntegrator):
         phi, grad_phi, mass, grad_U = c.phi, c.grad_phi, c.mass, c.grad_U
         m, n = self.sizes(problem)
         R = self.rows(m)
-        r_gu, r_minv, r_w, r_qprev, r_tmp, r_lam, r_A = (
-            R["gradU"], R["minv"], R["w"], R["qprev"], R["tmp"], R["lam"], R["A"])
+        r_gu, r_minv, r_w, r_qprev, r_tmp, r_lam, r_scal, r_A = (
+            R["gradU"], R["minv"], R["w"], R["qprev"], R["tmp"], R["lam"], R["scal"], R["A"])
         r_G1, r_phi = r_A + m, r_A + 2 * m
         max_iter = int(self.settings["max_iter"])
 
@@ -56,7 +58,7 @@ class Rattle(ConstrainedIntegrator):
             q, p = u[:n], u[n:]
             G0, G1, A = work[0:m], work[r_G1:r_G1 + m], work[r_A:r_A + m]
             minv, gu, qtil, qnew = work[r_minv], work[r_gu], work[r_w], work[r_tmp]
-            lam, res = work[r_lam], work[r_phi]
+            lam, res, scal = work[r_lam], work[r_phi], work[r_scal]
             if first:
                 mass(params, minv)
                 for i in range(n):
@@ -65,15 +67,21 @@ class Rattle(ConstrainedIntegrator):
                 grad_phi(q, params, G0)
                 counters[RHS_EVALS] += 1
                 counters[JAC_EVALS] += 1
+            # Newton on Lambda (= h^2/2 lambda): phi(qtil - M^{-1} G0^T Lambda) = 0, started
+            # from the previous step's Lambda (rescaled to h): one Newton step fewer
+            Lam = work[r_qprev]
+            ratio = (h / scal[0]) ** 2 if not first and scal[0] > 0 else 0.0
+            scal[0] = h
+            for a in range(m):
+                Lam[a] *= ratio
             # unconstrained half kick and drift: qtil = q + h M^{-1} (p - h/2 grad U)
             for i in range(n):
                 p[i] -= 0.5 * h * gu[i]
                 qtil[i] = q[i] + h * minv[i] * p[i]
-                qnew[i] = qtil[i]
-            # Newton on Lambda (= h^2/2 lambda): phi(qtil - M^{-1} G0^T Lambda) = 0
-            for a in range(m):
-                work[r_qprev, a] = 0.0  # Lambda, accumulated
-            Lam = work[r_qprev]
+                acc = 0.0
+                for a in range(m):
+                    acc += G0[a, i] * Lam[a]
+                qnew[i] = qtil[i] - minv[i] * acc
             scale = 1.0
             for i in range(n):
                 scale = max(scale, abs(q[i]))
@@ -81,9 +89,15 @@ class Rattle(ConstrainedIntegrator):
             previous = np.inf
             for it in range(max_iter):
                 phi(qnew, params, res)
+                counters[NL_ITERS] += 1
+                small = True
+                for a in range(m):
+                    small = small and abs(res[a]) <= 4.0 * _EPS * scale * scale
+                if small:  # residual at round-off: no Newton step needed
+                    converged = True
+                    break
                 grad_phi(qnew, params, G1)
                 counters[JAC_EVALS] += 1
-                counters[NL_ITERS] += 1
                 # J dLambda = phi with J = G1 M^{-1} G0^T (Newton: Lambda += dLambda)
                 for a in range(m):
                     lam[a] = res[a]
