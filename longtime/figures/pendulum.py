@@ -22,15 +22,18 @@ RODS_PER_PANEL = 1500  # instants drawn as rods: enough to fill the swept region
 PATH_POINTS = 20_000  # points kept per bob path
 
 
-def pendulum_region(schemes: Sequence[str] = DEFAULT_SCHEMES, dt: float = 1e-4,
-                    times: Iterable[float] = DEFAULT_TIMES, out: str | Path = "pendulum-region",
-                    problem_settings: dict[str, Any] | None = None, space: str = "plane",
-                    formats: Sequence[str] = ("png", "svg")) -> list[Path]:
+def pendulum_region(schemes: Sequence[str] | None = None, dt: float | None = None,
+                    times: Iterable[float] | None = None, t_final: float | None = None,
+                    out: str | Path = "pendulum-region", problem_settings: dict[str, Any] | None = None,
+                    space: str = "plane", formats: Sequence[str] = ("png", "svg")) -> list[Path]:
     """Draw the figure; write ``out``.png and ``out``.svg; return the paths written.
 
-    schemes: names of registered schemes (each runs once, to max(times), at step dt);
-    times: the final times of the columns; problem_settings: parameters of the
-    double-pendulum problem (masses, lengths, angles); space: "plane" or "angles".
+    The kind ``pendulum-region`` of ``longtime plot`` (longtime/plot.py passes schemes, dt,
+    t_final, problem_settings, out, formats). schemes: registered scheme names, each run
+    once to max(times) at step dt (default dirac-2 and euler at dt = 1e-4); times: the
+    final times of the columns (default 10, 50, 100; with only t_final: t_final/10,
+    t_final/2, t_final); problem_settings: double-pendulum parameters; space: "plane" or
+    "angles".
     """
     import matplotlib
 
@@ -39,18 +42,22 @@ def pendulum_region(schemes: Sequence[str] = DEFAULT_SCHEMES, dt: float = 1e-4,
     from matplotlib.collections import LineCollection
 
     from .. import registry
+    from ..plot import FORMATS, save
 
-    schemes = [schemes] if isinstance(schemes, str) else list(schemes)
-    times = sorted(float(t) for t in times)
-    if not schemes:
-        raise InputError("schemes: give at least one scheme name")
+    schemes = list(DEFAULT_SCHEMES) if not schemes else [schemes] if isinstance(schemes, str) else list(schemes)
+    dt = 1e-4 if dt is None else float(dt)
+    if times is None:
+        times = DEFAULT_TIMES if t_final is None else (t_final / 10, t_final / 2, t_final)
+    times = sorted({float(t) for t in times})
+    if not dt > 0:
+        raise InputError(f"dt={dt!r} is not valid: expected a time step > 0")
     if not times or times[0] <= 0:
         raise InputError(f"times={times!r} is not valid: expected final times > 0")
     if space not in ("plane", "angles"):
         raise InputError(f"space={space!r} is not valid: expected one of plane, angles")
-    bad = [f for f in formats if f not in ("png", "svg", "pdf")]
-    if bad:
-        raise InputError(f"formats: {', '.join(bad)} not valid: expected png, svg, pdf")
+    bad = [f for f in formats if f not in FORMATS]
+    if bad:  # before the integrations, not after
+        raise InputError(f"formats: {', '.join(bad)} not valid: expected {', '.join(FORMATS)}")
     problem = registry.problem_class("double-pendulum")(**(problem_settings or {}))
     l1, l2 = problem.settings["l1"], problem.settings["l2"]
 
@@ -102,14 +109,4 @@ def pendulum_region(schemes: Sequence[str] = DEFAULT_SCHEMES, dt: float = 1e-4,
     changed = {k: v for k, v in problem.settings.items() if v != type(problem).parameters[k].default}
     extra = "".join(f", {k} = {v:g}" for k, v in changed.items())
     fig.suptitle(f"double pendulum: region swept, dt = {dt:g}{extra}", fontsize=10)
-    out = Path(out)
-    if out.suffix in (".png", ".svg", ".pdf"):
-        out = out.with_suffix("")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    written = []
-    for fmt in formats:
-        path = out.with_suffix(f".{fmt}")
-        fig.savefig(path, dpi=150)
-        written.append(path)
-    plt.close(fig)
-    return written
+    return save(fig, out, formats)
