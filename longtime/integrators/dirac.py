@@ -94,8 +94,10 @@ def project_velocity(G, minv, w, A, lam, m, n):
 class ConstrainedIntegrator(FixedStepIntegrator):
     """Base of the schemes that read a problem's ``constraints`` (state u = (q, p), p = M v).
 
-    Scratch: a (m + 8, n) array; rows 0..m-1 hold G, then named rows (see ``rows``); the
-    m x m matrix lives in the first m columns of rows A..A+m-1.
+    Scratch: a (2 m + 7, n) array; rows 0..m-1 hold G, then the named rows of ``rows``
+    (grad U, M^{-1}, the velocity w, q_{n-1} for dirac-2 -- the midpoint for
+    dirac-midpoint, the multipliers for rattle --, a spare row, the multipliers, scalars);
+    the m x m matrix lives in the first m columns of rows A..A+m-1.
     """
 
     requires = frozenset({"constraints"})
