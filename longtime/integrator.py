@@ -18,6 +18,7 @@ from typing import Any, Callable, ClassVar
 import numpy as np
 
 from . import drivers
+from .jitcache import cacheable
 from .params import InputError, Param, check_time_span, resolve
 from .problem import Problem
 
@@ -102,7 +103,7 @@ def _cached_loop(integrator: Integrator, problem: Problem, build: Callable[[], C
     key = (type(integrator), integrator.kernel_variant(), problem.kernel_key())
     loop = _LOOPS.get(key)
     if loop is None:
-        loop = _LOOPS[key] = build()
+        loop = _LOOPS[key] = cacheable(build())
     return loop
 
 

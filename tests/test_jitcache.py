@@ -1,0 +1,66 @@
+"""Compiled loops are rewritten as cacheable modules: same numbers, loaded from disk next time."""
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+
+from longtime import drivers, jitcache, registry
+
+PROBE = textwrap.dedent('''
+    from longtime import registry
+    from longtime.integrator import _LOOPS
+    p = registry.problem_class("toda")()
+    traj = registry.integrator_class("rk4sym")(dt=0.1).integrate(p, 5.0)
+    (loop,) = _LOOPS.values()
+    print(sum(loop.stats.cache_hits.values()), traj.u[-1][0].hex())
+''')
+
+
+def test_generated_kernel_gives_the_same_numbers_as_the_closure():
+    problem = registry.problem_class("toda")()
+    scheme = registry.integrator_class("rk4sym")(dt=0.1)
+    closure = drivers.fixed_step_loop(scheme.make_step(problem))
+    frozen = jitcache.cacheable(closure)
+    assert frozen is not closure and frozen.py_func.__module__.startswith("longtime_kernel_")
+    results = []
+    for loop in (closure, frozen):
+        u = problem.u0.copy()
+        out_t, out_u = np.zeros(12), np.zeros((12, 6))
+        status, n, _ = loop(u, 0.0, 1.0, 0.1, 10, 1, problem.params, np.zeros(scheme.work_shape(problem)), out_t, out_u,
+             drivers.new_counters(), 1e10)
+        assert status == drivers.OK and n == 11
+        results.append(out_u[:n])
+    assert np.array_equal(results[0], results[1])
+
+
+def test_unfreezable_closure_is_returned_unchanged():
+    import numba
+
+    class Opaque:  # an arbitrary object cannot become a module global
+        scale = 2.0
+
+    def closure_over(obj):
+        scale = obj
+
+        @numba.njit
+        def g(x):
+            return x if scale is None else x
+
+        return g
+
+    g = closure_over(Opaque())
+    assert jitcache.cacheable(g) is g
+
+
+def test_second_process_loads_the_kernel_from_disk(tmp_path):
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"), "LONGTIME_CACHE_DIR": str(tmp_path / "lt")}
+    runs = [subprocess.run([sys.executable, "-c", PROBE], env=env, capture_output=True, text=True, timeout=300)
+            for _ in range(2)]
+    for r in runs:
+        assert r.returncode == 0, r.stderr
+    (hits1, x1), (hits2, x2) = (r.stdout.split() for r in runs)
+    assert x1 == x2
+    assert hits1 == "0" and hits2 != "0"
+    assert list((tmp_path / "lt" / "kernels").glob("longtime_kernel_*.py"))
