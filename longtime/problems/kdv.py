@@ -339,6 +339,8 @@ class KdV(Problem):
         momentum = np.sum(U**2, axis=1)  # orthonormal basis: the integral of u^2
         ux2 = np.sum((self.wavenumbers * np.abs(C * self.sigma)) ** 2, axis=1)
         n3 = 3 * self.modes + 2  # u^3 has modes up to 3M: its mean is exact on this grid
-        cube = PERIOD_X * np.mean(self.values(U, n3) ** 3, axis=1)
+        chunk = max(1, 2_000_000 // n3)  # bounded memory for long sample sets
+        cube = np.concatenate([PERIOD_X * np.mean(self.values(U[i:i + chunk], n3) ** 3, axis=1)
+                               for i in range(0, U.shape[0], chunk)])
         H = 0.5 * C0 * momentum + ALPHA / 6.0 * cube - 0.5 * BETA * ux2
         return {"mass": PERIOD_X * C[:, 0].real, "momentum": momentum, "H": H}
