@@ -146,3 +146,128 @@ def test_lower_orders_are_a_prefix(name):
     full = our_coefficients(problem, 20)
     for order in (0, 1, 4, 9):
         np.testing.assert_array_equal(our_coefficients(problem, order), full[: order + 1])
+
+
+# ---------------------------------------------------------------- the taylor schemes
+
+
+def final_error(problem, scheme, t_final):
+    traj = scheme.integrate(problem, t_final, max_samples=3)
+    assert traj.status == "ok", traj.message
+    return float(np.max(np.abs(traj.u[-1] - problem.exact(traj.t[-1:])[0]))), traj
+
+
+@pytest.mark.parametrize("order", [4, 6])
+def test_taylor_fixed_step_converges_with_order_N(order):
+    """Fitted order of the final error over one Kepler period (e = 0.6) against dt."""
+    problem = registry.problem_class("kepler")(e=0.6)
+    dts = np.array([0.04, 0.02, 0.01])
+    errors = [final_error(problem, registry.integrator_class("taylor")(dt=dt, order=order), 2 * np.pi)[0]
+              for dt in dts]
+    slope = np.polyfit(np.log(dts), np.log(errors), 1)[0]
+    assert abs(slope - order) < 0.3, (slope, errors)
+
+
+def test_taylor_on_non_autonomous_problem_against_reference():
+    from longtime.reference import reference_states
+
+    problem = registry.problem_class("duffing-forced")(c=0.37)
+    errors = []
+    for dt in (0.04, 0.02):
+        traj = registry.integrator_class("taylor")(dt=dt, order=6).integrate(problem, 5.0, max_samples=3)
+        errors.append(np.max(np.abs(traj.u[-1] - reference_states(problem, traj.t)[-1])))
+    assert 2**5.6 < errors[0] / errors[1] < 2**6.4  # order 6 in t as well (the forcing's series)
+
+
+@pytest.mark.parametrize("tol", [1e-6, 1e-9, 1e-12])
+@pytest.mark.parametrize("order", [10, 20])
+def test_taylor_adaptive_meets_its_tolerance(tol, order):
+    """Over one Kepler period the global error stays within a small multiple of tol, and
+    the step count grows as tol shrinks (the tolerance is read at run time)."""
+    problem = registry.problem_class("kepler")(e=0.6)
+    err, traj = final_error(problem, registry.integrator_class("taylor-adaptive")(tol=tol, order=order),
+                            2 * np.pi)
+    assert err < 20 * tol
+    loose = registry.integrator_class("taylor-adaptive")(tol=tol * 1e3, order=order)
+    assert loose.integrate(problem, 2 * np.pi, max_samples=3).steps < traj.steps
+
+
+def test_equilibrium_does_not_break_the_taylor_schemes():
+    """All coefficients beyond u_0 vanish: no division by zero, the adaptive step is h_max."""
+    problem = registry.problem_class("harmonic")(q0=0.0, p0=0.0)
+    traj = registry.integrator_class("taylor")(dt=0.5, order=8).integrate(problem, 10.0)
+    assert traj.status == "ok" and np.all(traj.u == 0.0)
+    traj = registry.integrator_class("taylor-adaptive")(tol=1e-12).integrate(problem, 10.0)
+    assert traj.status == "ok" and traj.steps == 1 and traj.t[-1] == 10.0 and np.all(traj.u == 0.0)
+    assert traj.max_dt == 10.0
+
+
+def test_taylor_order_is_reported_and_validated():
+    from longtime.cells import Cell, run_cell
+    from longtime.params import InputError
+
+    row = run_cell(Cell("harmonic", "taylor", {}, {"dt": 0.1}, 10.0))
+    assert row["status"] == "ok" and row["order"] == 10
+    row = run_cell(Cell("toda", "taylor-adaptive", {}, {"order": 12, "tol": 1e-9}, 10.0))
+    assert row["status"] == "ok" and row["order"] == 12 and row["H.max"] < 1e-8
+    for bad in ({"order": 0}, {"order": "x"}, {"order": 61}, {"dt": -1.0}):
+        with pytest.raises(InputError, match="order|dt"):
+            registry.integrator_class("taylor")(**bad)
+    with pytest.raises(InputError, match="order"):
+        registry.integrator_class("taylor-adaptive")(order=1)
+    with pytest.raises(InputError, match="tol"):
+        registry.integrator_class("taylor-adaptive")(tol=0.0)
+
+
+def test_taylor_is_skipped_without_a_recurrence():
+    from longtime.problem import Problem
+
+    class NoSeries(Problem):
+        name = "no-series"
+        rhs = staticmethod(registry.problem_class("harmonic").rhs)
+
+        def initial_state(self):
+            return [1.0, 0.0]
+
+    assert "taylor" in registry.integrator_class("taylor")().incompatibility(NoSeries())
+
+
+# ---------------------------------------------------------------- the heyoka scheme
+
+
+def test_heyoka_scheme_reproduces_kepler_and_harmonic():
+    from longtime.problems.harmonic import Harmonic
+
+    class HarmonicWithSystem(Harmonic):  # harmonic.py has no heyoka system of its own
+        def heyoka_system(self):
+            return harmonic_system(self.settings["omega"])
+
+    scheme = registry.integrator_class("heyoka")()
+    for problem, t_final, bound in ((registry.problem_class("kepler")(e=0.6), 20 * np.pi, 1e-12),
+                                    (HarmonicWithSystem(omega=1.3), 100.0, 2e-13)):
+        traj = scheme.integrate(problem, t_final, max_samples=2001)
+        assert traj.status == "ok" and traj.t.size == 2001 and traj.t[-1] == t_final
+        assert np.max(np.abs(traj.u - problem.exact(traj.t))) < bound
+        assert traj.steps > 10 and traj.cpu_s >= 0.0
+        assert traj.extra["order"] == 20
+
+
+def test_heyoka_scheme_tolerance_and_divergence():
+    from longtime.cells import Cell, run_cell
+    from longtime.problems.duffing import Duffing1
+
+    loose = run_cell(Cell("kepler", "heyoka", {}, {"tol": 1e-6}, 10.0))
+    tight = run_cell(Cell("kepler", "heyoka", {}, {"tol": 1e-15, "high_accuracy": True}, 10.0))
+    assert loose["status"] == tight["status"] == "ok"
+    # heyoka raises the order as tol shrinks, which keeps its step near the series' radius
+    # of convergence: the step count hardly changes, the error does
+    assert tight["final_error"] < 1e-12 < loose["final_error"] < 1e-5
+    assert (loose["order"], tight["order"]) == (8, 19)
+    assert abs(loose["mean_dt"] - 10.0 / loose["steps"]) < 1e-12
+
+    class Bounded(Duffing1):  # the growing amplitude passes a low bound: a divergence
+        blowup_factor = 10.0
+
+    traj = registry.integrator_class("heyoka")().integrate(Bounded(), 20.0)
+    assert traj.status == "diverged" and traj.t[-1] < 20.0
+    assert np.max(np.abs(traj.u[-1])) > 10.0 and np.all(np.abs(traj.u[:-1]) <= 10.0)

@@ -1,0 +1,144 @@
+"""Truncated Taylor series from the problem's recurrence: fixed step, and adaptive (Jorba-Zou).
+
+One step: the problem's ``taylor`` writes the normalised coefficients u_0..u_N at (t, u)
+(u_k = u^(k)(t)/k!), then u(t + h) = sum_k u_k h^k by Horner's rule. No resummation (that
+is ``bpl``). The adaptive variant sizes each step a priori from the last two coefficients
+(Jorba and Zou 2005, section 3.2): with eps = tol * max(1, |u|_inf),
+
+    h = exp(-0.7 / (N - 1)) * min_{k in {N-1, N}} (eps / |u_k|_inf)^(1/k),
+
+so that the next terms of the series, whose size those two coefficients predict, stay
+below eps. Every step is accepted; where all coefficients beyond u_0 vanish (an
+equilibrium) nothing limits the step and it is the largest allowed, h_max.
+
+The scratch array is flat: the coefficients (N+1, dim), then the problem's own scratch of
+shape ``taylor_work_shape(N)``. Their shapes are compile-time constants of the step, so
+the compiled loop is cached per (order, dim, scratch shape).
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from ..drivers import EXTRA1, OK
+from ..integrator import AdaptiveIntegrator, FixedStepIntegrator
+from ..params import Param
+from ..series import horner
+
+ORDER = Param(10, "series order N (degree of the truncated Taylor polynomial)", int, minimum=1, maximum=60)
+
+
+class _SeriesLayout:
+    """Flat scratch layout shared by both schemes; the shapes key the compiled loop."""
+
+    extra_counters = ("series_evals",)
+    requires = frozenset({"taylor"})
+
+    def _layout(self, problem):
+        N = self.settings["order"]
+        tshape = tuple(int(x) for x in problem.taylor_work_shape(N))
+        return N, problem.dim, tshape
+
+    def _integrate(self, problem, t_final, max_samples):
+        # the compiled step closes over the layout, so it is part of the loop's cache key
+        self._current_layout = self._layout(problem)
+        traj = super()._integrate(problem, t_final, max_samples)
+        traj.extra["order"] = self.settings["order"]  # the row's order field, also when defaulted
+        return traj
+
+    def kernel_variant(self):
+        return (type(self).__name__, getattr(self, "_current_layout", None))
+
+    def work_shape(self, problem):
+        N, dim, tshape = self._layout(problem)
+        return ((N + 1) * dim + max(1, int(np.prod(tshape))),)
+
+    def _views(self, problem):
+        """Compiled ``views(work) -> (coeffs, taylor scratch)`` for this layout."""
+        N, dim, tshape = self._layout(problem)
+        m = (N + 1) * dim
+        size = int(np.prod(tshape))
+
+        @numba.njit(inline="always")
+        def views(work):
+            return work[:m].reshape((N + 1, dim)), work[m:m + size].reshape(tshape)
+
+        return views
+
+
+class Taylor(_SeriesLayout, FixedStepIntegrator):
+    name = "taylor"
+    summary = "truncated Taylor series of order N from the problem's recurrence, fixed step"
+    parameters = {**FixedStepIntegrator.parameters, "order": ORDER}
+
+    def __init__(self, **settings):
+        super().__init__(**settings)
+        self.order = self.settings["order"]  # convergence order = series order
+
+    def make_step(self, problem):
+        taylor, views = problem.taylor, self._views(problem)
+
+        @numba.njit
+        def step(t, u, h, params, work, counters, first):
+            coeffs, scratch = views(work)
+            taylor(t, u, params, coeffs, scratch)
+            horner(coeffs, h, u)
+            counters[EXTRA1] += 1
+            return OK
+
+        return step
+
+
+class AdaptiveTaylor(_SeriesLayout, AdaptiveIntegrator):
+    name = "taylor-adaptive"
+    summary = "Taylor series of order N, step from the last two coefficients (Jorba-Zou)"
+    parameters = {
+        "order": Param(20, "series order N (>= 2)", int, minimum=2, maximum=60),
+        "tol": Param(1e-12, "local tolerance (absolute below |u| = 1, relative above)", float,
+                     positive=True),
+    }
+    sweep = {"tol": (1e-6, 1e-9, 1e-12)}
+
+    def __init__(self, **settings):
+        super().__init__(**settings)
+        self.order = self.settings["order"]
+
+    def work_shape(self, problem):
+        return (super().work_shape(problem)[0] + 1,)  # + the tolerance, in the last slot
+
+    def prepare_work(self, problem, work):
+        work[-1] = self.settings["tol"]  # read at run time: one compiled loop for every tol
+
+    def initial_step(self, problem, t_final):
+        return self.max_step(problem, t_final)  # every step sizes itself
+
+    def make_try_step(self, problem):
+        taylor, views = problem.taylor, self._views(problem)
+        N = self.settings["order"]
+        safety = math.exp(-0.7 / (N - 1))
+
+        @numba.njit
+        def try_step(t, u, h, params, work, counters, u_new):
+            coeffs, scratch = views(work)
+            taylor(t, u, params, coeffs, scratch)
+            counters[EXTRA1] += 1
+            size = 0.0
+            for i in range(u.size):
+                size = max(size, abs(u[i]))
+            eps = work[work.size - 1] * max(1.0, size)
+            rho = math.inf
+            for k in range(N - 1, N + 1):
+                norm = 0.0
+                for i in range(u.size):
+                    norm = max(norm, abs(coeffs[k, i]))
+                if norm > 0.0:  # a vanishing coefficient sets no bound (equilibrium)
+                    rho = min(rho, (eps / norm) ** (1.0 / k))
+            h_taken = min(h, safety * rho)
+            if not h_taken > 1e-15 * (abs(t) + 1.0):  # huge or non-finite coefficients
+                return -1, h_taken, h_taken
+            horner(coeffs, h_taken, u_new)
+            return 1, h_taken, math.inf
+
+        return try_step
