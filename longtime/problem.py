@@ -45,6 +45,7 @@ import json
 from abc import ABC, abstractmethod
 from typing import Any, Callable, ClassVar
 
+import numba
 import numpy as np
 
 from .params import Param, check_state, resolve
@@ -59,6 +60,20 @@ CAPABILITIES: dict[str, tuple[str, ...]] = {
     "constraints": ("constraints",),
     "linear_part": ("linear_part", "nonlinear"),
 }
+
+
+def separable_rhs(grad_T: Callable, grad_V: Callable) -> Callable:
+    """Compiled rhs of a separable Hamiltonian: u = (q, p), u' = (grad T(p), -grad V(q))."""
+
+    @numba.njit
+    def rhs(t, u, params, out):
+        n = u.size // 2
+        grad_T(u[n:], params, out[:n])
+        grad_V(u[:n], params, out[n:])
+        for i in range(n, 2 * n):
+            out[i] = -out[i]
+
+    return rhs
 
 
 class Problem(ABC):

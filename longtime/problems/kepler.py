@@ -11,7 +11,7 @@ import numba
 import numpy as np
 
 from ..params import Param
-from ..problem import Problem
+from ..problem import Problem, separable_rhs
 from ..series import power_coeff, product, square
 
 
@@ -27,14 +27,6 @@ def _grad_V(q, params, out):
 def _grad_T(p, params, out):
     out[0] = p[0]
     out[1] = p[1]
-
-
-@numba.njit(cache=True)
-def _rhs(t, u, params, out):
-    _grad_T(u[2:], params, out[:2])
-    _grad_V(u[:2], params, out[2:])
-    out[2] = -out[2]
-    out[3] = -out[3]
 
 
 @numba.njit(cache=True)
@@ -72,7 +64,7 @@ class Kepler(Problem):
     sweep_dt = (0.02, 0.01, 0.005)
     sweep_t_final = 40 * np.pi
 
-    rhs = staticmethod(_rhs)
+    rhs = staticmethod(separable_rhs(_grad_T, _grad_V))
     grad_T = staticmethod(_grad_T)
     grad_V = staticmethod(_grad_V)
     taylor = staticmethod(_taylor)

@@ -13,7 +13,7 @@ import numba
 import numpy as np
 
 from ..params import Param
-from ..problem import Problem
+from ..problem import Problem, separable_rhs
 from ..series import power_coeff, product, square
 
 
@@ -42,15 +42,6 @@ def _grad_T(p, params, out):
     s = int(params[0])
     for i in range(p.size):
         out[i] = p[i] / params[2 + i // s]
-
-
-@numba.njit(cache=True)
-def _rhs(t, u, params, out):
-    h = u.size // 2
-    _grad_T(u[h:], params, out[:h])
-    _grad_V(u[:h], params, out[h:])
-    for i in range(h, 2 * h):
-        out[i] = -out[i]
 
 
 @numba.njit(cache=True)
@@ -92,7 +83,7 @@ class NBody(Problem):
     space_dim: int = 2
     G: float = 1.0
 
-    rhs = staticmethod(_rhs)
+    rhs = staticmethod(separable_rhs(_grad_T, _grad_V))
     grad_T = staticmethod(_grad_T)
     grad_V = staticmethod(_grad_V)
     taylor = staticmethod(_taylor)

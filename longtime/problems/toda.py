@@ -12,7 +12,7 @@ import numba
 import numpy as np
 
 from ..params import Param
-from ..problem import Problem
+from ..problem import Problem, separable_rhs
 from ..series import exp_coeff
 
 
@@ -31,15 +31,6 @@ def _grad_V(q, params, out):
 def _grad_T(p, params, out):
     for k in range(p.size):
         out[k] = p[k]
-
-
-@numba.njit(cache=True)
-def _rhs(t, u, params, out):
-    d = u.size // 2
-    _grad_T(u[d:], params, out[:d])
-    _grad_V(u[:d], params, out[d:])
-    for k in range(d, 2 * d):
-        out[k] = -out[k]
 
 
 @numba.njit(cache=True)
@@ -67,7 +58,7 @@ class Toda(Problem):
     sweep_dt = (0.1, 0.05, 0.025)
     sweep_t_final = 500.0
 
-    rhs = staticmethod(_rhs)
+    rhs = staticmethod(separable_rhs(_grad_T, _grad_V))
     grad_T = staticmethod(_grad_T)
     grad_V = staticmethod(_grad_V)
     taylor = staticmethod(_taylor)
