@@ -19,7 +19,7 @@ from .report import complete, render
 from .store import Store, default_path
 
 # modules that add subcommands: each defines add_parser(subparsers) and sets func
-COMMAND_MODULES: tuple[str, ...] = ("longtime.matched", "longtime.plot")
+COMMAND_MODULES: tuple[str, ...] = ("longtime.matched", "longtime.plot", "longtime.reproduce")
 
 
 def _floats(flag: str) -> Callable[[str], list[float]]:
