@@ -166,8 +166,16 @@ class Matcher:
 # ---------------------------------------------------------------- output
 
 
+def _shown(row: dict, metric: str):
+    """The error of a finished run (none for a failed or diverged one)."""
+    return row.get(metric) if row.get("status") == "ok" else None
+
+
 def _fmt(x, spec: str) -> str:
-    return "-" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        width = "".join(ch for ch in spec.split(".")[0] if ch.isdigit())
+        return "-".rjust(int(width or 0))
+    return format(x, spec)
 
 
 def match_table(rows: list[dict], problem: str, settings: dict, metric: str, target: float) -> str:
@@ -183,7 +191,7 @@ def match_table(rows: list[dict], problem: str, settings: dict, metric: str, tar
         ratio = (p[0] / r["cpu_s"]) if p and r.get("cpu_s") else None
         lines.append(
             f"{r['integrator']:14s} {param:>18s} {_fmt(r.get('mean_dt'), '10.3e')} "
-            f"{_fmt(r.get(metric), '11.3e')} {_fmt(r.get('cpu_s'), '9.4f')} {_fmt(r.get('steps'), '8d')} "
+            f"{_fmt(_shown(r, metric), '11.3e')} {_fmt(r.get('cpu_s'), '9.4f')} {_fmt(r.get('steps'), '8d')} "
             f"{_fmt(r.get('rhs_evals'), '9d')} | "
             + (f"{p[0]:9.4g} {p[1]:9.3g} {p[2]:9.3g} {_fmt(ratio, '10.3g')}" if p else f"{'-':>9s} " * 3 + f"{'-':>10s}"))
         if r["status"] != "ok":
@@ -219,14 +227,14 @@ def scaling_tables(scaling: dict[str, dict[int, dict]], orders: dict[int, dict],
             r = per.get(d)
             if r:
                 lines.append(f"{scheme:14s} {d:5d} {_fmt(r.get('mean_dt'), '10.3e')} "
-                             f"{_fmt(r.get(metric), '11.3e')} {_fmt(r.get('steps'), '8d')} "
+                             f"{_fmt(_shown(r, metric), '11.3e')} {_fmt(r.get('steps'), '8d')} "
                              f"{_fmt(r.get('rhs_evals'), '10d')}  {r['status'] if r['status'] != 'ok' else ''}")
     if orders:
         lines += ["", "== bpl: series order N (matched eps_res, base size) ==",
                   f"{'N':>4s} {'CPU s':>9s} {'mean step':>10s} {metric:>11s} {'steps':>8s}"]
         for n, r in sorted(orders.items()):
             lines.append(f"{n:4d} {_fmt(r.get('cpu_s'), '9.4f')} {_fmt(r.get('mean_dt'), '10.3e')} "
-                         f"{_fmt(r.get(metric), '11.3e')} {_fmt(r.get('steps'), '8d')}  "
+                         f"{_fmt(_shown(r, metric), '11.3e')} {_fmt(r.get('steps'), '8d')}  "
                          f"{r['status'] if r['status'] != 'ok' else ''}")
     return "\n".join(lines)
 
@@ -238,8 +246,9 @@ def growth(per: dict[int, dict], base: int, top: int) -> float | None:
     return 100.0 * (b["cpu_s"] / a["cpu_s"] - 1.0)
 
 
-def scaling_figure(scaling, orders, problem: str, out_dir: Path) -> list[Path]:
+def scaling_figure(scaling, orders, problem: str, out_dir: Path, metric: str = "final_error") -> list[Path]:
     import matplotlib
+    import numpy as np
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -251,6 +260,12 @@ def scaling_figure(scaling, orders, problem: str, out_dir: Path) -> list[Path]:
         pts = sorted((d, r["cpu_s"]) for d, r in per.items() if r["status"] == "ok" and r.get("cpu_s"))
         if pts:
             ax.loglog(*zip(*pts), "o-", label=scheme)
+    sizes = sorted({d for per in scaling.values() for d in per})
+    if sizes:
+        from matplotlib.ticker import NullFormatter
+
+        ax.set_xticks(sizes, [str(d) for d in sizes])
+        ax.xaxis.set_minor_formatter(NullFormatter())
     ax.set_xlabel("d (Fourier modes)")
     ax.set_ylabel("CPU s (integration)")
     ax.set_title(f"{problem}: cost against size, matched parameters")
@@ -258,12 +273,16 @@ def scaling_figure(scaling, orders, problem: str, out_dir: Path) -> list[Path]:
     ax.legend()
     if orders:
         ax = axes[0, 1]
-        pts = sorted((n, r["cpu_s"]) for n, r in orders.items() if r["status"] == "ok" and r.get("cpu_s"))
-        if pts:
-            ax.semilogy(*zip(*pts), "o-", color="C0", label="bpl")
+        ok = sorted((n, r) for n, r in orders.items() if r["status"] == "ok" and r.get("cpu_s"))
+        if ok:
+            ax.semilogy([n for n, _ in ok], [r["cpu_s"] for _, r in ok], "o-", color="C0", label="CPU s")
+            err_ax = ax.twinx()
+            err_ax.semilogy([n for n, _ in ok], [r.get(metric) or np.nan for _, r in ok], "s--",
+                            color="C3", label=metric)
+            err_ax.set_ylabel(metric, color="C3")
         ax.set_xlabel("series order N")
-        ax.set_ylabel("CPU s")
-        ax.set_title("bpl: cost against series order")
+        ax.set_ylabel("CPU s", color="C0")
+        ax.set_title("bpl at the matched eps_res: cost (and error) against N")
         ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -353,7 +372,7 @@ def cmd_match(args) -> int:
                         out_rows.append(r)
             text.append(scaling_tables(scaling, orders, args.metric))
             if not args.no_figure:
-                paths = scaling_figure(scaling, orders, problem, Path(args.out))
+                paths = scaling_figure(scaling, orders, problem, Path(args.out), args.metric)
                 text.append("figures: " + ", ".join(map(str, paths)))
         status = "done"
     finally:
