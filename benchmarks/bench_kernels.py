@@ -194,9 +194,9 @@ def _rk4sym_toda(u, dt, nsteps):
 
 _T8 = 6.32591398  # the figure-eight's period
 CASES = {
-    "rk4-toda": lambda: KernelCase("rk4-toda", "toda", "rk4", 0.1, 5000.0, _rk4_toda),
+    "rk4-toda": lambda: KernelCase("rk4-toda", "toda", "rk4", 0.1, 20000.0, _rk4_toda),
     "verlet-figure-eight": lambda: KernelCase("verlet-figure-eight", "figure-eight", "verlet",
-                                              0.002 * _T8, 200 * _T8, _verlet_figure_eight),
+                                              0.002 * _T8, 1000 * _T8, _verlet_figure_eight),
     "rk4sym-toda": lambda: KernelCase("rk4sym-toda", "toda", "rk4sym", 0.1, 1000.0, _rk4sym_toda),
 }
 
