@@ -126,6 +126,8 @@ class Matcher:
                     break
                 if run(value) <= self.target:
                     ok = value
+                else:
+                    bad = value
             elif bad is None:
                 value = value * 10
                 if value > high:

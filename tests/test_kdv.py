@@ -187,3 +187,16 @@ def test_etdrk4_skips_problems_without_linear_part():
 
     reason = ETDRK4().incompatibility(Harmonic())
     assert reason and "linear_part" in reason
+
+
+def test_matcher_finds_the_target_step(capsys):
+    """`longtime match` machinery: the bisection lands near the target error."""
+    from longtime.cells import Cell
+    from longtime.matched import Matcher, match_table
+
+    matcher = Matcher(None, None, "final_error", 1e-3, repeat=1, max_evals=14, verbose=False)
+    row = matcher.match(Cell("kdv", "etdrk4", {"d": 32}, {}, SOLITON_PERIOD))
+    assert row["status"] == "ok" and row["match_parameter"] == "dt"
+    assert abs(math.log(row["final_error"] / 1e-3)) < math.log(1.25), row["final_error"]
+    text = match_table([row], "kdv", {"d": 32}, "final_error", 1e-3)
+    assert "etdrk4" in text and "dt=" in text
