@@ -1,0 +1,372 @@
+"""Borel-Pade-Laplace (BPL): an adaptive series integrator with a residual-controlled step.
+
+One step from (t0, u) (SPEC.md section 2, ``bpl``):
+
+1. Taylor coefficients u_0..u_N from the problem's recurrence (``taylor``);
+2. per component, the Borel transform B(xi) = sum_{n<N} u_{n+1} xi^n / n!;
+3. its robust [m/n] Pade approximant P (``longtime.pade``: SVD degree reduction, reweighted
+   QR, zero trimming), computed in the scaled variable z = xi / lam, lam a power of two that
+   balances the first and last nonzero coefficients (the SVD tolerance is relative, so the
+   rank decisions should not depend on the time unit);
+4. the Laplace sum S(t) = u_0 + t sum_k w_k P(t s_k) over Gauss-Laguerre nodes s_k and
+   weights w_k (numpy's laggauss), and S'(t) = sum_k w_k [P(t s_k) + t s_k P'(t s_k)];
+5. the residual r(t) = ||S'(t) - F(S(t), t0 + t)||_2; the step is the largest t (found to
+   within 5 %) with r(t) <= eps_res, searched below the proposed step by log-log secant
+   and bisection on the same approximants; the next proposal extrapolates r ~ t^N.
+
+Fallback (counted in ``fallbacks``, per accepted step): when a component's Pade approximant
+cannot be trusted at the trial t, that component uses its truncated Taylor sum
+sum_n u_n t^n instead, which is exactly what the quadrature returns for the polynomial B
+itself (K nodes integrate degree <= 2K-1 exactly). Untrusted means: non-finite Pade
+coefficients; a non-finite Laplace sum; or a pole on the positive real axis within reach
+of the quadrature. Descartes' rule of signs on the denominator says whether a positive
+pole can exist at all; if so, a sign change of the denominator between consecutive nodes
+t s_k brackets one, and it is within reach when the terms w_k |P(t s_k)| of the sum on
+either side of it exceed eps_res (a pole beyond the nodes that carry weight, e.g. at
+s = 60 where w ~ 1e-25, moves the sum by far less than the tolerance; treating every pole
+below t s_max = 66.5 t as fatal made 95 % of the toda steps plain Taylor steps, with 15
+times the energy error at the same mean step). The residual then judges the mixed sum
+like any other, so a fallback step is accepted only where it satisfies r <= eps_res.
+
+A degenerate approximant (exact degrees below [m/n]: a rank-deficient Toeplitz block,
+where the robust Pade lowers the degrees, or trimmed zero coefficients, as for an even
+function) is not a fallback; such steps count in ``pade_degenerate``. Where eps_res is
+below the rounding level of the residual itself (64 eps ||F(S)||, e.g. once a growing
+state makes |F| ~ 1e12), a step accepts that level instead of shrinking to underflow.
+A step is never accepted on a non-finite value: a non-finite residual or state counts as
+a failed trial t.
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from ..drivers import EXTRA1, EXTRA2, FALLBACKS, RHS_EVALS
+from ..integrator import AdaptiveIntegrator
+from ..params import InputError, Param
+from ..pade import DEFAULT_TOL, robust_pade, scratch_size
+
+# header of the flat work array: sizes and offsets, read by the compiled step
+(_N, _M, _NDEN, _K, _DIM, _TOL, _EPS_RES, _TW0, _TW1, _TW2, _TW3, _O_COEF, _O_TW, _O_INVFACT,
+ _O_NODES, _O_WEIGHTS, _O_CBUF, _O_A, _O_B, _O_MU, _O_NU, _O_LAM, _O_FLAG, _O_SCR, _O_S, _O_SD,
+ _O_F, _O_BEST, _HEADER) = range(29)
+
+_SEARCH_EVALS = 12  # residual evaluations allowed in one step's search below the proposal
+_SEARCH_REL = 0.05  # the search stops when the bracket [ok, too large] is this narrow
+_GROW_MAX = 4.0
+_ROUNDING = 64 * np.finfo(float).eps  # rounding level of S' - F(S), relative to |F|  # largest growth of the proposal from one step to the next
+
+# component flags: how far its Pade approximant can be trusted
+_PADE_OK, _PADE_CHECK_POLES, _PADE_BAD = 0, 1, 2
+
+
+def _taylor_view(ndim: int):
+    """Compiled view of the problem's Taylor scratch (shape in the header) inside work."""
+    if ndim == 1:
+        @numba.njit(inline="always")
+        def view(work):
+            o = int(work[_O_TW])
+            return work[o:o + int(work[_TW0])]
+    elif ndim == 2:
+        @numba.njit(inline="always")
+        def view(work):
+            o, s0, s1 = int(work[_O_TW]), int(work[_TW0]), int(work[_TW1])
+            return work[o:o + s0 * s1].reshape((s0, s1))
+    elif ndim == 3:
+        @numba.njit(inline="always")
+        def view(work):
+            o, s0, s1, s2 = int(work[_O_TW]), int(work[_TW0]), int(work[_TW1]), int(work[_TW2])
+            return work[o:o + s0 * s1 * s2].reshape((s0, s1, s2))
+    elif ndim == 4:
+        @numba.njit(inline="always")
+        def view(work):
+            o = int(work[_O_TW])
+            s0, s1, s2, s3 = int(work[_TW0]), int(work[_TW1]), int(work[_TW2]), int(work[_TW3])
+            return work[o:o + s0 * s1 * s2 * s3].reshape((s0, s1, s2, s3))
+    else:
+        raise InputError(f"taylor_work_shape of {ndim} dimensions is not supported by bpl (1 to 4)")
+    return view
+
+
+@numba.njit(cache=True)
+def _balance_scale(c, L):
+    """Power of two lam with |c_f| ~ |c_l| lam^(l-f), f/l the first/last nonzero index."""
+    first, last = -1, -1
+    for k in range(L):
+        if c[k] != 0.0:
+            if first < 0:
+                first = k
+            last = k
+    if first < 0 or last == first:
+        return 1.0
+    e = (math.log2(abs(c[first])) - math.log2(abs(c[last]))) / (last - first)
+    e = min(max(round(e), -60.0), 60.0)
+    return 2.0 ** e
+
+
+@numba.njit(cache=True)
+def _prepare_pade(coeffs, work, counters):
+    """Robust Pade approximants of every component's Borel transform (once per step)."""
+    N, m, n, dim = int(work[_N]), int(work[_M]), int(work[_NDEN]), int(work[_DIM])
+    tol = work[_TOL]
+    L = m + n + 1
+    invfact = work[int(work[_O_INVFACT]):]
+    cbuf = work[int(work[_O_CBUF]):int(work[_O_CBUF]) + N]
+    scr = work[int(work[_O_SCR]):]
+    o_a, o_b = int(work[_O_A]), int(work[_O_B])
+    o_mu, o_nu, o_lam, o_flag = int(work[_O_MU]), int(work[_O_NU]), int(work[_O_LAM]), int(work[_O_FLAG])
+    degenerate = False
+    for i in range(dim):
+        for k in range(L):
+            cbuf[k] = coeffs[k + 1, i] * invfact[k]
+        lam = _balance_scale(cbuf, L)
+        scale = 1.0
+        for k in range(L):
+            cbuf[k] *= scale
+            scale *= lam
+        a = work[o_a + i * (m + 1):o_a + (i + 1) * (m + 1)]
+        b = work[o_b + i * (n + 1):o_b + (i + 1) * (n + 1)]
+        finite = True
+        for k in range(L):
+            if not math.isfinite(cbuf[k]):
+                finite = False
+        flag = _PADE_BAD
+        mu, nu = -1, 0
+        if finite:
+            mu, nu, hopped = robust_pade(cbuf, m, n, tol, a, b, scr)
+            degenerate = degenerate or mu < m or nu < n
+            flag = _PADE_OK
+            changes = 0
+            previous = 1.0  # b[0] = 1
+            for j in range(nu + 1):
+                if not math.isfinite(b[j]):
+                    flag = _PADE_BAD
+                elif b[j] != 0.0:
+                    if (b[j] > 0.0) != (previous > 0.0):
+                        changes += 1
+                    previous = b[j]
+            for j in range(mu + 1):
+                if not math.isfinite(a[j]):
+                    flag = _PADE_BAD
+            if flag == _PADE_OK and changes > 0:
+                flag = _PADE_CHECK_POLES  # Descartes: a positive real pole may exist
+        work[o_mu + i] = mu
+        work[o_nu + i] = nu
+        work[o_lam + i] = lam
+        work[o_flag + i] = flag
+    if degenerate:
+        counters[EXTRA2] += 1
+
+
+@numba.njit(cache=True)
+def _laplace_sum(t, u, coeffs, work, S, Sd):
+    """S(t), S'(t) per component into S, Sd; returns True when some component fell back."""
+    N, m, n, K, dim = int(work[_N]), int(work[_M]), int(work[_NDEN]), int(work[_K]), int(work[_DIM])
+    nodes = work[int(work[_O_NODES]):int(work[_O_NODES]) + K]
+    weights = work[int(work[_O_WEIGHTS]):int(work[_O_WEIGHTS]) + K]
+    o_a, o_b = int(work[_O_A]), int(work[_O_B])
+    o_mu, o_nu, o_lam, o_flag = int(work[_O_MU]), int(work[_O_NU]), int(work[_O_LAM]), int(work[_O_FLAG])
+    eps_res = work[_EPS_RES]
+    fell_back = False
+    for i in range(dim):
+        flag = int(work[o_flag + i])
+        usable = flag != _PADE_BAD
+        if usable:
+            mu, nu, lam = int(work[o_mu + i]), int(work[o_nu + i]), work[o_lam + i]
+            a = work[o_a + i * (m + 1):o_a + (i + 1) * (m + 1)]
+            b = work[o_b + i * (n + 1):o_b + (i + 1) * (n + 1)]
+            s_acc = 0.0
+            d_acc = 0.0
+            positive = True  # sign of the denominator, b(0) = 1
+            previous_term = 0.0
+            for k in range(K):
+                x = t * nodes[k]
+                z = x / lam
+                p = 0.0
+                dp = 0.0
+                for j in range(mu, -1, -1):
+                    dp = dp * z + p
+                    p = p * z + a[j]
+                q = 0.0
+                dq = 0.0
+                for j in range(nu, -1, -1):
+                    dq = dq * z + q
+                    q = q * z + b[j]
+                r = p / q
+                if flag == _PADE_CHECK_POLES:
+                    # a sign change of the denominator brackets a real pole; it is within
+                    # reach when the terms of the sum on either side of it matter
+                    term = weights[k] * abs(r)
+                    if (q > 0.0) != positive:
+                        if not term + previous_term <= eps_res:
+                            usable = False
+                            break
+                        positive = q > 0.0
+                    previous_term = term
+                dr = (dp - r * dq) / (q * lam)  # dP/dxi
+                s_acc += weights[k] * r
+                d_acc += weights[k] * (r + x * dr)
+            if usable and math.isfinite(s_acc) and math.isfinite(d_acc):
+                S[i] = u[i] + t * s_acc
+                Sd[i] = d_acc
+                continue
+        # fallback: the truncated Taylor sum and its derivative (Horner)
+        fell_back = True
+        s_acc = 0.0
+        d_acc = 0.0
+        for k in range(N, -1, -1):
+            d_acc = d_acc * t + s_acc
+            s_acc = s_acc * t + coeffs[k, i]
+        S[i] = s_acc
+        Sd[i] = d_acc
+    return fell_back
+
+
+class BorelPadeLaplace(AdaptiveIntegrator):
+    name = "bpl"
+    summary = ("Borel-Pade-Laplace: Taylor series, robust Pade of its Borel transform, "
+               "Gauss-Laguerre Laplace sum; step by the ODE residual")
+    requires = frozenset({"taylor"})
+    order = None  # the series order N is a parameter
+    parameters = {
+        "order": Param(10, "series order N (Taylor coefficients u_0..u_N)", int, minimum=2, maximum=60),
+        "pade_num": Param(None, "Pade numerator degree (default (N-1)//2)", int, minimum=0),
+        "pade_den": Param(None, "Pade denominator degree (default N-1-pade_num)", int, minimum=0),
+        "nodes": Param(20, "Gauss-Laguerre nodes of the Laplace sum", int, minimum=1, maximum=100),
+        "eps_res": Param(1e-6, "residual tolerance ||S' - F(S)||_2 per step", float, positive=True),
+        "pade_tol": Param(DEFAULT_TOL, "relative SVD tolerance of the robust Pade", float, minimum=0.0),
+        "max_dt": Param(None, "largest step (default: the whole span)", float, positive=True),
+    }
+    sweep = {"eps_res": (1e-4, 1e-6, 1e-8, 1e-10)}
+    extra_counters = ("residual_evals", "pade_degenerate")
+
+    def __init__(self, **settings):
+        super().__init__(**settings)
+        s = self.settings
+        N = s["order"]
+        m = s["pade_num"] if s["pade_num"] is not None else (
+            (N - 1) // 2 if s["pade_den"] is None else N - 1 - s["pade_den"])
+        n = s["pade_den"] if s["pade_den"] is not None else N - 1 - m
+        if m < 0 or n < 0 or m + n + 1 > N:
+            raise InputError(
+                f"integrator 'bpl': pade_num={m}, pade_den={n} are not valid for order={N}: "
+                f"the [m/n] Pade approximant of the Borel transform needs m + n + 1 <= order "
+                f"(its N coefficients u_1..u_N), m >= 0, n >= 0")
+        self.degrees = (m, n)
+
+    def _layout(self, problem):
+        N, (m, n), K, dim = self.settings["order"], self.degrees, self.settings["nodes"], problem.dim
+        tw_shape = tuple(int(x) for x in problem.taylor_work_shape(N))
+        sizes = [
+            ("coef", (N + 1) * dim), ("tw", int(np.prod(tw_shape))), ("invfact", N + 1),
+            ("nodes", K), ("weights", K), ("cbuf", N + 1), ("a", dim * (m + 1)),
+            ("b", dim * (n + 1)), ("mu", dim), ("nu", dim), ("lam", dim), ("flag", dim),
+            ("scr", scratch_size(m, n)), ("S", dim), ("Sd", dim), ("F", dim), ("best", dim),
+        ]
+        offsets, o = {}, _HEADER
+        for key, size in sizes:
+            offsets[key] = o
+            o += max(size, 1)
+        return tw_shape, offsets, o
+
+    def work_shape(self, problem):
+        return (self._layout(problem)[2],)
+
+    def prepare_work(self, problem, work):
+        N, (m, n), K = self.settings["order"], self.degrees, self.settings["nodes"]
+        tw_shape, off, _ = self._layout(problem)
+        work[[_N, _M, _NDEN, _K, _DIM]] = N, m, n, K, problem.dim
+        work[_TOL], work[_EPS_RES] = self.settings["pade_tol"], self.settings["eps_res"]
+        for i, s in enumerate(tw_shape):
+            work[_TW0 + i] = s
+        for i, key in enumerate(("coef", "tw", "invfact", "nodes", "weights", "cbuf", "a", "b", "mu",
+                                 "nu", "lam", "flag", "scr", "S", "Sd", "F", "best")):
+            work[_O_COEF + i] = off[key]
+        work[off["invfact"]:off["invfact"] + N + 1] = [1.0 / math.factorial(k) for k in range(N + 1)]
+        s, w = np.polynomial.laguerre.laggauss(K)
+        work[off["nodes"]:off["nodes"] + K] = s
+        work[off["weights"]:off["weights"] + K] = w
+
+    def initial_step(self, problem, t_final):
+        return min(float(problem.default_dt), self.max_step(problem, t_final))
+
+    def make_try_step(self, problem):
+        rhs, taylor = problem.rhs, problem.taylor
+        N = self.settings["order"]
+        taylor_work = _taylor_view(len(problem.taylor_work_shape(N)))
+
+        @numba.njit
+        def residual(t0, t, u, coeffs, params, work, counters):
+            dim = u.size
+            o_s, o_sd, o_f = int(work[_O_S]), int(work[_O_SD]), int(work[_O_F])
+            S, Sd, F = work[o_s:o_s + dim], work[o_sd:o_sd + dim], work[o_f:o_f + dim]
+            fell_back = _laplace_sum(t, u, coeffs, work, S, Sd)
+            rhs(t0 + t, S, params, F)
+            counters[RHS_EVALS] += 1
+            counters[EXTRA1] += 1
+            r = 0.0
+            f2 = 0.0
+            for i in range(dim):
+                r += (Sd[i] - F[i]) ** 2
+                f2 += F[i] * F[i]
+                if not math.isfinite(S[i]):
+                    r = np.inf
+            # relative to the attainable tolerance: eps_res, or the rounding level of
+            # S' - F(S) where |F| is so large that eps_res is below it
+            r = math.sqrt(r) / max(work[_EPS_RES], _ROUNDING * math.sqrt(f2))
+            return (r if math.isfinite(r) else np.inf), fell_back
+
+        @numba.njit
+        def try_step(t, u, h, params, work, counters, u_new):
+            N, dim = int(work[_N]), u.size
+            eps = 1.0  # residuals come relative to the attainable tolerance
+            oc = int(work[_O_COEF])
+            coeffs = work[oc:oc + (N + 1) * dim].reshape((N + 1, dim))
+            taylor(t, u, params, coeffs, taylor_work(work))
+            _prepare_pade(coeffs, work, counters)
+            o_s, o_best = int(work[_O_S]), int(work[_O_BEST])
+            S, best = work[o_s:o_s + dim], work[o_best:o_best + dim]
+
+            r, fell_back = residual(t, h, u, coeffs, params, work, counters)
+            if r <= eps:  # the proposal holds: take it, propose more next time
+                u_new[:] = S
+                if fell_back:
+                    counters[FALLBACKS] += 1
+                grow = _GROW_MAX if r == 0.0 else min(_GROW_MAX, max(1.0, (eps / r) ** (1.0 / N)))
+                return 1, h, (np.inf if r == 0.0 else h * grow)
+            # search below h: lo holds (r <= eps), hi does not
+            lo, r_lo, hi, r_hi = 0.0, 0.0, h, r
+            best_fell_back = False
+            for it in range(_SEARCH_EVALS):
+                if lo > 0.0 and hi - lo <= _SEARCH_REL * hi:
+                    break
+                if lo > 0.0 and r_lo > 0.0 and math.isfinite(r_hi):
+                    p = max(math.log(r_hi / r_lo) / math.log(hi / lo), 1.0)
+                    trial = lo * (eps / r_lo) ** (1.0 / p)
+                elif lo == 0.0 and math.isfinite(r_hi):
+                    trial = hi * (eps / r_hi) ** (1.0 / N)
+                else:
+                    trial = 0.5 * (lo + hi)
+                # keep the trial strictly inside the bracket, away from its ends
+                trial = min(max(trial, lo + 0.1 * (hi - lo)), hi - 0.1 * (hi - lo))
+                if lo == 0.0:
+                    trial = min(trial, 0.9 * hi)
+                r, fell_back = residual(t, trial, u, coeffs, params, work, counters)
+                if r <= eps:
+                    lo, r_lo, best_fell_back = trial, r, fell_back
+                    best[:] = S
+                else:
+                    hi, r_hi = trial, r
+            if lo == 0.0:  # nothing below h held: retry from scratch with a smaller step
+                return 0, 0.0, 0.25 * hi
+            for i in range(dim):
+                if not math.isfinite(best[i]):
+                    return 0, 0.0, 0.5 * lo
+            u_new[:] = best
+            if best_fell_back:
+                counters[FALLBACKS] += 1
+            return 1, lo, lo
+
+        return try_step
