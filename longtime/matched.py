@@ -181,7 +181,7 @@ def _fmt(x, spec: str) -> str:
 
 
 def match_table(rows: list[dict], problem: str, settings: dict, metric: str, target: float) -> str:
-    paper = PAPER_KDV if problem == "kdv" and settings.get("d", 128) == 128 else {}
+    paper = PAPER_KDV if problem == "kdv" and settings.get("d") == 128 else {}
     head = (f"{'scheme':14s} {'parameter':>18s} {'mean step':>10s} {metric:>11s} {'CPU s':>9s} "
             f"{'steps':>8s} {'rhs evals':>9s} | {'paper CPU':>9s} {'mean step':>9s} {'L2 error':>9s} "
             f"{'paper/ours':>10s}")
@@ -348,7 +348,7 @@ def cmd_match(args) -> int:
     try:
         matched = [matcher.match(c) for c in bases]
         base_settings = bases[0].problem_settings if bases else {}
-        psettings = {**{k: p.default for k, p in pcls.parameters.items() if k == "d"}, **base_settings}
+        psettings = pcls(**base_settings).settings  # parsed values (--set gives strings)
         out_rows += matched
         text = [match_table(matched, problem, psettings, args.metric, args.target)]
         if args.scaling:
