@@ -160,6 +160,15 @@ class Matcher:
             note = f"error above the target down to {name}={min(tried):.3g}"
         elif bad is None:
             note = f"error below the target up to {name}={max(tried):.3g}"
+        elif distance((value, (cell, row))) > CLOSE_ENOUGH:
+            # the error jumps across the target (e.g. from the error floor to a stability
+            # limit): the cheapest setting that meets the target is the fair point
+            value = max(v for v, (_, r) in tried.items() if _error(r, self.metric) <= self.target)
+            cell, row = tried[value]
+            above = min(v for v in tried if v > value)
+            note = (f"no {name} gives an error near the target: {name}={above:.4g} gives "
+                    f"{_error(tried[above][1], self.metric):.3g} ({tried[above][1]['status']}); "
+                    f"the largest {name} below the target is shown")
         row = self.timed(cell, row, "matched")
         row.update(match_parameter=name, match_value=value, match_note=note, match_evals=len(tried))
         return row
