@@ -89,4 +89,4 @@ class Heyoka(Integrator):
         return Trajectory(
             status=status, message=message, t=grid[:n], u=states[:n], cpu_s=cpu, wall_s=wall,
             counters={"steps": steps}, min_dt=float(min_h) if steps else None,
-            max_dt=float(max_h) if steps else None, extra={"order": ta.order})
+            max_dt=float(max_h) if steps else None, extra={"order": ta.order, "tol": self.settings["tol"]})

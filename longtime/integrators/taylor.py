@@ -8,7 +8,8 @@ is ``bpl``). The adaptive variant sizes each step a priori from the last two coe
     h = exp(-0.7 / (N - 1)) * min_{k in {N-1, N}} (eps / |u_k|_inf)^(1/k),
 
 so that the next terms of the series, whose size those two coefficients predict, stay
-below eps. Every step is accepted; where all coefficients beyond u_0 vanish (an
+below eps. By default N follows tol as in Jorba-Zou and heyoka (N = ceil(-ln(tol)/2 + 1)),
+which keeps the step near the series' radius of convergence for every tol. Every step is accepted; where all coefficients beyond u_0 vanish (an
 equilibrium) nothing limits the step and it is the largest allowed, h_max.
 
 The scratch array is flat: the coefficients (N+1, dim), then the problem's own scratch of
@@ -45,7 +46,8 @@ class _SeriesLayout:
         # the compiled step closes over the layout, so it is part of the loop's cache key
         self._current_layout = self._layout(problem)
         traj = super()._integrate(problem, t_final, max_samples)
-        traj.extra["order"] = self.settings["order"]  # the row's order field, also when defaulted
+        # the row's order (and tol) fields, also when defaulted
+        traj.extra.update({k: self.settings[k] for k in ("order", "tol") if k in self.settings})
         return traj
 
     def kernel_variant(self):
@@ -95,7 +97,9 @@ class AdaptiveTaylor(_SeriesLayout, AdaptiveIntegrator):
     name = "taylor-adaptive"
     summary = "Taylor series of order N, step from the last two coefficients (Jorba-Zou)"
     parameters = {
-        "order": Param(20, "series order N (>= 2)", int, minimum=2, maximum=60),
+        "order": Param(None, "series order N >= 2 (default: Jorba-Zou's ceil(-ln(tol)/2 + 1), "
+                       "the order that minimises the work per unit time at that tolerance)",
+                       int, minimum=2, maximum=60),
         "tol": Param(1e-12, "local tolerance (absolute below |u| = 1, relative above)", float,
                      positive=True),
     }
@@ -103,6 +107,8 @@ class AdaptiveTaylor(_SeriesLayout, AdaptiveIntegrator):
 
     def __init__(self, **settings):
         super().__init__(**settings)
+        if self.settings["order"] is None:
+            self.settings["order"] = min(60, max(2, math.ceil(-math.log(self.settings["tol"]) / 2 + 1)))
         self.order = self.settings["order"]
 
     def work_shape(self, problem):
