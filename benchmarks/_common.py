@@ -128,7 +128,8 @@ class _PairAccuracy:
     params: list = [["none"], ["none"]]
     timeout = 900
 
-    def setup_cache(self):
+    def rows(self):
+        """Every pair's row; each subclass calls this from its own ``setup_cache``."""
         return rows_of_pairs(*self.params)
 
     def setup(self, rows, problem, scheme):

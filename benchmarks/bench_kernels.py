@@ -232,19 +232,3 @@ class KernelRatio:
     track_ratio_rk4_toda.unit = "ratio"
     track_ratio_verlet_figure_eight.unit = "ratio"
     track_ratio_rk4sym_toda.unit = "ratio"
-
-
-class HandWritten:
-    """CPU time of the hand-written loops alone (the floor the suite is compared with)."""
-
-    params = [list(CASES)]
-    param_names = ["case"]
-
-    def setup(self, name):
-        try:
-            self.case = CASES[name]().build()
-        except Exception as exc:
-            raise NotImplementedError(str(exc)) from None
-
-    def time_hand_written(self, name):
-        self.case.run_hand()
