@@ -331,7 +331,8 @@ class BorelPadeLaplace(AdaptiveIntegrator):
 
             r, fell_back = residual(t, h, u, coeffs, params, work, counters)
             if r <= eps:  # the proposal holds: take it, propose more next time
-                u_new[:] = S
+                for i in range(dim):  # element loops: a slice copy compiles a slow shape check
+                    u_new[i] = S[i]
                 if fell_back:
                     counters[FALLBACKS] += 1
                 grow = _GROW_MAX if r == 0.0 else min(_GROW_MAX, max(1.0, (eps / r) ** (1.0 / N)))
@@ -356,7 +357,8 @@ class BorelPadeLaplace(AdaptiveIntegrator):
                 r, fell_back = residual(t, trial, u, coeffs, params, work, counters)
                 if r <= eps:
                     lo, r_lo, best_fell_back = trial, r, fell_back
-                    best[:] = S
+                    for i in range(dim):
+                        best[i] = S[i]
                 else:
                     hi, r_hi = trial, r
             if lo == 0.0:  # nothing below h held: retry from scratch with a smaller step
@@ -364,7 +366,8 @@ class BorelPadeLaplace(AdaptiveIntegrator):
             for i in range(dim):
                 if not math.isfinite(best[i]):
                     return 0, 0.0, 0.5 * lo
-            u_new[:] = best
+            for i in range(dim):
+                u_new[i] = best[i]
             if best_fell_back:
                 counters[FALLBACKS] += 1
             return 1, lo, lo
