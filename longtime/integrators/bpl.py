@@ -30,9 +30,10 @@ like any other, so a fallback step is accepted only where it satisfies r <= eps_
 
 A degenerate approximant (exact degrees below [m/n]: a rank-deficient Toeplitz block,
 where the robust Pade lowers the degrees, or trimmed zero coefficients, as for an even
-function) is not a fallback; such steps count in ``pade_degenerate``. Where eps_res is
-below the rounding level of the residual itself (64 eps ||F(S)||, e.g. once a growing
-state makes |F| ~ 1e12), a step accepts that level instead of shrinking to underflow.
+function; not the zero series of a component at rest) is not a fallback; such steps
+count in ``pade_degenerate``. Where eps_res is below the rounding level of the residual
+itself (64 eps ||F(S)||, e.g. once a growing state makes |F| ~ 1e12), a step accepts that
+level instead of shrinking to underflow.
 A step is never accepted on a non-finite value: a non-finite residual or state counts as
 a failed trial t.
 """
@@ -136,7 +137,8 @@ def _prepare_pade(coeffs, work, counters):
         mu, nu = -1, 0
         if finite:
             mu, nu, hopped = robust_pade(cbuf, m, n, tol, a, b, scr)
-            degenerate = degenerate or mu < m or nu < n
+            # a zero series (an equilibrium component) is exact, not degenerate
+            degenerate = degenerate or (mu >= 0 and (mu < m or nu < n))
             flag = _PADE_OK
             changes = 0
             previous = 1.0  # b[0] = 1
