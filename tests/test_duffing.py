@@ -75,3 +75,21 @@ def test_duffing_forced_rhs_matches_heyoka_reference():
     traj = rk4.integrate(problem, 10.0, max_samples=11)
     ref = reference_states(problem, traj.t)
     assert np.max(np.abs(traj.u - ref)) < 1e-9
+
+
+def test_series_schemes_on_duffing():
+    """taylor-adaptive keeps duffing-1's first integral through the growth of the amplitude;
+    taylor and heyoka follow duffing-2's exact solution."""
+    d1 = registry.problem_class("duffing-1")()
+    traj = registry.integrator_class("taylor-adaptive")(tol=1e-12).integrate(d1, 20.0)
+    assert traj.status == "ok" and traj.t[-1] == 20.0
+    I = d1.invariants(traj.t, traj.u)["I"]
+    assert np.max(np.abs(I / I[0] - 1)) < 1e-8
+    assert np.max(np.abs(traj.u[:, 0])) > 100  # the amplitude did grow
+
+    d2 = registry.problem_class("duffing-2")()
+    for scheme, bound in ((registry.integrator_class("taylor")(dt=0.1, order=12), 1e-10),
+                          (registry.integrator_class("heyoka")(), 1e-12)):
+        traj = scheme.integrate(d2, 200.0, max_samples=1001)
+        assert traj.status == "ok"
+        assert np.max(np.abs(traj.u - d2.exact(traj.t))) < bound
