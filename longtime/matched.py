@@ -96,7 +96,7 @@ class Matcher:
     def match(self, base: Cell) -> dict:
         """Search the scheme's accuracy parameter for an error near the target."""
         if base.skip_reason:
-            return {**run_cell(base), "match_note": base.skip_reason}
+            return run_cell(base)  # a skipped row, with the reason as its message
         name = accuracy_parameter(base.integrator)
         problem = registry.problem_class(base.problem)(**base.problem_settings)
         span = base.t_final - problem.t0
