@@ -15,7 +15,7 @@ from typing import Any, Iterable, Mapping
 from . import metrics, registry
 from .params import InputError, check_time_span
 from .problem import Problem
-from .reference import has_reference, reference_states
+from .reference import ReferenceUnavailable, has_reference, reference_states
 
 # parameters that have a flag of their own on the command line, swept as lists
 SWEEP_PARAMETERS = ("dt", "tol", "eps_res", "order")
@@ -138,11 +138,15 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         if row["dt"] is None and "dt" in integrator.parameters and integrator.kind == "fixed":
             row["dt"] = float(problem.default_dt)
         traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples)
-        ref = None
+        ref, note = None, ""
         if reference and has_reference(problem):
-            ref = reference_states(problem, traj.t)
+            try:
+                ref = reference_states(problem, traj.t)
+            except ReferenceUnavailable as exc:
+                note = f"no reference: {exc}"
         row.update(metrics.evaluate(problem, traj, ref))
-        row["status"], row["message"] = traj.status, traj.message
+        row["status"] = traj.status
+        row["message"] = "; ".join(m for m in (traj.message, note) if m)
     except Exception as exc:  # a failing cell never takes the matrix down
         row["status"] = "failed"
         row["message"] = "".join(traceback.format_exception_only(type(exc), exc)).strip()

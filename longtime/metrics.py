@@ -75,6 +75,8 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None) -
         "max_dt": traj.max_dt,
         "t_reached": float(t[-1]),
         "samples": int(t.size),
+        "l2_error": None,  # null unless a reference is at hand
+        "final_error": None,
     }
     # a diverged run ends on a non-finite state: measure the finite part (until the blow-up)
     finite = int(np.argmin(np.isfinite(U).all(axis=1))) if not np.isfinite(U).all() else t.size

@@ -10,6 +10,8 @@ import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
+import numpy as np
+
 
 class InputError(ValueError):
     """Bad user input: unknown names, invalid values, incompatible pairs."""
@@ -44,10 +46,11 @@ class Param:
                 if value.lower() not in ("true", "false", "1", "0", "yes", "no"):
                     raise ValueError(value)
                 v = value.lower() in ("true", "1", "yes")
-            elif self.kind is int and isinstance(value, float) and value.is_integer():
-                v = int(value)
-            elif self.kind is int and isinstance(value, str):
-                v = int(float(value)) if float(value).is_integer() else int(value)
+            elif self.kind is int and not isinstance(value, (int, np.integer)):
+                number = float(value)  # "3", "3.0", 3.0 are 3; 2.5 and "2.5" are errors
+                if not number.is_integer():
+                    raise ValueError(value)
+                v = int(number)
             else:
                 v = self.kind(value)
         except (TypeError, ValueError):
@@ -92,8 +95,6 @@ def check_time_span(t0: float, t_final: float) -> None:
 
 
 def check_state(name: str, u) -> None:
-    import numpy as np
-
     u = np.asarray(u, dtype=float)
     if u.ndim != 1 or u.size == 0:
         raise InputError(f"{name} must be a non-empty 1-D array, got shape {u.shape}")

@@ -8,6 +8,9 @@ clipped) and cached on disk by problem, settings, initial state, times and preci
 """
 from __future__ import annotations
 
+import os
+import time
+
 import numpy as np
 
 from .cache import cache_dir, digest
@@ -15,6 +18,13 @@ from .params import InputError
 from .problem import Problem
 
 PRECISIONS = {"double": np.float64, "long double": np.longdouble}
+# a reference that takes longer than this (wall seconds) is given up: the row keeps its
+# status and says so (duffing-1 far past t = 40 needs ever more steps per unit time)
+DEFAULT_BUDGET_S = float(os.environ.get("LONGTIME_REFERENCE_SECONDS", "120"))
+
+
+class ReferenceUnavailable(RuntimeError):
+    """The reference could not be computed (its time budget ran out, or heyoka failed)."""
 _TAYLOR: dict[tuple, object] = {}  # compiled integrators, by problem identity and precision
 
 
@@ -23,8 +33,13 @@ def has_reference(problem: Problem) -> bool:
     return "exact" in caps or "heyoka" in caps
 
 
-def reference_states(problem: Problem, times: np.ndarray, precision: str = "double") -> np.ndarray:
-    """States (len(times), dim) of the problem's true trajectory from problem.u0 at t0."""
+def reference_states(problem: Problem, times: np.ndarray, precision: str = "double",
+                     budget_s: float | None = None) -> np.ndarray:
+    """States (len(times), dim) of the problem's true trajectory from problem.u0 at t0.
+
+    Raises ReferenceUnavailable when heyoka stops early or takes more than ``budget_s``
+    wall seconds (default $LONGTIME_REFERENCE_SECONDS or 120).
+    """
     times = np.asarray(times, dtype=float)
     if problem.exact is not None:
         return np.asarray(problem.exact(times), dtype=float)
@@ -39,18 +54,26 @@ def reference_states(problem: Problem, times: np.ndarray, precision: str = "doub
     path = cache_dir("reference") / f"{problem.name}-{key}.npy"
     if path.exists():
         return np.load(path)
-    # propagate_grid wants a strictly increasing grid: solve on the distinct times
+    # propagate_grid wants a strictly increasing grid that starts at the current time
     grid, inverse = np.unique(times, return_inverse=True)
     if grid[0] < problem.t0:
         raise InputError(f"reference times start at {grid[0]} < t0 = {problem.t0}")
+    starts_later = grid[0] > problem.t0
+    if starts_later:
+        grid = np.r_[problem.t0, grid]
     ta = _taylor(problem, precision)
     fp = PRECISIONS[precision]
     ta.time = fp(problem.t0)
     ta.state[:] = problem.u0.astype(fp)
-    outcome = ta.propagate_grid(grid.astype(fp))
+    deadline = time.perf_counter() + (DEFAULT_BUDGET_S if budget_s is None else budget_s)
+    outcome = ta.propagate_grid(grid.astype(fp), callback=lambda _: time.perf_counter() < deadline)
+    if outcome[0] == hy.taylor_outcome.cb_stop:
+        raise ReferenceUnavailable(f"heyoka reference for {problem.name} passed its time budget "
+                                   f"at t = {float(ta.time):.6g} (LONGTIME_REFERENCE_SECONDS)")
     if outcome[0] != hy.taylor_outcome.time_limit:
-        raise RuntimeError(f"heyoka reference for {problem.name} stopped early: {outcome[0]}")
-    states = np.asarray(outcome[-1], dtype=float)[inverse]
+        raise ReferenceUnavailable(f"heyoka reference for {problem.name} stopped early: {outcome[0]}")
+    states = np.asarray(outcome[-1], dtype=float)[1:] if starts_later else np.asarray(outcome[-1], dtype=float)
+    states = states[inverse]
     np.save(path, states)
     return states
 

@@ -147,3 +147,11 @@ def test_list_shows_capabilities_and_requirements(capsys):
     assert "separable" in problems["toda"]["capabilities"]
     assert schemes["verlet"]["requires"] == ["separable"]
     assert schemes["rk4sym"]["symplectic"] and schemes["rk4sym"]["order"] == 4
+
+
+def test_integer_parameters_reject_fractions(capsys):
+    code, _, err = run_cli(capsys, "run", "-p", "toda", "-i", "rk4", "--set", "d=3.5", "--no-store")
+    assert code == 2 and "d=" in err and "int" in err
+    code, _, _ = run_cli(capsys, "run", "-p", "toda", "-i", "rk4", "--set", "d=4.0", "--t-final", "1",
+                         "--no-store")
+    assert code == 0

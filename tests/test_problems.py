@@ -98,3 +98,27 @@ def test_bad_problem_settings(name, settings, word):
 def test_capabilities_read_off_what_a_problem_provides():
     assert {"rhs", "separable", "exact", "heyoka", "invariants"} <= problem("kepler").capabilities()
     assert "exact" not in problem("toda").capabilities()
+
+
+def test_reference_on_a_grid_that_starts_after_t0():
+    p = problem("toda")
+    t = np.linspace(0, 5, 11)
+    assert reference_states(p, t[3:]) == pytest.approx(reference_states(p, t)[3:], abs=1e-13)
+
+
+def test_reference_past_its_time_budget_is_unavailable_not_a_hang():
+    from longtime.reference import ReferenceUnavailable
+
+    p = problem("duffing-1")
+    with pytest.raises(ReferenceUnavailable, match="time budget"):
+        reference_states(p, np.linspace(0, 60, 7), budget_s=0.2)
+
+
+def test_a_cell_without_reference_keeps_its_status_and_says_why(monkeypatch, tmp_path):
+    from longtime import cells
+
+    monkeypatch.setattr("longtime.reference.DEFAULT_BUDGET_S", 0.0)
+    monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))  # nothing cached: heyoka must run
+    row = cells.run_cell(cells.Cell("toda", "rk4", {}, {"dt": 0.1}, 50.0))
+    assert row["status"] == "ok" and row["l2_error"] is None and row["H.max"] is not None
+    assert "no reference" in row["message"] and "time budget" in row["message"]

@@ -65,6 +65,12 @@ class Harmonic(Problem):
     def invariants(self, t, U):
         return {"H": self.hamiltonian(t, U)}
 
+    def heyoka_system(self):
+        import heyoka as hy
+
+        q, p = hy.make_vars("q", "p")
+        return [q, p], [p, -self.settings["omega"] ** 2 * q]
+
     def exact(self, t):
         w, q0, p0 = self.settings["omega"], self.settings["q0"], self.settings["p0"]
         t = np.asarray(t, dtype=float) - self.t0
