@@ -22,6 +22,7 @@ from .jitcache import cacheable
 from .params import InputError, Param, check_time_span, resolve
 from .problem import Problem
 
+SAMPLE_BUDGET = 10_000_000  # float64 values of recorded states per run
 STATUS_NAMES = {drivers.OK: "ok", drivers.DIVERGED: "diverged", drivers.FAILED: "failed"}
 
 
@@ -79,7 +80,9 @@ class Integrator(ABC):
             raise InputError(reason)
         if max_samples < 2:
             raise InputError(f"max_samples={max_samples} is not valid: must be >= 2")
-        return self._integrate(problem, float(t_final), int(max_samples))
+        # keep the samples under ~80 MB whatever the dimension (KdV at d = 512: ~19k samples)
+        max_samples = min(int(max_samples), max(2001, SAMPLE_BUDGET // problem.dim))
+        return self._integrate(problem, float(t_final), max_samples)
 
     @abstractmethod
     def _integrate(self, problem: Problem, t_final: float, max_samples: int) -> Trajectory: ...
@@ -121,6 +124,9 @@ class FixedStepIntegrator(Integrator):
         """Shape of the scratch array handed to every step."""
         return (1, problem.dim)
 
+    def prepare_work(self, problem: Problem, work: np.ndarray) -> None:
+        """Fill constant data (coefficients) into the scratch array before the run."""
+
     def dt_for(self, problem: Problem) -> float:
         dt = self.settings.get("dt")
         return float(problem.default_dt if dt is None else dt)
@@ -132,6 +138,7 @@ class FixedStepIntegrator(Integrator):
         stride = max(1, math.ceil(nsteps / (max_samples - 1)))
         loop = _cached_loop(self, problem, lambda: drivers.fixed_step_loop(self.make_step(problem)))
         work = np.zeros(self.work_shape(problem))
+        self.prepare_work(problem, work)
         n_out = nsteps // stride + 2
         out_t = np.empty(n_out)
         out_u = np.empty((n_out, problem.dim))

@@ -64,3 +64,31 @@ def test_second_process_loads_the_kernel_from_disk(tmp_path):
     assert x1 == x2
     assert hits1 == "0" and hits2 != "0"
     assert list((tmp_path / "lt" / "kernels").glob("longtime_kernel_*.py"))
+
+
+def test_source_that_no_longer_matches_the_code_is_not_frozen(tmp_path, monkeypatch):
+    """A kernel module edited after import must not be frozen from the new text."""
+    import importlib.util
+
+    path = tmp_path / "edited_kernels.py"
+    path.write_text(textwrap.dedent('''
+        import numba
+
+        def make(c):
+            @numba.njit
+            def kernel(x):
+                return x * c
+            return kernel
+    '''))
+    spec = importlib.util.spec_from_file_location("edited_kernels", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["edited_kernels"] = module
+    spec.loader.exec_module(module)
+    kernel = module.make(3.0)
+    # the file changes under the running process: same line numbers, other code
+    path.write_text(path.read_text().replace("return x * c", "return x + c + 1.0"))
+    try:
+        assert jitcache.cacheable(kernel) is kernel
+        assert kernel(2.0) == 6.0
+    finally:
+        sys.modules.pop("edited_kernels")
