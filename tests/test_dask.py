@@ -24,8 +24,12 @@ def test_dask_matrix_gives_the_serial_rows(tmp_path):
     with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
                                   dashboard_address=None) as cluster:
         rows = run_matrix(cells, None, None, "dask", ExecOptions(scheduler=cluster.scheduler_address))
+        # with a time limit each task runs its cell in a child process of the worker
+        limited = run_matrix(cells[:2], None, None, "dask",
+                             ExecOptions(scheduler=cluster.scheduler_address, cell_timeout=120))
     assert all(r["status"] == "ok" for r in rows)
     assert _deterministic(rows) == _deterministic(serial)
+    assert _deterministic(limited) == _deterministic(serial[:2])
 
 
 def test_scheduler_flag_selects_the_dask_executor():
