@@ -184,7 +184,9 @@ def drift(out: Path, formats: Sequence[str] = ("png", "svg"), problems: list[str
             label = scheme + (f" (dt={step:g})" if step and "dt" in _parameters(scheme) else "")
             if traj.status != "ok":
                 label += f" [{traj.status} at t={traj.t_reached:.4g}]"
-            ax.semilogy(traj.t[ok], err[ok], lw=0.6, label=label, color=f"C{i}")
+            # the first scheme on top: oscillating curves of later ones must not hide it
+            ax.semilogy(traj.t[ok], err[ok], lw=0.6, label=label, color=f"C{i}", zorder=len(schemes) - i,
+                        alpha=0.9 if i == 0 else 0.6)
         ax.set_xlabel("t")
         ax.set_ylabel(f"relative error of {invariant}")
         ax.set_title(f"{problem.describe()}: drift of {invariant}")
