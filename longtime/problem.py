@@ -119,6 +119,15 @@ class Problem(ABC):
         """Constants passed to the compiled functions as a float64 array."""
         return np.zeros(1)
 
+    def inverse_masses(self) -> np.ndarray | None:
+        """diag(M^-1) when T(p) = p.M^-1 p / 2 with M diagonal (None: T is general).
+
+        An optional fast path: splitting schemes then drift q += a h M^-1 p without calling
+        grad_T. grad_T must still be provided (it defines the "separable" capability), and
+        whether this is None must not vary between problems of one ``kernel_key``.
+        """
+        return None
+
     def taylor_work_shape(self, order: int) -> tuple[int, ...]:
         """Scratch array shape for ``taylor`` at series order N (auxiliary series)."""
         return (1, self.dim)

@@ -36,7 +36,12 @@ class Splitting(FixedStepIntegrator):
     drifts: np.ndarray
 
     def work_shape(self, problem):
-        return (2, problem.dim // 2)  # force, velocity
+        return (3, problem.dim // 2)  # force, velocity, diag(M^-1) when T is quadratic
+
+    def prepare_work(self, problem, work):
+        inverse = problem.inverse_masses()
+        if inverse is not None:
+            work[2] = inverse
 
     def make_step(self, problem):
         grad_T, grad_V = problem.grad_T, problem.grad_V
@@ -46,26 +51,31 @@ class Splitting(FixedStepIntegrator):
         # the step ends on a force evaluated at the final q, valid at the next step's start
         last = max(i for i in range(stages) if kicks[i] != 0 or drifts[i] != 0)
         ends_fresh = drifts[last] == 0.0
+        # T = p.M^-1 p / 2: drift with the stored diag(M^-1), no call to grad_T
+        quadratic = problem.inverse_masses() is not None
 
         @numba.njit
         def step(t, u, h, params, work, counters, first):
+            # index u and work directly: a view per array per step costs reference counting
             n = u.size // 2
-            q, p = u[:n], u[n:]
-            force, velocity = work[0], work[1]
             fresh = ends_fresh and not first
             evals = 0
             for i in range(stages):
                 if kicks[i] != 0.0:
                     if not fresh:
-                        grad_V(q, params, force)
+                        grad_V(u[:n], params, work[0])
                         evals += 1
                         fresh = True
                     for m in range(n):
-                        p[m] -= kicks[i] * h * force[m]
+                        u[n + m] -= kicks[i] * h * work[0, m]
                 if drifts[i] != 0.0:
-                    grad_T(p, params, velocity)
-                    for m in range(n):
-                        q[m] += drifts[i] * h * velocity[m]
+                    if quadratic:
+                        for m in range(n):
+                            u[m] += drifts[i] * h * work[2, m] * u[n + m]
+                    else:
+                        grad_T(u[n:], params, work[1])
+                        for m in range(n):
+                            u[m] += drifts[i] * h * work[1, m]
                     fresh = False
             counters[RHS_EVALS] += evals
             return OK

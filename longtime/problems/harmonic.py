@@ -58,6 +58,9 @@ class Harmonic(Problem):
     def kernel_params(self):
         return np.array([self.settings["omega"]])
 
+    def inverse_masses(self):
+        return np.ones(self.dim // 2)
+
     def hamiltonian(self, t, U):
         w = self.settings["omega"]
         return 0.5 * (U[:, 1] ** 2 + w**2 * U[:, 0] ** 2)

@@ -54,6 +54,9 @@ class HenonHeiles(Problem):
             raise InputError(f"y0={y0} is not valid for energy={E}: the potential there exceeds E")
         return [0.0, y0, math.sqrt(2 * kinetic), 0.0]
 
+    def inverse_masses(self):
+        return np.ones(self.dim // 2)
+
     def invariants(self, t, U):
         x, y, px, py = U.T
         return {"H": 0.5 * (px**2 + py**2) + potential(x, y)}

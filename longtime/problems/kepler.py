@@ -76,6 +76,9 @@ class Kepler(Problem):
         e = self.settings["e"]
         return [1 - e, 0.0, 0.0, math.sqrt((1 + e) / (1 - e))]
 
+    def inverse_masses(self):
+        return np.ones(self.dim // 2)
+
     def invariants(self, t, U):
         x, y, px, py = U.T
         r = np.hypot(x, y)

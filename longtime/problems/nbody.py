@@ -1,7 +1,7 @@
 """Gravitational N-body problems, H = sum |p_k|^2/(2 m_k) - sum_{k<l} G m_k m_l / |q_k - q_l|.
 
 State u = (q_1..q_N, p_1..p_N), each q_k, p_k in R^s (s = 2 or 3). The compiled functions
-read s, G and the masses from ``params = (s, G, m_1..m_N)``.
+read s, G and the masses from ``params = (s, G, m_1..m_N, 1/m_1..1/m_N)``.
 Invariants: H, the angular momentum L (a scalar in the plane, a vector in space) and the
 linear momentum P.
 """
@@ -13,35 +13,64 @@ import numba
 import numpy as np
 
 from ..params import Param
-from ..problem import Problem, separable_rhs
+from ..problem import Problem
 from ..series import power_coeff, product, square
 
 
-@numba.njit(cache=True)
-def _grad_V(q, params, out):
-    s = int(params[0])
-    G = params[1]
-    n = q.size // s
-    for i in range(q.size):
-        out[i] = 0.0
-    for k in range(n):
-        for l in range(k + 1, n):
-            r2 = 0.0
-            for c in range(s):
-                dx = q[k * s + c] - q[l * s + c]
-                r2 += dx * dx
-            f = G * params[2 + k] * params[2 + l] / (r2 * math.sqrt(r2))
-            for c in range(s):
-                dx = q[k * s + c] - q[l * s + c]
-                out[k * s + c] += f * dx
-                out[l * s + c] -= f * dx
+def _kernels(s: int):
+    """rhs, grad_T, grad_V for bodies in R^s, with s a compile-time constant (strides and
+    branches fold away: this is the hot loop of every n-body run)."""
+
+    @numba.njit(inline="always")
+    def add_forces(q, n, params, out, offset, sign):
+        # out[offset + i] += sign * dV/dq_i for positions q[0:n*s]; dx once per pair, one
+        # sqrt. rhs indexes the full state directly: views cost reference counting.
+        G = params[1]
+        for k in range(n):
+            for l in range(k + 1, n):
+                x0 = q[k * s] - q[l * s]
+                x1 = q[k * s + 1] - q[l * s + 1]
+                x2 = q[k * s + 2] - q[l * s + 2] if s == 3 else 0.0
+                r2 = x0 * x0 + x1 * x1 + x2 * x2
+                f = sign * G * params[2 + k] * params[2 + l] / (r2 * math.sqrt(r2))
+                out[offset + k * s] += f * x0
+                out[offset + k * s + 1] += f * x1
+                out[offset + l * s] -= f * x0
+                out[offset + l * s + 1] -= f * x1
+                if s == 3:
+                    out[offset + k * s + 2] += f * x2
+                    out[offset + l * s + 2] -= f * x2
+
+    @numba.njit(inline="always")
+    def velocities(p, n, params, out, p_offset):
+        for b in range(n):
+            inverse_mass = params[2 + n + b]
+            for c in range(b * s, b * s + s):
+                out[c] = p[p_offset + c] * inverse_mass
+
+    @numba.njit
+    def grad_V(q, params, out):
+        for i in range(q.size):
+            out[i] = 0.0
+        add_forces(q, q.size // s, params, out, 0, 1.0)
+
+    @numba.njit
+    def grad_T(p, params, out):
+        velocities(p, p.size // s, params, out, 0)
+
+    @numba.njit
+    def rhs(t, u, params, out):
+        h = u.size // 2
+        velocities(u, h // s, params, out, h)
+        for i in range(h, 2 * h):
+            out[i] = 0.0
+        add_forces(u, h // s, params, out, h, -1.0)
+
+    return rhs, grad_T, grad_V
 
 
-@numba.njit(cache=True)
-def _grad_T(p, params, out):
-    s = int(params[0])
-    for i in range(p.size):
-        out[i] = p[i] / params[2 + i // s]
+_PLANAR = _kernels(2)
+_SPATIAL = _kernels(3)
 
 
 @numba.njit(cache=True)
@@ -83,9 +112,7 @@ class NBody(Problem):
     space_dim: int = 2
     G: float = 1.0
 
-    rhs = staticmethod(separable_rhs(_grad_T, _grad_V))
-    grad_T = staticmethod(_grad_T)
-    grad_V = staticmethod(_grad_V)
+    rhs, grad_T, grad_V = (staticmethod(f) for f in _PLANAR)
     taylor = staticmethod(_taylor)
 
     def taylor_work_shape(self, order):
@@ -96,7 +123,13 @@ class NBody(Problem):
         raise NotImplementedError
 
     def kernel_params(self):
-        return np.r_[self.space_dim, self.G, self.masses()]
+        if self.space_dim not in (2, 3):
+            raise ValueError(f"space_dim={self.space_dim}: the n-body kernels take 2 or 3")
+        m = self.masses()
+        return np.r_[self.space_dim, self.G, m, 1.0 / m]
+
+    def inverse_masses(self):
+        return np.repeat(1.0 / self.masses(), self.space_dim)
 
     def _split(self, U):
         m = self.masses()
@@ -208,6 +241,7 @@ class OuterSolarSystem(NBody):
     summary = "Sun and the five outer planets (Hairer-Lubich-Wanner's data; days, AU)"
     space_dim = 3
     G = _OSS_G
+    rhs, grad_T, grad_V = (staticmethod(f) for f in _SPATIAL)
     default_t_final = 200_000.0
     default_dt = 10.0
     sweep_dt = (200.0, 100.0)
