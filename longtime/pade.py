@@ -274,18 +274,21 @@ def robust_pade(c, m, n, tol, a, b, scratch):
 
 
 @numba.njit(cache=True, inline="always")
+def polynomial_and_derivative(c, degree, x):
+    """(c(x), c'(x)) of sum_i c[i] x^i by Horner, for a polynomial of the given degree (-1: zero)."""
+    value = 0.0
+    slope = 0.0
+    for i in range(degree, -1, -1):
+        slope = slope * x + value
+        value = value * x + c[i]
+    return value, slope
+
+
+@numba.njit(cache=True, inline="always")
 def rational_and_derivative(a, mu, b, nu, x):
     """(r(x), r'(x)) of r = a/b by Horner, with a of degree mu (-1: zero) and b of degree nu."""
-    p = 0.0
-    dp = 0.0
-    for i in range(mu, -1, -1):
-        dp = dp * x + p
-        p = p * x + a[i]
-    q = 0.0
-    dq = 0.0
-    for j in range(nu, -1, -1):
-        dq = dq * x + q
-        q = q * x + b[j]
+    p, dp = polynomial_and_derivative(a, mu, x)
+    q, dq = polynomial_and_derivative(b, nu, x)
     r = p / q
     return r, (dp - r * dq) / q
 

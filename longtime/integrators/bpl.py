@@ -47,7 +47,7 @@ import numpy as np
 from ..drivers import EXTRA1, EXTRA2, FALLBACKS, RHS_EVALS
 from ..integrator import AdaptiveIntegrator
 from ..params import InputError, Param
-from ..pade import DEFAULT_TOL, robust_pade, scratch_size
+from ..pade import DEFAULT_TOL, polynomial_and_derivative, robust_pade, scratch_size
 
 # header of the flat work array: sizes and offsets, read by the compiled step
 (_N, _M, _NDEN, _K, _DIM, _TOL, _EPS_RES, _TW0, _TW1, _TW2, _TW3, _O_COEF, _O_TW, _O_INVFACT,
@@ -186,16 +186,8 @@ def _laplace_sum(t, u, coeffs, work, S, Sd):
             for k in range(K):
                 x = t * nodes[k]
                 z = x / lam
-                p = 0.0
-                dp = 0.0
-                for j in range(mu, -1, -1):
-                    dp = dp * z + p
-                    p = p * z + a[j]
-                q = 0.0
-                dq = 0.0
-                for j in range(nu, -1, -1):
-                    dq = dq * z + q
-                    q = q * z + b[j]
+                p, dp = polynomial_and_derivative(a, mu, z)
+                q, dq = polynomial_and_derivative(b, nu, z)  # q's sign: the pole check below
                 r = p / q
                 if flag == _PADE_CHECK_POLES:
                     # a sign change of the denominator brackets a real pole; it is within
@@ -214,15 +206,9 @@ def _laplace_sum(t, u, coeffs, work, S, Sd):
                 S[i] = u[i] + t * s_acc
                 Sd[i] = d_acc
                 continue
-        # fallback: the truncated Taylor sum and its derivative (Horner)
+        # fallback: the truncated Taylor sum and its derivative
         fell_back = True
-        s_acc = 0.0
-        d_acc = 0.0
-        for k in range(N, -1, -1):
-            d_acc = d_acc * t + s_acc
-            s_acc = s_acc * t + coeffs[k, i]
-        S[i] = s_acc
-        Sd[i] = d_acc
+        S[i], Sd[i] = polynomial_and_derivative(coeffs[:, i], N, t)
     return fell_back
 
 
