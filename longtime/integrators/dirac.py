@@ -65,6 +65,17 @@ def solve_small(A, b, m):
     return True
 
 
+@numba.njit(cache=True, inline="always")
+def constraint_gram(G1, minv, G0, A, m, n):
+    """A = G1 M^{-1} G0^T (m x m), with M diagonal: the matrix of every multiplier solve."""
+    for a in range(m):
+        for b in range(m):
+            acc = 0.0
+            for i in range(n):
+                acc += G1[a, i] * minv[i] * G0[b, i]
+            A[a, b] = acc
+
+
 @numba.njit(cache=True)
 def project_velocity(G, minv, w, A, lam, m, n):
     """w <- w - M^{-1} G^T lam with G w = 0 afterwards (M-orthogonal projection onto ker G).
@@ -76,11 +87,7 @@ def project_velocity(G, minv, w, A, lam, m, n):
         for i in range(n):
             acc += G[a, i] * w[i]
         lam[a] = acc
-        for b in range(m):
-            acc = 0.0
-            for i in range(n):
-                acc += G[a, i] * minv[i] * G[b, i]
-            A[a, b] = acc
+    constraint_gram(G, minv, G, A, m, n)
     if not solve_small(A, lam, m):
         return False
     for i in range(n):

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..drivers import FAILED, JAC_EVALS, NL_ITERS, OK, RHS_EVALS
 from ..params import Param
-from .dirac import ConstrainedIntegrator, project_velocity, solve_small
+from .dirac import ConstrainedIntegrator, constraint_gram, project_velocity, solve_small
 
 _EPS = np.finfo(float).eps
 
@@ -101,11 +101,7 @@ class Rattle(ConstrainedIntegrator):
                 # J dLambda = phi with J = G1 M^{-1} G0^T (Newton: Lambda += dLambda)
                 for a in range(m):
                     lam[a] = res[a]
-                    for b in range(m):
-                        acc = 0.0
-                        for i in range(n):
-                            acc += G1[a, i] * minv[i] * G0[b, i]
-                        A[a, b] = acc
+                constraint_gram(G1, minv, G0, A, m, n)
                 if not solve_small(A, lam, m):
                     return FAILED
                 delta = 0.0
