@@ -56,7 +56,7 @@ def render(rows: list[dict[str, Any]], fmt: str = "table") -> str:
         if fmt == "markdown":
             text = table.map(_fmt).to_markdown(index=False)
         else:
-            text = table.to_string(index=False, formatters={c: _fmt for c in table.columns})
+            text = table.to_string(index=False, formatters={c: _fmt for c in table.columns}, na_rep="-")
         parts.append(f"== {problem}: accuracy against cost ({len(sub)} rows) ==\n{text}")
         notes = sub[sub["status"].isin(["skipped", "failed", "diverged", "timeout"])]
         for _, r in notes.iterrows():

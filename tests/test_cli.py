@@ -155,3 +155,12 @@ def test_integer_parameters_reject_fractions(capsys):
     code, _, _ = run_cli(capsys, "run", "-p", "toda", "-i", "rk4", "--set", "d=4.0", "--t-final", "1",
                          "--no-store")
     assert code == 0
+
+
+def test_report_tables_show_no_nan(capsys, tmp_path):
+    db = str(tmp_path / "r.sqlite")
+    assert main(["run", "-p", "harmonic", "-i", "rk4,verlet", "--t-final", "2", "--db", db]) == 0
+    capsys.readouterr()
+    assert main(["report", "--db", db]) == 0
+    out = capsys.readouterr().out
+    assert "harmonic: accuracy against cost (2 rows)" in out and "NaN" not in out
