@@ -25,6 +25,7 @@ COUNTER_NAMES = ("steps", "rhs_evals", "nl_iters", "rejected", "fallbacks", "jac
 
 # status codes returned by loops and steps
 OK, DIVERGED, FAILED, BUFFER_FULL = 0, 1, 2, 3
+EPS = float(np.finfo(float).eps)
 
 
 @numba.njit(cache=True, inline="always")
@@ -38,6 +39,13 @@ def is_blown_up(u, blowup):
     for i in range(u.size):
         total += abs(u[i])
     return not total <= blowup
+
+
+@numba.njit(cache=True, inline="always")
+def reached_round_off(delta, previous, scale):
+    """Stopping rule of every iteration "solved to round-off": the increment is at machine
+    precision, or it has stopped decreasing while already small (round-off floor)."""
+    return delta <= 2.0 * EPS * scale or (delta >= previous and delta <= 1e-8 * scale)
 
 
 def fixed_step_loop(step):

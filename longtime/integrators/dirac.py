@@ -28,12 +28,11 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..drivers import FAILED, JAC_EVALS, NL_ITERS, OK, RHS_EVALS
+from ..drivers import FAILED, JAC_EVALS, NL_ITERS, OK, RHS_EVALS, reached_round_off
 from ..integrator import FixedStepIntegrator
 from ..params import InputError, Param
 from ..problem import Problem
 
-_EPS = np.finfo(float).eps
 
 
 @numba.njit(cache=True)
@@ -211,7 +210,7 @@ def _dirac_kernels(problem: Problem, two_step: bool, midpoint: bool, max_iter: i
                 delta = 0.0
                 for i in range(n):
                     delta = max(delta, abs(h * (w[i] - wold[i])))
-                if delta <= 2.0 * _EPS * scale or (delta >= previous and delta <= 1e-8 * scale):
+                if reached_round_off(delta, previous, scale):
                     converged = True
                     break
                 previous = delta

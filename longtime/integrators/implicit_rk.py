@@ -11,11 +11,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..drivers import FAILED, NL_ITERS, OK, RHS_EVALS
+from ..drivers import FAILED, NL_ITERS, OK, RHS_EVALS, reached_round_off
 from ..integrator import FixedStepIntegrator
 from ..params import Param
 
-_EPS = np.finfo(float).eps
 
 
 class ImplicitRungeKutta(FixedStepIntegrator):
@@ -63,7 +62,7 @@ class ImplicitRungeKutta(FixedStepIntegrator):
                         work[i, m] = k_new[m]
                 evals += s
                 counters[NL_ITERS] += 1
-                if delta <= 2.0 * _EPS * scale or (delta >= previous and delta <= 1e-8 * scale):
+                if reached_round_off(delta, previous, scale):
                     converged = True
                     break
                 previous = delta

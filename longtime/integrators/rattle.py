@@ -19,11 +19,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..drivers import FAILED, JAC_EVALS, NL_ITERS, OK, RHS_EVALS
+from ..drivers import EPS, FAILED, JAC_EVALS, NL_ITERS, OK, RHS_EVALS, reached_round_off
 from ..params import Param
 from .dirac import ConstrainedIntegrator, constraint_gram, project_velocity, solve_small
 
-_EPS = np.finfo(float).eps
 
 
 class Rattle(ConstrainedIntegrator):
@@ -92,7 +91,7 @@ class Rattle(ConstrainedIntegrator):
                 counters[NL_ITERS] += 1
                 small = True
                 for a in range(m):
-                    small = small and abs(res[a]) <= 4.0 * _EPS * scale * scale
+                    small = small and abs(res[a]) <= 4.0 * EPS * scale * scale
                 if small:  # residual at round-off: no Newton step needed
                     converged = True
                     break
@@ -114,7 +113,7 @@ class Rattle(ConstrainedIntegrator):
                     new = qtil[i] - minv[i] * acc
                     delta = max(delta, abs(new - qnew[i]))
                     qnew[i] = new
-                if delta <= 2.0 * _EPS * scale or (delta >= previous and delta <= 1e-8 * scale):
+                if reached_round_off(delta, previous, scale):
                     converged = True
                     break
                 previous = delta
