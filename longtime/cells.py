@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping
 
 from . import metrics, registry
+from .integrator import FixedStepIntegrator
 from .params import InputError, check_time_span
 from .problem import Problem
 from .reference import ReferenceUnavailable, has_reference, reference_states
@@ -135,8 +136,8 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
     try:
         problem: Problem = registry.problem_class(cell.problem)(**cell.problem_settings)
         integrator = registry.integrator_class(cell.integrator)(**cell.integrator_settings)
-        if row["dt"] is None and "dt" in integrator.parameters and integrator.kind == "fixed":
-            row["dt"] = float(problem.default_dt)
+        if isinstance(integrator, FixedStepIntegrator):
+            row["dt"] = integrator.dt_for(problem)
         traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples)
         ref, note = None, ""
         if reference and has_reference(problem):

@@ -42,6 +42,15 @@ def is_blown_up(u, blowup):
 
 
 @numba.njit(cache=True, inline="always")
+def state_scale(x):
+    """max(1, max |x_i|): the scale of reached_round_off for a state x."""
+    scale = 1.0
+    for i in range(x.size):
+        scale = max(scale, abs(x[i]))
+    return scale
+
+
+@numba.njit(cache=True, inline="always")
 def reached_round_off(delta, previous, scale):
     """Stopping rule of every iteration "solved to round-off": the increment is at machine
     precision, or it has stopped decreasing while already small (round-off floor)."""

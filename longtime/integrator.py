@@ -145,7 +145,7 @@ class FixedStepIntegrator(Integrator):
         counters = drivers.new_counters()
         # warm-up: compile outside the timing, on a throw-away state
         loop(problem.u0.copy(), problem.t0, problem.t0 + dt, dt, 1, 1, problem.params, work.copy(),
-             out_t.copy(), out_u.copy(), counters.copy(), problem.blowup)
+             np.empty(2), np.empty((2, problem.dim)), counters.copy(), problem.blowup)
         u = problem.u0.copy()
         c0, w0 = time.process_time(), time.perf_counter()
         status, n, t_end = loop(u, problem.t0, t_final, dt, nsteps, stride, problem.params, work,

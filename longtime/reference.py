@@ -72,8 +72,7 @@ def reference_states(problem: Problem, times: np.ndarray, precision: str = "doub
                                    f"at t = {float(ta.time):.6g} (LONGTIME_REFERENCE_SECONDS)")
     if outcome[0] != hy.taylor_outcome.time_limit:
         raise ReferenceUnavailable(f"heyoka reference for {problem.name} stopped early: {outcome[0]}")
-    states = np.asarray(outcome[-1], dtype=float)[1:] if starts_later else np.asarray(outcome[-1], dtype=float)
-    states = states[inverse]
+    states = np.asarray(outcome[-1], dtype=float)[int(starts_later):][inverse]
     np.save(path, states)
     return states
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..drivers import FAILED, JAC_EVALS, NL_ITERS, OK, RHS_EVALS, reached_round_off
+from ..drivers import FAILED, JAC_EVALS, NL_ITERS, OK, RHS_EVALS, reached_round_off, state_scale
 from ..integrator import FixedStepIntegrator
 from ..params import InputError, Param
 from ..problem import Problem
@@ -192,9 +192,7 @@ def _dirac_kernels(problem: Problem, two_step: bool, midpoint: bool, max_iter: i
         if midpoint:
             # fixed point on the midpoint 1-form: G((q_n + q_{n+1})/2) v_n = 0
             G, qd, wold, gu = work[0:m], work[r_qprev], work[r_tmp], work[r_gu]
-            scale = 1.0
-            for i in range(n):
-                scale = max(scale, abs(q[i]))
+            scale = state_scale(q)
             converged = False
             previous = np.inf
             for it in range(max_iter):

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..drivers import FAILED, NL_ITERS, OK, RHS_EVALS, reached_round_off
+from ..drivers import FAILED, NL_ITERS, OK, RHS_EVALS, reached_round_off, state_scale
 from ..integrator import FixedStepIntegrator
 from ..params import Param
 
@@ -39,9 +39,7 @@ class ImplicitRungeKutta(FixedStepIntegrator):
         def step(t, u, h, params, work, counters, first):
             n = u.size
             y, k_new = work[s], work[s + 1]
-            scale = 1.0
-            for m in range(n):
-                scale = max(scale, abs(u[m]))
+            scale = state_scale(u)
             rhs(t, u, params, work[0])
             for i in range(1, s):
                 work[i, :] = work[0]

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..drivers import EPS, FAILED, JAC_EVALS, NL_ITERS, OK, RHS_EVALS, reached_round_off
+from ..drivers import EPS, FAILED, JAC_EVALS, NL_ITERS, OK, RHS_EVALS, reached_round_off, state_scale
 from ..params import Param
 from .dirac import ConstrainedIntegrator, constraint_gram, project_velocity, solve_small
 
@@ -81,9 +81,7 @@ class Rattle(ConstrainedIntegrator):
                 for a in range(m):
                     acc += G0[a, i] * Lam[a]
                 qnew[i] = qtil[i] - minv[i] * acc
-            scale = 1.0
-            for i in range(n):
-                scale = max(scale, abs(q[i]))
+            scale = state_scale(q)
             converged = False
             previous = np.inf
             for it in range(max_iter):
