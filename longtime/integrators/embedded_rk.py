@@ -23,6 +23,7 @@ import numpy as np
 from ..drivers import RHS_EVALS
 from ..integrator import AdaptiveIntegrator
 from ..params import Param
+from .tableau import checked_on_definition
 
 SAFETY, FAC_MIN, FAC_MAX, PI_BETA = 0.9, 0.2, 10.0, 0.04
 # meta row of the work array
@@ -103,6 +104,10 @@ class EmbeddedRungeKutta(AdaptiveIntegrator):
     fsal: bool = False
     default_controller = "pi"
     sweep = {"tol": (1e-4, 1e-6, 1e-8)}
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        checked_on_definition(cls, explicit=True, error_weights=True)  # a broken tableau fails at import
 
     @classmethod
     def _parameters(cls, controller):

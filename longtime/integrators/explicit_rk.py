@@ -6,6 +6,7 @@ import numpy as np
 
 from ..drivers import OK, RHS_EVALS
 from ..integrator import FixedStepIntegrator
+from .tableau import checked_on_definition
 
 
 class ExplicitRungeKutta(FixedStepIntegrator):
@@ -14,6 +15,10 @@ class ExplicitRungeKutta(FixedStepIntegrator):
     A: np.ndarray
     b: np.ndarray
     c: np.ndarray
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        checked_on_definition(cls, explicit=True)  # a broken tableau fails at import
 
     def work_shape(self, problem):
         return (len(self.b) + 1, problem.dim)  # stage slopes, then the stage state

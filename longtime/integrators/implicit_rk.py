@@ -14,6 +14,7 @@ import numpy as np
 from ..drivers import FAILED, NL_ITERS, OK, RHS_EVALS, reached_round_off, state_scale
 from ..integrator import FixedStepIntegrator
 from ..params import Param
+from .tableau import checked_on_definition
 
 
 
@@ -25,6 +26,10 @@ class ImplicitRungeKutta(FixedStepIntegrator):
         **FixedStepIntegrator.parameters,
         "max_iter": Param(100, "fixed-point sweeps allowed per step", int, positive=True),
     }
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        checked_on_definition(cls, explicit=False)  # a broken tableau fails at import
 
     def work_shape(self, problem):
         return (len(self.b) + 2, problem.dim)  # stage slopes K, stage state, new slope
