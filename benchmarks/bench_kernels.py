@@ -232,3 +232,10 @@ class KernelRatio:
     track_ratio_rk4_toda.unit = "ratio"
     track_ratio_verlet_figure_eight.unit = "ratio"
     track_ratio_rk4sym_toda.unit = "ratio"
+
+
+if __name__ == "__main__":  # python benchmarks/bench_kernels.py: the ratios, for a note
+    for name, make in CASES.items():
+        figures = make().build().measure(repeat=7)
+        print(f"{name:22s} ratio {figures['ratio']:.2f}  "
+              + "  ".join(f"{k} {v:.4g}" for k, v in figures.items() if k != "ratio" and isinstance(v, float)))

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping
 
 from . import metrics, registry
-from .integrator import FixedStepIntegrator
+from .integrator import FixedStepIntegrator, Timing
 from .params import InputError, check_time_span
 from .problem import Problem
 from .reference import ReferenceUnavailable, has_reference, reference_states
@@ -127,8 +127,10 @@ def base_row(cell: Cell) -> dict[str, Any]:
     return row
 
 
-def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool = True) -> dict[str, Any]:
-    """Run one cell; every outcome is a row, nothing raises."""
+def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool = True,
+             timing: Timing | None = None) -> dict[str, Any]:
+    """Run one cell, timed by ``timing`` (default: ``Timing()``, the repeated timing of
+    every row); every outcome is a row, nothing raises."""
     row = base_row(cell)
     if cell.skip_reason:
         row.update(status="skipped", message=cell.skip_reason)
@@ -138,7 +140,8 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         integrator = registry.integrator_class(cell.integrator)(**cell.integrator_settings)
         if isinstance(integrator, FixedStepIntegrator):
             row["dt"] = integrator.dt_for(problem)
-        traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples)
+        traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
+                                    timing=timing or Timing())
         ref, note = None, ""
         if reference and has_reference(problem):
             try:

@@ -13,6 +13,7 @@ from typing import Callable
 
 from . import registry
 from .cells import SWEEP_PARAMETERS, expand
+from .integrator import Timing
 from .matrix import EXECUTORS, ExecOptions, run_matrix
 from .params import InputError
 from .report import complete, render
@@ -93,6 +94,13 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
     p.add_argument("--jobs", type=int, default=0, help="worker processes (default: one per core)")
     p.add_argument("--max-samples", type=int, default=100_001,
                    help="states kept per run for the metrics (every step below this)")
+    p.add_argument("--repeats", type=int, default=Timing.repeats, metavar="N",
+                   help=f"timed runs of each cell after the warm-up: at least {Timing.MIN_RUNS} "
+                        f"(or N if fewer), more while their total is below --min-time, at most N; "
+                        f"cpu_s is the minimum (default {Timing.repeats})")
+    p.add_argument("--min-time", type=float, default=Timing.min_time, metavar="SECONDS",
+                   help=f"repeat a cell's timed run until the timed total passes this "
+                        f"(default {Timing.min_time})")
     p.add_argument("--db", default=None, help=f"SQLite store (default: $LONGTIME_DB or {default_path()})")
 
 
@@ -102,6 +110,7 @@ def _sweeps(args) -> dict[str, list]:
 
 def _options(args) -> ExecOptions:
     return ExecOptions(jobs=args.jobs, max_samples=args.max_samples,
+                       timing=Timing(repeats=args.repeats, min_time=args.min_time),
                        cell_timeout=getattr(args, "cell_timeout", None),
                        scheduler=getattr(args, "scheduler", None))
 

@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Iterator
 
 from .cells import DEFAULT_MAX_SAMPLES, Cell, base_row, run_cell
+from .integrator import Timing
 
 POLL_S = 0.05
 STDERR_TAIL = 600  # characters of a dead child's stderr kept in its row's message
@@ -56,9 +57,11 @@ class _Child:
         return self.folder / "stderr.txt"
 
 
-def _start(cell: Cell, max_samples: int, timeout: float | None) -> _Child:
+def _start(cell: Cell, max_samples: int, timeout: float | None, timing: Timing) -> _Child:
     folder = Path(tempfile.mkdtemp(prefix="longtime-cell-"))
-    (folder / "cell.json").write_text(json.dumps({"cell": cell.to_dict(), "max_samples": max_samples}))
+    job = {"cell": cell.to_dict(), "max_samples": max_samples,
+           "timing": {"repeats": timing.repeats, "min_time": timing.min_time}}
+    (folder / "cell.json").write_text(json.dumps(job))
     with open(folder / "stderr.txt", "wb") as err:
         proc = subprocess.Popen(
             [sys.executable, "-m", "longtime.isolation", str(folder)],
@@ -101,7 +104,7 @@ def _finish(child: _Child, timed_out: bool, timeout: float | None) -> dict:
 
 
 def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, timeout: float | None = None,
-                 jobs: int = 1) -> Iterator[tuple[Cell, dict]]:
+                 jobs: int = 1, timing: Timing | None = None) -> Iterator[tuple[Cell, dict]]:
     """Rows of ``cells``, each run in its own child process, ``jobs`` at a time, as they end."""
     queue = list(cells)
     running: list[_Child] = []
@@ -112,7 +115,7 @@ def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, time
                 if cell.skip_reason:  # nothing to run: no process needed
                     yield cell, run_cell(cell)
                     continue
-                running.append(_start(cell, max_samples, timeout))
+                running.append(_start(cell, max_samples, timeout, timing or Timing()))
             still = []
             for child in running:
                 if child.proc.poll() is not None:
@@ -131,9 +134,10 @@ def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, time
                 _kill(child.proc)
 
 
-def run_cell_isolated(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, timeout: float | None = None) -> dict:
+def run_cell_isolated(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, timeout: float | None = None,
+                      timing: Timing | None = None) -> dict:
     """One cell's row, run in a child process with a time limit (for remote executors)."""
-    for _, row in run_isolated([cell], max_samples, timeout, jobs=1):
+    for _, row in run_isolated([cell], max_samples, timeout, jobs=1, timing=timing):
         return row
     raise AssertionError("unreachable")
 
@@ -141,7 +145,7 @@ def run_cell_isolated(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, timeou
 def _child_main(folder: str) -> None:
     path = Path(folder)
     job = json.loads((path / "cell.json").read_text())
-    row = run_cell(Cell.from_dict(job["cell"]), job["max_samples"])
+    row = run_cell(Cell.from_dict(job["cell"]), job["max_samples"], timing=Timing(**job["timing"]))
     tmp = path / "row.json.part"
     tmp.write_text(json.dumps(row))
     tmp.replace(path / "row.json")  # atomic: the parent never reads half a row

@@ -11,10 +11,11 @@ from __future__ import annotations
 import multiprocessing
 import os
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable, Iterator
 
 from .cells import DEFAULT_MAX_SAMPLES, Cell, base_row, run_cell
+from .integrator import Timing
 from .params import InputError, check_choice
 from .store import Store
 
@@ -25,6 +26,7 @@ class ExecOptions:
     max_samples: int = DEFAULT_MAX_SAMPLES
     cell_timeout: float | None = None
     scheduler: str | None = None  # Dask scheduler address
+    timing: Timing = field(default_factory=Timing)
 
     def workers(self) -> int:
         return self.jobs if self.jobs > 0 else max(1, os.cpu_count() or 1)
@@ -35,7 +37,7 @@ Executor = Callable[[list[Cell], ExecOptions], Iterator[tuple[Cell, dict]]]
 
 def serial(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
     for cell in cells:
-        yield cell, run_cell(cell, options.max_samples)
+        yield cell, run_cell(cell, options.max_samples, timing=options.timing)
 
 
 def batches_by_pair(cells: list[Cell]) -> list[list[Cell]]:
@@ -46,8 +48,8 @@ def batches_by_pair(cells: list[Cell]) -> list[list[Cell]]:
     return list(groups.values())
 
 
-def run_batch(cells: list[Cell], max_samples: int) -> list[dict]:
-    return [run_cell(c, max_samples) for c in cells]
+def run_batch(cells: list[Cell], max_samples: int, timing: Timing) -> list[dict]:
+    return [run_cell(c, max_samples, timing=timing) for c in cells]
 
 
 def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
@@ -65,7 +67,7 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
         return
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
     try:
-        futures = {pool.submit(run_batch, batch, options.max_samples): batch
+        futures = {pool.submit(run_batch, batch, options.max_samples, options.timing): batch
                    for batch in batches_by_pair(runnable)}
         pending = set(futures)
         while pending:
@@ -87,7 +89,8 @@ def isolated(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, di
     a child that dies (os._exit, segfault) gives a ``failed`` row. See longtime.isolation."""
     from .isolation import run_isolated
 
-    yield from run_isolated(cells, options.max_samples, options.cell_timeout, options.workers())
+    yield from run_isolated(cells, options.max_samples, options.cell_timeout, options.workers(),
+                            timing=options.timing)
 
 
 def dask_cluster(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
@@ -118,9 +121,10 @@ def dask_cluster(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
     try:
         if options.cell_timeout:
             futures = {client.submit(run_cell_isolated, c, options.max_samples, options.cell_timeout,
-                                     pure=False): c for c in runnable}
+                                     timing=options.timing, pure=False): c for c in runnable}
         else:
-            futures = {client.submit(run_cell, c, options.max_samples, pure=False): c for c in runnable}
+            futures = {client.submit(run_cell, c, options.max_samples, timing=options.timing,
+                                     pure=False): c for c in runnable}
         for fut in as_completed(futures):
             cell = futures[fut]
             try:

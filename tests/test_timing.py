@@ -1,0 +1,78 @@
+"""Repeated timing: timeit-style autorange, minimum as the figure, bitwise-equal repeats."""
+import numpy as np
+import pytest
+
+from longtime.cells import Cell, run_cell
+from longtime.integrator import Integrator, Timing, Trajectory
+from longtime.params import InputError
+from longtime.problems.harmonic import Harmonic
+
+
+class Scripted(Integrator):
+    """A scheme whose runs take scripted times and return scripted states."""
+
+    name = "scripted"
+
+    def __init__(self, walls, states=None):
+        super().__init__()
+        self.walls, self.states, self.calls = list(walls), states, 0
+
+    def _integrate(self, problem, t_final, max_samples):
+        k = self.calls
+        self.calls += 1
+        u = np.array([[1.0, 0.0], self.states[k] if self.states else [0.5, 0.5]])
+        wall = self.walls[min(k, len(self.walls) - 1)]
+        return Trajectory("ok", "", np.array([0.0, t_final]), u, cpu_s=0.9 * wall, wall_s=wall,
+                          counters={"steps": 10})
+
+
+@pytest.mark.parametrize("walls, timing, runs", [
+    ([0.01], Timing(), 7),                     # fast: up to --repeats
+    ([0.1], Timing(), 3),                      # 0.3 s after the minimum of 3 runs
+    ([0.05], Timing(), 4),                     # 0.15 s after 3, 0.2 s after 4: stop
+    ([1.0], Timing(), 3),                      # slow: the minimum of 3 runs
+    ([0.01], Timing(repeats=2), 2),            # fewer than 3 when --repeats says so
+    ([0.01], Timing(repeats=1), 1),
+    ([0.001], Timing(repeats=50, min_time=0.02), 20),
+])
+def test_autorange(walls, timing, runs):
+    scheme = Scripted(walls)
+    traj = scheme.integrate(Harmonic(), 1.0, timing=timing)
+    assert scheme.calls == runs and traj.extra["repeats"] == runs
+    assert traj.status == "ok"
+
+
+def test_minimum_median_maximum():
+    walls = [0.05, 0.03, 0.04, 0.06, 0.02]
+    traj = Scripted(walls).integrate(Harmonic(), 1.0, timing=Timing(repeats=5, min_time=10))
+    assert traj.wall_s == 0.02 and traj.extra["wall_s_median"] == 0.04 and traj.extra["wall_s_max"] == 0.06
+    assert traj.cpu_s == pytest.approx(0.018) and traj.extra["cpu_s_max"] == pytest.approx(0.054)
+
+
+def test_a_repeat_that_differs_in_one_bit_fails_the_row():
+    x = 0.5
+    y = np.nextafter(x, 1.0)
+    traj = Scripted([0.01], states=[[x, x], [x, x], [x, y]]).integrate(Harmonic(), 1.0, timing=Timing())
+    assert traj.status == "failed"
+    assert "non-deterministic" in traj.message and "run 3" in traj.message
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(repeats=0), "repeats=0 is not valid"),
+    (dict(repeats=2.5), "repeats=2.5 is not valid"),
+    (dict(min_time=-1.0), "min_time=-1.0 is not valid"),
+    (dict(min_time=float("nan")), "min_time=nan is not valid"),
+])
+def test_bad_timing_settings(kwargs, message):
+    with pytest.raises(InputError, match=message):
+        Timing(**kwargs)
+
+
+def test_rows_carry_the_spread_and_real_schemes_repeat_bitwise():
+    """Compiled fixed-step and adaptive schemes and heyoka reproduce themselves bitwise."""
+    for scheme, settings in [("rk4", {"dt": 0.01}), ("rk45", {"tol": 1e-8}), ("heyoka", {})]:
+        row = run_cell(Cell("kepler", scheme, {}, settings, 20.0), timing=Timing(repeats=4, min_time=0.0))
+        assert row["status"] == "ok", row["message"]
+        assert row["repeats"] == 3
+        assert 0 < row["cpu_s"] <= row["cpu_s_median"] <= row["cpu_s_max"]
+        assert 0 < row["wall_s"] <= row["wall_s_median"] <= row["wall_s_max"]
