@@ -16,7 +16,7 @@ from . import metrics, registry
 from .integrator import FixedStepIntegrator, Timing
 from .params import InputError, check_time_span
 from .problem import Problem
-from .reference import ReferenceUnavailable, has_reference, reference_states
+from .reference import ReferenceUnavailable, has_reference, trusted_reference
 
 # parameters that have a flag of their own on the command line, swept as lists
 SWEEP_PARAMETERS = ("dt", "tol", "eps_res", "order")
@@ -142,13 +142,14 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
             row["dt"] = integrator.dt_for(problem)
         traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
                                     timing=timing or Timing())
-        ref, note = None, ""
+        ref, trust, note = None, None, ""
         if reference and has_reference(problem):
             try:
-                ref = reference_states(problem, traj.t)
+                ref, trust = trusted_reference(problem, traj.t, cell.t_final)
+                note = trust.message(float(traj.t[-1]))
             except ReferenceUnavailable as exc:
                 note = f"no reference: {exc}"
-        row.update(metrics.evaluate(problem, traj, ref))
+        row.update(metrics.evaluate(problem, traj, ref, trust))
         row["status"] = traj.status
         row["message"] = "; ".join(m for m in (traj.message, note) if m)
     except Exception as exc:  # a failing cell never takes the matrix down

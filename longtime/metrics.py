@@ -4,6 +4,9 @@ e_I(t) = |I(u(t)) - I(u0)| / |I(u0)| (a vector invariant: Euclidean norms), the 
 error where I(u0) = 0. Per invariant NAME: NAME.max, NAME.final, NAME.mean (time average of
 e_I by the trapezoid rule over the samples, which are every step up to max_samples),
 NAME.t_1pct, NAME.t_50pct (first sample time with e_I > 1 % / 50 %, null if never).
+Against the reference, over the samples up to its horizon (``error_horizon`` is the last
+one): ``l2_error`` = sqrt(sum |u - u_ref|^2 / sum |u_ref|^2), ``final_error`` the relative
+error at the last sample, null when the horizon ends before it.
 Non-finite values become null: a diverged run is a status, never a NaN in a table.
 """
 from __future__ import annotations
@@ -15,6 +18,7 @@ import numpy as np
 
 from .integrator import Trajectory
 from .problem import Problem
+from .reference import Trust, trust_fields
 
 
 def finite_or_none(x) -> float | None:
@@ -60,8 +64,12 @@ def drift_fields(name: str, t: np.ndarray, err: np.ndarray) -> dict[str, Any]:
     }
 
 
-def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None) -> dict[str, Any]:
-    """Row fields of one trajectory; ``reference`` holds the true states at traj.t."""
+def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
+             trust: Trust | None = None) -> dict[str, Any]:
+    """Row fields of one trajectory. ``reference`` holds the true states at the leading
+    samples traj.t[:len(reference)], those up to the reference's horizon (``trust``): the
+    errors cover those samples only; final_error is null unless they reach the last one.
+    """
     t, U = traj.t, traj.u
     steps = traj.steps
     span = float(t[-1] - problem.t0)
@@ -77,12 +85,12 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None) -
         "samples": int(t.size),
         "l2_error": None,  # null unless a reference is at hand
         "final_error": None,
+        "error_horizon": None,  # the last sample time the errors cover
+        **trust_fields(trust),
     }
     # a diverged run ends on a non-finite state: measure the finite part (until the blow-up)
     finite = int(np.argmin(np.isfinite(U).all(axis=1))) if not np.isfinite(U).all() else t.size
     t, U = t[:finite], U[:finite]
-    if reference is not None:
-        reference = reference[:finite]
     if finite == 0:
         return row
     with np.errstate(all="ignore"):
@@ -92,10 +100,14 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None) -
             values = np.asarray(values, dtype=float)
             row[f"{name}.max"] = finite_or_none(np.max(values))
             row[f"{name}.final"] = finite_or_none(values[-1])
-        if reference is not None:
-            diff = np.linalg.norm(U - reference, axis=1)
-            ref = np.linalg.norm(reference, axis=1)
+        # the initial state alone says nothing about the error: at least one sample after t0
+        k = min(len(reference), finite) if reference is not None else 0
+        if k >= 2:
+            diff = np.linalg.norm(U[:k] - reference[:k], axis=1)
+            ref = np.linalg.norm(reference[:k], axis=1)
             row["l2_error"] = finite_or_none(np.sqrt(np.sum(diff**2) / np.sum(ref**2)))
-            row["final_error"] = finite_or_none(diff[-1] / ref[-1] if ref[-1] > 0 else diff[-1])
+            row["error_horizon"] = float(t[k - 1])
+            if k == finite:
+                row["final_error"] = finite_or_none(diff[-1] / ref[-1] if ref[-1] > 0 else diff[-1])
     row.update(traj.extra)
     return row

@@ -22,7 +22,13 @@ Python-level capabilities (vectorised over samples; ``U`` has shape (n, dim)):
 
     invariants(t, U) -> {name: (n,) or (n, k) array}     conserved quantities
     violations(t, U) -> {name: (n,) array}              non-negative residuals (constraints)
-    exact(t) -> U                                       exact solution at the times t
+    exact(t) -> U                                       exact solution at the times t,
+                                                        through the state u0 as rounded
+    exact_rtol                                          the relative accuracy of ``exact``
+                                                        where it is not machine-level (kdv:
+                                                        the soliton is not exactly periodic);
+                                                        None: checked against heyoka in long
+                                                        double (longtime.reference)
     heyoka_system() -> (vars, rhs expressions)          for the heyoka reference
     constraints, linear_part, nonlinear                 see the constrained and
                                                         exponential schemes
@@ -95,6 +101,7 @@ class Problem(ABC):
     grad_V: ClassVar[Callable | None] = None
     jac: ClassVar[Callable | None] = None
     exact: ClassVar[Callable | None] = None
+    exact_rtol: ClassVar[float | None] = None
     heyoka_system: ClassVar[Callable | None] = None
     taylor: ClassVar[Callable | None] = None
     constraints: ClassVar[Any] = None

@@ -60,3 +60,24 @@ def test_l2_error_against_exact_solution_decreases_with_dt():
     assert rows[1]["l2_error"] < rows[0]["l2_error"] / 10  # order 4: a factor ~16
     assert rows[0]["final_error"] > 0
     assert rows[0]["L.max"] < 1e-5 and rows[0]["A.max"] < 1e-3
+
+
+def test_errors_cover_only_the_samples_up_to_the_reference_horizon():
+    from longtime.integrator import Trajectory
+    from longtime.metrics import evaluate
+    from longtime.reference import Trust
+
+    p = registry.problem_class("harmonic")()
+    t = np.linspace(0.0, 4.0, 5)
+    ref = p.exact(t)
+    U = ref * np.array([1.0, 1.0, 1.0, 2.0, 5.0])[:, None]  # wrong from t = 3 on
+    traj = Trajectory("ok", "", t, U, 0.0, 0.0, {"steps": 4})
+    trust = Trust("exact", 1e-8, 2.5, 1e-12, "test")
+    row = evaluate(p, traj, ref[:3], trust)  # the samples up to the horizon
+    assert row["l2_error"] == 0.0 and row["error_horizon"] == 2.0 and row["final_error"] is None
+    assert row["reference_horizon"] == 2.5 and row["reference_error"] == 1e-12
+    row = evaluate(p, traj, ref, Trust("exact", 1e-8, 4.0, 1e-12, "test"))
+    assert row["final_error"] == pytest.approx(4.0) and row["error_horizon"] == 4.0
+    assert row["l2_error"] == pytest.approx(np.sqrt(17 / 5))  # |u_ref| = 1 at every sample
+    row = evaluate(p, traj, None)
+    assert row["l2_error"] is None and row["error_horizon"] is None and row["reference_horizon"] is None

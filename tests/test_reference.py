@@ -1,0 +1,125 @@
+"""The reference check: error estimates, horizons, the exact solutions' own accuracy, caching
+and the time budget (longtime.reference)."""
+import itertools
+import json
+import time
+
+import numpy as np
+import pytest
+
+from longtime import reference, registry
+from longtime.cells import Cell, run_cell
+from longtime.problems.kepler import Kepler
+
+
+@pytest.fixture
+def fresh_cache(monkeypatch, tmp_path):
+    monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))
+    return tmp_path
+
+
+def test_long_double_is_extended_and_the_ladder_has_three_rungs():
+    assert np.finfo(np.longdouble).eps < 1e-18  # x86_64: 80-bit, 64-bit mantissa
+    assert reference._ladder() == ["double", "long double", "real128"]
+
+
+def test_chaotic_double_pendulum_is_measured_only_up_to_the_horizon():
+    row = run_cell(Cell("double-pendulum", "rk4", {}, {"dt": 0.01}, 100.0))
+    assert row["status"] == "ok" and row["t_reached"] == 100.0
+    # double leaves long double at t ~ 17; long double, checked against real128, holds to ~25
+    assert 10 < row["reference_horizon"] < 50
+    assert row["reference"] == "heyoka long double"
+    assert row["reference_error"] <= row["reference_rtol"] == reference.REFERENCE_RTOL
+    assert row["final_error"] is None and row["l2_error"] is not None
+    assert row["reference_horizon"] - 0.01 < row["error_horizon"] <= row["reference_horizon"]
+    assert "only up to t = " in row["message"] and "real128" in row["message"]
+    json.dumps(row, allow_nan=False)
+
+
+def test_toda_reference_holds_to_5000():
+    row = run_cell(Cell("toda", "rk4", {}, {"dt": 0.1}, 5000.0))
+    assert row["reference_horizon"] == 5000.0 and row["error_horizon"] == 5000.0
+    assert row["reference"] == "heyoka double" and row["reference_error"] < 1e-9
+    assert row["final_error"] is not None and row["message"] == ""
+
+
+def test_rows_without_a_reference_have_null_reference_fields():
+    row = run_cell(Cell("duffing-forced", "rk4", {}, {"dt": 0.01}, 1.0), reference=False)
+    for key in ("reference", "reference_error", "reference_horizon", "reference_rtol",
+                "error_horizon", "l2_error", "final_error"):
+        assert row[key] is None, key
+
+
+def _pericentre_errors(p, states, orbits=16):
+    """Max relative error around the pericentre passage after ``orbits`` orbits."""
+    t = np.r_[0.0, orbits * 2 * np.pi + np.linspace(-2e-3, 2e-3, 41)]
+    exact = p.exact(t)[1:]
+    return [np.max(np.linalg.norm(exact - U[1:], axis=1) / np.linalg.norm(U[1:], axis=1))
+            for U in (states(t, fp) for fp in ("long double", "real128"))]
+
+
+def test_kepler_exact_solution_is_the_orbit_of_the_rounded_state():
+    # e = 0.99: the rounded u0 has a period 1.5e-14 shorter than the formula's 2 pi; the old
+    # formula was 1.06e-9 off at the 16th pericentre, the elements of u0 itself 6e-13
+    p = Kepler(e=0.99)
+
+    def states(t, precision):
+        return reference._propagate(p, t, precision)[0]
+
+    vs_long_double, vs_real128 = _pericentre_errors(p, states)
+    assert vs_real128 < 2e-12
+    assert vs_long_double < 3e-11  # long double's own error after 16 orbits: ~1e-11
+    trust = reference.reference_check(p, 40 * np.pi)
+    assert trust.source == "exact" and trust.horizon == pytest.approx(40 * np.pi)
+    assert trust.error < 1e-10
+
+
+def test_exact_solutions_are_checked_or_declared():
+    harmonic = reference.reference_check(registry.problem_class("harmonic")(), 200.0)
+    assert harmonic.error < 1e-13 and harmonic.horizon == 200.0 and harmonic.note == ""
+    duffing = reference.reference_check(registry.problem_class("duffing-2")(), 200.0)
+    assert duffing.error < 1e-12 and "vs heyoka long double" in duffing.basis
+    kdv = registry.problem_class("kdv")(d=32)  # no heyoka system: the declared accuracy
+    trust = reference.reference_check(kdv, 15.0)
+    assert trust.error == trust.rtol == kdv.exact_rtol > reference.REFERENCE_RTOL
+    assert trust.horizon == 15.0 and "declared" in trust.message(15.0)
+
+
+def test_a_cached_check_is_reused(fresh_cache, monkeypatch):
+    p = registry.problem_class("henon-heiles")()
+    start = time.perf_counter()
+    first = reference.reference_check(p, 300.0)
+    elapsed = time.perf_counter() - start
+    assert list(fresh_cache.glob("reference/henon-heiles-*.npz"))
+    reference._CHECKS.clear()  # from disk, as another process would
+
+    def no_heyoka(*args, **kwargs):
+        raise AssertionError("the check ran again")
+
+    monkeypatch.setattr(reference, "_stepped_run", no_heyoka)
+    monkeypatch.setattr(reference, "_propagate", no_heyoka)
+    start = time.perf_counter()
+    assert reference.reference_check(p, 300.0) == first
+    assert time.perf_counter() - start < max(0.1, elapsed / 2)
+
+
+def test_a_check_that_passes_its_budget_trusts_only_what_it_checked(fresh_cache, monkeypatch):
+    # a clock that moves one second per reading: the budget is a number of heyoka steps
+    ticks, clock = itertools.count(), time.perf_counter
+    monkeypatch.setattr(reference.time, "perf_counter", lambda: float(next(ticks)))
+    p = registry.problem_class("toda")()
+    trust = reference.reference_check(p, 50.0, budget_s=100)
+    assert 0 < trust.horizon < 50 and "time budget" in trust.note
+    assert trust.error < reference.REFERENCE_RTOL
+    monkeypatch.setattr(reference.time, "perf_counter", clock)  # the cell's own run: 100 s
+    t = np.linspace(0, 50, 501)
+    states, again = reference.trusted_reference(p, t, 50.0, budget_s=100)
+    assert again == trust and len(states) == np.searchsorted(t, trust.horizon, side="right")
+
+
+def test_a_cell_whose_check_passes_its_budget_at_once_has_no_errors(fresh_cache, monkeypatch):
+    monkeypatch.setattr(reference, "DEFAULT_BUDGET_S", 0.0)
+    row = run_cell(Cell("double-pendulum", "rk4", {}, {"dt": 0.01}, 5.0))
+    assert row["status"] == "ok" and row["l2_error"] is None and row["final_error"] is None
+    assert row["reference_horizon"] is None and row["error_horizon"] is None
+    assert row["message"].startswith("no reference:") and "time budget" in row["message"]
