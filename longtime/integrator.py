@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import time
+import weakref
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import Any, Callable, ClassVar
@@ -18,7 +19,7 @@ from typing import Any, Callable, ClassVar
 import numpy as np
 
 from . import drivers
-from .jitcache import cacheable
+from .jitcache import Unfreezable, cacheable, fingerprint
 from .params import InputError, Param, check_time_span, resolve
 from .problem import Problem
 
@@ -144,21 +145,28 @@ class Integrator(ABC):
             out[n] = int(raw[drivers.EXTRA1 + i])
         return out
 
-    def kernel_variant(self) -> Any:
-        """Settings that change the compiled code (most schemes: none)."""
-        return None
 
-
-# compiled loops, shared by every instance of a scheme on problems of equal kernel_key
-_LOOPS: dict[tuple, Callable] = {}
+# compiled loops by the fingerprint of their closure: whatever a make_step closes over (a
+# dimension, a tableau, the problem's rhs) is part of the key, so a loop built for one
+# setting never runs another, and equal settings share one compilation
+_LOOPS: dict[str, Callable] = {}
+# loops over values that have no fingerprint (an arbitrary object): never shared, one per
+# scheme instance (weak key) and problem instance
+_UNSHARED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _cached_loop(integrator: Integrator, problem: Problem, build: Callable[[], Callable]) -> Callable:
-    key = (type(integrator), integrator.kernel_variant(), problem.kernel_key())
-    loop = _LOOPS.get(key)
-    if loop is None:
-        loop = _LOOPS[key] = cacheable(build())
-    return loop
+    closure = build()  # cheap: numba compiles on the first call, not here
+    try:
+        key = fingerprint(closure)
+    except Unfreezable:
+        own = _UNSHARED.setdefault(integrator, {})
+        if id(problem) not in own:  # the entry holds the problem, so its id stays its own
+            own[id(problem)] = (problem, closure)
+        return own[id(problem)][1]
+    if key not in _LOOPS:
+        _LOOPS[key] = cacheable(closure)
+    return _LOOPS[key]
 
 
 class FixedStepIntegrator(Integrator):

@@ -9,6 +9,15 @@ an array is rebuilt from its bytes, a number is a literal), decorated with
 one file and one cache entry, across processes and runs. Anything it cannot freeze (a
 free variable holding an arbitrary object) makes it return the closure unchanged: caching
 is an optimisation, never a requirement.
+
+A module imports the jitted functions it calls (a problem's rhs, a helper) by name, and
+numba's cache of a caller never notices that a callee's source changed. So each module
+also carries the ``fingerprint`` of its closure: a digest of the bytecode of every
+function reachable from it and of every value it closes over, and of the package
+version. Editing any of them (a plugin's rhs, a coefficient, a captured dimension) gives
+another module text, hence another module and a fresh compilation: a cached kernel is
+never stale. The same fingerprint keys the compiled loops shared within a process
+(``longtime.integrator._cached_loop``).
 """
 from __future__ import annotations
 
@@ -24,6 +33,7 @@ from typing import Any
 
 import numpy as np
 from numba.core.registry import CPUDispatcher
+from numba.core.types import Type as NumbaType
 
 from .cache import cache_dir, digest
 
@@ -91,6 +101,86 @@ def _names_used(code: types.CodeType) -> set[str]:
     return names
 
 
+def fingerprint(value: Any) -> str:
+    """Digest of everything that decides the code numba compiles for ``value`` (a compiled
+    closure, usually): the bytecode of every function reachable from it through its closure
+    cells and the globals it reads, recursively (the driver, the step, the problem's rhs and
+    its helpers), every value they close over (numbers, tuples, arrays by dtype, shape and
+    bytes), their compile options and the package version. Equal in every process: no
+    ids, addresses or set order go in. Raises Unfreezable for a value it cannot describe
+    (an arbitrary object), whose kernel must then not be shared."""
+    from . import __version__  # the package imports this module before it sets the version
+
+    chunks: list[bytes | str] = [f"longtime {__version__}"]
+    _describe(value, chunks, {})
+    return digest(*chunks)
+
+
+def _describe(value: Any, out: list, seen: dict[int, int]) -> None:
+    if isinstance(value, CPUDispatcher):
+        out.append("jit")
+        _describe(tuple(sorted((k, v) for k, v in value.targetoptions.items() if k != "cache")), out, seen)
+        value = value.py_func
+    if isinstance(value, types.FunctionType):  # a dispatcher's py_func, or a register_jitable
+        if id(value) in seen:  # recursion: refer to the first visit by its rank, not its id
+            out.append(f"again {seen[id(value)]}")
+            return
+        seen[id(value)] = len(seen)
+        code = value.__code__
+        out.append(f"def {value.__module__}.{value.__qualname__}")
+        _describe_code(code, out)
+        _describe(value.__defaults__, out, seen)
+        for name, cell in zip(code.co_freevars, value.__closure__ or ()):
+            out.append(f"free {name}")
+            try:
+                contents = cell.cell_contents
+            except ValueError:  # an empty cell
+                raise Unfreezable(f"free variable {name} of {value.__qualname__} is unbound") from None
+            _describe(contents, out, seen)
+        for name in sorted(_names_used(code) - set(code.co_freevars)):
+            if name in value.__globals__:
+                out.append(f"global {name}")
+                _describe(value.__globals__[name], out, seen)
+    elif isinstance(value, np.ndarray):
+        a = np.ascontiguousarray(value)
+        out += [f"array {a.dtype.str} {a.shape}", a.tobytes()]
+    elif type(value) is tuple:  # not a namedtuple: its fields' names and order matter too
+        out.append(f"tuple {len(value)}")
+        for item in value:
+            _describe(item, out, seen)
+    elif isinstance(value, types.ModuleType):
+        out.append(f"module {value.__name__}")
+    elif value is None or isinstance(value, (bool, int, float, complex, str, bytes, np.generic)):
+        out.append(f"{type(value).__name__} {value!r}")
+    elif isinstance(value, (types.BuiltinFunctionType, np.ufunc)) or (
+            isinstance(value, type) and value.__module__ in ("builtins", "numpy")):
+        out.append(f"builtin {getattr(value, '__module__', None)}.{value.__name__}")
+    elif isinstance(value, NumbaType):  # e.g. ``float64`` imported from numba
+        out.append(f"numba type {value}")
+    else:
+        raise Unfreezable(type(value).__name__)
+
+
+def _describe_code(code: types.CodeType, out: list) -> None:
+    signature = (code.co_argcount, code.co_posonlyargcount, code.co_kwonlyargcount, code.co_flags,
+                 code.co_names, code.co_varnames, code.co_freevars, code.co_cellvars)
+    out += [f"code {len(code.co_code)}", code.co_code, repr(signature)]  # length: bytes may hold \0
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            _describe_code(const, out)
+        else:
+            out.append(_constant_text(const))
+
+
+def _constant_text(const: Any) -> str:
+    # a frozenset's order follows string hashing, which differs between processes
+    if isinstance(const, frozenset):
+        return "frozenset(" + ", ".join(sorted(map(_constant_text, const))) + ")"
+    if isinstance(const, tuple):
+        return "(" + ", ".join(map(_constant_text, const)) + ",)"
+    return f"{type(const).__name__} {const!r}"
+
+
 def _generate(dispatcher) -> str:
     fn = dispatcher.py_func
     if fn.__closure__ is None and _is_module_level(fn):
@@ -112,7 +202,9 @@ def _generate(dispatcher) -> str:
     for name in sorted(_names_used(fn.__code__) - set(free)):
         if name in fn.__globals__:
             bindings.append(_binding(name, fn.__globals__[name], imports))
-    header = f"# generated by longtime.jitcache from {fn.__module__}.{fn.__qualname__}\n"
+    # the fingerprint names the module after the code of everything it imports, too
+    header = (f"# generated by longtime.jitcache from {fn.__module__}.{fn.__qualname__}\n"
+              f"# fingerprint {fingerprint(dispatcher)}\n")
     return header + "\n".join(sorted(imports) + bindings) + f"\n\n\n{decorator}\n{body}\n"
 
 

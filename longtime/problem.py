@@ -130,8 +130,7 @@ class Problem(ABC):
         """diag(M^-1) when T(p) = p.M^-1 p / 2 with M diagonal (None: T is general).
 
         An optional fast path: splitting schemes then drift q += a h M^-1 p without calling
-        grad_T. grad_T must still be provided (it defines the "separable" capability), and
-        whether this is None must not vary between problems of one ``kernel_key``.
+        grad_T. grad_T must still be provided (it defines the "separable" capability).
         """
         return None
 
@@ -166,10 +165,6 @@ class Problem(ABC):
         if cls.autonomous:
             caps.add("autonomous")
         return frozenset(caps)
-
-    def kernel_key(self) -> Any:
-        """Compiled kernels are shared between instances with equal keys."""
-        return type(self)
 
     def identity(self) -> str:
         """Canonical text of what defines the trajectory (for caches)."""

@@ -79,9 +79,6 @@ class Quadratic(Problem):
     def kernel_params(self):
         return np.array(self.coefficients)
 
-    def kernel_key(self):
-        return Quadratic
-
 
 class Decay(Quadratic):
     """u' = -u; default_dt = 20 makes the first trial step the whole span."""

@@ -92,3 +92,32 @@ def test_source_that_no_longer_matches_the_code_is_not_frozen(tmp_path, monkeypa
         assert kernel(2.0) == 6.0
     finally:
         sys.modules.pop("edited_kernels")
+
+
+def test_fingerprint_covers_callees_and_captured_values(tmp_path):
+    """The kernel's own code is unchanged; its callee's code, or a captured number, is not."""
+    import importlib.util
+
+    path = tmp_path / "fingerprinted.py"
+    prints = []
+    for coefficient in ("2.0", "3.0", "2.0"):
+        path.write_text(textwrap.dedent(f'''
+            import numba
+
+            @numba.njit
+            def helper(x):
+                return x * {coefficient}
+
+            def make(n):
+                @numba.njit
+                def kernel(x):
+                    return helper(x) + n
+                return kernel
+        '''))
+        spec = importlib.util.spec_from_file_location("fingerprinted", path)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        prints.append([jitcache.fingerprint(module.make(n)) for n in (1, 2, 1)])
+    assert prints[0] == prints[2] and prints[0][0] == prints[0][2]  # a function of the code alone
+    assert prints[0][0] != prints[1][0]  # the callee changed
+    assert prints[0][0] != prints[0][1]  # the captured n changed

@@ -1,17 +1,10 @@
-"""A third-party plugin package, pip-installed, joins the matrix through entry points.
-
-The package is installed with ``pip install --target`` into a temporary folder that the
-child processes get on PYTHONPATH: discovery goes through its installed entry-point
-metadata exactly as for a site-packages install, without touching the test environment.
-"""
+"""A third-party plugin package, pip-installed, joins the matrix through entry points
+(installed as tests/_plugins.py describes)."""
 import json
-import os
 import sqlite3
-import subprocess
-import sys
-import textwrap
 
 import pytest
+from _plugins import install_plugin, longtime
 
 PLUGIN = '''
 import numba
@@ -57,45 +50,18 @@ class Exploding(Heun):
         raise RuntimeError("plugin bug")
 '''
 
-PYPROJECT = '''
-[build-system]
-requires = ["setuptools>=61"]
-build-backend = "setuptools.build_meta"
-
-[project]
-name = "longtime-testplugin"
-version = "0.1"
-
-[project.entry-points."longtime.problems"]
-plug-pendulum = "longtime_testplugin:DampedPendulum"
-
-[project.entry-points."longtime.integrators"]
-plug-heun = "longtime_testplugin:Heun"
-plug-exploding = "longtime_testplugin:Exploding"
-plug-broken = "longtime_testplugin_broken:Anything"
-
-[tool.setuptools]
-py-modules = ["longtime_testplugin", "longtime_testplugin_broken"]
-'''
-
 
 @pytest.fixture(scope="module")
 def plugin_env(tmp_path_factory):
-    src = tmp_path_factory.mktemp("plugin-src")
-    (src / "pyproject.toml").write_text(textwrap.dedent(PYPROJECT))
-    (src / "longtime_testplugin.py").write_text(textwrap.dedent(PLUGIN))
-    (src / "longtime_testplugin_broken.py").write_text("raise RuntimeError('this plugin is broken on purpose')\n")
-    target = tmp_path_factory.mktemp("plugin-site")
-    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps",
-                    "--target", str(target), str(src)], check=True, capture_output=True)
-    assert list(target.glob("longtime_testplugin-0.1.dist-info/entry_points.txt"))
-    path = os.pathsep.join(filter(None, [str(target), os.environ.get("PYTHONPATH")]))
-    return {**os.environ, "PYTHONPATH": path}
-
-
-def longtime(env, *args):
-    return subprocess.run([sys.executable, "-m", "longtime.cli", *args], env=env, capture_output=True,
-                          text=True, timeout=600)
+    entry_points = {
+        "problems": {"plug-pendulum": "longtime_testplugin:DampedPendulum"},
+        "integrators": {"plug-heun": "longtime_testplugin:Heun", "plug-exploding": "longtime_testplugin:Exploding",
+                        "plug-broken": "longtime_testplugin_broken:Anything"},
+    }
+    env, _ = install_plugin(tmp_path_factory.mktemp("plugin"), "longtime-testplugin", entry_points, {
+        "longtime_testplugin.py": PLUGIN,
+        "longtime_testplugin_broken.py": "raise RuntimeError('this plugin is broken on purpose')\n"})
+    return env
 
 
 def test_plugin_is_listed_and_broken_plugin_reported(plugin_env):

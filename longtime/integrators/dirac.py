@@ -262,6 +262,3 @@ class DiracMidpoint(ConstrainedIntegrator):
 
     def make_step(self, problem):
         return _dirac_kernels(problem, two_step=False, midpoint=True, max_iter=int(self.settings["max_iter"]))
-
-    def kernel_variant(self):
-        return self.settings["max_iter"]

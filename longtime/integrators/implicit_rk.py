@@ -81,9 +81,6 @@ class ImplicitRungeKutta(FixedStepIntegrator):
 
         return step
 
-    def kernel_variant(self):
-        return self.settings["max_iter"]
-
 
 class Midpoint(ImplicitRungeKutta):
     name = "midpoint"

@@ -39,9 +39,6 @@ class Rattle(ConstrainedIntegrator):
         m, n = self.sizes(problem)
         return (m + 7 + m + m + 1, n)  # the base rows, then G(q_{n+1}) and phi
 
-    def kernel_variant(self):
-        return self.settings["max_iter"]
-
     def make_step(self, problem):
         c = problem.constraints
         phi, grad_phi, mass, grad_U = c.phi, c.grad_phi, c.mass, c.grad_U

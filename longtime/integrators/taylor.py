@@ -43,15 +43,10 @@ class _SeriesLayout:
         return N, problem.dim, tshape
 
     def _integrate(self, problem, t_final, max_samples):
-        # the compiled step closes over the layout, so it is part of the loop's cache key
-        self._current_layout = self._layout(problem)
         traj = super()._integrate(problem, t_final, max_samples)
         # the row's order (and tol) fields, also when defaulted
         traj.extra.update({k: self.settings[k] for k in ("order", "tol") if k in self.settings})
         return traj
-
-    def kernel_variant(self):
-        return (type(self).__name__, getattr(self, "_current_layout", None))
 
     def work_shape(self, problem):
         N, dim, tshape = self._layout(problem)
