@@ -14,28 +14,37 @@ One step from (t0, u) (SPEC.md section 2, ``bpl``):
    within 5 %) with r(t) <= eps_res, searched below the proposed step by log-log secant
    and bisection on the same approximants; the next proposal extrapolates r ~ t^N.
 
-Fallback (counted in ``fallbacks``, per accepted step): when a component's Pade approximant
-cannot be trusted at the trial t, that component uses its truncated Taylor sum
-sum_n u_n t^n instead, which is exactly what the quadrature returns for the polynomial B
-itself (K nodes integrate degree <= 2K-1 exactly). Untrusted means: non-finite Pade
-coefficients; a non-finite Laplace sum; or a pole on the positive real axis within reach
-of the quadrature. Descartes' rule of signs on the denominator says whether a positive
-pole can exist at all; if so, a sign change of the denominator between consecutive nodes
-t s_k brackets one, and it is within reach when the terms w_k |P(t s_k)| of the sum on
-either side of it exceed eps_res (a pole beyond the nodes that carry weight, e.g. at
-s = 60 where w ~ 1e-25, moves the sum by far less than the tolerance; treating every pole
-below t s_max = 66.5 t as fatal made 95 % of the toda steps plain Taylor steps, with 15
-times the energy error at the same mean step). The residual then judges the mixed sum
-like any other, so a fallback step is accepted only where it satisfies r <= eps_res.
+That is the whole of the paper's algorithm (``fallback="none"``, the default): an
+approximant with a pole within reach of the nodes, or a non-finite sum, is not replaced;
+the residual test sees the spoilt sum and the step shrinks. A step is never accepted on a
+non-finite value: a non-finite residual or state counts as a failed trial t (that is the
+residual test, not an extra safeguard). Where eps_res is below the rounding level of the
+residual itself (64 eps ||F(S)||, e.g. once a growing state makes |F| ~ 1e12), a step
+accepts that level instead of shrinking to underflow.
+
+``fallback="taylor"`` is a named variant, not the paper's (counted in ``fallbacks``, per
+accepted step, and reported as ``fallback_fraction`` = fallbacks / steps in every row):
+when a component's Pade approximant cannot be trusted at the trial t, that component uses
+its truncated Taylor sum sum_n u_n t^n instead, which is exactly what the quadrature
+returns for the polynomial B itself (K nodes integrate degree <= 2K-1 exactly). Untrusted
+means: non-finite Pade coefficients; a non-finite Laplace sum; or a pole on the positive
+real axis within reach of the quadrature. Descartes' rule of signs on the denominator says
+whether a positive pole can exist at all; if so, a sign change of the denominator between
+consecutive nodes t s_k brackets one, and it is within reach when the terms w_k |P(t s_k)|
+of the sum on either side of it exceed eps_res (a pole beyond the nodes that carry weight,
+e.g. at s = 60 where w ~ 1e-25, moves the sum by far less than the tolerance). The residual
+then judges the mixed sum like any other. On toda (eps_res 1e-3 to 1e-4) a third of the
+steps of this variant are Taylor steps, and its energy error at a given mean step is far
+below the paper's: it is another scheme, which is why it is opt-in.
 
 A degenerate approximant (exact degrees below [m/n]: a rank-deficient Toeplitz block,
 where the robust Pade lowers the degrees, or trimmed zero coefficients, as for an even
 function; not the zero series of a component at rest) is not a fallback; such steps
-count in ``pade_degenerate``. Where eps_res is below the rounding level of the residual
-itself (64 eps ||F(S)||, e.g. once a growing state makes |F| ~ 1e12), a step accepts that
-level instead of shrinking to underflow.
-A step is never accepted on a non-finite value: a non-finite residual or state counts as
-a failed trial t.
+count in ``pade_degenerate``.
+
+The family: ``bpl_exp`` (``bpl-exp``) runs the same Pade, Laplace sum and step search on
+the integrating-factor variables of u' = L u + N(u). The steps differ only in three
+compiled hooks (``series``, ``to_state``, ``field``, see ``make_try_step``).
 """
 from __future__ import annotations
 
@@ -52,14 +61,16 @@ from ..pade import DEFAULT_TOL, polynomial_and_derivative, robust_pade, scratch_
 # header of the flat work array: sizes and offsets, read by the compiled step
 (_N, _M, _NDEN, _K, _DIM, _TOL, _EPS_RES, _TW0, _TW1, _TW2, _TW3, _O_COEF, _O_TW, _O_INVFACT,
  _O_NODES, _O_WEIGHTS, _O_CBUF, _O_A, _O_B, _O_MU, _O_NU, _O_LAM, _O_FLAG, _O_SCR, _O_S, _O_SD,
- _O_F, _O_BEST, _HEADER) = range(29)
+ _O_F, _O_BEST, _O_LIN, _HEADER) = range(30)
 
 _SEARCH_EVALS = 12  # residual evaluations allowed in one step's search below the proposal
 _SEARCH_REL = 0.05  # the search stops when the bracket [ok, too large] is this narrow
-_GROW_MAX = 4.0
-_ROUNDING = 64 * np.finfo(float).eps  # rounding level of S' - F(S), relative to |F|  # largest growth of the proposal from one step to the next
+_GROW_MAX = 4.0  # largest growth of the proposal from one step to the next
+_ROUNDING = 64 * np.finfo(float).eps  # rounding level of S' - F(S), relative to |F|
+FALLBACKS_ALLOWED = ("none", "taylor")
 
-# component flags: how far its Pade approximant can be trusted
+# component flags: how far its Pade approximant can be trusted (_PADE_CHECK_POLES: only
+# with the Taylor fallback, whose pole test it arms)
 _PADE_OK, _PADE_CHECK_POLES, _PADE_BAD = 0, 1, 2
 
 
@@ -108,8 +119,11 @@ def _balance_scale(c, L):
 
 
 @numba.njit(cache=True)
-def _prepare_pade(coeffs, work, counters):
-    """Robust Pade approximants of every component's Borel transform (once per step)."""
+def _prepare_pade(coeffs, work, counters, check_poles):
+    """Robust Pade approximants of every component's Borel transform (once per step).
+    A component with non-finite coefficients is flagged bad (its sum would be non-finite);
+    ``check_poles`` (the Taylor fallback only) flags the approximants that may have a
+    positive real pole (Descartes' rule on the denominator)."""
     N, m, n, dim = int(work[_N]), int(work[_M]), int(work[_NDEN]), int(work[_DIM])
     tol = work[_TOL]
     L = m + n + 1
@@ -152,7 +166,7 @@ def _prepare_pade(coeffs, work, counters):
             for j in range(mu + 1):
                 if not math.isfinite(a[j]):
                     flag = _PADE_BAD
-            if flag == _PADE_OK and changes > 0:
+            if check_poles and flag == _PADE_OK and changes > 0:
                 flag = _PADE_CHECK_POLES  # Descartes: a positive real pole may exist
         work[o_mu + i] = mu
         work[o_nu + i] = nu
@@ -163,8 +177,10 @@ def _prepare_pade(coeffs, work, counters):
 
 
 @numba.njit(cache=True)
-def _laplace_sum(t, u, coeffs, work, S, Sd):
-    """S(t), S'(t) per component into S, Sd; returns True when some component fell back."""
+def _laplace_sum(t, u, coeffs, work, S, Sd, taylor_fallback):
+    """S(t), S'(t) per component into S, Sd; returns True when some component fell back.
+    Without ``taylor_fallback`` (the paper's algorithm) every sum is evaluated as it is, a
+    bad approximant's as NaN (the value of a non-finite sum): the residual judges it."""
     N, m, n, K, dim = int(work[_N]), int(work[_M]), int(work[_NDEN]), int(work[_K]), int(work[_DIM])
     nodes = work[int(work[_O_NODES]):int(work[_O_NODES]) + K]
     weights = work[int(work[_O_WEIGHTS]):int(work[_O_WEIGHTS]) + K]
@@ -202,14 +218,113 @@ def _laplace_sum(t, u, coeffs, work, S, Sd):
                 dr = (dp - r * dq) / (q * lam)  # dP/dxi
                 s_acc += weights[k] * r
                 d_acc += weights[k] * (r + x * dr)
-            if usable and math.isfinite(s_acc) and math.isfinite(d_acc):
+            if not taylor_fallback or (usable and math.isfinite(s_acc) and math.isfinite(d_acc)):
                 S[i] = u[i] + t * s_acc
                 Sd[i] = d_acc
                 continue
-        # fallback: the truncated Taylor sum and its derivative
+        elif not taylor_fallback:
+            S[i] = Sd[i] = np.nan
+            continue
+        # the fallback variant: the truncated Taylor sum and its derivative
         fell_back = True
         S[i], Sd[i] = polynomial_and_derivative(coeffs[:, i], N, t)
     return fell_back
+
+
+@numba.njit(cache=True)
+def _identity_map(t, S, Sd, work):
+    """``to_state`` of bpl: the Laplace sum is the state."""
+
+
+def make_try_step(series, to_state, field, N, taylor_fallback):
+    """The compiled try_step of the BPL family, from three compiled hooks:
+
+    series(t, u, params, coeffs, work)   Taylor coefficients of the summed variable
+    to_state(t, S, Sd, work)             the Laplace sum (S, S') at local time t -> the
+                                         state and the part of u' that ``field`` must match
+    field(t, u, params, out)             what S' must equal (bpl: the rhs)
+
+    The robust Pade, the Laplace sum and the residual-controlled step search are shared.
+    ``taylor_fallback`` is a constant of the closure, so each setting gets its own kernel.
+    """
+
+    @numba.njit
+    def residual(t0, t, u, coeffs, params, work, counters):
+        dim = u.size
+        o_s, o_sd, o_f = int(work[_O_S]), int(work[_O_SD]), int(work[_O_F])
+        S, Sd, F = work[o_s:o_s + dim], work[o_sd:o_sd + dim], work[o_f:o_f + dim]
+        fell_back = _laplace_sum(t, u, coeffs, work, S, Sd, taylor_fallback)
+        to_state(t, S, Sd, work)
+        field(t0 + t, S, params, F)
+        counters[RHS_EVALS] += 1
+        counters[EXTRA1] += 1
+        r = 0.0
+        f2 = 0.0
+        for i in range(dim):
+            r += (Sd[i] - F[i]) ** 2
+            f2 += F[i] * F[i]
+            if not math.isfinite(S[i]):
+                r = np.inf
+        # relative to the attainable tolerance: eps_res, or the rounding level of
+        # S' - F(S) where |F| is so large that eps_res is below it
+        r = math.sqrt(r) / max(work[_EPS_RES], _ROUNDING * math.sqrt(f2))
+        return (r if math.isfinite(r) else np.inf), fell_back
+
+    @numba.njit
+    def try_step(t, u, h, params, work, counters, u_new):
+        dim = u.size
+        eps = 1.0  # residuals come relative to the attainable tolerance
+        oc = int(work[_O_COEF])
+        coeffs = work[oc:oc + (N + 1) * dim].reshape((N + 1, dim))
+        series(t, u, params, coeffs, work)
+        _prepare_pade(coeffs, work, counters, taylor_fallback)
+        o_s, o_best = int(work[_O_S]), int(work[_O_BEST])
+        S, best = work[o_s:o_s + dim], work[o_best:o_best + dim]
+
+        r, fell_back = residual(t, h, u, coeffs, params, work, counters)
+        if r <= eps:  # the proposal holds: take it, propose more next time
+            for i in range(dim):  # element loops: a slice copy compiles a slow shape check
+                u_new[i] = S[i]
+            if fell_back:
+                counters[FALLBACKS] += 1
+            grow = _GROW_MAX if r == 0.0 else min(_GROW_MAX, max(1.0, (eps / r) ** (1.0 / N)))
+            return 1, h, (np.inf if r == 0.0 else h * grow)
+        # search below h: lo holds (r <= eps), hi does not
+        lo, r_lo, hi, r_hi = 0.0, 0.0, h, r
+        best_fell_back = False
+        for it in range(_SEARCH_EVALS):
+            if lo > 0.0 and hi - lo <= _SEARCH_REL * hi:
+                break
+            if lo > 0.0 and r_lo > 0.0 and math.isfinite(r_hi):
+                p = max(math.log(r_hi / r_lo) / math.log(hi / lo), 1.0)
+                trial = lo * (eps / r_lo) ** (1.0 / p)
+            elif lo == 0.0 and math.isfinite(r_hi):
+                trial = hi * (eps / r_hi) ** (1.0 / N)
+            else:
+                trial = 0.5 * (lo + hi)
+            # keep the trial strictly inside the bracket, away from its ends
+            trial = min(max(trial, lo + 0.1 * (hi - lo)), hi - 0.1 * (hi - lo))
+            if lo == 0.0:
+                trial = min(trial, 0.9 * hi)
+            r, fell_back = residual(t, trial, u, coeffs, params, work, counters)
+            if r <= eps:
+                lo, r_lo, best_fell_back = trial, r, fell_back
+                for i in range(dim):
+                    best[i] = S[i]
+            else:
+                hi, r_hi = trial, r
+        if lo == 0.0:  # nothing below h held: retry from scratch with a smaller step
+            return 0, 0.0, 0.25 * hi
+        for i in range(dim):
+            if not math.isfinite(best[i]):
+                return 0, 0.0, 0.5 * lo
+        for i in range(dim):
+            u_new[i] = best[i]
+        if best_fell_back:
+            counters[FALLBACKS] += 1
+        return 1, lo, lo
+
+    return try_step
 
 
 class BorelPadeLaplace(AdaptiveIntegrator):
@@ -226,6 +341,9 @@ class BorelPadeLaplace(AdaptiveIntegrator):
         "eps_res": Param(1e-6, "residual tolerance ||S' - F(S)||_2 per step", float, positive=True),
         "pade_tol": Param(DEFAULT_TOL, "relative SVD tolerance of the robust Pade", float, minimum=0.0),
         "max_dt": Param(None, "largest step (default: the whole span)", float, positive=True),
+        "fallback": Param("none", "untrusted Pade: none (the paper's algorithm: the residual judges "
+                          "it) or taylor (a variant: that component takes its Taylor sum)", str,
+                          choices=FALLBACKS_ALLOWED),
     }
     sweep = {"eps_res": (1e-4, 1e-6, 1e-8, 1e-10)}
     extra_counters = ("residual_evals", "pade_degenerate")
@@ -239,7 +357,7 @@ class BorelPadeLaplace(AdaptiveIntegrator):
         n = s["pade_den"] if s["pade_den"] is not None else N - 1 - m
         if m < 0 or n < 0 or m + n + 1 > N:
             raise InputError(
-                f"integrator 'bpl': pade_num={m}, pade_den={n} are not valid for order={N}: "
+                f"integrator '{self.name}': pade_num={m}, pade_den={n} are not valid for order={N}: "
                 f"the [m/n] Pade approximant of the Borel transform needs m + n + 1 <= order "
                 f"(its N coefficients u_1..u_N), m >= 0, n >= 0")
         self.degrees = (m, n)
@@ -252,12 +370,17 @@ class BorelPadeLaplace(AdaptiveIntegrator):
             ("nodes", K), ("weights", K), ("cbuf", N + 1), ("a", dim * (m + 1)),
             ("b", dim * (n + 1)), ("mu", dim), ("nu", dim), ("lam", dim), ("flag", dim),
             ("scr", scratch_size(m, n)), ("S", dim), ("Sd", dim), ("F", dim), ("best", dim),
+            ("lin", self._linear_size(problem)),
         ]
         offsets, o = {}, _HEADER
         for key, size in sizes:
             offsets[key] = o
             o += max(size, 1)
         return tw_shape, offsets, o
+
+    def _linear_size(self, problem):
+        """Length of the work slot of the linear part (bpl-exp); bpl has none."""
+        return 0
 
     def work_shape(self, problem):
         return (self._layout(problem)[2],)
@@ -270,7 +393,7 @@ class BorelPadeLaplace(AdaptiveIntegrator):
         for i, s in enumerate(tw_shape):
             work[_TW0 + i] = s
         for i, key in enumerate(("coef", "tw", "invfact", "nodes", "weights", "cbuf", "a", "b", "mu",
-                                 "nu", "lam", "flag", "scr", "S", "Sd", "F", "best")):
+                                 "nu", "lam", "flag", "scr", "S", "Sd", "F", "best", "lin")):
             work[_O_COEF + i] = off[key]
         work[off["invfact"]:off["invfact"] + N + 1] = [1.0 / math.factorial(k) for k in range(N + 1)]
         s, w = np.polynomial.laguerre.laggauss(K)
@@ -280,84 +403,71 @@ class BorelPadeLaplace(AdaptiveIntegrator):
     def initial_step(self, problem, t_final):
         return min(float(problem.default_dt), self.max_step(problem, t_final))
 
-    def make_try_step(self, problem):
-        rhs, taylor = problem.rhs, problem.taylor
-        N = self.settings["order"]
-        taylor_work = _taylor_view(len(problem.taylor_work_shape(N)))
+    # -- the three hooks of the family (see make_try_step)
+    def _series(self, problem):
+        taylor = problem.taylor
+        taylor_work = _taylor_view(len(problem.taylor_work_shape(self.settings["order"])))
 
         @numba.njit
-        def residual(t0, t, u, coeffs, params, work, counters):
-            dim = u.size
-            o_s, o_sd, o_f = int(work[_O_S]), int(work[_O_SD]), int(work[_O_F])
-            S, Sd, F = work[o_s:o_s + dim], work[o_sd:o_sd + dim], work[o_f:o_f + dim]
-            fell_back = _laplace_sum(t, u, coeffs, work, S, Sd)
-            rhs(t0 + t, S, params, F)
-            counters[RHS_EVALS] += 1
-            counters[EXTRA1] += 1
-            r = 0.0
-            f2 = 0.0
-            for i in range(dim):
-                r += (Sd[i] - F[i]) ** 2
-                f2 += F[i] * F[i]
-                if not math.isfinite(S[i]):
-                    r = np.inf
-            # relative to the attainable tolerance: eps_res, or the rounding level of
-            # S' - F(S) where |F| is so large that eps_res is below it
-            r = math.sqrt(r) / max(work[_EPS_RES], _ROUNDING * math.sqrt(f2))
-            return (r if math.isfinite(r) else np.inf), fell_back
-
-        @numba.njit
-        def try_step(t, u, h, params, work, counters, u_new):
-            N, dim = int(work[_N]), u.size
-            eps = 1.0  # residuals come relative to the attainable tolerance
-            oc = int(work[_O_COEF])
-            coeffs = work[oc:oc + (N + 1) * dim].reshape((N + 1, dim))
+        def series(t, u, params, coeffs, work):
             taylor(t, u, params, coeffs, taylor_work(work))
-            _prepare_pade(coeffs, work, counters)
-            o_s, o_best = int(work[_O_S]), int(work[_O_BEST])
-            S, best = work[o_s:o_s + dim], work[o_best:o_best + dim]
 
-            r, fell_back = residual(t, h, u, coeffs, params, work, counters)
-            if r <= eps:  # the proposal holds: take it, propose more next time
-                for i in range(dim):  # element loops: a slice copy compiles a slow shape check
-                    u_new[i] = S[i]
-                if fell_back:
-                    counters[FALLBACKS] += 1
-                grow = _GROW_MAX if r == 0.0 else min(_GROW_MAX, max(1.0, (eps / r) ** (1.0 / N)))
-                return 1, h, (np.inf if r == 0.0 else h * grow)
-            # search below h: lo holds (r <= eps), hi does not
-            lo, r_lo, hi, r_hi = 0.0, 0.0, h, r
-            best_fell_back = False
-            for it in range(_SEARCH_EVALS):
-                if lo > 0.0 and hi - lo <= _SEARCH_REL * hi:
-                    break
-                if lo > 0.0 and r_lo > 0.0 and math.isfinite(r_hi):
-                    p = max(math.log(r_hi / r_lo) / math.log(hi / lo), 1.0)
-                    trial = lo * (eps / r_lo) ** (1.0 / p)
-                elif lo == 0.0 and math.isfinite(r_hi):
-                    trial = hi * (eps / r_hi) ** (1.0 / N)
-                else:
-                    trial = 0.5 * (lo + hi)
-                # keep the trial strictly inside the bracket, away from its ends
-                trial = min(max(trial, lo + 0.1 * (hi - lo)), hi - 0.1 * (hi - lo))
-                if lo == 0.0:
-                    trial = min(trial, 0.9 * hi)
-                r, fell_back = residual(t, trial, u, coeffs, params, work, counters)
-                if r <= eps:
-                    lo, r_lo, best_fell_back = trial, r, fell_back
-                    for i in range(dim):
-                        best[i] = S[i]
-                else:
-                    hi, r_hi = trial, r
-            if lo == 0.0:  # nothing below h held: retry from scratch with a smaller step
-                return 0, 0.0, 0.25 * hi
-            for i in range(dim):
-                if not math.isfinite(best[i]):
-                    return 0, 0.0, 0.5 * lo
-            for i in range(dim):
-                u_new[i] = best[i]
-            if best_fell_back:
-                counters[FALLBACKS] += 1
-            return 1, lo, lo
+        return series
 
-        return try_step
+    def _to_state(self, problem):
+        return _identity_map
+
+    def _field(self, problem):
+        return problem.rhs
+
+    def make_try_step(self, problem):
+        return make_try_step(self._series(problem), self._to_state(problem), self._field(problem),
+                             self.settings["order"], self.settings["fallback"] == "taylor")
+
+    def _integrate(self, problem, t_final, max_samples):
+        traj = super()._integrate(problem, t_final, max_samples)
+        # measured, for every variant: the share of accepted steps that used a Taylor sum
+        steps = traj.steps
+        traj.extra["fallback_fraction"] = traj.counters["fallbacks"] / steps if steps else None
+        return traj
+
+
+# ---------------------------------------------------------------- linear stability, measured
+AMPLIFICATION_GROWTH = 1e-2  # |R| above 1 + this counts as amplification
+_PHASES = 48  # starting phases of the rotation; the componentwise Pade is not linear in u
+
+
+def amplification(ys, order: int = 10, phases: int = _PHASES, **settings) -> np.ndarray:
+    """|R(iy)|: the growth of one step of length y of ``bpl`` (its compiled step, the
+    residual test switched off) on the rotation q' = p, p' = -q (the harmonic oscillator,
+    omega = 1), the worst over ``phases`` starting phases. A Fourier mode of frequency
+    omega is such a rotation, so this is how one step of length h treats it at y = omega h.
+    Each component gets its own Pade approximant, so the step is not a linear map and its
+    growth depends on the phase; the maximum is what a mode with any phase can see.
+    A step the kernel cannot take at y (non-finite sum) gives inf."""
+    from ..drivers import new_counters
+    from ..problems.harmonic import Harmonic
+
+    problem = Harmonic()
+    scheme = BorelPadeLaplace(order=order, **{**settings, "eps_res": 1e300})
+    try_step = scheme.make_try_step(problem)
+    work = np.zeros(scheme.work_shape(problem))
+    scheme.prepare_work(problem, work)
+    ys = np.asarray(ys, dtype=float)
+    worst = np.zeros(ys.size)
+    u_new = np.empty(2)
+    for phase in np.linspace(0.0, np.pi, phases, endpoint=False):
+        u0 = np.array([math.cos(phase), -math.sin(phase)])
+        for k, y in enumerate(ys):
+            code, taken, _ = try_step(0.0, u0.copy(), float(y), problem.params, work, new_counters(), u_new)
+            growth = math.hypot(u_new[0], u_new[1]) if code == 1 and taken == y else np.inf
+            worst[k] = max(worst[k], growth)
+    return worst
+
+
+def amplification_onset(order: int = 10, growth: float = AMPLIFICATION_GROWTH, **settings) -> float:
+    """The smallest y = omega h (to 0.02) at which one bpl step amplifies some rotation
+    by more than 1 + ``growth``: past it, a mode of frequency omega grows step after step."""
+    ys = np.arange(0.02, 8.0 + 1e-9, 0.02)
+    over = np.nonzero(amplification(ys, order, **settings) > 1.0 + growth)[0]
+    return round(float(ys[over[0]]), 2) if over.size else math.inf
