@@ -109,6 +109,8 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
                 values = sweeps.get(flag)
                 if values is None and default_sweep:
                     values = list(pcls.sweep_dt) if flag == "dt" else list(icls.sweep.get(flag, ()))
+                    if flag in ("tol", "eps_res") and pcls.sweep_min_tolerance:
+                        values = [v for v in values if v >= pcls.sweep_min_tolerance]
                 if values:
                     axes.append([(flag, v) for v in values])
             for point in itertools.product(*axes):

@@ -14,6 +14,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from typing import Callable, Iterator
 
+from . import registry
 from .cells import DEFAULT_MAX_SAMPLES, Cell, base_row, run_cell
 from .integrator import Timing
 from .params import InputError, check_choice
@@ -41,11 +42,27 @@ def serial(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict
 
 
 def batches_by_pair(cells: list[Cell]) -> list[list[Cell]]:
-    """Cells of one problem x scheme pair together: one worker compiles each kernel once."""
+    """Cells of one problem x scheme pair together: one worker compiles each kernel once.
+    Largest first (by ``estimated_work``), so no long batch starts last and runs alone."""
     groups: dict[tuple[str, str], list[Cell]] = {}
     for c in cells:
         groups.setdefault((c.problem, c.integrator), []).append(c)
-    return list(groups.values())
+    dims: dict[str, int] = {}
+    return sorted(groups.values(), key=lambda batch: -sum(estimated_work(c, dims) for c in batch))
+
+
+def estimated_work(cell: Cell, dims: dict[str, int]) -> float:
+    """A rough size of a cell, for ordering only: state dimension x steps (the cell's dt, or
+    the problem's default step for adaptive schemes). ``dims`` caches dimensions."""
+    try:
+        pcls = registry.problem_class(cell.problem)
+        key = f"{cell.problem} {sorted(cell.problem_settings.items())}"
+        if key not in dims:
+            dims[key] = pcls(**cell.problem_settings).dim
+        dt = float(cell.integrator_settings.get("dt") or pcls.default_dt)
+        return dims[key] * max(cell.t_final - pcls.t0, 0.0) / dt
+    except Exception:  # an invalid setting: run_cell reports it; order it anywhere
+        return 0.0
 
 
 def run_batch(cells: list[Cell], max_samples: int, timing: Timing) -> list[dict]:

@@ -92,6 +92,9 @@ class Problem(ABC):
     # the default matrix sweep: time steps and final time
     sweep_dt: ClassVar[tuple[float, ...]] = ()
     sweep_t_final: ClassVar[float | None] = None
+    # tolerances (tol, eps_res) of the default sweep below this are not run: their errors
+    # would all read the reference's own accuracy (its floor), so they measure only cost
+    sweep_min_tolerance: ClassVar[float | None] = None
     autonomous: ClassVar[bool] = True
     # |u|_inf above blowup_factor * max(1, |u0|_inf) is a divergence
     blowup_factor: ClassVar[float] = 1e10
