@@ -76,7 +76,11 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
     ``default_sweep``, the problem's ``sweep_dt`` and the scheme's ``sweep``). An
     incompatible pair becomes one cell with a skip reason, or an error when ``strict``.
     """
-    sweeps = {k: list(v) for k, v in (sweeps or {}).items() if v}
+    # a name or value given twice is one cell (a repeat would be run twice and stored once)
+    problem_names, integrator_names = list(dict.fromkeys(problem_names)), list(dict.fromkeys(integrator_names))
+    sweeps = {k: list(dict.fromkeys(v)) for k, v in (sweeps or {}).items() if v}
+    registry.check_names("problem", problem_names)  # every unknown name at once
+    registry.check_names("integrator", integrator_names)
     sets = dict(sets or {})
     check_set_keys(sets, problem_names, integrator_names)
     for flag in sweeps:

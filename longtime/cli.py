@@ -44,7 +44,10 @@ def _ints(text: str) -> list[int]:
 
 
 def _names(text: str) -> list[str]:
-    return [x.strip() for x in text.split(",") if x.strip()]
+    names = list(dict.fromkeys(x.strip() for x in text.split(",") if x.strip()))  # a repeat runs once
+    if not names:  # "-p ," must not mean "everything"
+        raise argparse.ArgumentTypeError(f"expected comma-separated names, got {text!r}")
+    return names
 
 
 def _key_value(text: str) -> tuple[str, str]:
@@ -109,6 +112,8 @@ def _sweeps(args) -> dict[str, list]:
 
 
 def _options(args) -> ExecOptions:
+    if args.max_samples < 2:  # checked before a run is recorded: bad input leaves nothing to resume
+        raise InputError(f"--max-samples {args.max_samples}: must be >= 2")
     return ExecOptions(jobs=args.jobs, max_samples=args.max_samples,
                        timing=Timing(repeats=args.repeats, min_time=args.min_time),
                        cell_timeout=getattr(args, "cell_timeout", None),
@@ -155,11 +160,12 @@ def cmd_run(args) -> int:
     _warn_broken()
     cells = expand(args.problem, args.integrator, sweeps=_sweeps(args), t_final=args.t_final,
                    sets=dict(args.set), strict=True)
+    options = _options(args)
     store = None if args.no_store else Store(args.db)
     run_id = store.begin_run("run " + shlex.join(sys.argv[1:]), cells) if store else None
     status = "interrupted"
     try:
-        rows = run_matrix(cells, store, run_id, args.executor or "serial", _options(args))
+        rows = run_matrix(cells, store, run_id, args.executor or "serial", options)
         status = "done"
     finally:
         if store:
@@ -174,11 +180,16 @@ def cmd_run(args) -> int:
 
 def cmd_matrix(args) -> int:
     _warn_broken()
-    store = Store(args.db)
+    options = _options(args)
     if args.resume is not None:
-        run_id = args.resume if args.resume > 0 else store.latest_run("matrix")
+        store = Store(args.db, create=False)  # resuming never creates an empty store
+        if args.resume < 0:
+            raise InputError(f"--resume {args.resume}: a run id is > 0 (or none: the latest matrix run)")
+        run_id = args.resume or store.latest_run("matrix")
         if run_id is None:
             raise InputError(f"--resume: no matrix run in {store.path}")
+        if not (store.run(run_id)["command"] or "").startswith("matrix"):
+            raise InputError(f"--resume {run_id}: run {run_id} in {store.path} is not a matrix run")
         cells = store.pending(run_id)
         print(f"resuming run {run_id}: {len(cells)} cells left", file=sys.stderr)
     else:
@@ -186,11 +197,12 @@ def cmd_matrix(args) -> int:
         schemes = args.integrator or sorted(registry.integrators())
         cells = expand(problems, schemes, sweeps=_sweeps(args), t_final=args.t_final,
                        sets=dict(args.set), default_sweep=True)
+        store = Store(args.db)
         run_id = store.begin_run("matrix " + shlex.join(sys.argv[2:]), cells)
         print(f"run {run_id}: {len(cells)} cells into {store.path}", file=sys.stderr)
     status = "interrupted"
     try:
-        run_matrix(cells, store, run_id, args.executor or "process", _options(args),
+        run_matrix(cells, store, run_id, args.executor or "process", options,
                    progress=not args.no_progress)
         status = "done"
     finally:
@@ -201,13 +213,19 @@ def cmd_matrix(args) -> int:
 
 
 def cmd_report(args) -> int:
-    store = Store(args.db)
+    store = Store(args.db, readonly=True)  # a report writes nothing, not even an empty store
     if args.run == "all":
         rows = store.rows()
     else:
+        if args.run and not args.run.isdigit():
+            raise InputError(f"--run {args.run!r}: expected a run id (a positive integer) or 'all'")
         run_id = int(args.run) if args.run else store.latest_run()
         if run_id is None:
             raise InputError(f"no runs in {store.path}: run `longtime matrix` first")
+        run = store.run(run_id)
+        if run["status"] != "done" or run["done"] < run["planned"]:
+            print(f"note: run {run_id} is incomplete ({run['status']}, {run['done']} of {run['planned']} "
+                  f"cells stored)", file=sys.stderr)
         rows = store.rows(run_id)
     if args.problem:
         rows = [r for r in rows if r["problem"] in args.problem]
@@ -258,8 +276,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"longtime {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("interrupted: finished cells are in the store; `longtime matrix --resume` completes the rest",
-              file=sys.stderr)
+        hint = ("; `longtime matrix --resume` completes the rest" if args.command == "matrix"
+                else "; rerun the command for the rest")
+        print(f"interrupted: finished cells are in the store{hint}", file=sys.stderr)
         return 130
 
 

@@ -6,6 +6,7 @@ the argument's name and what is allowed.
 """
 from __future__ import annotations
 
+import difflib
 import math
 from dataclasses import dataclass
 from typing import Any, Mapping
@@ -83,10 +84,23 @@ def resolve(declared: Mapping[str, Param], given: Mapping[str, Any], owner: str)
 
 
 def check_choice(argument: str, value: str, allowed) -> str:
-    allowed = sorted(allowed)
-    if value not in allowed:
-        raise InputError(f"unknown {argument} '{value}'; valid {argument}s: {', '.join(allowed)}")
+    check_choices(argument, [value], allowed)
     return value
+
+
+def check_choices(argument: str, values, allowed) -> None:
+    """Every value must be allowed: one InputError naming each unknown value, with the
+    closest allowed names ("did you mean") and the full list."""
+    allowed = sorted(allowed)
+    unknown = [v for v in dict.fromkeys(values) if v not in allowed]
+    if not unknown:
+        return
+    parts = []
+    for v in unknown:
+        close = difflib.get_close_matches(str(v), allowed, n=3, cutoff=0.6)
+        parts.append(f"'{v}'" + (f" (did you mean {' or '.join(close)}?)" if close else ""))
+    plural = "s" if len(unknown) > 1 else ""
+    raise InputError(f"unknown {argument}{plural} {', '.join(parts)}; valid {argument}s: {', '.join(allowed)}")
 
 
 def check_time_span(t0: float, t_final: float) -> None:

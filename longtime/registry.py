@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from importlib.metadata import entry_points
 
 from .integrator import Integrator
-from .params import check_choice
+from .params import check_choice, check_choices
 from .problem import Problem
 
 GROUPS = {"problems": ("longtime.problems", Problem), "integrators": ("longtime.integrators", Integrator)}
@@ -37,7 +37,7 @@ def _load() -> dict[str, dict[str, type]]:
     _broken.clear()
     for kind, (group, base) in GROUPS.items():
         found: dict[str, type] = {}
-        for ep in sorted(entry_points(group=group), key=lambda e: e.name):
+        for ep in _without_clashes(kind, entry_points(group=group)):
             try:
                 cls = ep.load()
                 if not (isinstance(cls, type) and issubclass(cls, base)):
@@ -53,6 +53,48 @@ def _load() -> dict[str, dict[str, type]]:
         loaded[kind] = found
     _loaded = loaded
     return loaded
+
+
+def _dist(ep) -> str:
+    return getattr(getattr(ep, "dist", None), "name", None) or "?"
+
+
+def _without_clashes(kind: str, points) -> list:
+    """Entry points by name; a name registered more than once is reported as broken, never
+    silently replaced: a built-in keeps its name, a clash between plugins loads none."""
+    by_name: dict[str, list] = {}
+    for ep in points:
+        by_name.setdefault(ep.name, []).append(ep)
+    kept = []
+    for name in sorted(by_name):
+        eps = by_name[name]
+        if len({(ep.value, _dist(ep)) for ep in eps}) == 1:  # the same one seen twice (a path twice)
+            kept.append(eps[0])
+            continue
+        builtin = [ep for ep in eps if _dist(ep) == "longtime"]
+        if builtin:
+            kept.append(builtin[0])
+        owners = ", ".join(f"{ep.value} ({_dist(ep)})" for ep in eps)
+        for ep in eps:
+            if builtin and ep is builtin[0]:
+                continue
+            why = "the built-in keeps it" if builtin else "none of them is loaded"
+            _broken.append(BrokenPlugin(GROUPS[kind][0], name, ep.value,
+                                        f"name clash: '{name}' is registered by {owners}; {why}"))
+    return kept
+
+
+def check_names(kind: str, names) -> None:
+    """Every name must be a loaded problem/integrator: one error listing every unknown name
+    (a broken plugin with its reason)."""
+    found = problems() if kind == "problem" else integrators()
+    for name in names:
+        bad = [b for b in broken() if b.name == name and name not in found]
+        if bad:
+            from .params import InputError
+
+            raise InputError(f"{kind} '{name}' is a broken plugin: {bad[0].error}")
+    check_choices(kind, names, found)
 
 
 def reload() -> None:

@@ -16,10 +16,18 @@ from contextlib import closing
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Iterable
+from urllib.parse import quote
 
 from .cells import Cell
+from .params import InputError
 
 DEFAULT_PATH = "longtime.sqlite"
+# A longtime store says so in its SQLite header: application_id (ASCII "LTim") and
+# user_version (the schema version). A file without them is refused untouched unless it is
+# an empty database or a store written before the version existed (same three tables).
+APPLICATION_ID = 0x4C54696D
+SCHEMA_VERSION = 1
+_TABLES = {"runs", "planned", "rows"}
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS runs (
@@ -38,7 +46,30 @@ CREATE TABLE IF NOT EXISTS rows (
     row TEXT NOT NULL, created TEXT NOT NULL,
     UNIQUE (run_id, cell_key)
 );
-"""
+PRAGMA application_id = %d;
+PRAGMA user_version = %d;
+""" % (APPLICATION_ID, SCHEMA_VERSION)
+
+
+def _check_path(path: Path, must_exist: bool) -> bool:
+    """Whether ``path`` exists as a regular file; an InputError for anything else, before
+    SQLite sees it (it would create /dev/null-journal, or a traceback)."""
+    if path.is_dir():
+        raise InputError(f"store {path}: is a directory, not a store file")
+    if path.exists():
+        if not path.is_file():
+            raise InputError(f"store {path}: not a regular file")
+        if not os.access(path, os.R_OK):
+            raise InputError(f"store {path}: not readable (permission denied)")
+        return True
+    for parent in path.absolute().parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise InputError(f"store {path}: {parent} is a file, not a folder")
+            break
+    if must_exist:
+        raise InputError(f"store {path}: no such file (nothing was created)")
+    return False
 
 
 def default_path() -> str:
@@ -69,14 +100,69 @@ def environment() -> dict[str, Any]:
 
 
 class Store:
-    def __init__(self, path: str | os.PathLike | None = None) -> None:
+    """A store file. ``readonly`` opens an existing store without writing anything (no
+    journal switch, no table created: ``report`` on a read-only file); ``create=False``
+    refuses a missing file instead of creating an empty store (``--resume``, ``report``).
+    Anything that is not a longtime store of this or an older schema is an InputError
+    naming the file, and the file is left as it was."""
+
+    def __init__(self, path: str | os.PathLike | None = None, *, readonly: bool = False,
+                 create: bool = True) -> None:
         self.path = Path(path or default_path())
-        if self.path.parent and not self.path.parent.exists():
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-        with closing(self._connect()) as con, con:
-            con.executescript(SCHEMA)
+        self.readonly = readonly
+        exists = _check_path(self.path, must_exist=readonly or not create)
+        if exists:
+            self._check_identity()
+        if readonly:
+            return
+        try:
+            if not self.path.parent.exists():
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+            with closing(self._connect()) as con, con:
+                con.executescript(SCHEMA)
+        except (OSError, sqlite3.Error) as exc:
+            raise InputError(f"store {self.path}: cannot write it: {exc}") from None
+
+    def _check_identity(self) -> None:
+        """Refuse, untouched, a file that is not a longtime store (or is a newer one)."""
+        sidecars = [Path(f"{self.path}{x}") for x in ("-wal", "-shm", "-journal")]
+        before = {p for p in sidecars if p.exists()}
+        try:
+            self._identify()
+        except InputError:
+            for p in sidecars:  # reading a WAL file may have created these: leave nothing behind
+                if p not in before and p.exists():
+                    p.unlink()
+            raise
+
+    def _identify(self) -> None:
+        try:
+            with closing(self._open_ro()) as con:
+                app = con.execute("PRAGMA application_id").fetchone()[0]
+                version = con.execute("PRAGMA user_version").fetchone()[0]
+                tables = {r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+                con.execute("PRAGMA quick_check(1)").fetchone()  # a truncated file fails here
+        except sqlite3.DatabaseError as exc:
+            raise InputError(f"store {self.path}: not a readable SQLite database ({exc})") from None
+        tables.discard("sqlite_sequence")
+        if app == APPLICATION_ID:
+            if version > SCHEMA_VERSION:
+                raise InputError(f"store {self.path}: schema version {version} is newer than this longtime "
+                                 f"reads ({SCHEMA_VERSION}); upgrade longtime or use another --db")
+        elif app != 0 or not (tables == set() or tables == _TABLES):
+            raise InputError(f"store {self.path}: a SQLite file of another program (tables: "
+                             f"{', '.join(sorted(tables)) or 'none'}); refusing to touch it: use another --db")
+
+    def _open_ro(self) -> sqlite3.Connection:
+        uri = f"file:{quote(str(self.path.absolute()))}?mode=ro"
+        try:
+            return sqlite3.connect(uri, uri=True, timeout=30)
+        except sqlite3.Error as exc:
+            raise InputError(f"store {self.path}: cannot open it: {exc}") from None
 
     def _connect(self) -> sqlite3.Connection:
+        if self.readonly:
+            return self._open_ro()
         con = sqlite3.connect(self.path, timeout=30)
         con.execute("PRAGMA journal_mode=WAL")
         return con
@@ -121,6 +207,15 @@ class Store:
                     "(SELECT COUNT(*) FROM rows w WHERE w.run_id = r.id) AS done FROM runs r ORDER BY id"):
                 out.append(dict(r))
         return out
+
+    def run(self, run_id: int) -> dict[str, Any]:
+        """The run ``run_id`` (with its planned and done counts); InputError if none."""
+        found = [r for r in self.runs() if r["id"] == run_id]
+        if not found:
+            ids = [r["id"] for r in self.runs()]
+            known = f"runs {ids[0]}..{ids[-1]}" if ids else "no runs"
+            raise InputError(f"run {run_id} is not in {self.path} ({known})")
+        return found[0]
 
     def latest_run(self, command_prefix: str | None = None) -> int | None:
         runs = [r for r in self.runs() if not command_prefix or (r["command"] or "").startswith(command_prefix)]
