@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 from numba.core.registry import CPUDispatcher
+from numba.core.extending import _Intrinsic
 from numba.core.types import Type as NumbaType
 
 from .cache import cache_dir, digest
@@ -157,8 +158,21 @@ def _describe(value: Any, out: list, seen: dict[int, int]) -> None:
         out.append(f"builtin {getattr(value, '__module__', None)}.{value.__name__}")
     elif isinstance(value, NumbaType):  # e.g. ``float64`` imported from numba
         out.append(f"numba type {value}")
+    elif isinstance(value, _Intrinsic):  # a library's compiled primitive (rocket-fft's r2c)
+        module = value._defn.__module__
+        out.append(f"intrinsic {module}.{value._name} {_version_of(module)}")
     else:
         raise Unfreezable(type(value).__name__)
+
+
+def _version_of(module: str) -> str:
+    from importlib.metadata import PackageNotFoundError, packages_distributions, version
+
+    top = module.partition(".")[0]
+    try:
+        return version(packages_distributions().get(top, [top])[0])
+    except PackageNotFoundError:
+        return "unknown"
 
 
 def _describe_code(code: types.CodeType, out: list) -> None:

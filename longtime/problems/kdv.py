@@ -22,16 +22,14 @@ scheme, which conserves mass, momentum and H. "2/3" is the classical truncation:
 nonlinear term sees only the modes |m| <= 2M/3 of u and keeps only those of u^2 (alias-free
 too; the top third of the modes then evolves linearly).
 
-FFT inside compiled code: the rhs is called inside the shared compiled loops, and numba
-cannot call scipy.fft (nor numpy.fft). Leaving numba per evaluation (objmode) costs
-microseconds per call, comparable with the whole transform at these sizes (n = 256 for
-d = 128), so the nonlinear term uses a small hand-written iterative radix-2 FFT (the grid is
-padded to a power of two, which the 3/2 rule needs anyway), packing the real signal of
-length n into a complex one of length n/2 (the standard real-FFT trick). Its twiddle
-factors, bit-reversal table and a scratch buffer live in the tail of ``params``: the rhs
-contract has no work array, so the scratch is part of the problem's kernel data (kernels
-are single-threaded; each process has its own copy). Python-level code (invariants, the
-initial state) uses scipy.fft. tests/test_kdv.py checks the compiled transform against it.
+FFT inside compiled code: the rhs is called inside the shared compiled loops, where
+scipy.fft is out of reach of plain numba; rocket-fft registers pocketfft's transforms for
+numba, and its low-level ``r2c`` / ``c2r`` write into arrays we pass. The grid has the
+smallest fast length n >= 3K + 1 (any factors 2, 3, 5: d need not be a power of two).
+``params`` holds constants only; the rhs allocates its two grid buffers per call (the rhs
+contract has no work array), ``taylor`` keeps its grid rows in ``work``.
+``python benchmarks/bench_kdv_rhs.py`` times the rhs (it replaced a hand-written radix-2
+FFT and is 1.6 to 2 times faster, see there).
 
 Capabilities beyond ``rhs``:
   ``exact``        the soliton u0(x - c t), c = c0 (1 + h/(2 delta)), projected on the modes
@@ -56,6 +54,7 @@ import math
 import numba
 import numpy as np
 import scipy.fft
+from rocket_fft.lowlevel import c2r, r2c
 
 from ..params import InputError, Param
 from ..problem import Problem
@@ -69,104 +68,45 @@ KAPPA = math.sqrt(3.0 * AMPLITUDE / (4.0 * DEPTH**3))
 SPEED = C0 * (1.0 + AMPLITUDE / (2.0 * DEPTH))
 SOLITON_PERIOD = PERIOD_X / SPEED  # T = 14.98627...
 
-# layout of params: scalars, then offsets of the tables (stored as floats)
-(P_C0, P_BETA, P_ALPHA, P_W, P_M, P_N, P_K, P_X,
- P_COS, P_SIN, P_WC, P_WS, P_REV, P_SCALE, P_SCRATCH) = range(15)
-N_HEADER = 16
+# layout of params: constants only (the problem contract: params never change)
+P_C0, P_BETA, P_ALPHA, P_W, P_M, P_N, P_K, P_X, P_S0, P_S1 = range(10)
+_AXES = np.zeros(1, dtype=np.int64)  # the transforms run along axis 0
 
 
 # ---------------------------------------------------------------- compiled FFT kernels
+# rocket-fft's low-level r2c / c2r (pocketfft inside) write into arrays we pass, at any
+# length n (not only powers of two)
 
 
 @numba.njit(cache=True)
-def _cfft(re, im, params, inverse):
-    """In-place unnormalised complex DFT of length N2 = re.size (a power of two):
-    X_r = sum_k x_k exp(-+ 2 pi i k r / N2) (minus: forward, plus: inverse)."""
-    n = re.size
-    rev = int(params[P_REV])
-    for i in range(n):
-        j = int(params[rev + i])
-        if j > i:
-            tr, ti = re[i], im[i]
-            re[i], im[i] = re[j], im[j]
-            re[j], im[j] = tr, ti
-    oc, os_ = int(params[P_COS]), int(params[P_SIN])
-    sign = 1.0 if inverse else -1.0
-    size = 2
-    while size <= n:
-        half = size // 2
-        stride = n // size
-        for k in range(half):
-            c = params[oc + k * stride]
-            s = sign * params[os_ + k * stride]
-            for start in range(0, n, size):
-                i1 = start + k
-                i2 = i1 + half
-                tr = c * re[i2] - s * im[i2]
-                ti = c * im[i2] + s * re[i2]
-                re[i2] = re[i1] - tr
-                im[i2] = im[i1] - ti
-                re[i1] += tr
-                im[i1] += ti
-        size *= 2
-
-
-@numba.njit(cache=True)
-def _to_physical(u, params, re, im):
-    """Values of u(x) on the grid x_j = j X / n from the state (modes |m| <= K), packed as
-    re[k] = u(x_{2k}), im[k] = u(x_{2k+1}) (a real signal of length n in n/2 complex)."""
-    n2 = re.size
+def _to_physical(u, params, spec, grid):
+    """Values of u(x) on the grid x_j = j X / n (n = grid.size) from the state, keeping the
+    modes |m| <= K; ``spec`` (n/2 + 1 complex) is scratch."""
     K = int(params[P_K])
-    oc, os_ = int(params[P_WC]), int(params[P_WS])
-    osc = int(params[P_SCALE])
-    for r in range(n2):
-        # A_r, B_r: the modes m = r and m = r - n2 folded onto r (see the module docstring)
-        ar = ai = br = bi = 0.0
-        if r <= K:
-            sc = params[osc + r]
-            xr, xi = u[2 * r] / sc, u[2 * r + 1] / sc
-            ar += xr
-            ai += xi
-            br += xr
-            bi += xi
-        q = n2 - r
-        if r >= 1 and q <= K:
-            sc = params[osc + q]
-            yr, yi = u[2 * q] / sc, -u[2 * q + 1] / sc  # conj(uh_q) is mode -q
-            ar += yr
-            ai += yi
-            br -= yr  # exp(2 pi i (r - n2) / n) = -exp(2 pi i r / n)
-            bi -= yi
-        c, s = params[oc + r], params[os_ + r]
-        br, bi = c * br - s * bi, c * bi + s * br
-        re[r] = ar - bi  # Z_r = A_r + i B_r
-        im[r] = ai + br
-    _cfft(re, im, params, True)
+    spec[0] = complex(u[0] / params[P_S0], 0.0)  # a real field: Im of mode 0 is 0
+    s1 = params[P_S1]
+    for m in range(1, K + 1):
+        spec[m] = complex(u[2 * m] / s1, u[2 * m + 1] / s1)
+    for m in range(K + 1, spec.size):
+        spec[m] = 0.0
+    c2r(spec, grid, _AXES, False, 1.0, 1)
 
 
 @numba.njit(cache=True)
-def _nonlinear_from_physical(re, im, params, out, factor):
-    """out = factor * N for the packed real signal y (the grid values of u^2 or of a
-    Cauchy sum): N_m = sigma_m (-(alpha/2) i w m) (1/n) sum_j y_j e^{-i m w x_j}, |m| <= K;
-    the modes K < m <= M get 0. Destroys re, im."""
-    n2 = re.size
-    n = 2 * n2
+def _nonlinear_from_physical(grid, params, spec, out, factor):
+    """out = factor * N for the grid values y (of u^2 or of a Cauchy sum):
+    N_m = sigma_m (-(alpha/2) i w m) (1/n) sum_j y_j e^{-i m w x_j}, |m| <= K; the modes
+    K < m <= M get 0."""
+    n = grid.size
     K, M = int(params[P_K]), int(params[P_M])
-    _cfft(re, im, params, False)
-    oc, os_ = int(params[P_WC]), int(params[P_WS])
-    osc = int(params[P_SCALE])
+    r2c(grid, spec, _AXES, True, 1.0 / n, 1)
     half_alpha_w = 0.5 * params[P_ALPHA] * params[P_W]
-    for m in range(K + 1):
-        q = (n2 - m) % n2
-        # even and odd parts: E = (Z_m + conj Z_q)/2, O = (Z_m - conj Z_q)/(2i)
-        er, ei = 0.5 * (re[m] + re[q]), 0.5 * (im[m] - im[q])
-        orr, oi = 0.5 * (im[m] + im[q]), -0.5 * (re[m] - re[q])
-        c, s = params[oc + m], -params[os_ + m]  # exp(-2 pi i m / n)
-        yr = (er + c * orr - s * oi) / n
-        yi = (ei + c * oi + s * orr) / n
-        g = factor * params[osc + m] * half_alpha_w * m
-        out[2 * m] = g * yi  # -(i g) (yr + i yi)
-        out[2 * m + 1] = -g * yr
+    out[0] = 0.0  # m = 0: the factor m vanishes
+    out[1] = 0.0
+    for m in range(1, K + 1):
+        g = factor * params[P_S1] * half_alpha_w * m
+        out[2 * m] = g * spec[m].imag  # -(i g) (yr + i yi)
+        out[2 * m + 1] = -g * spec[m].real
     for m in range(K + 1, M + 1):
         out[2 * m] = 0.0
         out[2 * m + 1] = 0.0
@@ -175,14 +115,15 @@ def _nonlinear_from_physical(re, im, params, out, factor):
 @numba.njit(cache=True)
 def _nonlinear(t, u, params, out):
     """N(u) = -(alpha/2) (u^2)_x in the state's basis."""
-    n2 = int(params[P_N]) // 2
-    o = int(params[P_SCRATCH])
-    re, im = params[o:o + n2], params[o + n2:o + 2 * n2]
-    _to_physical(u, params, re, im)
-    for k in range(n2):
-        re[k] *= re[k]
-        im[k] *= im[k]
-    _nonlinear_from_physical(re, im, params, out, 1.0)
+    n = int(params[P_N])
+    # the rhs contract has no work array and params are constants: the two grid buffers
+    # are allocated per call (about 0.1 us, against a rhs of 1 to 5 us)
+    grid = np.empty(n)
+    spec = np.empty(n // 2 + 1, dtype=np.complex128)
+    _to_physical(u, params, spec, grid)
+    for j in range(n):
+        grid[j] *= grid[j]
+    _nonlinear_from_physical(grid, params, spec, out, 1.0)
 
 
 @numba.njit(cache=True)
@@ -214,16 +155,16 @@ def _rhs(t, u, params, out):
 @numba.njit(cache=True)
 def _taylor(t0, u, params, coeffs, work):
     """Normalised Taylor coefficients: rows 0..N-1 of ``work`` keep the grid values of
-    coefficients 0..N-1, row N the Cauchy sum of order k (SPEC 1.5, corrected sign)."""
+    coefficients 0..N-1, row N the Cauchy sum of order k (docs/problems.md, KdV)."""
     order = coeffs.shape[0] - 1
-    n2 = int(params[P_N]) // 2
+    n = int(params[P_N])
+    spec = np.empty(n // 2 + 1, dtype=np.complex128)  # once per call, not per order
     coeffs[0, :] = u
     acc = work[order]
     for k in range(order):
-        row = work[k]
-        _to_physical(coeffs[k], params, row[:n2], row[n2:2 * n2])
+        _to_physical(coeffs[k], params, spec, work[k])
         # grid values of sum_{j=0..k} u_j u_{k-j}, by symmetry
-        for i in range(2 * n2):
+        for i in range(n):
             s = 0.0
             for j in range((k + 1) // 2):
                 s += work[j, i] * work[k - j, i]
@@ -232,7 +173,7 @@ def _taylor(t0, u, params, coeffs, work):
                 s += work[k // 2, i] * work[k // 2, i]
             acc[i] = s
         inv = 1.0 / (k + 1)
-        _nonlinear_from_physical(acc[:n2], acc[n2:2 * n2], params, coeffs[k + 1], inv)
+        _nonlinear_from_physical(acc, params, spec, coeffs[k + 1], inv)
         _add_linear(coeffs[k], params, coeffs[k + 1], inv)
 
 
@@ -240,10 +181,9 @@ def _taylor(t0, u, params, coeffs, work):
 
 
 def _grid_size(modes: int, dealias: str) -> int:
-    """Power-of-two grid on which the kept product modes are alias-free."""
+    """The smallest fast FFT length on which the kept product modes are alias-free."""
     cutoff = modes if dealias == "3/2" else (2 * modes) // 3
-    need = max(3 * cutoff + 1, 2 * modes + 1, 8)
-    return 1 << (need - 1).bit_length()
+    return scipy.fft.next_fast_len(max(3 * cutoff + 1, 2 * modes + 1, 8), real=True)
 
 
 class KdV(Problem):
@@ -284,23 +224,11 @@ class KdV(Problem):
 
     # -- kernel data
     def kernel_params(self):
-        M, n = self.modes, self.grid
-        n2 = n // 2
-        k = np.arange(n2 // 2)
-        r = np.arange(n2 + 1)
-        bits = n2.bit_length() - 1
-        rev = np.array([int(format(i, f"0{bits}b")[::-1], 2) if bits else 0 for i in range(n2)])
-        tables = [np.cos(2 * np.pi * k / n2), np.sin(2 * np.pi * k / n2),
-                  np.cos(2 * np.pi * r / n), np.sin(2 * np.pi * r / n), rev.astype(float),
-                  self.sigma, np.zeros(n)]
-        header = np.zeros(N_HEADER)
-        header[[P_C0, P_BETA, P_ALPHA, P_W, P_M, P_N, P_K, P_X]] = (
-            C0, BETA, ALPHA, 2 * np.pi / PERIOD_X, M, n, self.cutoff, PERIOD_X)
-        offset = N_HEADER
-        for slot, table in zip((P_COS, P_SIN, P_WC, P_WS, P_REV, P_SCALE, P_SCRATCH), tables):
-            header[slot] = offset
-            offset += table.size
-        return np.concatenate([header, *tables])
+        params = np.zeros(10)
+        params[[P_C0, P_BETA, P_ALPHA, P_W, P_M, P_N, P_K, P_X, P_S0, P_S1]] = (
+            C0, BETA, ALPHA, 2 * np.pi / PERIOD_X, self.modes, self.grid, self.cutoff, PERIOD_X,
+            self.sigma[0], math.sqrt(2 * PERIOD_X))
+        return params
 
     def taylor_work_shape(self, order):
         return (order + 1, self.grid)
