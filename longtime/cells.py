@@ -158,7 +158,8 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         row.update(metrics.evaluate(problem, traj, ref, trust))
         row["status"] = traj.status
         row["message"] = "; ".join(m for m in (traj.message, note) if m)
-    except Exception as exc:  # a failing cell never takes the matrix down
+    except (Exception, SystemExit) as exc:  # a failing cell never takes the matrix down
+        # (a plugin's sys.exit too; os.abort or a segfault need a process per cell)
         row["status"] = "failed"
         row["message"] = "".join(traceback.format_exception_only(type(exc), exc)).strip()
     return row

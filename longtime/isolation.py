@@ -33,6 +33,20 @@ POLL_S = 0.05
 STDERR_TAIL = 600  # characters of a dead child's stderr kept in its row's message
 
 
+def die_with_parent(parent: int) -> None:
+    """Ask Linux to kill this process when its parent dies (a SIGKILLed matrix leaves no
+    orphan computing); elsewhere a no-op. Exits at once if the parent is already gone."""
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent:
+        os._exit(1)
+
+
 def _signal_name(code: int) -> str:
     try:
         return signal.Signals(code).name
@@ -59,7 +73,7 @@ class _Child:
 
 def _start(cell: Cell, max_samples: int, timeout: float | None, timing: Timing) -> _Child:
     folder = Path(tempfile.mkdtemp(prefix="longtime-cell-"))
-    job = {"cell": cell.to_dict(), "max_samples": max_samples,
+    job = {"cell": cell.to_dict(), "max_samples": max_samples, "parent": os.getpid(),
            "timing": {"repeats": timing.repeats, "min_time": timing.min_time}}
     (folder / "cell.json").write_text(json.dumps(job))
     with open(folder / "stderr.txt", "wb") as err:
@@ -145,6 +159,7 @@ def run_cell_isolated(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, timeou
 def _child_main(folder: str) -> None:
     path = Path(folder)
     job = json.loads((path / "cell.json").read_text())
+    die_with_parent(job["parent"])
     row = run_cell(Cell.from_dict(job["cell"]), job["max_samples"], timing=Timing(**job["timing"]))
     tmp = path / "row.json.part"
     tmp.write_text(json.dumps(row))

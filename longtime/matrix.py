@@ -8,15 +8,24 @@ already measured.
 """
 from __future__ import annotations
 
+import contextlib
+import hashlib
+import json
 import multiprocessing
 import os
+import shutil
+import signal
+import tempfile
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Callable, Iterator
 
 from . import registry
 from .cells import DEFAULT_MAX_SAMPLES, Cell, base_row, run_cell
 from .integrator import Timing
+from .isolation import die_with_parent, run_isolated
 from .params import InputError, check_choice
 from .store import Store
 
@@ -65,11 +74,54 @@ def estimated_work(cell: Cell, dims: dict[str, int]) -> float:
         return 0.0
 
 
-def run_batch(cells: list[Cell], max_samples: int, timing: Timing) -> list[dict]:
-    return [run_cell(c, max_samples, timing=timing) for c in cells]
+def run_batch(cells: list[Cell], max_samples: int, timing: Timing, folder: str | None = None) -> list[dict]:
+    """Rows of ``cells`` in this worker. With ``folder``, the cell in progress and each finished
+    row are also written there, so that a pool broken by another worker's crash loses
+    nothing finished and knows which cells were running."""
+    rows = []
+    for c in cells:
+        marker = Path(folder, f"running-{os.getpid()}") if folder else None
+        if marker is not None:
+            _write(marker, c.to_dict())
+        row = run_cell(c, max_samples, timing=timing)
+        if marker is not None:
+            _write(Path(folder, f"row-{_digest(c.key)}.json"), {"cell": c.to_dict(), "row": row})
+            marker.unlink()
+        rows.append(row)
+    return rows
+
+
+def _digest(text: str) -> str:
+    return hashlib.sha1(text.encode()).hexdigest()
+
+
+def _write(path: Path, data) -> None:
+    tmp = path.with_name(path.name + ".part")
+    tmp.write_text(json.dumps(data))
+    tmp.replace(path)  # atomic: a reader never sees half a file
+
+
+def _worker_init(parent: int) -> None:
+    die_with_parent(parent)
+
+
+def _stop(pool: ProcessPoolExecutor, kill: bool) -> None:
+    """Shut the pool down; with ``kill`` its workers are killed first, so that Ctrl-C or an
+    error returns at once even while a worker is stuck in compiled code (otherwise the
+    interpreter's exit would wait for it)."""
+    if kill:
+        for proc in list((getattr(pool, "_processes", None) or {}).values()):  # no public API for this
+            with contextlib.suppress(Exception):
+                proc.kill()
+    pool.shutdown(wait=not kill, cancel_futures=True)
 
 
 def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
+    """Batches of cells on a pool of worker processes. A worker that dies (a segfault, os.abort,
+    out of memory) breaks the whole pool: the rows finished before are kept, the cells that
+    were running then are re-run each in its own process (longtime.isolation: only the one
+    that crashes again gets a ``failed`` row, naming its signal), and the rest go on a fresh
+    pool."""
     # spawn: a fork after heyoka's or numba's threads have started can deadlock
     ctx = multiprocessing.get_context("spawn")
     runnable = [c for c in cells if not c.skip_reason]
@@ -82,23 +134,60 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
     if workers == 1:
         yield from serial(runnable, options)
         return
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+    folder = tempfile.mkdtemp(prefix="longtime-pool-")
+    done: set[str] = set()
+    remaining = runnable
     try:
-        futures = {pool.submit(run_batch, batch, options.max_samples, options.timing): batch
-                   for batch in batches_by_pair(runnable)}
-        pending = set(futures)
-        while pending:
-            done, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in done:
-                batch = futures[fut]
-                try:
-                    rows = fut.result()
-                except Exception as exc:  # the worker died (segfault, out of memory)
-                    rows = [{**base_row(c), "status": "failed", "message": f"worker process failed: {exc!r}"}
-                            for c in batch]
-                yield from zip(batch, rows)
+        while remaining:
+            broken = False
+            pool = ProcessPoolExecutor(max_workers=min(workers, len(remaining)), mp_context=ctx,
+                                       initializer=_worker_init, initargs=(os.getpid(),))
+            finished = False
+            try:
+                futures = {pool.submit(run_batch, batch, options.max_samples, options.timing, folder): batch
+                           for batch in batches_by_pair(remaining)}
+                pending = set(futures)
+                while pending:
+                    ready, pending = wait(pending, return_when=FIRST_COMPLETED)
+                    for fut in ready:
+                        batch = futures[fut]
+                        try:
+                            rows = fut.result()
+                        except BrokenProcessPool:  # some worker died: sorted out below
+                            broken = True
+                            continue
+                        except Exception as exc:  # the batch could not be sent or returned
+                            rows = [{**base_row(c), "status": "failed",
+                                     "message": f"worker process failed: {exc!r}"} for c in batch]
+                        for c, row in zip(batch, rows):
+                            if c.key not in done:
+                                done.add(c.key)
+                                yield c, row
+                finished = True
+            finally:
+                _stop(pool, kill=not finished)
+            if not broken:
+                break
+            # rows the broken pool's workers finished but could not return
+            for path in sorted(Path(folder).glob("row-*.json")):
+                data = json.loads(path.read_text())
+                cell = Cell.from_dict(data["cell"])
+                if cell.key not in done:
+                    done.add(cell.key)
+                    yield cell, data["row"]
+            suspects = [Cell.from_dict(json.loads(p.read_text())) for p in Path(folder).glob("running-*")
+                        if not p.name.endswith(".part")]
+            suspects = [c for c in suspects if c.key not in done]
+            for path in Path(folder).iterdir():
+                path.unlink()
+            if not suspects:  # broken outside any cell: one process per cell, no endless retries
+                suspects = [c for c in remaining if c.key not in done]
+            for cell, row in run_isolated(suspects, options.max_samples, None, workers, timing=options.timing):
+                done.add(cell.key)
+                yield cell, row
+            remaining = [c for c in remaining if c.key not in done]
     finally:
-        pool.shutdown(wait=False, cancel_futures=True)
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def isolated(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:

@@ -155,6 +155,10 @@ class Store:
 
     def _open_ro(self) -> sqlite3.Connection:
         uri = f"file:{quote(str(self.path.absolute()))}?mode=ro"
+        if not Path(f"{self.path}-wal").exists():
+            # nothing left in a write-ahead log: read the file as it is, creating no -shm/-wal
+            # beside it (a read-only folder allows none)
+            uri += "&immutable=1"
         try:
             return sqlite3.connect(uri, uri=True, timeout=30)
         except sqlite3.Error as exc:
