@@ -21,7 +21,7 @@ import numpy as np
 from . import drivers
 from .jitcache import Unfreezable, cacheable, fingerprint
 from .params import InputError, Param, check_time_span, resolve
-from .problem import Problem
+from .problem import BLOWUP_MESSAGE, Problem
 
 SAMPLE_BUDGET = 10_000_000  # float64 values of recorded states per run
 STATUS_NAMES = {drivers.OK: "ok", drivers.DIVERGED: "diverged", drivers.FAILED: "failed"}
@@ -95,6 +95,12 @@ class Integrator(ABC):
     sweep: ClassVar[dict[str, tuple]] = {}
     # names of counters EXTRA1, EXTRA2 when a scheme uses them
     extra_counters: ClassVar[tuple[str, ...]] = ()
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        from .contract import check_integrator_definition
+
+        check_integrator_definition(cls)  # a plugin that breaks the contract fails at import
 
     def __init__(self, **settings: Any) -> None:
         self.settings = resolve(self.parameters, settings, owner=f"integrator '{self.name}'")
@@ -283,7 +289,7 @@ class AdaptiveIntegrator(Integrator):
 
 def _status_message(status: int, t: float) -> str:
     if status == drivers.DIVERGED:
-        return f"state blew up (non-finite or beyond the problem's bound) at t={t:.6g}"
+        return BLOWUP_MESSAGE.format(t=t)
     if status == drivers.FAILED:
         return f"step failed at t={t:.6g} (nonlinear solve did not converge or step size underflow)"
     return ""

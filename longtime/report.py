@@ -1,4 +1,8 @@
-"""Tables of stored rows: accuracy against cost, per problem (pandas)."""
+"""Reports of stored rows (pandas): the summary a person reads first (status counts and,
+per problem, the Pareto front of accuracy against cost, with the fitted orders and growth
+classes), and the full per-cell tables (``--full``, csv, json, markdown, parquet).
+
+In Python: ``frame(Store("longtime.sqlite").rows())`` is one pandas row per cell."""
 from __future__ import annotations
 
 from typing import Any, Iterable
@@ -62,3 +66,168 @@ def render(rows: list[dict[str, Any]], fmt: str = "table") -> str:
         for _, r in notes.iterrows():
             parts.append(f"  {r['status']}: {r['integrator']}: {r['message']}")
     return "\n\n".join(parts)
+
+
+# ------------------------------------------------------------------ the summary read first
+STATUSES = ("ok", "diverged", "failed", "timeout", "skipped")
+# the accuracy a Pareto front ranks by, first present wins: the solution error where a
+# reference exists, else the energy drift
+PARETO_FIELDS = ("l2_error", "H.max", "I.max", "constraint.max")
+DECADES = tuple(10.0 ** -k for k in range(1, 16))
+
+
+def _positive(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and x == x and 0 < x < float("inf")
+
+
+def status_counts(rows: Iterable[dict[str, Any]]) -> dict[str, int]:
+    counts = {s: 0 for s in STATUSES}
+    for r in rows:
+        counts[r.get("status") or "unknown"] = counts.get(r.get("status") or "unknown", 0) + 1
+    return counts
+
+
+def format_counts(counts: dict[str, int]) -> str:
+    shown = [f"{n} {s}" for s, n in counts.items() if n]
+    return ", ".join(shown) or "no rows"
+
+
+def setting(row: dict[str, Any]) -> str:
+    """The swept parameters of a row as text: 'dt=0.01', 'tol=1e-08', 'eps_res=1e-06 N=10'."""
+    parts = [f"{k}={row[k]:.3g}" for k in ("dt", "tol", "eps_res") if _positive(row.get(k))
+             and not (k == "dt" and (row.get("tol") or row.get("eps_res")))]
+    if row.get("order") is not None and row.get("order") == row.get("order"):
+        parts.append(f"N={int(row['order'])}")
+    if row.get("settings"):
+        parts.append(str(row["settings"]))
+    return " ".join(parts)
+
+
+def pareto_field(rows: list[dict[str, Any]]) -> str | None:
+    ok = [r for r in rows if r.get("status") == "ok"]
+    return next((f for f in PARETO_FIELDS if any(_positive(r.get(f)) for r in ok)), None)
+
+
+def pareto(rows: list[dict[str, Any]], field: str | None = None) -> list[dict[str, Any]]:
+    """For one problem's rows: per accuracy decade 10^-k, the fastest ok row whose ``field``
+    is at most 10^-k (minimum CPU of its repeats), and the fastest row of another scheme
+    meeting the same target (``next``, with ``slower`` = its time / the fastest's).
+    Only decades some row meets, from the coarsest to the finest."""
+    field = field or pareto_field(rows)
+    ok = [r for r in rows if r.get("status") == "ok" and _positive(r.get("cpu_s")) and _positive(r.get(field))]
+    out = []
+    for target in DECADES:
+        meets = sorted((r for r in ok if r[field] <= target), key=lambda r: r["cpu_s"])
+        if not meets:
+            break
+        best = meets[0]
+        runner = next((r for r in meets if r["integrator"] != best["integrator"]), None)
+        out.append({"target": target, "field": field, "best": best, "next": runner,
+                    "slower": runner["cpu_s"] / best["cpu_s"] if runner else None})
+    return out
+
+
+def _growth_summary(rows: list[dict[str, Any]]) -> list[str]:
+    """'rk4: H linear' per scheme where rows carry growth classes (issue 10's fields)."""
+    out = []
+    for scheme in sorted({r["integrator"] for r in rows}):
+        classes: dict[str, set] = {}
+        for r in rows:
+            if r["integrator"] != scheme or r.get("status") != "ok":
+                continue
+            for k, v in r.items():
+                if k.endswith(".growth_class") and v:
+                    classes.setdefault(k[: -len(".growth_class")], set()).add(str(v))
+        if classes:
+            out.append(f"{scheme}: " + ", ".join(f"{n} {'/'.join(sorted(c))}" for n, c in sorted(classes.items())))
+    return out
+
+
+def summary(rows: list[dict[str, Any]], orders: bool = True) -> str:
+    """The terminal report read first: status counts, then per problem its Pareto front
+    (one line per accuracy decade), fitted orders that miss their declared order, growth
+    classes and why pairs were skipped (one line per reason)."""
+    from .orders import describe, observed_orders
+
+    if not rows:
+        return "no rows"
+    parts = [f"{len(rows)} cells: {format_counts(status_counts(rows))}"]
+    fits = observed_orders(rows) if orders else []
+    for problem in sorted({r["problem"] for r in rows}):
+        mine = [r for r in rows if r["problem"] == problem]
+        lines = [f"== {problem}: {format_counts(status_counts(mine))} =="]
+        field = pareto_field(mine)
+        front = pareto(mine, field) if field else []
+        if front:
+            lines.append(f"  fastest scheme per accuracy ({field} <= target; CPU s, minimum of repeats):")
+            for p in front:
+                b, n = p["best"], p["next"]
+                nxt = f"next {n['integrator']} x{p['slower']:.3g}" if n else "no other scheme"
+                lines.append(f"  {p['target']:7.0e}  {b['integrator']:<18s} {setting(b):<22s} "
+                             f"{b['cpu_s']:9.3g} s  {nxt}")
+        else:
+            lines.append("  no ok row with an error and a CPU time")
+        mine_fits = [f for f in fits if f["problem"] == problem]
+        if mine_fits:
+            lines.append("  observed order: " + "; ".join(
+                f"{f['integrator']}{'' if f['order'] is None else ' N=' + str(f['order'])} {describe(f)}"
+                for f in mine_fits))
+        growth = _growth_summary(mine)
+        if growth:
+            lines.append("  growth: " + "; ".join(growth))
+        for why, schemes in sorted(_not_ok(mine).items()):
+            lines.append(f"  {why}: {', '.join(schemes)}")
+        parts.append("\n".join(lines))
+    return "\n\n".join(parts)
+
+
+def _not_ok(rows: list[dict[str, Any]]) -> dict[str, list[str]]:
+    """Rows that did not run to the end, folded: 'skipped (needs constraints, which toda
+    does not provide)' -> schemes; 'diverged' -> ['rk4 (2 of 3)', ...]."""
+    out: dict[str, list[str]] = {}
+    for status in ("skipped", "diverged", "failed", "timeout"):
+        for scheme in sorted({r["integrator"] for r in rows if r.get("status") == status}):
+            mine = [r for r in rows if r["integrator"] == scheme]
+            bad = [r for r in mine if r.get("status") == status]
+            if status == "skipped":
+                why = str(bad[0].get("message") or "").removeprefix(scheme + " ")
+                out.setdefault(f"skipped ({why})", []).append(scheme)
+            else:
+                out.setdefault(status, []).append(f"{scheme} ({len(bad)} of {len(mine)})")
+    return out
+
+
+# ------------------------------------------------------------------ the report command
+def to_parquet(rows: list[dict[str, Any]], path) -> None:
+    """Every row as one parquet table (list values, such as confidence intervals, as JSON text)."""
+    import json
+
+    df = frame(rows)
+    for c in df.columns:
+        if df[c].map(lambda v: isinstance(v, (list, dict))).any():
+            df[c] = df[c].map(lambda v: json.dumps(v) if isinstance(v, (list, dict)) else v)
+    try:
+        df.to_parquet(path, index=False)
+    except ImportError as exc:
+        from .params import InputError
+
+        raise InputError(f"--format parquet needs a parquet engine (pip install pyarrow): {exc}") from None
+
+
+def report_text(rows: list[dict[str, Any]], fmt: str = "table", full: bool = False) -> str:
+    """What ``longtime report`` prints: the summary first (format table), the full
+    per-cell tables after it with ``full``; csv, json and markdown are the full tables."""
+    if fmt != "table":
+        return render(rows, fmt)
+    text = summary(rows)
+    return text + "\n\n" + render(rows, "table") if full else text
+
+
+def write_html(out_dir, rows: list[dict[str, Any]], store, run_ids: Iterable[int] | None = None):
+    """The results page of ``rows`` into ``out_dir``/index.html, headed by the metadata of
+    ``run_ids`` (default: every run the rows come from); returns its path."""
+    from .html_report import write_page
+
+    ids = sorted(set(run_ids) if run_ids is not None else {r.get("run_id") for r in rows if r.get("run_id")})
+    runs = [r for r in store.runs() if r["id"] in ids]
+    return write_page(out_dir, rows, runs)

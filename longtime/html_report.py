@@ -1,0 +1,383 @@
+"""The results page: one self-contained static HTML file (figures inline as SVG, no
+script or style from the network, no server).
+
+Head: the run's metadata (command, commit, versions, machine) and the counts of each
+status. Per problem: the work-precision figure (error against the minimum CPU time of the
+repeats, a bar to the slowest repeat), the invariant drift against time for a
+representative setting of each scheme (log-log, so growth laws read as slopes), the
+Pareto front as a table, the growth classes, the fitted orders, and the stability
+intervals of the schemes where they were measured. Then one capability matrix, schemes x
+problems: ran / skipped and why / diverged / failed.
+
+Colours: one per scheme family (the module that defines the scheme: explicit RK,
+splitting, ...), a marker per scheme within it; legends sit outside the axes.
+
+The drift curves are not stored in the rows: the page re-runs each drawn setting once
+(compiled kernels come from the cache), untimed, and skips settings whose stored CPU time
+exceeds ``DRIFT_BUDGET_S``; the caption says which setting was drawn.
+"""
+from __future__ import annotations
+
+import html
+import io
+import json
+import math
+import re
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from .orders import describe, observed_orders
+from .report import _not_ok, _positive, format_counts, pareto, pareto_field, setting, status_counts
+
+DRIFT_BUDGET_S = 2.0  # stored cpu_s above which a drift curve is not recomputed for the page
+DRIFT_SAMPLES = 2001
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "*", "h")
+FAMILY_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2",
+                  "#17becf", "#7f7f7f", "#bcbd22")
+PAGE_NAME = "index.html"
+
+
+def family(scheme: str) -> str:
+    """The family of a scheme: the module that defines it ('explicit_rk', 'splitting', ...)."""
+    from . import registry
+
+    try:
+        return registry.integrator_class(scheme).__module__.rsplit(".", 1)[-1]
+    except Exception:  # a scheme of an old run that is no longer installed
+        return "other"
+
+
+def styles(schemes: Sequence[str]) -> dict[str, dict[str, str]]:
+    """scheme -> {color, marker}: one colour per family, one marker per scheme within it."""
+    fams = sorted({family(s) for s in schemes})
+    out, used = {}, {}
+    for s in sorted(schemes):
+        f = family(s)
+        k = used.get(f, 0)
+        used[f] = k + 1
+        out[s] = {"color": FAMILY_COLOURS[fams.index(f) % len(FAMILY_COLOURS)],
+                  "marker": MARKERS[k % len(MARKERS)]}
+    return out
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def svg(fig) -> str:
+    """The figure as inline SVG markup (no XML prolog); closes the figure."""
+    buf = io.StringIO()
+    fig.savefig(buf, format="svg", bbox_inches="tight")
+    _pyplot().close(fig)
+    text = buf.getvalue()
+    return text[text.index("<svg"):]
+
+
+def _legend_outside(ax) -> None:
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, frameon=False)
+
+
+def work_precision_svg(rows: list[dict], field: str, style: dict) -> str | None:
+    ok = [r for r in rows if r.get("status") == "ok" and _positive(r.get("cpu_s")) and _positive(r.get(field))]
+    if not ok:
+        return None
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7.0, 4.2))
+    for scheme in sorted({r["integrator"] for r in ok}):
+        pts = sorted((r["cpu_s"], r[field], r.get("cpu_s_max") or r["cpu_s"]) for r in ok if r["integrator"] == scheme)
+        x, y, x_max = (np.array(v) for v in zip(*pts))
+        st = style[scheme]
+        ax.errorbar(x, y, xerr=[np.zeros_like(x), x_max - x], color=st["color"], marker=st["marker"], ms=5,
+                    lw=1.1, capsize=0, elinewidth=2.2, alpha=0.9, label=f"{scheme} ({family(scheme)})")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("CPU seconds (minimum of repeats; bar to the slowest)")
+    ax.set_ylabel(field)
+    ax.grid(True, which="both", alpha=0.3)
+    _legend_outside(ax)
+    return svg(fig)
+
+
+def representative(rows: list[dict]) -> dict[str, dict]:
+    """scheme -> the ok row of median CPU time among its rows (the drawn setting)."""
+    out = {}
+    for scheme in sorted({r["integrator"] for r in rows}):
+        ok = sorted((r for r in rows if r["integrator"] == scheme and r.get("status") == "ok"
+                     and _positive(r.get("cpu_s"))), key=lambda r: r["cpu_s"])
+        if ok:
+            out[scheme] = ok[(len(ok) - 1) // 2]
+    return out
+
+
+def drift_curve(row: dict) -> tuple[np.ndarray, np.ndarray, str] | None:
+    """(t, e_I(t), invariant name) of a row's setting, re-run once (untimed)."""
+    from . import registry
+    from .cells import Cell
+    from .metrics import relative_error
+
+    settings = json.loads(row["settings"]) if row.get("settings") else {}
+    pcls = registry.problem_class(row["problem"])
+    psets = {k: v for k, v in settings.items() if k in pcls.parameters}
+    isets = {k: v for k, v in settings.items() if k not in pcls.parameters}
+    for k in ("dt", "tol", "eps_res", "order"):
+        if row.get(k) is not None and row.get(k) == row.get(k):
+            isets[k] = int(row[k]) if k == "order" else row[k]
+    cell = Cell(row["problem"], row["integrator"], psets, isets, row["t_final"])
+    problem = pcls(**cell.problem_settings)
+    icls = registry.integrator_class(cell.integrator)
+    isets = {k: v for k, v in isets.items() if k in icls.parameters}
+    traj = icls(**isets).integrate(problem, cell.t_final, max_samples=DRIFT_SAMPLES)
+    inv = problem.invariants(traj.t, traj.u)
+    name = "H" if "H" in inv else next(iter(inv), None)
+    if name is None:
+        return None
+    return traj.t, relative_error(inv[name]), name
+
+
+def drift_svg(rows: list[dict], style: dict) -> tuple[str | None, list[str]]:
+    """The drift figure of one problem and the notes on what it leaves out."""
+    notes, curves = [], []
+    for scheme, row in representative(rows).items():
+        if row["cpu_s"] > DRIFT_BUDGET_S:
+            notes.append(f"{scheme}: not drawn (its run takes {row['cpu_s']:.3g} s)")
+            continue
+        try:
+            curve = drift_curve(row)
+        except Exception as exc:  # a scheme that cannot be re-run here leaves a note, not a hole
+            notes.append(f"{scheme}: not drawn ({type(exc).__name__}: {exc})")
+            continue
+        if curve is not None:
+            curves.append((scheme, row, *curve))
+    if not curves:
+        return None, notes
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7.0, 4.2))
+    for scheme, row, t, err, name in curves:
+        keep = (t > t[0]) & (err > 0)
+        st = style[scheme]
+        every = max(1, int(keep.sum()) // 12)
+        ax.loglog(t[keep] - t[0], err[keep], color=st["color"], marker=st["marker"], markevery=every, ms=4,
+                  lw=0.9, label=f"{scheme} {setting(row)}")
+    ax.set_xlabel("t - t0")
+    ax.set_ylabel(f"relative error of {curves[0][4]}")
+    ax.grid(True, which="both", alpha=0.3)
+    _legend_outside(ax)
+    return svg(fig), notes
+
+
+# ------------------------------------------------------------------ HTML
+CSS = """
+body{font-family:DejaVu Sans,Helvetica,Arial,sans-serif;margin:1.5em auto;max-width:1100px;color:#222;
+line-height:1.35;padding:0 1em}
+h1{font-size:1.5em}h2{font-size:1.25em;border-bottom:1px solid #ccc;margin-top:2em}h3{font-size:1.05em}
+table{border-collapse:collapse;font-size:.85em;margin:.4em 0 1em}
+td,th{border:1px solid #ddd;padding:2px 6px;text-align:left;vertical-align:top}
+th{background:#f3f3f3}td.num{text-align:right;font-variant-numeric:tabular-nums}
+.ok{background:#e8f5e9}.skipped{background:#f5f5f5;color:#666}.diverged{background:#fff3e0}
+.failed,.timeout{background:#ffebee}.flag{color:#b71c1c;font-weight:bold}
+figure{margin:.5em 0}figure svg{max-width:100%;height:auto}figcaption{font-size:.85em;color:#555}
+.meta td:first-child{font-weight:bold}.note{font-size:.85em;color:#555}
+nav a{margin-right:.8em}
+"""
+
+# records errors and checks that every figure has a drawn size; a browser test reads the
+# result from <body data-figures="..." data-errors="..."> (no network, no external script)
+SCRIPT = """
+(function(){var errs=[];
+window.addEventListener('error',function(e){errs.push(String(e.message));document.body.dataset.errors=errs.join('|');});
+window.addEventListener('load',function(){var figs=document.querySelectorAll('figure.plot');var drawn=0;
+figs.forEach(function(f){var s=f.querySelector('svg');if(s){var b=s.getBoundingClientRect();
+if(b.width>50&&b.height>50&&s.querySelectorAll('path').length>0){drawn++;f.dataset.rendered='yes';}}});
+document.body.dataset.figures=figs.length;document.body.dataset.rendered=drawn;
+document.body.dataset.errors=errs.join('|');});})();
+"""
+
+
+def _e(x: Any) -> str:
+    return html.escape("" if x is None else str(x))
+
+
+def _num(x, digits: int = 3) -> str:
+    return f"{x:.{digits}g}" if isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) else "-"
+
+
+def _table(header: Sequence[str], body: list[Sequence[str]], raw: bool = False) -> str:
+    head = "".join(f"<th>{_e(h)}</th>" for h in header)
+    rows = "".join("<tr>" + "".join(c if raw else f"<td>{_e(c)}</td>" for c in r) + "</tr>" for r in body)
+    return f"<table><tr>{head}</tr>{rows}</table>"
+
+
+def _slug(name: str) -> str:
+    return re.sub(r"[^a-z0-9-]", "-", name.lower())
+
+
+def _meta(runs: list[dict]) -> str:
+    body = []
+    for r in runs:
+        versions = json.loads(r["versions"]) if r.get("versions") else {}
+        machine = json.loads(r["machine"]) if r.get("machine") else {}
+        body += [["run", f"{r['id']} ({r.get('status')}; {r.get('done')} of {r.get('planned')} cells)"],
+                 ["command", f"longtime {r.get('command') or ''}"],
+                 ["started / finished", f"{r.get('started')} / {r.get('finished') or '-'}"],
+                 ["commit", r.get("git_commit") or "-"],
+                 ["versions", ", ".join(f"{k} {v}" for k, v in versions.items() if v)],
+                 ["machine", ", ".join(f"{k} {v}" for k, v in machine.items() if v)]]
+    rows = "".join(f"<tr><td>{_e(a)}</td><td>{_e(b)}</td></tr>" for a, b in body)
+    return f'<table class="meta">{rows}</table>'
+
+
+def _pareto_table(rows: list[dict]) -> str:
+    field = pareto_field(rows)
+    front = pareto(rows, field) if field else []
+    if not front:
+        return '<p class="note">No ok row with an error and a CPU time.</p>'
+    body = [[f"{p['target']:.0e}", p["best"]["integrator"], setting(p["best"]), _num(p["best"]["cpu_s"]),
+             (f"{p['next']['integrator']} ({setting(p['next'])})" if p["next"] else "none"),
+             (f"x{p['slower']:.3g}" if p["slower"] else "-")] for p in front]
+    return (f'<p class="note">For each target, the fastest ok row whose {_e(field)} meets it (CPU: the '
+            f'minimum of the repeats) and the fastest other scheme meeting it.</p>'
+            + _table([f"{field} <=", "fastest scheme", "setting", "CPU s", "next best scheme", "next is slower"],
+                     body))
+
+
+def _growth_table(rows: list[dict]) -> str | None:
+    names = sorted({k[: -len(".growth_class")] for r in rows for k in r
+                    if k.endswith(".growth_class") and r.get(k)})
+    if not names:
+        return None
+    body = []
+    for r in sorted((r for r in rows if r.get("status") == "ok"), key=lambda r: (r["integrator"], setting(r))):
+        cells = []
+        for n in names:
+            g, ci, c = r.get(f"{n}.growth"), r.get(f"{n}.growth_ci"), r.get(f"{n}.growth_class")
+            ci_text = f" [{_num(ci[0])}, {_num(ci[1])}]" if isinstance(ci, (list, tuple)) and len(ci) == 2 \
+                else (f" +- {_num(ci)}" if _positive(ci) else "")
+            cells.append(f"{c or '-'} ({_num(g)}{ci_text})" if c or g is not None else "-")
+        body.append([r["integrator"], setting(r), *cells])
+    return _table(["scheme", "setting", *[f"{n}: class (exponent)" for n in names]], body)
+
+
+def _orders_table(fits: list[dict]) -> str | None:
+    if not fits:
+        return None
+    body, with_n = [], any(f["order"] is not None for f in fits)
+    for f in fits:
+        ci = f["observed_order_ci"]
+        flag = '<span class="flag">misses declared</span>' if f["order_flag"] else ""
+        body.append(["<td>" + _e(f["integrator"]) + "</td>",
+                     *(["<td>" + _e("-" if f["order"] is None else f"N={f['order']}") + "</td>"] if with_n else []),
+                     f'<td class="num">{_e(f["declared_order"] if f["declared_order"] is not None else "-")}</td>',
+                     f'<td class="num">{f["observed_order"]:.2f}</td>',
+                     f'<td class="num">{"-" if ci is None else f"+- {ci:.2f}"}</td>',
+                     "<td>" + _e(f"{len(f['order_points'])} ({f['order_error_field']} vs {f['order_variable']}: "
+                                 f"{_num(f['order_points'][0][0])} .. {_num(f['order_points'][-1][0])})") + "</td>",
+                     f"<td>{flag}</td>"])
+    return _table(["scheme", *(["N"] if with_n else []), "declared", "observed", "95 % interval", "points used", ""],
+                  body, raw=True)
+
+
+def _capability_matrix(rows: list[dict]) -> str:
+    problems = sorted({r["problem"] for r in rows})
+    schemes = sorted({r["integrator"] for r in rows})
+    body = []
+    for s in schemes:
+        cells = [f"<td>{_e(s)}</td>"]
+        for p in problems:
+            mine = [r for r in rows if r["problem"] == p and r["integrator"] == s]
+            if not mine:
+                cells.append('<td class="skipped">not in run</td>')
+                continue
+            counts = status_counts(mine)
+            worst = next(st for st in ("failed", "timeout", "diverged", "skipped", "ok") if counts.get(st))
+            if worst == "skipped":
+                why = str(mine[0].get("message") or "").removeprefix(s + " ")
+                text = f"skipped: {why}"
+            else:
+                text = format_counts(counts)
+            cells.append(f'<td class="{worst}" title="{_e(text)}">{_e(text)}</td>')
+        body.append(cells)
+    return _table(["scheme \\ problem", *problems], body, raw=True)
+
+
+def _stability_table(schemes: Sequence[str]) -> str | None:
+    from .stability import cached_intervals
+
+    found = cached_intervals(schemes)
+    if not found:
+        return None
+    body = [[s, txt] for s, txt in sorted(found.items())]
+    return ('<p class="note">Imaginary-axis stability interval: the largest Y with |R(iy)| <= 1 for '
+            '0 <= y <= Y, R measured from one step of each scheme on u\' = lambda u '
+            '(<code>longtime list --stability</code>); a step h on a mode of frequency omega is stable '
+            'while omega h <= Y.</p>' + _table(["scheme", "interval"], body))
+
+
+def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bool = True) -> str:
+    """The page's HTML for ``rows`` (of the ``runs`` whose metadata heads it)."""
+    problems = sorted({r["problem"] for r in rows})
+    style = styles(sorted({r["integrator"] for r in rows}))
+    fits = observed_orders(rows)
+    counts = status_counts(rows)
+    out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+           '<meta name="viewport" content="width=device-width, initial-scale=1">',
+           "<title>longtime results</title>", f"<style>{CSS}</style>", "</head><body>",
+           "<h1>longtime: results</h1>", _meta(runs),
+           f"<p><b>{len(rows)} cells:</b> " + _e(format_counts(counts)) + "</p>",
+           "<nav>" + "".join(f'<a href="#{_slug(p)}">{_e(p)}</a>' for p in problems)
+           + '<a href="#capabilities">capability matrix</a></nav>']
+    for p in problems:
+        mine = [r for r in rows if r["problem"] == p]
+        field = pareto_field(mine)
+        out.append(f'<h2 id="{_slug(p)}">{_e(p)}</h2><p>{_e(format_counts(status_counts(mine)))}</p>')
+        out.append("<h3>Fastest scheme per accuracy (Pareto front)</h3>" + _pareto_table(mine))
+        if field:
+            fig = work_precision_svg(mine, field, style)
+            if fig:
+                out.append(f'<h3>Work-precision</h3><figure class="plot">{fig}<figcaption>{_e(field)} against '
+                           f"CPU seconds, one point per setting; colour: scheme family, marker: scheme."
+                           f"</figcaption></figure>")
+        if drift:
+            fig, notes = drift_svg(mine, style)
+            if fig:
+                out.append(f'<h3>Invariant drift against time</h3><figure class="plot">{fig}<figcaption>'
+                           f"Relative error of the invariant, log-log (a slope is a growth law), for each "
+                           f"scheme's setting of median CPU time (re-run for this page)."
+                           f"{_e(' ' + '; '.join(notes)) if notes else ''}</figcaption></figure>")
+        growth = _growth_table(mine)
+        if growth:
+            out.append("<h3>Growth classes</h3>" + growth)
+        orders = _orders_table([f for f in fits if f["problem"] == p])
+        if orders:
+            out.append("<h3>Observed order</h3><p class=\"note\">Least-squares slope of log error against "
+                       "log step over the asymptotic range (floors and pre-asymptotic points dropped), "
+                       "with its 95 % interval.</p>" + orders)
+        folded = _not_ok(mine)
+        if folded:
+            out.append("<h3>Not run to the end</h3><ul>" + "".join(
+                f"<li>{_e(why)}: {_e(', '.join(s))}</li>" for why, s in sorted(folded.items())) + "</ul>")
+    out.append('<h2 id="capabilities">Capability matrix</h2>' + _capability_matrix(rows))
+    stab = _stability_table(sorted({r["integrator"] for r in rows}))
+    if stab:
+        out.append('<h2 id="stability">Linear stability</h2>' + stab)
+    out.append(f'<p class="note">Written {datetime.now(timezone.utc).isoformat(timespec="seconds")} by '
+               f"<code>longtime report --html</code>.</p>")
+    out.append(f"<script>{SCRIPT}</script></body></html>")
+    return "\n".join(out)
+
+
+def write_page(out_dir: str | Path, rows: list[dict[str, Any]], runs: list[dict[str, Any]],
+               drift: bool = True) -> Path:
+    """Write ``out_dir``/index.html; return its path."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / PAGE_NAME
+    path.write_text(build_page(rows, runs, drift=drift), encoding="utf-8")
+    return path

@@ -1,0 +1,304 @@
+"""Linear stability measured from the schemes themselves.
+
+The test equation u' = lambda u (complex lambda = re + i im) is the problem ``linear-test``:
+the real 2x2 system x' = re x - im y, y' = im x + re y for u = x + i y. One step of a
+scheme's own compiled step (``make_step``, or ``make_try_step`` with its error control
+switched off: tol, eps_res = 1e300) of size h = 1 with lambda = z from u = 1 gives the
+amplification factor R(z) = x1 + i y1. A real scheme treats u = i the same way
+(R(z) i) exactly when its step is complex-linear; where it is not (a partitioned
+scheme, BPL's componentwise Pade), |R| is the worst growth over ``PHASES`` starting
+phases e^(i theta) instead.
+
+The imaginary-axis interval (the largest Y with |R(iy)| <= 1 + ``TOL`` on all of
+[0, Y]) caps the step on oscillatory problems: a mode of frequency omega is stable while
+omega h <= Y. It is measured on the rotation q' = p, p' = -q (the ``harmonic`` problem,
+omega = 1, step h = y), which every scheme that needs a separable Hamiltonian can also
+step; for a linear but not complex-linear step (Verlet, symplectic Euler) the growth is
+the spectral radius of the 2x2 step matrix, the factor a mode sees step after step.
+The series schemes' factor depends on N: it is measured for the fixed-order sum at each
+N of ``SERIES_ORDERS``. Results are cached in $LONGTIME_CACHE_DIR/stability by a
+fingerprint of the compiled step (its code and everything it closes over).
+"""
+from __future__ import annotations
+
+import json
+import math
+from typing import Any, Callable, Iterable, Sequence
+
+import numba
+import numpy as np
+
+from .params import InputError, Param
+from .problem import Problem
+
+TOL = 1e-9  # |R| above 1 + TOL is growth (round-off in |R| is ~1e-15)
+PHASES = 16
+Y_MAX = 12.0  # the imaginary axis is scanned on [0, Y_MAX]
+Y_STEP = 0.01
+SERIES_ORDERS = (4, 6, 8, 10, 12, 14)
+OFF = 1e300  # tolerance that switches an error control off
+
+
+# ------------------------------------------------------------------ the test problem
+@numba.njit(cache=True)
+def _rhs(t, u, params, out):
+    out[0] = params[0] * u[0] - params[1] * u[1]
+    out[1] = params[1] * u[0] + params[0] * u[1]
+
+
+@numba.njit(cache=True)
+def _jac(t, u, params, out):
+    out[0, 0], out[0, 1] = params[0], -params[1]
+    out[1, 0], out[1, 1] = params[1], params[0]
+
+
+@numba.njit(cache=True)
+def _taylor(t0, u, params, coeffs, work):
+    # u^(k+1) = lambda u^(k) / (k + 1) in complex arithmetic on (x, y)
+    a, b = params[0], params[1]
+    coeffs[0, 0], coeffs[0, 1] = u[0], u[1]
+    for k in range(coeffs.shape[0] - 1):
+        x, y = coeffs[k, 0], coeffs[k, 1]
+        coeffs[k + 1, 0] = (a * x - b * y) / (k + 1)
+        coeffs[k + 1, 1] = (b * x + a * y) / (k + 1)
+
+
+class LinearTest(Problem):
+    """Dahlquist's test equation u' = lambda u as a real 2x2 system (u = x + i y)."""
+
+    name = "linear-test"
+    summary = "test equation u' = lambda u (complex lambda, as a real 2x2 system), exact solution"
+    parameters = {
+        "re": Param(0.0, "real part of lambda", float),
+        "im": Param(1.0, "imaginary part of lambda", float),
+    }
+    default_t_final = 20.0
+    default_dt = 0.1
+    sweep_dt = (0.2, 0.1, 0.05)
+    sweep_t_final = 20.0
+
+    rhs = staticmethod(_rhs)
+    jac = staticmethod(_jac)
+    taylor = staticmethod(_taylor)
+
+    def initial_state(self):
+        return [1.0, 0.0]
+
+    def kernel_params(self):
+        return np.array([self.settings["re"], self.settings["im"]])
+
+    def invariants(self, t, U):
+        # |u|^2 e^(-2 re t) is constant along the exact solution
+        return {"H": 0.5 * (U[:, 0] ** 2 + U[:, 1] ** 2) * np.exp(-2.0 * self.settings["re"] * (t - self.t0))}
+
+    def heyoka_system(self):
+        import heyoka as hy
+
+        x, y = hy.make_vars("x", "y")
+        a, b = self.settings["re"], self.settings["im"]
+        return [x, y], [a * x - b * y, b * x + a * y]
+
+    def exact(self, t):
+        t = np.asarray(t, dtype=float) - self.t0
+        a, b = self.settings["re"], self.settings["im"]
+        r = np.exp(a * t)
+        return np.stack([r * np.cos(b * t), r * np.sin(b * t)], axis=1)
+
+
+# ------------------------------------------------------------------ one step of a scheme
+class Unmeasurable(Exception):
+    """The scheme has no step kernel to measure, or cannot step this problem."""
+
+
+def _stepper(scheme, problem) -> Callable[[np.ndarray, np.ndarray, float], bool]:
+    """step(u, params, h) -> accepted: one step of the scheme's own kernel, in place on u."""
+    from . import drivers
+    from .integrator import AdaptiveIntegrator, FixedStepIntegrator
+
+    reason = scheme.incompatibility(problem)
+    if reason:
+        raise Unmeasurable(reason)
+    if isinstance(scheme, FixedStepIntegrator):
+        step = scheme.make_step(problem)
+        work = np.zeros(scheme.work_shape(problem))
+        scheme.prepare_work(problem, work)
+
+        def one(u, params, h):
+            w = work.copy()  # a multi-step scheme's memory must not carry from the last point
+            return step(0.0, u, h, params, w, drivers.new_counters(), True) == drivers.OK
+
+        return one
+    if isinstance(scheme, AdaptiveIntegrator):
+        try_step = scheme.make_try_step(problem)
+        work = np.zeros(scheme.work_shape(problem))
+        scheme.prepare_work(problem, work)
+        u_new = np.empty(problem.dim)
+
+        def one(u, params, h):
+            code, taken, _ = try_step(0.0, u.copy(), h, params, work.copy(), drivers.new_counters(), u_new)
+            u[:] = u_new
+            return code == 1 and taken == h
+
+        return one
+    raise Unmeasurable(f"{scheme.name} is a {scheme.kind} integrator: no step kernel to measure")
+
+
+def _scheme(name: str, order: int | None = None):
+    from . import registry
+
+    cls = registry.integrator_class(name)
+    settings: dict[str, Any] = {k: OFF for k in ("tol", "eps_res") if k in cls.parameters}
+    if order is not None:
+        settings["order"] = order
+    if "tol" in settings and name.startswith("taylor"):
+        raise Unmeasurable(f"{name} chooses its order from tol: the fixed-order 'taylor' is measured")
+    return cls(**settings)
+
+
+def _growth(step, params: np.ndarray, h: float, phases: int) -> tuple[complex, float]:
+    """(R from u = 1, the growth a mode sees) of one step; nan where the step fails."""
+    u1 = np.array([1.0, 0.0])
+    ui = np.array([0.0, 1.0])
+    if not (step(u1, params, h) and step(ui, params, h)):
+        return complex(np.nan, np.nan), np.nan
+    r = complex(u1[0], u1[1])
+    if not np.all(np.isfinite(u1)) or not np.all(np.isfinite(ui)):
+        return r, np.inf
+    if abs(ui[0] + u1[1]) <= 1e-12 * max(1.0, abs(r)) and abs(ui[1] - u1[0]) <= 1e-12 * max(1.0, abs(r)):
+        return r, abs(r)  # complex-linear: multiplication by R
+    # real-linear? then the spectral radius of the step matrix is what repeats
+    mid = np.array([math.sqrt(0.5), math.sqrt(0.5)])
+    ok = step(mid, params, h)
+    m = np.column_stack([u1, ui])
+    if ok and np.allclose(mid, m @ np.array([math.sqrt(0.5), math.sqrt(0.5)]), rtol=1e-10, atol=1e-12):
+        return r, float(max(abs(np.linalg.eigvals(m))))
+    worst = 0.0
+    for theta in np.linspace(0.0, 2 * np.pi, phases, endpoint=False):
+        u = np.array([math.cos(theta), math.sin(theta)])
+        if not step(u, params, h):
+            return r, np.nan
+        worst = max(worst, math.hypot(u[0], u[1]))
+    return r, worst
+
+
+def region(name: str, re: Sequence[float], im: Sequence[float], order: int | None = None,
+           phases: int = PHASES) -> np.ndarray:
+    """|R(z)| on the grid z = re[j] + i im[k] (shape (len(im), len(re))); nan where the step
+    fails (an implicit solve that does not converge)."""
+    scheme = _scheme(name, order)
+    step = _stepper(scheme, LinearTest())
+    out = np.empty((len(im), len(re)))
+    for k, y in enumerate(im):
+        for j, x in enumerate(re):
+            out[k, j] = _growth(step, np.array([float(x), float(y)]), 1.0, phases)[1]
+    return out
+
+
+def imaginary_growth(name: str, ys: Iterable[float], order: int | None = None,
+                     phases: int = PHASES) -> np.ndarray:
+    """The growth of one step of size y on the rotation q' = p, p' = -q, for each y."""
+    from .problems.harmonic import Harmonic
+
+    scheme = _scheme(name, order)
+    problem = Harmonic()
+    step = _stepper(scheme, problem)
+    return np.array([_growth(step, problem.params, float(y), phases)[1] for y in ys])
+
+
+def imaginary_interval(name: str, order: int | None = None, y_max: float = Y_MAX,
+                       y_step: float = Y_STEP) -> dict[str, Any]:
+    """{"y": Y, "bounded": bool, "why": ...}: the largest Y (to y_step) with growth
+    <= 1 + TOL on all of [0, Y]; bounded False when the whole scanned range is stable."""
+    ys = np.arange(y_step, y_max + 0.5 * y_step, y_step)
+    growth = imaginary_growth(name, ys, order)
+    bad = np.nonzero(~(growth <= 1.0 + TOL))[0]
+    if bad.size == 0:
+        return {"y": float(y_max), "bounded": False, "why": f"stable on all of [0, {y_max:g}]"}
+    k = int(bad[0])
+    why = "step failed" if np.isnan(growth[k]) else f"|R| = {growth[k]:.6g}"
+    return {"y": round(float(ys[k - 1]) if k else 0.0, 6), "bounded": True, "why": f"{why} at y = {ys[k]:.3g}"}
+
+
+def orders_of(name: str) -> list[int | None]:
+    """The N at which a series scheme is measured ([None] for the others)."""
+    from . import registry
+
+    return list(SERIES_ORDERS) if "order" in registry.integrator_class(name).parameters else [None]
+
+
+def format_interval(result: dict[str, Any]) -> str:
+    if "error" in result:
+        return f"not measured: {result['error']}"
+    y = result["y"]
+    if not result["bounded"]:
+        return f"[0, >= {y:.3g}]"
+    return f"[0, {y:.3g}]" + (" (its step fails beyond)" if result["why"].startswith("step failed") else "")
+
+
+# ------------------------------------------------------------------ cached results
+def _cache_key(name: str, order: int | None) -> str:
+    from .cache import digest
+    from .jitcache import Unfreezable, fingerprint
+    from .problems.harmonic import Harmonic
+
+    scheme = _scheme(name, order)
+    try:
+        build = scheme.make_step if hasattr(scheme, "make_step") else scheme.make_try_step
+        code = fingerprint(build(Harmonic()))
+    except Exception:  # no fingerprint (an opaque closure, a scheme that cannot step it): the class
+        code = f"{type(scheme).__module__}.{type(scheme).__qualname__}"
+    return digest(name, str(order), code, repr((TOL, Y_MAX, Y_STEP, PHASES)))
+
+
+def _cache_file(name: str, order: int | None):
+    from .cache import cache_dir
+
+    return cache_dir("stability") / f"{name}-N{order}-{_cache_key(name, order)}.json"
+
+
+def intervals(name: str, compute: bool = True) -> dict[str, dict[str, Any]]:
+    """{"" or "N=4": result}: the scheme's imaginary-axis interval(s), from the cache, or
+    measured (and cached) when ``compute``; empty when neither."""
+    out = {}
+    try:
+        orders = orders_of(name)
+        for order in orders:
+            label = "" if order is None else f"N={order}"
+            try:
+                path = _cache_file(name, order)
+            except Unmeasurable as exc:
+                out[label] = {"error": str(exc)}
+                continue
+            if path.exists():
+                out[label] = json.loads(path.read_text())
+            elif compute:
+                try:
+                    result = imaginary_interval(name, order)
+                except Unmeasurable as exc:
+                    result = {"error": str(exc)}
+                path.write_text(json.dumps(result))
+                out[label] = result
+    except (InputError, Unmeasurable) as exc:
+        out[""] = {"error": str(exc)}
+    return out
+
+
+def describe(name: str, compute: bool = False) -> str | None:
+    """'[0, 2.83]' or 'N=4 [0, 1.2]; N=6 ...', or None when nothing is known."""
+    found = intervals(name, compute=compute)
+    if not found:
+        return None
+    return "; ".join(f"{label} {format_interval(r)}".strip() for label, r in found.items())
+
+
+def cached_intervals(schemes: Iterable[str]) -> dict[str, str]:
+    """scheme -> its cached interval text (nothing is measured)."""
+    out = {}
+    for s in schemes:
+        try:
+            text = describe(s, compute=False)
+        except Exception:  # a scheme no longer installed
+            text = None
+        if text:
+            out[s] = text
+    return out
