@@ -57,6 +57,8 @@ import numpy as np
 from .params import Param, check_state, resolve
 
 # capability name -> attribute(s) that provide it
+BLOWUP_MESSAGE = "state blew up (non-finite or beyond the problem's bound) at t={t:.6g}"
+
 CAPABILITIES: dict[str, tuple[str, ...]] = {
     "separable": ("grad_T", "grad_V"),
     "jacobian": ("jac",),
@@ -96,7 +98,9 @@ class Problem(ABC):
     # would all read the reference's own accuracy (its floor), so they measure only cost
     sweep_min_tolerance: ClassVar[float | None] = None
     autonomous: ClassVar[bool] = True
-    # |u|_inf above blowup_factor * max(1, |u0|_inf) is a divergence
+    # |u|_1 above blowup_factor * max(1, |u0|_inf), or a non-finite component, is a
+    # divergence (the 1-norm: a branch-free sum in the compiled drivers, which every
+    # scheme shares through ``first_blowup``)
     blowup_factor: ClassVar[float] = 1e10
 
     rhs: ClassVar[Callable | None] = None
@@ -110,6 +114,12 @@ class Problem(ABC):
     constraints: ClassVar[Any] = None
     linear_part: ClassVar[Any] = None
     nonlinear: ClassVar[Any] = None
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        from .contract import check_problem_definition
+
+        check_problem_definition(cls)  # a plugin that breaks the contract fails at import
 
     def __init__(self, **settings: Any) -> None:
         self.settings = resolve(self.parameters, settings, owner=f"problem '{self.name}'")
@@ -156,6 +166,12 @@ class Problem(ABC):
     @property
     def blowup(self) -> float:
         return self.blowup_factor * max(1.0, float(np.max(np.abs(self.u0))))
+
+    def first_blowup(self, U: np.ndarray) -> int | None:
+        """Index of the first state of U (n, dim) that blew up, as drivers.is_blown_up
+        judges it (1-norm above ``blowup``, NaN included), or None."""
+        bad = ~(np.sum(np.abs(U), axis=1) <= self.blowup)
+        return int(np.argmax(bad)) if bad.any() else None
 
     @classmethod
     def capabilities(cls) -> frozenset[str]:

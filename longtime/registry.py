@@ -10,6 +10,7 @@ import traceback
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 
+from .contract import check_registered
 from .integrator import Integrator
 from .params import check_choice, check_choices
 from .problem import Problem
@@ -46,6 +47,7 @@ def _load() -> dict[str, dict[str, type]]:
                     cls.name = ep.name
                 elif cls.name != ep.name:
                     raise TypeError(f"{ep.value} is named '{cls.name}' but registered as '{ep.name}'")
+                check_registered(cls)  # complete: not abstract, every declared attribute set
                 found[ep.name] = cls
             except Exception as exc:  # a broken plugin must not take the suite down
                 last = traceback.format_exception_only(type(exc), exc)[-1].strip()

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..integrator import Integrator, Trajectory
 from ..params import Param
+from ..problem import BLOWUP_MESSAGE
 
 # compiled taylor_adaptive objects, by (problem identity, tol, high_accuracy)
 _COMPILED: dict[tuple, object] = {}
@@ -75,13 +76,12 @@ class Heyoka(Integrator):
         states = np.asarray(states, dtype=float)
         # heyoka fills the grid points it did not reach with NaN; beyond the problem's bound
         # counts as a blow-up too, as in the compiled drivers
-        bad = ~np.all(np.abs(states) <= problem.blowup, axis=1)
+        first = problem.first_blowup(states)
         n, status, message = grid.size, "ok", ""
-        if bad.any():
-            first = int(np.argmax(bad))
+        if first is not None:
             n = first + 1  # keep the first bad sample, as the drivers do
             status = "diverged"
-            message = f"state blew up (non-finite or beyond the problem's bound) at t={grid[n - 1]:.6g}"
+            message = BLOWUP_MESSAGE.format(t=grid[n - 1])
         if outcome != hy.taylor_outcome.time_limit and status == "ok":
             status, message = "failed", f"heyoka stopped with outcome {outcome} at t={ta.time:.6g}"
             n = max(1, min(n, int(np.searchsorted(grid, ta.time, side="right"))))

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..integrator import Integrator, Trajectory
 from ..params import Param
+from ..problem import BLOWUP_MESSAGE
 
 
 class DOP853(Integrator):
@@ -46,11 +47,10 @@ class DOP853(Integrator):
         cpu, wall = time.process_time() - c0, time.perf_counter() - w0
         t, u = sol.t, sol.y.T
         status, message = "ok", ""
-        bad = ~np.all(np.abs(u) <= problem.blowup, axis=1)  # NaN counts as blown up
-        if bad.any():
-            first = int(np.argmax(bad))
+        first = problem.first_blowup(u)
+        if first is not None:
             t, u = t[:first + 1], u[:first + 1]
-            status, message = "diverged", f"state blew up (non-finite or beyond the problem's bound) at t={t[-1]:.6g}"
+            status, message = "diverged", BLOWUP_MESSAGE.format(t=t[-1])
         elif sol.status != 0:
             status, message = "failed", f"solve_ivp: {sol.message} (t={t[-1]:.6g})"
         steps = t.size - 1

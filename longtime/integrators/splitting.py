@@ -11,6 +11,7 @@ import numba
 import numpy as np
 
 from ..drivers import OK, RHS_EVALS
+from ..contract import check_splitting
 from ..integrator import FixedStepIntegrator
 
 
@@ -34,6 +35,10 @@ class Splitting(FixedStepIntegrator):
     symplectic = True
     kicks: np.ndarray
     drifts: np.ndarray
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        check_splitting(cls)  # inconsistent coefficients fail at import
 
     def work_shape(self, problem):
         return (3, problem.dim // 2)  # force, velocity, diag(M^-1) when T is quadratic

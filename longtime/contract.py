@@ -1,0 +1,136 @@
+"""Checks of the plugin contract (docs/plugins.md), run when a class is defined and when it
+is registered, so that a plugin that breaks the contract is reported by ``longtime list``
+as broken, with a one-line reason, instead of failing inside a compiled loop.
+
+When a class is defined (``__init_subclass__`` of ``Problem`` and ``Integrator``), what
+it sets must be well formed: a compiled function is a numba dispatcher attached with
+``staticmethod``, capabilities that come in pairs are provided together, ``requires``
+names known capabilities, ``kind`` is one of the drivers. When the registry loads a class
+from an entry point, it must also be complete: not abstract, a problem with a ``rhs``,
+every attribute its family declares (an annotation without a value, as ``A``, ``b``,
+``c`` of a tableau family or ``kicks``, ``drifts`` of a splitting) set.
+"""
+from __future__ import annotations
+
+import inspect
+from typing import Any
+
+from numba.core.registry import CPUDispatcher
+
+from .params import Param
+
+# compiled functions a problem may provide (see docs/plugins.md)
+COMPILED_ATTRIBUTES = ("rhs", "grad_T", "grad_V", "jac", "taylor", "linear_part", "nonlinear")
+CONSTRAINT_FUNCTIONS = ("phi", "grad_phi", "mass", "grad_U")
+KINDS = ("fixed", "adaptive", "external")
+
+
+class ContractError(TypeError):
+    """A problem or scheme class that breaks the plugin contract."""
+
+
+def _owner(cls: type) -> str:
+    return f"{cls.__module__}.{cls.__qualname__}"
+
+
+def _check_compiled(owner: str, attr: str, raw: Any, via_class: bool = True) -> None:
+    if raw is None:
+        return
+    if via_class:
+        if isinstance(raw, CPUDispatcher):
+            raise ContractError(f"{owner}.{attr} must be attached as staticmethod({raw.py_func.__name__}) "
+                                f"(a bare compiled function becomes a bound method)")
+        if not isinstance(raw, staticmethod):
+            raise ContractError(f"{owner}.{attr} must be a compiled function attached as staticmethod(...), "
+                                f"got {type(raw).__name__}")
+        raw = raw.__func__
+    if not isinstance(raw, CPUDispatcher):
+        name = getattr(raw, "__name__", type(raw).__name__)
+        raise ContractError(f"{owner}.{attr} = {name} is not compiled: decorate it with @numba.njit")
+
+
+def check_problem_definition(cls: type) -> None:
+    from .problem import CAPABILITIES
+
+    owner = _owner(cls)
+    for attr in COMPILED_ATTRIBUTES:
+        if attr in vars(cls):
+            _check_compiled(owner, attr, vars(cls)[attr])
+    for cap, attrs in CAPABILITIES.items():
+        given = [a for a in attrs if getattr(cls, a, None) is not None]
+        if given and len(given) < len(attrs):
+            missing = [a for a in attrs if a not in given]
+            raise ContractError(f"{owner}: capability '{cap}' needs {' and '.join(attrs)}; "
+                                f"{', '.join(missing)} missing")
+    constraints = vars(cls).get("constraints")
+    if constraints is not None:
+        n = getattr(constraints, "n_constraints", None)
+        if not isinstance(n, int) or n < 1:
+            raise ContractError(f"{owner}.constraints.n_constraints must be an integer >= 1, got {n!r}")
+        for attr in CONSTRAINT_FUNCTIONS:
+            if getattr(constraints, attr, None) is None:
+                raise ContractError(f"{owner}.constraints has no {attr} (needs {', '.join(CONSTRAINT_FUNCTIONS)})")
+            _check_compiled(f"{owner}.constraints", attr, getattr(constraints, attr), via_class=False)
+    _check_common(cls, owner)
+
+
+def check_integrator_definition(cls: type) -> None:
+    from .problem import CAPABILITIES
+
+    owner = _owner(cls)
+    known = set(CAPABILITIES) | {"rhs", "invariants", "autonomous"}
+    unknown = sorted(set(cls.requires) - known)
+    if unknown:
+        raise ContractError(f"{owner}.requires names unknown capabilities {', '.join(unknown)}; "
+                            f"known: {', '.join(sorted(known))}")
+    if cls.kind not in KINDS:
+        raise ContractError(f"{owner}.kind = {cls.kind!r}: expected one of {', '.join(KINDS)}")
+    if cls.order is not None and not (isinstance(cls.order, int) and cls.order >= 1):
+        raise ContractError(f"{owner}.order = {cls.order!r}: expected an integer >= 1 or None")
+    _check_common(cls, owner)
+
+
+def _check_common(cls: type, owner: str) -> None:
+    if not isinstance(cls.name, str):
+        raise ContractError(f"{owner}.name must be a string, got {cls.name!r}")
+    params = cls.parameters
+    if not isinstance(params, dict) or not all(isinstance(k, str) and isinstance(v, Param)
+                                               for k, v in params.items()):
+        raise ContractError(f"{owner}.parameters must map names to longtime.Param")
+
+
+def check_registered(cls: type) -> None:
+    """A class loaded from an entry point must be complete (see the module docstring)."""
+    from .problem import Problem
+
+    owner = _owner(cls)
+    if inspect.isabstract(cls):
+        raise ContractError(f"{owner} is abstract: implement {', '.join(sorted(cls.__abstractmethods__))}")
+    if issubclass(cls, Problem) and cls.rhs is None:
+        raise ContractError(f"{owner} has no rhs: every problem provides a compiled rhs(t, u, params, out)")
+    for klass in cls.__mro__:
+        for attr in inspect.get_annotations(klass):
+            if not hasattr(cls, attr):
+                raise ContractError(f"{owner} does not set {attr}, which its family "
+                                    f"{klass.__qualname__} declares")
+
+
+def check_splitting(cls: type) -> None:
+    """(kick, drift) coefficients of a splitting, when the class sets them: two 1-D arrays
+    of equal length, finite, each summing to 1 (consistency: one full kick, one full drift)."""
+    import numpy as np
+
+    if not (hasattr(cls, "kicks") or hasattr(cls, "drifts")):
+        return
+    owner = _owner(cls)
+    if not (hasattr(cls, "kicks") and hasattr(cls, "drifts")):
+        raise ContractError(f"{owner}: a splitting sets both kicks and drifts")
+    kicks, drifts = (np.asarray(x, dtype=float) for x in (cls.kicks, cls.drifts))
+    if kicks.ndim != 1 or kicks.shape != drifts.shape or kicks.size == 0:
+        raise ContractError(f"{owner}: kicks {kicks.shape} and drifts {drifts.shape} must be 1-D of one length")
+    if not (np.all(np.isfinite(kicks)) and np.all(np.isfinite(drifts))):
+        raise ContractError(f"{owner}: kicks and drifts must be finite")
+    for label, x in (("kicks", kicks), ("drifts", drifts)):
+        if abs(x.sum() - 1.0) > 1e-12:
+            raise ContractError(f"{owner}: {label} sum to {float(x.sum())!r}, not 1 (the scheme would "
+                                f"not be consistent)")
