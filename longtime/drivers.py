@@ -15,6 +15,8 @@ adaptive step:  try_step(t, u, h, params, work, counters, u_new) -> (code, h_tak
 """
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 
@@ -24,7 +26,7 @@ N_COUNTERS = 8
 COUNTER_NAMES = ("steps", "rhs_evals", "nl_iters", "rejected", "fallbacks", "jac_evals")
 
 # status codes returned by loops and steps
-OK, DIVERGED, FAILED, BUFFER_FULL = 0, 1, 2, 3
+OK, DIVERGED, FAILED, BUFFER_FULL, TIMEOUT = 0, 1, 2, 3, 4
 EPS = float(np.finfo(float).eps)
 
 
@@ -58,38 +60,72 @@ def reached_round_off(delta, previous, scale):
 
 
 def fixed_step_loop(step):
-    """Compiled loop: ``nsteps`` steps of size dt, the last one clipped to t_final.
+    """Compiled loop over steps k_start .. k_stop - 1 of a run of ``nsteps`` steps of size dt
+    (the last one clipped to t_final), so that Python regains control between chunks
+    (Ctrl-C, a deadline, progress) and a run of 10^8 steps needs no more than one call's
+    worth of anything. Step k goes from t0 + k dt; ``first`` is k == 0.
 
-    Every ``stride``-th state (and the last) goes to out_t/out_u, whose row 0 is the
-    initial state. Returns (status, samples written, time reached).
+    ``sample_at`` is the sorted array of step counts after which the state is recorded
+    (evenly and log-spaced, ending with nsteps); ``j`` indexes the next one and ``n_out``
+    the next free row of out_t/out_u (row 0, the initial state, is the caller's). Returns
+    (status, samples written, next j, time reached).
     """
 
     @numba.njit
-    def loop(u, t0, t_final, dt, nsteps, stride, params, work, out_t, out_u, counters, blowup):
-        out_t[0] = t0
-        out_u[0, :] = u
-        n_out = 1
-        t = t0
-        next_sample = stride  # a countdown, not a modulo in the hot loop
-        for k in range(nsteps):
+    def loop(u, t0, t_final, dt, k_start, k_stop, nsteps, sample_at, j, n_out, params, work,
+             out_t, out_u, counters, blowup):
+        t = t0 + k_start * dt
+        next_sample = sample_at[j]  # compared once per step, like the old countdown
+        for k in range(k_start, k_stop):
             t = t0 + k * dt
             h = dt if k < nsteps - 1 else t_final - t
             status = step(t, u, h, params, work, counters, k == 0)
             t = t0 + (k + 1) * dt if k < nsteps - 1 else t_final
             if status != OK or is_blown_up(u, blowup):
-                counters[STEPS] += k + 1
+                counters[STEPS] += k + 1 - k_start
                 out_t[n_out] = t
                 out_u[n_out, :] = u
-                return (FAILED if status != OK else DIVERGED), n_out + 1, t
-            if k + 1 == next_sample or k == nsteps - 1:
+                return (FAILED if status != OK else DIVERGED), n_out + 1, j, t
+            if k + 1 == next_sample:
                 out_t[n_out] = t
                 out_u[n_out, :] = u
                 n_out += 1
-                next_sample += stride
-        counters[STEPS] += nsteps
-        return OK, n_out, t
+                j += 1
+                next_sample = sample_at[j]
+        counters[STEPS] += k_stop - k_start
+        return OK, n_out, j, t
 
     return loop
+
+
+def sample_steps(nsteps: int, max_samples: int, per_decade: int = 20) -> np.ndarray:
+    """Step counts after which a fixed-step run records its state: every ``stride``-th step
+    (stride = ceil(nsteps / (max_samples - 1)), as before) and, when max_samples allows,
+    ``per_decade`` log-spaced steps in every decade of time from the first step, so a long
+    run has points in every decade (growth-law fits) and no aliasing with a period. Sorted,
+    unique, ending with nsteps, followed by a sentinel (nsteps + 1) the loop never reaches.
+    """
+    n_log = 0
+    if max_samples >= 1000 and nsteps > 1:
+        n_log = min(max_samples // 10, per_decade * max(1, math.ceil(math.log10(nsteps))))
+    stride = max(1, math.ceil(nsteps / (max(2, max_samples - n_log) - 1)))
+    even = np.arange(stride, nsteps + 1, stride, dtype=np.int64)
+    parts = [even, np.array([nsteps], dtype=np.int64)]
+    if n_log:
+        parts.append(np.unique(np.round(np.logspace(0, math.log10(nsteps), n_log)).astype(np.int64)))
+    steps = np.unique(np.concatenate(parts))
+    return np.append(steps[(steps >= 1) & (steps <= nsteps)], np.int64(nsteps + 1))
+
+
+@numba.njit(cache=True, inline="always")
+def compensated_add(u, m, increment, comp):
+    """u[m] += increment with Kahan's compensated summation: comp[m] carries the low-order
+    part that rounding u[m] + increment drops, and feeds it into the next update, so the
+    round-off of a long sum of small updates stays O(eps) instead of O(eps sqrt(n)..n)."""
+    y = increment - comp[m]
+    s = u[m] + y
+    comp[m] = (s - u[m]) - y
+    u[m] = s
 
 
 def adaptive_loop(try_step):

@@ -10,6 +10,8 @@ from inside the loop.
 from __future__ import annotations
 
 import math
+import os
+import sys
 import time
 import weakref
 from abc import ABC, abstractmethod
@@ -24,7 +26,39 @@ from .params import InputError, Param, check_time_span, resolve
 from .problem import BLOWUP_MESSAGE, Problem
 
 SAMPLE_BUDGET = 10_000_000  # float64 values of recorded states per run
-STATUS_NAMES = {drivers.OK: "ok", drivers.DIVERGED: "diverged", drivers.FAILED: "failed"}
+STATUS_NAMES = {drivers.OK: "ok", drivers.DIVERGED: "diverged", drivers.FAILED: "failed",
+                drivers.TIMEOUT: "timeout"}
+# fixed-step runs go in chunks: the first of FIRST_CHUNK steps, then sized to take about
+# CHUNK_SECONDS each (a call into compiled code costs microseconds: no measurable slowdown)
+FIRST_CHUNK = 10_000
+CHUNK_SECONDS = 0.25
+# a run still going after this many wall seconds prints a progress line to stderr every
+# PROGRESS_SECONDS ($LONGTIME_PROGRESS=0 turns it off)
+PROGRESS_SECONDS = 10.0
+
+
+class _Progress:
+    """A line on stderr now and then while a long run goes on (never for short ones)."""
+
+    def __init__(self, integrator: "Integrator", problem: Problem, t_final: float) -> None:
+        self.label = f"{problem.name} x {integrator.name}"
+        self.t0, self.t_final = problem.t0, t_final
+        self.start = self.last = time.monotonic()
+        self.on = os.environ.get("LONGTIME_PROGRESS", "1") != "0"
+        self.shown = False
+
+    def update(self, t: float) -> None:
+        now = time.monotonic()
+        if self.on and now - self.last >= PROGRESS_SECONDS:
+            self.last, self.shown = now, True
+            done = (t - self.t0) / (self.t_final - self.t0)
+            print(f"longtime: {self.label}: t = {t:.6g} of {self.t_final:.6g} ({100 * done:.0f} %, "
+                  f"{now - self.start:.0f} s)", file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        if self.shown:
+            print(f"longtime: {self.label}: done in {time.monotonic() - self.start:.0f} s",
+                  file=sys.stderr, flush=True)
 
 
 @dataclass(frozen=True)
@@ -63,7 +97,7 @@ def same_run(a: "Trajectory", b: "Trajectory") -> bool:
 class Trajectory:
     """What a scheme returns: samples of the state, the outcome and the cost."""
 
-    status: str  # ok | diverged | failed
+    status: str  # ok | diverged | failed | timeout
     message: str
     t: np.ndarray  # (n,)
     u: np.ndarray  # (n, dim)
@@ -112,11 +146,18 @@ class Integrator(ABC):
             return f"{self.name} needs {', '.join(missing)}, which {problem.name} does not provide"
         return None
 
+    # the caller's deadline during integrate(), read by the drivers between chunks
+    _deadline: float | None = None
+
     def integrate(self, problem: Problem, t_final: float, max_samples: int = 100_001,
-                  timing: Timing | None = None) -> Trajectory:
+                  timing: Timing | None = None, deadline: float | None = None) -> Trajectory:
         """Run the scheme from problem.u0 at t0 to t_final, timed by ``timing`` (default:
         a single run). Every timed repeat must reproduce the first run bitwise; one that
-        does not turns the result into a ``failed`` trajectory ("non-deterministic")."""
+        does not turns the result into a ``failed`` trajectory ("non-deterministic").
+
+        ``deadline`` is a time.monotonic() value: the shared drivers check it between
+        chunks of compiled steps, and a run past it comes back with status ``timeout`` and
+        the samples up to where it got (no further repeats are timed)."""
         check_time_span(problem.t0, t_final)
         reason = self.incompatibility(problem)
         if reason:
@@ -126,17 +167,25 @@ class Integrator(ABC):
         timing = timing or Timing(repeats=1)
         # keep the samples under ~80 MB whatever the dimension (KdV at d = 512: ~19k samples)
         max_samples = min(int(max_samples), max(2001, SAMPLE_BUDGET // problem.dim))
-        first = self._integrate(problem, float(t_final), max_samples)
-        cpu, wall = [first.cpu_s], [first.wall_s]
-        while timing.wants_another(wall):
-            again = self._integrate(problem, float(t_final), max_samples)
-            if not same_run(first, again):
-                first.status = "failed"
-                first.message = (f"non-deterministic: timed run {len(cpu) + 1} did not reproduce "
-                                 f"the first run's states bitwise")
-                break
-            cpu.append(again.cpu_s)
-            wall.append(again.wall_s)
+        self._deadline = deadline
+        try:
+            first = self._integrate(problem, float(t_final), max_samples)
+            cpu, wall = [first.cpu_s], [first.wall_s]
+            while first.status != "timeout" and timing.wants_another(wall) and not (
+                    deadline is not None and time.monotonic() > deadline):
+                again = self._integrate(problem, float(t_final), max_samples)
+                if again.status == "timeout":
+                    break  # the deadline cut a repeat short: the first run stands
+                if not same_run(first, again):
+                    first.status = "failed"
+                    first.message = (f"non-deterministic: timed run {len(cpu) + 1} did not reproduce "
+                                     f"the first run's states bitwise")
+                    break
+                cpu.append(again.cpu_s)
+                wall.append(again.wall_s)
+        finally:
+            self._deadline = None
+        first.cpu_s, first.wall_s = min(cpu), min(wall)
         first.cpu_s, first.wall_s = min(cpu), min(wall)
         first.extra.update(repeats=len(cpu), cpu_s_median=float(np.median(cpu)), cpu_s_max=max(cpu),
                            wall_s_median=float(np.median(wall)), wall_s_max=max(wall))
@@ -200,22 +249,42 @@ class FixedStepIntegrator(Integrator):
         dt = self.dt_for(problem)
         span = t_final - problem.t0
         nsteps = max(1, math.ceil(span / dt - 1e-9))
-        stride = max(1, math.ceil(nsteps / (max_samples - 1)))
+        sample_at = drivers.sample_steps(nsteps, max_samples)
         loop = _cached_loop(self, problem, lambda: drivers.fixed_step_loop(self.make_step(problem)))
         work = np.zeros(self.work_shape(problem))
         self.prepare_work(problem, work)
-        n_out = nsteps // stride + 2
+        n_out = sample_at.size + 1  # the initial state, the samples, a blow-up or a stop
         out_t = np.empty(n_out)
         out_u = np.empty((n_out, problem.dim))
         counters = drivers.new_counters()
         # warm-up: compile outside the timing, on a throw-away state
-        loop(problem.u0.copy(), problem.t0, problem.t0 + dt, dt, 1, 1, problem.params, work.copy(),
-             np.empty(2), np.empty((2, problem.dim)), counters.copy(), problem.blowup)
+        loop(problem.u0.copy(), problem.t0, problem.t0 + dt, dt, 0, 1, 1, np.array([1, 2]), 0, 1,
+             problem.params, work.copy(), np.empty(2), np.empty((2, problem.dim)), counters.copy(),
+             problem.blowup)
         u = problem.u0.copy()
-        c0, w0 = time.process_time(), time.perf_counter()
-        status, n, t_end = loop(u, problem.t0, t_final, dt, nsteps, stride, problem.params, work,
-                                out_t, out_u, counters, problem.blowup)
-        cpu, wall = time.process_time() - c0, time.perf_counter() - w0
+        out_t[0], out_u[0] = problem.t0, u
+        deadline, watch = self._deadline, _Progress(self, problem, t_final)
+        status, n, j, k, t_end, chunk = drivers.OK, 1, 0, 0, problem.t0, FIRST_CHUNK
+        cpu = wall = 0.0
+        while k < nsteps:
+            # chunks of about CHUNK_SECONDS: Python sees Ctrl-C, the deadline and progress
+            # between them; the samples do not depend on where the chunks end
+            stop = min(nsteps, k + chunk)
+            c0, w0 = time.process_time(), time.perf_counter()
+            status, n, j, t_end = loop(u, problem.t0, t_final, dt, k, stop, nsteps, sample_at, j, n,
+                                       problem.params, work, out_t, out_u, counters, problem.blowup)
+            c1, w1 = time.process_time() - c0, time.perf_counter() - w0
+            cpu, wall, k = cpu + c1, wall + w1, stop
+            if status != drivers.OK:
+                break
+            if k < nsteps and deadline is not None and time.monotonic() > deadline:
+                status = drivers.TIMEOUT
+                out_t[n], out_u[n] = t_end, u  # what it reached
+                n += 1
+                break
+            watch.update(t_end)
+            chunk = max(FIRST_CHUNK, int(chunk * CHUNK_SECONDS / max(w1, 1e-9)))
+        watch.close()
         return Trajectory(
             status=STATUS_NAMES[status], message=_status_message(status, t_end), t=out_t[:n],
             u=out_u[:n], cpu_s=cpu, wall_s=wall, counters=self._counters(counters),
@@ -280,6 +349,9 @@ class AdaptiveIntegrator(Integrator):
                 ts, us, total, stride = [tt[keep]], [uu[keep]], keep.size, 2 * stride
             if status != drivers.BUFFER_FULL:
                 break
+            if self._deadline is not None and time.monotonic() > self._deadline:
+                status = drivers.TIMEOUT  # the last sample is where it got
+                break
         steps = int(counters[drivers.STEPS])
         return Trajectory(
             status=STATUS_NAMES[status], message=_status_message(status, t), t=np.concatenate(ts),
@@ -288,6 +360,8 @@ class AdaptiveIntegrator(Integrator):
 
 
 def _status_message(status: int, t: float) -> str:
+    if status == drivers.TIMEOUT:
+        return f"time limit reached at t={t:.6g}"
     if status == drivers.DIVERGED:
         return BLOWUP_MESSAGE.format(t=t)
     if status == drivers.FAILED:

@@ -28,8 +28,10 @@ def test_generated_kernel_gives_the_same_numbers_as_the_closure():
     for loop in (closure, frozen):
         u = problem.u0.copy()
         out_t, out_u = np.zeros(12), np.zeros((12, 6))
-        status, n, _ = loop(u, 0.0, 1.0, 0.1, 10, 1, problem.params, np.zeros(scheme.work_shape(problem)), out_t, out_u,
-             drivers.new_counters(), 1e10)
+        out_t[0], out_u[0] = 0.0, u
+        status, n, _, _ = loop(u, 0.0, 1.0, 0.1, 0, 10, 10, drivers.sample_steps(10, 11), 0, 1,
+                               problem.params, np.zeros(scheme.work_shape(problem)), out_t, out_u,
+                               drivers.new_counters(), 1e10)
         assert status == drivers.OK and n == 11
         results.append(out_u[:n])
     assert np.array_equal(results[0], results[1])

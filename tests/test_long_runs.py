@@ -1,0 +1,45 @@
+"""Long fixed-step runs: chunks of compiled steps, a deadline, log-spaced samples."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from longtime import integrator as integrator_module
+from longtime.drivers import sample_steps
+from longtime.integrator import Timing
+from longtime.registry import integrator_class, problem_class
+
+
+def test_samples_are_evenly_and_log_spaced_and_bounded():
+    at = sample_steps(10**8, 100_001)
+    steps = at[:-1]
+    assert at[-1] == 10**8 + 1 and steps[-1] == 10**8  # the sentinel, then the last step
+    assert np.all(np.diff(steps) > 0) and steps.size <= 100_001
+    for decade in range(8):  # points in every decade of time, not only at the stride
+        inside = steps[(steps >= 10**decade) & (steps < 10 ** (decade + 1))]
+        assert inside.size >= 9, decade
+    assert np.array_equal(sample_steps(50, 2), [50, 51])  # max_samples=2: the end point only
+
+
+def test_chunks_do_not_change_a_single_bit(monkeypatch):
+    problem = problem_class("toda")()
+    scheme = integrator_class("rk4")(dt=0.1)
+    whole = scheme.integrate(problem, 500.0, max_samples=1001)
+    monkeypatch.setattr(integrator_module, "FIRST_CHUNK", 7)
+    monkeypatch.setattr(integrator_module, "CHUNK_SECONDS", 0.0)  # every chunk 7 steps
+    pieces = scheme.integrate(problem, 500.0, max_samples=1001)
+    assert whole.steps == pieces.steps == 5000
+    assert np.array_equal(whole.t, pieces.t) and np.array_equal(whole.u, pieces.u)
+
+
+def test_a_deadline_stops_a_run_between_chunks(monkeypatch):
+    monkeypatch.setattr(integrator_module, "FIRST_CHUNK", 1000)
+    monkeypatch.setattr(integrator_module, "CHUNK_SECONDS", 0.0)
+    problem = problem_class("toda")()
+    scheme = integrator_class("rk4")(dt=0.1)
+    scheme.integrate(problem, 1.0)  # compiled
+    traj = scheme.integrate(problem, 1e6, deadline=time.monotonic() - 1.0, timing=Timing())
+    assert traj.status == "timeout" and "time limit" in traj.message
+    assert traj.steps == 1000 and abs(traj.t[-1] - 100.0) < 1e-9  # one chunk, then stopped
+    assert traj.extra["repeats"] == 1
