@@ -59,6 +59,15 @@ def reached_round_off(delta, previous, scale):
     return delta <= 2.0 * EPS * scale or (delta >= previous and delta <= 1e-8 * scale)
 
 
+@numba.njit(cache=True, inline="always")
+def copy_into(dst, src):
+    """dst[:] = src element by element. A slice assignment makes numba compile its
+    shape-mismatch error message (string formatting), which cost about 3 s of every cold
+    kernel compile (benchmarks/bench_compile.py --events)."""
+    for i in range(src.size):
+        dst[i] = src[i]
+
+
 def fixed_step_loop(step):
     """Compiled loop over steps k_start .. k_stop - 1 of a run of ``nsteps`` steps of size dt
     (the last one clipped to t_final), so that Python regains control between chunks
@@ -84,11 +93,11 @@ def fixed_step_loop(step):
             if status != OK or is_blown_up(u, blowup):
                 counters[STEPS] += k + 1 - k_start
                 out_t[n_out] = t
-                out_u[n_out, :] = u
+                copy_into(out_u[n_out], u)
                 return (FAILED if status != OK else DIVERGED), n_out + 1, j, t
             if k + 1 == next_sample:
                 out_t[n_out] = t
-                out_u[n_out, :] = u
+                copy_into(out_u[n_out], u)
                 n_out += 1
                 j += 1
                 next_sample = sample_at[j]
@@ -151,7 +160,7 @@ def adaptive_loop(try_step):
                 return FAILED, n_out, t, h_next
             if code == 1:
                 t = t_end if t_end - (t + h_taken) <= 1e-14 * span else t + h_taken
-                u[:] = u_new
+                copy_into(u, u_new)
                 counters[STEPS] += 1
                 if h_taken < hstats[0]:
                     hstats[0] = h_taken
@@ -160,7 +169,7 @@ def adaptive_loop(try_step):
                 diverged = is_blown_up(u, blowup)
                 if counters[STEPS] % stride == 0 or t >= t_end or diverged:
                     out_t[n_out] = t
-                    out_u[n_out, :] = u
+                    copy_into(out_u[n_out], u)
                     n_out += 1
                 if diverged:
                     return DIVERGED, n_out, t, h_next

@@ -1,0 +1,125 @@
+"""Compile time of each scheme family's kernel: cold (empty caches) and warm (a cache hit).
+
+numba compilation, not integration, dominated the first main job's wall time (issue 12): a
+fresh process spent about 7 s compiling toda/rk4 and 19 s compiling bpl. This script and
+its asv twin (``CompileTime.track_cold_s`` / ``track_warm_s``, in seconds) keep that cost
+in the history, so a compile regression shows like a speed regression.
+
+Each measurement is a fresh Python process with its own empty ``NUMBA_CACHE_DIR`` and
+``LONGTIME_CACHE_DIR``: the cold figure is the first ``integrate`` call (compilation plus a
+ten-step run, whose integration is negligible), the warm figure the same call in a second
+process over the caches the first one filled. With ``--events`` the cold run also lists
+the functions numba spent longest compiling (numba's event API, ``numba:compile``), which
+is where to look when a family's figure grows.
+
+    python benchmarks/bench_compile.py                  # every family
+    python benchmarks/bench_compile.py -f bpl --events  # one family, with the breakdown
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+# one representative pair per scheme family (the family shares its driver and step shape)
+FAMILIES = {
+    "explicit-rk": ("toda", "rk4"),
+    "implicit-rk": ("toda", "gauss6"),
+    "splitting": ("figure-eight", "yoshida8"),
+    "embedded-rk": ("kepler", "rk45"),
+    "taylor": ("toda", "taylor-adaptive"),
+    "bpl": ("toda", "bpl"),
+    "exponential": ("kdv", "etdrk4"),
+    "constrained": ("double-pendulum", "rattle"),
+}
+
+# run in the child: time the first integrate call, optionally recording compile events
+_CHILD = r"""
+import contextlib, json, sys, time
+from numba.core import event
+from longtime import registry
+problem_name, scheme_name, events = sys.argv[1], sys.argv[2], sys.argv[3] == "1"
+problem = registry.problem_class(problem_name)()
+scheme = registry.integrator_class(scheme_name)()
+t_final = problem.t0 + 10 * problem.default_dt
+with (event.install_recorder("numba:compile") if events else contextlib.nullcontext()) as recorder:
+    start = time.perf_counter()
+    scheme.integrate(problem, t_final, max_samples=16)
+    seconds = time.perf_counter() - start
+top, begun = [], {}
+for ts, ev in (recorder.buffer if events else []):
+    fn = getattr(ev.data.get("dispatcher"), "py_func", None)
+    key = (id(ev.data.get("dispatcher")), str(ev.data.get("args")))
+    if ev.is_start:
+        begun[key] = ts
+    elif key in begun and fn is not None:
+        top.append((ts - begun.pop(key), f"{fn.__module__}.{fn.__qualname__}"))
+top.sort(reverse=True)
+print(json.dumps({"seconds": seconds, "top": top[:8]}))
+"""
+
+
+def measure(family: str, events: bool = False) -> dict:
+    """Cold and warm first-call seconds of ``family``'s pair, each in a fresh process."""
+    problem, scheme = FAMILIES[family]
+    with tempfile.TemporaryDirectory() as numba_dir, tempfile.TemporaryDirectory() as lt_dir:
+        env = {**os.environ, "NUMBA_CACHE_DIR": numba_dir, "LONGTIME_CACHE_DIR": lt_dir}
+        env.pop("LONGTIME_NO_KERNEL_CACHE", None)
+        figures = {}
+        for label, record in (("cold", events), ("warm", False)):
+            out = subprocess.run([sys.executable, "-c", _CHILD, problem, scheme, "1" if record else "0"],
+                                 env=env, capture_output=True, text=True, check=True)
+            result = json.loads(out.stdout.strip().splitlines()[-1])
+            figures[f"{label}_s"] = result["seconds"]
+            if record:
+                figures["top"] = result["top"]
+    return figures
+
+
+class CompileTime:
+    """asv: seconds of a family's first integrate call in a fresh process."""
+
+    params = [list(FAMILIES)]
+    param_names = ["family"]
+    timeout = 600
+    number = 1
+    repeat = 1
+
+    def setup_cache(self):
+        return {family: measure(family) for family in FAMILIES}
+
+    def track_cold_s(self, figures, family):
+        """First call with empty numba and kernel caches: compilation (and a 10-step run)."""
+        return figures[family]["cold_s"]
+
+    track_cold_s.unit = "seconds"
+
+    def track_warm_s(self, figures, family):
+        """First call in a new process over a filled cache: loading the cached kernel."""
+        return figures[family]["warm_s"]
+
+    track_warm_s.unit = "seconds"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("-f", "--family", action="append", choices=sorted(FAMILIES),
+                        help="families to measure (default: all)")
+    parser.add_argument("--events", action="store_true",
+                        help="list the functions that took longest to compile (cold run)")
+    args = parser.parse_args(argv)
+    print(f"{'family':14s} {'pair':28s} {'cold s':>8s} {'warm s':>8s}")
+    for family in args.family or list(FAMILIES):
+        figures = measure(family, args.events)
+        pair = " x ".join(FAMILIES[family])
+        print(f"{family:14s} {pair:28s} {figures['cold_s']:8.2f} {figures['warm_s']:8.2f}")
+        for seconds, label in figures.get("top", []):
+            print(f"{'':16s}{seconds:7.2f} s  {label}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
