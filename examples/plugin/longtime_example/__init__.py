@@ -1,0 +1,1 @@
+"""An example longtime plugin (docs/plugins.md): a pendulum and three schemes."""
