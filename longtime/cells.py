@@ -157,7 +157,7 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
                 note = f"no reference: {exc}"
         row.update(metrics.evaluate(problem, traj, ref, trust))
         row["status"] = traj.status
-        row["message"] = "; ".join(m for m in (traj.message, note) if m)
+        row["message"] = "; ".join(m for m in (traj.message, note, row["message"]) if m)  # + metrics' notes
     except (Exception, SystemExit) as exc:  # a failing cell never takes the matrix down
         # (a plugin's sys.exit too; os.abort or a segfault need a process per cell)
         row["status"] = "failed"

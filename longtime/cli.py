@@ -16,6 +16,7 @@ from .cells import SWEEP_PARAMETERS, expand
 from .integrator import Timing
 from .matrix import EXECUTORS, ExecOptions, run_matrix
 from .params import InputError
+from .reference import budget_seconds
 from .report import complete, render
 from .store import Store, default_path
 
@@ -114,6 +115,7 @@ def _sweeps(args) -> dict[str, list]:
 def _options(args) -> ExecOptions:
     if args.max_samples < 2:  # checked before a run is recorded: bad input leaves nothing to resume
         raise InputError(f"--max-samples {args.max_samples}: must be >= 2")
+    budget_seconds()  # $LONGTIME_REFERENCE_SECONDS: a bad value is bad input, before anything runs
     return ExecOptions(jobs=args.jobs, max_samples=args.max_samples,
                        timing=Timing(repeats=args.repeats, min_time=args.min_time),
                        cell_timeout=getattr(args, "cell_timeout", None),

@@ -53,7 +53,7 @@ def drift_fields(name: str, t: np.ndarray, err: np.ndarray) -> dict[str, Any]:
     finite = np.isfinite(err)
     upto = int(np.argmin(finite)) if not finite.all() else err.size
     tt, ee = t[:upto], err[:upto]
-    if upto == 0:
+    if upto < 2:  # the initial sample alone measures no drift: null, never 0
         return {f"{name}.{k}": None for k in ("max", "mean", "final", "t_1pct", "t_50pct")}
     return {
         f"{name}.max": finite_or_none(np.max(ee)),
@@ -93,16 +93,25 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
     t, U = t[:finite], U[:finite]
     if finite == 0:
         return row
+    notes: list[str] = []
     with np.errstate(all="ignore"):
         for name, values in problem.invariants(t, U).items():
-            row.update(drift_fields(name, t, relative_error(values)))
+            err = relative_error(values)
+            row.update(drift_fields(name, t, err))
+            bad = np.flatnonzero(~np.isfinite(err))
+            if bad.size:  # a plugin's invariant on a finite state: say so, do not just null it
+                notes.append(f"invariant {name} is not finite from t = {t[bad[0]]:.6g} on a finite state "
+                             f"(its drift is measured up to there)")
         for name, values in problem.violations(t, U).items():
             values = np.asarray(values, dtype=float)
             row[f"{name}.max"] = finite_or_none(np.max(values))
             row[f"{name}.final"] = finite_or_none(values[-1])
         # the initial state alone says nothing about the error: at least one sample after t0
         k = min(len(reference), finite) if reference is not None else 0
-        if k >= 2:
+        if k >= 2 and not np.isfinite(reference[:k]).all():
+            bad = int(np.argmin(np.isfinite(reference[:k]).all(axis=1)))
+            notes.append(f"the reference is not finite at t = {t[bad]:.6g}: no error measured")
+        elif k >= 2:
             diff = np.linalg.norm(U[:k] - reference[:k], axis=1)
             ref = np.linalg.norm(reference[:k], axis=1)
             row["l2_error"] = finite_or_none(np.sqrt(np.sum(diff**2) / np.sum(ref**2)))
@@ -110,4 +119,6 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
             if k == finite:
                 row["final_error"] = finite_or_none(diff[-1] / ref[-1] if ref[-1] > 0 else diff[-1])
     row.update(traj.extra)
+    if notes:
+        row["message"] = "; ".join(notes)
     return row

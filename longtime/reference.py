@@ -38,7 +38,23 @@ CHECK_POINTS = 2000  # the check grid holds between this many and twice as many 
 PRECISIONS = ("double", "long double", "real128")
 # a heyoka run that takes longer than this (wall seconds) is given up: the row keeps its
 # status and says so (duffing-1 far past t = 40 needs ever more steps per unit time)
-DEFAULT_BUDGET_S = float(os.environ.get("LONGTIME_REFERENCE_SECONDS", "120"))
+DEFAULT_BUDGET_S = 120.0
+BUDGET_VARIABLE = "LONGTIME_REFERENCE_SECONDS"
+
+
+def budget_seconds() -> float:
+    """The wall-time budget of one heyoka run: $LONGTIME_REFERENCE_SECONDS, else 120 s. Read
+    when needed (a bad value is an InputError naming the variable, not a crash at import)."""
+    text = os.environ.get(BUDGET_VARIABLE, "").strip()
+    if not text:
+        return DEFAULT_BUDGET_S
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (value > 0 and np.isfinite(value)):
+        raise InputError(f"{BUDGET_VARIABLE}={text!r} is not valid: expected a finite number of seconds > 0")
+    return value
 # the real128 run goes in this many pieces and stops once long double is seen to fail
 _PIECES = 16
 _TAYLOR: dict[tuple, object] = {}  # compiled integrators, by problem identity and precision
@@ -125,8 +141,9 @@ def reference_states(problem: Problem, times: np.ndarray, precision: str = "doub
         raise InputError(f"problem '{problem.name}' has neither an exact solution nor a heyoka system")
     _fp(precision)  # validates
     path = _cache_path(problem, "states", precision, times.tobytes(), suffix=".npy")
-    if path.exists():
-        return np.load(path)
+    cached = _load(path, lambda: np.load(path))
+    if cached is not None:
+        return cached
     # propagate_grid wants a strictly increasing grid that starts at the current time
     grid, inverse = np.unique(times, return_inverse=True)
     if grid[0] < problem.t0:
@@ -195,16 +212,20 @@ def _check_runs(problem: Problem, t_final: float, ladder: list[str],
     """The heyoka runs behind ``reference_check`` on its check grid, cached on disk: "times",
     one float64 array of states per precision run (rows reached), "stopped" {precision: t}
     for runs that passed their budget."""
-    budget = DEFAULT_BUDGET_S if budget_s is None else budget_s
+    budget = budget_seconds() if budget_s is None else budget_s
     parts = ("check", repr(t_final), str(CHECK_POINTS), repr(REFERENCE_RTOL), ",".join(ladder))
     paths = [_cache_path(problem, *parts), _cache_path(problem, *parts, f"budget={budget!r}")]
     for path in paths:
         if str(path) in _CHECKS:
             return _CHECKS[str(path)]
-        if path.exists():
+        def read(path=path):
             with np.load(path) as data:
                 runs = {k: data[k] for k in data.files if k != "stopped"}
                 runs["stopped"] = json.loads(str(data["stopped"]))
+            return runs
+
+        runs = _load(path, read)
+        if runs is not None:
             _CHECKS[str(path)] = runs
             return runs
     times, low, stopped = _stepped_run(problem, t_final, budget)
@@ -235,9 +256,9 @@ def _stepped_run(problem: Problem, t_final: float, budget_s: float) -> tuple[np.
     stopped it or None); the last row is where it ended."""
     import heyoka as hy
 
+    deadline = time.perf_counter() + budget_s  # the compile counts against the budget
     ta = _start(problem, "double")
     times, states, stride, count = [problem.t0], [problem.u0.copy()], 1, 0
-    deadline = time.perf_counter() + budget_s
 
     def record(ta) -> bool:
         nonlocal stride, count
@@ -268,8 +289,8 @@ def _propagate(problem: Problem, grid: np.ndarray, precision: str, budget_s: flo
     import heyoka as hy
 
     fp = _fp(precision)
-    ta = _start(problem, precision)
-    deadline = time.perf_counter() + (DEFAULT_BUDGET_S if budget_s is None else budget_s)
+    deadline = time.perf_counter() + (budget_seconds() if budget_s is None else budget_s)
+    ta = _start(problem, precision)  # its compile counts against the budget
     pieces = _PIECES if found_out is not None else 1
     bounds = np.unique(np.linspace(0, grid.size - 1, pieces + 1).round().astype(int))
     if bounds.size == 1:  # a grid of one time
@@ -337,6 +358,21 @@ def _cache_path(problem: Problem, *parts: str | bytes, suffix: str = ".npz") -> 
 
     key = digest(problem.identity(), problem.u0.tobytes(), repr(problem.t0), *parts, hy.__version__)
     return cache_dir("reference") / f"{problem.name}-{key}{suffix}"
+
+
+def _load(path: Path, read: Callable[[], Any]) -> Any:
+    """``read()`` of a cache file, or None when there is none; a file that cannot be read
+    (truncated, corrupt) is deleted, so it is recomputed instead of failing every rerun."""
+    if not path.exists():
+        return None
+    try:
+        return read()
+    except Exception as exc:  # np.load raises ValueError, OSError, EOFError, BadZipFile, KeyError...
+        import warnings
+
+        warnings.warn(f"discarding the unreadable reference cache file {path}: {exc!r}", stacklevel=2)
+        path.unlink(missing_ok=True)
+        return None
 
 
 def _save(path: Path, array: np.ndarray | None = None, **arrays: np.ndarray) -> None:
