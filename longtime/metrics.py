@@ -7,6 +7,9 @@ NAME.t_1pct, NAME.t_50pct (first sample time with e_I > 1 % / 50 %, null if neve
 Against the reference, over the samples up to its horizon (``error_horizon`` is the last
 one): ``l2_error`` = sqrt(sum |u - u_ref|^2 / sum |u_ref|^2), ``final_error`` the relative
 error at the last sample, null when the horizon ends before it.
+Growth law of each error (longtime.growth): NAME.growth, NAME.growth_ci, NAME.growth_class,
+NAME.saturated_t per invariant, and the same as ``error.`` for the relative solution error
+|u - u_ref| / |u_ref| over the samples up to the horizon.
 Non-finite values become null: a diverged run is a status, never a NaN in a table.
 """
 from __future__ import annotations
@@ -16,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from .growth import growth_fields
 from .integrator import Trajectory
 from .problem import Problem
 from .reference import Trust, trust_fields
@@ -86,11 +90,13 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
         "l2_error": None,  # null unless a reference is at hand
         "final_error": None,
         "error_horizon": None,  # the last sample time the errors cover
+        **growth_fields("error", np.empty(0), np.empty(0), problem.t0),  # null without a reference
         **trust_fields(trust),
     }
     # a diverged run ends on a non-finite state: measure the finite part (until the blow-up)
     finite = int(np.argmin(np.isfinite(U).all(axis=1))) if not np.isfinite(U).all() else t.size
     t, U = t[:finite], U[:finite]
+    diverged = traj.status == "diverged"
     if finite == 0:
         return row
     notes: list[str] = []
@@ -98,6 +104,7 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
         for name, values in problem.invariants(t, U).items():
             err = relative_error(values)
             row.update(drift_fields(name, t, err))
+            row.update(growth_fields(name, t, err, problem.t0, diverged))
             bad = np.flatnonzero(~np.isfinite(err))
             if bad.size:  # a plugin's invariant on a finite state: say so, do not just null it
                 notes.append(f"invariant {name} is not finite from t = {t[bad[0]]:.6g} on a finite state "
@@ -115,6 +122,9 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
             diff = np.linalg.norm(U[:k] - reference[:k], axis=1)
             ref = np.linalg.norm(reference[:k], axis=1)
             row["l2_error"] = finite_or_none(np.sqrt(np.sum(diff**2) / np.sum(ref**2)))
+            # growth law of the relative error |u - u_ref| / |u_ref|, up to the horizon
+            rel = diff / np.where(ref > 0, ref, 1.0)
+            row.update(growth_fields("error", t[:k], rel, problem.t0, diverged))
             row["error_horizon"] = float(t[k - 1])
             if k == finite:
                 row["final_error"] = finite_or_none(diff[-1] / ref[-1] if ref[-1] > 0 else diff[-1])
