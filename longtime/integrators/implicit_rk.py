@@ -11,7 +11,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..drivers import FAILED, NL_ITERS, OK, RHS_EVALS, reached_round_off, state_scale
+from ..drivers import FAILED, NL_ITERS, OK, RHS_EVALS, copy_into, reached_round_off, state_scale
 from ..integrator import FixedStepIntegrator
 from ..params import Param
 from .tableau import checked_on_definition
@@ -47,7 +47,7 @@ class ImplicitRungeKutta(FixedStepIntegrator):
             scale = state_scale(u)
             rhs(t, u, params, work[0])
             for i in range(1, s):
-                work[i, :] = work[0]
+                copy_into(work[i], work[0])
             evals = 1
             converged = False
             previous = np.inf
