@@ -127,14 +127,15 @@ def sample_steps(nsteps: int, max_samples: int, per_decade: int = 20) -> np.ndar
 
 
 @numba.njit(cache=True, inline="always")
-def compensated_add(u, m, increment, comp):
-    """u[m] += increment with Kahan's compensated summation: comp[m] carries the low-order
-    part that rounding u[m] + increment drops, and feeds it into the next update, so the
-    round-off of a long sum of small updates stays O(eps) instead of O(eps sqrt(n)..n)."""
-    y = increment - comp[m]
-    s = u[m] + y
-    comp[m] = (s - u[m]) - y
-    u[m] = s
+def compensated_add(u, i, increment, comp, j):
+    """u[i] += increment with Kahan's compensated summation: comp[j] carries the low-order
+    part that rounding u[i] + increment drops and feeds it into the next update, so the
+    sum of many small updates is rounded once, not once per step (round-off studies; the
+    schemes' ``compensated`` setting)."""
+    y = increment - comp[j]
+    s = u[i] + y
+    comp[j] = (s - u[i]) - y
+    u[i] = s
 
 
 def adaptive_loop(try_step):

@@ -224,6 +224,11 @@ def _cached_loop(integrator: Integrator, problem: Problem, build: Callable[[], C
     return _LOOPS[key]
 
 
+# the setting of the fixed-step families that sum the state update with Kahan's compensated
+# summation (drivers.compensated_add); off by default: the published schemes round plainly
+COMPENSATED = Param(False, "Kahan-compensated summation of the state update (round-off studies)", bool)
+
+
 class FixedStepIntegrator(Integrator):
     """A one-step (or self-starting multi-step) scheme with a constant step dt."""
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..drivers import OK, RHS_EVALS
-from ..integrator import FixedStepIntegrator
+from ..drivers import OK, RHS_EVALS, compensated_add
+from ..integrator import COMPENSATED, FixedStepIntegrator
 from .tableau import checked_on_definition
 
 
@@ -15,18 +15,20 @@ class ExplicitRungeKutta(FixedStepIntegrator):
     A: np.ndarray
     b: np.ndarray
     c: np.ndarray
+    parameters = {**FixedStepIntegrator.parameters, "compensated": COMPENSATED}
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         checked_on_definition(cls, explicit=True)  # a broken tableau fails at import
 
     def work_shape(self, problem):
-        return (len(self.b) + 1, problem.dim)  # stage slopes, then the stage state
+        return (len(self.b) + 2, problem.dim)  # stage slopes, the stage state, compensation
 
     def make_step(self, problem):
         rhs = problem.rhs
         A, b, c = (np.ascontiguousarray(x, dtype=np.float64) for x in (self.A, self.b, self.c))
         s = b.size
+        compensated = bool(self.settings["compensated"])
 
         @numba.njit
         def step(t, u, h, params, work, counters, first):
@@ -42,7 +44,10 @@ class ExplicitRungeKutta(FixedStepIntegrator):
                 acc = 0.0
                 for i in range(s):
                     acc += b[i] * work[i, m]
-                u[m] += h * acc
+                if compensated:
+                    compensated_add(u, m, h * acc, work[s + 1], m)
+                else:
+                    u[m] += h * acc
             counters[RHS_EVALS] += s
             return OK
 

@@ -10,9 +10,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..drivers import OK, RHS_EVALS
+from ..drivers import OK, RHS_EVALS, compensated_add
 from ..contract import check_splitting
-from ..integrator import FixedStepIntegrator
+from ..integrator import COMPENSATED, FixedStepIntegrator
 
 
 def compose(gammas) -> tuple[np.ndarray, np.ndarray]:
@@ -35,13 +35,15 @@ class Splitting(FixedStepIntegrator):
     symplectic = True
     kicks: np.ndarray
     drifts: np.ndarray
+    parameters = {**FixedStepIntegrator.parameters, "compensated": COMPENSATED}
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         check_splitting(cls)  # inconsistent coefficients fail at import
 
     def work_shape(self, problem):
-        return (3, problem.dim // 2)  # force, velocity, diag(M^-1) when T is quadratic
+        # force, velocity, diag(M^-1) when T is quadratic, compensation of q and of p
+        return (5, problem.dim // 2)
 
     def prepare_work(self, problem, work):
         inverse = problem.inverse_masses()
@@ -58,6 +60,7 @@ class Splitting(FixedStepIntegrator):
         ends_fresh = drifts[last] == 0.0
         # T = p.M^-1 p / 2: drift with the stored diag(M^-1), no call to grad_T
         quadratic = problem.inverse_masses() is not None
+        compensated = bool(self.settings["compensated"])  # every kick and drift, when set
 
         @numba.njit
         def step(t, u, h, params, work, counters, first):
@@ -72,15 +75,24 @@ class Splitting(FixedStepIntegrator):
                         evals += 1
                         fresh = True
                     for m in range(n):
-                        u[n + m] -= kicks[i] * h * work[0, m]
+                        if compensated:
+                            compensated_add(u, n + m, -(kicks[i] * h * work[0, m]), work[4], m)
+                        else:
+                            u[n + m] -= kicks[i] * h * work[0, m]
                 if drifts[i] != 0.0:
                     if quadratic:
                         for m in range(n):
-                            u[m] += drifts[i] * h * work[2, m] * u[n + m]
+                            if compensated:
+                                compensated_add(u, m, drifts[i] * h * work[2, m] * u[n + m], work[3], m)
+                            else:
+                                u[m] += drifts[i] * h * work[2, m] * u[n + m]
                     else:
                         grad_T(u[n:], params, work[1])
                         for m in range(n):
-                            u[m] += drifts[i] * h * work[1, m]
+                            if compensated:
+                                compensated_add(u, m, drifts[i] * h * work[1, m], work[3], m)
+                            else:
+                                u[m] += drifts[i] * h * work[1, m]
                     fresh = False
             counters[RHS_EVALS] += evals
             return OK
