@@ -1,0 +1,114 @@
+"""``longtime warmup``: compile the kernels of a selection into the disk caches, in parallel.
+
+Compilation, not integration, is most of a cold first run (benchmarks/bench_compile.py). A
+warm-up before CI's tests, an asv run or a cluster sweep pays it once, on every core, and
+leaves each kernel in ``$LONGTIME_CACHE_DIR/kernels`` and numba's cache, where every later
+process loads it in a fraction of a second. It compiles exactly the kernels the same
+selection of ``longtime matrix`` would run: the cells of the default sweep, each integrated
+over two steps (no reference, no metrics). Kernels are keyed by what they run, so cells
+that differ only in a run-time value (dt, a tolerance) share one compilation.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from typing import Any
+
+from .cells import Cell, expand
+from .integrator import FixedStepIntegrator, Timing
+
+# integrator settings read at run time (not closed over by a kernel): cells that differ only
+# in these compile one kernel, so one of them is warmed
+RUN_TIME_SETTINGS = ("dt", "tol", "eps_res")
+
+
+def distinct_kernels(cells: list[Cell]) -> list[Cell]:
+    """One runnable cell per (problem, problem settings, scheme, compile-time settings)."""
+    seen: dict[str, Cell] = {}
+    for cell in cells:
+        if cell.skip_reason:
+            continue
+        fixed = {k: v for k, v in cell.integrator_settings.items() if k not in RUN_TIME_SETTINGS}
+        key = repr((cell.problem, sorted(cell.problem_settings.items()), cell.integrator, sorted(fixed.items())))
+        seen.setdefault(key, cell)
+    return list(seen.values())
+
+
+def warm_cell(cell: Cell) -> dict[str, Any]:
+    """Compile ``cell``'s kernel by integrating two steps; seconds taken, or the error."""
+    from . import registry
+
+    start = time.perf_counter()
+    try:
+        problem = registry.problem_class(cell.problem)(**cell.problem_settings)
+        integrator = registry.integrator_class(cell.integrator)(**cell.integrator_settings)
+        step = (integrator.dt_for(problem) if isinstance(integrator, FixedStepIntegrator)
+                else float(problem.default_dt))
+        integrator.integrate(problem, problem.t0 + 2 * step, max_samples=16, timing=Timing(repeats=1))
+        error = None
+    except Exception as exc:  # reported, never fatal: the matrix would report it as a row
+        error = f"{type(exc).__name__}: {exc}"
+    return {"problem": cell.problem, "integrator": cell.integrator, "seconds": time.perf_counter() - start,
+            "error": error}
+
+
+def _warm_batch(cells: list[Cell]) -> list[dict[str, Any]]:
+    return [warm_cell(c) for c in cells]
+
+
+def warmup(cells: list[Cell], jobs: int = 0) -> list[dict[str, Any]]:
+    """Warm the distinct kernels of ``cells`` on ``jobs`` processes (0: one per core); one
+    batch per problem x scheme pair, so a worker compiles what that pair's cells share once."""
+    from .matrix import batches_by_pair
+
+    batches = batches_by_pair(distinct_kernels(cells))
+    workers = min(jobs if jobs > 0 else (os.cpu_count() or 1), max(1, len(batches)))
+    if workers <= 1:
+        return [r for batch in batches for r in _warm_batch(batch)]
+    results = []
+    # spawn, as the matrix's pool: a fork after numba's or heyoka's threads start can deadlock
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        for future in as_completed([pool.submit(_warm_batch, b) for b in batches]):
+            results.extend(future.result())
+    return results
+
+
+def cmd_warmup(args) -> int:
+    from .cli import _warn_broken
+    from . import registry
+
+    _warn_broken()
+    problems = args.problem or sorted(registry.problems())
+    schemes = args.integrator or sorted(registry.integrators())
+    cells = expand(problems, schemes, sets=dict(args.set), default_sweep=True)
+    start = time.perf_counter()
+    results = warmup(cells, args.jobs)
+    wall = time.perf_counter() - start
+    failed = [r for r in results if r["error"]]
+    if args.verbose:
+        for r in sorted(results, key=lambda r: -r["seconds"]):
+            print(f"{r['seconds']:7.2f} s  {r['problem']} x {r['integrator']}"
+                  + (f"  ({r['error']})" if r["error"] else ""))
+    print(f"warmed {len(results) - len(failed)} kernels in {wall:.1f} s wall "
+          f"({sum(r['seconds'] for r in results):.1f} s over the workers)", file=sys.stderr)
+    for r in failed:
+        print(f"warning: {r['problem']} x {r['integrator']} did not compile: {r['error']}", file=sys.stderr)
+    return 0
+
+
+def add_parser(subparsers) -> None:
+    from .cli import _key_value, _names
+
+    p = subparsers.add_parser("warmup", help="compile the kernels of a selection into the caches, in parallel")
+    p.add_argument("-p", "--problem", type=_names, default=None, metavar="PROBLEM[,..]",
+                   help="problems (default: all)")
+    p.add_argument("-i", "--integrator", type=_names, default=None, metavar="SCHEME[,..]",
+                   help="schemes (default: all)")
+    p.add_argument("--set", type=_key_value, action="append", default=[], metavar="KEY=VALUE",
+                   help="a problem or scheme parameter, as for `longtime matrix` (repeatable)")
+    p.add_argument("--jobs", type=int, default=0, help="worker processes (default: one per core)")
+    p.add_argument("-v", "--verbose", action="store_true", help="list every kernel and its seconds")
+    p.set_defaults(func=cmd_warmup)
