@@ -21,7 +21,7 @@ from .report import complete, render
 from .store import Store, default_path
 
 # modules that add subcommands: each defines add_parser(subparsers) and sets func
-COMMAND_MODULES: tuple[str, ...] = ("longtime.cache_cmd", "longtime.matched", "longtime.plot", "longtime.reproduce", "longtime.warmup")
+COMMAND_MODULES: tuple[str, ...] = ("longtime.cache_cmd", "longtime.matched", "longtime.plot", "longtime.reproduce", "longtime.roundoff", "longtime.warmup")
 
 
 def _floats(flag: str) -> Callable[[str], list[float]]:

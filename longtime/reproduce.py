@@ -440,12 +440,19 @@ def section_kdv(ctx: Context) -> str:
         "- The sizes d = 128 ... 512 and the orders N = 4 ... 14 of the paper: `longtime match -p kdv --scaling`."])
 
 
+def section_roundoff(ctx: Context) -> str:
+    from .roundoff import section  # issue 10: Brouwer's law or drift, per scheme and setting
+
+    return section(ctx.quick, jobs=ctx.options.jobs)
+
+
 SECTIONS: list[tuple[str, Callable[[Context], str]]] = [
     ("Toda lattice: E_mean at t_f = 5000 (SPEC.md 1.1, 4)", section_toda),
     ("Three-body figure-eight (SPEC.md 1.2)", section_figure_eight),
     ("Double pendulum, Cartesian, constrained (SPEC.md 1.3)", section_pendulum),
     ("Duffing oscillator (SPEC.md 1.4)", section_duffing),
     ("Korteweg-de Vries soliton (SPEC.md 1.5, 4)", section_kdv),
+    ("Round-off: Brouwer's law against linear drift", section_roundoff),
 ]
 
 
