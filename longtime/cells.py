@@ -121,6 +121,11 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
                 settings = {**isets, **dict(point)}
                 icls(**settings)  # validates dt > 0, tol > 0, ...
                 cells.append(Cell(pname, iname, psets, settings, tf))
+            # the default matrix's long-time cell (issue 10): the problem's paper-scale final
+            # time at its default step, for the schemes that can afford it (``long_runs``)
+            long_tf = getattr(pcls, "long_t_final", None)
+            if default_sweep and t_final is None and long_tf and icls.long_runs and "dt" not in sweeps:
+                cells.append(Cell(pname, iname, psets, {**isets, "dt": pcls.default_dt}, long_tf))
     return cells
 
 

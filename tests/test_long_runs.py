@@ -43,3 +43,16 @@ def test_a_deadline_stops_a_run_between_chunks(monkeypatch):
     assert traj.status == "timeout" and "time limit" in traj.message
     assert traj.steps == 1000 and abs(traj.t[-1] - 100.0) < 1e-9  # one chunk, then stopped
     assert traj.extra["repeats"] == 1
+
+
+def test_default_matrix_has_paper_scale_cells_for_the_schemes_that_can_afford_them():
+    from longtime.cells import expand
+
+    cells = expand(["toda", "kepler"], ["rk4", "verlet", "gauss4", "rk45"], default_sweep=True)
+    long = {(c.problem, c.integrator): c for c in cells if c.t_final in (5000.0, 2000 * np.pi)}
+    assert set(long) == {("toda", "rk4"), ("toda", "verlet"), ("kepler", "rk4"), ("kepler", "verlet")}
+    assert long["toda", "rk4"].integrator_settings == {"dt": 0.1}
+    assert long["kepler", "verlet"].integrator_settings == {"dt": 0.01}
+    # an explicit --dt or --t-final is the user's matrix: no extra cells
+    assert all(c.t_final == 500.0 for c in expand(["toda"], ["rk4"], sweeps={"dt": [0.1]}, default_sweep=True))
+    assert all(c.t_final == 10.0 for c in expand(["toda"], ["rk4"], t_final=10.0, default_sweep=True))

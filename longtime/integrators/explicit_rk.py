@@ -16,6 +16,7 @@ class ExplicitRungeKutta(FixedStepIntegrator):
     b: np.ndarray
     c: np.ndarray
     parameters = {**FixedStepIntegrator.parameters, "compensated": COMPENSATED}
+    long_runs = True  # a few right-hand sides a step: paper-scale final times in the matrix
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)

@@ -36,6 +36,7 @@ class Splitting(FixedStepIntegrator):
     kicks: np.ndarray
     drifts: np.ndarray
     parameters = {**FixedStepIntegrator.parameters, "compensated": COMPENSATED}
+    long_runs = True  # a few forces a step: paper-scale final times in the matrix
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)

@@ -42,6 +42,7 @@ class HenonHeiles(Problem):
     default_dt = 0.05
     sweep_dt = (0.1, 0.05)
     sweep_t_final = 500.0
+    long_t_final = 10_000.0  # over 10^3 oscillation periods, for the schemes that can afford it
 
     rhs = staticmethod(separable_rhs(_grad_T, _grad_V))
     grad_T = staticmethod(_grad_T)

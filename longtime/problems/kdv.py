@@ -203,6 +203,7 @@ class KdV(Problem):
     default_dt = 1e-3
     sweep_dt = (2e-3, 1e-3)
     sweep_t_final = SOLITON_PERIOD / 2
+    long_t_final = 10 * SOLITON_PERIOD  # 10 periods, for the schemes that can afford it (issue 10)
     sweep_min_tolerance = 1e-7
 
     rhs = staticmethod(_rhs)

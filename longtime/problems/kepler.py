@@ -103,6 +103,7 @@ class Kepler(Problem):
     default_dt = 0.01
     sweep_dt = (0.02, 0.01, 0.005)
     sweep_t_final = 40 * np.pi
+    long_t_final = 2000 * np.pi  # 10^3 periods, for the schemes that can afford it
 
     rhs = staticmethod(separable_rhs(_grad_T, _grad_V))
     grad_T = staticmethod(_grad_T)
