@@ -71,6 +71,9 @@ class Timing:
     repeats: int = 7
     min_time: float = 0.2
     MIN_RUNS: ClassVar[int] = 3
+    # a run longer than this (wall seconds) is timed once: repeating a 10^8-step cell would
+    # cost minutes for a spread that is small at that length (the row says so)
+    ONCE_ABOVE: ClassVar[float] = 5.0
 
     def __post_init__(self) -> None:
         if isinstance(self.repeats, bool) or not isinstance(self.repeats, (int, np.integer)) \
@@ -83,6 +86,8 @@ class Timing:
 
     def wants_another(self, wall_times: list[float]) -> bool:
         n = len(wall_times)
+        if n and wall_times[0] > self.ONCE_ABOVE:
+            return False
         return n < self.repeats and (n < self.MIN_RUNS or sum(wall_times) < self.min_time)
 
 
@@ -188,7 +193,9 @@ class Integrator(ABC):
                 wall.append(again.wall_s)
         finally:
             self._deadline = None
-        first.cpu_s, first.wall_s = min(cpu), min(wall)
+        if len(cpu) == 1 < timing.repeats and first.status == "ok" and wall[0] > Timing.ONCE_ABOVE:
+            note = f"timed once: one run takes {wall[0]:.3g} s"
+            first.message = f"{first.message}; {note}" if first.message else note
         first.cpu_s, first.wall_s = min(cpu), min(wall)
         first.extra.update(repeats=len(cpu), cpu_s_median=float(np.median(cpu)), cpu_s_max=max(cpu),
                            wall_s_median=float(np.median(wall)), wall_s_max=max(wall))
