@@ -30,7 +30,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from .orders import describe, observed_orders
-from .report import _not_ok, _positive, format_counts, pareto, pareto_field, setting, status_counts
+from .report import (_not_ok, _positive, format_counts, pareto, pareto_field, pareto_groups, setting, status_counts,
+                     target_text)
 
 DRIFT_BUDGET_S = 2.0  # stored cpu_s above which a drift curve is not recomputed for the page
 DRIFT_SAMPLES = 2001
@@ -239,9 +240,9 @@ def _pareto_table(rows: list[dict]) -> str:
     front = pareto(rows, field) if field else []
     if not front:
         return '<p class="note">No ok row with an error and a CPU time.</p>'
-    body = [[f"{p['target']:.0e}", p["best"]["integrator"], setting(p["best"]), _num(p["best"]["cpu_s"]),
+    body = [[target_text(p), p["best"]["integrator"], setting(p["best"]), _num(p["best"]["cpu_s"]),
              (f"{p['next']['integrator']} ({setting(p['next'])})" if p["next"] else "none"),
-             (f"x{p['slower']:.3g}" if p["slower"] else "-")] for p in front]
+             (f"x{p['slower']:.3g}" if p["slower"] else "-")] for p in pareto_groups(front)]
     return (f'<p class="note">For each target, the fastest ok row whose {_e(field)} meets it (CPU: the '
             f'minimum of the repeats) and the fastest other scheme meeting it.</p>'
             + _table([f"{field} <=", "fastest scheme", "setting", "CPU s", "next best scheme", "next is slower"],
@@ -249,20 +250,28 @@ def _pareto_table(rows: list[dict]) -> str:
 
 
 def _growth_table(rows: list[dict]) -> str | None:
+    """One line per scheme: per invariant (and the error), the growth classes over its
+    settings and the range of the fitted exponents."""
     names = sorted({k[: -len(".growth_class")] for r in rows for k in r
                     if k.endswith(".growth_class") and r.get(k)})
     if not names:
         return None
     body = []
-    for r in sorted((r for r in rows if r.get("status") == "ok"), key=lambda r: (r["integrator"], setting(r))):
+    ok = [r for r in rows if r.get("status") == "ok"]
+    for scheme in sorted({r["integrator"] for r in ok}):
+        mine = [r for r in ok if r["integrator"] == scheme]
         cells = []
         for n in names:
-            g, ci, c = r.get(f"{n}.growth"), r.get(f"{n}.growth_ci"), r.get(f"{n}.growth_class")
-            ci_text = f" [{_num(ci[0])}, {_num(ci[1])}]" if isinstance(ci, (list, tuple)) and len(ci) == 2 \
-                else (f" +- {_num(ci)}" if _positive(ci) else "")
-            cells.append(f"{c or '-'} ({_num(g)}{ci_text})" if c or g is not None else "-")
-        body.append([r["integrator"], setting(r), *cells])
-    return _table(["scheme", "setting", *[f"{n}: class (exponent)" for n in names]], body)
+            classes = sorted({str(r[f"{n}.growth_class"]) for r in mine if r.get(f"{n}.growth_class")})
+            exps = [r[f"{n}.growth"] for r in mine if _positive(abs(r.get(f"{n}.growth") or 0))
+                    or r.get(f"{n}.growth") == 0]
+            span = "" if not exps else (f" {_num(min(exps))}" if min(exps) == max(exps)
+                                        else f" {_num(min(exps))}..{_num(max(exps))}")
+            cells.append(("/".join(classes) or "-") + span)
+        body.append([scheme, str(len(mine)), *cells])
+    return ('<p class="note">Growth law of each drift (and of the solution error) fitted over time: its class, '
+            'and the fitted exponent (range over the settings).</p>'
+            + _table(["scheme", "settings", *[f"{n}: class exponent" for n in names]], body))
 
 
 def _orders_table(fits: list[dict]) -> str | None:
@@ -307,20 +316,40 @@ def _capability_matrix(rows: list[dict]) -> str:
     return _table(["scheme \\ problem", *problems], body, raw=True)
 
 
-def _stability_table(schemes: Sequence[str]) -> str | None:
-    from .stability import cached_intervals
+def _stability_table(rows: list[dict]) -> str | None:
+    from .stability import SERIES_ORDERS, interval_texts
 
-    found = cached_intervals(schemes)
+    wanted: dict[str, set | None] = {}
+    for r in rows:
+        if r.get("status") == "skipped":
+            wanted.setdefault(r["integrator"], None)
+            continue
+        n = r.get("order")
+        orders = wanted.get(r["integrator"]) or set()
+        orders.add(int(n) if isinstance(n, (int, float)) and n == n else None)
+        wanted[r["integrator"]] = orders
+    # a series scheme at the N its rows ran with (its default N where the row has none)
+    from . import registry
+
+    schemes = {}
+    for s, orders in wanted.items():
+        param = registry.integrator_class(s).parameters.get("order") if s in registry.integrators() else None
+        if param is None:
+            schemes[s] = None
+        else:
+            schemes[s] = sorted({param.default if n is None else n for n in (orders or {None})}) or [SERIES_ORDERS[0]]
+    found = interval_texts(schemes, compute=True)
     if not found:
         return None
     body = [[s, txt] for s, txt in sorted(found.items())]
-    return ('<p class="note">Imaginary-axis stability interval: the largest Y with |R(iy)| <= 1 for '
-            '0 <= y <= Y, R measured from one step of each scheme on u\' = lambda u '
-            '(<code>longtime list --stability</code>); a step h on a mode of frequency omega is stable '
-            'while omega h <= Y.</p>' + _table(["scheme", "interval"], body))
+    return ('<p class="note">Imaginary-axis stability interval: the y with |R(iy)| <= 1 (to 1e-9), R measured '
+            'from one step of each scheme on the rotation q\' = p, p\' = -q (<code>longtime list --stability</code>, '
+            '<code>longtime plot stability</code>); a step h on a mode of frequency omega is stable while '
+            'omega h is in it.</p>' + _table(["scheme", "interval of y"], body))
 
 
-def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bool = True) -> str:
+def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bool = True,
+               stability: bool = True) -> str:
     """The page's HTML for ``rows`` (of the ``runs`` whose metadata heads it)."""
     problems = sorted({r["problem"] for r in rows})
     style = styles(sorted({r["integrator"] for r in rows}))
@@ -364,7 +393,7 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
             out.append("<h3>Not run to the end</h3><ul>" + "".join(
                 f"<li>{_e(why)}: {_e(', '.join(s))}</li>" for why, s in sorted(folded.items())) + "</ul>")
     out.append('<h2 id="capabilities">Capability matrix</h2>' + _capability_matrix(rows))
-    stab = _stability_table(sorted({r["integrator"] for r in rows}))
+    stab = _stability_table(rows) if stability else None
     if stab:
         out.append('<h2 id="stability">Linear stability</h2>' + stab)
     out.append(f'<p class="note">Written {datetime.now(timezone.utc).isoformat(timespec="seconds")} by '

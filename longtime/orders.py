@@ -85,11 +85,12 @@ def declared_order(row: dict) -> int | None:
         return None
     if cls.order is not None:
         return int(cls.order)
-    # a series scheme's order is its parameter N (taylor; bpl sums the same series)
-    if _pos(row.get("order")):
-        return int(row["order"])
+    # a fixed-step series scheme's order is its parameter N (taylor); a resummed one under
+    # residual control (bpl) declares none
     param = cls.parameters.get("order")
-    return int(param.default) if param is not None and param.default is not None else None
+    if param is None or cls.kind != "fixed":
+        return None
+    return int(row["order"]) if _pos(row.get("order")) else (int(param.default) if param.default else None)
 
 
 def observed_orders(rows: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:

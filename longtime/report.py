@@ -9,7 +9,9 @@ from typing import Any, Iterable
 
 import pandas as pd
 
-# the JSON contract of DESIGN.md: every row carries these keys (null where not applicable)
+from .fmt import number
+
+# the JSON contract (README.md, `--format json`): every row carries these keys (null where not applicable)
 CONTRACT_FIELDS = ("problem", "integrator", "status", "message", "dt", "order", "tol", "eps_res",
                    "t_final", "steps", "rhs_evals", "cpu_s", "wall_s", "mean_dt")
 PARAMETER_COLUMNS = ("dt", "tol", "eps_res", "order", "settings")
@@ -26,11 +28,7 @@ def frame(rows: Iterable[dict[str, Any]]) -> pd.DataFrame:
 
 
 def _fmt(x) -> str:
-    if x is None or (isinstance(x, float) and pd.isna(x)):
-        return "-"
-    if isinstance(x, float):
-        return f"{x:.3e}" if (x != 0 and (abs(x) < 1e-2 or abs(x) >= 1e4)) else f"{x:.4g}"
-    return str(x)
+    return number(x)  # one number format for every report (longtime.fmt)
 
 
 def problem_table(df: pd.DataFrame) -> pd.DataFrame:
@@ -127,6 +125,23 @@ def pareto(rows: list[dict[str, Any]], field: str | None = None) -> list[dict[st
     return out
 
 
+def pareto_groups(front: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Consecutive decades with the same fastest row and the same runner-up folded into one
+    entry: ``target`` the loosest, ``finest`` the tightest of them."""
+    out: list[dict[str, Any]] = []
+    for p in front:
+        last = out[-1] if out else None
+        if last and last["best"] is p["best"] and last["next"] is p["next"]:
+            last["finest"] = p["target"]
+        else:
+            out.append({**p, "finest": p["target"]})
+    return out
+
+
+def target_text(p: dict[str, Any]) -> str:
+    return f"{p['target']:.0e}" if p["finest"] == p["target"] else f"{p['target']:.0e}..{p['finest']:.0e}"
+
+
 def _growth_summary(rows: list[dict[str, Any]]) -> list[str]:
     """'rk4: H linear' per scheme where rows carry growth classes (issue 10's fields)."""
     out = []
@@ -160,10 +175,10 @@ def summary(rows: list[dict[str, Any]], orders: bool = True) -> str:
         front = pareto(mine, field) if field else []
         if front:
             lines.append(f"  fastest scheme per accuracy ({field} <= target; CPU s, minimum of repeats):")
-            for p in front:
+            for p in pareto_groups(front):
                 b, n = p["best"], p["next"]
                 nxt = f"next {n['integrator']} x{p['slower']:.3g}" if n else "no other scheme"
-                lines.append(f"  {p['target']:7.0e}  {b['integrator']:<18s} {setting(b):<22s} "
+                lines.append(f"  {target_text(p):>14s}  {b['integrator']:<16s} {setting(b):<20s} "
                              f"{b['cpu_s']:9.3g} s  {nxt}")
         else:
             lines.append("  no ok row with an error and a CPU time")

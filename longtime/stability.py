@@ -11,7 +11,10 @@ phases e^(i theta) instead.
 
 The imaginary-axis interval (the largest Y with |R(iy)| <= 1 + ``TOL`` on all of
 [0, Y]) caps the step on oscillatory problems: a mode of frequency omega is stable while
-omega h <= Y. It is measured on the rotation q' = p, p' = -q (the ``harmonic`` problem,
+omega h <= Y. Beside it, where it differs, the Y up to which the growth stays below 1 %
+per step (``GROWTH_1PCT``, bpl's amplification onset): a truncated series of order
+N = 5, 6 (mod 4) grows by y^(N+2)-small factors from y = 0, so only this bound says
+where its growth becomes fast. It is measured on the rotation q' = p, p' = -q (the ``harmonic`` problem,
 omega = 1, step h = y), which every scheme that needs a separable Hamiltonian can also
 step; for a linear but not complex-linear step (Verlet, symplectic Euler) the growth is
 the spectral radius of the 2x2 step matrix, the factor a mode sees step after step.
@@ -32,7 +35,8 @@ from .params import InputError, Param
 from .problem import Problem
 
 TOL = 1e-9  # |R| above 1 + TOL is growth (round-off in |R| is ~1e-15)
-PHASES = 16
+GROWTH_1PCT = 1e-2  # the looser bound of bpl.AMPLIFICATION_GROWTH: a mode grows by 1 % per step
+PHASES = 48  # starting phases where a step is not linear (as bpl.amplification)
 Y_MAX = 12.0  # the imaginary axis is scanned on [0, Y_MAX]
 Y_STEP = 0.01
 SERIES_ORDERS = (4, 6, 8, 10, 12, 14)
@@ -164,16 +168,22 @@ def _growth(step, params: np.ndarray, h: float, phases: int) -> tuple[complex, f
     r = complex(u1[0], u1[1])
     if not np.all(np.isfinite(u1)) or not np.all(np.isfinite(ui)):
         return r, np.inf
-    if abs(ui[0] + u1[1]) <= 1e-12 * max(1.0, abs(r)) and abs(ui[1] - u1[0]) <= 1e-12 * max(1.0, abs(r)):
-        return r, abs(r)  # complex-linear: multiplication by R
-    # real-linear? then the spectral radius of the step matrix is what repeats
-    mid = np.array([math.sqrt(0.5), math.sqrt(0.5)])
-    ok = step(mid, params, h)
+    # linear? two probes at phases that no symmetry of the rotation relates to 0 or pi/2
+    # (a componentwise Pade is homogeneous, so u = 1 and u = i alone cannot tell)
     m = np.column_stack([u1, ui])
-    if ok and np.allclose(mid, m @ np.array([math.sqrt(0.5), math.sqrt(0.5)]), rtol=1e-10, atol=1e-12):
-        return r, float(max(abs(np.linalg.eigvals(m))))
+    linear = True
+    for theta in (0.3, 1.1):
+        probe = np.array([math.cos(theta), math.sin(theta)])
+        linear = linear and step(probe, params, h) and np.allclose(
+            probe, m @ np.array([math.cos(theta), math.sin(theta)]), rtol=1e-10, atol=1e-12)
+    if linear:
+        scale = max(1.0, abs(r))
+        if abs(ui[0] + u1[1]) <= 1e-12 * scale and abs(ui[1] - u1[0]) <= 1e-12 * scale:
+            return r, abs(r)  # complex-linear: multiplication by R
+        return r, float(max(abs(np.linalg.eigvals(m))))  # the factor that repeats, step after step
     worst = 0.0
-    for theta in np.linspace(0.0, 2 * np.pi, phases, endpoint=False):
+    # u -> -u maps a step onto its negative (odd in u), so half a turn of phases covers all
+    for theta in np.linspace(0.0, np.pi, phases, endpoint=False):
         u = np.array([math.cos(theta), math.sin(theta)])
         if not step(u, params, h):
             return r, np.nan
@@ -205,18 +215,27 @@ def imaginary_growth(name: str, ys: Iterable[float], order: int | None = None,
     return np.array([_growth(step, problem.params, float(y), phases)[1] for y in ys])
 
 
+def _first_stable_run(ys: np.ndarray, growth: np.ndarray, tol: float) -> tuple[float, int | None]:
+    bad = np.nonzero(~(growth <= 1.0 + tol))[0]
+    if bad.size == 0:
+        return float(ys[-1]), None
+    k = int(bad[0])
+    return (float(ys[k - 1]) if k else 0.0), k
+
+
 def imaginary_interval(name: str, order: int | None = None, y_max: float = Y_MAX,
                        y_step: float = Y_STEP) -> dict[str, Any]:
-    """{"y": Y, "bounded": bool, "why": ...}: the largest Y (to y_step) with growth
-    <= 1 + TOL on all of [0, Y]; bounded False when the whole scanned range is stable."""
+    """{"y", "bounded", "why", "y_1pct"}: the largest Y (to y_step) with growth <= 1 + TOL
+    on all of [0, Y] (bounded False: the whole scanned range is), and the same with growth
+    up to 1 % per step allowed (``y_1pct``: where a mode's growth becomes fast)."""
     ys = np.arange(y_step, y_max + 0.5 * y_step, y_step)
     growth = imaginary_growth(name, ys, order)
-    bad = np.nonzero(~(growth <= 1.0 + TOL))[0]
-    if bad.size == 0:
-        return {"y": float(y_max), "bounded": False, "why": f"stable on all of [0, {y_max:g}]"}
-    k = int(bad[0])
+    y, k = _first_stable_run(ys, growth, TOL)
+    y_1pct, _ = _first_stable_run(ys, growth, GROWTH_1PCT)
+    if k is None:
+        return {"y": y, "bounded": False, "why": f"stable on all of [0, {y_max:g}]", "y_1pct": y_1pct}
     why = "step failed" if np.isnan(growth[k]) else f"|R| = {growth[k]:.6g}"
-    return {"y": round(float(ys[k - 1]) if k else 0.0, 6), "bounded": True, "why": f"{why} at y = {ys[k]:.3g}"}
+    return {"y": round(y, 6), "bounded": True, "why": f"{why} at y = {ys[k]:.3g}", "y_1pct": round(y_1pct, 6)}
 
 
 def orders_of(name: str) -> list[int | None]:
@@ -232,7 +251,11 @@ def format_interval(result: dict[str, Any]) -> str:
     y = result["y"]
     if not result["bounded"]:
         return f"[0, >= {y:.3g}]"
-    return f"[0, {y:.3g}]" + (" (its step fails beyond)" if result["why"].startswith("step failed") else "")
+    text = f"[0, {y:.3g}]" + (" (its step fails beyond)" if result["why"].startswith("step failed") else "")
+    y1 = result.get("y_1pct")
+    if y1 is not None and y1 > 1.1 * y + 0.05:  # only where the two bounds tell different stories
+        text += f" (growth <= 1 %/step to {y1:.3g})"
+    return text
 
 
 # ------------------------------------------------------------------ cached results
@@ -247,7 +270,7 @@ def _cache_key(name: str, order: int | None) -> str:
         code = fingerprint(build(Harmonic()))
     except Exception:  # no fingerprint (an opaque closure, a scheme that cannot step it): the class
         code = f"{type(scheme).__module__}.{type(scheme).__qualname__}"
-    return digest(name, str(order), code, repr((TOL, Y_MAX, Y_STEP, PHASES)))
+    return digest(name, str(order), code, repr((TOL, GROWTH_1PCT, Y_MAX, Y_STEP, PHASES, 3)))
 
 
 def _cache_file(name: str, order: int | None):
@@ -256,12 +279,14 @@ def _cache_file(name: str, order: int | None):
     return cache_dir("stability") / f"{name}-N{order}-{_cache_key(name, order)}.json"
 
 
-def intervals(name: str, compute: bool = True) -> dict[str, dict[str, Any]]:
+def intervals(name: str, compute: bool = True, orders: Iterable[int] | None = None) -> dict[str, dict[str, Any]]:
     """{"" or "N=4": result}: the scheme's imaginary-axis interval(s), from the cache, or
-    measured (and cached) when ``compute``; empty when neither."""
+    measured (and cached) when ``compute``; empty when neither. ``orders``: the N of a
+    series scheme (default ``SERIES_ORDERS``)."""
     out = {}
     try:
-        orders = orders_of(name)
+        orders = orders_of(name) if orders is None or orders_of(name) == [None] else sorted(set(orders))
+        _scheme(name, orders[0])  # not measurable at all: one reason, not one per N
         for order in orders:
             label = "" if order is None else f"N={order}"
             try:
@@ -291,14 +316,15 @@ def describe(name: str, compute: bool = False) -> str | None:
     return "; ".join(f"{label} {format_interval(r)}".strip() for label, r in found.items())
 
 
-def cached_intervals(schemes: Iterable[str]) -> dict[str, str]:
-    """scheme -> its cached interval text (nothing is measured)."""
+def interval_texts(schemes: dict[str, Iterable[int] | None], compute: bool = False) -> dict[str, str]:
+    """scheme -> its interval text ('N=10 [0, 0.32] ...' for a series scheme at the given N),
+    from the cache, measured where missing when ``compute``."""
     out = {}
-    for s in schemes:
+    for s, orders in schemes.items():
         try:
-            text = describe(s, compute=False)
-        except Exception:  # a scheme no longer installed
-            text = None
-        if text:
-            out[s] = text
+            found = intervals(s, compute=compute, orders=orders)
+        except Exception as exc:  # a scheme no longer installed, a step that cannot be built
+            found = {"": {"error": f"{type(exc).__name__}: {exc}"}}
+        if found:
+            out[s] = "; ".join(f"{label} {format_interval(r)}".strip() for label, r in found.items())
     return out

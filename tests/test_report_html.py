@@ -1,0 +1,91 @@
+"""The results page: built from a tiny real run, its content checked, and opened in a real
+browser (headless Chromium) that must render every figure without a console message."""
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from longtime import cli
+from longtime.report import pareto, summary
+from longtime.store import Store
+
+ARTEFACTS = Path(os.environ.get("LONGTIME_TEST_ARTEFACTS", Path(__file__).resolve().parents[1] / "test-artefacts"))
+BROWSERS = ("chromium", "chromium-browser", "google-chrome", "chrome")
+
+
+@pytest.fixture(scope="module")
+def page(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("html")
+    db = tmp / "runs.sqlite"
+    # a tiny matrix: two problems, a skipped pair (dirac-1 needs constraints), a dt sweep for the order fit
+    assert cli.main(["matrix", "-p", "harmonic,kepler", "-i", "rk4,verlet,dirac-1", "--dt", "0.04,0.02,0.01",
+                     "--t-final", "20", "--repeats", "3", "--min-time", "0", "--db", str(db),
+                     "--executor", "serial", "--no-progress", "--no-report"]) == 0
+    assert cli.main(["report", "--db", str(db), "--html", str(tmp / "page")]) == 0
+    return tmp / "page" / "index.html", Store(db).rows()
+
+
+def test_page_content(page):
+    path, rows = page
+    text = path.read_text()
+    # self-contained: nothing loaded from anywhere (SVG namespaces are names, not loads)
+    assert not re.search(r"""(src|href)=["']?(https?:|//)|url\(\s*["']?https?:|@import""", text)
+    assert text.count('<figure class="plot">') == 4  # work-precision and drift, per problem
+    assert "14 cells:</b> 12 ok, 2 skipped" in text
+    assert "skipped: needs constraints, which harmonic does not provide" in text
+    # measured from the schemes' own steps: RK4's 2 sqrt 2 and Verlet's 2 on the imaginary axis
+    assert "<td>rk4</td><td>[0, 2.82]" in text and "<td>verlet</td><td>[0, 2]" in text
+    assert re.search(r"<td>commit</td><td>[0-9a-f]{7,}|<td>commit</td><td>-", text)
+    # rk4 on the harmonic oscillator: the fitted order is 4 and its interval holds it
+    m = re.search(r"<td>rk4</td><td class=\"num\">4</td><td class=\"num\">([0-9.]+)</td>"
+                  r"<td class=\"num\">\+- ([0-9.]+)</td>", text)
+    assert m and abs(float(m.group(1)) - 4) <= max(float(m.group(2)), 0.1)
+
+
+def test_summary_starts_with_counts_and_pareto(page):
+    _, rows = page
+    text = summary(rows)
+    assert text.startswith("14 cells: 12 ok, 2 skipped")
+    harmonic = [r for r in rows if r["problem"] == "harmonic"]
+    front = pareto(harmonic)
+    assert front and front[0]["target"] == 0.1
+    # the fastest row meeting each target is never slower than one that meets a looser target
+    cpu = [p["best"]["cpu_s"] for p in front]
+    assert cpu == sorted(cpu)
+    for p in front:
+        meets = [r for r in harmonic if r["status"] == "ok" and r["l2_error"] <= p["target"]]
+        assert p["best"]["cpu_s"] == min(r["cpu_s"] for r in meets)
+    assert len(text.splitlines()) < 40  # one screen
+
+
+def _browser():
+    found = next((shutil.which(b) for b in BROWSERS if shutil.which(b)), None)
+    if found is None:
+        if os.environ.get("LONGTIME_REQUIRE_BROWSER"):
+            pytest.fail("LONGTIME_REQUIRE_BROWSER is set but no Chromium was found")
+        pytest.skip("no headless browser: install Debian's 'chromium' package (.ci/run does)")
+    return found
+
+
+def test_page_in_headless_chromium(page):
+    browser = _browser()
+    path, _ = page
+    flags = [browser, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+             "--enable-logging=stderr", "--v=0", "--virtual-time-budget=5000"]
+    res = subprocess.run(flags + ["--dump-dom", path.as_uri()], capture_output=True, text=True, timeout=120)
+    body = re.search(r"<body[^>]*>", res.stdout)
+    assert body, res.stderr[-2000:]
+    attrs = dict(re.findall(r'data-(\w+)="([^"]*)"', body.group(0)))
+    assert attrs.get("figures") == "4" and attrs.get("rendered") == "4", attrs
+    assert attrs.get("errors") == "", attrs
+    console = [line for line in res.stderr.splitlines() if ":CONSOLE" in line]
+    assert console == [], console
+    ARTEFACTS.mkdir(parents=True, exist_ok=True)
+    shot = ARTEFACTS / "results-page.png"
+    shot.unlink(missing_ok=True)
+    subprocess.run(flags + ["--window-size=1280,2000", f"--screenshot={shot}", path.as_uri()],
+                   capture_output=True, text=True, timeout=120)
+    assert shot.exists() and shot.stat().st_size > 20_000
