@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping
 
 from . import metrics, registry
-from .integrator import FixedStepIntegrator, Timing
+from .integrator import FixedStepIntegrator, Integrator, Timing, Trajectory
 from .params import InputError, check_time_span
 from .problem import Problem
 from .reference import ReferenceUnavailable, has_reference, trusted_reference
@@ -138,6 +138,26 @@ def base_row(cell: Cell) -> dict[str, Any]:
     return row
 
 
+def build(cell: Cell) -> tuple[Problem, Integrator]:
+    """The problem and the scheme a cell names, with its settings (validated): the one
+    place they are made from names, for the matrix, the searches and the figures."""
+    problem = registry.problem_class(cell.problem)(**cell.problem_settings)
+    integrator = registry.integrator_class(cell.integrator)(**cell.integrator_settings)
+    return problem, integrator
+
+
+def integrate_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES) -> tuple[Problem, Trajectory]:
+    """Build and run one cell once, for a caller that needs the trajectory itself (a
+    figure): an incompatible pair is an InputError; a run that diverges or fails is a
+    trajectory with that status, as in ``run_cell`` (which also measures and times)."""
+    problem, integrator = build(cell)
+    reason = integrator.incompatibility(problem)
+    if reason:
+        raise InputError(reason)
+    t_final = problem.default_t_final if cell.t_final is None else cell.t_final
+    return problem, integrator.integrate(problem, t_final, max_samples=max_samples)
+
+
 def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool = True,
              timing: Timing | None = None) -> dict[str, Any]:
     """Run one cell, timed by ``timing`` (default: ``Timing()``, the repeated timing of
@@ -147,8 +167,7 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         row.update(status="skipped", message=cell.skip_reason)
         return row
     try:
-        problem: Problem = registry.problem_class(cell.problem)(**cell.problem_settings)
-        integrator = registry.integrator_class(cell.integrator)(**cell.integrator_settings)
+        problem, integrator = build(cell)
         if isinstance(integrator, FixedStepIntegrator):
             row["dt"] = integrator.dt_for(problem)
         traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,

@@ -9,9 +9,8 @@ import importlib
 import json
 import shlex
 import sys
-from typing import Callable
 
-from . import registry
+from . import cli_args, registry
 from .cells import SWEEP_PARAMETERS, expand
 from .integrator import Timing
 from .matrix import EXECUTORS, ExecOptions, run_matrix
@@ -24,48 +23,11 @@ from .store import Store, default_path
 COMMAND_MODULES: tuple[str, ...] = ("longtime.cache_cmd", "longtime.matched", "longtime.plot", "longtime.reproduce", "longtime.roundoff", "longtime.warmup")
 
 
-def _floats(flag: str) -> Callable[[str], list[float]]:
-    def parse(text: str) -> list[float]:
-        try:
-            values = [float(x) for x in text.split(",") if x.strip()]
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{flag} takes comma-separated numbers, got {text!r}") from None
-        if not values:
-            raise argparse.ArgumentTypeError(f"{flag} needs at least one value")
-        return values
-
-    return parse
-
-
-def _ints(text: str) -> list[int]:
-    try:
-        return [int(x) for x in text.split(",") if x.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--order takes comma-separated integers, got {text!r}") from None
-
-
-def _names(text: str) -> list[str]:
-    names = list(dict.fromkeys(x.strip() for x in text.split(",") if x.strip()))  # a repeat runs once
-    if not names:  # "-p ," must not mean "everything"
-        raise argparse.ArgumentTypeError(f"expected comma-separated names, got {text!r}")
-    return names
-
-
-def _key_value(text: str) -> tuple[str, str]:
-    if "=" not in text:
-        raise argparse.ArgumentTypeError(f"--set takes key=value, got {text!r}")
-    key, value = text.split("=", 1)
-    return key.strip(), value.strip()
-
-
-def _seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not value > 0 or value == float("inf"):
-        raise argparse.ArgumentTypeError(f"--cell-timeout takes a finite number of seconds > 0, got {text!r}")
-    return value
+# argument types: one set for every command (longtime.cli_args)
+_floats, _names, _key_value = cli_args.floats, cli_args.names, cli_args.key_value
+_ints = cli_args.ints("--order")
+_seconds = cli_args.seconds("--cell-timeout")
+_limit = cli_args.seconds("--time-limit", allow_zero=True)
 
 
 class _SchedulerAction(argparse.Action):

@@ -1,6 +1,6 @@
 """``longtime reproduce``: the paper's tables and figures, regenerated, beside the paper's.
 
-Every section of the report (SPEC.md sections 1 and 4: Toda, figure-eight, the perturbed
+Every section of the report (docs/problems.md and docs/paper.md: Toda, figure-eight, the perturbed
 figure-eight, the double pendulum, Duffing, KdV) runs the cells it needs through the
 suite's own matrix runner (``longtime.cells.run_cell``: same metrics as everywhere) and
 writes a Markdown table with our numbers beside the paper's, the ratio ours / paper, and
@@ -8,7 +8,7 @@ the reasons for the differences. A section whose problems or schemes are not reg
 (or fail to load) says "not available" and the others go on. Figures are drawn by
 ``longtime.plot`` (PNG and SVG next to the report).
 
-The paper's numbers are quoted from SPEC.md section 4 (its own code and machine); every
+The paper's numbers are quoted from ``longtime.paper`` (its own code and machine); every
 number of ours is measured in this run. ``--quick`` shortens the final times (stated in
 the report) so that the whole report takes a couple of minutes: quick numbers of schemes
 whose error grows with time are then not comparable with the paper's.
@@ -27,21 +27,19 @@ from typing import Any, Callable
 
 import numpy as np
 
-from . import registry
-from .cells import Cell, run_cell
-from .matched import PAPER_KDV
+from . import cli_args, registry, search
+from .cells import Cell, integrate_cell, run_cell
+from .fmt import markdown_table, number
 from .matrix import EXECUTORS, ExecOptions, run_matrix
+from .paper import DUFFING1_BPL_STEP as PAPER_DUFFING1_BPL_STEP
+from .paper import DUFFING2_BPL_STEP as PAPER_DUFFING2_BPL_STEP
+from .paper import KDV_SCHEMES, kdv_row
+from .paper import TODA_BPL as PAPER_TODA_BPL
+from .paper import TODA_CPU as PAPER_TODA_CPU
+from .paper import TODA_EMEAN as PAPER_TODA_EMEAN
 from .params import InputError
+from .problems.nbody import FIGURE_EIGHT_PERIOD as FIGURE_EIGHT_T
 from .store import Store, environment
-
-FIGURE_EIGHT_T = 6.32591398  # the figure-eight's period (SPEC.md 1.2)
-
-# SPEC.md section 4, the paper's figures (quoted, never used in a computation)
-PAPER_TODA_EMEAN = {("rk4", 0.1): 3.7902e-1, ("rk4sym", 0.1): 2.261e-3, ("rk4", 0.0275): 2.4e-3}
-PAPER_TODA_CPU = {("rk4", 0.1): 107.44, ("rk4sym", 0.1): 128.74}
-PAPER_TODA_BPL = {0.125: (2.897e-3, None), 0.0983: (3.010e-4, 259.31)}  # mean step: (E_mean, CPU s)
-PAPER_DUFFING1_BPL_STEP = 4.7e-4
-PAPER_DUFFING2_BPL_STEP = 0.106
 
 
 class Unavailable(Exception):
@@ -94,16 +92,7 @@ def registered(*schemes: str) -> list[str]:
 
 
 def fmt(x: Any, digits: int = 4) -> str:
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return "–"
-    if isinstance(x, (int, np.integer)) and not isinstance(x, bool):
-        return str(int(x))
-    if isinstance(x, (float, np.floating)):
-        x = float(x)
-        if x != 0 and (abs(x) < 1e-2 or abs(x) >= 1e4):
-            return f"{x:.{digits - 1}e}"
-        return f"{x:.{digits}g}"
-    return str(x)
+    return number(x, digits, dash="–")
 
 
 def ratio(ours, paper) -> str:
@@ -114,11 +103,7 @@ def ratio(ours, paper) -> str:
     return f"{ours / paper:.3g}"
 
 
-def table(headers: list[str], rows: list[list[Any]]) -> str:
-    lines = ["| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]
-    for r in rows:
-        lines.append("| " + " | ".join(fmt(x) if not isinstance(x, str) else x for x in r) + " |")
-    return "\n".join(lines)
+table = markdown_table
 
 
 def status_notes(rows: list[dict]) -> str:
@@ -154,44 +139,16 @@ def figure(ctx: Context, kind: str, name: str, caption: str, **options) -> str:
 
 def search_mean_step(ctx: Context, problem: str, scheme: str, parameter: str, target_step: float,
                      t_final: float, start: float, max_evals: int = 8, settings: dict | None = None) -> dict:
-    """The run whose mean step is nearest ``target_step``: bisection on log(parameter)
-    (a larger eps_res / tol gives longer steps); ``settings``: the scheme's other settings."""
-    tried: list[tuple[float, dict]] = []
-
-    def run(value: float) -> float:
-        row = ctx.row(Cell(problem, scheme, {}, {**(settings or {}), parameter: value}, t_final))
-        tried.append((value, row))
-        return (row.get("mean_dt") or 0.0) if row.get("status") == "ok" else 0.0
-
-    low = high = None
-    value = start
-    for _ in range(max_evals):
-        step = run(value)
-        if step and abs(math.log(step / target_step)) < math.log(1.03):
-            break
-        if step < target_step:
-            low = value
-        else:
-            high = value
-        if low is not None and high is not None:
-            value = math.sqrt(low * high)
-        elif low is not None:
-            value = low * 100
-        else:
-            value = high / 100
-    ok = [(v, r) for v, r in tried if r.get("status") == "ok" and r.get("mean_dt")]
-    if not ok:
-        return tried[-1][1]
-    value, row = min(ok, key=lambda vr: abs(math.log(vr[1]["mean_dt"] / target_step)))
-    return {**row, "searched": f"{parameter}={value:.3g} ({len(tried)} runs)"}
+    """``longtime.search.search_mean_step`` over this report's runs (stored, counted)."""
+    return search.search_mean_step(ctx.row, problem, scheme, parameter, target_step, t_final, start,
+                                   max_evals, settings)
 
 
 def energy_growth(problem_name: str, scheme: str, dt: float, t_final: float) -> tuple[float, str]:
     """max e_H over the last tenth of the run / over the first tenth, and a verdict."""
     from .metrics import relative_error
 
-    problem = registry.problem_class(problem_name)()
-    traj = registry.integrator_class(scheme)(dt=dt).integrate(problem, t_final, max_samples=20_001)
+    problem, traj = integrate_cell(Cell(problem_name, scheme, {}, {"dt": dt}, t_final), max_samples=20_001)
     err = relative_error(problem.invariants(traj.t, traj.u)["H"])
     n = err.size
     first, last = np.max(err[1: max(2, n // 10)]), np.max(err[-max(1, n // 10):])
@@ -238,7 +195,7 @@ def section_toda(ctx: Context) -> str:
         f"- Final time t_f = {tf:g}" + (" (**quick**: the paper's is 5000). RK4's error grows with t, so its "
                                         "E_mean here is not comparable with the paper's; RK4sym's oscillates "
                                         "without growth, so its E_mean is." if ctx.quick else " as in the paper."),
-        "- E_mean = (1/t_f) ∫ e_H dt by the trapezoid rule over every step (SPEC.md 3).",
+        "- E_mean = (1/t_f) ∫ e_H dt by the trapezoid rule over every step (docs/metrics.md).",
     ]
     if not ctx.quick:
         for (s, dt), r in by.items():
@@ -294,7 +251,7 @@ def section_figure_eight(ctx: Context) -> str:
              r.get("l2_error"), r.get("H.t_1pct"), r.get("cpu_s"), r.get("steps"), r["status"]] for r in rows]
     explain = [
         f"- t_f = {periods} T" + (" (**quick**: the paper's is 2200 T)" if ctx.quick else " as in the paper")
-        + f", dt = 0.002 T = {dt:.6g} (SPEC.md 1.2: the paper prints 0.02 T, a misprint; 0.002 T reproduces its "
+        + f", dt = 0.002 T = {dt:.6g} (the paper prints 0.02 T, a misprint, docs/paper.md; 0.002 T reproduces its "
           "RK4 figure).",
         "- The paper shows this run as a figure (RK4's energy error against t), no table: compare the drift "
         "figure below.",
@@ -338,7 +295,7 @@ def section_pendulum(ctx: Context) -> str:
              r.get("velocity_constraint.max"), r.get("cpu_s"), r["status"]] for r in rows]
     explain = [f"- dt = 1e-4 to T = {tf:g}" + (" (**quick**: the paper's is 100)" if ctx.quick else " as in the paper")
                + "; the paper gives no parameters: m1 = m2 = l1 = l2 = 1, g = 9.81, both rods horizontal at rest "
-               "(SPEC.md 1.3).",
+               "(docs/problems.md, section 3).",
                "- The paper shows figures only (regions swept up to T = 10, 50, 100): Dirac-2 keeps the bobs on "
                "their circles; explicit Euler on the index-1 ODE drifts off the constraint manifold."]
     times = (2.0, 5.0, 10.0) if ctx.quick else (10.0, 50.0, 100.0)
@@ -388,7 +345,7 @@ def section_duffing(ctx: Context) -> str:
         parts.append(figure(ctx, "duffing-phase", "duffing-phase",
                             f"forced Duffing, c in {{0.20, 0.28, 0.29, 0.37, 0.50, 0.65}}, t in [40, {tf:g}]",
                             t_final=tf))
-        parts.append("c = 0.50 should look chaotic, the others (multi)periodic (SPEC.md 1.4)"
+        parts.append("c = 0.50 should look chaotic, the others (multi)periodic (docs/problems.md, section 4)"
                      + (f"; **quick**: t up to {tf:g} instead of 1000." if ctx.quick else "."))
     else:
         parts.append("### Forced\n\nNot available: problem 'duffing-forced' is not registered.")
@@ -397,10 +354,10 @@ def section_duffing(ctx: Context) -> str:
 
 def section_kdv(ctx: Context) -> str:
     require(["kdv"], [])
-    schemes = registered("bpl", "bpl-exp", "etdrk4", "adaptive-rk4")
+    schemes = registered(*KDV_SCHEMES)
     if not schemes:
-        raise Unavailable("needs one of the schemes bpl, bpl-exp, etdrk4, adaptive-rk4 (none registered)")
-    from .matched import PAPER_ROW, Matcher, step_cap_lines
+        raise Unavailable(f"needs one of the schemes {', '.join(KDV_SCHEMES)} (none registered)")
+    from .matched import step_cap_lines
 
     period = registry.problem_class("kdv").default_t_final
     rows = []
@@ -412,7 +369,7 @@ def section_kdv(ctx: Context) -> str:
                "accuracy matching: the cost column is not comparable with the paper's.")
     else:
         tf = period
-        matcher = Matcher(ctx.store, ctx.run_id, "final_error", 1e-5, repeat=3, max_evals=10, verbose=False)
+        matcher = search.Matcher(ctx.store, ctx.run_id, "final_error", 1e-5, repeat=3, max_evals=10, verbose=False)
         cells = [Cell("kdv", s, {}, {}, tf) for s in schemes]
         for cell in cells:
             rows.append(matcher.match(cell))
@@ -421,7 +378,7 @@ def section_kdv(ctx: Context) -> str:
                "at t = T (the paper's matched accuracy), then timed (best of 3).")
     body = []
     for r in rows:
-        p = PAPER_KDV.get(PAPER_ROW.get(r["integrator"], r["integrator"]), (None, None, None))
+        p = kdv_row(r["integrator"]) or (None, None, None)
         param = f"{r['match_parameter']}={r['match_value']:.3g}" if r.get("match_parameter") else "default"
         body.append([r["integrator"], param, r.get("mean_dt"), p[1] or "–", r.get("final_error"), p[2] or "–",
                      r.get("cpu_s"), p[0] or "–", ratio(p[0], r.get("cpu_s")) if p[0] and not ctx.quick else "–",
@@ -431,12 +388,12 @@ def section_kdv(ctx: Context) -> str:
         table(["scheme", "parameter", "mean step (ours)", "mean step (paper)", "L2 error at t_f (ours)",
                "L2 error (paper)", "CPU s (ours)", "CPU s (paper)", "paper / ours CPU", "status"], body), "",
         status_notes(rows), "", "**Differences explained**", "",
-        "- The paper's CPU seconds are its own code; they are the floor to beat (SPEC.md 4), not a target.",
+        "- The paper's CPU seconds are its own code; they are the floor to beat (docs/paper.md), not a target.",
         "- Mean steps differ where our step selection or error estimate differs from the paper's; the "
         "accuracy is matched on the L2 error, not on the step.",
         "- bpl is the paper's algorithm; bpl-exp (a named variant: the linear part solved exactly, BPL on "
         "the nonlinear rest, the same residual control) is shown against the paper's BPL row.",
-        *(f"- {line.strip()}." for line in step_cap_lines("kdv", {}, cells, rows)),
+        *(f"- {line.strip()}." for line in step_cap_lines("kdv", cells, rows)),
         "- The sizes d = 128 ... 512 and the orders N = 4 ... 14 of the paper: `longtime match -p kdv --scaling`."])
 
 
@@ -447,11 +404,11 @@ def section_roundoff(ctx: Context) -> str:
 
 
 SECTIONS: list[tuple[str, Callable[[Context], str]]] = [
-    ("Toda lattice: E_mean at t_f = 5000 (SPEC.md 1.1, 4)", section_toda),
-    ("Three-body figure-eight (SPEC.md 1.2)", section_figure_eight),
-    ("Double pendulum, Cartesian, constrained (SPEC.md 1.3)", section_pendulum),
-    ("Duffing oscillator (SPEC.md 1.4)", section_duffing),
-    ("Korteweg-de Vries soliton (SPEC.md 1.5, 4)", section_kdv),
+    ("Toda lattice: E_mean at t_f = 5000 (docs/problems.md 1)", section_toda),
+    ("Three-body figure-eight (docs/problems.md 2)", section_figure_eight),
+    ("Double pendulum, Cartesian, constrained (docs/problems.md 3)", section_pendulum),
+    ("Duffing oscillator (docs/problems.md 4)", section_duffing),
+    ("Korteweg-de Vries soliton (docs/problems.md 5)", section_kdv),
     ("Round-off: Brouwer's law against linear drift", section_roundoff),
 ]
 
@@ -475,7 +432,7 @@ def reproduce(out: str | Path = "reproduction", quick: bool = False, figures: bo
         f"{' (**quick**: shortened final times, stated per section)' if quick else ''}; git "
         f"{env['git_commit'] or 'unknown'}; " + ", ".join(f"{k} {v}" for k, v in env["versions"].items() if v)
         + f"; {env['machine']['cpus']} CPUs.", "",
-        "Paper's numbers: quoted from SPEC.md section 4 (its own code and machine). Ours: measured in this run "
+        "Paper's numbers: quoted from docs/paper.md (its own code and machine). Ours: measured in this run "
         "(CPU = process time of the compiled integration alone). 'ours / paper' is the ratio of the two.", ""]
     failed = []
     status = "interrupted"
@@ -526,7 +483,7 @@ def add_parser(subparsers) -> None:
                               description=__doc__.splitlines()[0])
     p.add_argument("--out", default="reproduction", help="folder of report.md and its figures (default: reproduction)")
     p.add_argument("--quick", action="store_true", help="shortened final times (a couple of minutes; stated in the report)")
-    p.add_argument("--section", type=lambda s: [x.strip() for x in s.split(",") if x.strip()], default=None,
+    p.add_argument("--section", type=cli_args.names, default=None,
                    metavar="NAME[,..]", help="only these sections: " + ", ".join(
                        f.__name__.removeprefix("section_") for _, f in SECTIONS))
     p.add_argument("--no-figures", action="store_true", help="tables only")

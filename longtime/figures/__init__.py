@@ -1,0 +1,61 @@
+"""Every figure kind of ``longtime plot`` lives in this package, one module per family, and
+is registered by name in ``longtime.plot.PLOT_KINDS`` ("module:function", imported only
+when drawn). A kind function takes keyword arguments (see ``longtime.plot``) and returns
+the paths it wrote through ``save``.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any, Sequence
+
+from ..params import InputError
+
+FORMATS = ("png", "svg", "pdf")
+
+
+def pyplot():
+    """matplotlib's pyplot on the Agg backend (files only, no display)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def check_formats(formats: Sequence[str]) -> None:
+    bad = [f for f in formats if f not in FORMATS]
+    if bad:
+        raise InputError(f"formats: {', '.join(bad)} not valid: expected {', '.join(FORMATS)}")
+
+
+def save(fig, out: str | Path, formats: Sequence[str] = ("png", "svg")) -> list[Path]:
+    """Write ``fig`` as out.<format> for each format; close it; return the paths."""
+    check_formats(formats)
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for fmt in formats:
+        path = out.with_name(f"{out.name}.{fmt}")
+        fig.savefig(path, dpi=130, bbox_inches="tight")
+        paths.append(path)
+    pyplot().close(fig)
+    return paths
+
+
+def positive(x: Any) -> bool:
+    return x is not None and isinstance(x, (int, float)) and math.isfinite(x) and x > 0
+
+
+def run(problem: str, scheme: str, dt: float | None, t_final: float | None,
+        problem_settings: dict | None = None, max_samples: int = 20_001):
+    """(problem, trajectory) of one run for a figure, through ``cells.integrate_cell``:
+    ``dt`` applies to schemes that have it, settings to the problem's own parameters."""
+    from .. import registry
+    from ..cells import Cell, integrate_cell
+
+    pcls, icls = registry.problem_class(problem), registry.integrator_class(scheme)
+    psets = {k: v for k, v in (problem_settings or {}).items() if k in pcls.parameters}
+    isets = {"dt": dt} if dt is not None and "dt" in icls.parameters else {}
+    return integrate_cell(Cell(problem, scheme, psets, isets, t_final), max_samples=max_samples)

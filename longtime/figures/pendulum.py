@@ -1,6 +1,6 @@
 """The region swept by the double pendulum up to several times, schemes side by side.
 
-SPEC.md 1.3 (the paper's plots of the region swept up to T = 10, 50, 100, Dirac-2 against
+docs/problems.md, section 3 (the paper's plots of the region swept up to T = 10, 50, 100, Dirac-2 against
 explicit Euler): one row per scheme, one column per time T; each panel shows the rods at
 evenly spaced instants of [0, T] (light strokes: the swept region) and the paths of the
 two bobs, with the circles of radius l1 and l1 + l2 for scale; ``space="angles"`` plots
@@ -15,6 +15,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from ..params import InputError
+from . import check_formats, pyplot, run, save
 
 DEFAULT_SCHEMES = ("dirac-2", "euler")
 DEFAULT_TIMES = (10.0, 50.0, 100.0)
@@ -35,14 +36,9 @@ def pendulum_region(schemes: Sequence[str] | None = None, dt: float | None = Non
     t_final/2, t_final); problem_settings: double-pendulum parameters; space: "plane" or
     "angles".
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.collections import LineCollection
 
-    from .. import registry
-    from ..plot import FORMATS, save
+    plt = pyplot()
 
     schemes = list(DEFAULT_SCHEMES) if not schemes else [schemes] if isinstance(schemes, str) else list(schemes)
     dt = 1e-4 if dt is None else float(dt)
@@ -55,17 +51,12 @@ def pendulum_region(schemes: Sequence[str] | None = None, dt: float | None = Non
         raise InputError(f"times={times!r} is not valid: expected final times > 0")
     if space not in ("plane", "angles"):
         raise InputError(f"space={space!r} is not valid: expected one of plane, angles")
-    bad = [f for f in formats if f not in FORMATS]
-    if bad:  # before the integrations, not after
-        raise InputError(f"formats: {', '.join(bad)} not valid: expected {', '.join(FORMATS)}")
-    problem = registry.problem_class("double-pendulum")(**(problem_settings or {}))
-    l1, l2 = problem.settings["l1"], problem.settings["l2"]
-
+    check_formats(formats)  # before the integrations, not after
     runs = {}
     for name in schemes:
-        integrator = registry.integrator_class(name)(dt=dt)
-        traj = integrator.integrate(problem, times[-1], max_samples=400_001)
-        runs[name] = traj
+        problem, runs[name] = run("double-pendulum", name, dt, times[-1], problem_settings,
+                                  max_samples=400_001)
+    l1, l2 = problem.settings["l1"], problem.settings["l2"]
 
     fig, axes = plt.subplots(len(schemes), len(times), figsize=(3.4 * len(times), 3.4 * len(schemes)),
                              squeeze=False, constrained_layout=True)

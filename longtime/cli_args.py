@@ -1,0 +1,73 @@
+"""Argument types shared by every ``longtime`` command (argparse ``type=`` callables).
+
+Each raises ``argparse.ArgumentTypeError`` naming the flag and what it takes, so a bad
+value is reported by argparse with exit code 2 like every other input error.
+"""
+from __future__ import annotations
+
+import argparse
+from typing import Callable
+
+
+def names(text: str) -> list[str]:
+    """A comma-separated list of names, each once: "toda, kepler" -> ["toda", "kepler"]."""
+    found = list(dict.fromkeys(x.strip() for x in text.split(",") if x.strip()))  # a repeat runs once
+    if not found:  # "-p ," must not mean "everything"
+        raise argparse.ArgumentTypeError(f"expected comma-separated names, got {text!r}")
+    return found
+
+
+def floats(flag: str) -> Callable[[str], list[float]]:
+    """A comma-separated list of numbers, at least one."""
+
+    def parse(text: str) -> list[float]:
+        try:
+            values = [float(x) for x in text.split(",") if x.strip()]
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{flag} takes comma-separated numbers, got {text!r}") from None
+        if not values:
+            raise argparse.ArgumentTypeError(f"{flag} needs at least one value")
+        return values
+
+    return parse
+
+
+def ints(flag: str) -> Callable[[str], list[int]]:
+    """A comma-separated list of integers; ``A..B`` is the range A to B inclusive."""
+
+    def parse(text: str) -> list[int]:
+        try:
+            if ".." in text:
+                a, b = text.split("..", 1)
+                return list(range(int(a), int(b) + 1))
+            return [int(x) for x in text.split(",") if x.strip()]
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{flag} takes comma-separated integers (or A..B), "
+                                             f"got {text!r}") from None
+
+    return parse
+
+
+def key_value(text: str) -> tuple[str, str]:
+    """``--set key=value``: the pair of stripped strings (the parameter parses the value)."""
+    if "=" not in text:
+        raise argparse.ArgumentTypeError(f"--set takes key=value, got {text!r}")
+    key, value = text.split("=", 1)
+    return key.strip(), value.strip()
+
+
+def seconds(flag: str, allow_zero: bool = False) -> Callable[[str], float]:
+    """A finite number of seconds, > 0 (or >= 0 with ``allow_zero``)."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        ok = (0 <= value if allow_zero else 0 < value) and value < float("inf")
+        if not ok:
+            raise argparse.ArgumentTypeError(f"{flag} takes a finite number of seconds "
+                                             f"{'>= 0' if allow_zero else '> 0'}, got {text!r}")
+        return value
+
+    return parse
