@@ -1,4 +1,4 @@
-"""The quantities of SPEC.md section 3, computed the same way for every scheme.
+"""The quantities of docs/metrics.md, computed the same way for every scheme.
 
 e_I(t) = |I(u(t)) - I(u0)| / |I(u0)| (a vector invariant: Euclidean norms), the absolute
 error where I(u0) = 0. Per invariant NAME: NAME.max, NAME.final, NAME.mean (time average of

@@ -248,7 +248,7 @@ def test_blow_up_is_a_status_and_nothing_non_finite_is_accepted():
 
 # ---------------------------------------------------------------- the paper's figures
 def test_toda_reproduces_the_papers_bpl_figure():
-    """SPEC 4, the paper's BPL on toda over t_f = 5000: E_mean 3.010e-4 at mean step 0.0983
+    """docs/paper.md, the paper's BPL on toda over t_f = 5000: E_mean 3.010e-4 at mean step 0.0983
     (RK4sym at dt = 0.1: 2.261e-3). The faithful algorithm (no fallback) at eps_res = 3e-4
     lands on the paper's figure within 30 %: measured 2.99e-4 at mean step 0.0981."""
     row = run_cell(Cell("toda", "bpl", {}, {"eps_res": 3e-4}, 5000.0), reference=False)

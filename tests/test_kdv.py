@@ -56,7 +56,7 @@ def test_constants_and_stiffness():
     lam = np.empty(p.dim)
     p.linear_part(p.params, lam)
     assert np.all(lam[0::2] == 0)
-    assert 420 < np.max(np.abs(lam)) < 480  # SPEC: "about 476" (|c0 w m| + |beta w^3 m^3|)
+    assert 420 < np.max(np.abs(lam)) < 480  # max |c0 w m - beta w^3 m^3| = 428 (docs/problems.md 5)
     with pytest.raises(InputError, match="d=7"):
         KdV(d=7)
 

@@ -1,4 +1,4 @@
-"""Metrics of SPEC.md section 3 on known signals, and divergence as a status."""
+"""Metrics of docs/metrics.md on known signals, and divergence as a status."""
 import json
 
 import numpy as np

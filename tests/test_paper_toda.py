@@ -1,4 +1,4 @@
-"""SPEC.md section 4: the paper's Toda figures at t_f = 5000, dt = 0.1, through the CLI."""
+"""docs/paper.md: the paper's Toda figures at t_f = 5000, dt = 0.1, through the CLI."""
 import json
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""Problems of issue 2 (and SPEC 1.6): initial data, invariants, references, bad settings."""
+"""Problems of issue 2 (and docs/problems.md 6): initial data, invariants, references, bad settings."""
 import numpy as np
 import pytest
 

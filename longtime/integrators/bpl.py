@@ -1,6 +1,6 @@
 """Borel-Pade-Laplace (BPL): an adaptive series integrator with a residual-controlled step.
 
-One step from (t0, u) (SPEC.md section 2, ``bpl``):
+One step from (t0, u) (docs/schemes.md, ``bpl``):
 
 1. Taylor coefficients u_0..u_N from the problem's recurrence (``taylor``);
 2. per component, the Borel transform B(xi) = sum_{n<N} u_{n+1} xi^n / n!;

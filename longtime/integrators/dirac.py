@@ -1,4 +1,4 @@
-"""Discrete Dirac integrators for constrained mechanics (SPEC.md section 2).
+"""Discrete Dirac integrators for constrained mechanics (docs/schemes.md).
 
 For L(q, v) = v^T M v / 2 - U(q) with holonomic constraints phi(q) = 0, constraint 1-forms
 alpha^a = d phi^a and G(q) the rows grad phi^a(q), a step reads

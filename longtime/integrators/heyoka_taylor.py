@@ -19,7 +19,7 @@ from ..problem import BLOWUP_MESSAGE
 
 # compiled taylor_adaptive objects, by (problem identity, tol, high_accuracy)
 _COMPILED: dict[tuple, object] = {}
-SAMPLES = 10_001  # SPEC 3: time means over at least 1e4 evenly spaced samples
+SAMPLES = 10_001  # docs/metrics.md: time means over at least 1e4 evenly spaced samples
 
 
 class Heyoka(Integrator):
@@ -55,7 +55,7 @@ class Heyoka(Integrator):
     def grid(self, problem, t_final, max_samples):
         """Evenly spaced sample times: SAMPLES of them (at most max_samples). Dense output
         costs a polynomial evaluation per sample inside the timed call, so the grid is not
-        refined with the run's length; 1e4 evenly spaced samples are what SPEC 3 asks of
+        refined with the run's length; 1e4 evenly spaced samples are what docs/metrics.md asks of
         the time means."""
         return np.linspace(problem.t0, t_final, min(max_samples, SAMPLES))
 

@@ -116,7 +116,7 @@ class Midpoint(ImplicitRungeKutta):
     c = np.array([0.5])
 
 
-_B = (2 + 2 ** (1 / 3) + 2 ** (-1 / 3)) / 3  # 1.3512071919596578 (SPEC: the paper prints 2^(1/2))
+_B = (2 + 2 ** (1 / 3) + 2 ** (-1 / 3)) / 3  # 1.3512071919596578 (the paper prints 2^(1/2): docs/paper.md)
 
 
 class RK4Sym(ImplicitRungeKutta):

@@ -1,4 +1,4 @@
-"""Planar double pendulum in Cartesian coordinates with two rigid rods (SPEC.md 1.3).
+"""Planar double pendulum in Cartesian coordinates with two rigid rods (docs/problems.md 3).
 
 Positions q = (x1, y1, x2, y2) of the two masses (pivot at the origin, y up); the rods
 are the holonomic constraints

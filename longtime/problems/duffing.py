@@ -1,4 +1,4 @@
-"""Duffing oscillators u'' + r u' + a u + b u^3 = c cos(w t), state (u, u') (SPEC.md 1.4).
+"""Duffing oscillators u'' + r u' + a u + b u^3 = c cos(w t), state (u, u') (docs/problems.md 4).
 
 - ``duffing-1``: a = 2/9, b = 1, r = -1, c = 0. Not conservative (negative damping: the
   amplitude grows), but it has the time-dependent first integral

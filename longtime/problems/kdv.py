@@ -1,4 +1,4 @@
-"""Korteweg-de Vries, Fourier-Galerkin in space (SPEC.md 1.5).
+"""Korteweg-de Vries, Fourier-Galerkin in space (docs/problems.md 5).
 
     u_t + c0 u_x + beta u_xxx + (alpha/2) (u^2)_x = 0,   x periodic of period X = 24 pi,
 
@@ -9,7 +9,7 @@ with modes |m| <= M, d = 2M (d = 128: 2M + 1 = 129 real unknowns), w = 2 pi / X:
 State representation: packed, scaled complex Fourier coefficients. With
 u(x) = sum_m uh_m e^{i m w x}, the state holds s_m = sigma_m uh_m for m = 0..M as (Re, Im)
 pairs: u = [Re s_0, Im s_0, Re s_1, Im s_1, ..., Re s_M, Im s_M] (dim = 2M + 2; Im s_0 is
-identically 0 for a real field, so there are 2M + 1 real unknowns as in the SPEC), with
+identically 0 for a real field, so there are 2M + 1 real unknowns as in the paper), with
 sigma_0 = sqrt(X), sigma_m = sqrt(2X): the basis is orthonormal in L2(0, X), so the
 Euclidean norm of the state is the L2 norm of u(x), and the harness's relative errors
 (``final_error``) are relative L2 errors in x. In this basis the linear part is diagonal
@@ -39,7 +39,7 @@ Capabilities beyond ``rhs``:
                    view of the state (z_k = u[2k] + i u[2k+1]), written as (Re, Im) pairs
                    into ``out`` (length dim): here (0, omega_k).
   ``nonlinear``    compiled ``nonlinear(t, u, params, out)``: N(u) with rhs = L u + N(u).
-  ``taylor``       the series recurrence (SPEC 1.5, corrected sign):
+  ``taylor``       the series recurrence (docs/problems.md 5, corrected sign):
                    u_{k+1} = [i omega u_k - (alpha/2) i w m sum_{j<=k} (u_j u_{k-j})_m] / (k+1),
                    the products in physical space (one inverse FFT per order, one forward
                    FFT of the Cauchy sum per order).
@@ -59,7 +59,7 @@ from rocket_fft.lowlevel import c2r, r2c
 from ..params import InputError, Param
 from ..problem import Problem
 
-# constants (SPEC 1.5): depth delta, gravity g, soliton amplitude h, period X
+# constants (docs/problems.md 5): depth delta, gravity g, soliton amplitude h, period X
 DEPTH, GRAVITY, AMPLITUDE, PERIOD_X = 2.0, 10.0, 0.5, 24.0 * math.pi
 C0 = math.sqrt(GRAVITY * DEPTH)
 ALPHA = 1.5 * math.sqrt(GRAVITY / DEPTH)
@@ -195,8 +195,8 @@ class KdV(Problem):
                          str, choices=("3/2", "2/3")),
     }
     default_t_final = SOLITON_PERIOD
-    # explicit schemes are stability-limited: max |omega_m| = 428 at d = 128 (the SPEC's "about
-    # 476" adds |c0 w M| to |beta w^3 M^3| instead of subtracting it; RK4 needs dt < 6.6e-3).
+    # explicit schemes are stability-limited: max |omega_m| = 428 at d = 128 (the "about 476" of an
+    # earlier note adds |c0 w M| to |beta w^3 M^3| instead of subtracting it; RK4 needs dt < 6.6e-3).
     # The matrix sweep stays at d = 128 over half a period (the soliton is exact at every t):
     # every scheme's cells take a few CPU seconds at most. The soliton is exact to about
     # 3e-7 on the periodic grid (``exact_rtol``), so tighter tolerances are not swept.

@@ -188,7 +188,7 @@ class FigureEight(NBody):
     summary = "three-body figure-eight choreography (planar, m = G = 1)"
     period = FIGURE_EIGHT_PERIOD
     default_t_final = 2200 * FIGURE_EIGHT_PERIOD
-    default_dt = 0.002 * FIGURE_EIGHT_PERIOD  # SPEC 1.2: the paper prints 0.02 T
+    default_dt = 0.002 * FIGURE_EIGHT_PERIOD  # the paper prints 0.02 T (docs/paper.md)
     sweep_dt = (0.004 * FIGURE_EIGHT_PERIOD, 0.002 * FIGURE_EIGHT_PERIOD)
     sweep_t_final = 20 * FIGURE_EIGHT_PERIOD
     long_t_final = 2200 * FIGURE_EIGHT_PERIOD  # the paper's, for the schemes that can afford it

@@ -1,7 +1,7 @@
 """Periodic Toda lattice, H = sum_k p_k^2/2 + exp(q_k - q_{k+1}), q_{d+1} = q_1.
 
 Invariants: H and the eigenvalues of the periodic tridiagonal Lax matrix with diagonal
--p_k and off-diagonals exp((q_k - q_{k+1})/2) (SPEC.md 1.1: the paper's extra 1/2 factors
+-p_k and off-diagonals exp((q_k - q_{k+1})/2) (docs/paper.md: the paper's extra 1/2 factors
 are a misprint; this scaling gives its eigenvalues -5.2439, 1.3125, 3.9314).
 """
 from __future__ import annotations
