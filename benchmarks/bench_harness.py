@@ -1,0 +1,120 @@
+"""Where does a warm matrix spend its time? Integration against everything around it.
+
+Issue 12's goal: in a warm `longtime matrix` (kernels and references cached), the timed
+integration (every timed repeat of every cell) is at least 60 % of the core-seconds. This
+script runs a matrix's cells in one process, as a pool worker would, and splits that
+process's time into
+
+    integration   the timed runs (the figures the rows report, every repeat)
+    untimed run   the rest of the scheme's calls: warm-up call, allocation, sample buffers
+    reference     loading (or computing) the trusted reference at the samples
+    metrics       invariants, errors, growth-law fits
+    other         building problems and schemes, rows, everything else
+
+It runs the cells twice and reports the second pass (the first fills the caches: a warm
+run). The main job itself adds only worker start-up and store writes on top.
+
+    python benchmarks/bench_harness.py                        # the default matrix
+    python benchmarks/bench_harness.py -p toda,kepler -i rk4,verlet,gauss4,rk45,bpl
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections import defaultdict
+from contextlib import contextmanager
+
+GOAL = 0.60
+
+
+@contextmanager
+def accounting():
+    """Patch the phases' entry points with timers; yields the per-phase totals (seconds)."""
+    from longtime import cells, integrator, metrics
+
+    totals: dict[str, float] = defaultdict(float)
+    originals = {}
+
+    def timed(owner, name, phase):
+        original = getattr(owner, name)
+        originals[(owner, name)] = original
+
+        def wrapper(*args, **kwargs):
+            start = time.perf_counter()
+            try:
+                return original(*args, **kwargs)
+            finally:
+                totals[phase] += time.perf_counter() - start
+
+        setattr(owner, name, wrapper)
+
+    def timed_integrate(self, *args, **kwargs):
+        start = time.perf_counter()
+        traj = original_integrate(self, *args, **kwargs)
+        totals["scheme"] += time.perf_counter() - start
+        totals["integration"] += sum(_timed_walls(traj))
+        return traj
+
+    original_integrate = integrator.Integrator.integrate
+    integrator.Integrator.integrate = timed_integrate
+    timed(cells, "trusted_reference", "reference")
+    timed(cells, "has_reference", "reference")
+    timed(metrics, "evaluate", "metrics")
+    try:
+        yield totals
+    finally:
+        integrator.Integrator.integrate = original_integrate
+        for (owner, name), original in originals.items():
+            setattr(owner, name, original)
+
+
+def _timed_walls(traj) -> list[float]:
+    """Wall seconds of every timed run of a trajectory (repeats of about the median)."""
+    repeats = int(traj.extra.get("repeats", 1))
+    median = float(traj.extra.get("wall_s_median", traj.wall_s))
+    return [median] * repeats
+
+
+def breakdown(cells) -> tuple[dict[str, float], float]:
+    from longtime.cells import run_cell
+
+    with accounting() as totals:
+        start = time.perf_counter()
+        for cell in cells:
+            run_cell(cell)
+        total = time.perf_counter() - start
+    return dict(totals), total
+
+
+def main(argv: list[str] | None = None) -> int:
+    from longtime import registry
+    from longtime.cells import expand
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("-p", "--problem", default=None, help="problems (default: all)")
+    parser.add_argument("-i", "--integrator", default=None, help="schemes (default: all)")
+    args = parser.parse_args(argv)
+    problems = args.problem.split(",") if args.problem else sorted(registry.problems())
+    schemes = args.integrator.split(",") if args.integrator else sorted(registry.integrators())
+    cells = expand(problems, schemes, default_sweep=True)
+    breakdown(cells)  # fills the kernel and reference caches
+    totals, total = breakdown(cells)
+    integration = totals.get("integration", 0.0)
+    parts = {
+        "integration": integration,
+        "untimed run": totals.get("scheme", 0.0) - integration,
+        "reference": totals.get("reference", 0.0),
+        "metrics": totals.get("metrics", 0.0),
+    }
+    parts["other"] = total - sum(parts.values())
+    print(f"{len(cells)} cells, warm pass {total:.1f} s in one process")
+    for name, seconds in parts.items():
+        print(f"  {name:12s} {seconds:8.2f} s  {100 * seconds / total:5.1f} %")
+    share = integration / total
+    print(f"integration share {100 * share:.1f} % (goal >= {100 * GOAL:.0f} %)")
+    return 0 if share >= GOAL else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
