@@ -348,6 +348,7 @@ class AdaptiveIntegrator(Integrator):
         ts, us = [np.array([t0])], [u[None, :].copy()]
         total, stride, t, h = 1, 1, t0, h0
         cpu = wall = 0.0
+        watch = _Progress(self, problem, t_final)
         while True:
             bt, bu = fresh()
             c0, w0 = time.process_time(), time.perf_counter()
@@ -367,6 +368,8 @@ class AdaptiveIntegrator(Integrator):
             if self._deadline is not None and time.monotonic() > self._deadline:
                 status = drivers.TIMEOUT  # the last sample is where it got
                 break
+            watch.update(t)
+        watch.close()
         steps = int(counters[drivers.STEPS])
         return Trajectory(
             status=STATUS_NAMES[status], message=_status_message(status, t), t=np.concatenate(ts),
