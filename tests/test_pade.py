@@ -1,4 +1,4 @@
-"""Robust Pade (longtime.pade) against closed forms, degree reduction and the SVD kernel."""
+"""Robust Pade (longtime.numerics.pade) against closed forms, degree reduction and the SVD kernel."""
 from __future__ import annotations
 
 import math
@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from longtime.pade import _jacobi_singular_values, pade, rational_and_derivative, robust_pade, scratch_size
+from longtime.numerics.pade import _jacobi_singular_values, pade, rational_and_derivative, robust_pade, scratch_size
 from longtime.params import InputError
 
 

@@ -4,7 +4,7 @@ One step from (t0, u) (docs/schemes.md, ``bpl``):
 
 1. Taylor coefficients u_0..u_N from the problem's recurrence (``taylor``);
 2. per component, the Borel transform B(xi) = sum_{n<N} u_{n+1} xi^n / n!;
-3. its robust [m/n] Pade approximant P (``longtime.pade``: SVD degree reduction, reweighted
+3. its robust [m/n] Pade approximant P (``longtime.numerics.pade``: SVD degree reduction, reweighted
    QR, zero trimming), computed in the scaled variable z = xi / lam, lam a power of two that
    balances the first and last nonzero coefficients (the SVD tolerance is relative, so the
    rank decisions should not depend on the time unit);
@@ -56,7 +56,7 @@ import numpy as np
 from ..drivers import EXTRA1, EXTRA2, FALLBACKS, RHS_EVALS
 from ..integrator import AdaptiveIntegrator
 from ..params import InputError, Param
-from ..pade import DEFAULT_TOL, polynomial_and_derivative, robust_pade, scratch_size
+from ..numerics.pade import DEFAULT_TOL, polynomial_and_derivative, robust_pade, scratch_size
 
 # header of the flat work array: sizes and offsets, read by the compiled step
 (_N, _M, _NDEN, _K, _DIM, _TOL, _EPS_RES, _TW0, _TW1, _TW2, _TW3, _O_COEF, _O_TW, _O_INVFACT,

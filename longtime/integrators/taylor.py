@@ -26,7 +26,7 @@ import numpy as np
 from ..drivers import EXTRA1, OK
 from ..integrator import AdaptiveIntegrator, FixedStepIntegrator
 from ..params import Param
-from ..series import horner
+from ..numerics.series import horner
 
 ORDER = Param(10, "series order N (degree of the truncated Taylor polynomial)", int, minimum=1, maximum=60)
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..params import Param
 from ..problem import Problem
-from ..series import cos_wt_coeff, product, square
+from ..numerics.series import cos_wt_coeff, product, square
 
 _A, _B, _R, _C, _W = range(5)
 

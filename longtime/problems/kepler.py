@@ -13,7 +13,7 @@ import numpy as np
 
 from ..params import Param
 from ..problem import Problem, separable_rhs
-from ..series import power_coeff, product, square
+from ..numerics.series import power_coeff, product, square
 
 
 @numba.njit(cache=True)

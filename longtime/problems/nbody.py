@@ -14,7 +14,7 @@ import numpy as np
 
 from ..params import Param
 from ..problem import Problem
-from ..series import power_coeff, product, square
+from ..numerics.series import power_coeff, product, square
 
 
 def _kernels(s: int):

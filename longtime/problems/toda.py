@@ -13,7 +13,7 @@ import numpy as np
 
 from ..params import Param
 from ..problem import Problem
-from ..series import exp_coeff
+from ..numerics.series import exp_coeff
 
 
 @numba.njit(cache=True, inline="always")
