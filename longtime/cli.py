@@ -9,8 +9,9 @@ import importlib
 import json
 import shlex
 import sys
+from pathlib import Path
 
-from . import cli_args, registry
+from . import cli_args, registry, stability
 from .cells import SWEEP_PARAMETERS, expand
 from .integrator import Timing
 from .matrix import EXECUTORS, ExecOptions, run_matrix
@@ -20,7 +21,7 @@ from .report import complete, render
 from .store import Store, default_path
 
 # modules that add subcommands: each defines add_parser(subparsers) and sets func
-COMMAND_MODULES: tuple[str, ...] = ("longtime.cache_cmd", "longtime.matched", "longtime.plot", "longtime.reproduce", "longtime.roundoff", "longtime.warmup")
+COMMAND_MODULES: tuple[str, ...] = ("longtime.cache_cmd", "longtime.compare", "longtime.matched", "longtime.plot", "longtime.reproduce", "longtime.roundoff", "longtime.warmup")
 
 
 # argument types: one set for every command (longtime.cli_args)
@@ -97,7 +98,8 @@ def cmd_list(args) -> int:
                      for n, c in problems.items()],
         "integrators": [{"name": n, "summary": c.summary, "kind": c.kind, "order": c.order,
                          "symplectic": c.symplectic, "requires": sorted(c.requires),
-                         "parameters": {k: p.default for k, p in c.parameters.items()}}
+                         "parameters": {k: p.default for k, p in c.parameters.items()},
+                         "imaginary_interval": stability.intervals(n, compute=args.stability)}
                         for n, c in schemes.items()],
         "broken": [vars(b) for b in registry.broken()],
     }
@@ -113,6 +115,9 @@ def cmd_list(args) -> int:
         sym = " symplectic" if i["symplectic"] else ""
         print(f"  {i['name']:24s} {i['kind']:8s} order {i['order']}{sym}; needs {needs}\n"
               f"  {'':24s} {i['summary']}; parameters: {', '.join(i['parameters']) or '-'}")
+        if i["imaginary_interval"]:
+            print(f"  {'':24s} stable on the imaginary axis (|R(iy)| <= 1), y in: " + "; ".join(
+                f"{label} {stability.format_interval(r)}".strip() for label, r in i["imaginary_interval"].items()))
     if data["broken"]:
         print("broken plugins:")
         for b in data["broken"]:
@@ -172,7 +177,14 @@ def cmd_matrix(args) -> int:
     finally:
         store.finish_run(run_id, status)
     if not args.no_report:
-        print(render(store.rows(run_id), "table"))
+        from .report import report_text, write_html
+
+        rows = store.rows(run_id)
+        if not args.no_html:  # the results page, written before the text so a long report ends with its path
+            page = write_html(args.html or f"longtime-report/run-{run_id}", rows, store, [run_id])
+        print(report_text(rows, "table", full=args.full))
+        if not args.no_html:
+            print(f"\nresults page: {page}")
     return 0
 
 
@@ -193,7 +205,17 @@ def cmd_report(args) -> int:
         rows = store.rows(run_id)
     if args.problem:
         rows = [r for r in rows if r["problem"] in args.problem]
-    print(render(rows, args.format))
+    from .report import report_text, to_parquet, write_html
+
+    if args.html:
+        print(f"results page: {write_html(args.html, rows, store)}", file=sys.stderr)
+    if args.format == "parquet":
+        to_parquet(rows, args.out or "longtime.parquet")
+        print(f"wrote {len(rows)} rows to {args.out or 'longtime.parquet'}", file=sys.stderr)
+    elif args.out:
+        Path(args.out).write_text(report_text(rows, args.format, full=args.full))
+    else:
+        print(report_text(rows, args.format, full=args.full))
     return 0
 
 
@@ -203,6 +225,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("list", help="problems, schemes, their capabilities and broken plugins")
     p.add_argument("--format", choices=["table", "json"], default="table")
+    p.add_argument("--stability", action="store_true",
+                   help="measure each scheme's imaginary-axis stability interval where it is not "
+                        "cached (compiles every step kernel: about a minute the first time)")
     p.set_defaults(func=cmd_list)
 
     p = sub.add_parser("run", help="run problems x schemes and print one row per cell")
@@ -217,13 +242,23 @@ def build_parser() -> argparse.ArgumentParser:
                    help="finish an interrupted run (default: the latest)")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--no-report", action="store_true", help="do not print the report at the end")
+    p.add_argument("--full", action="store_true", help="the full per-cell tables after the summary")
+    p.add_argument("--html", default=None, metavar="DIR",
+                   help="folder of the results page (default: longtime-report/run-RUN_ID)")
+    p.add_argument("--no-html", action="store_true", help="do not write the results page")
     p.set_defaults(func=cmd_matrix)
 
     p = sub.add_parser("report", help="tables of stored rows: accuracy against cost per problem")
     p.add_argument("--db", default=None)
     p.add_argument("--run", default=None, help="run id, or 'all' (default: the latest run)")
     p.add_argument("-p", "--problem", type=_names, default=None)
-    p.add_argument("--format", choices=["table", "csv", "json", "markdown"], default="table")
+    p.add_argument("--format", choices=["table", "csv", "json", "markdown", "parquet"], default="table",
+                   help="table: the summary (status counts, Pareto front per problem); csv, json, "
+                        "markdown: every cell; parquet: every cell into --out")
+    p.add_argument("--full", action="store_true", help="the full per-cell tables after the summary")
+    p.add_argument("--html", default=None, metavar="DIR", help="also write the results page DIR/index.html")
+    p.add_argument("--out", default=None, metavar="FILE",
+                   help="write the report to FILE (parquet: default longtime.parquet)")
     p.set_defaults(func=cmd_report)
 
     for name in COMMAND_MODULES:

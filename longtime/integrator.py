@@ -198,7 +198,8 @@ class Integrator(ABC):
             first.message = f"{first.message}; {note}" if first.message else note
         first.cpu_s, first.wall_s = min(cpu), min(wall)
         first.extra.update(repeats=len(cpu), cpu_s_median=float(np.median(cpu)), cpu_s_max=max(cpu),
-                           wall_s_median=float(np.median(wall)), wall_s_max=max(wall))
+                           wall_s_median=float(np.median(wall)), wall_s_max=max(wall),
+                           cpu_s_samples=[float(c) for c in cpu])  # for `longtime compare`'s rank test
         return first
 
     @abstractmethod

@@ -156,6 +156,10 @@ def _scheme(name: str, order: int | None = None):
         settings["order"] = order
     if "tol" in settings and name.startswith("taylor"):
         raise Unmeasurable(f"{name} chooses its order from tol: the fixed-order 'taylor' is measured")
+    from .integrator import AdaptiveIntegrator, FixedStepIntegrator
+
+    if not issubclass(cls, (FixedStepIntegrator, AdaptiveIntegrator)):
+        raise Unmeasurable(f"{name} is a {cls.kind} integrator: no step kernel to measure")
     return cls(**settings)
 
 

@@ -1,0 +1,53 @@
+"""Linear stability measured from the schemes' own steps."""
+import json
+import math
+
+import numpy as np
+import pytest
+
+from longtime import cli, stability
+
+
+def test_rk4_amplification_factor_is_its_taylor_polynomial():
+    re, im = np.array([-2.5, -1.0, 0.3]), np.array([0.0, 0.7, 2.0])
+    growth = stability.region("rk4", re, im)
+    for k, y in enumerate(im):
+        for j, x in enumerate(re):
+            z = complex(x, y)
+            assert growth[k, j] == pytest.approx(abs(1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24), rel=1e-12)
+
+
+@pytest.mark.parametrize("scheme, y", [("euler", 0.0), ("rk4", 2.82), ("verlet", 2.0)])
+def test_imaginary_axis_intervals(scheme, y):
+    # rk4: 2 sqrt 2 = 2.828 (to the 0.01 grid); verlet: |trace| <= 2 up to omega h = 2; euler: none
+    result = stability.imaginary_interval(scheme)
+    assert result["bounded"] and result["y"] == pytest.approx(y, abs=1e-9)
+
+
+def test_verlet_growth_is_the_spectral_radius_not_the_norm():
+    # one Verlet step is not a rotation (its matrix is not normal) but repeats without growth
+    growth = stability.imaginary_growth("verlet", [0.5, 1.5, 2.5])
+    assert growth[:2] == pytest.approx([1.0, 1.0], abs=1e-12)
+    y = 2.5  # past the interval: eigenvalues of trace 2 - y^2
+    t = 2 - y * y
+    assert growth[2] == pytest.approx((abs(t) + math.sqrt(t * t - 4)) / 2, rel=1e-12)
+
+
+def test_list_shows_the_measured_interval(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))
+    assert stability.interval_texts({"rk4": None}) == {}  # nothing cached, nothing measured
+    assert stability.interval_texts({"rk4": None}, compute=True) == {"rk4": "[0, 2.82]"}
+    assert cli.main(["list", "--format", "json"]) == 0  # without --stability: what is cached
+    found = {i["name"]: i["imaginary_interval"] for i in json.loads(capsys.readouterr().out)["integrators"]}
+    assert found["rk4"][""]["y"] == pytest.approx(2.82) and found["rk4"][""]["bounded"]
+    assert "external" in found["dop853"][""]["error"]  # no step kernel: said, not measured
+    assert found["gauss6"] == {}  # not measured yet
+
+
+def test_plot_kind_stability(tmp_path):
+    from longtime.plot import draw
+
+    paths = draw("stability", tmp_path, schemes=["euler", "rk4", "verlet"], formats=("svg",))
+    text = paths[0].read_text()
+    assert paths[0].name == "stability.svg" and "verlet: [0, 2]" in text and "rk4: [0, 2.82]" in text
+    assert "verlet: no region (verlet needs separable" in text  # said, not left blank
