@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
+import time
 import traceback
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping
@@ -21,6 +23,11 @@ from .reference import ReferenceUnavailable, has_reference, trusted_reference
 # parameters that have a flag of their own on the command line, swept as lists
 SWEEP_PARAMETERS = ("dt", "tol", "eps_res", "order")
 DEFAULT_MAX_SAMPLES = 100_001
+# a cell stops (a 'timeout' row) after this many seconds unless --time-limit says otherwise
+DEFAULT_TIME_LIMIT = 600.0
+# a cell beyond these is refused before anything runs, unless --allow-large
+MAX_STEPS = 10**9
+MAX_SAMPLE_BYTES = 4 * 2**30
 
 
 @dataclass(frozen=True)
@@ -93,7 +100,10 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
     for pname in problem_names:
         pcls = registry.problem_class(pname)
         psets = {k: v for k, v in sets.items() if k in pcls.parameters}
-        problem = pcls(**psets)  # validates the problem's settings
+        try:
+            problem = pcls(**psets)  # validates the problem's settings
+        except MemoryError:
+            raise InputError(f"problem {pname} with {psets}: out of memory while building it") from None
         tf = t_final if t_final is not None else (
             pcls.sweep_t_final if default_sweep and pcls.sweep_t_final else pcls.default_t_final)
         check_time_span(pcls.t0, tf)
@@ -159,10 +169,12 @@ def integrate_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES) -> tuple[
 
 
 def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool = True,
-             timing: Timing | None = None) -> dict[str, Any]:
+             timing: Timing | None = None, time_limit: float | None = DEFAULT_TIME_LIMIT) -> dict[str, Any]:
     """Run one cell, timed by ``timing`` (default: ``Timing()``, the repeated timing of
-    every row); every outcome is a row, nothing raises."""
+    every row); every outcome is a row, nothing raises. Past ``time_limit`` seconds (None:
+    no limit) the integration stops where it got: a ``timeout`` row."""
     row = base_row(cell)
+    deadline = time.monotonic() + time_limit if time_limit else None
     if cell.skip_reason:
         row.update(status="skipped", message=cell.skip_reason)
         return row
@@ -170,8 +182,13 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         problem, integrator = build(cell)
         if isinstance(integrator, FixedStepIntegrator):
             row["dt"] = integrator.dt_for(problem)
+        # every parameter actually used, defaults included (a default tol is not null)
+        row.update({k: v for k, v in integrator.settings.items() if k in SWEEP_PARAMETERS and row.get(k) is None})
+        row["parameters"] = json.dumps({**problem.settings, **integrator.settings}, sort_keys=True, default=str)
         traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
-                                    timing=timing or Timing())
+                                    timing=timing or Timing(), deadline=deadline)
+        if traj.status == "timeout":
+            traj.message = f"{traj.message} (cell time limit {time_limit:g} s: --time-limit)"
         ref, trust, note = None, None, ""
         if reference and has_reference(problem):
             try:
@@ -187,3 +204,39 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         row["status"] = "failed"
         row["message"] = "".join(traceback.format_exception_only(type(exc), exc)).strip()
     return row
+
+
+def check_size(cells: Iterable[Cell], max_samples: int = DEFAULT_MAX_SAMPLES) -> None:
+    """Refuse, before anything runs, a cell whose estimated step count passes MAX_STEPS or
+    whose recorded samples pass MAX_SAMPLE_BYTES (``--allow-large`` skips this). Steps are
+    (t_final - t0) / dt, with the problem's default step for adaptive schemes (a rough
+    size); samples as the integrator keeps them (see Integrator.integrate)."""
+    from .integrator import SAMPLE_BUDGET
+
+    dims: dict[str, int] = {}
+    for cell in cells:
+        if cell.skip_reason:
+            continue
+        pcls = registry.problem_class(cell.problem)
+        key = json.dumps(cell.problem_settings, sort_keys=True, default=str) + cell.problem
+        if key not in dims:
+            dims[key] = pcls(**cell.problem_settings).dim
+        dim = dims[key]
+        given = cell.integrator_settings.get("dt")
+        dt = float(given or pcls.default_dt)
+        span = float(cell.t_final if cell.t_final is not None else pcls.default_t_final) - pcls.t0
+        try:
+            steps = span / dt
+        except OverflowError:  # 1e308 / 1e-300
+            steps = math.inf
+        step = f"dt={dt:g}" if given else f"steps of about the problem's dt={dt:g}"
+        what = f"{cell.problem} x {cell.integrator} ({step}, t_final={cell.t_final:g})"
+        if not steps <= MAX_STEPS:
+            raise InputError(f"{what}: about {steps:.3g} steps, over the limit of {MAX_STEPS:.0e}; "
+                             f"pass --allow-large to run it anyway")
+        samples = min(steps + 1, max_samples, max(2001, SAMPLE_BUDGET // dim))
+        size = samples * (dim + 1) * 8
+        if size > MAX_SAMPLE_BYTES:
+            raise InputError(f"{what}: its samples need about {size / 2**30:.3g} GiB (dimension {dim}), over "
+                             f"the limit of {MAX_SAMPLE_BYTES / 2**30:g} GiB; pass --allow-large to run it "
+                             f"anyway (or lower --max-samples)")

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 from . import cli_args, registry, stability
-from .cells import SWEEP_PARAMETERS, expand
+from .cells import DEFAULT_TIME_LIMIT, SWEEP_PARAMETERS, check_size, expand
 from .integrator import Timing
 from .matrix import EXECUTORS, ExecOptions, run_matrix
 from .params import InputError
@@ -58,6 +58,11 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
     p.add_argument("--cell-timeout", type=_seconds, default=None, metavar="SECONDS",
                    help="time limit per cell: each cell runs in its own process and one that "
                         "passes the limit becomes a 'timeout' row")
+    p.add_argument("--time-limit", type=_limit, default=DEFAULT_TIME_LIMIT, metavar="SECONDS",
+                   help=f"a cell's integration stops past this, keeping what it reached: a 'timeout' "
+                        f"row (default {DEFAULT_TIME_LIMIT:g}; 0: no limit)")
+    p.add_argument("--allow-large", action="store_true",
+                   help="run cells estimated beyond 1e9 steps or 4 GiB of samples (refused by default)")
     p.add_argument("--jobs", type=int, default=0, help="worker processes (default: one per core)")
     p.add_argument("--max-samples", type=int, default=100_001,
                    help="states kept per run for the metrics (every step below this)")
@@ -82,6 +87,7 @@ def _options(args) -> ExecOptions:
     return ExecOptions(jobs=args.jobs, max_samples=args.max_samples,
                        timing=Timing(repeats=args.repeats, min_time=args.min_time),
                        cell_timeout=getattr(args, "cell_timeout", None),
+                       time_limit=getattr(args, "time_limit", DEFAULT_TIME_LIMIT) or None,
                        scheduler=getattr(args, "scheduler", None))
 
 
@@ -129,6 +135,8 @@ def cmd_run(args) -> int:
     _warn_broken()
     cells = expand(args.problem, args.integrator, sweeps=_sweeps(args), t_final=args.t_final,
                    sets=dict(args.set), strict=True)
+    if not args.allow_large:
+        check_size(cells, args.max_samples)
     options = _options(args)
     store = None if args.no_store else Store(args.db)
     run_id = store.begin_run("run " + shlex.join(sys.argv[1:]), cells) if store else None
@@ -166,6 +174,8 @@ def cmd_matrix(args) -> int:
         schemes = args.integrator or sorted(registry.integrators())
         cells = expand(problems, schemes, sweeps=_sweeps(args), t_final=args.t_final,
                        sets=dict(args.set), default_sweep=True)
+        if not args.allow_large:
+            check_size(cells, args.max_samples)
         store = Store(args.db)
         run_id = store.begin_run("matrix " + shlex.join(sys.argv[2:]), cells)
         print(f"run {run_id}: {len(cells)} cells into {store.path}", file=sys.stderr)

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
 
-from .cells import DEFAULT_MAX_SAMPLES, Cell, base_row, run_cell
+from .cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, Cell, base_row, run_cell
 from .integrator import Timing
 
 POLL_S = 0.05
@@ -71,9 +71,10 @@ class _Child:
         return self.folder / "stderr.txt"
 
 
-def _start(cell: Cell, max_samples: int, timeout: float | None, timing: Timing) -> _Child:
+def _start(cell: Cell, max_samples: int, timeout: float | None, timing: Timing,
+           time_limit: float | None = DEFAULT_TIME_LIMIT) -> _Child:
     folder = Path(tempfile.mkdtemp(prefix="longtime-cell-"))
-    job = {"cell": cell.to_dict(), "max_samples": max_samples, "parent": os.getpid(),
+    job = {"cell": cell.to_dict(), "max_samples": max_samples, "parent": os.getpid(), "time_limit": time_limit,
            "timing": {"repeats": timing.repeats, "min_time": timing.min_time}}
     (folder / "cell.json").write_text(json.dumps(job))
     with open(folder / "stderr.txt", "wb") as err:
@@ -118,7 +119,8 @@ def _finish(child: _Child, timed_out: bool, timeout: float | None) -> dict:
 
 
 def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, timeout: float | None = None,
-                 jobs: int = 1, timing: Timing | None = None) -> Iterator[tuple[Cell, dict]]:
+                 jobs: int = 1, timing: Timing | None = None,
+                 time_limit: float | None = DEFAULT_TIME_LIMIT) -> Iterator[tuple[Cell, dict]]:
     """Rows of ``cells``, each run in its own child process, ``jobs`` at a time, as they end."""
     queue = list(cells)
     running: list[_Child] = []
@@ -129,7 +131,11 @@ def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, time
                 if cell.skip_reason:  # nothing to run: no process needed
                     yield cell, run_cell(cell)
                     continue
-                running.append(_start(cell, max_samples, timeout, timing or Timing()))
+                # the cell stops itself at its time limit, keeping what it reached; under a hard
+                # timeout, early enough to report before it is killed
+                limit = min(x for x in (time_limit, 0.8 * (timeout or 0), float("inf")) if x)
+                running.append(_start(cell, max_samples, timeout, timing or Timing(),
+                                      None if limit == float("inf") else limit))
             still = []
             for child in running:
                 if child.proc.poll() is not None:
@@ -149,9 +155,9 @@ def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, time
 
 
 def run_cell_isolated(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, timeout: float | None = None,
-                      timing: Timing | None = None) -> dict:
+                      timing: Timing | None = None, time_limit: float | None = DEFAULT_TIME_LIMIT) -> dict:
     """One cell's row, run in a child process with a time limit (for remote executors)."""
-    for _, row in run_isolated([cell], max_samples, timeout, jobs=1, timing=timing):
+    for _, row in run_isolated([cell], max_samples, timeout, jobs=1, timing=timing, time_limit=time_limit):
         return row
     raise AssertionError("unreachable")
 
@@ -160,7 +166,8 @@ def _child_main(folder: str) -> None:
     path = Path(folder)
     job = json.loads((path / "cell.json").read_text())
     die_with_parent(job["parent"])
-    row = run_cell(Cell.from_dict(job["cell"]), job["max_samples"], timing=Timing(**job["timing"]))
+    row = run_cell(Cell.from_dict(job["cell"]), job["max_samples"], timing=Timing(**job["timing"]),
+                   time_limit=job.get("time_limit"))
     tmp = path / "row.json.part"
     tmp.write_text(json.dumps(row))
     tmp.replace(path / "row.json")  # atomic: the parent never reads half a row

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Callable, Iterator
 
 from . import registry
-from .cells import DEFAULT_MAX_SAMPLES, Cell, base_row, run_cell
+from .cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, Cell, base_row, run_cell
 from .integrator import Timing
 from .isolation import die_with_parent, run_isolated
 from .params import InputError, check_choice
@@ -34,7 +34,8 @@ from .store import Store
 class ExecOptions:
     jobs: int = 0  # 0: one per core
     max_samples: int = DEFAULT_MAX_SAMPLES
-    cell_timeout: float | None = None
+    cell_timeout: float | None = None  # a hard limit: each cell in a process, killed past it
+    time_limit: float | None = DEFAULT_TIME_LIMIT  # the integration stops itself past it (None: never)
     scheduler: str | None = None  # Dask scheduler address
     timing: Timing = field(default_factory=Timing)
 
@@ -47,7 +48,7 @@ Executor = Callable[[list[Cell], ExecOptions], Iterator[tuple[Cell, dict]]]
 
 def serial(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
     for cell in cells:
-        yield cell, run_cell(cell, options.max_samples, timing=options.timing)
+        yield cell, run_cell(cell, options.max_samples, timing=options.timing, time_limit=options.time_limit)
 
 
 def batches_by_pair(cells: list[Cell]) -> list[list[Cell]]:
@@ -74,7 +75,8 @@ def estimated_work(cell: Cell, dims: dict[str, int]) -> float:
         return 0.0
 
 
-def run_batch(cells: list[Cell], max_samples: int, timing: Timing, folder: str | None = None) -> list[dict]:
+def run_batch(cells: list[Cell], max_samples: int, timing: Timing, folder: str | None = None,
+              time_limit: float | None = DEFAULT_TIME_LIMIT) -> list[dict]:
     """Rows of ``cells`` in this worker. With ``folder``, the cell in progress and each finished
     row are also written there, so that a pool broken by another worker's crash loses
     nothing finished and knows which cells were running."""
@@ -83,7 +85,7 @@ def run_batch(cells: list[Cell], max_samples: int, timing: Timing, folder: str |
         marker = Path(folder, f"running-{os.getpid()}") if folder else None
         if marker is not None:
             _write(marker, c.to_dict())
-        row = run_cell(c, max_samples, timing=timing)
+        row = run_cell(c, max_samples, timing=timing, time_limit=time_limit)
         if marker is not None:
             _write(Path(folder, f"row-{_digest(c.key)}.json"), {"cell": c.to_dict(), "row": row})
             marker.unlink()
@@ -144,7 +146,8 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
                                        initializer=_worker_init, initargs=(os.getpid(),))
             finished = False
             try:
-                futures = {pool.submit(run_batch, batch, options.max_samples, options.timing, folder): batch
+                futures = {pool.submit(run_batch, batch, options.max_samples, options.timing, folder,
+                                       options.time_limit): batch
                            for batch in batches_by_pair(remaining)}
                 pending = set(futures)
                 while pending:
@@ -182,7 +185,8 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
                 path.unlink()
             if not suspects:  # broken outside any cell: one process per cell, no endless retries
                 suspects = [c for c in remaining if c.key not in done]
-            for cell, row in run_isolated(suspects, options.max_samples, None, workers, timing=options.timing):
+            for cell, row in run_isolated(suspects, options.max_samples, None, workers, timing=options.timing,
+                                          time_limit=options.time_limit):
                 done.add(cell.key)
                 yield cell, row
             remaining = [c for c in remaining if c.key not in done]
@@ -196,7 +200,7 @@ def isolated(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, di
     from .isolation import run_isolated
 
     yield from run_isolated(cells, options.max_samples, options.cell_timeout, options.workers(),
-                            timing=options.timing)
+                            timing=options.timing, time_limit=options.time_limit)
 
 
 def dask_cluster(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
@@ -227,10 +231,11 @@ def dask_cluster(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
     try:
         if options.cell_timeout:
             futures = {client.submit(run_cell_isolated, c, options.max_samples, options.cell_timeout,
-                                     timing=options.timing, pure=False): c for c in runnable}
+                                     timing=options.timing, time_limit=options.time_limit, pure=False): c
+                       for c in runnable}
         else:
             futures = {client.submit(run_cell, c, options.max_samples, timing=options.timing,
-                                     pure=False): c for c in runnable}
+                                     time_limit=options.time_limit, pure=False): c for c in runnable}
         for fut in as_completed(futures):
             cell = futures[fut]
             try:

@@ -68,7 +68,8 @@ def _taylor(t0, u, params, coeffs, work):
 class Toda(Problem):
     name = "toda"
     summary = "periodic Toda lattice (integrable; H and Lax eigenvalues conserved)"
-    parameters = {"d": Param(3, "number of particles (>= 3)", int, minimum=3)}
+    # an upper bound, so that a typo (d=1e9) is an input error, not 16 GB allocated while expanding
+    parameters = {"d": Param(3, "number of particles (>= 3)", int, minimum=3, maximum=10**6)}
     default_t_final = 5000.0
     default_dt = 0.1
     sweep_dt = (0.1, 0.05, 0.025)
