@@ -134,3 +134,12 @@ def check_splitting(cls: type) -> None:
         if abs(x.sum() - 1.0) > 1e-12:
             raise ContractError(f"{owner}: {label} sum to {float(x.sum())!r}, not 1 (the scheme would "
                                 f"not be consistent)")
+
+
+def pairs_incompatibility(scheme: str, problem: Any) -> str | None:
+    """The ``linear_part`` capability views the state as (Re, Im) pairs: a scheme that uses
+    it cannot treat a state of odd dimension (None when it can)."""
+    if problem.dim % 2:
+        return (f"{scheme} needs a state of (Re, Im) pairs (even dimension); "
+                f"{problem.name} has dimension {problem.dim}")
+    return None

@@ -34,6 +34,7 @@ import math
 
 import numba
 
+from ..contract import pairs_incompatibility
 from .bpl import _O_LIN, BorelPadeLaplace
 
 
@@ -76,11 +77,7 @@ class BorelPadeLaplaceExp(BorelPadeLaplace):
     requires = frozenset({"taylor", "linear_part"})
 
     def incompatibility(self, problem):
-        reason = super().incompatibility(problem)
-        if reason is None and problem.dim % 2:
-            reason = (f"{self.name} needs a state of (Re, Im) pairs (even dimension); "
-                      f"{problem.name} has dimension {problem.dim}")
-        return reason
+        return super().incompatibility(problem) or pairs_incompatibility(self.name, problem)
 
     def _linear_size(self, problem):
         return problem.dim

@@ -31,6 +31,7 @@ import numba
 import numpy as np
 
 from ..drivers import OK, RHS_EVALS
+from ..contract import pairs_incompatibility
 from ..integrator import FixedStepIntegrator
 
 CONTOUR_POINTS = 64
@@ -69,11 +70,7 @@ class ETDRK4(FixedStepIntegrator):
     order = 4
 
     def incompatibility(self, problem):
-        reason = super().incompatibility(problem)
-        if reason is None and problem.dim % 2:
-            reason = (f"etdrk4 needs a state of (Re, Im) pairs (even dimension); "
-                      f"{problem.name} has dimension {problem.dim}")
-        return reason
+        return super().incompatibility(problem) or pairs_incompatibility(self.name, problem)
 
     def work_shape(self, problem):
         return (META + 1, problem.dim)

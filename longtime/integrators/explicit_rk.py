@@ -4,9 +4,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..drivers import OK, RHS_EVALS, compensated_add
+from ..drivers import OK, RHS_EVALS
 from ..integrator import COMPENSATED, FixedStepIntegrator
-from .tableau import checked_on_definition
+from .tableau import add_weighted_slopes, checked_on_definition
 
 
 class ExplicitRungeKutta(FixedStepIntegrator):
@@ -41,14 +41,7 @@ class ExplicitRungeKutta(FixedStepIntegrator):
                         acc += A[i, j] * work[j, m]
                     y[m] = u[m] + h * acc
                 rhs(t + c[i] * h, y, params, work[i])
-            for m in range(u.size):
-                acc = 0.0
-                for i in range(s):
-                    acc += b[i] * work[i, m]
-                if compensated:
-                    compensated_add(u, m, h * acc, work[s + 1], m)
-                else:
-                    u[m] += h * acc
+            add_weighted_slopes(u, h, b, work, compensated, work[s + 1])
             counters[RHS_EVALS] += s
             return OK
 

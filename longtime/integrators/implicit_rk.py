@@ -16,11 +16,11 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..drivers import (FAILED, NL_ITERS, OK, RHS_EVALS, compensated_add, copy_into, reached_round_off,
+from ..drivers import (FAILED, NL_ITERS, OK, RHS_EVALS, copy_into, reached_round_off,
                        state_scale)
 from ..integrator import COMPENSATED, FixedStepIntegrator
 from ..params import Param
-from .tableau import checked_on_definition
+from .tableau import add_weighted_slopes, checked_on_definition
 
 
 @numba.njit(cache=True, inline="always")
@@ -93,14 +93,7 @@ class ImplicitRungeKutta(FixedStepIntegrator):
             counters[RHS_EVALS] += evals
             if not converged:
                 return FAILED
-            for m in range(n):
-                acc = 0.0
-                for i in range(s):
-                    acc += b[i] * work[i, m]
-                if compensated:
-                    compensated_add(u, m, h * acc, work[s + 2], m)
-                else:
-                    u[m] += h * acc
+            add_weighted_slopes(u, h, b, work, compensated, work[s + 2])
             return OK
 
         return step

@@ -7,7 +7,10 @@ this message) instead of running a kernel that reads past its arrays.
 """
 from __future__ import annotations
 
+import numba
 import numpy as np
+
+from ..drivers import compensated_add
 
 TOL = 1e-12  # coefficient sums are exact up to a few roundings of O(1) numbers
 
@@ -68,3 +71,18 @@ def checked_on_definition(cls, *, explicit: bool, error_weights: bool = False) -
         return
     check_tableau(f"{cls.__module__}.{cls.__qualname__}", cls.A, cls.b, cls.c, explicit=explicit,
                   e=cls.e if error_weights else None, fsal=bool(getattr(cls, "fsal", False)))
+
+
+@numba.njit(cache=True, inline="always")
+def add_weighted_slopes(u, h, b, work, compensated, comp):
+    """The last line of every Runge-Kutta step: u += h sum_i b_i k_i, the slopes k_i in the
+    rows of ``work``, rounded once per step with Kahan's summation (``comp``) when the
+    scheme's ``compensated`` setting asks for it."""
+    for m in range(u.size):
+        acc = 0.0
+        for i in range(b.size):
+            acc += b[i] * work[i, m]
+        if compensated:
+            compensated_add(u, m, h * acc, comp, m)
+        else:
+            u[m] += h * acc
