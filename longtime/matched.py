@@ -183,8 +183,8 @@ def cmd_match(args) -> int:
     out_rows: list[dict] = []
     try:
         matched = [matcher.match(c) for c in bases]
-        base_settings = bases[0].problem_settings if bases else {}
-        psettings = pcls(**base_settings).settings  # parsed values (--set gives strings)
+        # parsed values (--set gives strings)
+        psettings = build(bases[0])[0].settings if bases else pcls().settings
         out_rows += matched
         text = [match_table(matched, problem, psettings, args.metric, args.target)]
         cap = step_cap_lines(problem, bases, matched)

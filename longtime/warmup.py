@@ -17,7 +17,8 @@ import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any
 
-from .cells import Cell, expand
+from . import cli_args
+from .cells import Cell, build, expand
 from .integrator import FixedStepIntegrator, Timing
 
 # integrator settings read at run time (not closed over by a kernel): cells that differ only
@@ -39,12 +40,9 @@ def distinct_kernels(cells: list[Cell]) -> list[Cell]:
 
 def warm_cell(cell: Cell) -> dict[str, Any]:
     """Compile ``cell``'s kernel by integrating two steps; seconds taken, or the error."""
-    from . import registry
-
     start = time.perf_counter()
     try:
-        problem = registry.problem_class(cell.problem)(**cell.problem_settings)
-        integrator = registry.integrator_class(cell.integrator)(**cell.integrator_settings)
+        problem, integrator = build(cell)
         step = (integrator.dt_for(problem) if isinstance(integrator, FixedStepIntegrator)
                 else float(problem.default_dt))
         integrator.integrate(problem, problem.t0 + 2 * step, max_samples=16, timing=Timing(repeats=1))
@@ -100,14 +98,12 @@ def cmd_warmup(args) -> int:
 
 
 def add_parser(subparsers) -> None:
-    from .cli import _key_value, _names
-
     p = subparsers.add_parser("warmup", help="compile the kernels of a selection into the caches, in parallel")
-    p.add_argument("-p", "--problem", type=_names, default=None, metavar="PROBLEM[,..]",
+    p.add_argument("-p", "--problem", type=cli_args.names, default=None, metavar="PROBLEM[,..]",
                    help="problems (default: all)")
-    p.add_argument("-i", "--integrator", type=_names, default=None, metavar="SCHEME[,..]",
+    p.add_argument("-i", "--integrator", type=cli_args.names, default=None, metavar="SCHEME[,..]",
                    help="schemes (default: all)")
-    p.add_argument("--set", type=_key_value, action="append", default=[], metavar="KEY=VALUE",
+    p.add_argument("--set", type=cli_args.key_value, action="append", default=[], metavar="KEY=VALUE",
                    help="a problem or scheme parameter, as for `longtime matrix` (repeatable)")
     p.add_argument("--jobs", type=int, default=0, help="worker processes (default: one per core)")
     p.add_argument("-v", "--verbose", action="store_true", help="list every kernel and its seconds")
