@@ -1,4 +1,4 @@
-"""Compiled step loops shared by every scheme.
+"""Compiled step loops shared by every scheme (the step contracts: docs/plugins.md, C).
 
 A scheme supplies one compiled step function; a factory here closes the loop over it, so
 the whole run is one call into compiled code (numba inlines the step). Factories are

@@ -1,4 +1,5 @@
-"""The scheme contract and the two shared drivers (fixed step, adaptive).
+"""The scheme contract and the two shared drivers (fixed step, adaptive); the whole plugin
+contract, as a checklist, is docs/plugins.md.
 
 A scheme declares what it needs from a problem (``requires``), its order, whether it is
 symplectic and its parameters, and implements ``integrate``. Most schemes only implement

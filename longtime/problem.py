@@ -1,4 +1,4 @@
-"""The problem contract.
+"""The problem contract (the whole plugin contract, as a checklist: docs/plugins.md).
 
 A problem models only what its scene needs and says so by what it provides. Every
 capability is an attribute that is ``None`` on this base class; a subclass provides it by
