@@ -191,7 +191,8 @@ def cmd_matrix(args) -> int:
 
         rows = store.rows(run_id)
         if not args.no_html:  # the results page, written before the text so a long report ends with its path
-            page = write_html(args.html or f"longtime-report/run-{run_id}", rows, store, [run_id])
+            page = write_html(args.html or store.path.parent / "longtime-report" / f"run-{run_id}", rows, store,
+                              [run_id])  # default: beside the store
         print(report_text(rows, "table", full=args.full))
         if not args.no_html:
             print(f"\nresults page: {page}")
@@ -254,7 +255,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-report", action="store_true", help="do not print the report at the end")
     p.add_argument("--full", action="store_true", help="the full per-cell tables after the summary")
     p.add_argument("--html", default=None, metavar="DIR",
-                   help="folder of the results page (default: longtime-report/run-RUN_ID)")
+                   help="folder of the results page (default: longtime-report/run-RUN_ID beside the store)")
     p.add_argument("--no-html", action="store_true", help="do not write the results page")
     p.set_defaults(func=cmd_matrix)
 

@@ -30,7 +30,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .orders import describe, observed_orders
-from .report import (_not_ok, _positive, format_counts, pareto, pareto_field, pareto_groups, setting, status_counts,
+from .report import (_not_ok, _positive, format_counts, main_t_final, pareto, pareto_field, pareto_groups, setting, status_counts,
                      target_text)
 
 DRIFT_BUDGET_S = 2.0  # stored cpu_s above which a drift curve is not recomputed for the page
@@ -92,12 +92,22 @@ def work_precision_svg(rows: list[dict], field: str, style: dict) -> str | None:
         return None
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7.0, 4.2))
-    for scheme in sorted({r["integrator"] for r in ok}):
-        pts = sorted((r["cpu_s"], r[field], r.get("cpu_s_max") or r["cpu_s"]) for r in ok if r["integrator"] == scheme)
+    t_main = main_t_final(ok)
+    # one curve per sweep: a scheme's points at another final time or other settings are
+    # another curve (dashed), never joined to the main sweep
+    sweeps = sorted({(r["integrator"], r.get("t_final") != t_main, r.get("t_final"), r.get("settings") or "",
+                      str(r.get("order"))) for r in ok})
+    for scheme, other_t, t_final, settings, order in sweeps:
+        pts = sorted((r["cpu_s"], r[field], r.get("cpu_s_max") or r["cpu_s"]) for r in ok
+                     if (r["integrator"], r.get("t_final"), r.get("settings") or "", str(r.get("order")))
+                     == (scheme, t_final, settings, order))
         x, y, x_max = (np.array(v) for v in zip(*pts))
         st = style[scheme]
+        label = f"{scheme} ({family(scheme)})" + (f" t_final={t_final:.4g}" if other_t else "") \
+            + (f" {settings}" if settings else "")
         ax.errorbar(x, y, xerr=[np.zeros_like(x), x_max - x], color=st["color"], marker=st["marker"], ms=5,
-                    lw=1.1, capsize=0, elinewidth=2.2, alpha=0.9, label=f"{scheme} ({family(scheme)})")
+                    lw=1.1, ls="--" if other_t or settings else "-", capsize=0, elinewidth=2.2, alpha=0.9,
+                    label=label)
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("CPU seconds (minimum of repeats; bar to the slowest)")
@@ -243,8 +253,8 @@ def _pareto_table(rows: list[dict]) -> str:
     body = [[target_text(p), p["best"]["integrator"], setting(p["best"]), _num(p["best"]["cpu_s"]),
              (f"{p['next']['integrator']} ({setting(p['next'])})" if p["next"] else "none"),
              (f"x{p['slower']:.3g}" if p["slower"] else "-")] for p in pareto_groups(front)]
-    return (f'<p class="note">For each target, the fastest ok row whose {_e(field)} meets it (CPU: the '
-            f'minimum of the repeats) and the fastest other scheme meeting it.</p>'
+    return (f'<p class="note">For each target, the fastest ok row whose {_e(field)} meets it over t_final = '
+            f'{main_t_final(rows):.6g} (CPU: the minimum of the repeats) and the fastest other scheme meeting it.</p>'
             + _table([f"{field} <=", "fastest scheme", "setting", "CPU s", "next best scheme", "next is slower"],
                      body))
 
@@ -338,7 +348,12 @@ def _stability_table(rows: list[dict]) -> str | None:
             schemes[s] = None
         else:
             schemes[s] = sorted({param.default if n is None else n for n in (orders or {None})}) or [SERIES_ORDERS[0]]
-    found = interval_texts(schemes, compute=True)
+    # measured here for the built-in schemes (their solves are capped); a plugin's step only
+    # by an explicit `longtime list --stability`, since a step that never returns would hang the page
+    builtin = {s: o for s, o in schemes.items()
+               if s in registry.integrators() and registry.integrator_class(s).__module__.startswith("longtime.")}
+    found = {**interval_texts({s: o for s, o in schemes.items() if s not in builtin}),
+             **interval_texts(builtin, compute=True)}
     if not found:
         return None
     body = [[s, txt] for s, txt in sorted(found.items())]

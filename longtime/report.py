@@ -106,13 +106,25 @@ def pareto_field(rows: list[dict[str, Any]]) -> str | None:
     return next((f for f in PARETO_FIELDS if any(_positive(r.get(f)) for r in ok)), None)
 
 
+def main_t_final(rows: list[dict[str, Any]]) -> float | None:
+    """The final time most of a problem's ok rows ran to (a sweep may add a few long runs)."""
+    counts: dict[float, int] = {}
+    for r in rows:
+        if r.get("status") == "ok" and _positive(r.get("t_final")):
+            counts[r["t_final"]] = counts.get(r["t_final"], 0) + 1
+    return max(sorted(counts), key=lambda t: counts[t]) if counts else None
+
+
 def pareto(rows: list[dict[str, Any]], field: str | None = None) -> list[dict[str, Any]]:
-    """For one problem's rows: per accuracy decade 10^-k, the fastest ok row whose ``field``
-    is at most 10^-k (minimum CPU of its repeats), and the fastest row of another scheme
-    meeting the same target (``next``, with ``slower`` = its time / the fastest's).
-    Only decades some row meets, from the coarsest to the finest."""
+    """For one problem's rows at its main final time (errors over different spans do not
+    compare): per accuracy decade 10^-k, the fastest ok row whose ``field`` is at most 10^-k
+    (minimum CPU of its repeats), and the fastest row of another scheme meeting the same
+    target (``next``, with ``slower`` = its time / the fastest's). Only decades some row
+    meets, from the coarsest to the finest."""
     field = field or pareto_field(rows)
-    ok = [r for r in rows if r.get("status") == "ok" and _positive(r.get("cpu_s")) and _positive(r.get(field))]
+    t_main = main_t_final(rows)
+    ok = [r for r in rows if r.get("status") == "ok" and _positive(r.get("cpu_s")) and _positive(r.get(field))
+          and r.get("t_final") == t_main]
     out = []
     for target in DECADES:
         meets = sorted((r for r in ok if r[field] <= target), key=lambda r: r["cpu_s"])
@@ -174,7 +186,8 @@ def summary(rows: list[dict[str, Any]], orders: bool = True) -> str:
         field = pareto_field(mine)
         front = pareto(mine, field) if field else []
         if front:
-            lines.append(f"  fastest scheme per accuracy ({field} <= target; CPU s, minimum of repeats):")
+            lines.append(f"  fastest scheme per accuracy ({field} <= target at t_final {main_t_final(mine):.6g}; "
+                         f"CPU s, minimum of repeats):")
             for p in pareto_groups(front):
                 b, n = p["best"], p["next"]
                 nxt = f"next {n['integrator']} x{p['slower']:.3g}" if n else "no other scheme"

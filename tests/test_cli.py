@@ -161,6 +161,6 @@ def test_report_tables_show_no_nan(capsys, tmp_path):
     db = str(tmp_path / "r.sqlite")
     assert main(["run", "-p", "harmonic", "-i", "rk4,verlet", "--t-final", "2", "--db", db]) == 0
     capsys.readouterr()
-    assert main(["report", "--db", db]) == 0
+    assert main(["report", "--db", db, "--full"]) == 0  # the summary, then the full tables
     out = capsys.readouterr().out
     assert "harmonic: accuracy against cost (2 rows)" in out and "NaN" not in out
