@@ -165,10 +165,19 @@ def cmd_matrix(args) -> int:
         run_id = args.resume or store.latest_run("matrix")
         if run_id is None:
             raise InputError(f"--resume: no matrix run in {store.path}")
-        if not (store.run(run_id)["command"] or "").startswith("matrix"):
-            raise InputError(f"--resume {run_id}: run {run_id} in {store.path} is not a matrix run")
+        store.run(run_id)  # an unknown id is an error, not "0 cells left"
         cells = store.pending(run_id)
         print(f"resuming run {run_id}: {len(cells)} cells left", file=sys.stderr)
+        died = store.died_in(run_id)
+        if died:  # perhaps killed, perhaps the cell's crash: each runs again in a process of its own
+            print(f"run {run_id} ended inside {len(died)} cell(s): they run again one process each", file=sys.stderr)
+            keys = {c.key for c in died}
+            cells = [c for c in cells if c.key not in keys]
+            status = "interrupted"
+            try:
+                run_matrix(died, store, run_id, "isolated", options)
+            finally:
+                store.finish_run(run_id, status)
     else:
         problems = args.problem or sorted(registry.problems())
         schemes = args.integrator or sorted(registry.integrators())
@@ -211,8 +220,10 @@ def cmd_report(args) -> int:
             raise InputError(f"no runs in {store.path}: run `longtime matrix` first")
         run = store.run(run_id)
         if run["status"] != "done" or run["done"] < run["planned"]:
+            died = ", ".join(f"{c.problem} x {c.integrator}" for c in store.died_in(run_id)[:3])
             print(f"note: run {run_id} is incomplete ({run['status']}, {run['done']} of {run['planned']} "
-                  f"cells stored)", file=sys.stderr)
+                  f"cells stored)" + (f"; its process ended inside {died}" if died else "")
+                  + f"; `longtime matrix --resume {run_id}` completes it", file=sys.stderr)
         rows = store.rows(run_id)
     if args.problem:
         rows = [r for r in rows if r["problem"] in args.problem]
@@ -286,8 +297,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"longtime {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        hint = ("; `longtime matrix --resume` completes the rest" if args.command == "matrix"
-                else "; rerun the command for the rest")
+        hint = "; `longtime matrix --resume RUN_ID` completes the rest (`longtime report` names the run)"
         print(f"interrupted: finished cells are in the store{hint}", file=sys.stderr)
         return 130
 

@@ -9,6 +9,7 @@ already measured.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import hashlib
 import json
 import multiprocessing
@@ -38,6 +39,8 @@ class ExecOptions:
     time_limit: float | None = DEFAULT_TIME_LIMIT  # the integration stops itself past it (None: never)
     scheduler: str | None = None  # Dask scheduler address
     timing: Timing = field(default_factory=Timing)
+    # called with each cell just before it runs in this process (the store marks it started)
+    on_start: Callable[[Cell], None] | None = None
 
     def workers(self) -> int:
         return self.jobs if self.jobs > 0 else max(1, os.cpu_count() or 1)
@@ -48,6 +51,8 @@ Executor = Callable[[list[Cell], ExecOptions], Iterator[tuple[Cell, dict]]]
 
 def serial(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
     for cell in cells:
+        if options.on_start is not None and not cell.skip_reason:
+            options.on_start(cell)
         yield cell, run_cell(cell, options.max_samples, timing=options.timing, time_limit=options.time_limit)
 
 
@@ -281,6 +286,8 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
     if options.max_samples < 2:
         raise InputError(f"max_samples={options.max_samples} is not valid: must be >= 2")
     run = get_executor(executor)
+    if store is not None and run_id is not None and options.on_start is None:
+        options = dataclasses.replace(options, on_start=lambda cell: store.mark_started(run_id, cell))
     rows: dict[str, dict] = {}
     bar = None
     if progress:

@@ -27,7 +27,7 @@ DEFAULT_PATH = "longtime.sqlite"
 # an empty database or a store written before the version existed (same three tables).
 APPLICATION_ID = 0x4C54696D
 SCHEMA_VERSION = 1
-_TABLES = {"runs", "planned", "rows"}
+_TABLES = {"runs", "planned", "rows"}  # a store before the schema version (no 'started' yet)
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS runs (
@@ -45,6 +45,10 @@ CREATE TABLE IF NOT EXISTS rows (
     problem TEXT NOT NULL, integrator TEXT NOT NULL, status TEXT NOT NULL,
     row TEXT NOT NULL, created TEXT NOT NULL,
     UNIQUE (run_id, cell_key)
+);
+CREATE TABLE IF NOT EXISTS started (
+    run_id INTEGER NOT NULL REFERENCES runs(id), cell_key TEXT NOT NULL, pid INTEGER, host TEXT,
+    started TEXT NOT NULL, PRIMARY KEY (run_id, cell_key)
 );
 PRAGMA application_id = %d;
 PRAGMA user_version = %d;
@@ -190,6 +194,25 @@ class Store:
                 "VALUES (?, ?, ?, ?, ?, ?, ?)",
                 (run_id, cell.key, row["problem"], row["integrator"], row["status"],
                  json.dumps(row), _now()))
+
+    def mark_started(self, run_id: int, cell: Cell) -> None:
+        """Record that this process starts ``cell`` (in-process executors): if the process
+        dies in it (a plugin's os.abort, a segfault), the store knows which cell it was."""
+        with closing(self._connect()) as con, con:
+            con.execute("INSERT OR REPLACE INTO started (run_id, cell_key, pid, host, started) VALUES (?, ?, ?, ?, ?)",
+                        (run_id, cell.key, os.getpid(), platform.node(), _now()))
+
+    def died_in(self, run_id: int) -> list[Cell]:
+        """Cells of ``run_id`` that a process started and never finished: where it died."""
+        with closing(self._connect()) as con:
+            try:
+                rows = con.execute(
+                    "SELECT p.cell FROM planned p JOIN started s ON s.run_id = p.run_id AND s.cell_key = p.cell_key "
+                    "WHERE p.run_id = ? AND p.cell_key NOT IN (SELECT cell_key FROM rows WHERE run_id = ?) "
+                    "ORDER BY p.rowid", (run_id, run_id)).fetchall()
+            except sqlite3.OperationalError:  # a store from before the 'started' table, opened read-only
+                return []
+        return [Cell.from_dict(json.loads(r[0])) for r in rows]
 
     def finish_run(self, run_id: int, status: str) -> None:
         with closing(self._connect()) as con, con:

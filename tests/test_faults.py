@@ -417,3 +417,23 @@ def test_corrupt_reference_cache_is_discarded_and_rebuilt(tmp_path, monkeypatch)
         again = reference.reference_check(problem, 5.0)
     assert again == first
     assert all(f.stat().st_size > 100 for f in files if f.exists())
+
+
+def test_serial_run_killed_by_a_plugin_names_the_cell_and_resumes(fault_env, tmp_path):
+    """Before: os.abort() in a serial `run` left the run 'running' with no trace of the cell,
+    and --resume said there was no matrix run. Now the store knows the cell it died in; the
+    report says so and --resume runs that cell in its own process (a failed row naming
+    SIGABRT) and the rest as usual."""
+    db = tmp_path / "abort.sqlite"
+    res = longtime(fault_env, "run", "-p", "harmonic", "-i", "verlet,plug-abort,euler", "--dt", "0.1",
+                   "--t-final", "2", "--db", str(db))
+    assert res.returncode == -signal.SIGABRT or res.returncode == 134
+    assert [r["integrator"] for r in stored(db)] == ["verlet"]
+    rep = longtime(fault_env, "report", "--db", str(db), "--format", "csv")
+    assert rep.returncode == 0 and "ended inside harmonic x plug-abort" in rep.stderr
+    res = longtime(fault_env, "matrix", "--resume", "1", "--db", str(db), "--no-progress", "--no-report")
+    assert res.returncode == 0, res.stderr
+    rows = {r["integrator"]: r for r in stored(db)}
+    assert rows["plug-abort"]["status"] == "failed" and "SIGABRT" in rows["plug-abort"]["message"]
+    assert rows["euler"]["status"] == "ok" and rows["verlet"]["status"] == "ok"
+    assert Store(db).runs()[-1]["status"] == "done"
