@@ -61,3 +61,45 @@ def test_example_plugin_lists_and_runs(example_env):
         assert drift[(name, 0.05)] > 1e-3
         assert 5 < drift[(name, 0.05)] / drift[(name, 0.025)] < 10
     assert rows[("example-midpoint", 0.05)]["rhs_evals"] == 2 * rows[("example-midpoint", 0.05)]["steps"]
+
+
+# one module each: a class that fails its definition check fails its whole module's import
+FORGOT_NJIT = '''
+from longtime import Problem
+
+
+def plain_rhs(t, u, params, out):  # forgot @numba.njit
+    out[0] = -u[0]
+
+
+class Forgot(Problem):
+    rhs = staticmethod(plain_rhs)
+
+    def initial_state(self):
+        return [1.0]
+'''
+NO_KICKS = '''
+from longtime.integrators import Splitting
+
+
+class NoKicks(Splitting):
+    summary = "forgot its coefficients"
+'''
+
+
+def test_a_plugin_that_breaks_the_contract_is_listed_broken_with_one_line(tmp_path):
+    from _plugins import install_plugin
+
+    env, _ = install_plugin(tmp_path, "longtime-broken-example",
+                            {"problems": {"forgot-njit": "forgot_njit:Forgot"},
+                             "integrators": {"no-kicks": "no_kicks:NoKicks"}},
+                            {"forgot_njit.py": FORGOT_NJIT, "no_kicks.py": NO_KICKS})
+    res = longtime(env, "list", "--format", "json")
+    assert res.returncode == 0, res.stderr
+    broken = {b["name"]: b["error"] for b in json.loads(res.stdout)["broken"]}
+    assert "rhs = plain_rhs is not compiled: decorate it with @numba.njit" in broken["forgot-njit"]
+    assert "does not set kicks, which its family Splitting declares" in broken["no-kicks"] or \
+        "does not set drifts, which its family Splitting declares" in broken["no-kicks"]
+    assert all("\n" not in e for e in broken.values())
+    res = longtime(env, "run", "-p", "forgot-njit", "-i", "rk4", "--no-store")
+    assert res.returncode == 2 and "broken plugin" in res.stderr and "@numba.njit" in res.stderr
