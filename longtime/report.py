@@ -155,26 +155,35 @@ def target_text(p: dict[str, Any]) -> str:
 
 
 def _growth_summary(rows: list[dict[str, Any]]) -> list[str]:
-    """'rk4: H linear' per scheme where rows carry growth classes (issue 10's fields)."""
+    """'rk4 linear/sqrt, quadratic' per scheme: the growth classes (issue 10's fields) of
+    the energy H (else the first invariant) and of the solution error, over its settings."""
+    names = sorted({k[: -len(".growth_class")] for r in rows for k in r if k.endswith(".growth_class") and r.get(k)})
+    drift = "H" if "H" in names else next((n for n in names if n != "error"), None)
+    shown = [n for n in (drift, "error") if n in names]
     out = []
     for scheme in sorted({r["integrator"] for r in rows}):
-        classes: dict[str, set] = {}
-        for r in rows:
-            if r["integrator"] != scheme or r.get("status") != "ok":
-                continue
-            for k, v in r.items():
-                if k.endswith(".growth_class") and v:
-                    classes.setdefault(k[: -len(".growth_class")], set()).add(str(v))
-        if classes:
-            out.append(f"{scheme}: " + ", ".join(f"{n} {'/'.join(sorted(c))}" for n, c in sorted(classes.items())))
-    return out
+        mine = [r for r in rows if r["integrator"] == scheme and r.get("status") == "ok"]
+        classes = ["/".join(sorted({str(r[f"{n}.growth_class"]) for r in mine if r.get(f"{n}.growth_class")})) or "-"
+                   for n in shown]
+        if mine and any(c != "-" for c in classes):
+            out.append(f"{scheme} {', '.join(classes)}")
+    return [f"growth of {', '.join(shown)}: " + "; ".join(out)] if out else []
+
+
+def _order_text(f: dict[str, Any]) -> str:
+    """'rk4 4.70+-0.53/4 MISSES': observed +- 95 % / declared."""
+    ci = f["observed_order_ci"]
+    text = f"{f['integrator']}{'' if f['order'] is None else ' N=' + str(f['order'])} {f['observed_order']:.2f}"
+    text += f"+-{ci:.2f}" if ci is not None else "(2 points)"
+    text += f"/{f['declared_order']}" if f["declared_order"] is not None else ""
+    return text + (" MISSES" if f["order_flag"] else "")
 
 
 def summary(rows: list[dict[str, Any]], orders: bool = True) -> str:
     """The terminal report read first: status counts, then per problem its Pareto front
     (one line per accuracy decade), fitted orders that miss their declared order, growth
     classes and why pairs were skipped (one line per reason)."""
-    from .orders import describe, observed_orders
+    from .orders import observed_orders
 
     if not rows:
         return "no rows"
@@ -197,12 +206,8 @@ def summary(rows: list[dict[str, Any]], orders: bool = True) -> str:
             lines.append("  no ok row with an error and a CPU time")
         mine_fits = [f for f in fits if f["problem"] == problem]
         if mine_fits:
-            lines.append("  observed order: " + "; ".join(
-                f"{f['integrator']}{'' if f['order'] is None else ' N=' + str(f['order'])} {describe(f)}"
-                for f in mine_fits))
-        growth = _growth_summary(mine)
-        if growth:
-            lines.append("  growth: " + "; ".join(growth))
+            lines.append("  observed/declared order (+- 95 %): " + "; ".join(_order_text(f) for f in mine_fits))
+        lines += [f"  {g}" for g in _growth_summary(mine)]
         for why, schemes in sorted(_not_ok(mine).items()):
             lines.append(f"  {why}: {', '.join(schemes)}")
         parts.append("\n".join(lines))
