@@ -7,9 +7,11 @@ prints microseconds per call, the best of several repeats. Used to check that th
 library (rocket-fft, pocketfft inside) is no slower than the hand-written radix-2 FFT it
 replaced. Measured on the shared 2-core build machine (3/2 rule), best of 7 x 2000 calls:
 
-    d                    64     128    256    512
-    radix-2 (before)   2.04    4.25   8.98  19.75  us
-    rocket-fft         1.02    2.70   5.11  11.73  us
+    d                          64     128    256    512
+    radix-2 (before)         2.04    4.25   8.98  19.75  us   (one after the other, quiet)
+    rocket-fft               1.02    2.70   5.11  11.73  us
+    radix-2, interleaved     4.08    9.33  16.64  37.07  us   (alternating runs, loaded machine:
+    rocket-fft, interleaved  1.01    2.93   2.97   7.94  us    the old tree on PYTHONPATH)
 """
 from __future__ import annotations
 
