@@ -28,6 +28,8 @@ DEFAULT_TIME_LIMIT = 600.0
 # a cell beyond these is refused before anything runs, unless --allow-large
 MAX_STEPS = 10**9
 MAX_SAMPLE_BYTES = 4 * 2**30
+# a relative error (l2 or final) from this on is O(1): the row's message says so
+O1_ERROR = 0.5
 
 
 @dataclass(frozen=True)
@@ -198,6 +200,10 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
                 note = f"no reference: {exc}"
         row.update(metrics.evaluate(problem, traj, ref, trust))
         row["status"] = traj.status
+        worst = max((e for e in (row.get("l2_error"), row.get("final_error")) if e is not None), default=None)
+        if worst is not None and worst >= O1_ERROR:  # finite but wrong: never a plain "ok"
+            note = "; ".join(m for m in (note, f"error O(1) (relative error {worst:.3g} >= {O1_ERROR:g}): "
+                                               f"the solution is not followed") if m)
         row["message"] = "; ".join(m for m in (traj.message, note, row["message"]) if m)  # + metrics' notes
     except (Exception, SystemExit) as exc:  # a failing cell never takes the matrix down
         # (a plugin's sys.exit too; os.abort or a segfault need a process per cell)

@@ -373,8 +373,17 @@ class AdaptiveIntegrator(Integrator):
             watch.update(t)
         watch.close()
         steps = int(counters[drivers.STEPS])
+        message = _status_message(status, t)
+        if status == drivers.FAILED and np.isfinite(u).all():  # say why where it is plain
+            f = np.empty(dim)
+            problem.rhs(t, u, problem.params, f)
+            if not np.isfinite(f).all():
+                message = f"step failed at t={t:.6g}: the right-hand side is not finite there (NaN or inf)"
+            elif not np.isfinite(u_new).all():
+                message = (f"step failed at t={t:.6g}: the steps tried from there gave a non-finite state (a right-hand "
+                           f"side that is not finite within the step, or a diverging iteration)")
         return Trajectory(
-            status=STATUS_NAMES[status], message=_status_message(status, t), t=np.concatenate(ts),
+            status=STATUS_NAMES[status], message=message, t=np.concatenate(ts),
             u=np.concatenate(us), cpu_s=cpu, wall_s=wall, counters=self._counters(counters),
             min_dt=float(hstats[0]) if steps else None, max_dt=float(hstats[1]) if steps else None)
 

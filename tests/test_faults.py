@@ -23,6 +23,7 @@ import signal
 import sys
 import time
 
+import numba
 import numpy as np
 
 from longtime import Problem
@@ -82,12 +83,24 @@ class NanInvariant(Harmonic):
         return out
 
 
+@numba.njit(cache=True)
+def _nan_rhs(t, u, params, out):
+    out[0] = u[1]
+    out[1] = -u[0] if t < 0.5 else np.nan
+
+
+class NanRhs(Harmonic):
+    name = "plug-nan-rhs"
+    summary = "harmonic oscillator whose rhs is NaN from t = 0.5"
+    rhs = staticmethod(_nan_rhs)
+
+
 class Rk4Again(_Heun):
     summary = "a plugin that claims a built-in's name"
 '''
 
 ENTRY_POINTS = {
-    "problems": {"plug-nan-invariant": "longtime_faults:NanInvariant"},
+    "problems": {"plug-nan-invariant": "longtime_faults:NanInvariant", "plug-nan-rhs": "longtime_faults:NanRhs"},
     "integrators": {"plug-segv": "longtime_faults:Segfault", "plug-abort": "longtime_faults:Abort",
                     "plug-exit": "longtime_faults:Exit", "plug-stuck": "longtime_faults:Stuck",
                     "rk4": "longtime_faults:Rk4Again"},
@@ -392,6 +405,16 @@ def test_nan_invariant_of_a_plugin_is_flagged(fault_env):
     assert "is not finite from t = 1" in row["message"]
 
 
+def test_nan_rhs_is_named_as_such(fault_env):
+    """Before: rk45 on a NaN rhs said 'nonlinear solve did not converge'."""
+    res = longtime(fault_env, "run", "-p", "plug-nan-rhs", "-i", "rk45", "--t-final", "2", "--no-store",
+                   "--format", "json")
+    assert res.returncode == 1, res.stderr
+    (row,) = json.loads(res.stdout)
+    assert row["status"] == "failed" and "non-finite state" in row["message"]
+    assert "nonlinear" not in row["message"]
+
+
 def test_bad_reference_budget_variable_is_an_input_error(fault_env):
     res = longtime({**fault_env, "LONGTIME_REFERENCE_SECONDS": "abc"}, "run", "-p", "harmonic", "-i",
                    "verlet", "--no-store")
@@ -437,3 +460,13 @@ def test_serial_run_killed_by_a_plugin_names_the_cell_and_resumes(fault_env, tmp
     assert rows["plug-abort"]["status"] == "failed" and "SIGABRT" in rows["plug-abort"]["message"]
     assert rows["euler"]["status"] == "ok" and rows["verlet"]["status"] == "ok"
     assert Store(db).runs()[-1]["status"] == "done"
+
+
+def test_an_order_one_error_does_not_read_as_a_plain_ok():
+    from longtime.cells import Cell, run_cell
+
+    row = run_cell(Cell("harmonic", "euler", {}, {"dt": 1.0}, 50.0))
+    assert row["l2_error"] > 0.5
+    assert "error O(1)" in row["message"]
+    good = run_cell(Cell("harmonic", "rk4", {}, {"dt": 0.01}, 1.0))
+    assert good["status"] == "ok" and "O(1)" not in good["message"]
