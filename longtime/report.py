@@ -244,7 +244,8 @@ def to_parquet(rows: list[dict[str, Any]], path) -> None:
     except ImportError as exc:
         from .params import InputError
 
-        raise InputError(f"--format parquet needs a parquet engine (pip install pyarrow): {exc}") from None
+        raise InputError(f"--format parquet needs a parquet engine: pip install pyarrow "
+                         f"(the extra longtime[parquet]); {str(exc).splitlines()[0]}") from None
 
 
 def report_text(rows: list[dict[str, Any]], fmt: str = "table", full: bool = False) -> str:

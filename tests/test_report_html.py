@@ -89,3 +89,15 @@ def test_page_in_headless_chromium(page):
     subprocess.run(flags + ["--window-size=1280,2000", f"--screenshot={shot}", path.as_uri()],
                    capture_output=True, text=True, timeout=120)
     assert shot.exists() and shot.stat().st_size > 20_000
+
+
+def test_whole_store_as_parquet_and_csv(page, tmp_path):
+    import pandas as pd
+
+    db = str(page[0].parent.parent / "runs.sqlite")
+    assert cli.main(["report", "--db", db, "--run", "all", "--format", "csv", "--out", str(tmp_path / "r.csv")]) == 0
+    assert len(pd.read_csv(tmp_path / "r.csv")) == 14
+    pytest.importorskip("pyarrow", reason="parquet needs pyarrow (the extra longtime[parquet])")
+    assert cli.main(["report", "--db", db, "--run", "all", "--format", "parquet", "--out", str(tmp_path / "r.parquet")]) == 0
+    df = pd.read_parquet(tmp_path / "r.parquet")
+    assert len(df) == 14 and (df["status"] == "ok").sum() == 12
