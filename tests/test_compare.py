@@ -31,9 +31,14 @@ def _inject(db, edit) -> int:
     return run_b
 
 
-def test_same_run_has_no_regression(store, capsys):
+def test_same_run_has_no_regression(store, capsys, tmp_path):
     assert cli.main(["compare", "1", "1", "--db", str(store)]) == 0
     assert "2 common cells" in capsys.readouterr().out
+    other = tmp_path / "other.sqlite"  # the same run in a second store
+    with sqlite3.connect(store) as src, sqlite3.connect(other) as dst:
+        src.backup(dst)
+    assert cli.main(["compare", "1", "1", "--db", str(store), "--db-b", str(other)]) == 0
+    assert "2 common cells (0 only in A, 0 only in B): 0 regressed" in capsys.readouterr().out
 
 
 def test_injected_slowdown_and_accuracy_loss_exit_1(store, capsys):
