@@ -209,52 +209,11 @@ def isolated(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, di
 
 
 def dask_cluster(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
-    """Cells as tasks on a Dask cluster: ``scheduler`` is its address (without one, a local
-    cluster of ``jobs`` single-threaded worker processes). Workers need longtime and the
-    plugins installed. With ``cell_timeout`` each task runs its cell in a child process of
-    the worker (longtime.isolation), so a hung cell cannot hold a worker."""
-    try:
-        from distributed import Client, LocalCluster, as_completed
-    except ImportError:
-        raise InputError("executor 'dask' needs dask.distributed: pip install 'longtime[dask]'") from None
-    from .isolation import run_cell_isolated
+    """Cells as batched tasks on a Dask cluster (``options.scheduler``, or a local one of
+    ``jobs`` workers); see longtime.dask_executor, imported only when used."""
+    from .dask_executor import dask_cluster as run_on_dask
 
-    for cell in cells:
-        if cell.skip_reason:
-            yield cell, run_cell(cell)
-    # cells of one pair submitted together, so a worker tends to reuse its compiled kernel
-    runnable = [c for batch in batches_by_pair(cells) for c in batch if not c.skip_reason]
-    if not runnable:
-        return
-    cluster = None
-    if options.scheduler:
-        client = Client(options.scheduler)
-    else:
-        cluster = LocalCluster(n_workers=min(options.workers(), len(runnable)), threads_per_worker=1,
-                               dashboard_address=None)
-        client = Client(cluster)
-    try:
-        if options.cell_timeout:
-            futures = {client.submit(run_cell_isolated, c, options.max_samples, options.cell_timeout,
-                                     timing=options.timing, time_limit=options.time_limit, pure=False): c
-                       for c in runnable}
-        else:
-            futures = {client.submit(run_cell, c, options.max_samples, timing=options.timing,
-                                     time_limit=options.time_limit, pure=False): c for c in runnable}
-        for fut in as_completed(futures):
-            cell = futures[fut]
-            try:
-                row = fut.result()
-            except Exception as exc:  # the worker died or the task could not run there
-                from .cells import base_row
-
-                row = base_row(cell)
-                row.update(status="failed", message=f"dask task failed: {exc!r}")
-            yield cell, row
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    yield from run_on_dask(cells, options)
 
 
 def _with_limits(default: Executor) -> Executor:
