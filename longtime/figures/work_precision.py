@@ -51,6 +51,9 @@ def work_precision(out: Path, formats: Sequence[str] = ("png", "svg"), rows: lis
         if not panels:
             continue
         fig, axes = plt.subplots(1, len(panels), figsize=(6.2 * len(panels), 4.6), squeeze=False)
+        from ..html_report import family, styles
+
+        style = styles(sorted({r["integrator"] for r in mine}))  # a colour per family, a marker per scheme
         for ax, (field, label) in zip(axes[0], panels):
             for i, scheme in enumerate(sorted({r["integrator"] for r in mine})):
                 # the point is the minimum cpu_s of the repeated runs; the bar reaches the
@@ -59,14 +62,15 @@ def work_precision(out: Path, formats: Sequence[str] = ("png", "svg"), rows: lis
                              if r["integrator"] == scheme and positive(r.get(field)))
                 if pts:
                     x, y, x_max = zip(*pts)
-                    color = f"C{i % 10}"
-                    ax.loglog(x, y, marker="o", ms=4, lw=1.2, label=scheme, color=color,
-                              ls="-" if i < 10 else "--")
+                    color = style[scheme]["color"]
+                    ax.loglog(x, y, marker=style[scheme]["marker"], ms=5, lw=1.2, color=color,
+                              label=f"{scheme} ({family(scheme)})")
                     ax.hlines(y, x, x_max, color=color, lw=2.5, alpha=0.45)
             ax.set_xlabel("CPU seconds (integration: minimum of repeats, bar to the maximum)")
             ax.set_ylabel(label)
             ax.grid(True, which="both", alpha=0.3)
-        axes[0][0].legend(fontsize=8, ncol=2)
+        # outside the axes: a legend inside covers data once there are many schemes
+        axes[0][-1].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
         fig.suptitle(f"{problem}: error against cost")
         written += save(fig, Path(out).with_name(f"{Path(out).name}-{problem}"), formats)
     if not written:
