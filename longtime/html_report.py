@@ -29,7 +29,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .orders import describe, observed_orders
+from .orders import observed_orders
 from .report import (_not_ok, _positive, format_counts, main_t_final, pareto, pareto_field, pareto_groups, setting, status_counts,
                      target_text)
 

@@ -124,12 +124,3 @@ def observed_orders(rows: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
                     "order_points": [[x, e] for x, e in used], "order_variable": variable,
                     "order_error_field": field, "order_flag": bool(flag)})
     return sorted(out, key=lambda d: (d["problem"], d["integrator"], str(d["order"])))
-
-
-def describe(fit: dict[str, Any]) -> str:
-    """'4.02 +- 0.05 (declared 4)' with a '!' when the fit misses the declared order."""
-    ci = fit["observed_order_ci"]
-    text = f"{fit['observed_order']:.2f}" + (f" +- {ci:.2f}" if ci is not None else " (2 points)")
-    if fit["declared_order"] is not None:
-        text += f" (declared {fit['declared_order']})"
-    return text + (" MISSES" if fit["order_flag"] else "")

@@ -265,7 +265,7 @@ def format_interval(result: dict[str, Any]) -> str:
 # ------------------------------------------------------------------ cached results
 def _cache_key(name: str, order: int | None) -> str:
     from .cache import digest
-    from .jitcache import Unfreezable, fingerprint
+    from .jitcache import fingerprint
     from .problems.harmonic import Harmonic
 
     scheme = _scheme(name, order)
@@ -310,14 +310,6 @@ def intervals(name: str, compute: bool = True, orders: Iterable[int] | None = No
     except (InputError, Unmeasurable) as exc:
         out[""] = {"error": str(exc)}
     return out
-
-
-def describe(name: str, compute: bool = False) -> str | None:
-    """'[0, 2.83]' or 'N=4 [0, 1.2]; N=6 ...', or None when nothing is known."""
-    found = intervals(name, compute=compute)
-    if not found:
-        return None
-    return "; ".join(f"{label} {format_interval(r)}".strip() for label, r in found.items())
 
 
 def interval_texts(schemes: dict[str, Iterable[int] | None], compute: bool = False) -> dict[str, str]:
