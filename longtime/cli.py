@@ -199,11 +199,15 @@ def cmd_matrix(args) -> int:
         from .report import report_text, write_html
 
         rows = store.rows(run_id)
+        page = None
         if not args.no_html:  # the results page, written before the text so a long report ends with its path
-            page = write_html(args.html or store.path.parent / "longtime-report" / f"run-{run_id}", rows, store,
-                              [run_id])  # default: beside the store
+            try:
+                page = write_html(args.html or store.path.parent / "longtime-report" / f"run-{run_id}", rows,
+                                  store, [run_id])  # default: beside the store
+            except Exception as exc:  # the rows are stored; `longtime report --html DIR` can retry
+                print(f"warning: results page not written: {type(exc).__name__}: {exc}", file=sys.stderr)
         print(report_text(rows, "table", full=args.full))
-        if not args.no_html:
+        if page is not None:
             print(f"\nresults page: {page}")
     return 0
 
