@@ -131,21 +131,19 @@ def representative(rows: list[dict]) -> dict[str, dict]:
 def drift_curve(row: dict) -> tuple[np.ndarray, np.ndarray, str] | None:
     """(t, e_I(t), invariant name) of a row's setting, re-run once (untimed)."""
     from . import registry
-    from .cells import Cell
+    from .cells import Cell, integrate_cell
     from .metrics import relative_error
 
+    # the row's settings are the problem's and the scheme's merged (cells.base_row): split them
     settings = json.loads(row["settings"]) if row.get("settings") else {}
-    pcls = registry.problem_class(row["problem"])
+    pcls, icls = registry.problem_class(row["problem"]), registry.integrator_class(row["integrator"])
     psets = {k: v for k, v in settings.items() if k in pcls.parameters}
-    isets = {k: v for k, v in settings.items() if k not in pcls.parameters}
+    isets = {k: v for k, v in settings.items() if k in icls.parameters}
     for k in ("dt", "tol", "eps_res", "order"):
-        if row.get(k) is not None and row.get(k) == row.get(k):
+        if k in icls.parameters and row.get(k) is not None and row.get(k) == row.get(k):
             isets[k] = int(row[k]) if k == "order" else row[k]
-    cell = Cell(row["problem"], row["integrator"], psets, isets, row["t_final"])
-    problem = pcls(**cell.problem_settings)
-    icls = registry.integrator_class(cell.integrator)
-    isets = {k: v for k, v in isets.items() if k in icls.parameters}
-    traj = icls(**isets).integrate(problem, cell.t_final, max_samples=DRIFT_SAMPLES)
+    problem, traj = integrate_cell(Cell(row["problem"], row["integrator"], psets, isets, row["t_final"]),
+                                   max_samples=DRIFT_SAMPLES)
     inv = problem.invariants(traj.t, traj.u)
     name = "H" if "H" in inv else next(iter(inv), None)
     if name is None:
