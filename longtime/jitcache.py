@@ -36,6 +36,7 @@ from numba.core.registry import CPUDispatcher
 from numba.core.extending import _Intrinsic
 from numba.core.types import Type as NumbaType
 
+from . import cache_guard  # noqa: F401  (a corrupt numba cache file is rebuilt, not fatal)
 from .cache import cache_dir, digest
 
 _DECORATOR_OPTIONS = ("inline", "fastmath", "error_model", "boundscheck")

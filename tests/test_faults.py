@@ -470,3 +470,21 @@ def test_an_order_one_error_does_not_read_as_a_plain_ok():
     assert "error O(1)" in row["message"]
     good = run_cell(Cell("harmonic", "rk4", {}, {"dt": 0.01}, 1.0))
     assert good["status"] == "ok" and "O(1)" not in good["message"]
+
+
+def test_corrupt_numba_cache_files_are_discarded_and_rebuilt(tmp_path):
+    """Before: a truncated numba cache file failed the row ('pickle data was truncated') on
+    every rerun, naming no file."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"), "LONGTIME_CACHE_DIR": str(tmp_path / "lt")}
+    argv = ["run", "-p", "harmonic", "-i", "verlet", "--dt", "0.1", "--t-final", "1", "--no-store",
+            "--format", "json"]
+    first = longtime(env, *argv)
+    assert first.returncode == 0, first.stderr
+    files = [p for p in (tmp_path / "numba").rglob("*") if p.suffix in (".nbi", ".nbc")]
+    assert files
+    for p in files:
+        p.write_bytes(b"garbage")
+    again = longtime(env, *argv)
+    assert again.returncode == 0, again.stderr
+    assert json.loads(again.stdout)[0]["status"] == "ok"
+    assert "discarding the unreadable numba cache file" in again.stderr
