@@ -141,7 +141,13 @@ def reference_states(problem: Problem, times: np.ndarray, precision: str = "doub
         raise InputError(f"problem '{problem.name}' has neither an exact solution nor a heyoka system")
     _fp(precision)  # validates
     path = _cache_path(problem, "states", precision, times.tobytes(), suffix=".npy")
-    cached = _load(path, lambda: np.load(path))
+    def read():
+        states = np.load(path)
+        if states.shape != (times.size, problem.dim) or not np.isfinite(states).all():
+            raise ValueError(f"holds {states.shape} states, expected {(times.size, problem.dim)}, all finite")
+        return states
+
+    cached = _load(path, read)
     if cached is not None:
         return cached
     # propagate_grid wants a strictly increasing grid that starts at the current time

@@ -126,13 +126,13 @@ def test_crashing_worker_fails_only_its_cell_and_the_others_run(fault_env, tmp_p
     cell still pending (21 of 24) and --resume found nothing left."""
     db = tmp_path / "pool.sqlite"
     res = longtime(fault_env, "matrix", "-p", "harmonic", "-i", "plug-segv,plug-abort,verlet,euler",
-                   "--dt", "0.1,0.05", "--t-final", "5", "--jobs", "2", "--executor", "process",
+                   "--dt", "0.1", "--t-final", "5", "--jobs", "2", "--executor", "process",
                    "--db", str(db), "--no-progress", "--no-report")
     assert res.returncode == 0, res.stderr
     rows = stored(db)
-    assert len(rows) == 8
+    assert len(rows) == 4
     status = {(r["integrator"], r["dt"]): r for r in rows}
-    for dt in (0.1, 0.05):
+    for dt in (0.1,):
         assert status[("verlet", dt)]["status"] == "ok", status[("verlet", dt)]["message"]
         assert status[("euler", dt)]["status"] == "ok"
         assert status[("plug-segv", dt)]["status"] == "failed"

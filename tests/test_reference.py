@@ -40,7 +40,8 @@ def test_toda_reference_holds_to_5000():
     row = run_cell(Cell("toda", "rk4", {}, {"dt": 0.1}, 5000.0))
     assert row["reference_horizon"] == 5000.0 and row["error_horizon"] == 5000.0
     assert row["reference"] == "heyoka double" and row["reference_error"] < 1e-9
-    assert row["final_error"] is not None and row["message"] == ""
+    # no note on the reference (the message may say that rk4's phase error is O(1) by t = 5000)
+    assert row["final_error"] is not None and "reference" not in row["message"]
 
 
 def test_rows_without_a_reference_have_null_reference_fields():
