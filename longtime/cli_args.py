@@ -71,3 +71,19 @@ def seconds(flag: str, allow_zero: bool = False) -> Callable[[str], float]:
         return value
 
     return parse
+
+
+def out_folder(flag: str) -> Callable[[str], str]:
+    """A folder to write into: an existing regular file (or one on its path) is an error
+    before anything runs, not a traceback after."""
+
+    def parse(text: str) -> str:
+        from pathlib import Path
+
+        path = Path(text)
+        for p in (path, *path.parents):
+            if p.exists() and not p.is_dir():
+                raise argparse.ArgumentTypeError(f"{flag} {text}: {p} is a file, not a folder")
+        return text
+
+    return parse

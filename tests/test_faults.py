@@ -488,3 +488,15 @@ def test_corrupt_numba_cache_files_are_discarded_and_rebuilt(tmp_path):
     assert again.returncode == 0, again.stderr
     assert json.loads(again.stdout)[0]["status"] == "ok"
     assert "discarding the unreadable numba cache file" in again.stderr
+
+
+@pytest.mark.parametrize("command", [["reproduce", "--quick"], ["plot", "work-precision"],
+                                     ["match", "-p", "kdv"]])
+def test_out_that_is_a_file_is_an_input_error(command, tmp_path, capsys):
+    """Before: `reproduce --out FILE` ran, then failed with FileExistsError."""
+    target = tmp_path / "a-file"
+    target.write_text("x")
+    with pytest.raises(SystemExit) as exc:
+        main([*command, "--out", str(target)])
+    assert exc.value.code == 2 and "is a file, not a folder" in capsys.readouterr().err
+    assert target.read_text() == "x"
