@@ -144,9 +144,12 @@ def cmd_run(args) -> int:
     try:
         rows = run_matrix(cells, store, run_id, args.executor or "serial", options)
         status = "done"
+    except InputError:  # rejected as it started (an executor's setting): nothing to resume
+        status = "rejected"
+        raise
     finally:
         if store:
-            store.finish_run(run_id, status)
+            store.discard_run(run_id) if status == "rejected" else store.finish_run(run_id, status)
     rows = [complete(r) for r in rows]
     if args.format == "json":
         print(json.dumps(rows, indent=1))
@@ -193,8 +196,14 @@ def cmd_matrix(args) -> int:
         run_matrix(cells, store, run_id, args.executor or "process", options,
                    progress=not args.no_progress)
         status = "done"
+    except InputError:  # rejected as it started (an executor's setting): nothing to resume
+        status = "rejected"
+        raise
     finally:
-        store.finish_run(run_id, status)
+        if status == "rejected" and args.resume is None:
+            store.discard_run(run_id)
+        else:
+            store.finish_run(run_id, "interrupted" if status == "rejected" else status)
     if not args.no_report:
         from .report import report_text, write_html
 

@@ -214,6 +214,15 @@ class Store:
                 return []
         return [Cell.from_dict(json.loads(r[0])) for r in rows]
 
+    def discard_run(self, run_id: int) -> None:
+        """Remove a run that stored no row (rejected before any cell ran: nothing to resume)."""
+        with closing(self._connect()) as con, con:
+            if con.execute("SELECT COUNT(*) FROM rows WHERE run_id = ?", (run_id,)).fetchone()[0]:
+                return
+            for table in ("started", "planned"):
+                con.execute(f"DELETE FROM {table} WHERE run_id = ?", (run_id,))
+            con.execute("DELETE FROM runs WHERE id = ?", (run_id,))
+
     def finish_run(self, run_id: int, status: str) -> None:
         with closing(self._connect()) as con, con:
             con.execute("UPDATE runs SET finished = ?, status = ? WHERE id = ?", (_now(), status, run_id))

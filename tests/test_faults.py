@@ -500,3 +500,24 @@ def test_out_that_is_a_file_is_an_input_error(command, tmp_path, capsys):
         main([*command, "--out", str(target)])
     assert exc.value.code == 2 and "is a file, not a folder" in capsys.readouterr().err
     assert target.read_text() == "x"
+
+
+def test_a_matrix_rejected_as_it_starts_leaves_no_run(tmp_path, capsys, monkeypatch):
+    """Before: a matrix rejected for bad input (found as the executor started) was recorded
+    as a resumable run."""
+    from longtime import matrix
+    from longtime.params import InputError
+
+    def rejecting(cells, options):
+        raise InputError("--scheduler tcp://nowhere:1: cannot connect")
+        yield  # a generator, like the executors
+
+    monkeypatch.setitem(matrix.EXECUTORS, "serial", rejecting)
+    db = tmp_path / "rejected.sqlite"
+    assert main(["matrix", "-p", "harmonic", "-i", "verlet", "--dt", "0.1", "--t-final", "1",
+                 "--executor", "serial", "--db", str(db), "--no-progress", "--no-report"]) == 2
+    assert "cannot connect" in capsys.readouterr().err
+    assert Store(db).runs() == []
+    assert main(["matrix", "-p", "harmonic", "-i", "verlet", "--max-samples", "1", "--db", str(db),
+                 "--no-progress"]) == 2
+    assert Store(db).runs() == []

@@ -13,7 +13,7 @@ DRIFT_METRICS = ("H.max", "H.mean")
 def _store_rows(db, run) -> list[dict]:
     from ..store import Store
 
-    store = Store(db)
+    store = Store(db, readonly=True)  # a figure writes nothing into the store
     if run in (None, "", "latest"):
         run_id = store.latest_run()
         if run_id is None:
