@@ -314,12 +314,11 @@ def _capability_matrix(rows: list[dict]) -> str:
                 continue
             counts = status_counts(mine)
             worst = next(st for st in ("failed", "timeout", "diverged", "skipped", "ok") if counts.get(st))
+            title = text = format_counts(counts)
             if worst == "skipped":
-                why = str(mine[0].get("message") or "").removeprefix(s + " ")
-                text = f"skipped: {why}"
-            else:
-                text = format_counts(counts)
-            cells.append(f'<td class="{worst}" title="{_e(text)}">{_e(text)}</td>')
+                title = "skipped: " + str(mine[0].get("message") or "").removeprefix(s + " ")
+                text = title.split(", which")[0]  # the column names the problem
+            cells.append(f'<td class="{worst}" title="{_e(title)}">{_e(text)}</td>')
         body.append(cells)
     return _table(["scheme \\ problem", *problems], body, raw=True)
 
