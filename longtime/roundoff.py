@@ -65,14 +65,13 @@ def run_member(config: Config, steps: int, member: int, seed: int) -> dict[str, 
     """One run of ``config``: member -1 from the problem's initial state, member k >= 0 from
     it perturbed by rng([seed, k]). Returns the sample times, the invariant's relative
     error there, and the cost."""
-    from . import registry
+    from .cells import Cell, build
     from .metrics import relative_error
 
-    problem = registry.problem_class(config.problem)()
+    problem, scheme = build(Cell(config.problem, config.scheme, {}, {"dt": DT, **config.settings}))
     if member >= 0:
         rng = np.random.default_rng([seed, member])
         problem.u0 = problem.u0 * (1.0 + PERTURBATION * rng.standard_normal(problem.dim))
-    scheme = registry.integrator_class(config.scheme)(dt=DT, **config.settings)
     traj = scheme.integrate(problem, problem.t0 + steps * DT, max_samples=MAX_SAMPLES)
     err = relative_error(problem.invariants(traj.t, traj.u)[config.invariant])
     return {"t": traj.t, "err": err, "cpu_s": traj.cpu_s, "status": traj.status, "steps": traj.steps,
