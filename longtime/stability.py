@@ -290,7 +290,11 @@ def intervals(name: str, compute: bool = True, orders: Iterable[int] | None = No
     out = {}
     try:
         orders = orders_of(name) if orders is None or orders_of(name) == [None] else sorted(set(orders))
-        _scheme(name, orders[0])  # not measurable at all: one reason, not one per N
+        from .problems.harmonic import Harmonic
+
+        reason = _scheme(name, orders[0]).incompatibility(Harmonic())
+        if reason:  # not measurable at all: one reason, not one per N
+            raise Unmeasurable(reason)
         for order in orders:
             label = "" if order is None else f"N={order}"
             try:
