@@ -14,7 +14,8 @@ splitting, ...), a marker per scheme within it; legends sit outside the axes.
 
 The drift curves are not stored in the rows: the page re-runs each drawn setting once
 (compiled kernels come from the cache), untimed, and skips settings whose stored CPU time
-exceeds ``DRIFT_BUDGET_S``; the caption says which setting was drawn.
+exceeds ``DRIFT_BUDGET_S``, or once a problem's re-runs add up to ``DRIFT_PROBLEM_BUDGET_S``
+(cheapest first); the caption says which setting was drawn and names those left out.
 """
 from __future__ import annotations
 
@@ -34,6 +35,7 @@ from .report import (_not_ok, _positive, format_counts, main_t_final, pareto, pa
                      target_text)
 
 DRIFT_BUDGET_S = 2.0  # stored cpu_s above which a drift curve is not recomputed for the page
+DRIFT_PROBLEM_BUDGET_S = 10.0  # and the stored cpu_s of the curves re-run for one problem, in all
 DRIFT_SAMPLES = 2001
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "*", "h")
 FAMILY_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2",
@@ -153,11 +155,13 @@ def drift_curve(row: dict) -> tuple[np.ndarray, np.ndarray, str] | None:
 
 def drift_svg(rows: list[dict], style: dict) -> tuple[str | None, list[str]]:
     """The drift figure of one problem and the notes on what it leaves out."""
-    notes, curves = [], []
-    for scheme, row in representative(rows).items():
-        if row["cpu_s"] > DRIFT_BUDGET_S:
+    notes, curves, spent = [], [], 0.0
+    # the cheapest first, so a problem's budget leaves out the fewest schemes
+    for scheme, row in sorted(representative(rows).items(), key=lambda item: item[1]["cpu_s"]):
+        if row["cpu_s"] > DRIFT_BUDGET_S or spent + row["cpu_s"] > DRIFT_PROBLEM_BUDGET_S:
             notes.append(f"{scheme}: not drawn (its run takes {row['cpu_s']:.3g} s)")
             continue
+        spent += row["cpu_s"]
         try:
             curve = drift_curve(row)
         except Exception as exc:  # a scheme that cannot be re-run here leaves a note, not a hole
