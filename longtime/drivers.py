@@ -68,6 +68,18 @@ def copy_into(dst, src):
         dst[i] = src[i]
 
 
+def inlined(dispatcher):
+    """The same compiled function, inlined where it is called (numba IR inlining). A step
+    compiled apart is a call the optimiser cannot see into: on a cheap step (Verlet on the
+    figure-eight) that call cost 30 % of the run (benchmarks/bench_kernels.py)."""
+    options = dict(dispatcher.targetoptions)
+    if options.get("inline") == "always":
+        return dispatcher
+    options.pop("cache", None)  # a closure cannot be cached by numba (longtime.jitcache does)
+    options.pop("nopython", None)
+    return numba.njit(**{**options, "inline": "always"})(dispatcher.py_func)
+
+
 def fixed_step_loop(step):
     """Compiled loop over steps k_start .. k_stop - 1 of a run of ``nsteps`` steps of size dt
     (the last one clipped to t_final), so that Python regains control between chunks
@@ -79,6 +91,8 @@ def fixed_step_loop(step):
     the next free row of out_t/out_u (row 0, the initial state, is the caller's). Returns
     (status, samples written, next j, time reached).
     """
+
+    step = inlined(step)
 
     @numba.njit
     def loop(u, t0, t_final, dt, k_start, k_stop, nsteps, sample_at, j, n_out, params, work,
