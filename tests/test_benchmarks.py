@@ -4,7 +4,7 @@ Each case times the integration alone (kernel compiled first) over a few rounds 
 records the invariant drift and the L2 error of the run, so the saved JSON
 (``--benchmark-json``) carries cost and accuracy together. The kernel-ratio cases time the
 suite's kernel and a hand-written numba loop of the same scheme side by side
-(benchmarks/bench_kernels.py) and record the ratio; the 1.5x goal is tracked there and in
+(benchmarks/bench_kernels.py) and record the ratio; the 1.2x goal is tracked there and in
 asv (``KernelRatio``), not asserted here: a timing assertion in a unit test only measures
 how busy the machine is.
 """
