@@ -135,7 +135,7 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
                 cells.append(Cell(pname, iname, psets, settings, tf))
             # the default matrix's long-time cell (issue 10): the problem's paper-scale final
             # time at its default step, for the schemes that can afford it (``long_runs``)
-            long_tf = getattr(pcls, "long_t_final", None)
+            long_tf = pcls.long_t_final
             if default_sweep and t_final is None and long_tf and icls.long_runs and "dt" not in sweeps:
                 cells.append(Cell(pname, iname, psets, {**isets, "dt": pcls.default_dt}, long_tf))
     return cells

@@ -182,7 +182,7 @@ def cmd_matrix(args) -> int:
             finally:
                 store.finish_run(run_id, status)
     else:
-        problems = args.problem or sorted(registry.problems())
+        problems = args.problem or registry.default_problems()
         schemes = args.integrator or sorted(registry.integrators())
         cells = expand(problems, schemes, sweeps=_sweeps(args), t_final=args.t_final,
                        sets=dict(args.set), default_sweep=True)

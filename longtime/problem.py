@@ -97,6 +97,11 @@ class Problem(ABC):
     # tolerances (tol, eps_res) of the default sweep below this are not run: their errors
     # would all read the reference's own accuracy (its floor), so they measure only cost
     sweep_min_tolerance: ClassVar[float | None] = None
+    # the final time of one paper-scale cell per scheme that can afford it (its ``long_runs``)
+    long_t_final: ClassVar[float | None] = None
+    # False for a diagnostic problem (the linear test equation): `longtime matrix` and
+    # `longtime warmup` run it only when it is named with -p
+    in_default_matrix: ClassVar[bool] = True
     autonomous: ClassVar[bool] = True
     # |u|_1 above blowup_factor * max(1, |u0|_inf), or a non-finite component, is a
     # divergence (the 1-norm: a branch-free sum in the compiled drivers, which every

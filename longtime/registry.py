@@ -109,6 +109,11 @@ def problems() -> dict[str, type[Problem]]:
     return dict(_load()["problems"])
 
 
+def default_problems() -> list[str]:
+    """The problems of a matrix run without -p: every registered one that is not a diagnostic."""
+    return sorted(n for n, cls in problems().items() if cls.in_default_matrix)
+
+
 def integrators() -> dict[str, type[Integrator]]:
     return dict(_load()["integrators"])
 

@@ -80,6 +80,7 @@ class LinearTest(Problem):
     default_dt = 0.1
     sweep_dt = (0.2, 0.1, 0.05)
     sweep_t_final = 20.0
+    in_default_matrix = False  # a diagnostic: `longtime list --stability` uses it
 
     rhs = staticmethod(_rhs)
     jac = staticmethod(_jac)

@@ -79,7 +79,7 @@ def cmd_warmup(args) -> int:
     from . import registry
 
     _warn_broken()
-    problems = args.problem or sorted(registry.problems())
+    problems = args.problem or registry.default_problems()
     schemes = args.integrator or sorted(registry.integrators())
     cells = expand(problems, schemes, sets=dict(args.set), default_sweep=True)
     start = time.perf_counter()

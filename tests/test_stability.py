@@ -51,3 +51,11 @@ def test_plot_kind_stability(tmp_path):
     text = paths[0].read_text()
     assert paths[0].name == "stability.svg" and "verlet: [0, 2]" in text and "rk4: [0, 2.82]" in text
     assert "verlet: no region (verlet needs separable" in text  # said, not left blank
+
+
+def test_the_test_equation_is_a_diagnostic_not_part_of_the_default_matrix():
+    from longtime import registry
+
+    assert "linear-test" in registry.problems()
+    assert "linear-test" not in registry.default_problems()
+    assert {"toda", "kepler", "kdv"} <= set(registry.default_problems())
