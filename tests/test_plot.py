@@ -65,6 +65,7 @@ def test_bad_input(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["plot", "no-such-kind"])
     assert main(["plot", "work-precision", "--db", str(tmp_path / "empty.sqlite")]) == 2
-    assert "no runs" in capsys.readouterr().err
+    assert "no such file (nothing was created)" in capsys.readouterr().err  # read-only: no empty store
+    assert not (tmp_path / "empty.sqlite").exists()
     assert main(["plot", "drift", "--format", "gif", "-p", "harmonic", "--t-final", "1",
                  "--out", str(tmp_path)]) == 2
