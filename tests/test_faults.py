@@ -331,10 +331,12 @@ def test_pool_workers_die_with_a_killed_parent(fault_env, tmp_path):
     (["--t-final", "1e308"], "steps, over the limit"),
     (["--dt", "1e-9", "--t-final", "10"], "1e+10 steps"),
     (["--set", "d=1000000000"], "d='1000000000' is not valid"),
+    (["-p", "kdv", "--set", "d=100000000"], "d='100000000' is not valid"),
 ])
 def test_oversized_cells_are_refused_up_front(argv, text, capsys, tmp_path):
     db = tmp_path / "big.sqlite"
-    assert main(["run", "-p", "toda", "-i", "rk4", *argv, "--db", str(db)]) == 2
+    problem = ["-p", "toda"] if "-p" not in argv else []
+    assert main(["run", *problem, "-i", "rk4", *argv, "--db", str(db)]) == 2
     err = capsys.readouterr().err
     assert text in err and "Traceback" not in err
     if "steps" in text:

@@ -190,7 +190,9 @@ class KdV(Problem):
     name = "kdv"
     summary = "Korteweg-de Vries soliton, Fourier-Galerkin (stiff), exact solution"
     parameters = {
-        "d": Param(128, "number of Fourier modes d = 2M (2M + 1 real unknowns), even", int, minimum=4),
+        # bounded so that a typo (d=1e8) is an input error, not minutes of setup and gigabytes
+        "d": Param(128, "number of Fourier modes d = 2M (2M + 1 real unknowns), even", int, minimum=4,
+                   maximum=2**20),
         "dealias": Param("3/2", "aliasing of u^2: 3/2 padding (exact Galerkin) or the 2/3 rule",
                          str, choices=("3/2", "2/3")),
     }
