@@ -367,7 +367,10 @@ def test_ctrl_c_stops_a_long_compiled_loop(tmp_path):
     proc = subprocess.Popen([sys.executable, "-m", "longtime.cli", "run", "-p", "harmonic", "-i", "rk4",
                              "--dt", "1e-6", "--t-final", "900", "--repeats", "1"],
                             env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    time.sleep(8)  # start-up and compilation, then well inside the loop
+    deadline = time.time() + 120  # the run is recorded once its input is checked: main() is running
+    while time.time() < deadline and not (tmp_path / "int.sqlite").exists():
+        time.sleep(0.2)
+    time.sleep(4)  # compilation, then inside the loop (10^9 steps: minutes)
     os.kill(proc.pid, signal.SIGINT)
     start = time.monotonic()
     _, err = proc.communicate(timeout=30)
