@@ -111,8 +111,9 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
                              f"(its drift is measured up to there)")
         for name, values in problem.violations(t, U).items():
             values = np.asarray(values, dtype=float)
-            row[f"{name}.max"] = finite_or_none(np.max(values))
-            row[f"{name}.final"] = finite_or_none(values[-1])
+            measured = values.size >= 2  # the initial state alone: not measured (null, never 0)
+            row[f"{name}.max"] = finite_or_none(np.max(values)) if measured else None
+            row[f"{name}.final"] = finite_or_none(values[-1]) if measured else None
         # the initial state alone says nothing about the error: at least one sample after t0
         k = min(len(reference), finite) if reference is not None else 0
         if k >= 2 and not np.isfinite(reference[:k]).all():
