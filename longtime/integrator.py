@@ -72,9 +72,10 @@ class Timing:
     repeats: int = 7
     min_time: float = 0.2
     MIN_RUNS: ClassVar[int] = 3
-    # a run longer than this (wall seconds) is timed once: repeating a 10^8-step cell would
-    # cost minutes for a spread that is small at that length (the row says so)
-    ONCE_ABOVE: ClassVar[float] = 5.0
+    # a run longer than this (wall seconds, 5x timeit's whole autorange budget) is timed
+    # once: repeating a 10^8-step cell would cost minutes for a spread that is small at that
+    # length (the row says so)
+    ONCE_ABOVE: ClassVar[float] = 1.0
 
     def __post_init__(self) -> None:
         if isinstance(self.repeats, bool) or not isinstance(self.repeats, (int, np.integer)) \
