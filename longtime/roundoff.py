@@ -18,7 +18,6 @@ Nothing is tuned: the table reports what each configuration does.
 """
 from __future__ import annotations
 
-import math
 import sys
 import time
 from dataclasses import dataclass, field
