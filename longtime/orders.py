@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 from typing import Any, Iterable
 
-import numpy as np
+from .numerics.loglog import fit_slope
 
 ROUND_OFF_FLOOR = 1e-13
 REFERENCE_MARGIN = 10.0
@@ -44,20 +44,6 @@ def _x(row: dict) -> float | None:
     if _pos(row.get("dt")) and row.get("tol") is None and row.get("eps_res") is None:
         return float(row["dt"])
     return float(row["mean_dt"]) if _pos(row.get("mean_dt")) else None
-
-
-def fit_slope(x: Iterable[float], y: Iterable[float]) -> tuple[float, float | None]:
-    """Slope of log y against log x and its 95 % half-interval (None from two points)."""
-    lx, ly = np.log(np.asarray(list(x), float)), np.log(np.asarray(list(y), float))
-    n = lx.size
-    slope, intercept = np.polyfit(lx, ly, 1)
-    if n < 3:
-        return float(slope), None
-    from scipy import stats
-
-    resid = ly - (slope * lx + intercept)
-    se = math.sqrt(float(resid @ resid) / (n - 2) / float(((lx - lx.mean()) ** 2).sum()))
-    return float(slope), float(stats.t.ppf(0.975, n - 2) * se)
 
 
 def asymptotic_points(points: list[tuple[float, float, float | None]]) -> list[tuple[float, float]]:
