@@ -297,8 +297,9 @@ class FixedStepIntegrator(Integrator):
                 break
             if k < nsteps and deadline is not None and time.monotonic() > deadline:
                 status = drivers.TIMEOUT
-                out_t[n], out_u[n] = t_end, u  # what it reached
-                n += 1
+                if out_t[n - 1] != t_end:  # what it reached, unless a sample holds it already
+                    out_t[n], out_u[n] = t_end, u
+                    n += 1
                 break
             watch.update(t_end)
             chunk = max(FIRST_CHUNK, int(chunk * CHUNK_SECONDS / max(w1, 1e-9)))
