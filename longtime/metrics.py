@@ -25,6 +25,9 @@ from .problem import Problem
 from .reference import Trust, trust_fields
 
 
+DRIFT_POINTS = 80  # points of the drift curve each row keeps (drift_envelope)
+
+
 def finite_or_none(x) -> float | None:
     x = float(x)
     return x if math.isfinite(x) else None
@@ -68,6 +71,24 @@ def drift_fields(name: str, t: np.ndarray, err: np.ndarray) -> dict[str, Any]:
     }
 
 
+def drift_envelope(name: str, t: np.ndarray, err: np.ndarray, points: int = DRIFT_POINTS) -> dict[str, Any] | None:
+    """A drift curve small enough to keep in the row: e_I at the sample where it is largest
+    within each of ``points`` log-spaced bins of t - t0 (its upper envelope, so a bounded
+    but oscillating error keeps its peaks), 6 significant digits. The results page draws
+    it; nothing has to be run again to show how the error grew."""
+    tau = t - t[0]
+    keep = (tau > 0) & np.isfinite(err)
+    if keep.sum() < 2:
+        return None
+    tau, e = tau[keep], err[keep]
+    edges = np.logspace(np.log10(tau[0]), np.log10(tau[-1]), points + 1)
+    bins = np.clip(np.searchsorted(edges, tau, side="right") - 1, 0, points - 1)
+    starts = np.flatnonzero(np.r_[True, bins[1:] != bins[:-1]])  # tau is sorted: bins are runs
+    peaks = [int(a + np.argmax(e[a:b])) for a, b in zip(starts, np.r_[starts[1:], tau.size])]
+    return {"invariant": name, "t": [float(f"{tau[i]:.6g}") for i in peaks],
+            "error": [float(f"{e[i]:.6g}") for i in peaks]}
+
+
 def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
              trust: Trust | None = None) -> dict[str, Any]:
     """Row fields of one trajectory. ``reference`` holds the true states at the leading
@@ -103,6 +124,8 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
     with np.errstate(all="ignore"):
         for name, values in problem.invariants(t, U).items():
             err = relative_error(values)
+            if "drift_curve" not in row:  # the first invariant (H where there is one: listed first)
+                row["drift_curve"] = drift_envelope(name, t, err)
             row.update(drift_fields(name, t, err))
             row.update(growth_fields(name, t, err, problem.t0, diverged))
             bad = np.flatnonzero(~np.isfinite(err))

@@ -81,3 +81,18 @@ def test_errors_cover_only_the_samples_up_to_the_reference_horizon():
     assert row["l2_error"] == pytest.approx(np.sqrt(17 / 5))  # |u_ref| = 1 at every sample
     row = evaluate(p, traj, None)
     assert row["l2_error"] is None and row["error_horizon"] is None and row["reference_horizon"] is None
+
+
+def test_drift_envelope_keeps_the_peaks_at_log_spaced_times():
+    from longtime.metrics import DRIFT_POINTS, drift_envelope
+
+    t = np.linspace(0.0, 1000.0, 200_001)
+    err = 1e-6 * np.abs(np.sin(t)) * (1 + t)  # oscillating, growing linearly
+    curve = drift_envelope("H", t, err)
+    tau, e = np.array(curve["t"]), np.array(curve["error"])
+    assert curve["invariant"] == "H" and len(tau) <= DRIFT_POINTS
+    assert np.all(np.diff(tau) > 0) and tau[0] > 0
+    assert e.max() == pytest.approx(err.max(), rel=1e-5)  # the largest error is kept
+    late = tau > 100  # bins wider than the period pi there
+    # each kept point is its bin's peak: the envelope 1e-6 (1 + t), not a random phase
+    assert np.all(e[late] >= 0.9e-6 * (1 + tau[late]))

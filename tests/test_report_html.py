@@ -101,3 +101,20 @@ def test_whole_store_as_parquet_and_csv(page, tmp_path):
     assert cli.main(["report", "--db", db, "--run", "all", "--format", "parquet", "--out", str(tmp_path / "r.parquet")]) == 0
     df = pd.read_parquet(tmp_path / "r.parquet")
     assert len(df) == 14 and (df["status"] == "ok").sum() == 12
+
+
+def test_drift_figure_comes_from_the_rows_without_running_anything(page, monkeypatch):
+    from longtime import cells
+    from longtime.html_report import drift_svg, styles
+
+    _, rows = page
+    assert all(r["drift_curve"]["invariant"] == "H" and len(r["drift_curve"]["t"]) <= 80
+               for r in rows if r["status"] == "ok")
+
+    def no_run(*args, **kwargs):
+        raise AssertionError("the page ran a cell")
+
+    monkeypatch.setattr(cells, "integrate_cell", no_run)
+    kepler = [r for r in rows if r["problem"] == "kepler"]
+    figure, notes = drift_svg(kepler, styles(sorted({r["integrator"] for r in kepler})))
+    assert figure and "<path" in figure and not notes
