@@ -22,15 +22,14 @@ from typing import Any
 
 import numpy as np
 
+from .numerics.loglog import fit_slope
+
 DECADES = 2.0
 FIT_POINTS = 40
 SATURATION = 0.5  # the relative error of "O(1)": also where NAME.t_50pct is set
 # upper ends of alpha for each class, in order
 LIMITS = ((0.25, "bounded"), (0.75, "sqrt"), (1.5, "linear"), (2.5, "quadratic"), (math.inf, "faster"))
 CLASSES = tuple(name for _, name in LIMITS) + ("saturated", "diverged")
-# two-sided 95 % Student t quantiles by degrees of freedom (the fit has FIT_POINTS - 2 at most)
-_T95 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306,
-        9: 2.262, 10: 2.228, 12: 2.179, 15: 2.131, 20: 2.086, 25: 2.060, 30: 2.042, 40: 2.021}
 
 
 def classify(alpha: float) -> str:
@@ -38,11 +37,6 @@ def classify(alpha: float) -> str:
         if alpha < limit:
             return name
     return LIMITS[-1][1]
-
-
-def _t95(dof: int) -> float:
-    keys = [k for k in _T95 if k <= dof]
-    return _T95[max(keys)] if keys else _T95[1]
 
 
 def fit_power_law(tau: np.ndarray, running_max: np.ndarray) -> tuple[float, float, float] | None:
@@ -64,16 +58,10 @@ def fit_power_law(tau: np.ndarray, running_max: np.ndarray) -> tuple[float, floa
     if np.all(y == 0):
         return 0.0, 0.0, 0.0
     nonzero = y > 0
-    x, y = np.log(x[nonzero]), np.log(y[nonzero])
+    x, y = x[nonzero], y[nonzero]
     if x.size < 3 or np.ptp(x) == 0:
         return None
-    xm = x - x.mean()
-    sxx = float(xm @ xm)
-    alpha = float(xm @ (y - y.mean()) / sxx)
-    resid = y - y.mean() - alpha * xm
-    dof = x.size - 2
-    se = math.sqrt(float(resid @ resid) / dof / sxx) if dof > 0 else 0.0
-    half = _t95(dof) * se
+    alpha, half = fit_slope(x, y)
     return alpha, alpha - half, alpha + half
 
 
