@@ -69,3 +69,23 @@ def test_heyoka_scheme_stops_at_the_deadline_between_pieces_of_its_grid():
     assert cut.status == "timeout" and "time limit" in cut.message
     assert cut.t.size == 1600 // heyoka_taylor.PIECES + 1  # the first piece, then stopped
     assert np.array_equal(cut.u, whole.u[:cut.t.size])  # the same steps as far as it got
+
+
+def test_dop853_stops_at_the_deadline_and_matches_solve_ivp():
+    from scipy.integrate import solve_ivp
+
+    problem = problem_class("kepler")()
+    scheme = integrator_class("dop853")(tol=1e-10)
+    whole = scheme.integrate(problem, 50.0, max_samples=10**6)
+
+    def fun(t, y):
+        out = np.empty_like(y)
+        problem.rhs(t, y, problem.params, out)
+        return out
+
+    sol = solve_ivp(fun, (problem.t0, 50.0), problem.u0.copy(), method="DOP853", rtol=1e-10, atol=1e-10)
+    assert whole.status == "ok" and np.array_equal(whole.t, sol.t) and np.array_equal(whole.u, sol.y.T)
+    assert whole.counters["rhs_evals"] == sol.nfev
+    cut = scheme.integrate(problem, 50.0, max_samples=10**6, deadline=time.monotonic() - 1.0)
+    assert cut.status == "timeout" and cut.steps == 255  # stopped at the first look
+    assert np.array_equal(cut.u, whole.u[:256])
