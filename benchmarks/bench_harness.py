@@ -95,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("-p", "--problem", default=None, help="problems (default: all)")
     parser.add_argument("-i", "--integrator", default=None, help="schemes (default: all)")
     args = parser.parse_args(argv)
-    problems = args.problem.split(",") if args.problem else sorted(registry.problems())
+    problems = args.problem.split(",") if args.problem else registry.default_problems()
     schemes = args.integrator.split(",") if args.integrator else sorted(registry.integrators())
     cells = expand(problems, schemes, default_sweep=True)
     breakdown(cells)  # fills the kernel and reference caches
