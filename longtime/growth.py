@@ -88,8 +88,8 @@ def growth_fields(name: str, t: np.ndarray, err: np.ndarray, t0: float,
     fit = fit_power_law(t[:end] - t0, running[:end])
     if fit is not None:
         alpha, low, high = fit
-        out[f"{name}.growth"] = round(alpha, 4)
-        out[f"{name}.growth_ci"] = [round(low, 4), round(high, 4)]
+        out[f"{name}.growth"] = float(alpha)  # full precision: formats round, rows do not
+        out[f"{name}.growth_ci"] = [float(low), float(high)]
     if not diverged:
         if above.size:
             out[f"{name}.growth_class"] = "saturated"

@@ -51,3 +51,13 @@ def test_kepler_classes_from_the_command_line(capsys, tmp_path):
     assert rows["gauss4"]["error.growth"] == pytest.approx(1.0, abs=0.05)
     assert rows["euler"]["H.growth_class"] == "saturated" and rows["euler"]["H.saturated_t"] < 100
     assert rows["euler"]["error.growth_class"] == "saturated"
+
+
+def test_growth_fields_keep_full_precision():
+    from longtime.growth import growth_fields
+
+    t = np.linspace(0.0, 1e4, 100_001)
+    fields = growth_fields("H", t, 1e-9 * t**0.123456789, 0.0)
+    assert abs(fields["H.growth"] - 0.123456789) < 1e-9  # not rounded: formats round, rows do not
+    low, high = fields["H.growth_ci"]
+    assert low <= fields["H.growth"] <= high and high - low < 1e-9
