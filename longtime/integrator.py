@@ -10,6 +10,7 @@ from inside the loop.
 """
 from __future__ import annotations
 
+import functools
 import math
 import os
 import sys
@@ -223,7 +224,17 @@ _LOOPS: dict[str, Callable] = {}
 _UNSHARED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
+# the loop each (scheme instance, problem instance) pair runs, found once: the timed repeats of
+# a cell (and the chunks of a run) reuse it without building and fingerprinting the closure
+# again, which cost about 2 ms a repeat (benchmarks/bench_harness.py: "untimed run")
+_PAIRS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
 def _cached_loop(integrator: Integrator, problem: Problem, build: Callable[[], Callable]) -> Callable:
+    pairs = _PAIRS.setdefault(integrator, {})
+    found = pairs.get(id(problem))
+    if found is not None and found[0] is problem:
+        return found[1]
     closure = build()  # cheap: numba compiles on the first call, not here
     try:
         key = fingerprint(closure)
@@ -231,15 +242,25 @@ def _cached_loop(integrator: Integrator, problem: Problem, build: Callable[[], C
         own = _UNSHARED.setdefault(integrator, {})
         if id(problem) not in own:  # the entry holds the problem, so its id stays its own
             own[id(problem)] = (problem, closure)
-        return own[id(problem)][1]
-    if key not in _LOOPS:
-        _LOOPS[key] = cacheable(closure)
-    return _LOOPS[key]
+        loop = own[id(problem)][1]
+    else:
+        if key not in _LOOPS:
+            _LOOPS[key] = cacheable(closure)
+        loop = _LOOPS[key]
+    pairs[id(problem)] = (problem, loop)  # the entry holds the problem: its id stays its own
+    return loop
 
 
 # the setting of the fixed-step families that sum the state update with Kahan's compensated
 # summation (drivers.compensated_add); off by default: the published schemes round plainly
 COMPENSATED = Param(False, "Kahan-compensated summation of the state update (round-off studies)", bool)
+
+
+@functools.lru_cache(maxsize=32)
+def _sample_steps(nsteps: int, max_samples: int) -> np.ndarray:
+    """drivers.sample_steps, once per run length (the repeats of a cell share it; no loop
+    writes into it)."""
+    return drivers.sample_steps(nsteps, max_samples)
 
 
 class FixedStepIntegrator(Integrator):
@@ -267,7 +288,7 @@ class FixedStepIntegrator(Integrator):
         dt = self.dt_for(problem)
         span = t_final - problem.t0
         nsteps = max(1, math.ceil(span / dt - 1e-9))
-        sample_at = drivers.sample_steps(nsteps, max_samples)
+        sample_at = _sample_steps(nsteps, max_samples)
         loop = _cached_loop(self, problem, lambda: drivers.fixed_step_loop(self.make_step(problem)))
         work = np.zeros(self.work_shape(problem))
         self.prepare_work(problem, work)
