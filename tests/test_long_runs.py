@@ -58,19 +58,6 @@ def test_default_matrix_has_paper_scale_cells_for_the_schemes_that_can_afford_th
     assert all(c.t_final == 10.0 for c in expand(["toda"], ["rk4"], t_final=10.0, default_sweep=True))
 
 
-def test_heyoka_scheme_stops_at_the_deadline_between_pieces_of_its_grid():
-    from longtime.integrators import heyoka_taylor
-
-    problem = problem_class("toda")()
-    scheme = integrator_class("heyoka")(tol=1e-9)
-    whole = scheme.integrate(problem, 200.0, max_samples=1601)
-    assert whole.status == "ok" and whole.t.size == 1601 and np.isfinite(whole.u).all()
-    cut = scheme.integrate(problem, 200.0, max_samples=1601, deadline=time.monotonic() - 1.0)
-    assert cut.status == "timeout" and "time limit" in cut.message
-    assert cut.t.size == 1600 // heyoka_taylor.PIECES + 1  # the first piece, then stopped
-    assert np.array_equal(cut.u, whole.u[:cut.t.size])  # the same steps as far as it got
-
-
 def test_dop853_stops_at_the_deadline_and_matches_solve_ivp():
     from scipy.integrate import solve_ivp
 

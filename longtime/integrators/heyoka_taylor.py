@@ -20,7 +20,6 @@ from ..problem import BLOWUP_MESSAGE
 # compiled taylor_adaptive objects, by (problem identity, tol, high_accuracy)
 _COMPILED: dict[tuple, object] = {}
 SAMPLES = 10_001  # docs/metrics.md: time means over at least 1e4 evenly spaced samples
-PIECES = 16  # propagate_grid calls per run: the deadline and Ctrl-C are checked between them
 
 
 class Heyoka(Integrator):
@@ -67,34 +66,14 @@ class Heyoka(Integrator):
         grid = self.grid(problem, t_final, max_samples)
         ta.time = problem.t0
         ta.state[:] = problem.u0
-        # the grid in PIECES pieces, each starting where the last ended (heyoka wants a grid
-        # from the current time): between two, Python checks the cell's deadline and Ctrl-C.
-        # A fixed count, so the steps (each piece's last is clipped to its end) never depend
-        # on how long a run takes.
-        bounds = np.unique(np.linspace(0, grid.size - 1, PIECES + 1).round().astype(int))
-        parts, min_h, max_h, nsteps, cpu, wall, timed_out = [], math.inf, 0.0, 0, 0.0, 0.0, False
         try:
-            for a, b in zip(bounds[:-1], bounds[1:]):
-                c0, w0 = time.process_time(), time.perf_counter()
-                outcome, lo, hi, steps, _, states = ta.propagate_grid(grid[a:b + 1])
-                cpu, wall = cpu + time.process_time() - c0, wall + time.perf_counter() - w0
-                parts.append(np.asarray(states, dtype=float)[0 if a == 0 else 1:])
-                min_h, max_h, nsteps = min(min_h, lo), max(max_h, hi), nsteps + int(steps)
-                if outcome != hy.taylor_outcome.time_limit:
-                    break
-                if self._deadline is not None and time.monotonic() > self._deadline and b < grid.size - 1:
-                    timed_out = True
-                    break
+            c0, w0 = time.process_time(), time.perf_counter()
+            outcome, min_h, max_h, nsteps, _, states = ta.propagate_grid(grid)
+            cpu, wall = time.process_time() - c0, time.perf_counter() - w0
         except Exception as exc:  # heyoka raises on invalid grids or states
             return Trajectory(status="failed", message=f"heyoka: {exc}", t=grid[:1],
                               u=problem.u0[None, :].copy(), cpu_s=0.0, wall_s=0.0)
-        states = np.concatenate(parts)
-        if timed_out:
-            return Trajectory(status="timeout", message=f"stopped at t={grid[len(states) - 1]:.6g}: past the "
-                              f"cell's time limit", t=grid[:len(states)], u=states, cpu_s=cpu, wall_s=wall,
-                              counters={"steps": nsteps}, min_dt=float(min_h), max_dt=float(max_h),
-                              extra={"order": ta.order, "tol": self.settings["tol"]})
-        grid = grid[:len(states)] if outcome != hy.taylor_outcome.time_limit else grid
+        states = np.asarray(states, dtype=float)
         # heyoka fills the grid points it did not reach with NaN; beyond the problem's bound
         # counts as a blow-up too, as in the compiled drivers
         first = problem.first_blowup(states)
@@ -106,7 +85,7 @@ class Heyoka(Integrator):
         if outcome != hy.taylor_outcome.time_limit and status == "ok":
             status, message = "failed", f"heyoka stopped with outcome {outcome} at t={ta.time:.6g}"
             n = max(1, min(n, int(np.searchsorted(grid, ta.time, side="right"))))
-        steps = nsteps
+        steps = int(nsteps)
         return Trajectory(
             status=status, message=message, t=grid[:n], u=states[:n], cpu_s=cpu, wall_s=wall,
             counters={"steps": steps}, min_dt=float(min_h) if steps else None,
