@@ -1,15 +1,14 @@
 """The Dask executor's batches, and a sweep that loses a worker midway and still completes."""
 from __future__ import annotations
 
-import os
-import signal
+import json
+import subprocess
+import sys
 
 import pytest
 
 from longtime.cells import expand
 from longtime.dask_executor import BATCH_CELLS, BATCHES_PER_WORKER, batches
-from longtime.integrator import Timing
-from longtime.matrix import ExecOptions
 
 distributed = pytest.importorskip("distributed")
 
@@ -26,24 +25,43 @@ def test_batches_hold_one_pair_each_and_keep_every_worker_busy():
         assert len(tasks) >= min(len(group), BATCHES_PER_WORKER * workers)
 
 
-def test_a_killed_worker_loses_nothing(tmp_path):
-    from distributed import Client, LocalCluster
+# run in a fresh interpreter, as `longtime matrix --scheduler` would be: a pytest process that
+# has already hosted in-process clusters can leave distributed's event-loop state behind
+KILL_PROBE = r"""
+import json, os, signal
+from distributed import Client, LocalCluster
+from longtime.cells import expand
+from longtime.dask_executor import dask_cluster
+from longtime.integrator import Timing
+from longtime.matrix import ExecOptions
 
-    from longtime.dask_executor import dask_cluster
-
+if __name__ == "__main__":
     cells = expand(["harmonic"], ["rk4", "verlet"], sweeps={"dt": [0.02, 0.01, 0.005, 0.004, 0.002, 0.001]},
                    t_final=50.0)
     options = ExecOptions(timing=Timing(repeats=3, min_time=0.1))
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
-            Client(cluster) as client:
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        with Client(cluster) as client:
+            pids = sorted(client.run(os.getpid).values())
         options.scheduler = cluster.scheduler_address
-        pids = sorted(client.run(os.getpid).values())
         rows = []
         for _, row in dask_cluster(cells, options):
             rows.append(row)
             if len(rows) == 1:  # the other worker is inside a batch now: kill it
                 os.kill(pids[-1], signal.SIGKILL)
-        restarted = sorted(client.run(os.getpid).values())
-    assert restarted != pids  # a worker really died (its nanny started a new one)
-    assert sorted(r["dt"] for r in rows) == sorted(c.integrator_settings["dt"] for c in cells)
+        with Client(cluster) as client:
+            restarted = sorted(client.run(os.getpid).values())
+    print(json.dumps({"pids": pids, "restarted": restarted, "cells": [c.integrator_settings["dt"] for c in cells],
+                      "rows": [{k: r.get(k) for k in ("dt", "status", "message")} for r in rows]}))
+"""
+
+
+def test_a_killed_worker_loses_nothing(tmp_path):
+    probe = tmp_path / "kill_probe.py"
+    probe.write_text(KILL_PROBE)
+    done = subprocess.run([sys.executable, str(probe)], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    out = json.loads(done.stdout.strip().splitlines()[-1])
+    assert out["restarted"] != out["pids"]  # a worker really died (its nanny started a new one)
+    rows = out["rows"]
+    assert sorted(r["dt"] for r in rows) == sorted(out["cells"])
     assert all(r["status"] == "ok" for r in rows), [r["message"] for r in rows if r["status"] != "ok"]
