@@ -7,6 +7,11 @@ from typing import Any
 import numpy as np
 
 
+def positive(x: Any) -> bool:
+    """A finite number > 0 (not a bool, None or NaN): a field that can go on a log axis."""
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0
+
+
 def missing(x: Any) -> bool:
     """None, or a float that is NaN or infinite: shown as a dash, never as a number."""
     return x is None or (isinstance(x, (float, np.floating)) and not math.isfinite(x))

@@ -32,8 +32,10 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from .figures import pyplot
+from .fmt import positive
 from .orders import observed_orders
-from .report import (_not_ok, _positive, format_counts, main_t_final, pareto, pareto_field, pareto_groups, setting, status_counts,
+from .report import (_not_ok, format_counts, main_t_final, pareto, pareto_field, pareto_groups, setting, status_counts,
                      target_text)
 
 DRIFT_BUDGET_S = 2.0  # stored cpu_s above which a drift curve is not recomputed for the page
@@ -68,20 +70,11 @@ def styles(schemes: Sequence[str]) -> dict[str, dict[str, str]]:
     return out
 
 
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
 def svg(fig) -> str:
     """The figure as inline SVG markup (no XML prolog); closes the figure."""
     buf = io.StringIO()
     fig.savefig(buf, format="svg", bbox_inches="tight")
-    _pyplot().close(fig)
+    pyplot().close(fig)
     text = buf.getvalue()
     return text[text.index("<svg"):]
 
@@ -91,10 +84,10 @@ def _legend_outside(ax) -> None:
 
 
 def work_precision_svg(rows: list[dict], field: str, style: dict) -> str | None:
-    ok = [r for r in rows if r.get("status") == "ok" and _positive(r.get("cpu_s")) and _positive(r.get(field))]
+    ok = [r for r in rows if r.get("status") == "ok" and positive(r.get("cpu_s")) and positive(r.get(field))]
     if not ok:
         return None
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.0, 4.2))
     t_main = main_t_final(ok)
     # one curve per sweep: a scheme's points at another final time or other settings are
@@ -126,7 +119,7 @@ def representative(rows: list[dict]) -> dict[str, dict]:
     out = {}
     for scheme in sorted({r["integrator"] for r in rows}):
         ok = sorted((r for r in rows if r["integrator"] == scheme and r.get("status") == "ok"
-                     and _positive(r.get("cpu_s"))), key=lambda r: r["cpu_s"])
+                     and positive(r.get("cpu_s"))), key=lambda r: r["cpu_s"])
         if ok:
             out[scheme] = ok[(len(ok) - 1) // 2]
     return out
@@ -179,7 +172,7 @@ def drift_svg(rows: list[dict], style: dict) -> tuple[str | None, list[str]]:
             curves.append((scheme, row, *curve))
     if not curves:
         return None, notes
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.0, 4.2))
     for scheme, row, t, err, name in curves:
         keep = (t > t[0]) & (err > 0)
@@ -283,7 +276,7 @@ def _growth_table(rows: list[dict]) -> str | None:
         cells = []
         for n in names:
             classes = sorted({str(r[f"{n}.growth_class"]) for r in mine if r.get(f"{n}.growth_class")})
-            exps = [r[f"{n}.growth"] for r in mine if _positive(abs(r.get(f"{n}.growth") or 0))
+            exps = [r[f"{n}.growth"] for r in mine if positive(abs(r.get(f"{n}.growth") or 0))
                     or r.get(f"{n}.growth") == 0]
             span = "" if not exps else (f" {_num(min(exps))}" if min(exps) == max(exps)
                                         else f" {_num(min(exps))}..{_num(max(exps))}")

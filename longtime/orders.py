@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 from typing import Any, Iterable
 
+from .fmt import positive
 from .numerics.loglog import fit_slope
 
 ROUND_OFF_FLOOR = 1e-13
@@ -36,21 +37,17 @@ ERROR_FIELDS = ("l2_error", "H.max")
 GROUP_KEYS = ("run_id", "problem", "integrator", "t_final", "order", "settings")
 
 
-def _pos(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0
-
-
 def _x(row: dict) -> float | None:
-    if _pos(row.get("dt")) and row.get("tol") is None and row.get("eps_res") is None:
+    if positive(row.get("dt")) and row.get("tol") is None and row.get("eps_res") is None:
         return float(row["dt"])
-    return float(row["mean_dt"]) if _pos(row.get("mean_dt")) else None
+    return float(row["mean_dt"]) if positive(row.get("mean_dt")) else None
 
 
 def asymptotic_points(points: list[tuple[float, float, float | None]]) -> list[tuple[float, float]]:
     """(x, error, reference_error) -> the (x, error) of the asymptotic range, by increasing x."""
     kept = sorted((x, e) for x, e, ref in points
                   if e >= ROUND_OFF_FLOOR and e <= MAX_ERROR
-                  and not (ref is not None and _pos(ref) and e < REFERENCE_MARGIN * ref))
+                  and not (ref is not None and positive(ref) and e < REFERENCE_MARGIN * ref))
     # one x per point (a repeated setting in one run would weigh twice)
     kept = list({x: (x, e) for x, e in kept}.values())
     while len(kept) > MIN_POINTS:
@@ -76,7 +73,7 @@ def declared_order(row: dict) -> int | None:
     param = cls.parameters.get("order")
     if param is None or cls.kind != "fixed":
         return None
-    return int(row["order"]) if _pos(row.get("order")) else (int(param.default) if param.default else None)
+    return int(row["order"]) if positive(row.get("order")) else (int(param.default) if param.default else None)
 
 
 def observed_orders(rows: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -89,11 +86,11 @@ def observed_orders(rows: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
             groups.setdefault(tuple(str(r.get(k)) for k in GROUP_KEYS), []).append(r)
     out = []
     for members in groups.values():
-        field = next((f for f in ERROR_FIELDS if sum(_pos(r.get(f)) for r in members) >= 2), None)
+        field = next((f for f in ERROR_FIELDS if sum(positive(r.get(f)) for r in members) >= 2), None)
         if field is None:
             continue
         points = [(_x(r), float(r[field]), r.get("reference_error") if field == "l2_error" else None)
-                  for r in members if _pos(r.get(field)) and _x(r) is not None]
+                  for r in members if positive(r.get(field)) and _x(r) is not None]
         used = asymptotic_points(points)
         if len(used) < 2 or len({x for x, _ in used}) < 2:
             continue

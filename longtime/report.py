@@ -9,7 +9,7 @@ from typing import Any, Iterable
 
 import pandas as pd
 
-from .fmt import number
+from .fmt import number, positive
 
 # the JSON contract (README.md, `--format json`): every row carries these keys (null where not applicable)
 CONTRACT_FIELDS = ("problem", "integrator", "status", "message", "dt", "order", "tol", "eps_res",
@@ -74,10 +74,6 @@ PARETO_FIELDS = ("l2_error", "H.max", "I.max", "constraint.max")
 DECADES = tuple(10.0 ** -k for k in range(1, 16))
 
 
-def _positive(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and x == x and 0 < x < float("inf")
-
-
 def status_counts(rows: Iterable[dict[str, Any]]) -> dict[str, int]:
     counts = {s: 0 for s in STATUSES}
     for r in rows:
@@ -92,7 +88,7 @@ def format_counts(counts: dict[str, int]) -> str:
 
 def setting(row: dict[str, Any]) -> str:
     """The swept parameters of a row as text: 'dt=0.01', 'tol=1e-08', 'eps_res=1e-06 N=10'."""
-    parts = [f"{k}={row[k]:.3g}" for k in ("dt", "tol", "eps_res") if _positive(row.get(k))
+    parts = [f"{k}={row[k]:.3g}" for k in ("dt", "tol", "eps_res") if positive(row.get(k))
              and not (k == "dt" and (row.get("tol") or row.get("eps_res")))]
     if row.get("order") is not None and row.get("order") == row.get("order"):
         parts.append(f"N={int(row['order'])}")
@@ -103,14 +99,14 @@ def setting(row: dict[str, Any]) -> str:
 
 def pareto_field(rows: list[dict[str, Any]]) -> str | None:
     ok = [r for r in rows if r.get("status") == "ok"]
-    return next((f for f in PARETO_FIELDS if any(_positive(r.get(f)) for r in ok)), None)
+    return next((f for f in PARETO_FIELDS if any(positive(r.get(f)) for r in ok)), None)
 
 
 def main_t_final(rows: list[dict[str, Any]]) -> float | None:
     """The final time most of a problem's ok rows ran to (a sweep may add a few long runs)."""
     counts: dict[float, int] = {}
     for r in rows:
-        if r.get("status") == "ok" and _positive(r.get("t_final")):
+        if r.get("status") == "ok" and positive(r.get("t_final")):
             counts[r["t_final"]] = counts.get(r["t_final"], 0) + 1
     return max(sorted(counts), key=lambda t: counts[t]) if counts else None
 
@@ -123,7 +119,7 @@ def pareto(rows: list[dict[str, Any]], field: str | None = None) -> list[dict[st
     meets, from the coarsest to the finest."""
     field = field or pareto_field(rows)
     t_main = main_t_final(rows)
-    ok = [r for r in rows if r.get("status") == "ok" and _positive(r.get("cpu_s")) and _positive(r.get(field))
+    ok = [r for r in rows if r.get("status") == "ok" and positive(r.get("cpu_s")) and positive(r.get(field))
           and r.get("t_final") == t_main]
     out = []
     for target in DECADES:

@@ -5,9 +5,8 @@ the paths it wrote through ``save``.
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Sequence
 
 from ..params import InputError
 
@@ -42,10 +41,6 @@ def save(fig, out: str | Path, formats: Sequence[str] = ("png", "svg")) -> list[
         paths.append(path)
     pyplot().close(fig)
     return paths
-
-
-def positive(x: Any) -> bool:
-    return x is not None and isinstance(x, (int, float)) and math.isfinite(x) and x > 0
 
 
 def run(problem: str, scheme: str, dt: float | None, t_final: float | None,

@@ -5,7 +5,8 @@ from pathlib import Path
 from typing import Sequence
 
 from ..params import InputError, check_choice
-from . import positive, pyplot, save
+from ..fmt import positive
+from . import pyplot, save
 
 DRIFT_METRICS = ("H.max", "H.mean")
 
