@@ -212,6 +212,23 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
     return row
 
 
+def cell_size(cell: Cell, dims: dict[str, int]) -> tuple[int, float, float]:
+    """(state dimension, estimated steps, step) of a cell: steps = (t_final - t0) / dt with
+    the cell's dt, or the problem's default step for adaptive schemes (a rough size).
+    ``dims`` caches the dimension of each problem setting across calls."""
+    pcls = registry.problem_class(cell.problem)
+    key = json.dumps(cell.problem_settings, sort_keys=True, default=str) + cell.problem
+    if key not in dims:
+        dims[key] = pcls(**cell.problem_settings).dim
+    dt = float(cell.integrator_settings.get("dt") or pcls.default_dt)
+    span = float(cell.t_final if cell.t_final is not None else pcls.default_t_final) - pcls.t0
+    try:
+        steps = span / dt
+    except OverflowError:  # 1e308 / 1e-300
+        steps = math.inf
+    return dims[key], steps, dt
+
+
 def check_size(cells: Iterable[Cell], max_samples: int = DEFAULT_MAX_SAMPLES) -> None:
     """Refuse, before anything runs, a cell whose estimated step count passes MAX_STEPS or
     whose recorded samples pass MAX_SAMPLE_BYTES (``--allow-large`` skips this). Steps are
@@ -223,18 +240,8 @@ def check_size(cells: Iterable[Cell], max_samples: int = DEFAULT_MAX_SAMPLES) ->
     for cell in cells:
         if cell.skip_reason:
             continue
-        pcls = registry.problem_class(cell.problem)
-        key = json.dumps(cell.problem_settings, sort_keys=True, default=str) + cell.problem
-        if key not in dims:
-            dims[key] = pcls(**cell.problem_settings).dim
-        dim = dims[key]
+        dim, steps, dt = cell_size(cell, dims)
         given = cell.integrator_settings.get("dt")
-        dt = float(given or pcls.default_dt)
-        span = float(cell.t_final if cell.t_final is not None else pcls.default_t_final) - pcls.t0
-        try:
-            steps = span / dt
-        except OverflowError:  # 1e308 / 1e-300
-            steps = math.inf
         step = f"dt={dt:g}" if given else f"steps of about the problem's dt={dt:g}"
         what = f"{cell.problem} x {cell.integrator} ({step}, t_final={cell.t_final:g})"
         if not steps <= MAX_STEPS:

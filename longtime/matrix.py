@@ -22,8 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterator
 
-from . import registry
-from .cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, Cell, base_row, run_cell
+from .cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, Cell, base_row, cell_size, run_cell
 from .integrator import Timing
 from .isolation import die_with_parent, run_isolated
 from .params import InputError, check_choice
@@ -69,12 +68,8 @@ def estimated_work(cell: Cell, dims: dict[str, int]) -> float:
     """A rough size of a cell, for ordering only: state dimension x steps (the cell's dt, or
     the problem's default step for adaptive schemes). ``dims`` caches dimensions."""
     try:
-        pcls = registry.problem_class(cell.problem)
-        key = f"{cell.problem} {sorted(cell.problem_settings.items())}"
-        if key not in dims:
-            dims[key] = pcls(**cell.problem_settings).dim
-        dt = float(cell.integrator_settings.get("dt") or pcls.default_dt)
-        return dims[key] * max(cell.t_final - pcls.t0, 0.0) / dt
+        dim, steps, _ = cell_size(cell, dims)
+        return dim * max(steps, 0.0)
     except Exception:  # an invalid setting: run_cell reports it; order it anywhere
         return 0.0
 
