@@ -44,21 +44,39 @@ def problem_table(df: pd.DataFrame) -> pd.DataFrame:
                            na_position="last")
 
 
+def _object_frame(rows: list[dict[str, Any]]) -> pd.DataFrame:
+    """The rows for output: every value as stored, so that each float round-trips bitwise
+    and a count stays an integer beside nulls (object columns: ``frame`` would make it a
+    float), and a list or dict (a confidence interval, the drift curve) as JSON text."""
+    import json
+
+    df = pd.DataFrame([complete(r) for r in rows], dtype=object)
+    for c in df.columns:
+        if df[c].map(lambda v: isinstance(v, (list, dict))).any():
+            df[c] = df[c].map(lambda v: json.dumps(v) if isinstance(v, (list, dict)) else v)
+    return df
+
+
 def render(rows: list[dict[str, Any]], fmt: str = "table") -> str:
-    df = frame(rows)
-    if df.empty:
-        return "no rows"
-    if fmt == "csv":
-        return df.to_csv(index=False)
+    """The rows as text. csv and json hold every stored value at full precision (floats
+    as repr: they read back bitwise); table and markdown are for reading: 4 significant
+    digits, exponent notation below 1e-2 (so a tiny value never shows as 0), '-' for null."""
+    if not rows:
+        return "[]" if fmt == "json" else "no rows"
     if fmt == "json":
-        return df.to_json(orient="records", indent=1)
+        import json
+
+        return json.dumps([complete(r) for r in rows], indent=1)
+    if fmt == "csv":
+        return _object_frame(rows).to_csv(index=False)
+    df = _object_frame(rows)
     parts = []
     for problem, sub in df.groupby("problem", sort=True):
         table = problem_table(sub)
         if fmt == "markdown":
             text = table.map(_fmt).to_markdown(index=False)
         else:
-            text = table.to_string(index=False, formatters={c: _fmt for c in table.columns}, na_rep="-")
+            text = table.map(_fmt).to_string(index=False)
         parts.append(f"== {problem}: accuracy against cost ({len(sub)} rows) ==\n{text}")
         notes = sub[sub["status"].isin(["skipped", "failed", "diverged", "timeout"])]
         for _, r in notes.iterrows():
@@ -229,12 +247,7 @@ def _not_ok(rows: list[dict[str, Any]]) -> dict[str, list[str]]:
 # ------------------------------------------------------------------ the report command
 def to_parquet(rows: list[dict[str, Any]], path) -> None:
     """Every row as one parquet table (list values, such as confidence intervals, as JSON text)."""
-    import json
-
-    df = frame(rows)
-    for c in df.columns:
-        if df[c].map(lambda v: isinstance(v, (list, dict))).any():
-            df[c] = df[c].map(lambda v: json.dumps(v) if isinstance(v, (list, dict)) else v)
+    df = _object_frame(rows).infer_objects()  # typed columns: a float column stays float64
     try:
         df.to_parquet(path, index=False)
     except ImportError as exc:
