@@ -95,9 +95,13 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
     for flag in sweeps:
         if flag not in SWEEP_PARAMETERS:
             raise InputError(f"unknown sweep parameter '{flag}'; valid: {', '.join(SWEEP_PARAMETERS)}")
+        option = f"--{flag.replace('_', '-')}"
         if not any(flag in registry.integrator_class(n).parameters for n in integrator_names):
-            raise InputError(f"--{flag.replace('_', '-')} is not a parameter of any selected integrator "
-                             f"({', '.join(integrator_names)})")
+            takers = sorted(n for n, c in registry.integrators().items() if flag in c.parameters)
+            raise InputError(f"{option} is not a parameter of any selected integrator "
+                             f"({', '.join(integrator_names)}); it applies to {', '.join(takers) or 'none'}")
+        if flag in sets:  # both would set it: the flag would silently win
+            raise InputError(f"{option} and --set {flag}= both give {flag}: give one of them")
     cells = []
     for pname in problem_names:
         pcls = registry.problem_class(pname)
@@ -186,7 +190,10 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
             row["dt"] = integrator.dt_for(problem)
         # every parameter actually used, defaults included (a default tol is not null)
         row.update({k: v for k, v in integrator.settings.items() if k in SWEEP_PARAMETERS and row.get(k) is None})
-        row["parameters"] = json.dumps({**problem.settings, **integrator.settings}, sort_keys=True, default=str)
+        used = {**problem.settings, **integrator.settings}
+        if isinstance(integrator, FixedStepIntegrator):
+            used["dt"] = row["dt"]  # the step taken, also where it is the problem's default
+        row["parameters"] = json.dumps(used, sort_keys=True, default=str)
         traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
                                     timing=timing or Timing(), deadline=deadline)
         if traj.status == "timeout":

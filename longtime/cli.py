@@ -17,7 +17,7 @@ from .integrator import Timing
 from .matrix import EXECUTORS, ExecOptions, run_matrix
 from .params import InputError
 from .reference import budget_seconds
-from .report import complete, render
+from .report import render
 from .store import Store, default_path
 
 # modules that add subcommands: each defines add_parser(subparsers) and sets func
@@ -63,14 +63,16 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
                         f"row (default {DEFAULT_TIME_LIMIT:g}; 0: no limit)")
     p.add_argument("--allow-large", action="store_true",
                    help="run cells estimated beyond 1e9 steps or 4 GiB of samples (refused by default)")
-    p.add_argument("--jobs", type=int, default=0, help="worker processes (default: one per core)")
+    p.add_argument("--jobs", type=cli_args.integer("--jobs", 0, " (0: one per core)"), default=0,
+                   help="worker processes of the process, isolated and dask executors (default: one per core)")
     p.add_argument("--max-samples", type=int, default=100_001,
                    help="states kept per run for the metrics (every step below this)")
-    p.add_argument("--repeats", type=int, default=Timing.repeats, metavar="N",
+    p.add_argument("--repeats", type=cli_args.integer("--repeats", 1), default=Timing.repeats, metavar="N",
                    help=f"timed runs of each cell after the warm-up: at least {Timing.MIN_RUNS} "
                         f"(or N if fewer), more while their total is below --min-time, at most N; "
                         f"cpu_s is the minimum (default {Timing.repeats})")
-    p.add_argument("--min-time", type=float, default=Timing.min_time, metavar="SECONDS",
+    p.add_argument("--min-time", type=cli_args.seconds("--min-time", allow_zero=True), default=Timing.min_time,
+                   metavar="SECONDS",
                    help=f"repeat a cell's timed run until the timed total passes this "
                         f"(default {Timing.min_time})")
     p.add_argument("--db", default=None, help=f"SQLite store (default: $LONGTIME_DB or {default_path()})")
@@ -80,8 +82,13 @@ def _sweeps(args) -> dict[str, list]:
     return {k: getattr(args, k) for k in SWEEP_PARAMETERS if getattr(args, k, None)}
 
 
-def _options(args) -> ExecOptions:
-    if args.max_samples < 2:  # checked before a run is recorded: bad input leaves nothing to resume
+def _options(args, executor: str) -> ExecOptions:
+    """The execution options of ``args`` for ``executor`` (checked before a run is recorded:
+    bad input leaves nothing to resume)."""
+    if args.jobs and executor == "serial" and not getattr(args, "cell_timeout", None):
+        raise InputError(f"--jobs {args.jobs}: the serial executor runs one cell at a time; --jobs applies to "
+                         f"--executor process, isolated or dask (or with --cell-timeout)")
+    if args.max_samples < 2:
         raise InputError(f"--max-samples {args.max_samples}: must be >= 2")
     budget_seconds()  # $LONGTIME_REFERENCE_SECONDS: a bad value is bad input, before anything runs
     return ExecOptions(jobs=args.jobs, max_samples=args.max_samples,
@@ -137,12 +144,13 @@ def cmd_run(args) -> int:
                    sets=dict(args.set), strict=True)
     if not args.allow_large:
         check_size(cells, args.max_samples)
-    options = _options(args)
+    executor = args.executor or "serial"
+    options = _options(args, executor)
     store = None if args.no_store else Store(args.db)
     run_id = store.begin_run("run " + shlex.join(sys.argv[1:]), cells) if store else None
     status = "interrupted"
     try:
-        rows = run_matrix(cells, store, run_id, args.executor or "serial", options)
+        rows = run_matrix(cells, store, run_id, executor, options)
         status = "done"
     except InputError:  # rejected as it started (an executor's setting): nothing to resume
         status = "rejected"
@@ -150,17 +158,14 @@ def cmd_run(args) -> int:
     finally:
         if store:
             store.discard_run(run_id) if status == "rejected" else store.finish_run(run_id, status)
-    rows = [complete(r) for r in rows]
-    if args.format == "json":
-        print(json.dumps(rows, indent=1))
-    else:
-        print(render(rows, args.format))
+    print(render(rows, args.format))  # json: every row with the contract's keys (report.complete)
     return 1 if any(r["status"] == "failed" for r in rows) else 0
 
 
 def cmd_matrix(args) -> int:
     _warn_broken()
-    options = _options(args)
+    executor = args.executor or "process"
+    options = _options(args, executor)
     if args.resume is not None:
         store = Store(args.db, create=False)  # resuming never creates an empty store
         if args.resume < 0:
@@ -193,7 +198,7 @@ def cmd_matrix(args) -> int:
         print(f"run {run_id}: {len(cells)} cells into {store.path}", file=sys.stderr)
     status = "interrupted"
     try:
-        run_matrix(cells, store, run_id, args.executor or "process", options,
+        run_matrix(cells, store, run_id, executor, options,
                    progress=not args.no_progress)
         status = "done"
     except InputError:  # rejected as it started (an executor's setting): nothing to resume

@@ -48,6 +48,21 @@ def ints(flag: str) -> Callable[[str], list[int]]:
     return parse
 
 
+def integer(flag: str, minimum: int, note: str = "") -> Callable[[str], int]:
+    """One integer >= ``minimum`` (``note`` says what the smallest means, e.g. 0: one per core)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < minimum:
+            raise argparse.ArgumentTypeError(f"{flag} takes an integer >= {minimum}{note}, got {text!r}")
+        return value
+
+    return parse
+
+
 def key_value(text: str) -> tuple[str, str]:
     """``--set key=value``: the pair of stripped strings (the parameter parses the value)."""
     if "=" not in text:
