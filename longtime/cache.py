@@ -31,3 +31,28 @@ def digest(*chunks: bytes | str) -> str:
         h.update(c.encode() if isinstance(c, str) else c)
         h.update(b"\0")
     return h.hexdigest()[:32]
+
+
+def write_atomic(path: Path, data: bytes) -> None:
+    """Write ``path`` whole or not at all (a temporary file renamed over it): a reader never
+    sees a half-written file, and processes writing the same file at once each write whole."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def discard(path: Path | str, what: str, exc: BaseException | str) -> None:
+    """A cache file that cannot be trusted (unreadable, corrupt, not what it should hold):
+    a warning naming it, and the file deleted, so it is rebuilt instead of failing (or being
+    believed) on every run."""
+    import warnings
+
+    reason = exc if isinstance(exc, str) else repr(exc)
+    warnings.warn(f"discarding the unreadable {what} cache file {path}: {reason}", stacklevel=3)
+    try:
+        os.unlink(path)
+    except OSError:
+        pass

@@ -1,27 +1,24 @@
 """numba's on-disk cache, verified before it is trusted: an index or data file that cannot
 be read (truncated, corrupt) is deleted with a warning naming it, and the function is
-compiled afresh, instead of failing the same way on every rerun.
+compiled afresh, instead of failing the same way on every rerun; and an entry compiled
+against other code (a callee in another file that changed since) is never loaded.
 
 numba reads its cache in ``IndexDataCacheFile._load_index`` / ``_load_data`` and lets an
-unpickling error through; ``install`` wraps both (idempotent, no compilation). Imported by
-longtime.jitcache, so it is in place before any kernel or problem function is compiled.
+unpickling error through; ``install`` wraps both, and extends ``Cache._index_key``
+(idempotent, no compilation). Imported by longtime.jitcache, so it is in place before any
+kernel or problem function is compiled.
 """
 from __future__ import annotations
 
-import os
-import warnings
-
 from numba.core import caching
+
+from .cache import discard
 
 _FILE = caching.IndexDataCacheFile
 
 
 def _discard(path: str, exc: BaseException) -> None:
-    warnings.warn(f"discarding the unreadable numba cache file {path}: {exc!r}", stacklevel=3)
-    try:
-        os.unlink(path)
-    except OSError:
-        pass
+    discard(path, "numba", exc)
 
 
 def install() -> None:
@@ -47,6 +44,23 @@ def install() -> None:
 
     _FILE._load_index, _FILE._load_data = _load_index, _load_data
     _FILE._longtime_guarded = True
+
+    # numba keys an entry by the function's own bytecode, and drops the index only when the
+    # function's own file changes: a callee in another module (or a constant imported from
+    # one) that changed would still load the old machine code. The key also gets the
+    # function's fingerprint (longtime.jitcache): the bytecode of everything it reaches.
+    index_key = caching.Cache._index_key
+
+    def _index_key(self, sig, codegen):
+        key = index_key(self, sig, codegen)
+        from .jitcache import Unfreezable, fingerprint
+
+        try:
+            return (*key, fingerprint(self._py_func))
+        except (Unfreezable, ImportError):  # nothing to add (an object it cannot describe)
+            return key
+
+    caching.Cache._index_key = _index_key
 
 
 install()

@@ -37,7 +37,7 @@ from numba.core.extending import _Intrinsic
 from numba.core.types import Type as NumbaType
 
 from . import cache_guard  # noqa: F401  (a corrupt numba cache file is rebuilt, not fatal)
-from .cache import cache_dir, digest
+from .cache import cache_dir, digest, discard, write_atomic
 
 _DECORATOR_OPTIONS = ("inline", "fastmath", "error_model", "boundscheck")
 _MODULES: dict[str, types.ModuleType] = {}
@@ -242,18 +242,42 @@ def _check_same_function(fn, body: str) -> None:
 
 
 def _load(text: str) -> types.ModuleType:
+    """The generated module of ``text``, named after its digest. The file on disk is used
+    only when its bytes are exactly ``text`` (anything else, a truncated or corrupt file,
+    is discarded with a warning and written again); a compiled ``.pyc`` of it that Python
+    cannot load is discarded the same way."""
     name = "longtime_kernel_" + digest(text)
     module = _MODULES.get(name) or sys.modules.get(name)
     if module is None:
-        folder = cache_dir("kernels")
-        path = folder / f"{name}.py"
-        if not path.exists() or path.read_text() != text:
-            tmp = folder / f".{name}.{os.getpid()}.tmp"
-            tmp.write_text(text)
-            os.replace(tmp, path)
-        spec = importlib.util.spec_from_file_location(name, path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        spec.loader.exec_module(module)
+        path = cache_dir("kernels") / f"{name}.py"
+        data = text.encode()
+        try:
+            found = path.read_bytes()
+        except FileNotFoundError:
+            found = None
+        if found is not None and found != data:
+            discard(path, "kernel", f"its text is not the generated kernel {name}")
+        if found != data:
+            write_atomic(path, data)
+        try:
+            module = _import(name, path)
+        except Exception as exc:  # a .pyc beside it that cannot be loaded (bad marshal data...)
+            pyc = importlib.util.cache_from_source(str(path))
+            if not os.path.exists(pyc):
+                raise
+            discard(pyc, "kernel bytecode", exc)
+            module = _import(name, path)
         _MODULES[name] = module
+    return module
+
+
+def _import(name: str, path) -> types.ModuleType:
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+    except BaseException:
+        del sys.modules[name]
+        raise
     return module

@@ -360,33 +360,59 @@ def _start(problem: Problem, precision: str):
 
 
 def _cache_path(problem: Problem, *parts: str | bytes, suffix: str = ".npz") -> Path:
+    """The cache file of ``parts`` for ``problem``. Its key covers all that decides the
+    content: the problem (name, settings, initial state, t0, kernel parameters), its ODE as
+    heyoka reads it (an edited right-hand side or coefficient is another file), ``parts``
+    and heyoka's version."""
     import heyoka as hy
 
-    key = digest(problem.identity(), problem.u0.tobytes(), repr(problem.t0), *parts, hy.__version__)
+    ode = "" if problem.heyoka_system is None else repr([str(e) for e in problem.heyoka_system()[1]])
+    key = digest(problem.identity(), problem.u0.tobytes(), repr(problem.t0), problem.params.tobytes(), ode,
+                 *parts, hy.__version__)
     return cache_dir("reference") / f"{problem.name}-{key}{suffix}"
 
 
+# every cache file ends with this and the SHA-256 (hex) of the bytes before it; np.load
+# reads an .npy or .npz up to its own end, so the trailer is invisible to it
+_TRAILER = b"\nlongtime-sha256:"
+
+
 def _load(path: Path, read: Callable[[], Any]) -> Any:
-    """``read()`` of a cache file, or None when there is none; a file that cannot be read
-    (truncated, corrupt) is deleted, so it is recomputed instead of failing every rerun."""
+    """``read()`` of a cache file, or None when there is none. The file is trusted only when
+    its bytes match the checksum ``_save`` appended; one that does not (truncated, corrupt,
+    written without it) or that ``read`` rejects is deleted with a warning naming it, so it
+    is recomputed instead of failing, or being believed, on every rerun."""
+    import hashlib
+
+    from .cache import discard
+
     if not path.exists():
         return None
     try:
+        data = path.read_bytes()
+        body, mark, checksum = data.rpartition(_TRAILER)
+        if not mark:
+            raise ValueError("no checksum at its end")
+        if hashlib.sha256(body).hexdigest().encode() != checksum:
+            raise ValueError("its checksum does not match its contents")
         return read()
     except Exception as exc:  # np.load raises ValueError, OSError, EOFError, BadZipFile, KeyError...
-        import warnings
-
-        warnings.warn(f"discarding the unreadable reference cache file {path}: {exc!r}", stacklevel=2)
-        path.unlink(missing_ok=True)
+        discard(path, "reference", exc)
         return None
 
 
 def _save(path: Path, array: np.ndarray | None = None, **arrays: np.ndarray) -> None:
-    """Write atomically: workers that compute the same reference at once both write whole files."""
-    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "wb") as f:
-        if array is not None:
-            np.save(f, array)
-        else:
-            np.savez(f, **arrays)
-    os.replace(tmp, path)
+    """Write the file with its checksum, atomically: workers that compute the same
+    reference at once both write whole files."""
+    import hashlib
+    import io
+
+    from .cache import write_atomic
+
+    buffer = io.BytesIO()
+    if array is not None:
+        np.save(buffer, array)
+    else:
+        np.savez(buffer, **arrays)
+    body = buffer.getvalue()
+    write_atomic(path, body + _TRAILER + hashlib.sha256(body).hexdigest().encode())

@@ -31,6 +31,7 @@ from typing import Any, Callable, Iterable, Sequence
 import numba
 import numpy as np
 
+from .cache import discard, write_atomic
 from .params import InputError, Param
 from .problem import Problem
 
@@ -284,6 +285,28 @@ def _cache_file(name: str, order: int | None):
     return cache_dir("stability") / f"{name}-N{order}-{_cache_key(name, order)}.json"
 
 
+def _read_cached(path) -> dict[str, Any] | None:
+    """The result cached in ``path``, or None when there is none; a file that is not a
+    whole result (truncated, corrupt, another shape) is discarded with a warning naming it."""
+    try:
+        result = json.loads(path.read_bytes())
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError) as exc:  # ValueError: not JSON, or not UTF-8
+        discard(path, "stability", exc)
+        return None
+    number = (int, float)
+    whole = isinstance(result, dict) and (
+        (set(result) == {"error"} and isinstance(result["error"], str))
+        or (set(result) == {"y", "bounded", "why", "y_1pct"} and isinstance(result["y"], number)
+            and isinstance(result["bounded"], bool) and isinstance(result["why"], str)
+            and isinstance(result["y_1pct"], number)))
+    if not whole:
+        discard(path, "stability", f"not a stability result: {str(result)[:80]!r}")
+        return None
+    return result
+
+
 def intervals(name: str, compute: bool = True, orders: Iterable[int] | None = None) -> dict[str, dict[str, Any]]:
     """{"" or "N=4": result}: the scheme's imaginary-axis interval(s), from the cache, or
     measured (and cached) when ``compute``; empty when neither. ``orders``: the N of a
@@ -303,14 +326,15 @@ def intervals(name: str, compute: bool = True, orders: Iterable[int] | None = No
             except Unmeasurable as exc:
                 out[label] = {"error": str(exc)}
                 continue
-            if path.exists():
-                out[label] = json.loads(path.read_text())
+            cached = _read_cached(path)
+            if cached is not None:
+                out[label] = cached
             elif compute:
                 try:
                     result = imaginary_interval(name, order)
                 except Unmeasurable as exc:
                     result = {"error": str(exc)}
-                path.write_text(json.dumps(result))
+                write_atomic(path, json.dumps(result).encode())
                 out[label] = result
     except (InputError, Unmeasurable) as exc:
         out[""] = {"error": str(exc)}
