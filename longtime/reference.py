@@ -28,6 +28,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from . import heyoka_build
 from .cache import cache_dir, digest
 from .params import InputError
 from .problem import Problem
@@ -263,7 +264,7 @@ def _stepped_run(problem: Problem, t_final: float, budget_s: float) -> tuple[np.
     import heyoka as hy
 
     deadline = time.perf_counter() + budget_s  # the compile counts against the budget
-    ta = _start(problem, "double")
+    ta = _start(problem, "double", deadline)
     times, states, stride, count = [problem.t0], [problem.u0.copy()], 1, 0
 
     def record(ta) -> bool:
@@ -296,7 +297,7 @@ def _propagate(problem: Problem, grid: np.ndarray, precision: str, budget_s: flo
 
     fp = _fp(precision)
     deadline = time.perf_counter() + (budget_seconds() if budget_s is None else budget_s)
-    ta = _start(problem, precision)  # its compile counts against the budget
+    ta = _start(problem, precision, deadline)  # its compile counts against the budget
     pieces = _PIECES if found_out is not None else 1
     bounds = np.unique(np.linspace(0, grid.size - 1, pieces + 1).round().astype(int))
     if bounds.size == 1:  # a grid of one time
@@ -339,20 +340,19 @@ def _ladder() -> list[str]:
     return ladder
 
 
-def _start(problem: Problem, precision: str):
-    """The problem's heyoka integrator in ``precision``, set to (t0, u0)."""
+def _start(problem: Problem, precision: str, deadline: float):
+    """The problem's heyoka integrator in ``precision``, set to (t0, u0); its compile counts
+    against the run's budget (``deadline``, a perf_counter time)."""
     ident = (problem.identity(), precision)
     ta = _TAYLOR.get(ident)
     fp = _fp(precision)
     if ta is None:
-        import heyoka as hy
-
-        variables, rhs = problem.heyoka_system()
-        # tol defaults to the epsilon of fp_type. Compact mode: extended precisions compile
-        # 100x faster with it (outer-solar-system in long double: 0.3 s instead of 90 s)
-        # and run about as fast; double keeps the faster straight-line code.
-        ta = hy.taylor_adaptive(list(zip(variables, rhs)), problem.u0.astype(fp), high_accuracy=True,
-                                fp_type=fp, time=fp(problem.t0), compact_mode=precision != "double")
+        try:
+            ta = heyoka_build.taylor_adaptive(problem, problem.u0.astype(fp), deadline - time.perf_counter(),
+                                              high_accuracy=True, fp_type=fp, time=fp(problem.t0))
+        except heyoka_build.CompileTimeout as exc:
+            raise ReferenceUnavailable(f"{exc}: past the reference's time budget "
+                                       f"({BUDGET_VARIABLE})") from None
         _TAYLOR[ident] = ta
     ta.time = fp(problem.t0)
     ta.state[:] = problem.u0.astype(fp)

@@ -2,9 +2,16 @@
 
 heyoka picks its order from the tolerance (p = ceil(-ln(tol)/2 + 1): 20 at machine epsilon)
 and its step from the last two coefficients (Jorba-Zou). Its LLVM compilation happens once
-per (problem identity, tol, high_accuracy), outside the timing; the timing covers
-``propagate_grid`` alone, whose dense output gives the samples without clipping heyoka's
-own steps.
+per (problem identity, tol, high_accuracy), outside the timing (large systems in compact
+mode: longtime.heyoka_build); the timing covers ``propagate_grid`` alone, whose dense output
+gives the samples without clipping heyoka's own steps.
+
+The cell's time limit: the compiled drivers check it between chunks, but heyoka's grid must
+not be cut into pieces (each piece clips a step and changes the round-off). So when a
+deadline is set, the first run of a cell is a guard: the same ``propagate_grid`` with a
+callback after every step that stops it at the deadline (and lets Ctrl-C in). Only a guard
+that finishes is followed by the timed runs, without the callback (a Python call per step
+would be timed too); they repeat the guard's steps bitwise, so they take about as long.
 """
 from __future__ import annotations
 
@@ -13,6 +20,7 @@ import time
 
 import numpy as np
 
+from .. import heyoka_build
 from ..integrator import Integrator, Trajectory
 from ..params import Param
 from ..problem import BLOWUP_MESSAGE
@@ -38,17 +46,14 @@ class Heyoka(Integrator):
         super().__init__(**settings)
         self.order = max(1, math.ceil(-math.log(self.settings["tol"]) / 2 + 1))
 
-    def compiled(self, problem):
-        """The taylor_adaptive object for this problem and these settings (built once)."""
+    def compiled(self, problem, timeout_s: float | None = None):
+        """The taylor_adaptive object for this problem and these settings (built once);
+        heyoka_build.CompileTimeout past ``timeout_s``."""
         key = (problem.identity(), self.settings["tol"], self.settings["high_accuracy"])
         ta = _COMPILED.get(key)
         if ta is None:
-            import heyoka as hy
-
-            variables, rhs = problem.heyoka_system()
-            ta = hy.taylor_adaptive(list(zip(variables, rhs)), problem.u0.copy(),
-                                    tol=self.settings["tol"], time=problem.t0,
-                                    high_accuracy=self.settings["high_accuracy"])
+            ta = heyoka_build.taylor_adaptive(problem, problem.u0.copy(), timeout_s, tol=self.settings["tol"],
+                                              time=problem.t0, high_accuracy=self.settings["high_accuracy"])
             _COMPILED[key] = ta
         return ta
 
@@ -62,8 +67,19 @@ class Heyoka(Integrator):
     def _integrate(self, problem, t_final, max_samples):
         import heyoka as hy
 
-        ta = self.compiled(problem)
         grid = self.grid(problem, t_final, max_samples)
+        deadline = self._deadline
+        try:
+            ta = self.compiled(problem, None if deadline is None else deadline - time.monotonic())
+        except heyoka_build.CompileTimeout as exc:
+            return Trajectory(status="timeout", message=f"time limit reached before the first step: {exc}",
+                              t=grid[:1], u=problem.u0[None, :].copy(), cpu_s=0.0, wall_s=0.0)
+        if deadline is not None:
+            stopped = self._guard(ta, problem, grid, deadline)
+            if stopped is not None:
+                return stopped
+            # the timed runs of this cell repeat the guard's steps: no second guard
+            self._deadline = None
         ta.time = problem.t0
         ta.state[:] = problem.u0
         try:
@@ -90,3 +106,30 @@ class Heyoka(Integrator):
             status=status, message=message, t=grid[:n], u=states[:n], cpu_s=cpu, wall_s=wall,
             counters={"steps": steps}, min_dt=float(min_h) if steps else None,
             max_dt=float(max_h) if steps else None, extra={"order": ta.order, "tol": self.settings["tol"]})
+
+    @staticmethod
+    def _guard(ta, problem, grid, deadline: float) -> Trajectory | None:
+        """The untimed guard run (see the module): None when it finished by ``deadline`` (a
+        time.monotonic() value), else the ``timeout`` trajectory up to where it got."""
+        import heyoka as hy
+
+        ta.time = problem.t0
+        ta.state[:] = problem.u0
+        try:
+            c0, w0 = time.process_time(), time.perf_counter()
+            outcome, min_h, max_h, nsteps, _, states = ta.propagate_grid(
+                grid, callback=lambda _: time.monotonic() < deadline)
+            cpu, wall = time.process_time() - c0, time.perf_counter() - w0
+        except Exception:  # the timed run meets the same error and reports it
+            return None
+        if outcome != hy.taylor_outcome.cb_stop:
+            return None
+        reached, steps = float(ta.time), int(nsteps)
+        n = max(1, int(np.searchsorted(grid, reached, side="right")))
+        t, u = grid[:n], np.asarray(states, dtype=float)[:n]
+        if reached > grid[n - 1]:  # where it got, between grid times
+            t, u = np.r_[t, reached], np.vstack([u, np.asarray(ta.state, dtype=float)])
+        # the cost of what it did, timed with the guard's callback (the row is a timeout)
+        return Trajectory(status="timeout", message=f"time limit reached at t={reached:.6g}", t=t, u=u,
+                          cpu_s=cpu, wall_s=wall, counters={"steps": steps},
+                          min_dt=float(min_h) if steps else None, max_dt=float(max_h) if steps else None)

@@ -1,0 +1,56 @@
+"""heyoka under limits: the scheme keeps the cell's time limit without cutting its grid, large
+systems compile in compact mode, and a compile past its time is given up, not waited for."""
+import time
+
+import numpy as np
+import pytest
+
+from longtime import heyoka_build, registry
+from longtime.cells import Cell, run_cell
+
+pytest.importorskip("heyoka")
+
+
+def test_heyoka_scheme_stops_at_the_cell_time_limit():
+    # duffing-1 needs ever shorter steps towards its blow-up: to t = 60 heyoka ran for ever
+    cell = Cell("duffing-1", "heyoka", {}, {}, 60.0)
+    start = time.monotonic()
+    # no reference: its check of duffing-1 to t = 60 has a budget of its own (minutes)
+    row = run_cell(cell, reference=False, time_limit=2.0)
+    took = time.monotonic() - start
+    assert row["status"] == "timeout", row["message"]
+    assert "time limit reached at t=" in row["message"] and "--time-limit" in row["message"]
+    assert 20.0 < row["t_reached"] < 60.0
+    assert row["steps"] > 1000 and row["cpu_s"] > 0.5  # what it did is measured, not zero
+    assert took < 15.0  # the limit and the compile
+
+
+def test_heyoka_scheme_within_its_limit_is_timed_without_the_guard():
+    # the timed runs repeat the guarded one bitwise (else the row would be 'non-deterministic')
+    # and the row matches a run without any limit
+    cell = Cell("kepler", "heyoka", {}, {}, 200.0)
+    limited, free = run_cell(cell, time_limit=60.0), run_cell(cell, time_limit=None)
+    assert limited["status"] == free["status"] == "ok", (limited["message"], free["message"])
+    assert limited["steps"] == free["steps"] and limited["l2_error"] == free["l2_error"]
+    assert limited["repeats"] >= 3
+
+
+def test_large_systems_compile_in_compact_mode():
+    # toda d = 200 took 326 s to compile as straight-line code on this machine
+    problem = registry.problems()["toda"](d=200)
+    assert heyoka_build.compact_mode(problem)
+    assert not heyoka_build.compact_mode(registry.problems()["toda"](d=3))
+    start = time.perf_counter()
+    ta = heyoka_build.taylor_adaptive(problem, problem.u0.copy(), timeout_s=60.0)
+    assert time.perf_counter() - start < 30.0
+    ta.propagate_until(1.0)
+    assert np.isfinite(ta.state).all()
+
+
+def test_a_compile_past_its_time_is_given_up():
+    # toda d = 40 as straight-line code compiles in about 5 s
+    problem = registry.problems()["toda"](d=40)
+    start = time.perf_counter()
+    with pytest.raises(heyoka_build.CompileTimeout, match="toda"):
+        heyoka_build.taylor_adaptive(problem, problem.u0.copy(), timeout_s=0.3, compact_mode=False)
+    assert time.perf_counter() - start < 2.0
