@@ -208,7 +208,8 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         row.update(metrics.evaluate(problem, traj, ref, trust))
         row["status"] = traj.status
         worst = max((e for e in (row.get("l2_error"), row.get("final_error")) if e is not None), default=None)
-        if worst is not None and worst >= O1_ERROR:  # finite but wrong: never a plain "ok"
+        row["solution_lost"] = None if worst is None else bool(worst >= O1_ERROR)
+        if row["solution_lost"]:  # finite but wrong: never a plain "ok" (the report folds it too)
             note = "; ".join(m for m in (note, f"error O(1) (relative error {worst:.3g} >= {O1_ERROR:g}): "
                                                f"the solution is not followed") if m)
         row["message"] = "; ".join(m for m in (traj.message, note, row["message"]) if m)  # + metrics' notes

@@ -196,6 +196,7 @@ class Integrator(ABC):
                 wall.append(again.wall_s)
         finally:
             self._deadline = None
+        _judge_growth(problem, first)
         if len(cpu) == 1 < timing.repeats and first.status == "ok" and wall[0] > Timing.ONCE_ABOVE:
             note = f"timed once: one run takes {wall[0]:.3g} s"
             first.message = f"{first.message}; {note}" if first.message else note
@@ -384,7 +385,7 @@ class AdaptiveIntegrator(Integrator):
             ts.append(bt[:n].copy())
             us.append(bu[:n].copy())
             total += n
-            if total > max_samples:  # keep every other sample, record half as often
+            while total > max_samples:  # keep every other sample, record half as often
                 tt, uu = np.concatenate(ts), np.concatenate(us)
                 keep = np.r_[np.arange(0, tt.size - 1, 2), tt.size - 1]
                 ts, us, total, stride = [tt[keep]], [uu[keep]], keep.size, 2 * stride
@@ -409,6 +410,18 @@ class AdaptiveIntegrator(Integrator):
             status=STATUS_NAMES[status], message=message, t=np.concatenate(ts),
             u=np.concatenate(us), cpu_s=cpu, wall_s=wall, counters=self._counters(counters),
             min_dt=float(hstats[0]) if steps else None, max_dt=float(hstats[1]) if steps else None)
+
+
+def _judge_growth(problem: Problem, traj: Trajectory) -> None:
+    """A problem whose solution grows bounds the compiled loops only near overflow; its samples
+    are judged here against the bound that follows the solution (Problem.size_bound): past
+    it, the run diverged there (the samples end at the first state beyond, as the drivers')."""
+    if not problem.grows or traj.status not in ("ok", "timeout"):
+        return
+    k = problem.first_blowup(traj.u, traj.t)
+    if k is not None:
+        traj.t, traj.u = traj.t[:k + 1], traj.u[:k + 1]
+        traj.status, traj.message = "diverged", BLOWUP_MESSAGE.format(t=traj.t[-1])
 
 
 def _status_message(status: int, t: float) -> str:

@@ -105,8 +105,12 @@ class Problem(ABC):
     autonomous: ClassVar[bool] = True
     # |u|_1 above blowup_factor * max(1, |u0|_inf), or a non-finite component, is a
     # divergence (the 1-norm: a branch-free sum in the compiled drivers, which every
-    # scheme shares through ``first_blowup``)
+    # scheme shares through ``first_blowup``). A problem whose true solution grows gives
+    # ``size_bound`` instead: the bound then follows it (see there).
     blowup_factor: ClassVar[float] = 1e10
+    # the compiled drivers' constant bound when the bound follows ``size_bound``: only an
+    # overflow stops the loop; the recorded samples are judged against the growing bound
+    OVERFLOW_BOUND: ClassVar[float] = 1e250
 
     rhs: ClassVar[Callable | None] = None
     grad_T: ClassVar[Callable | None] = None
@@ -168,14 +172,32 @@ class Problem(ABC):
     def dim(self) -> int:
         return int(self.u0.size)
 
+    def size_bound(self, t: np.ndarray) -> np.ndarray | None:
+        """Optional, for a problem whose true solution grows: an upper bound on the 1-norm of
+        the true state at the times ``t`` (from a first integral, say). A state above
+        ``blowup_factor`` times it (at least 1) has diverged. None (the default): the bound is
+        constant, ``blowup``."""
+        return None
+
+    @property
+    def grows(self) -> bool:
+        return type(self).size_bound is not Problem.size_bound
+
     @property
     def blowup(self) -> float:
+        """The constant bound of the compiled drivers."""
+        if self.grows:
+            return self.OVERFLOW_BOUND
         return self.blowup_factor * max(1.0, float(np.max(np.abs(self.u0))))
 
-    def first_blowup(self, U: np.ndarray) -> int | None:
-        """Index of the first state of U (n, dim) that blew up, as drivers.is_blown_up
-        judges it (1-norm above ``blowup``, NaN included), or None."""
-        bad = ~(np.sum(np.abs(U), axis=1) <= self.blowup)
+    def first_blowup(self, U: np.ndarray, t: np.ndarray | None = None) -> int | None:
+        """Index of the first state of U (n, dim) that blew up, or None: a non-finite one, or
+        a 1-norm above ``blowup`` (as drivers.is_blown_up judges it) or, with the times ``t``
+        of a problem that ``grows``, above blowup_factor * max(1, size_bound(t))."""
+        bound = self.blowup
+        if t is not None and self.grows:
+            bound = np.minimum(bound, self.blowup_factor * np.maximum(1.0, self.size_bound(np.asarray(t, dtype=float))))
+        bad = ~(np.sum(np.abs(U), axis=1) <= bound)
         return int(np.argmax(bad)) if bad.any() else None
 
     @classmethod

@@ -228,9 +228,13 @@ def summary(rows: list[dict[str, Any]], orders: bool = True) -> str:
     return "\n\n".join(parts)
 
 
+# an ok row whose error reached O(1) (cells.O1_ERROR): it ran to the end, but lost the solution
+LOST = "ok but error O(1), the solution not followed"
+
+
 def _not_ok(rows: list[dict[str, Any]]) -> dict[str, list[str]]:
-    """Rows that did not run to the end, folded: 'skipped (needs constraints, which toda
-    does not provide)' -> schemes; 'diverged' -> ['rk4 (2 of 3)', ...]."""
+    """Rows that did not run to the end, or lost the solution, folded: 'skipped (needs
+    constraints, which toda does not provide)' -> schemes; 'diverged' -> ['rk4 (2 of 3)', ...]."""
     out: dict[str, list[str]] = {}
     for status in ("skipped", "diverged", "failed", "timeout"):
         for scheme in sorted({r["integrator"] for r in rows if r.get("status") == status}):
@@ -241,6 +245,10 @@ def _not_ok(rows: list[dict[str, Any]]) -> dict[str, list[str]]:
                 out.setdefault(f"skipped ({why})", []).append(scheme)
             else:
                 out.setdefault(status, []).append(f"{scheme} ({len(bad)} of {len(mine)})")
+    for scheme in sorted({r["integrator"] for r in rows if r.get("status") == "ok" and r.get("solution_lost")}):
+        mine = [r for r in rows if r["integrator"] == scheme]
+        lost = [r for r in mine if r.get("status") == "ok" and r.get("solution_lost")]
+        out.setdefault(LOST, []).append(f"{scheme} ({len(lost)} of {len(mine)})")
     return out
 
 

@@ -93,3 +93,37 @@ def test_series_schemes_on_duffing():
         traj = scheme.integrate(d2, 200.0, max_samples=1001)
         assert traj.status == "ok"
         assert np.max(np.abs(traj.u - d2.exact(traj.t))) < bound
+
+
+def test_duffing1_bound_follows_the_growing_solution():
+    # the true state passes 1e10 x its initial size near t = 36; the bound follows size_bound
+    problem = registry.problem_class("duffing-1")()
+    assert problem.grows and problem.blowup >= 1e200  # the drivers stop only near overflow
+    t = np.linspace(0.0, 38.0, 77)
+    true = reference_states(problem, t)
+    size = np.sum(np.abs(true), axis=1)
+    bound = problem.size_bound(t)
+    assert np.all(size <= bound) and np.max(size / bound) > 0.3  # a bound, and not a loose one
+    assert size[-1] > 1e10 * np.max(np.abs(problem.u0))  # beyond the old constant bound
+    assert problem.first_blowup(true, t) is None
+    wild = true.copy()
+    wild[50] *= 2e10  # 1e10 x the bound, at t = 24.7: far below the old constant bound at t = 36
+    assert problem.first_blowup(wild, t) == 50
+    assert problem.first_blowup(wild) is None  # without the times only overflow counts
+
+
+def test_a_run_past_the_growing_bound_is_diverged_and_an_o1_error_is_flagged():
+    from longtime.cells import Cell, run_cell
+    from longtime.report import LOST, _not_ok
+
+    # accurate to t = 38 (the solution's 1-norm reaches 1e11): ok, solution kept
+    row = run_cell(Cell("duffing-1", "taylor-adaptive", {}, {"tol": 1e-12}, 38.0))
+    assert row["status"] == "ok" and row["solution_lost"] is False, row["message"]
+    # RK4 at the paper's step loses I and the solution (issue 3: |dI/I| reaches 100 %)
+    lost = run_cell(Cell("duffing-1", "rk4", {}, {"dt": 4e-4}, 30.0))
+    assert lost["status"] == "ok" and lost["solution_lost"] is True
+    assert "error O(1)" in lost["message"]
+    assert _not_ok([row, lost]) == {LOST: ["rk4 (1 of 1)"]}
+    # a step far too long leaves the true solution's bound: diverged, where it happened
+    wild = run_cell(Cell("duffing-1", "euler", {}, {"dt": 0.25}, 38.0))
+    assert wild["status"] == "diverged" and wild["t_reached"] < 38.0, wild["message"]
