@@ -32,7 +32,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .figures import pyplot
+from .figures import plain_log_ticks, pyplot
 from .fmt import positive
 from .orders import observed_orders
 from .report import (_not_ok, format_counts, main_t_final, pareto, pareto_field, pareto_groups, setting, status_counts,
@@ -72,6 +72,8 @@ def styles(schemes: Sequence[str]) -> dict[str, dict[str, str]]:
 
 def svg(fig) -> str:
     """The figure as inline SVG markup (no XML prolog); closes the figure."""
+    for ax in fig.axes:
+        plain_log_ticks(ax)
     buf = io.StringIO()
     fig.savefig(buf, format="svg", bbox_inches="tight")
     pyplot().close(fig)
@@ -407,7 +409,7 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
                        "with its 95 % interval.</p>" + orders)
         folded = _not_ok(mine)
         if folded:
-            out.append("<h3>Not run to the end</h3><ul>" + "".join(
+            out.append("<h3>Not run to the end, or the solution lost</h3><ul>" + "".join(
                 f"<li>{_e(why)}: {_e(', '.join(s))}</li>" for why, s in sorted(folded.items())) + "</ul>")
     out.append('<h2 id="capabilities">Capability matrix</h2>' + _capability_matrix(rows))
     stab = _stability_table(rows) if stability else None
