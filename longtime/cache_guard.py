@@ -10,6 +10,8 @@ kernel or problem function is compiled.
 """
 from __future__ import annotations
 
+import weakref
+
 from numba.core import caching
 
 from .cache import discard
@@ -50,15 +52,20 @@ def install() -> None:
     # one) that changed would still load the old machine code. The key also gets the
     # function's fingerprint (longtime.jitcache): the bytecode of everything it reaches.
     index_key = caching.Cache._index_key
+    # a function's fingerprint, once per process (numba asks on every load and save)
+    known: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
     def _index_key(self, sig, codegen):
         key = index_key(self, sig, codegen)
         from .jitcache import Unfreezable, fingerprint
 
-        try:
-            return (*key, fingerprint(self._py_func))
-        except (Unfreezable, ImportError):  # nothing to add (an object it cannot describe)
-            return key
+        func = self._py_func
+        if func not in known:
+            try:
+                known[func] = (fingerprint(func),)
+            except (Unfreezable, ImportError):  # nothing to add (an object it cannot describe)
+                known[func] = ()
+        return (*key, *known[func])
 
     caching.Cache._index_key = _index_key
 

@@ -21,6 +21,7 @@ never stale. The same fingerprint keys the compiled loops shared within a proces
 """
 from __future__ import annotations
 
+import functools
 import importlib.util
 import inspect
 import linecache
@@ -166,7 +167,9 @@ def _describe(value: Any, out: list, seen: dict[int, int]) -> None:
         raise Unfreezable(type(value).__name__)
 
 
+@functools.lru_cache(maxsize=None)
 def _version_of(module: str) -> str:
+    # packages_distributions() scans every installed distribution: about 0.3 s a call
     from importlib.metadata import PackageNotFoundError, packages_distributions, version
 
     top = module.partition(".")[0]
