@@ -160,7 +160,9 @@ def drift_svg(rows: list[dict], style: dict) -> tuple[str | None, list[str]]:
     notes, curves, spent = [], [], 0.0
     # the cheapest first, so a problem's budget leaves out the fewest schemes
     for scheme, row in sorted(representative(rows).items(), key=lambda item: item[1]["cpu_s"]):
-        rerun = not row.get("drift_curve")  # an old row without its curve: run it again
+        if "drift_curve" in row and not row["drift_curve"]:
+            continue  # no invariant to draw (a row measured since rows keep their curve)
+        rerun = "drift_curve" not in row  # a row stored before rows kept it: run it again
         if rerun and (row["cpu_s"] > DRIFT_BUDGET_S or spent + row["cpu_s"] > DRIFT_PROBLEM_BUDGET_S):
             notes.append(f"{scheme}: not drawn (its run takes {row['cpu_s']:.3g} s)")
             continue
@@ -367,11 +369,42 @@ def _stability_table(rows: list[dict]) -> str | None:
             'omega h is in it.</p>' + _table(["scheme", "interval of y"], body))
 
 
+def problem_figures(rows: list[dict[str, Any]], style: dict, drift: bool = True) -> dict[str, Any]:
+    """One problem's figures: {"field", "work_precision" (SVG or None), "drift" (SVG or
+    None), "drift_notes"}."""
+    field = pareto_field(rows)
+    out: dict[str, Any] = {"field": field, "work_precision": None, "drift": None, "drift_notes": []}
+    if field:
+        out["work_precision"] = work_precision_svg(rows, field, style)
+    if drift:
+        out["drift"], out["drift_notes"] = drift_svg(rows, style)
+    return out
+
+
+def _all_figures(by_problem: dict[str, list[dict]], style: dict, drift: bool, jobs: int) -> dict[str, dict]:
+    """problem_figures of every problem, on ``jobs`` processes: matplotlib spends about half
+    a second a figure, all of it in Python, so only processes run figures side by side."""
+    if jobs <= 1 or len(by_problem) < 4:
+        return {p: problem_figures(rows, style, drift) for p, rows in by_problem.items()}
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    # spawn: the caller may hold threads (numba, heyoka, a Dask client) that fork would copy
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = {p: pool.submit(problem_figures, rows, style, drift) for p, rows in by_problem.items()}
+        return {p: f.result() for p, f in futures.items()}
+
+
 def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bool = True,
-               stability: bool = True) -> str:
-    """The page's HTML for ``rows`` (of the ``runs`` whose metadata heads it)."""
+               stability: bool = True, jobs: int = 1) -> str:
+    """The page's HTML for ``rows`` (of the ``runs`` whose metadata heads it); the figures are
+    drawn on ``jobs`` processes."""
     problems = sorted({r["problem"] for r in rows})
     style = styles(sorted({r["integrator"] for r in rows}))
+    # the heaviest problems first, so the processes finish together
+    by_problem = dict(sorted(((p, [r for r in rows if r["problem"] == p]) for p in problems),
+                             key=lambda item: -len(item[1])))
+    figures = _all_figures(by_problem, style, drift, jobs)
     fits = observed_orders(rows)
     counts = status_counts(rows)
     out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
@@ -382,18 +415,16 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
            "<nav>" + "".join(f'<a href="#{_slug(p)}">{_e(p)}</a>' for p in problems)
            + '<a href="#capabilities">capability matrix</a></nav>']
     for p in problems:
-        mine = [r for r in rows if r["problem"] == p]
-        field = pareto_field(mine)
+        mine, figs = by_problem[p], figures[p]
         out.append(f'<h2 id="{_slug(p)}">{_e(p)}</h2><p>{_e(format_counts(status_counts(mine)))}</p>')
         out.append("<h3>Fastest scheme per accuracy (Pareto front)</h3>" + _pareto_table(mine))
-        if field:
-            fig = work_precision_svg(mine, field, style)
-            if fig:
-                out.append(f'<h3>Work-precision</h3><figure class="plot">{fig}<figcaption>{_e(field)} against '
-                           f"CPU seconds, one point per setting; colour: scheme family, marker: scheme."
-                           f"</figcaption></figure>")
+        fig = figs["work_precision"]
+        if fig:
+            out.append(f'<h3>Work-precision</h3><figure class="plot">{fig}<figcaption>{_e(figs["field"])} against '
+                       f"CPU seconds, one point per setting; colour: scheme family, marker: scheme."
+                       f"</figcaption></figure>")
         if drift:
-            fig, notes = drift_svg(mine, style)
+            fig, notes = figs["drift"], figs["drift_notes"]
             if fig:
                 out.append(f'<h3>Invariant drift against time</h3><figure class="plot">{fig}<figcaption>'
                            f"Relative error of the invariant, log-log (a slope is a growth law), for each "
@@ -422,10 +453,10 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
 
 
 def write_page(out_dir: str | Path, rows: list[dict[str, Any]], runs: list[dict[str, Any]],
-               drift: bool = True) -> Path:
-    """Write ``out_dir``/index.html; return its path."""
+               drift: bool = True, jobs: int = 1) -> Path:
+    """Write ``out_dir``/index.html (figures drawn on ``jobs`` processes); return its path."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     path = out / PAGE_NAME
-    path.write_text(build_page(rows, runs, drift=drift), encoding="utf-8")
+    path.write_text(build_page(rows, runs, drift=drift, jobs=jobs), encoding="utf-8")
     return path

@@ -5,6 +5,7 @@ classes), and the full per-cell tables (``--full``, csv, json, markdown, parquet
 In Python: ``frame(Store("longtime.sqlite").rows())`` is one pandas row per cell."""
 from __future__ import annotations
 
+import os
 from typing import Any, Iterable
 
 import pandas as pd
@@ -274,11 +275,13 @@ def report_text(rows: list[dict[str, Any]], fmt: str = "table", full: bool = Fal
     return text + "\n\n" + render(rows, "table") if full else text
 
 
-def write_html(out_dir, rows: list[dict[str, Any]], store, run_ids: Iterable[int] | None = None):
+def write_html(out_dir, rows: list[dict[str, Any]], store, run_ids: Iterable[int] | None = None,
+               jobs: int | None = None):
     """The results page of ``rows`` into ``out_dir``/index.html, headed by the metadata of
-    ``run_ids`` (default: every run the rows come from); returns its path."""
+    ``run_ids`` (default: every run the rows come from), its figures drawn on ``jobs``
+    processes (default: one per core); returns its path."""
     from .html_report import write_page
 
     ids = sorted(set(run_ids) if run_ids is not None else {r.get("run_id") for r in rows if r.get("run_id")})
     runs = [r for r in store.runs() if r["id"] in ids]
-    return write_page(out_dir, rows, runs)
+    return write_page(out_dir, rows, runs, jobs=jobs or os.cpu_count() or 1)
