@@ -332,8 +332,14 @@ def _capability_matrix(rows: list[dict]) -> str:
     return _table(["scheme \\ problem", *problems], body, raw=True)
 
 
-def _stability_table(rows: list[dict]) -> str | None:
-    from .stability import SERIES_ORDERS, interval_texts
+def _stability_schemes(rows: list[dict]) -> tuple[dict[str, list | None], dict[str, list | None]]:
+    """The schemes of ``rows`` whose stability intervals the page shows, each with the N its
+    rows ran with (a series scheme; its default N where the row has none): (built-in ones,
+    measured here where not cached: their solves are capped; plugins', read from the cache
+    only, since a plugin's step that never returns would hang the page: `longtime list
+    --stability` measures them)."""
+    from . import registry
+    from .stability import SERIES_ORDERS
 
     wanted: dict[str, set | None] = {}
     for r in rows:
@@ -344,9 +350,6 @@ def _stability_table(rows: list[dict]) -> str | None:
         orders = wanted.get(r["integrator"]) or set()
         orders.add(int(n) if isinstance(n, (int, float)) and n == n else None)
         wanted[r["integrator"]] = orders
-    # a series scheme at the N its rows ran with (its default N where the row has none)
-    from . import registry
-
     schemes = {}
     for s, orders in wanted.items():
         param = registry.integrator_class(s).parameters.get("order") if s in registry.integrators() else None
@@ -354,12 +357,13 @@ def _stability_table(rows: list[dict]) -> str | None:
             schemes[s] = None
         else:
             schemes[s] = sorted({param.default if n is None else n for n in (orders or {None})}) or [SERIES_ORDERS[0]]
-    # measured here for the built-in schemes (their solves are capped); a plugin's step only
-    # by an explicit `longtime list --stability`, since a step that never returns would hang the page
     builtin = {s: o for s, o in schemes.items()
                if s in registry.integrators() and registry.integrator_class(s).__module__.startswith("longtime.")}
-    found = {**interval_texts({s: o for s, o in schemes.items() if s not in builtin}),
-             **interval_texts(builtin, compute=True)}
+    return builtin, {s: o for s, o in schemes.items() if s not in builtin}
+
+
+def _stability_table(found: dict[str, str]) -> str | None:
+    """The table of the interval texts ``found`` (scheme -> text)."""
     if not found:
         return None
     body = [[s, txt] for s, txt in sorted(found.items())]
@@ -381,18 +385,28 @@ def problem_figures(rows: list[dict[str, Any]], style: dict, drift: bool = True)
     return out
 
 
-def _all_figures(by_problem: dict[str, list[dict]], style: dict, drift: bool, jobs: int) -> dict[str, dict]:
-    """problem_figures of every problem, on ``jobs`` processes: matplotlib spends about half
-    a second a figure, all of it in Python, so only processes run figures side by side."""
-    if jobs <= 1 or len(by_problem) < 4:
-        return {p: problem_figures(rows, style, drift) for p, rows in by_problem.items()}
+def _all_figures(by_problem: dict[str, list[dict]], style: dict, drift: bool, jobs: int,
+                 stability: dict[str, list | None]) -> tuple[dict[str, dict], dict[str, str]]:
+    """problem_figures of every problem, and the interval texts of the ``stability`` schemes
+    (measured where not cached), on ``jobs`` processes: matplotlib spends about half a second
+    a figure, and a scheme's stability interval about a second when not cached, all of it in
+    Python, so only processes run them side by side."""
+    from .stability import interval_texts
+
+    if jobs <= 1 or len(by_problem) + len(stability) < 4:
+        return ({p: problem_figures(rows, style, drift) for p, rows in by_problem.items()},
+                interval_texts(stability, compute=True))
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
     # spawn: the caller may hold threads (numba, heyoka, a Dask client) that fork would copy
     with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
-        futures = {p: pool.submit(problem_figures, rows, style, drift) for p, rows in by_problem.items()}
-        return {p: f.result() for p, f in futures.items()}
+        intervals = [pool.submit(interval_texts, {s: o}, True) for s, o in stability.items()]
+        figures = {p: pool.submit(problem_figures, rows, style, drift) for p, rows in by_problem.items()}
+        texts: dict[str, str] = {}
+        for f in intervals:
+            texts.update(f.result())
+        return {p: f.result() for p, f in figures.items()}, texts
 
 
 def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bool = True,
@@ -404,7 +418,10 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
     # the heaviest problems first, so the processes finish together
     by_problem = dict(sorted(((p, [r for r in rows if r["problem"] == p]) for p in problems),
                              key=lambda item: -len(item[1])))
-    figures = _all_figures(by_problem, style, drift, jobs)
+    from .stability import interval_texts
+
+    builtin, plugins = _stability_schemes(rows) if stability else ({}, {})
+    figures, intervals = _all_figures(by_problem, style, drift, jobs, builtin)
     fits = observed_orders(rows)
     counts = status_counts(rows)
     out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
@@ -443,7 +460,7 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
             out.append("<h3>Not run to the end, or the solution lost</h3><ul>" + "".join(
                 f"<li>{_e(why)}: {_e(', '.join(s))}</li>" for why, s in sorted(folded.items())) + "</ul>")
     out.append('<h2 id="capabilities">Capability matrix</h2>' + _capability_matrix(rows))
-    stab = _stability_table(rows) if stability else None
+    stab = _stability_table({**interval_texts(plugins), **intervals}) if stability else None
     if stab:
         out.append('<h2 id="stability">Linear stability</h2>' + stab)
     out.append(f'<p class="note">Written {datetime.now(timezone.utc).isoformat(timespec="seconds")} by '
