@@ -63,7 +63,7 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
                         f"row (default {DEFAULT_TIME_LIMIT:g}; 0: no limit)")
     p.add_argument("--allow-large", action="store_true",
                    help="run cells estimated beyond 1e9 steps or 4 GiB of samples (refused by default)")
-    p.add_argument("--jobs", type=cli_args.integer("--jobs", 0, " (0: one per core)"), default=0,
+    p.add_argument("--jobs", type=cli_args.jobs, default=0,
                    help="worker processes of the process, isolated and dask executors (default: one per core)")
     p.add_argument("--max-samples", type=int, default=100_001,
                    help="states kept per run for the metrics (every step below this)")

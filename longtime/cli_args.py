@@ -63,6 +63,11 @@ def integer(flag: str, minimum: int, note: str = "") -> Callable[[str], int]:
     return parse
 
 
+def jobs(text: str) -> int:
+    """--jobs: worker processes, 0 for one per core (every command that has the flag)."""
+    return integer("--jobs", 0, " (0: one per core)")(text)
+
+
 def key_value(text: str) -> tuple[str, str]:
     """``--set key=value``: the pair of stripped strings (the parameter parses the value)."""
     if "=" not in text:

@@ -490,7 +490,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--executor", default=None,
                    help="where the cells run (default: serial with --quick, which reuses the kernels the "
                         "figures compile; process otherwise)")
-    p.add_argument("--jobs", type=int, default=0, help="worker processes (default: one per core)")
+    p.add_argument("--jobs", type=cli_args.jobs, default=0, help="worker processes (default: one per core)")
     p.add_argument("--max-samples", type=int, default=100_001, help="states kept per run for the metrics")
     p.add_argument("--db", default=None, help="store the rows here (default: $LONGTIME_DB or longtime.sqlite)")
     p.add_argument("--no-store", action="store_true", help="do not keep the rows")

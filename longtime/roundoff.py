@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from . import cli_args
 from .growth import growth_fields
 from .params import InputError
 
@@ -258,7 +259,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--steps", type=float, default=1e7, help="steps per run (dt = 0.01; default 1e7)")
     p.add_argument("--ensemble", type=int, default=8, metavar="K", help="perturbed members per configuration")
     p.add_argument("--seed", type=int, default=1, metavar="S", help="seed of the perturbations")
-    p.add_argument("--jobs", type=int, default=0, help="worker processes (default: one per core)")
+    p.add_argument("--jobs", type=cli_args.jobs, default=0, help="worker processes (default: one per core)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="run the members on this Dask cluster")
     p.add_argument("--no-heyoka", action="store_true", help="leave out heyoka's row")
     p.add_argument("--format", choices=["markdown", "json"], default="markdown")

@@ -105,6 +105,6 @@ def add_parser(subparsers) -> None:
                    help="schemes (default: all)")
     p.add_argument("--set", type=cli_args.key_value, action="append", default=[], metavar="KEY=VALUE",
                    help="a problem or scheme parameter, as for `longtime matrix` (repeatable)")
-    p.add_argument("--jobs", type=int, default=0, help="worker processes (default: one per core)")
+    p.add_argument("--jobs", type=cli_args.jobs, default=0, help="worker processes (default: one per core)")
     p.add_argument("-v", "--verbose", action="store_true", help="list every kernel and its seconds")
     p.set_defaults(func=cmd_warmup)

@@ -440,3 +440,12 @@ def test_numba_cache_of_a_function_whose_callee_changed_is_not_used(tmp_path):
     assert run_caller() == "2"
     assert run_caller() == "2"  # and the new entry is cached, and used
     assert len(list((tmp_path / "numba").rglob("*.nbc"))) >= 2
+
+
+@pytest.mark.parametrize("command", ["run", "matrix", "roundoff", "warmup", "reproduce"])
+def test_negative_jobs_is_an_input_error_on_every_command(command, capsys):
+    # roundoff, warmup and reproduce took any integer: -2 silently meant one per core
+    with pytest.raises(SystemExit) as exit_:
+        main([command, "--jobs", "-2"])
+    assert exit_.value.code == 2
+    assert "--jobs takes an integer >= 0" in capsys.readouterr().err
