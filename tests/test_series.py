@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from longtime import registry
+from longtime.problem import Problem
 from longtime.numerics import series
 
 ORDER = 20  # heyoka's order at machine-epsilon tolerance
@@ -272,8 +273,9 @@ def test_heyoka_scheme_tolerance_and_divergence():
     assert (loose["order"], tight["order"]) == (8, 19)
     assert abs(loose["mean_dt"] - 10.0 / loose["steps"]) < 1e-12
 
-    class Bounded(Duffing1):  # the growing amplitude passes a low bound: a divergence
+    class Bounded(Duffing1):  # the growing amplitude passes a low constant bound: a divergence
         blowup_factor = 10.0
+        size_bound = Problem.size_bound  # 10 x the initial size, not the solution's growth
 
     traj = registry.integrator_class("heyoka")().integrate(Bounded(), 20.0)
     assert traj.status == "diverged" and traj.t[-1] < 20.0
