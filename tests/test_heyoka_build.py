@@ -11,6 +11,22 @@ from longtime.cells import Cell, run_cell
 pytest.importorskip("heyoka")
 
 
+@pytest.fixture
+def no_heyoka_cache():
+    """heyoka without its compiled-code caches (in memory, and on disk since heyoka 1.0): a
+    system compiled before, in this process or an earlier one, would build at once."""
+    import heyoka as hy
+
+    state = hy.llvm_state
+    on_disk = state.get_diskcache_enabled() if hasattr(state, "get_diskcache_enabled") else None
+    if on_disk:
+        state.set_diskcache_enabled(False)
+    state.clear_memcache()
+    yield
+    if on_disk:
+        state.set_diskcache_enabled(True)
+
+
 def test_heyoka_scheme_stops_at_the_cell_time_limit():
     # duffing-1 needs ever shorter steps towards its blow-up: to t = 60 heyoka ran for ever
     cell = Cell("duffing-1", "heyoka", {}, {}, 60.0)
@@ -35,7 +51,7 @@ def test_heyoka_scheme_within_its_limit_is_timed_without_the_guard():
     assert limited["repeats"] >= 3
 
 
-def test_large_systems_compile_in_compact_mode():
+def test_large_systems_compile_in_compact_mode(no_heyoka_cache):
     # toda d = 200 took 326 s to compile as straight-line code on this machine
     problem = registry.problems()["toda"](d=200)
     assert heyoka_build.compact_mode(problem)
@@ -47,7 +63,7 @@ def test_large_systems_compile_in_compact_mode():
     assert np.isfinite(ta.state).all()
 
 
-def test_a_compile_past_its_time_is_given_up():
+def test_a_compile_past_its_time_is_given_up(no_heyoka_cache):
     # toda d = 40 as straight-line code compiles in about 5 s
     problem = registry.problems()["toda"](d=40)
     start = time.perf_counter()
