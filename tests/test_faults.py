@@ -229,13 +229,19 @@ def test_bad_store_paths_are_one_line_errors(tmp_path, capsys, kind):
     assert not Path(os.devnull + "-journal").exists()
 
 
-def test_report_on_a_read_only_store(tmp_path, capsys):
+def _read_only_store(tmp_path, capsys) -> Path:
+    """A store of one verlet row in a folder, both made read-only (the caller restores them)."""
     db = tmp_path / "ro" / "r.sqlite"
     assert main(["run", "-p", "harmonic", "-i", "verlet", "--dt", "0.1", "--t-final", "1",
                  "--db", str(db)]) == 0
     capsys.readouterr()
     os.chmod(db, 0o444)
     os.chmod(db.parent, 0o555)
+    return db
+
+
+def test_report_on_a_read_only_store(tmp_path, capsys):
+    db = _read_only_store(tmp_path, capsys)
     try:
         before = sorted(db.parent.iterdir())
         assert main(["report", "--db", str(db), "--format", "json"]) == 0
@@ -577,12 +583,7 @@ def test_report_on_a_read_only_store_as_a_user_who_cannot_write_it(tmp_path, cap
     bits do not hold and the old report (CREATE TABLE, WAL switch) passed it. Here the report
     really cannot write: it must read the rows and leave the folder and file as they were."""
     prefix = _permission_prefix()
-    db = tmp_path / "ro" / "r.sqlite"
-    assert main(["run", "-p", "harmonic", "-i", "verlet", "--dt", "0.1", "--t-final", "1",
-                 "--db", str(db)]) == 0
-    capsys.readouterr()
-    os.chmod(db, 0o444)
-    os.chmod(db.parent, 0o555)
+    db = _read_only_store(tmp_path, capsys)
     try:
         before = {p.name: p.read_bytes() for p in db.parent.iterdir()}
         res = _cli(prefix, "report", "--db", str(db), "--format", "json")
