@@ -19,6 +19,8 @@ passes it trusts the reference at most as far as it got, and says so.
 """
 from __future__ import annotations
 
+import hashlib
+import io
 import json
 import os
 import time
@@ -29,7 +31,7 @@ from typing import Any, Callable
 import numpy as np
 
 from . import heyoka_build
-from .cache import cache_dir, digest
+from .cache import cache_dir, digest, discard, write_atomic
 from .params import InputError
 from .problem import Problem
 
@@ -382,10 +384,6 @@ def _load(path: Path, read: Callable[[], Any]) -> Any:
     its bytes match the checksum ``_save`` appended; one that does not (truncated, corrupt,
     written without it) or that ``read`` rejects is deleted with a warning naming it, so it
     is recomputed instead of failing, or being believed, on every rerun."""
-    import hashlib
-
-    from .cache import discard
-
     if not path.exists():
         return None
     try:
@@ -404,11 +402,6 @@ def _load(path: Path, read: Callable[[], Any]) -> Any:
 def _save(path: Path, array: np.ndarray | None = None, **arrays: np.ndarray) -> None:
     """Write the file with its checksum, atomically: workers that compute the same
     reference at once both write whole files."""
-    import hashlib
-    import io
-
-    from .cache import write_atomic
-
     buffer = io.BytesIO()
     if array is not None:
         np.save(buffer, array)

@@ -236,20 +236,18 @@ LOST = "ok but error O(1), the solution not followed"
 def _not_ok(rows: list[dict[str, Any]]) -> dict[str, list[str]]:
     """Rows that did not run to the end, or lost the solution, folded: 'skipped (needs
     constraints, which toda does not provide)' -> schemes; 'diverged' -> ['rk4 (2 of 3)', ...]."""
+    kinds = [(s, lambda r, s=s: r.get("status") == s) for s in ("skipped", "diverged", "failed", "timeout")]
+    kinds.append((LOST, lambda r: r.get("status") == "ok" and bool(r.get("solution_lost"))))
     out: dict[str, list[str]] = {}
-    for status in ("skipped", "diverged", "failed", "timeout"):
-        for scheme in sorted({r["integrator"] for r in rows if r.get("status") == status}):
+    for kind, of_kind in kinds:
+        for scheme in sorted({r["integrator"] for r in rows if of_kind(r)}):
             mine = [r for r in rows if r["integrator"] == scheme]
-            bad = [r for r in mine if r.get("status") == status]
-            if status == "skipped":
+            bad = [r for r in mine if of_kind(r)]
+            if kind == "skipped":
                 why = str(bad[0].get("message") or "").removeprefix(scheme + " ")
                 out.setdefault(f"skipped ({why})", []).append(scheme)
             else:
-                out.setdefault(status, []).append(f"{scheme} ({len(bad)} of {len(mine)})")
-    for scheme in sorted({r["integrator"] for r in rows if r.get("status") == "ok" and r.get("solution_lost")}):
-        mine = [r for r in rows if r["integrator"] == scheme]
-        lost = [r for r in mine if r.get("status") == "ok" and r.get("solution_lost")]
-        out.setdefault(LOST, []).append(f"{scheme} ({len(lost)} of {len(mine)})")
+                out.setdefault(kind, []).append(f"{scheme} ({len(bad)} of {len(mine)})")
     return out
 
 
