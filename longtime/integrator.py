@@ -231,7 +231,10 @@ _UNSHARED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _PAIRS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def _cached_loop(integrator: Integrator, problem: Problem, build: Callable[[], Callable]) -> Callable:
+def cached_kernel(integrator: Integrator, problem: Problem, build: Callable[[], Callable]) -> Callable:
+    """The jitted function ``build()`` returns (a loop, or a problem's closure rhs that a Python
+    loop calls), from numba's disk cache through ``jitcache.cacheable``, found once per
+    (scheme, problem) pair: a closure compiled anew in every process costs up to a second."""
     pairs = _PAIRS.setdefault(integrator, {})
     found = pairs.get(id(problem))
     if found is not None and found[0] is problem:
@@ -290,7 +293,7 @@ class FixedStepIntegrator(Integrator):
         span = t_final - problem.t0
         nsteps = max(1, math.ceil(span / dt - 1e-9))
         sample_at = _sample_steps(nsteps, max_samples)
-        loop = _cached_loop(self, problem, lambda: drivers.fixed_step_loop(self.make_step(problem)))
+        loop = cached_kernel(self, problem, lambda: drivers.fixed_step_loop(self.make_step(problem)))
         work = np.zeros(self.work_shape(problem))
         self.prepare_work(problem, work)
         n_out = sample_at.size + 1  # the initial state, the samples, a blow-up or a stop
@@ -355,7 +358,7 @@ class AdaptiveIntegrator(Integrator):
         return float(self.settings.get("max_dt") or (t_final - problem.t0))
 
     def _integrate(self, problem, t_final, max_samples):
-        loop = _cached_loop(self, problem, lambda: drivers.adaptive_loop(self.make_try_step(problem)))
+        loop = cached_kernel(self, problem, lambda: drivers.adaptive_loop(self.make_try_step(problem)))
         work = np.zeros(self.work_shape(problem))
         self.prepare_work(problem, work)
         h0, h_max = self.initial_step(problem, t_final), self.max_step(problem, t_final)

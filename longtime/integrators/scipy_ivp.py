@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 
-from ..integrator import Integrator, Trajectory
+from ..integrator import Integrator, Trajectory, cached_kernel
 from ..params import Param
 from ..problem import BLOWUP_MESSAGE
 
@@ -33,7 +33,8 @@ class DOP853(Integrator):
     def _integrate(self, problem, t_final, max_samples):
         from scipy.integrate import DOP853 as Solver
 
-        rhs, params = problem.rhs, problem.params
+        # the cached twin of the rhs: a problem's closure rhs would compile in every process
+        rhs, params = cached_kernel(self, problem, lambda: problem.rhs), problem.params
 
         def fun(t, y):
             out = np.empty_like(y)
