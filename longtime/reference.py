@@ -351,7 +351,8 @@ def _start(problem: Problem, precision: str, deadline: float):
     if ta is None:
         try:
             ta = heyoka_build.taylor_adaptive(problem, problem.u0.astype(fp), deadline - time.perf_counter(),
-                                              high_accuracy=True, fp_type=fp, time=fp(problem.t0))
+                                              high_accuracy=True, fp_type=fp, time=fp(problem.t0),
+                                              compact_mode=heyoka_build.compact_mode(problem, fp, reference=True))
         except heyoka_build.CompileTimeout as exc:
             raise ReferenceUnavailable(f"{exc}: past the reference's time budget "
                                        f"({BUDGET_VARIABLE})") from None
@@ -364,13 +365,15 @@ def _start(problem: Problem, precision: str, deadline: float):
 def _cache_path(problem: Problem, *parts: str | bytes, suffix: str = ".npz") -> Path:
     """The cache file of ``parts`` for ``problem``. Its key covers all that decides the
     content: the problem (name, settings, initial state, t0, kernel parameters), its ODE as
-    heyoka reads it (an edited right-hand side or coefficient is another file), ``parts``
-    and heyoka's version."""
+    heyoka reads it (an edited right-hand side or coefficient is another file), ``parts``,
+    the code mode of the double run and heyoka's version."""
     import heyoka as hy
 
     ode = "" if problem.heyoka_system is None else repr([str(e) for e in problem.heyoka_system()[1]])
+    # compact and straight-line code round differently: the double run's mode is part of the key
+    mode = "compact" if heyoka_build.compact_mode(problem, np.float64, reference=True) else "straight-line"
     key = digest(problem.identity(), problem.u0.tobytes(), repr(problem.t0), problem.params.tobytes(), ode,
-                 *parts, hy.__version__)
+                 *parts, mode, hy.__version__)
     return cache_dir("reference") / f"{problem.name}-{key}{suffix}"
 
 
