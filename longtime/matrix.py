@@ -16,7 +16,7 @@ import multiprocessing
 import os
 import shutil
 import tempfile
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -62,6 +62,79 @@ def batches_by_pair(cells: list[Cell]) -> list[list[Cell]]:
         groups.setdefault((c.problem, c.integrator), []).append(c)
     dims: dict[str, int] = {}
     return sorted(groups.values(), key=lambda batch: -sum(estimated_work(c, dims) for c in batch))
+
+
+_FAMILY_PACKAGES = ("longtime.integrators.", "longtime.problems.")
+
+
+def shared_code(batch: list[Cell]) -> frozenset[str]:
+    """The modules whose compiled functions the batch's kernels may share with other batches:
+    the problem class's module (kdv's spectral helpers, nbody's forces, the Taylor series
+    other schemes of the problem reuse) and the scheme class's own modules (bpl's Pade and
+    Laplace sums, which bpl-exp inherits). Unknown names give none: run_cell reports them."""
+    from . import registry
+
+    cell = batch[0]
+    try:
+        modules = {registry.problem_class(cell.problem).__module__}
+        modules.update(k.__module__ for k in registry.integrator_class(cell.integrator).__mro__)
+    except Exception:
+        return frozenset()
+    return frozenset(m for m in modules if _family_module(m))
+
+
+def _family_module(module: str) -> bool:
+    """A module of problems or schemes (longtime's own, or a plugin's); the base classes'
+    modules (longtime.integrator, abc, builtins) are every batch's, so never a key."""
+    return module.startswith(_FAMILY_PACKAGES) or module.split(".")[0] not in ("longtime", "abc", "builtins")
+
+
+class CompileOnce:
+    """Hands out batches, largest first, so that two workers do not compile the same function
+    at once: numba's disk cache is per function, and two processes that both miss it both
+    compile (a cold default matrix compiled 24 functions twice, bpl's Pade among them). A
+    batch waits while a running batch shares a module with it that no finished batch has
+    compiled yet, unless every waiting batch is in that case: a worker never idles."""
+
+    def __init__(self, batches: list[list[Cell]]):
+        self.queue = [(b, shared_code(b)) for b in batches]
+        self.compiled: set[str] = set()
+        self.running: dict[int, frozenset[str]] = {}
+
+    def __bool__(self) -> bool:
+        return bool(self.queue)
+
+    def take(self) -> list[Cell]:
+        busy = set().union(*self.running.values()) - self.compiled
+        index = next((i for i, (_, keys) in enumerate(self.queue) if not keys & busy), 0)
+        batch, keys = self.queue.pop(index)
+        self.running[id(batch)] = keys
+        return batch
+
+    def finished(self, batch: list[Cell]) -> None:
+        self.compiled |= self.running.pop(id(batch), frozenset())
+
+
+def scheduled(pool, workers: int, batches: list[list[Cell]], fn: Callable, *args) -> Iterator[tuple[list[Cell], Future]]:
+    """(batch, its finished future of ``fn(batch, *args)``) as they complete on ``pool``, the
+    batches handed out in CompileOnce's order, one per idle worker: each worker gets its next
+    batch before the caller sees the last one's result. A pool that breaks gets no more."""
+    order, futures, broken = CompileOnce(batches), {}, False
+
+    def fill() -> None:
+        while order and not broken and len(futures) < workers:
+            batch = order.take()
+            futures[pool.submit(fn, batch, *args)] = batch
+
+    fill()
+    while futures:
+        ready, _ = wait(futures, return_when=FIRST_COMPLETED)
+        finished = [(futures.pop(fut), fut) for fut in ready]
+        for batch, fut in finished:
+            order.finished(batch)
+            broken = broken or isinstance(fut.exception(), BrokenProcessPool)
+        fill()  # before the caller sees the results: no worker idles while it stores rows
+        yield from finished
 
 
 def estimated_work(cell: Cell, dims: dict[str, int]) -> float:
@@ -145,26 +218,20 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
                                        initializer=_worker_init, initargs=(os.getpid(),))
             finished = False
             try:
-                futures = {pool.submit(run_batch, batch, options.max_samples, options.timing, folder,
-                                       options.time_limit): batch
-                           for batch in batches_by_pair(remaining)}
-                pending = set(futures)
-                while pending:
-                    ready, pending = wait(pending, return_when=FIRST_COMPLETED)
-                    for fut in ready:
-                        batch = futures[fut]
-                        try:
-                            rows = fut.result()
-                        except BrokenProcessPool:  # some worker died: sorted out below
-                            broken = True
-                            continue
-                        except Exception as exc:  # the batch could not be sent or returned
-                            rows = [{**base_row(c), "status": "failed",
-                                     "message": f"worker process failed: {exc!r}"} for c in batch]
-                        for c, row in zip(batch, rows):
-                            if c.key not in done:
-                                done.add(c.key)
-                                yield c, row
+                for batch, fut in scheduled(pool, workers, batches_by_pair(remaining), run_batch,
+                                            options.max_samples, options.timing, folder, options.time_limit):
+                    try:
+                        rows = fut.result()
+                    except BrokenProcessPool:  # some worker died: sorted out below
+                        broken = True
+                        continue
+                    except Exception as exc:  # the batch could not be sent or returned
+                        rows = [{**base_row(c), "status": "failed",
+                                 "message": f"worker process failed: {exc!r}"} for c in batch]
+                    for c, row in zip(batch, rows):
+                        if c.key not in done:
+                            done.add(c.key)
+                            yield c, row
                 finished = True
             finally:
                 _stop(pool, kill=not finished)

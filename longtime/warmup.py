@@ -14,7 +14,7 @@ import multiprocessing
 import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
 from . import cli_args
@@ -60,7 +60,7 @@ def _warm_batch(cells: list[Cell]) -> list[dict[str, Any]]:
 def warmup(cells: list[Cell], jobs: int = 0) -> list[dict[str, Any]]:
     """Warm the distinct kernels of ``cells`` on ``jobs`` processes (0: one per core); one
     batch per problem x scheme pair, so a worker compiles what that pair's cells share once."""
-    from .matrix import batches_by_pair
+    from .matrix import batches_by_pair, scheduled
 
     batches = batches_by_pair(distinct_kernels(cells))
     workers = min(jobs if jobs > 0 else (os.cpu_count() or 1), max(1, len(batches)))
@@ -69,7 +69,7 @@ def warmup(cells: list[Cell], jobs: int = 0) -> list[dict[str, Any]]:
     results = []
     # spawn, as the matrix's pool: a fork after numba's or heyoka's threads start can deadlock
     with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        for future in as_completed([pool.submit(_warm_batch, b) for b in batches]):
+        for _, future in scheduled(pool, workers, batches, _warm_batch):  # no function compiled twice at once
             results.extend(future.result())
     return results
 

@@ -54,3 +54,52 @@ def test_the_reference_switches_to_compact_mode_sooner_than_the_scheme():
     assert not heyoka_build.compact_mode(solar, np.float64)  # the timed scheme keeps straight-line code
     small = registry.problem_class("figure-eight")()
     assert not heyoka_build.compact_mode(small, np.float64, reference=True)
+
+
+def _batches(pairs):
+    from longtime.cells import Cell
+
+    return [[Cell(problem, scheme, {}, {}, None)] for problem, scheme in pairs]
+
+
+def test_no_two_running_batches_share_code_that_is_not_compiled_yet():
+    from longtime.matrix import CompileOnce, shared_code
+
+    batches = _batches([("kdv", "rk4"), ("kdv", "rk4sym"), ("toda", "rk4"), ("harmonic", "verlet"),
+                        ("toda", "bpl"), ("kepler", "bpl-exp")])
+    assert "longtime.problems.kdv" in shared_code(batches[0])
+    assert "longtime.integrators.bpl" in shared_code(batches[5])  # bpl-exp inherits bpl's Pade
+    assert not any(m.startswith("longtime.integrator") and "." not in m[9:] for b in batches for m in shared_code(b))
+    order = CompileOnce(batches)
+    first, second = order.take(), order.take()
+    assert (first[0].problem, second[0].problem) == ("kdv", "harmonic")  # not kdv twice, not rk4 twice
+    third = order.take()
+    assert (third[0].problem, third[0].integrator) == ("toda", "bpl")
+    fourth = order.take()  # all the rest share kdv, explicit RK or bpl with a running batch: never idle
+    assert (fourth[0].problem, fourth[0].integrator) == ("kdv", "rk4sym")
+    for batch in (first, second, third):
+        order.finished(batch)
+    assert [order.take()[0].integrator for _ in range(2)] == ["rk4", "bpl-exp"]  # compiled now: in order
+    assert not order
+
+
+_COUNT_SAVES = r"""
+import collections, os, re, subprocess, sys
+out = subprocess.run([sys.executable, "-m", "longtime.cli", "matrix", "-p", "kdv,harmonic",
+                      "-i", "rk4,rk4sym", "--jobs", "2", "--no-report", "--no-progress", "--t-final", "0.1",
+                      "--db", sys.argv[1]], env=dict(os.environ, NUMBA_DEBUG_CACHE="1"),
+                     capture_output=True, text=True, check=True)
+saved = collections.Counter(re.findall(r"data saved to '([^']+)'", out.stdout + out.stderr))
+print(sum(saved.values()), [k for k, n in saved.items() if n > 1])
+"""
+
+
+def test_a_cold_pool_compiles_each_function_once(tmp_path):
+    # kdv's spectral helpers are compiled functions both of its schemes call: without the
+    # CompileOnce order both workers started on kdv and both compiled four of them
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"), LONGTIME_CACHE_DIR=str(tmp_path / "lt"))
+    out = subprocess.run([sys.executable, "-c", _COUNT_SAVES, str(tmp_path / "db.sqlite")], env=env,
+                         capture_output=True, text=True, check=True)
+    count, twice = out.stdout.split(" ", 1)
+    assert int(count) > 0  # the run did compile, into the fresh cache
+    assert twice.strip() == "[]"
