@@ -25,26 +25,46 @@ class Listener(event.Listener):
         compiled.append(ev.data["dispatcher"].py_func.__qualname__)
 
 event.register("numba:compile", Listener())
-for name in sys.argv[1:]:
+scheme = sys.argv[1]
+for name in sys.argv[2:]:
     problem = registry.problem_class(name)()
-    traj = registry.integrator_class("dop853")(tol=1e-6).integrate(problem, problem.t0 + 1.0, max_samples=8)
+    traj = registry.integrator_class(scheme)().integrate(problem, problem.t0 + 1.0, max_samples=8)
     assert traj.status == "ok", traj.message
-print(json.dumps(compiled))
+print(json.dumps([compiled, traj.u[-1].tolist()]))
 """
 
 
-def test_dop853_rhs_comes_from_the_disk_cache(tmp_path):
+def _two_processes(tmp_path, scheme, *problems):
+    """(compiled, final state) of a cold process and of a second one on the same caches."""
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"), LONGTIME_CACHE_DIR=str(tmp_path / "lt"))
-    problems = ["figure-eight", "kepler"]  # a closure rhs (nbody) and a separable one
 
-    def compiled():
-        out = subprocess.run([sys.executable, "-c", _CHILD, *problems], env=env, capture_output=True,
+    def run():
+        out = subprocess.run([sys.executable, "-c", _CHILD, scheme, *problems], env=env, capture_output=True,
                              text=True, check=True)
         return json.loads(out.stdout.strip().splitlines()[-1])
 
-    first = compiled()
-    assert "rhs" in first  # the cold process compiles the problems' rhs
-    assert compiled() == []  # a second process finds everything in the cache
+    return run(), run()
+
+
+def test_dop853_rhs_comes_from_the_disk_cache(tmp_path):
+    # a closure rhs (nbody) and a separable one
+    (compiled, _), (again, _) = _two_processes(tmp_path, "dop853", "figure-eight", "kepler")
+    assert "rhs" in compiled  # the cold process compiles the problems' rhs
+    assert again == []  # a second process finds everything in the cache
+
+
+def test_bpl_kernels_call_the_pade_compiled_once(tmp_path):
+    """bpl's robust Pade is a cfunc the kernels call by symbol: a kernel loaded from the cache
+    in a new process finds it (registered before any kernel loads) and runs bitwise alike."""
+    from longtime.integrators import bpl
+    from longtime.jitcache import _names_used
+
+    called = _names_used(bpl.make_try_step.__code__)  # the names its nested kernels read
+    assert "_prepare_pade_shared" in called and "_prepare_pade" not in called  # not linked in
+    (compiled, first), (again, second) = _two_processes(tmp_path, "bpl", "harmonic", "kepler")
+    assert "try_step" in compiled and "_prepare_pade" in compiled  # the Pade itself compiled once
+    assert again == []
+    assert first == second
 
 
 def test_the_reference_switches_to_compact_mode_sooner_than_the_scheme():

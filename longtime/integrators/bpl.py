@@ -231,6 +231,47 @@ def _laplace_sum(t, u, coeffs, work, S, Sd, taylor_fallback):
     return fell_back
 
 
+# -- the robust Pade, compiled once for every problem's kernel
+# Called directly, _prepare_pade (and the robust Pade, SVD and rank decisions under it) is
+# linked into each problem's kernel, and LLVM optimises and emits its code again every time:
+# about 4 s of each bpl kernel's first compile (12 kernels in the default matrix). Instead it
+# is compiled once as a C callback (a numba cfunc, disk-cached like the rest) and a kernel
+# calls it by symbol name, an ExternalFunction that the JIT resolves when the kernel is
+# compiled or loaded from the cache; ``_link_shared_code`` registers the symbol before any
+# kernel is built. The same machine code runs, once per step, and rounds the same (rows are
+# bitwise those of the linked version). The Laplace sum, called at every trial of the step
+# search and cheap to compile, stays linked, where LLVM optimises it with the residual.
+_F64P, _INTP, _VOIDP = numba.types.CPointer(numba.types.float64), numba.types.intp, numba.types.voidptr
+_PREPARE_SYMBOL = "longtime_bpl_prepare_pade_v1"
+_PREPARE_SIG = numba.types.void(_F64P, _INTP, _INTP, _F64P, _INTP, numba.types.CPointer(numba.types.int64),
+                                _INTP, _INTP)
+_prepare_pade_external = numba.types.ExternalFunction(
+    _PREPARE_SYMBOL, numba.types.void(_VOIDP, _INTP, _INTP, _VOIDP, _INTP, _VOIDP, _INTP, _INTP))
+_linked: list[object] = []  # the registered cfunc (kept alive: the kernels call its address)
+
+
+def _prepare_pade_c(p_coeffs, rows, dim, p_work, n_work, p_counters, n_counters, check_poles):
+    _prepare_pade(numba.carray(p_coeffs, (rows, dim)), numba.carray(p_work, n_work),
+                  numba.carray(p_counters, n_counters), check_poles != 0)
+
+
+def _link_shared_code() -> None:
+    """Compile (or load) the cfunc and register its symbol, once per process."""
+    if not _linked:
+        import llvmlite.binding as llvm
+
+        compiled = numba.cfunc(_PREPARE_SIG, cache=True)(_prepare_pade_c)
+        llvm.add_symbol(_PREPARE_SYMBOL, compiled.address)
+        _linked.append(compiled)
+
+
+@numba.njit(cache=True)
+def _prepare_pade_shared(coeffs, work, counters, check_poles):
+    """_prepare_pade through its cfunc (coeffs, work and counters are contiguous)."""
+    _prepare_pade_external(coeffs.ctypes, coeffs.shape[0], coeffs.shape[1], work.ctypes, work.size,
+                           counters.ctypes, counters.size, 1 if check_poles else 0)
+
+
 @numba.njit(cache=True)
 def _identity_map(t, S, Sd, work):
     """``to_state`` of bpl: the Laplace sum is the state."""
@@ -247,6 +288,7 @@ def make_try_step(series, to_state, field, N, taylor_fallback):
     The robust Pade, the Laplace sum and the residual-controlled step search are shared.
     ``taylor_fallback`` is a constant of the closure, so each setting gets its own kernel.
     """
+    _link_shared_code()
 
     @numba.njit
     def residual(t0, t, u, coeffs, params, work, counters):
@@ -277,7 +319,7 @@ def make_try_step(series, to_state, field, N, taylor_fallback):
         oc = int(work[_O_COEF])
         coeffs = work[oc:oc + (N + 1) * dim].reshape((N + 1, dim))
         series(t, u, params, coeffs, work)
-        _prepare_pade(coeffs, work, counters, taylor_fallback)
+        _prepare_pade_shared(coeffs, work, counters, taylor_fallback)
         o_s, o_best = int(work[_O_S]), int(work[_O_BEST])
         S, best = work[o_s:o_s + dim], work[o_best:o_best + dim]
 
