@@ -101,25 +101,3 @@ def test_no_two_running_batches_share_code_that_is_not_compiled_yet():
         order.finished(batch)
     assert [order.take()[0].integrator for _ in range(2)] == ["rk4", "bpl-exp"]  # compiled now: in order
     assert not order
-
-
-_COUNT_SAVES = r"""
-import collections, os, re, subprocess, sys
-out = subprocess.run([sys.executable, "-m", "longtime.cli", "matrix", "-p", "kdv,harmonic",
-                      "-i", "rk4,rk4sym", "--jobs", "2", "--no-report", "--no-progress", "--t-final", "0.1",
-                      "--db", sys.argv[1]], env=dict(os.environ, NUMBA_DEBUG_CACHE="1"),
-                     capture_output=True, text=True, check=True)
-saved = collections.Counter(re.findall(r"data saved to '([^']+)'", out.stdout + out.stderr))
-print(sum(saved.values()), [k for k, n in saved.items() if n > 1])
-"""
-
-
-def test_a_cold_pool_compiles_each_function_once(tmp_path):
-    # kdv's spectral helpers are compiled functions both of its schemes call: without the
-    # CompileOnce order both workers started on kdv and both compiled four of them
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"), LONGTIME_CACHE_DIR=str(tmp_path / "lt"))
-    out = subprocess.run([sys.executable, "-c", _COUNT_SAVES, str(tmp_path / "db.sqlite")], env=env,
-                         capture_output=True, text=True, check=True)
-    count, twice = out.stdout.split(" ", 1)
-    assert int(count) > 0  # the run did compile, into the fresh cache
-    assert twice.strip() == "[]"
