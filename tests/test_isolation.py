@@ -81,7 +81,7 @@ def test_hang_and_crashes_become_rows_and_the_matrix_goes_on(plugin, tmp_path):
     cells = expand(["harmonic"], ["test-hang", "test-exit", "test-segfault", "verlet"], t_final=1.0)
     store = Store(tmp_path / "iso.sqlite")
     run_id = store.begin_run("matrix isolation test", cells)
-    timeout = 30.0  # room for the ok cell to start an interpreter and compile on a busy machine
+    timeout = 20.0  # room for the ok cell to start an interpreter and compile on a busy machine
     start = time.perf_counter()
     rows = run_matrix(cells, store, run_id, "isolated", ExecOptions(jobs=2, cell_timeout=timeout))
     elapsed = time.perf_counter() - start
