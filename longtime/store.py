@@ -12,6 +12,7 @@ import platform
 import sqlite3
 import subprocess
 import sys
+import threading
 from contextlib import closing
 from datetime import datetime, timezone
 from pathlib import Path
@@ -114,6 +115,8 @@ class Store:
                  create: bool = True) -> None:
         self.path = Path(path or default_path())
         self.readonly = readonly
+        self._writer: sqlite3.Connection | None = None  # see _row_writer
+        self._writer_lock = threading.Lock()
         exists = _check_path(self.path, must_exist=readonly or not create)
         if exists:
             self._check_identity()
@@ -175,6 +178,25 @@ class Store:
         con.execute("PRAGMA journal_mode=WAL")
         return con
 
+    def _row_writer(self) -> sqlite3.Connection:
+        """One connection kept open for the per-cell writes (rows, started marks). A connection
+        per row cost about 4 ms (a main job's 668 rows: 2.7 s of the client's CPU beside the
+        workers): closing the last connection checkpoints the write-ahead log, and each commit
+        synced it to disk. In WAL mode, synchronous=NORMAL still keeps every committed row
+        through a crash of the process (only a power loss can drop the last few)."""
+        if self._writer is None:
+            self._writer = sqlite3.connect(self.path, timeout=30, check_same_thread=False)
+            self._writer.execute("PRAGMA journal_mode=WAL")
+            self._writer.execute("PRAGMA synchronous=NORMAL")
+        return self._writer
+
+    def close(self) -> None:
+        """Close the per-cell writer (finish_run does; reopened if needed)."""
+        with self._writer_lock:
+            if self._writer is not None:
+                self._writer.close()
+                self._writer = None
+
     def begin_run(self, command: str, cells: Iterable[Cell]) -> int:
         env = environment()
         with closing(self._connect()) as con, con:
@@ -188,7 +210,7 @@ class Store:
         return run_id
 
     def add_row(self, run_id: int, cell: Cell, row: dict[str, Any]) -> None:
-        with closing(self._connect()) as con, con:
+        with self._writer_lock, self._row_writer() as con:  # commits the row
             con.execute(
                 "INSERT OR REPLACE INTO rows (run_id, cell_key, problem, integrator, status, row, created) "
                 "VALUES (?, ?, ?, ?, ?, ?, ?)",
@@ -198,7 +220,7 @@ class Store:
     def mark_started(self, run_id: int, cell: Cell) -> None:
         """Record that this process starts ``cell`` (in-process executors): if the process
         dies in it (a plugin's os.abort, a segfault), the store knows which cell it was."""
-        with closing(self._connect()) as con, con:
+        with self._writer_lock, self._row_writer() as con:
             con.execute("INSERT OR REPLACE INTO started (run_id, cell_key, pid, host, started) VALUES (?, ?, ?, ?, ?)",
                         (run_id, cell.key, os.getpid(), platform.node(), _now()))
 
@@ -216,6 +238,7 @@ class Store:
 
     def discard_run(self, run_id: int) -> None:
         """Remove a run that stored no row (rejected before any cell ran: nothing to resume)."""
+        self.close()
         with closing(self._connect()) as con, con:
             if con.execute("SELECT COUNT(*) FROM rows WHERE run_id = ?", (run_id,)).fetchone()[0]:
                 return
@@ -224,6 +247,7 @@ class Store:
             con.execute("DELETE FROM runs WHERE id = ?", (run_id,))
 
     def finish_run(self, run_id: int, status: str) -> None:
+        self.close()
         with closing(self._connect()) as con, con:
             con.execute("UPDATE runs SET finished = ?, status = ? WHERE id = ?", (_now(), status, run_id))
 
