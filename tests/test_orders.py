@@ -16,6 +16,17 @@ def test_slope_and_interval_of_exact_power_law():
     assert fit_slope([0.1, 0.05], [1e-3, 1e-4])[1] is None  # no interval from two points
 
 
+def test_interval_is_students_t_on_the_slope_standard_error():
+    import numpy as np
+    from scipy import stats
+
+    x, y = [1.0, 2.0, 4.0, 8.0, 16.0], [1.0, 4.5, 15.0, 70.0, 250.0]
+    fit = stats.linregress(np.log(x), np.log(y))
+    slope, ci = fit_slope(x, y)
+    assert slope == pytest.approx(fit.slope, rel=1e-12)
+    assert ci == pytest.approx(stats.t.ppf(0.975, len(x) - 2) * fit.stderr, rel=1e-12)
+
+
 def test_floors_and_pre_asymptotic_points_are_dropped():
     dts = [0.8, 0.4, 0.2, 0.1, 0.05, 0.025, 0.0125]
     errors = [0.5, 0.09, 1.6e-2 * 1.05, 1e-3, 1e-3 / 16, 1e-3 / 256, 4e-15]
