@@ -62,6 +62,11 @@ def budget_seconds() -> float:
 _PIECES = 16
 _TAYLOR: dict[tuple, object] = {}  # compiled integrators, by problem identity and precision
 _CHECKS: dict[str, dict[str, Any]] = {}  # check runs already loaded in this process
+# exact solutions already evaluated in this process, by problem and sample times: the cells of
+# one problem share their sample grids (every scheme at one dt), and kepler's long-double
+# Newton solve costs about 40 ms a grid; the oldest entries go past _EXACT_KEEP
+_EXACT: dict[str, np.ndarray] = {}
+_EXACT_KEEP = 64
 
 
 class ReferenceUnavailable(RuntimeError):
@@ -139,7 +144,13 @@ def reference_states(problem: Problem, times: np.ndarray, precision: str = "doub
     """
     times = np.asarray(times, dtype=float)
     if problem.exact is not None:
-        return np.asarray(problem.exact(times), dtype=float)
+        key = digest(problem.identity(), problem.u0.tobytes(), repr(problem.t0), problem.params.tobytes(),
+                     times.tobytes())
+        if key not in _EXACT:
+            while len(_EXACT) >= _EXACT_KEEP:
+                del _EXACT[next(iter(_EXACT))]
+            _EXACT[key] = np.asarray(problem.exact(times), dtype=float)
+        return _EXACT[key].copy()
     if problem.heyoka_system is None:
         raise InputError(f"problem '{problem.name}' has neither an exact solution nor a heyoka system")
     _fp(precision)  # validates

@@ -124,3 +124,33 @@ def test_a_cell_whose_check_passes_its_budget_at_once_has_no_errors(fresh_cache,
     assert row["status"] == "ok" and row["l2_error"] is None and row["final_error"] is None
     assert row["reference_horizon"] is None and row["error_horizon"] is None
     assert row["message"].startswith("no reference:") and "time budget" in row["message"]
+
+
+def test_exact_states_are_evaluated_once_per_grid_and_setting(monkeypatch):
+    """reference_states keeps the exact solution of a grid in the process: the cells of a
+    problem share their sample times. Another grid or another setting is evaluated anew."""
+    import numpy as np
+
+    from longtime import reference, registry
+
+    calls = []
+    kepler_cls = registry.problems()["kepler"]
+    real = kepler_cls.exact
+
+    def counted(self, t):
+        calls.append(self.settings["e"])
+        return real(self, t)
+
+    monkeypatch.setattr(kepler_cls, "exact", counted)
+    monkeypatch.setattr(reference, "_EXACT", {})
+    times = np.linspace(0.0, 5.0, 50)
+    low, high = kepler_cls(e=0.3), kepler_cls(e=0.9)
+    first = reference.reference_states(low, times)
+    first[0, 0] = 123.0  # the caller's copy: the kept states stay as computed
+    again = reference.reference_states(low, times)
+    assert calls == [0.3] and again[0, 0] == low.u0[0]
+    np.testing.assert_array_equal(again[1:], first[1:])
+    other = reference.reference_states(high, times)
+    reference.reference_states(low, times[:-1])
+    assert calls == [0.3, 0.9, 0.3]
+    np.testing.assert_allclose(other, kepler_cls(e=0.9).exact(times), rtol=0, atol=0)
