@@ -144,8 +144,7 @@ def reference_states(problem: Problem, times: np.ndarray, precision: str = "doub
     """
     times = np.asarray(times, dtype=float)
     if problem.exact is not None:
-        key = digest(problem.identity(), problem.u0.tobytes(), repr(problem.t0), problem.params.tobytes(),
-                     times.tobytes())
+        key = digest(*_problem_chunks(problem), times.tobytes())
         if key not in _EXACT:
             while len(_EXACT) >= _EXACT_KEEP:
                 del _EXACT[next(iter(_EXACT))]
@@ -373,6 +372,12 @@ def _start(problem: Problem, precision: str, deadline: float):
     return ta
 
 
+def _problem_chunks(problem: Problem) -> tuple[str | bytes, ...]:
+    """What identifies a problem's trajectory in a key: name and settings, initial state, t0
+    and kernel parameters."""
+    return problem.identity(), problem.u0.tobytes(), repr(problem.t0), problem.params.tobytes()
+
+
 def _cache_path(problem: Problem, *parts: str | bytes, suffix: str = ".npz") -> Path:
     """The cache file of ``parts`` for ``problem``. Its key covers all that decides the
     content: the problem (name, settings, initial state, t0, kernel parameters), its ODE as
@@ -383,8 +388,7 @@ def _cache_path(problem: Problem, *parts: str | bytes, suffix: str = ".npz") -> 
     ode = "" if problem.heyoka_system is None else repr([str(e) for e in problem.heyoka_system()[1]])
     # compact and straight-line code round differently: the double run's mode is part of the key
     mode = "compact" if heyoka_build.compact_mode(problem, np.float64, reference=True) else "straight-line"
-    key = digest(problem.identity(), problem.u0.tobytes(), repr(problem.t0), problem.params.tobytes(), ode,
-                 *parts, mode, hy.__version__)
+    key = digest(*_problem_chunks(problem), ode, *parts, mode, hy.__version__)
     return cache_dir("reference") / f"{problem.name}-{key}{suffix}"
 
 
