@@ -5,6 +5,7 @@ Exit codes: 0 done; 1 a requested cell failed (``run``); 2 bad input; 130 interr
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib
 import json
 import shlex
@@ -196,10 +197,16 @@ def cmd_matrix(args) -> int:
         store = Store(args.db)
         run_id = store.begin_run("matrix " + shlex.join(sys.argv[2:]), cells)
         print(f"run {run_id}: {len(cells)} cells into {store.path}", file=sys.stderr)
+    ahead = None
+    if executor == "process" and args.resume is None and not args.no_report and not args.no_html:
+        from .html_report import FiguresAhead
+
+        ahead = FiguresAhead(cells, run_id)  # the page's figures on workers that have no cell left
+        options = dataclasses.replace(options, idle_work=ahead.task)
     status = "interrupted"
     try:
         run_matrix(cells, store, run_id, executor, options,
-                   progress=not args.no_progress)
+                   progress=not args.no_progress, on_row=ahead.add if ahead is not None else None)
         status = "done"
     except InputError:  # rejected as it started (an executor's setting): nothing to resume
         status = "rejected"
@@ -217,7 +224,7 @@ def cmd_matrix(args) -> int:
         if not args.no_html:  # the results page, written before the text so a long report ends with its path
             try:
                 page = write_html(args.html or store.path.parent / "longtime-report" / f"run-{run_id}", rows,
-                                  store, [run_id])  # default: beside the store
+                                  store, [run_id], ahead=ahead)  # default: beside the store
             except Exception as exc:  # the rows are stored; `longtime report --html DIR` can retry
                 print(f"warning: results page not written: {type(exc).__name__}: {exc}", file=sys.stderr)
         print(report_text(rows, "table", full=args.full))

@@ -21,6 +21,7 @@ names those left out.
 """
 from __future__ import annotations
 
+import hashlib
 import html
 import io
 import json
@@ -71,11 +72,24 @@ def styles(schemes: Sequence[str]) -> dict[str, dict[str, str]]:
 
 
 def svg(fig) -> str:
-    """The figure as inline SVG markup (no XML prolog); closes the figure."""
+    """The figure as inline SVG markup (no XML prolog); closes the figure.
+
+    Text stays text (``svg.fonttype`` none): the page can be searched for a scheme's name, and
+    the SVG is a third smaller and faster to write than with every glyph as a path. The
+    figure is drawn once: its tight box is measured with Agg's renderer, which lays the
+    figure out without drawing it, where ``bbox_inches="tight"`` draws the whole figure
+    twice (together about a third of the page's time). The right margin leaves room for a
+    browser without DejaVu Sans, whose fallback font may set the legend a little wider."""
+    import matplotlib
+    from matplotlib.transforms import Bbox
+
     for ax in fig.axes:
         plain_log_ticks(ax)
+    x0, y0, x1, y1 = fig.get_tightbbox(fig.canvas.get_renderer()).extents
+    box = Bbox.from_extents(x0 - 0.1, y0 - 0.1, x1 + 0.3, y1 + 0.1)  # inches
     buf = io.StringIO()
-    fig.savefig(buf, format="svg", bbox_inches="tight")
+    with matplotlib.rc_context({"svg.fonttype": "none"}):
+        fig.savefig(buf, format="svg", bbox_inches=box)
     pyplot().close(fig)
     text = buf.getvalue()
     return text[text.index("<svg"):]
@@ -85,6 +99,35 @@ def _legend_outside(ax) -> None:
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, frameon=False)
 
 
+def sweeps(rows: list[dict]) -> dict[tuple, list[dict]]:
+    """The rows as curves, (scheme, t_final, settings, N or None) -> rows, in that order: a
+    scheme's points at another final time or other settings are another curve, never
+    joined to its main sweep. N splits a scheme's rows into curves where it was set (bpl's
+    N=10 and N=15), not where the scheme derived it from the tolerance (heyoka,
+    taylor-adaptive without --order: each tol has its own N, and the tol sweep is one curve)."""
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault((r["integrator"], r.get("t_final"), r.get("settings") or ""), []).append(r)
+    out: dict[tuple, list[dict]] = {}
+    for key, mine in sorted(groups.items(), key=lambda kv: (kv[0][0], str(kv[0][1]), kv[0][2])):
+        orders = {_order(r) for r in mine}
+        per_tol: dict[Any, set] = {}
+        for r in mine:
+            per_tol.setdefault(r.get("tol"), set()).add(_order(r))
+        derived = len(per_tol) > 1 and None not in per_tol and all(len(n) == 1 for n in per_tol.values())
+        if len(orders) == 1 or derived:
+            out[(*key, None)] = mine
+            continue
+        for n in sorted(orders, key=lambda n: -1 if n is None else n):
+            out[(*key, n)] = [r for r in mine if _order(r) == n]
+    return out
+
+
+def _order(row: dict) -> int | None:
+    n = row.get("order")
+    return int(n) if isinstance(n, (int, float)) and n == n else None
+
+
 def work_precision_svg(rows: list[dict], field: str, style: dict) -> str | None:
     ok = [r for r in rows if r.get("status") == "ok" and positive(r.get("cpu_s")) and positive(r.get(field))]
     if not ok:
@@ -92,18 +135,12 @@ def work_precision_svg(rows: list[dict], field: str, style: dict) -> str | None:
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.0, 4.2))
     t_main = main_t_final(ok)
-    # one curve per sweep: a scheme's points at another final time or other settings are
-    # another curve (dashed), never joined to the main sweep
-    sweeps = sorted({(r["integrator"], r.get("t_final") != t_main, r.get("t_final"), r.get("settings") or "",
-                      str(r.get("order"))) for r in ok})
-    for scheme, other_t, t_final, settings, order in sweeps:
-        pts = sorted((r["cpu_s"], r[field], r.get("cpu_s_max") or r["cpu_s"]) for r in ok
-                     if (r["integrator"], r.get("t_final"), r.get("settings") or "", str(r.get("order")))
-                     == (scheme, t_final, settings, order))
+    for (scheme, t_final, settings, order), mine in sweeps(ok).items():
+        pts = sorted((r["cpu_s"], r[field], r.get("cpu_s_max") or r["cpu_s"]) for r in mine)
         x, y, x_max = (np.array(v) for v in zip(*pts))
-        st = style[scheme]
+        st, other_t = style[scheme], t_final != t_main
         label = f"{scheme} ({family(scheme)})" + (f" t_final={t_final:.4g}" if other_t else "") \
-            + (f" {settings}" if settings else "")
+            + (f" N={order}" if order is not None else "") + (f" {settings}" if settings else "")
         ax.errorbar(x, y, xerr=[np.zeros_like(x), x_max - x], color=st["color"], marker=st["marker"], ms=5,
                     lw=1.1, ls="--" if other_t or settings else "-", capsize=0, elinewidth=2.2, alpha=0.9,
                     label=label)
@@ -386,33 +423,90 @@ def problem_figures(rows: list[dict[str, Any]], style: dict, drift: bool = True)
 
 
 def _all_figures(by_problem: dict[str, list[dict]], style: dict, drift: bool, jobs: int,
-                 stability: dict[str, list | None]) -> tuple[dict[str, dict], dict[str, str]]:
+                 stability: dict[str, list | None], ahead: "FiguresAhead | None" = None
+                 ) -> tuple[dict[str, dict], dict[str, str]]:
     """problem_figures of every problem, and the interval texts of the ``stability`` schemes
-    (measured where not cached), on ``jobs`` processes: matplotlib spends about half a second
-    a figure, and a scheme's stability interval about a second when not cached, all of it in
-    Python, so only processes run them side by side."""
-    from .stability import interval_texts
+    (measured where not cached), on ``jobs`` processes: matplotlib spends about a third of a
+    second a figure, and a scheme's stability interval about a second when not cached, all of
+    it in Python, so only processes run them side by side. Figures ``ahead`` drew from the
+    same rows and styles are taken as they are."""
+    from .stability import interval_texts, uncached
 
-    if jobs <= 1 or len(by_problem) + len(stability) < 4:
-        return ({p: problem_figures(rows, style, drift) for p, rows in by_problem.items()},
-                interval_texts(stability, compute=True))
+    figures = {}
+    for p, rows in by_problem.items():
+        found = ahead.figures(p, rows, style, drift) if ahead is not None else None
+        if found is not None:
+            figures[p] = found
+    todo = {p: rows for p, rows in by_problem.items() if p not in figures}
+    missing = uncached(stability)
+    texts = interval_texts({s: o for s, o in stability.items() if s not in missing})  # from the cache
+    if jobs <= 1 or len(todo) + len(missing) < 4:
+        figures.update({p: problem_figures(rows, style, drift) for p, rows in todo.items()})
+        texts.update(interval_texts(missing, compute=True))
+        return figures, texts
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
     # spawn: the caller may hold threads (numba, heyoka, a Dask client) that fork would copy
     with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
-        intervals = [pool.submit(interval_texts, {s: o}, True) for s, o in stability.items()]
-        figures = {p: pool.submit(problem_figures, rows, style, drift) for p, rows in by_problem.items()}
-        texts: dict[str, str] = {}
+        intervals = [pool.submit(interval_texts, {s: o}, True) for s, o in missing.items()]
+        drawn = {p: pool.submit(problem_figures, rows, style, drift) for p, rows in todo.items()}
         for f in intervals:
             texts.update(f.result())
-        return {p: f.result() for p, f in figures.items()}, texts
+        figures.update({p: f.result() for p, f in drawn.items()})
+        return figures, texts
+
+
+class FiguresAhead:
+    """A page's figures drawn while the matrix still runs: each problem's as soon as its last
+    cell is stored, by a pool worker that has no cell left to run (``task`` is the process
+    pool's ``ExecOptions.idle_work``; ``add`` sees each row as it is stored). The figures of
+    a main job's last problems are then drawn beside its last cells instead of after them.
+    The page takes a figure only if it was drawn from the very rows and styles it would
+    draw it from (a resumed run's page has older rows too); it draws the others itself."""
+
+    def __init__(self, cells: Sequence, run_id: int | None, drift: bool = True):
+        self.run_id, self.drift = run_id, drift
+        self.left: dict[str, int] = {}
+        for c in cells:
+            self.left[c.problem] = self.left.get(c.problem, 0) + 1
+        self.style = styles(sorted({c.integrator for c in cells}))
+        self.rows: dict[str, list[dict]] = {}
+        self.ready: list[str] = []
+        self.drawn: dict[str, tuple[str, dict]] = {}
+
+    def add(self, cell, row: dict) -> None:
+        """A stored row (kept as the store gives it back: JSON and its run id)."""
+        self.rows.setdefault(cell.problem, []).append({"run_id": self.run_id, **json.loads(json.dumps(row))})
+        self.left[cell.problem] = self.left.get(cell.problem, 1) - 1
+        if self.left[cell.problem] == 0:
+            self.ready.append(cell.problem)
+
+    def task(self):
+        """(problem_figures, its arguments, where its result goes) of a problem whose rows are
+        all in, or None."""
+        if not self.ready:
+            return None
+        problem = self.ready.pop(0)
+        rows = self.rows.pop(problem)
+        key = self._key(rows, self.style, self.drift)
+        return problem_figures, (rows, self.style, self.drift), lambda figs: self.drawn.__setitem__(problem, (key, figs))
+
+    def figures(self, problem: str, rows: list[dict], style: dict, drift: bool) -> dict | None:
+        """The figures drawn ahead for ``problem`` if they were drawn from these rows and styles."""
+        key, figs = self.drawn.get(problem, (None, None))
+        return figs if key is not None and key == self._key(rows, style, drift) else None
+
+    @staticmethod
+    def _key(rows: list[dict], style: dict, drift: bool) -> str:
+        text = json.dumps([rows, style, drift], sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()
 
 
 def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bool = True,
-               stability: bool = True, jobs: int = 1) -> str:
+               stability: bool = True, jobs: int = 1, ahead: FiguresAhead | None = None) -> str:
     """The page's HTML for ``rows`` (of the ``runs`` whose metadata heads it); the figures are
-    drawn on ``jobs`` processes."""
+    drawn on ``jobs`` processes, but for those ``ahead`` drew from the same rows."""
     problems = sorted({r["problem"] for r in rows})
     style = styles(sorted({r["integrator"] for r in rows}))
     # the heaviest problems first, so the processes finish together
@@ -421,7 +515,7 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
     from .stability import interval_texts
 
     builtin, plugins = _stability_schemes(rows) if stability else ({}, {})
-    figures, intervals = _all_figures(by_problem, style, drift, jobs, builtin)
+    figures, intervals = _all_figures(by_problem, style, drift, jobs, builtin, ahead)
     fits = observed_orders(rows)
     counts = status_counts(rows)
     out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
@@ -470,10 +564,11 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
 
 
 def write_page(out_dir: str | Path, rows: list[dict[str, Any]], runs: list[dict[str, Any]],
-               drift: bool = True, jobs: int = 1) -> Path:
-    """Write ``out_dir``/index.html (figures drawn on ``jobs`` processes); return its path."""
+               drift: bool = True, jobs: int = 1, ahead: FiguresAhead | None = None) -> Path:
+    """Write ``out_dir``/index.html (figures drawn on ``jobs`` processes, or ``ahead``);
+    return its path."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     path = out / PAGE_NAME
-    path.write_text(build_page(rows, runs, drift=drift, jobs=jobs), encoding="utf-8")
+    path.write_text(build_page(rows, runs, drift=drift, jobs=jobs, ahead=ahead), encoding="utf-8")
     return path

@@ -274,12 +274,13 @@ def report_text(rows: list[dict[str, Any]], fmt: str = "table", full: bool = Fal
 
 
 def write_html(out_dir, rows: list[dict[str, Any]], store, run_ids: Iterable[int] | None = None,
-               jobs: int | None = None):
+               jobs: int | None = None, ahead=None):
     """The results page of ``rows`` into ``out_dir``/index.html, headed by the metadata of
     ``run_ids`` (default: every run the rows come from), its figures drawn on ``jobs``
-    processes (default: one per core); returns its path."""
+    processes (default: one per core) but for those drawn ``ahead`` (an
+    html_report.FiguresAhead); returns its path."""
     from .html_report import write_page
 
     ids = sorted(set(run_ids) if run_ids is not None else {r.get("run_id") for r in rows if r.get("run_id")})
     runs = [r for r in store.runs() if r["id"] in ids]
-    return write_page(out_dir, rows, runs, jobs=jobs or os.cpu_count() or 1)
+    return write_page(out_dir, rows, runs, jobs=jobs or os.cpu_count() or 1, ahead=ahead)

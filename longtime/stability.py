@@ -313,7 +313,7 @@ def intervals(name: str, compute: bool = True, orders: Iterable[int] | None = No
     series scheme (default ``SERIES_ORDERS``)."""
     out = {}
     try:
-        orders = orders_of(name) if orders is None or orders_of(name) == [None] else sorted(set(orders))
+        orders = _wanted_orders(name, orders)
         from .problems.harmonic import Harmonic
 
         reason = _scheme(name, orders[0]).incompatibility(Harmonic())
@@ -338,6 +338,24 @@ def intervals(name: str, compute: bool = True, orders: Iterable[int] | None = No
                 out[label] = result
     except (InputError, Unmeasurable) as exc:
         out[""] = {"error": str(exc)}
+    return out
+
+
+def _wanted_orders(name: str, orders: Iterable[int] | None) -> list[int | None]:
+    return orders_of(name) if orders is None or orders_of(name) == [None] else sorted(set(orders))
+
+
+def uncached(schemes: dict[str, Iterable[int] | None]) -> dict[str, Iterable[int] | None]:
+    """The schemes of ``schemes`` (name -> its N or None) that ``intervals`` would measure: an N
+    without a cached interval. A scheme that cannot be measured at all is not among them."""
+    out = {}
+    for s, orders in schemes.items():
+        try:
+            wanted = _wanted_orders(s, orders)
+        except Exception:  # unknown: intervals reports it without measuring anything
+            continue
+        if len(intervals(s, compute=False, orders=orders)) < len(wanted):
+            out[s] = orders
     return out
 
 

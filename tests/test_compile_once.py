@@ -101,3 +101,47 @@ def test_no_two_running_batches_share_code_that_is_not_compiled_yet():
         order.finished(batch)
     assert [order.take()[0].integrator for _ in range(2)] == ["rk4", "bpl-exp"]  # compiled now: in order
     assert not order
+
+
+def test_idle_workers_take_extra_work_only_once_every_batch_is_handed_out():
+    """The results page's figures run on the pool's workers, but never beside a batch that
+    waits for a worker (they would take time from timed cells); work made ready by the
+    caller's last rows is still picked up; a failing task only loses its own result."""
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+
+    from longtime.matrix import scheduled
+
+    batches = _batches([("toda", "rk4"), ("kepler", "verlet"), ("harmonic", "euler"), ("duffing-1", "rk45")])
+    log, results, seen = [], {}, []
+    lock = threading.Lock()
+
+    def run(batch):
+        with lock:
+            log.append(("batch", batch[0].problem))
+        return batch[0].problem
+
+    def extra(name):
+        with lock:
+            log.append(("extra", name))
+        if name == "bad":
+            raise RuntimeError("a figure that fails")
+        return name.upper()
+
+    tasks = ["early"]  # ready from the start, yet it waits for every batch to be handed out
+
+    def idle_work():
+        if not tasks:
+            return None
+        name = tasks.pop(0)
+        return extra, (name,), lambda out: results.__setitem__(name, out)
+
+    with ThreadPoolExecutor(2) as pool:
+        for batch, fut in scheduled(pool, 2, batches, run, idle_work=idle_work):
+            seen.append(fut.result())
+            if len(seen) == len(batches):  # ready once the caller has the last rows, nothing running
+                tasks.extend(["a", "bad", "b"])
+    first_extra = next(i for i, (kind, _) in enumerate(log) if kind == "extra")
+    assert [k for k, _ in log[:first_extra]] == ["batch"] * len(batches)  # every batch handed out first
+    assert sorted(seen) == sorted(b[0].problem for b in batches)  # the caller sees the batches only
+    assert results == {"early": "EARLY", "a": "A", "b": "B"}  # 'bad' lost its own result, nothing else

@@ -118,3 +118,43 @@ def test_drift_figure_comes_from_the_rows_without_running_anything(page, monkeyp
     kepler = [r for r in rows if r["problem"] == "kepler"]
     figure, notes = drift_svg(kepler, styles(sorted({r["integrator"] for r in kepler})))
     assert figure and "<path" in figure and not notes
+
+
+def test_main_job_page_takes_the_figures_its_workers_drew(tmp_path, monkeypatch):
+    """`longtime matrix` on the process pool: each problem's figures are drawn by a worker
+    with no cell left (html_report.FiguresAhead), and the page uses them as drawn."""
+    from longtime import html_report
+
+    taken = []
+    original = html_report.FiguresAhead.figures
+
+    def spy(self, problem, *args):
+        figures = original(self, problem, *args)
+        taken.append((problem, figures is not None))
+        return figures
+
+    monkeypatch.setattr(html_report.FiguresAhead, "figures", spy)
+    assert cli.main(["matrix", "-p", "harmonic,kepler", "-i", "rk4,verlet", "--dt", "0.04,0.02", "--t-final", "20",
+                     "--repeats", "3", "--min-time", "0", "--db", str(tmp_path / "r.sqlite"), "--jobs", "2",
+                     "--no-progress", "--html", str(tmp_path / "page")]) == 0
+    assert sorted(taken) == [("harmonic", True), ("kepler", True)]
+    assert (tmp_path / "page" / "index.html").read_text().count('<figure class="plot">') == 4
+
+
+def test_figures_drawn_ahead_serve_only_the_rows_they_were_drawn_from():
+    from longtime.cells import Cell
+    from longtime.html_report import FiguresAhead
+
+    cells = [Cell("harmonic", s, {}, {}, 10.0) for s in ("rk4", "verlet")]
+    ahead = FiguresAhead(cells, run_id=7)
+    ahead.add(cells[0], {"problem": "harmonic", "integrator": "rk4", "status": "ok", "cpu_s": 0.1})
+    assert ahead.task() is None  # verlet's row is not in yet
+    ahead.add(cells[1], {"problem": "harmonic", "integrator": "verlet", "status": "ok", "cpu_s": 0.2})
+    fn, (rows, style, drift), done = ahead.task()
+    assert [r["run_id"] for r in rows] == [7, 7] and ahead.task() is None
+    done({"drawn": True})
+    assert ahead.figures("harmonic", rows, style, drift) == {"drawn": True}
+    older = [{**rows[0], "cpu_s": 0.3}, rows[1]]  # e.g. a resumed run's page: other rows
+    assert ahead.figures("harmonic", older, style, drift) is None
+    assert ahead.figures("harmonic", rows, {**style, "euler": {}}, drift) is None
+    assert ahead.figures("kepler", rows, style, drift) is None
