@@ -158,3 +158,19 @@ def test_figures_drawn_ahead_serve_only_the_rows_they_were_drawn_from():
     assert ahead.figures("harmonic", older, style, drift) is None
     assert ahead.figures("harmonic", rows, {**style, "euler": {}}, drift) is None
     assert ahead.figures("kepler", rows, style, drift) is None
+
+
+def test_a_tol_sweep_whose_order_follows_tol_is_one_curve_and_set_orders_split():
+    from longtime.html_report import sweeps
+
+    def row(scheme, tol=None, order=None, eps=None):
+        return {"integrator": scheme, "t_final": 10.0, "settings": "", "tol": tol, "order": order, "eps_res": eps}
+
+    heyoka = [row("heyoka", 1e-6, 8), row("heyoka", 1e-9, 12), row("heyoka", 1e-12, 15)]  # N from tol
+    bpl = [row("bpl", None, n, e) for n in (10, 15) for e in (1e-6, 1e-9)]  # N set, eps_res swept
+    curves = sweeps(heyoka + bpl)
+    assert list(curves) == [("bpl", 10.0, "", 10), ("bpl", 10.0, "", 15), ("heyoka", 10.0, "", None)]
+    assert len(curves[("heyoka", 10.0, "", None)]) == 3 and len(curves[("bpl", 10.0, "", 15)]) == 2
+    # the same tol at two set N: N does not follow tol, so the curves split
+    both = [row("taylor-adaptive", t, n) for n in (8, 12) for t in (1e-6, 1e-9)]
+    assert sorted(k[3] for k in sweeps(both)) == [8, 12]
