@@ -354,7 +354,8 @@ def uncached(schemes: dict[str, Iterable[int] | None]) -> dict[str, Iterable[int
             wanted = _wanted_orders(s, orders)
         except Exception:  # unknown: intervals reports it without measuring anything
             continue
-        if len(intervals(s, compute=False, orders=orders)) < len(wanted):
+        found = intervals(s, compute=False, orders=orders)
+        if "" not in found and len(found) < len(wanted):  # "": the one reason none can be measured
             out[s] = orders
     return out
 
