@@ -429,7 +429,7 @@ def _all_figures(by_problem: dict[str, list[dict]], style: dict, drift: bool, jo
     (measured where not cached), on ``jobs`` processes: matplotlib spends about a third of a
     second a figure, and a scheme's stability interval about a second when not cached, all of
     it in Python, so only processes run them side by side. Figures ``ahead`` drew from the
-    same rows and styles are taken as they are."""
+    same rows and styles are taken as they are, and the intervals it found at the same N."""
     from .stability import interval_texts, uncached
 
     figures = {}
@@ -438,8 +438,14 @@ def _all_figures(by_problem: dict[str, list[dict]], style: dict, drift: bool, jo
         if found is not None:
             figures[p] = found
     todo = {p: rows for p, rows in by_problem.items() if p not in figures}
-    missing = uncached(stability)
-    texts = interval_texts({s: o for s, o in stability.items() if s not in missing})  # from the cache
+    texts = {}
+    for s, o in stability.items():
+        known, text = ahead.interval(s, o) if ahead is not None else (False, None)
+        if known and text is not None:
+            texts[s] = text
+    rest = {s: o for s, o in stability.items() if s not in texts}
+    missing = uncached(rest)
+    texts.update(interval_texts({s: o for s, o in rest.items() if s not in missing}))  # from the cache
     if jobs <= 1 or len(todo) + len(missing) < 4:
         figures.update({p: problem_figures(rows, style, drift) for p, rows in todo.items()})
         texts.update(interval_texts(missing, compute=True))
@@ -460,42 +466,65 @@ def _all_figures(by_problem: dict[str, list[dict]], style: dict, drift: bool, jo
 class FiguresAhead:
     """A page's figures drawn while the matrix still runs: each problem's as soon as its last
     cell is stored, by a pool worker that has no cell left to run (``task`` is the process
-    pool's ``ExecOptions.idle_work``; ``add`` sees each row as it is stored). The figures of
-    a main job's last problems are then drawn beside its last cells instead of after them.
-    The page takes a figure only if it was drawn from the very rows and styles it would
-    draw it from (a resumed run's page has older rows too); it draws the others itself."""
+    pool's ``ExecOptions.idle_work``; ``add`` sees each row as it is stored), and likewise a
+    built-in scheme's stability interval once its last cell is stored (measured into the
+    cache on a cold machine: about a second a scheme). The figures of a main job's last
+    problems are then drawn beside its last cells instead of after them. The page takes a
+    figure only if it was drawn from the very rows and styles it would draw it from (a
+    resumed run's page has older rows too), an interval only for the same N; it does the
+    others itself."""
 
     def __init__(self, cells: Sequence, run_id: int | None, drift: bool = True):
         self.run_id, self.drift = run_id, drift
-        self.left: dict[str, int] = {}
+        self.left: dict[str, int] = {}  # cells not stored yet, per problem and per scheme
         for c in cells:
-            self.left[c.problem] = self.left.get(c.problem, 0) + 1
+            for name in (("problem", c.problem), ("scheme", c.integrator)):
+                self.left[name] = self.left.get(name, 0) + 1
         self.style = styles(sorted({c.integrator for c in cells}))
         self.rows: dict[str, list[dict]] = {}
-        self.ready: list[str] = []
+        self.outcomes: dict[str, list[dict]] = {}  # per scheme: what _stability_schemes reads
+        self.ready: list[tuple[str, str]] = []
         self.drawn: dict[str, tuple[str, dict]] = {}
+        self.intervals: dict[str, tuple[Any, str | None]] = {}
 
     def add(self, cell, row: dict) -> None:
         """A stored row (kept as the store gives it back: JSON and its run id)."""
         self.rows.setdefault(cell.problem, []).append({"run_id": self.run_id, **json.loads(json.dumps(row))})
-        self.left[cell.problem] = self.left.get(cell.problem, 1) - 1
-        if self.left[cell.problem] == 0:
-            self.ready.append(cell.problem)
+        self.outcomes.setdefault(cell.integrator, []).append(
+            {k: row.get(k) for k in ("integrator", "status", "order")})
+        for name in (("problem", cell.problem), ("scheme", cell.integrator)):
+            self.left[name] = self.left.get(name, 1) - 1
+            if self.left[name] == 0:
+                self.ready.append(name)
 
     def task(self):
-        """(problem_figures, its arguments, where its result goes) of a problem whose rows are
-        all in, or None."""
-        if not self.ready:
-            return None
-        problem = self.ready.pop(0)
-        rows = self.rows.pop(problem)
-        key = self._key(rows, self.style, self.drift)
-        return problem_figures, (rows, self.style, self.drift), lambda figs: self.drawn.__setitem__(problem, (key, figs))
+        """(a function, its arguments, where its result goes): the figures of a problem whose
+        rows are all in, or the stability interval of such a scheme; None when there is none."""
+        while self.ready:
+            kind, name = self.ready.pop(0)
+            if kind == "problem":
+                rows = self.rows.pop(name)
+                key = self._key(rows, self.style, self.drift)
+                return problem_figures, (rows, self.style, self.drift), \
+                    lambda figs: self.drawn.__setitem__(name, (key, figs))
+            builtin, _ = _stability_schemes(self.outcomes.pop(name))
+            if name in builtin:  # a plugin's is read from the cache only (see _stability_schemes)
+                from .stability import interval_texts
+
+                orders = builtin[name]
+                return interval_texts, ({name: orders}, True), \
+                    lambda texts: self.intervals.__setitem__(name, (orders, texts.get(name)))
+        return None
 
     def figures(self, problem: str, rows: list[dict], style: dict, drift: bool) -> dict | None:
         """The figures drawn ahead for ``problem`` if they were drawn from these rows and styles."""
         key, figs = self.drawn.get(problem, (None, None))
         return figs if key is not None and key == self._key(rows, style, drift) else None
+
+    def interval(self, scheme: str, orders) -> tuple[bool, str | None]:
+        """(whether ``scheme``'s interval text at ``orders`` is known, the text or None)."""
+        known, text = self.intervals.get(scheme, (False, None))
+        return (known is not False and known == orders), text
 
     @staticmethod
     def _key(rows: list[dict], style: dict, drift: bool) -> str:

@@ -122,9 +122,11 @@ def test_drift_figure_comes_from_the_rows_without_running_anything(page, monkeyp
 
 def test_main_job_page_takes_the_figures_its_workers_drew(tmp_path, monkeypatch):
     """`longtime matrix` on the process pool: each problem's figures are drawn by a worker
-    with no cell left (html_report.FiguresAhead), and the page uses them as drawn."""
-    from longtime import html_report
+    with no cell left (html_report.FiguresAhead), and the page uses them as drawn; the
+    stability intervals too, measured there into an empty cache."""
+    from longtime import html_report, stability
 
+    monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path / "cache"))  # the pool's workers inherit it
     taken = []
     original = html_report.FiguresAhead.figures
 
@@ -133,12 +135,18 @@ def test_main_job_page_takes_the_figures_its_workers_drew(tmp_path, monkeypatch)
         taken.append((problem, figures is not None))
         return figures
 
+    def not_here(*args, **kwargs):
+        raise AssertionError("an interval measured after the matrix")
+
     monkeypatch.setattr(html_report.FiguresAhead, "figures", spy)
+    monkeypatch.setattr(stability, "imaginary_interval", not_here)
     assert cli.main(["matrix", "-p", "harmonic,kepler", "-i", "rk4,verlet", "--dt", "0.04,0.02", "--t-final", "20",
                      "--repeats", "3", "--min-time", "0", "--db", str(tmp_path / "r.sqlite"), "--jobs", "2",
                      "--no-progress", "--html", str(tmp_path / "page")]) == 0
     assert sorted(taken) == [("harmonic", True), ("kepler", True)]
-    assert (tmp_path / "page" / "index.html").read_text().count('<figure class="plot">') == 4
+    text = (tmp_path / "page" / "index.html").read_text()
+    assert text.count('<figure class="plot">') == 4
+    assert "<td>rk4</td><td>[0, 2.82]" in text and "<td>verlet</td><td>[0, 2]" in text
 
 
 def test_figures_drawn_ahead_serve_only_the_rows_they_were_drawn_from():
@@ -148,10 +156,14 @@ def test_figures_drawn_ahead_serve_only_the_rows_they_were_drawn_from():
     cells = [Cell("harmonic", s, {}, {}, 10.0) for s in ("rk4", "verlet")]
     ahead = FiguresAhead(cells, run_id=7)
     ahead.add(cells[0], {"problem": "harmonic", "integrator": "rk4", "status": "ok", "cpu_s": 0.1})
-    assert ahead.task() is None  # verlet's row is not in yet
+    fn, args, done = ahead.task()  # rk4's cells are all in: its stability interval, not yet the figures
+    assert fn.__name__ == "interval_texts" and args == ({"rk4": None}, True) and ahead.task() is None
+    done({"rk4": "[0, 2.83]"})
+    assert ahead.interval("rk4", None) == (True, "[0, 2.83]") and not ahead.interval("rk4", [10])[0]
     ahead.add(cells[1], {"problem": "harmonic", "integrator": "verlet", "status": "ok", "cpu_s": 0.2})
     fn, (rows, style, drift), done = ahead.task()
-    assert [r["run_id"] for r in rows] == [7, 7] and ahead.task() is None
+    assert fn.__name__ == "problem_figures" and [r["run_id"] for r in rows] == [7, 7]
+    assert ahead.task()[1] == ({"verlet": None}, True) and ahead.task() is None
     done({"drawn": True})
     assert ahead.figures("harmonic", rows, style, drift) == {"drawn": True}
     older = [{**rows[0], "cpu_s": 0.3}, rows[1]]  # e.g. a resumed run's page: other rows
