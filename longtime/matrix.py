@@ -39,9 +39,10 @@ class ExecOptions:
     timing: Timing = field(default_factory=Timing)
     # called with each cell just before it runs in this process (the store marks it started)
     on_start: Callable[[Cell], None] | None = None
-    # work for a pool worker that has no cell left to run (the results page's figures):
-    # returns (picklable function, its arguments, a callback taking its result), or None
-    # when there is none for now; the process pool asks again as rows come in
+    # work for a pool worker that has no cell left to run (the results page's figures and
+    # stability intervals): returns (picklable function, its arguments, a callback taking
+    # its result), or None when there is none for now; the process pool asks again as rows
+    # come in
     idle_work: Callable[[], "IdleTask | None"] | None = None
 
     def workers(self) -> int:

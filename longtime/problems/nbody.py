@@ -141,9 +141,15 @@ class NBody(Problem):
     def invariants(self, t, U):
         m, q, p = self._split(U)
         kinetic = np.sum(np.sum(p**2, axis=2) / (2 * m), axis=1)
-        k, l = np.triu_indices(m.size, 1)  # every pair at once: a loop of norms cost 12 ms a row
-        d = q[:, k] - q[:, l]
-        potential = -self.G * np.sum(m[k] * m[l] / np.sqrt(np.einsum("npc,npc->np", d, d)), axis=1)
+        potential = np.zeros(U.shape[0])
+        # each body's positions contiguous, each distance an einsum: 3x faster than strided
+        # columns through np.linalg.norm (1.1 against 3.3 ms for 5001 samples of the outer
+        # solar system), and faster than all pairs at once through fancy indexing (7 ms)
+        qs = [np.ascontiguousarray(q[:, k]) for k in range(m.size)]
+        for k in range(m.size):
+            for l in range(k + 1, m.size):
+                d = qs[k] - qs[l]
+                potential -= self.G * m[k] * m[l] / np.sqrt(np.einsum("ij,ij->i", d, d))
         if self.space_dim == 2:
             L = np.sum(q[:, :, 0] * p[:, :, 1] - q[:, :, 1] * p[:, :, 0], axis=1)
         else:
