@@ -430,7 +430,7 @@ def _all_figures(by_problem: dict[str, list[dict]], style: dict, drift: bool, jo
     second a figure, and a scheme's stability interval about a second when not cached, all of
     it in Python, so only processes run them side by side. Figures ``ahead`` drew from the
     same rows and styles are taken as they are, and the intervals it found at the same N."""
-    from .stability import interval_texts, uncached
+    from .stability import cached_texts, interval_texts
 
     figures = {}
     for p, rows in by_problem.items():
@@ -438,14 +438,10 @@ def _all_figures(by_problem: dict[str, list[dict]], style: dict, drift: bool, jo
         if found is not None:
             figures[p] = found
     todo = {p: rows for p, rows in by_problem.items() if p not in figures}
-    texts = {}
-    for s, o in stability.items():
-        known, text = ahead.interval(s, o) if ahead is not None else (False, None)
-        if known and text is not None:
-            texts[s] = text
-    rest = {s: o for s, o in stability.items() if s not in texts}
-    missing = uncached(rest)
-    texts.update(interval_texts({s: o for s, o in rest.items() if s not in missing}))  # from the cache
+    texts = {s: ahead.interval(s, o) for s, o in stability.items()} if ahead is not None else {}
+    texts = {s: text for s, text in texts.items() if text is not None}
+    found, missing = cached_texts({s: o for s, o in stability.items() if s not in texts})
+    texts.update(found)
     if jobs <= 1 or len(todo) + len(missing) < 4:
         figures.update({p: problem_figures(rows, style, drift) for p, rows in todo.items()})
         texts.update(interval_texts(missing, compute=True))
@@ -485,7 +481,7 @@ class FiguresAhead:
         self.outcomes: dict[str, list[dict]] = {}  # per scheme: what _stability_schemes reads
         self.ready: list[tuple[str, str]] = []
         self.drawn: dict[str, tuple[str, dict]] = {}
-        self.intervals: dict[str, tuple[Any, str | None]] = {}
+        self.intervals: dict[str, tuple[Any, str | None]] = {}  # scheme -> (its N, its text)
 
     def add(self, cell, row: dict) -> None:
         """A stored row (kept as the store gives it back: JSON and its run id)."""
@@ -521,10 +517,12 @@ class FiguresAhead:
         key, figs = self.drawn.get(problem, (None, None))
         return figs if key is not None and key == self._key(rows, style, drift) else None
 
-    def interval(self, scheme: str, orders) -> tuple[bool, str | None]:
-        """(whether ``scheme``'s interval text at ``orders`` is known, the text or None)."""
-        known, text = self.intervals.get(scheme, (False, None))
-        return (known is not False and known == orders), text
+    def interval(self, scheme: str, orders) -> str | None:
+        """``scheme``'s interval text if it was found ahead at these N (None: a scheme without N)."""
+        if scheme not in self.intervals:
+            return None
+        found_orders, text = self.intervals[scheme]
+        return text if found_orders == orders else None
 
     @staticmethod
     def _key(rows: list[dict], style: dict, drift: bool) -> str:

@@ -345,19 +345,26 @@ def _wanted_orders(name: str, orders: Iterable[int] | None) -> list[int | None]:
     return orders_of(name) if orders is None or orders_of(name) == [None] else sorted(set(orders))
 
 
-def uncached(schemes: dict[str, Iterable[int] | None]) -> dict[str, Iterable[int] | None]:
-    """The schemes of ``schemes`` (name -> its N or None) that ``intervals`` would measure: an N
-    without a cached interval. A scheme that cannot be measured at all is not among them."""
-    out = {}
+def cached_texts(schemes: dict[str, Iterable[int] | None]) -> tuple[dict[str, str], dict[str, Iterable[int] | None]]:
+    """(scheme -> its interval text, for the schemes of ``schemes`` (name -> its N or None) with
+    every N in the cache or none measurable at all; the others, which ``interval_texts(...,
+    compute=True)`` would measure), from one read of the cache."""
+    texts, missing = {}, {}
     for s, orders in schemes.items():
         try:
-            wanted = _wanted_orders(s, orders)
-        except Exception:  # unknown: intervals reports it without measuring anything
-            continue
-        found = intervals(s, compute=False, orders=orders)
-        if "" not in found and len(found) < len(wanted):  # "": the one reason none can be measured
-            out[s] = orders
-    return out
+            wanted = len(_wanted_orders(s, orders))
+            found = intervals(s, compute=False, orders=orders)
+        except Exception as exc:  # a scheme no longer installed: nothing to measure
+            wanted, found = 1, {"": {"error": f"{type(exc).__name__}: {exc}"}}
+        if "" in found or len(found) >= wanted:  # "": the one reason none can be measured
+            texts[s] = _text(found)
+        else:
+            missing[s] = orders
+    return texts, missing
+
+
+def _text(found: dict[str, dict[str, Any]]) -> str:
+    return "; ".join(f"{label} {format_interval(r)}".strip() for label, r in found.items())
 
 
 def interval_texts(schemes: dict[str, Iterable[int] | None], compute: bool = False) -> dict[str, str]:
@@ -370,5 +377,5 @@ def interval_texts(schemes: dict[str, Iterable[int] | None], compute: bool = Fal
         except Exception as exc:  # a scheme no longer installed, a step that cannot be built
             found = {"": {"error": f"{type(exc).__name__}: {exc}"}}
         if found:
-            out[s] = "; ".join(f"{label} {format_interval(r)}".strip() for label, r in found.items())
+            out[s] = _text(found)
     return out

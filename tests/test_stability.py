@@ -61,11 +61,13 @@ def test_the_test_equation_is_a_diagnostic_not_part_of_the_default_matrix():
     assert {"toda", "kepler", "kdv"} <= set(registry.default_problems())
 
 
-def test_uncached_names_only_what_a_page_would_have_to_measure(tmp_path, monkeypatch):
-    from longtime.stability import interval_texts, uncached
+def test_cached_texts_leave_only_what_a_page_would_have_to_measure(tmp_path, monkeypatch):
+    from longtime.stability import cached_texts, interval_texts
 
     monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))
     wanted = {"rk4": None, "taylor-adaptive": [8, 12]}  # taylor-adaptive: never measurable, nothing to do
-    assert uncached(wanted) == {"rk4": None}
+    texts, missing = cached_texts(wanted)
+    assert missing == {"rk4": None} and texts["taylor-adaptive"].startswith("not measured: taylor-adaptive chooses")
     assert interval_texts({"rk4": None}, compute=True)["rk4"].startswith("[0, 2.82")
-    assert uncached(wanted) == {}
+    texts, missing = cached_texts(wanted)
+    assert missing == {} and texts["rk4"].startswith("[0, 2.82")
