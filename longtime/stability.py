@@ -351,16 +351,19 @@ def cached_texts(schemes: dict[str, Iterable[int] | None]) -> tuple[dict[str, st
     compute=True)`` would measure), from one read of the cache."""
     texts, missing = {}, {}
     for s, orders in schemes.items():
-        try:
-            wanted = len(_wanted_orders(s, orders))
-            found = intervals(s, compute=False, orders=orders)
-        except Exception as exc:  # a scheme no longer installed: nothing to measure
-            wanted, found = 1, {"": {"error": f"{type(exc).__name__}: {exc}"}}
-        if "" in found or len(found) >= wanted:  # "": the one reason none can be measured
+        found = _found(s, orders, compute=False)
+        if "" in found or len(found) >= len(_wanted_orders(s, orders)):  # "": why none can be measured
             texts[s] = _text(found)
         else:
             missing[s] = orders
     return texts, missing
+
+
+def _found(name: str, orders: Iterable[int] | None, compute: bool) -> dict[str, dict[str, Any]]:
+    try:
+        return intervals(name, compute=compute, orders=orders)
+    except Exception as exc:  # a scheme no longer installed, a step that cannot be built
+        return {"": {"error": f"{type(exc).__name__}: {exc}"}}
 
 
 def _text(found: dict[str, dict[str, Any]]) -> str:
@@ -372,10 +375,7 @@ def interval_texts(schemes: dict[str, Iterable[int] | None], compute: bool = Fal
     from the cache, measured where missing when ``compute``."""
     out = {}
     for s, orders in schemes.items():
-        try:
-            found = intervals(s, compute=compute, orders=orders)
-        except Exception as exc:  # a scheme no longer installed, a step that cannot be built
-            found = {"": {"error": f"{type(exc).__name__}: {exc}"}}
+        found = _found(s, orders, compute)
         if found:
             out[s] = _text(found)
     return out
