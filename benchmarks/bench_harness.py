@@ -12,16 +12,21 @@ process's time into
     other         building problems and schemes, rows, everything else
 
 It runs the cells twice and reports the second pass (the first fills the caches: a warm
-run). The main job adds worker start-up and store writes on top, and after the cells the
+run). With ``--cold`` the first pass starts from empty numba, longtime and heyoka caches
+(temporary folders), and its breakdown is printed too: there "untimed run" is mostly
+compilation (numba's and heyoka's LLVM) and "reference" computes each reference. The main job adds worker start-up and store writes on top, and after the cells the
 terminal summary and the results page, whose wall seconds it prints last.
 
     python benchmarks/bench_harness.py                        # the default matrix
     python benchmarks/bench_harness.py -p toda,kepler -i rk4,verlet,gauss4,rk45,bpl
+    python benchmarks/bench_harness.py --cold                 # and where a cold pass goes
 """
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+import tempfile
 import time
 from collections import defaultdict
 from contextlib import contextmanager
@@ -103,19 +108,8 @@ def after_the_cells(rows: list[dict]) -> dict[str, float]:
     return {"summary": summary, "results page": time.perf_counter() - start}
 
 
-def main(argv: list[str] | None = None) -> int:
-    from longtime import registry
-    from longtime.cells import expand
-
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("-p", "--problem", default=None, help="problems (default: all)")
-    parser.add_argument("-i", "--integrator", default=None, help="schemes (default: all)")
-    args = parser.parse_args(argv)
-    problems = args.problem.split(",") if args.problem else registry.default_problems()
-    schemes = args.integrator.split(",") if args.integrator else sorted(registry.integrators())
-    cells = expand(problems, schemes, default_sweep=True)
-    breakdown(cells)  # fills the kernel and reference caches
-    totals, total, rows = breakdown(cells)
+def print_parts(title: str, totals: dict[str, float], total: float) -> float:
+    """Print one pass's breakdown; returns its integration share."""
     integration = totals.get("integration", 0.0)
     parts = {
         "integration": integration,
@@ -124,10 +118,36 @@ def main(argv: list[str] | None = None) -> int:
         "metrics": totals.get("metrics", 0.0),
     }
     parts["other"] = total - sum(parts.values())
-    print(f"{len(cells)} cells, warm pass {total:.1f} s in one process")
+    print(f"{title} {total:.1f} s in one process")
     for name, seconds in parts.items():
         print(f"  {name:12s} {seconds:8.2f} s  {100 * seconds / total:5.1f} %")
-    share = integration / total
+    return integration / total
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("-p", "--problem", default=None, help="problems (default: all)")
+    parser.add_argument("-i", "--integrator", default=None, help="schemes (default: all)")
+    parser.add_argument("--cold", action="store_true",
+                        help="first pass from empty caches (temporary folders); print its breakdown too")
+    args = parser.parse_args(argv)
+    if args.cold:
+        if "numba" in sys.modules:
+            parser.error("--cold: numba is already imported, its cache folder can no longer change")
+        folder = tempfile.mkdtemp(prefix="bench_harness_cold_")
+        for name in ("NUMBA_CACHE_DIR", "LONGTIME_CACHE_DIR", "XDG_CACHE_HOME"):  # XDG: heyoka's disk cache
+            os.environ[name] = os.path.join(folder, name.lower())
+    from longtime import registry
+    from longtime.cells import expand
+
+    problems = args.problem.split(",") if args.problem else registry.default_problems()
+    schemes = args.integrator.split(",") if args.integrator else sorted(registry.integrators())
+    cells = expand(problems, schemes, default_sweep=True)
+    first, first_total, _ = breakdown(cells)  # fills the kernel and reference caches
+    if args.cold:
+        print_parts(f"{len(cells)} cells, cold pass", first, first_total)
+    totals, total, rows = breakdown(cells)
+    share = print_parts(f"{len(cells)} cells, warm pass", totals, total)
     print(f"integration share {100 * share:.1f} % (goal >= {100 * GOAL:.0f} %)")
     for name, seconds in after_the_cells(rows).items():
         print(f"after the cells: {name} {seconds:.2f} s wall")
