@@ -227,6 +227,35 @@ def test_taylor_order_is_reported_and_validated():
         registry.integrator_class("taylor-adaptive")(tol=0.0)
 
 
+
+@pytest.mark.parametrize("name, settings", [
+    ("taylor-adaptive", [{"tol": 1e-6}, {"tol": 1e-9}, {"tol": 1e-12}, {"tol": 1e-9, "order": 20}]),
+    ("taylor", [{"order": 4}, {"order": 10}, {"order": 20}]),
+    ("bpl", [{"order": 10}, {"order": 15}]),
+])
+def test_one_compiled_kernel_serves_every_series_order(name, settings):
+    """N and the scratch shapes are read from the work array's header, not closed over: a
+    tolerance sweep (N follows tol) or an N sweep compiles one kernel per problem, and each
+    run still uses its own N (the reported order, and more terms give a smaller error)."""
+    from longtime.jitcache import fingerprint
+
+    problem = registry.problem_class("toda")()
+    kernels, finals, errors = set(), [], []
+    for s in settings:
+        scheme = registry.integrator_class(name)(**s)
+        build = scheme.make_step if hasattr(scheme, "make_step") else scheme.make_try_step
+        kernels.add(fingerprint(build(problem)))
+        traj = scheme.integrate(problem, 2.0, max_samples=3)
+        assert traj.status == "ok"
+        finals.append(traj.u[-1].tobytes())
+        H = problem.invariants(traj.t, traj.u)["H"]
+        errors.append(abs(H[-1] - H[0]))
+    assert len(kernels) == 1
+    assert len(set(finals)) == len(settings)  # each run summed its own number of terms
+    if name == "taylor":  # fixed step: the error falls with N (orders 4, 10, 20)
+        assert errors[0] > 10 * errors[1] and errors[1] >= errors[2]
+
+
 def test_taylor_is_skipped_without_a_recurrence():
     from longtime.problem import Problem
 

@@ -57,6 +57,7 @@ from ..drivers import EXTRA1, EXTRA2, FALLBACKS, RHS_EVALS
 from ..integrator import AdaptiveIntegrator
 from ..params import InputError, Param
 from ..numerics.pade import DEFAULT_TOL, polynomial_and_derivative, robust_pade, scratch_size
+from ..numerics.series import header_view
 
 # header of the flat work array: sizes and offsets, read by the compiled step
 (_N, _M, _NDEN, _K, _DIM, _TOL, _EPS_RES, _TW0, _TW1, _TW2, _TW3, _O_COEF, _O_TW, _O_INVFACT,
@@ -72,34 +73,6 @@ FALLBACKS_ALLOWED = ("none", "taylor")
 # component flags: how far its Pade approximant can be trusted (_PADE_CHECK_POLES: only
 # with the Taylor fallback, whose pole test it arms)
 _PADE_OK, _PADE_CHECK_POLES, _PADE_BAD = 0, 1, 2
-
-
-def _taylor_view(ndim: int):
-    """Compiled view of the problem's Taylor scratch (shape in the header) inside work."""
-    if ndim == 1:
-        @numba.njit(inline="always")
-        def view(work):
-            o = int(work[_O_TW])
-            return work[o:o + int(work[_TW0])]
-    elif ndim == 2:
-        @numba.njit(inline="always")
-        def view(work):
-            o, s0, s1 = int(work[_O_TW]), int(work[_TW0]), int(work[_TW1])
-            return work[o:o + s0 * s1].reshape((s0, s1))
-    elif ndim == 3:
-        @numba.njit(inline="always")
-        def view(work):
-            o, s0, s1, s2 = int(work[_O_TW]), int(work[_TW0]), int(work[_TW1]), int(work[_TW2])
-            return work[o:o + s0 * s1 * s2].reshape((s0, s1, s2))
-    elif ndim == 4:
-        @numba.njit(inline="always")
-        def view(work):
-            o = int(work[_O_TW])
-            s0, s1, s2, s3 = int(work[_TW0]), int(work[_TW1]), int(work[_TW2]), int(work[_TW3])
-            return work[o:o + s0 * s1 * s2 * s3].reshape((s0, s1, s2, s3))
-    else:
-        raise InputError(f"taylor_work_shape of {ndim} dimensions is not supported by bpl (1 to 4)")
-    return view
 
 
 @numba.njit(cache=True)
@@ -277,7 +250,7 @@ def _identity_map(t, S, Sd, work):
     """``to_state`` of bpl: the Laplace sum is the state."""
 
 
-def make_try_step(series, to_state, field, N, taylor_fallback):
+def make_try_step(series, to_state, field, taylor_fallback):
     """The compiled try_step of the BPL family, from three compiled hooks:
 
     series(t, u, params, coeffs, work)   Taylor coefficients of the summed variable
@@ -286,7 +259,8 @@ def make_try_step(series, to_state, field, N, taylor_fallback):
     field(t, u, params, out)             what S' must equal (bpl: the rhs)
 
     The robust Pade, the Laplace sum and the residual-controlled step search are shared.
-    ``taylor_fallback`` is a constant of the closure, so each setting gets its own kernel.
+    ``taylor_fallback`` is a constant of the closure, so each setting gets its own kernel;
+    N is read from the work array's header, so every N shares one.
     """
     _link_shared_code()
 
@@ -316,7 +290,7 @@ def make_try_step(series, to_state, field, N, taylor_fallback):
     def try_step(t, u, h, params, work, counters, u_new):
         dim = u.size
         eps = 1.0  # residuals come relative to the attainable tolerance
-        oc = int(work[_O_COEF])
+        N, oc = int(work[_N]), int(work[_O_COEF])
         coeffs = work[oc:oc + (N + 1) * dim].reshape((N + 1, dim))
         series(t, u, params, coeffs, work)
         _prepare_pade_shared(coeffs, work, counters, taylor_fallback)
@@ -448,7 +422,7 @@ class BorelPadeLaplace(AdaptiveIntegrator):
     # -- the three hooks of the family (see make_try_step)
     def _series(self, problem):
         taylor = problem.taylor
-        taylor_work = _taylor_view(len(problem.taylor_work_shape(self.settings["order"])))
+        taylor_work = header_view(len(problem.taylor_work_shape(self.settings["order"])), _O_TW, _TW0)
 
         @numba.njit
         def series(t, u, params, coeffs, work):
@@ -464,7 +438,7 @@ class BorelPadeLaplace(AdaptiveIntegrator):
 
     def make_try_step(self, problem):
         return make_try_step(self._series(problem), self._to_state(problem), self._field(problem),
-                             self.settings["order"], self.settings["fallback"] == "taylor")
+                             self.settings["fallback"] == "taylor")
 
     def _integrate(self, problem, t_final, max_samples):
         traj = super()._integrate(problem, t_final, max_samples)

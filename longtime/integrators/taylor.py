@@ -12,9 +12,12 @@ below eps. By default N follows tol as in Jorba-Zou and heyoka (N = ceil(-ln(tol
 which keeps the step near the series' radius of convergence for every tol. Every step is accepted; where all coefficients beyond u_0 vanish (an
 equilibrium) nothing limits the step and it is the largest allowed, h_max.
 
-The scratch array is flat: the coefficients (N+1, dim), then the problem's own scratch of
-shape ``taylor_work_shape(N)``. Their shapes are compile-time constants of the step, so
-the compiled loop is cached per (order, dim, scratch shape).
+The scratch array is flat: a header (N, the tolerance, the step's safety factor, where
+the problem's scratch starts and its shape), the coefficients (N+1, dim), then the
+problem's own scratch of shape ``taylor_work_shape(N)``. The compiled step reads N and the
+shapes from the header at run time, so one compiled kernel per problem serves every N and
+every tol: taylor-adaptive's tolerance sweep (N follows tol) compiled one kernel per
+tolerance while N was closed over, about 4 s a problem on a cold machine.
 """
 from __future__ import annotations
 
@@ -26,13 +29,17 @@ import numpy as np
 from ..drivers import EXTRA1, OK
 from ..integrator import AdaptiveIntegrator, FixedStepIntegrator
 from ..params import Param
-from ..numerics.series import horner
+from ..numerics.series import header_view, horner
+
+# header of the flat work array, written by prepare_work and read by the compiled step
+_ORDER, _TOL, _SAFETY, _O_SCRATCH, _SHAPE0 = range(5)  # the scratch shape: slots _SHAPE0.. (1 to 4)
+_HEADER = _SHAPE0 + 4
 
 ORDER = Param(10, "series order N (degree of the truncated Taylor polynomial)", int, minimum=1, maximum=60)
 
 
 class _SeriesLayout:
-    """Flat scratch layout shared by both schemes; the shapes key the compiled loop."""
+    """Flat scratch layout shared by both schemes (see the module's docstring)."""
 
     extra_counters = ("series_evals",)
     requires = frozenset({"taylor"})
@@ -50,17 +57,22 @@ class _SeriesLayout:
 
     def work_shape(self, problem):
         N, dim, tshape = self._layout(problem)
-        return ((N + 1) * dim + max(1, int(np.prod(tshape))),)
+        return (_HEADER + (N + 1) * dim + max(1, int(np.prod(tshape))),)
+
+    def prepare_work(self, problem, work):
+        N, dim, tshape = self._layout(problem)
+        work[_ORDER], work[_O_SCRATCH] = N, _HEADER + (N + 1) * dim
+        work[_SHAPE0:_SHAPE0 + len(tshape)] = tshape
 
     def _views(self, problem):
-        """Compiled ``views(work) -> (coeffs, taylor scratch)`` for this layout."""
-        N, dim, tshape = self._layout(problem)
-        m = (N + 1) * dim
-        size = int(np.prod(tshape))
+        """Compiled ``views(work) -> (coeffs, taylor scratch)``, sizes from the header."""
+        _, dim, tshape = self._layout(problem)
+        scratch = header_view(len(tshape), _O_SCRATCH, _SHAPE0)
 
         @numba.njit(inline="always")
         def views(work):
-            return work[:m].reshape((N + 1, dim)), work[m:m + size].reshape(tshape)
+            rows = int(work[_ORDER]) + 1
+            return work[_HEADER:_HEADER + rows * dim].reshape((rows, dim)), scratch(work)
 
         return views
 
@@ -106,19 +118,16 @@ class AdaptiveTaylor(_SeriesLayout, AdaptiveIntegrator):
             self.settings["order"] = min(60, max(2, math.ceil(-math.log(self.settings["tol"]) / 2 + 1)))
         self.order = self.settings["order"]
 
-    def work_shape(self, problem):
-        return (super().work_shape(problem)[0] + 1,)  # + the tolerance, in the last slot
-
     def prepare_work(self, problem, work):
-        work[-1] = self.settings["tol"]  # read at run time: one compiled loop for every tol
+        super().prepare_work(problem, work)
+        N = self.settings["order"]
+        work[_TOL], work[_SAFETY] = self.settings["tol"], math.exp(-0.7 / (N - 1))
 
     def initial_step(self, problem, t_final):
         return self.max_step(problem, t_final)  # every step sizes itself
 
     def make_try_step(self, problem):
         taylor, views = problem.taylor, self._views(problem)
-        N = self.settings["order"]
-        safety = math.exp(-0.7 / (N - 1))
 
         @numba.njit
         def try_step(t, u, h, params, work, counters, u_new):
@@ -128,7 +137,8 @@ class AdaptiveTaylor(_SeriesLayout, AdaptiveIntegrator):
             size = 0.0
             for i in range(u.size):
                 size = max(size, abs(u[i]))
-            eps = work[work.size - 1] * max(1.0, size)
+            eps = work[_TOL] * max(1.0, size)
+            N = coeffs.shape[0] - 1
             rho = math.inf
             for k in range(N - 1, N + 1):
                 norm = 0.0
@@ -136,7 +146,7 @@ class AdaptiveTaylor(_SeriesLayout, AdaptiveIntegrator):
                     norm = max(norm, abs(coeffs[k, i]))
                 if norm > 0.0:  # a vanishing coefficient sets no bound (equilibrium)
                     rho = min(rho, (eps / norm) ** (1.0 / k))
-            h_taken = min(h, safety * rho)
+            h_taken = min(h, work[_SAFETY] * rho)
             if not h_taken > 1e-15 * (abs(t) + 1.0):  # huge or non-finite coefficients
                 return -1, h_taken, h_taken
             horner(coeffs, h_taken, u_new)

@@ -16,6 +16,8 @@ import math
 
 import numba
 
+from ..params import InputError
+
 
 @numba.njit(cache=True, inline="always")
 def product(a, b, k):
@@ -103,3 +105,36 @@ def horner(coeffs, h, out):
         for k in range(n - 1, -1, -1):
             acc = acc * h + coeffs[k, i]
         out[i] = acc
+
+
+def header_view(ndim: int, offset_slot: int, shape_slot: int):
+    """Compiled ``view(work)``: the block of a flat work array that starts at
+    work[offset_slot] with the shape work[shape_slot:shape_slot + ndim] (1 to 4 dimensions),
+    as a scheme's ``prepare_work`` wrote them. The sizes are read at run time, not closed
+    over, so one compiled kernel serves every series order N: compiled per N, a tolerance
+    sweep of taylor-adaptive (N follows tol) cost a compile per tolerance."""
+    if ndim == 1:
+        @numba.njit(inline="always")
+        def view(work):
+            o = int(work[offset_slot])
+            return work[o:o + int(work[shape_slot])]
+    elif ndim == 2:
+        @numba.njit(inline="always")
+        def view(work):
+            o, s0, s1 = int(work[offset_slot]), int(work[shape_slot]), int(work[shape_slot + 1])
+            return work[o:o + s0 * s1].reshape((s0, s1))
+    elif ndim == 3:
+        @numba.njit(inline="always")
+        def view(work):
+            o, s0 = int(work[offset_slot]), int(work[shape_slot])
+            s1, s2 = int(work[shape_slot + 1]), int(work[shape_slot + 2])
+            return work[o:o + s0 * s1 * s2].reshape((s0, s1, s2))
+    elif ndim == 4:
+        @numba.njit(inline="always")
+        def view(work):
+            o, s0, s1 = int(work[offset_slot]), int(work[shape_slot]), int(work[shape_slot + 1])
+            s2, s3 = int(work[shape_slot + 2]), int(work[shape_slot + 3])
+            return work[o:o + s0 * s1 * s2 * s3].reshape((s0, s1, s2, s3))
+    else:
+        raise InputError(f"taylor_work_shape of {ndim} dimensions is not supported (1 to 4)")
+    return view
