@@ -117,33 +117,45 @@ class Unmeasurable(Exception):
 
 
 def _stepper(scheme, problem) -> Callable[[np.ndarray, np.ndarray, float], bool]:
-    """step(u, params, h) -> accepted: one step of the scheme's own kernel, in place on u."""
+    """step(u, params, h) -> accepted: one step of the scheme's own compiled step, in place on
+    u, taken by the very loop its runs use (``cached_kernel``, called with the argument types
+    of a run): the matrix's harmonic cells have compiled it already, so a cold main job's
+    intervals cost a disk load per scheme, not a compile of the bare step (15 core-s).
+    Accepted: the step returned OK (a non-finite result included: its growth is inf); an
+    adaptive step must also have been taken whole, at once (error control off)."""
     from . import drivers
-    from .integrator import AdaptiveIntegrator, FixedStepIntegrator
+    from .integrator import AdaptiveIntegrator, FixedStepIntegrator, cached_kernel
 
     reason = scheme.incompatibility(problem)
     if reason:
         raise Unmeasurable(reason)
+    dim = problem.dim
+    out_t, out_u = np.empty(2), np.empty((2, dim))
     if isinstance(scheme, FixedStepIntegrator):
-        step = scheme.make_step(problem)
+        loop = cached_kernel(scheme, problem, lambda: drivers.fixed_step_loop(scheme.make_step(problem)))
         work = np.zeros(scheme.work_shape(problem))
         scheme.prepare_work(problem, work)
+        sample_at = np.array([1, 2])
 
         def one(u, params, h):
-            w = work.copy()  # a multi-step scheme's memory must not carry from the last point
-            return step(0.0, u, h, params, w, drivers.new_counters(), True) == drivers.OK
+            # a fresh work: a multi-step scheme's memory must not carry from the last point
+            status = loop(u, 0.0, h, h, 0, 1, 1, sample_at, 0, 0, params, work.copy(), out_t, out_u,
+                          drivers.new_counters(), math.inf)[0]
+            return status != drivers.FAILED
 
         return one
     if isinstance(scheme, AdaptiveIntegrator):
-        try_step = scheme.make_try_step(problem)
+        loop = cached_kernel(scheme, problem, lambda: drivers.adaptive_loop(scheme.make_try_step(problem)))
         work = np.zeros(scheme.work_shape(problem))
         scheme.prepare_work(problem, work)
-        u_new = np.empty(problem.dim)
+        u_new = np.empty(dim)
 
         def one(u, params, h):
-            code, taken, _ = try_step(0.0, u.copy(), h, params, work.copy(), drivers.new_counters(), u_new)
-            u[:] = u_new
-            return code == 1 and taken == h
+            counters = drivers.new_counters()
+            status = loop(u, 0.0, h, h, h, 1, params, work.copy(), u_new, out_t, out_u, counters,
+                          np.array([math.inf, 0.0]), math.inf)[0]
+            whole = counters[drivers.STEPS] == 1 and counters[drivers.REJECTED] == 0
+            return status in (drivers.OK, drivers.DIVERGED) and whole
 
         return one
     raise Unmeasurable(f"{scheme.name} is a {scheme.kind} integrator: no step kernel to measure")
