@@ -116,7 +116,7 @@ class Unmeasurable(Exception):
     """The scheme has no step kernel to measure, or cannot step this problem."""
 
 
-def _stepper(scheme, problem) -> Callable[[np.ndarray, np.ndarray, float], bool]:
+def one_step(scheme, problem) -> Callable[[np.ndarray, np.ndarray, float], bool]:
     """step(u, params, h) -> accepted: one step of the scheme's own compiled step, in place on
     u, taken by the very loop its runs use (``cached_kernel``, called with the argument types
     of a run): the matrix's harmonic cells have compiled it already, so a cold main job's
@@ -214,7 +214,7 @@ def region(name: str, re: Sequence[float], im: Sequence[float], order: int | Non
     """|R(z)| on the grid z = re[j] + i im[k] (shape (len(im), len(re))); nan where the step
     fails (an implicit solve that does not converge)."""
     scheme = _scheme(name, order)
-    step = _stepper(scheme, LinearTest())
+    step = one_step(scheme, LinearTest())
     out = np.empty((len(im), len(re)))
     for k, y in enumerate(im):
         for j, x in enumerate(re):
@@ -229,7 +229,7 @@ def imaginary_growth(name: str, ys: Iterable[float], order: int | None = None,
 
     scheme = _scheme(name, order)
     problem = Harmonic()
-    step = _stepper(scheme, problem)
+    step = one_step(scheme, problem)
     return np.array([_growth(step, problem.params, float(y), phases)[1] for y in ys])
 
 
