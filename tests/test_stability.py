@@ -71,3 +71,26 @@ def test_cached_texts_leave_only_what_a_page_would_have_to_measure(tmp_path, mon
     assert interval_texts({"rk4": None}, compute=True)["rk4"].startswith("[0, 2.82")
     texts, missing = cached_texts(wanted)
     assert missing == {} and texts["rk4"].startswith("[0, 2.82")
+
+
+@pytest.mark.parametrize("name", ["rk4", "gauss4", "rk45", "bpl"])
+def test_one_step_runs_the_loop_a_run_compiled(name):
+    """The interval is measured through the very loop the scheme's runs use, called with a
+    run's argument types: after a run on the harmonic oscillator one_step takes the same
+    compiled loop and adds no signature to it (a cold main job loads, not compiles, it)."""
+    from longtime import registry
+    from longtime.integrator import _PAIRS
+    from longtime.problems.harmonic import Harmonic
+
+    problem = Harmonic()
+    run = registry.integrator_class(name)()
+    run.integrate(problem, 1.0, max_samples=3)
+    loop = _PAIRS[run][id(problem)][1]
+    signatures = list(loop.signatures)
+    measured = stability._scheme(name)
+    step = stability.one_step(measured, problem)
+    u = np.array([1.0, 0.0])
+    assert step(u, problem.params, 0.5)
+    assert abs(math.hypot(*u) - 1.0) < 1e-2  # one step of a rotation keeps |u| near 1
+    assert _PAIRS[measured][id(problem)][1] is loop
+    assert list(loop.signatures) == signatures
