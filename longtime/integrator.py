@@ -288,12 +288,16 @@ class FixedStepIntegrator(Integrator):
         dt = self.settings.get("dt")
         return float(problem.default_dt if dt is None else dt)
 
+    def compiled_loop(self, problem: Problem) -> Callable:
+        """The compiled step loop (drivers.fixed_step_loop) runs and stability measurements use."""
+        return cached_kernel(self, problem, lambda: drivers.fixed_step_loop(self.make_step(problem)))
+
     def _integrate(self, problem, t_final, max_samples):
         dt = self.dt_for(problem)
         span = t_final - problem.t0
         nsteps = max(1, math.ceil(span / dt - 1e-9))
         sample_at = _sample_steps(nsteps, max_samples)
-        loop = cached_kernel(self, problem, lambda: drivers.fixed_step_loop(self.make_step(problem)))
+        loop = self.compiled_loop(problem)
         work = np.zeros(self.work_shape(problem))
         self.prepare_work(problem, work)
         n_out = sample_at.size + 1  # the initial state, the samples, a blow-up or a stop
@@ -357,8 +361,12 @@ class AdaptiveIntegrator(Integrator):
     def max_step(self, problem: Problem, t_final: float) -> float:
         return float(self.settings.get("max_dt") or (t_final - problem.t0))
 
+    def compiled_loop(self, problem: Problem) -> Callable:
+        """The compiled step loop (drivers.adaptive_loop) runs and stability measurements use."""
+        return cached_kernel(self, problem, lambda: drivers.adaptive_loop(self.make_try_step(problem)))
+
     def _integrate(self, problem, t_final, max_samples):
-        loop = cached_kernel(self, problem, lambda: drivers.adaptive_loop(self.make_try_step(problem)))
+        loop = self.compiled_loop(problem)
         work = np.zeros(self.work_shape(problem))
         self.prepare_work(problem, work)
         h0, h_max = self.initial_step(problem, t_final), self.max_step(problem, t_final)

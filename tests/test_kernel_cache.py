@@ -13,7 +13,6 @@ from _plugins import install_plugin, longtime
 
 from longtime import FixedStepIntegrator, drivers
 from longtime.cli import main
-from longtime.integrator import cached_kernel
 from longtime.problems.toda import Toda
 
 
@@ -62,7 +61,7 @@ def _private_cache(tmp_path, env):
 
 
 def _loop(scheme, problem):
-    return cached_kernel(scheme, problem, lambda: drivers.fixed_step_loop(scheme.make_step(problem)))
+    return scheme.compiled_loop(problem)
 
 
 def test_a_step_that_captures_the_dimension_never_runs_another_dimension():
