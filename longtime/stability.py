@@ -159,7 +159,12 @@ def one_step(scheme, problem) -> Callable[[np.ndarray, np.ndarray, float], bool]
             return status in (drivers.OK, drivers.DIVERGED) and whole
 
         return one
-    raise Unmeasurable(f"{scheme.name} is a {scheme.kind} integrator: no step kernel to measure")
+    raise Unmeasurable(f"{scheme.name} is {_kind(scheme.kind)} integrator: no step kernel to measure")
+
+
+def _kind(kind: str) -> str:
+    """"an external", "a fixed": the kind with its article."""
+    return ("an " if kind[:1] in "aeiou" else "a ") + kind
 
 
 def _scheme(name: str, order: int | None = None):
@@ -174,7 +179,7 @@ def _scheme(name: str, order: int | None = None):
     from .integrator import AdaptiveIntegrator, FixedStepIntegrator
 
     if not issubclass(cls, (FixedStepIntegrator, AdaptiveIntegrator)):
-        raise Unmeasurable(f"{name} is a {cls.kind} integrator: no step kernel to measure")
+        raise Unmeasurable(f"{name} is {_kind(cls.kind)} integrator: no step kernel to measure")
     return cls(**settings)
 
 

@@ -94,3 +94,8 @@ def test_one_step_runs_the_loop_a_run_compiled(name):
     assert abs(math.hypot(*u) - 1.0) < 1e-2  # one step of a rotation keeps |u| near 1
     assert _PAIRS[measured][id(problem)][1] is loop
     assert list(loop.signatures) == signatures
+
+
+def test_a_scheme_without_a_step_kernel_is_named_in_plain_words():
+    with pytest.raises(stability.Unmeasurable, match="heyoka is an external integrator: no step kernel"):
+        stability._scheme("heyoka")
