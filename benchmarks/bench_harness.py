@@ -14,8 +14,9 @@ process's time into
 It runs the cells twice and reports the second pass (the first fills the caches: a warm
 run). With ``--cold`` the first pass starts from empty numba, longtime and heyoka caches
 (temporary folders), and its breakdown is printed too: there "untimed run" is mostly
-compilation (numba's and heyoka's LLVM) and "reference" computes each reference. The main job adds worker start-up and store writes on top, and after the cells the
-terminal summary and the results page, whose wall seconds it prints last.
+compilation (numba's and heyoka's LLVM) and "reference" computes each reference. The main
+job adds worker start-up and store writes on top, and after the cells the terminal summary
+and the results page, whose wall seconds it prints last.
 
     python benchmarks/bench_harness.py                        # the default matrix
     python benchmarks/bench_harness.py -p toda,kepler -i rk4,verlet,gauss4,rk45,bpl

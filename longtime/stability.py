@@ -130,12 +130,14 @@ def one_step(scheme, problem) -> Callable[[np.ndarray, np.ndarray, float], bool]
     reason = scheme.incompatibility(problem)
     if reason:
         raise Unmeasurable(reason)
-    dim = problem.dim
-    out_t, out_u = np.empty(2), np.empty((2, dim))
-    if isinstance(scheme, FixedStepIntegrator):
-        loop = scheme.compiled_loop(problem)
-        work = np.zeros(scheme.work_shape(problem))
-        scheme.prepare_work(problem, work)
+    fixed = isinstance(scheme, FixedStepIntegrator)
+    if not (fixed or isinstance(scheme, AdaptiveIntegrator)):
+        raise Unmeasurable(f"{scheme.name} is {_kind(scheme.kind)} integrator: no step kernel to measure")
+    loop = scheme.compiled_loop(problem)
+    work = np.zeros(scheme.work_shape(problem))
+    scheme.prepare_work(problem, work)
+    out_t, out_u = np.empty(2), np.empty((2, problem.dim))
+    if fixed:
         sample_at = np.array([1, 2])
 
         def one(u, params, h):
@@ -145,21 +147,16 @@ def one_step(scheme, problem) -> Callable[[np.ndarray, np.ndarray, float], bool]
             return status != drivers.FAILED
 
         return one
-    if isinstance(scheme, AdaptiveIntegrator):
-        loop = scheme.compiled_loop(problem)
-        work = np.zeros(scheme.work_shape(problem))
-        scheme.prepare_work(problem, work)
-        u_new = np.empty(dim)
+    u_new = np.empty(problem.dim)
 
-        def one(u, params, h):
-            counters = drivers.new_counters()
-            status = loop(u, 0.0, h, h, h, 1, params, work.copy(), u_new, out_t, out_u, counters,
-                          np.array([math.inf, 0.0]), math.inf)[0]
-            whole = counters[drivers.STEPS] == 1 and counters[drivers.REJECTED] == 0
-            return status in (drivers.OK, drivers.DIVERGED) and whole
+    def one(u, params, h):
+        counters = drivers.new_counters()
+        status = loop(u, 0.0, h, h, h, 1, params, work.copy(), u_new, out_t, out_u, counters,
+                      np.array([math.inf, 0.0]), math.inf)[0]
+        whole = counters[drivers.STEPS] == 1 and counters[drivers.REJECTED] == 0
+        return status in (drivers.OK, drivers.DIVERGED) and whole
 
-        return one
-    raise Unmeasurable(f"{scheme.name} is {_kind(scheme.kind)} integrator: no step kernel to measure")
+    return one
 
 
 def _kind(kind: str) -> str:
