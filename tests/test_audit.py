@@ -20,7 +20,7 @@ from longtime import FixedStepIntegrator, registry
 from longtime import cells as cells_module
 from longtime.cells import SWEEP_PARAMETERS, Cell, run_cell
 from longtime.cli import main
-from longtime.integrator import Timing
+from longtime.integrator import Timing, same_run
 
 # tiny problems, first compatible one wins (constraints: the pendulum; a linear part: kdv)
 PROBLEMS = (("harmonic", {}), ("kepler", {}), ("double-pendulum", {}), ("kdv", {"d": 16}))
@@ -75,11 +75,6 @@ def run(monkeypatch, scheme, settings, t_final=None, max_samples=100_001, timing
     monkeypatch.undo()
     assert row["status"] != "failed" or "traj" in seen, row["message"]
     return row, seen.get("traj")
-
-
-def same_run(a, b) -> bool:
-    return (a.status == b.status and a.counters == b.counters and a.t.tobytes() == b.t.tobytes()
-            and a.u.tobytes() == b.u.tobytes())
 
 
 PARAMETERS = [(s, k) for s in SCHEMES for k in registry.integrator_class(s).parameters]

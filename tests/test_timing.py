@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from longtime.cells import Cell, run_cell
-from longtime.integrator import Integrator, Timing, Trajectory
+from longtime.integrator import Integrator, Timing, Trajectory, same_run
 from longtime.params import InputError
 from longtime.problems.harmonic import Harmonic
 
@@ -76,3 +76,18 @@ def test_rows_carry_the_spread_and_real_schemes_repeat_bitwise():
         assert row["repeats"] == 3
         assert 0 < row["cpu_s"] <= row["cpu_s_median"] <= row["cpu_s_max"]
         assert 0 < row["wall_s"] <= row["wall_s_median"] <= row["wall_s_max"]
+
+
+def test_same_run_compares_bits():
+    """Repeats are compared bit for bit: the same NaN is equal, -0.0 is not 0.0, one ulp
+    apart is not equal, and a strided view compares by its values."""
+    def traj(u):
+        return Trajectory("ok", "", np.arange(u.shape[0], dtype=float), u, 0.0, 0.0, {"steps": 1})
+
+    u = np.array([[1.0, np.nan], [0.0, 2.0]])
+    assert same_run(traj(u), traj(u.copy()))
+    assert not same_run(traj(u), traj(np.array([[1.0, np.nan], [-0.0, 2.0]])))
+    assert not same_run(traj(u), traj(np.array([[np.nextafter(1.0, 2.0), np.nan], [0.0, 2.0]])))
+    assert not same_run(traj(u), traj(u[:1]))
+    wide = np.array([[1.0, 9.0, np.nan], [0.0, 9.0, 2.0]])
+    assert same_run(traj(u), traj(wide[:, ::2]))
