@@ -11,11 +11,12 @@ run in a new folder under a temporary one:
     warm   the same command again (``--warm`` times), over the caches the cold run filled
 
 For each run it prints the wall time, the integration the run carried (every timed repeat's
-CPU seconds: the sum of the rows' ``cpu_s_samples``) and that integration's share of the
-machine's core-seconds, integration / (wall x cores). The same cells' integration also tells
-how fast the machine was at that hour: on the 2-core machine of issue 12 the default
-matrix's integration ranged from 56 to 76 core-s over a day, with the wall times in step, so
-compare wall times taken at a similar integration.
+CPU seconds: the sum of the rows' ``cpu_s_samples``), that integration's share of the
+machine's core-seconds, integration / (wall x cores), and wall / integration. The same cells'
+integration also tells how fast the machine was at that hour: on the 2-core machine of issue
+12 the default matrix's integration ranged from 56 to 80 core-s at different hours, the wall times in
+step with it (a warm run's wall / integration stayed at 0.77 to 0.83), so compare wall times
+taken at a similar integration, or their wall / integration.
 
     python benchmarks/bench_main_job.py                  # cold, then two warm runs
     python benchmarks/bench_main_job.py --warm 0         # cold only
@@ -125,11 +126,14 @@ def main(argv: list[str] | None = None) -> int:
             shutil.rmtree(folder, ignore_errors=True)
 
     n = cores()
-    print(f"\n`longtime matrix {' '.join(matrix_args)}`".rstrip() + f" on {n} cores")
-    print(f"{'run':8s} {'wall s':>8s} {'integration core-s':>19s} {'share':>6s} {'rows':>5s} exit")
+    print(f"\n`{' '.join(['longtime matrix', *matrix_args])}` on {n} cores")
+    print(f"{'run':8s} {'wall s':>8s} {'integration core-s':>19s} {'share':>6s} {'wall / integration':>19s} "
+          f"{'rows':>5s} exit")
     for name, r in runs:
         share = r["integration"] / (r["wall"] * n) if r["wall"] > 0 else 0.0
-        print(f"{name:8s} {r['wall']:8.1f} {r['integration']:19.1f} {100 * share:5.0f}% {r['rows']:5d} {r['status']}")
+        per = f"{r['wall'] / r['integration']:.3f}" if r["integration"] > 0 else "-"
+        print(f"{name:8s} {r['wall']:8.1f} {r['integration']:19.1f} {100 * share:5.0f}% {per:>19s} "
+              f"{r['rows']:5d} {r['status']}")
     if any(r["status"] != 0 for _, r in runs):
         print("a run failed: see its stderr.txt (--keep)")
         return 1
