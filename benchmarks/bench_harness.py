@@ -135,8 +135,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.cold:
         if "numba" in sys.modules:
             parser.error("--cold: numba is already imported, its cache folder can no longer change")
+        from bench_main_job import CACHE_VARIABLES  # a sibling script: imports no longtime, no numba
+
         folder = tempfile.mkdtemp(prefix="bench_harness_cold_")
-        for name in ("NUMBA_CACHE_DIR", "LONGTIME_CACHE_DIR", "XDG_CACHE_HOME"):  # XDG: heyoka's disk cache
+        for name in CACHE_VARIABLES:
             os.environ[name] = os.path.join(folder, name.lower())
     from longtime import registry
     from longtime.cells import expand

@@ -29,7 +29,6 @@ after ``--``); the exit status is 1 when one is missed. Nothing here is asserted
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import shutil
 import subprocess
@@ -53,25 +52,12 @@ def longtime_command() -> str:
     return found
 
 
-def cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not Linux
-        return os.cpu_count() or 1
-
-
 def integration_core_s(store: Path) -> tuple[float, int]:
     """Sum of every timed repeat's CPU seconds in ``store``, and its number of rows."""
     from longtime.store import Store
 
     rows = Store(str(store), readonly=True).rows()
-    total = 0.0
-    for row in rows:
-        samples = row.get("cpu_s_samples") or []
-        if isinstance(samples, str):
-            samples = json.loads(samples)
-        total += sum(samples)
-    return total, len(rows)
+    return sum(sum(row.get("cpu_s_samples") or []) for row in rows), len(rows)
 
 
 def run_job(folder: Path, env: dict[str, str], matrix_args: list[str]) -> dict:
@@ -125,7 +111,9 @@ def main(argv: list[str] | None = None) -> int:
         else:
             shutil.rmtree(folder, ignore_errors=True)
 
-    n = cores()
+    from longtime.matrix import ExecOptions
+
+    n = ExecOptions().workers()  # the worker processes the main job ran
     print(f"\n`{' '.join(['longtime matrix', *matrix_args])}` on {n} cores")
     print(f"{'run':8s} {'wall s':>8s} {'integration core-s':>19s} {'share':>6s} {'wall / integration':>19s} "
           f"{'rows':>5s} exit")
