@@ -6,6 +6,6 @@ from .integrator import AdaptiveIntegrator, FixedStepIntegrator, Integrator, Tra
 from .params import InputError, Param
 from .problem import Problem
 
-__version__ = "0.1.0"
+from .version import __version__
 __all__ = ["AdaptiveIntegrator", "FixedStepIntegrator", "InputError", "Integrator", "Param",
            "Problem", "Trajectory", "__version__"]

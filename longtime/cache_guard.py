@@ -4,13 +4,15 @@ compiled afresh, instead of failing the same way on every rerun; and an entry co
 against other code (a callee in another file that changed since) is never loaded.
 
 numba reads its cache in ``IndexDataCacheFile._load_index`` / ``_load_data`` and lets an
-unpickling error through; ``install`` wraps both, and extends ``Cache._index_key``
-(idempotent, no compilation). Imported by longtime.jitcache, so it is in place before any
-kernel or problem function is compiled.
+unpickling error through; ``install`` wraps both, and extends ``Cache._index_key`` with
+what a key function it is given adds (idempotent, no compilation). longtime.jitcache
+installs it with the fingerprint when it is imported, so it is in place before any kernel
+or problem function is compiled.
 """
 from __future__ import annotations
 
 import weakref
+from typing import Any, Callable
 
 from numba.core import caching
 
@@ -23,7 +25,8 @@ def _discard(path: str, exc: BaseException) -> None:
     discard(path, "numba", exc)
 
 
-def install() -> None:
+def install(extra_key: Callable[[Any], tuple]) -> None:
+    """Guard numba's cache files; ``extra_key(py_func)`` is added to every index key."""
     if getattr(_FILE, "_longtime_guarded", False):
         return
     load_index, load_data = _FILE._load_index, _FILE._load_data
@@ -50,24 +53,16 @@ def install() -> None:
     # numba keys an entry by the function's own bytecode, and drops the index only when the
     # function's own file changes: a callee in another module (or a constant imported from
     # one) that changed would still load the old machine code. The key also gets the
-    # function's fingerprint (longtime.jitcache): the bytecode of everything it reaches.
+    # function's fingerprint (``extra_key``): the bytecode of everything it reaches.
     index_key = caching.Cache._index_key
-    # a function's fingerprint, once per process (numba asks on every load and save)
+    # a function's extra key, once per process (numba asks on every load and save)
     known: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
     def _index_key(self, sig, codegen):
         key = index_key(self, sig, codegen)
-        from .jitcache import Unfreezable, fingerprint
-
         func = self._py_func
         if func not in known:
-            try:
-                known[func] = (fingerprint(func),)
-            except (Unfreezable, ImportError):  # nothing to add (an object it cannot describe)
-                known[func] = ()
+            known[func] = extra_key(func)
         return (*key, *known[func])
 
     caching.Cache._index_key = _index_key
-
-
-install()

@@ -19,6 +19,17 @@ from numba.core.registry import CPUDispatcher
 
 from .params import Param
 
+# capability name -> attribute(s) of a problem that provide it
+CAPABILITIES: dict[str, tuple[str, ...]] = {
+    "separable": ("grad_T", "grad_V"),
+    "jacobian": ("jac",),
+    "exact": ("exact",),
+    "heyoka": ("heyoka_system",),
+    "taylor": ("taylor",),
+    "constraints": ("constraints",),
+    "linear_part": ("linear_part", "nonlinear"),
+}
+
 # compiled functions a problem may provide (see docs/plugins.md)
 COMPILED_ATTRIBUTES = ("rhs", "grad_T", "grad_V", "jac", "taylor", "linear_part", "nonlinear")
 CONSTRAINT_FUNCTIONS = ("phi", "grad_phi", "mass", "grad_U")
@@ -50,8 +61,6 @@ def _check_compiled(owner: str, attr: str, raw: Any, via_class: bool = True) -> 
 
 
 def check_problem_definition(cls: type) -> None:
-    from .problem import CAPABILITIES
-
     owner = _owner(cls)
     for attr in COMPILED_ATTRIBUTES:
         if attr in vars(cls):
@@ -75,8 +84,6 @@ def check_problem_definition(cls: type) -> None:
 
 
 def check_integrator_definition(cls: type) -> None:
-    from .problem import CAPABILITIES
-
     owner = _owner(cls)
     known = set(CAPABILITIES) | {"rhs", "invariants", "autonomous"}
     unknown = sorted(set(cls.requires) - known)
@@ -101,12 +108,10 @@ def _check_common(cls: type, owner: str) -> None:
 
 def check_registered(cls: type) -> None:
     """A class loaded from an entry point must be complete (see the module docstring)."""
-    from .problem import Problem
-
     owner = _owner(cls)
     if inspect.isabstract(cls):
         raise ContractError(f"{owner} is abstract: implement {', '.join(sorted(cls.__abstractmethods__))}")
-    if issubclass(cls, Problem) and cls.rhs is None:
+    if hasattr(cls, "rhs") and cls.rhs is None:  # a problem: schemes have no rhs slot
         raise ContractError(f"{owner} has no rhs: every problem provides a compiled rhs(t, u, params, out)")
     for klass in cls.__mro__:
         for attr in inspect.get_annotations(klass):

@@ -37,8 +37,9 @@ from numba.core.registry import CPUDispatcher
 from numba.core.extending import _Intrinsic
 from numba.core.types import Type as NumbaType
 
-from . import cache_guard  # noqa: F401  (a corrupt numba cache file is rebuilt, not fatal)
+from . import cache_guard
 from .cache import cache_dir, digest, discard, write_atomic
+from .version import __version__
 
 _DECORATOR_OPTIONS = ("inline", "fastmath", "error_model", "boundscheck")
 _MODULES: dict[str, types.ModuleType] = {}
@@ -112,8 +113,6 @@ def fingerprint(value: Any) -> str:
     bytes), their compile options and the package version. Equal in every process: no
     ids, addresses or set order go in. Raises Unfreezable for a value it cannot describe
     (an arbitrary object), whose kernel must then not be shared."""
-    from . import __version__  # the package imports this module before it sets the version
-
     chunks: list[bytes | str] = [f"longtime {__version__}"]
     _describe(value, chunks, {})
     return digest(*chunks)
@@ -289,3 +288,14 @@ def _import(name: str, path) -> types.ModuleType:
         del sys.modules[name]
         raise
     return module
+
+
+def _cache_key_extra(func) -> tuple:
+    """What numba's cache index adds to a function's key (cache_guard): its fingerprint."""
+    try:
+        return (fingerprint(func),)
+    except (Unfreezable, ImportError):  # nothing to add (an object it cannot describe)
+        return ()
+
+
+cache_guard.install(_cache_key_extra)  # a corrupt numba cache file is rebuilt, not fatal

@@ -54,20 +54,10 @@ from typing import Any, Callable, ClassVar
 import numba
 import numpy as np
 
+from .contract import CAPABILITIES, check_problem_definition
 from .params import Param, check_state, resolve
 
-# capability name -> attribute(s) that provide it
 BLOWUP_MESSAGE = "state blew up (non-finite or beyond the problem's bound) at t={t:.6g}"
-
-CAPABILITIES: dict[str, tuple[str, ...]] = {
-    "separable": ("grad_T", "grad_V"),
-    "jacobian": ("jac",),
-    "exact": ("exact",),
-    "heyoka": ("heyoka_system",),
-    "taylor": ("taylor",),
-    "constraints": ("constraints",),
-    "linear_part": ("linear_part", "nonlinear"),
-}
 
 
 def separable_rhs(grad_T: Callable, grad_V: Callable) -> Callable:
@@ -126,8 +116,6 @@ class Problem(ABC):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        from .contract import check_problem_definition
-
         check_problem_definition(cls)  # a plugin that breaks the contract fails at import
 
     def __init__(self, **settings: Any) -> None:

@@ -418,7 +418,7 @@ def test_numba_cache_of_a_function_whose_callee_changed_is_not_used(tmp_path):
     """numba keys a cached function by its own bytecode and its own file: a callee edited in
     another file used to leave the caller's cache valid, and the old code ran. The cache
     guard adds the fingerprint of everything the function reaches to the key."""
-    (tmp_path / "caller.py").write_text("import longtime.cache_guard\n" + CALLER)
+    (tmp_path / "caller.py").write_text("import longtime.jitcache\n" + CALLER)
     callee = tmp_path / "callee.py"
     path = os.pathsep.join(p for p in (str(tmp_path), os.environ.get("PYTHONPATH")) if p)
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"), "PYTHONPATH": path}
