@@ -1,0 +1,106 @@
+"""Discovery of problems and schemes (longtime.registry), on entry points made in the test:
+what loads, what is broken and why, and how name clashes resolve."""
+from dataclasses import dataclass
+from types import SimpleNamespace
+
+import pytest
+
+from longtime import InputError, registry
+from longtime.problems.harmonic import Harmonic
+from longtime.integrators.splitting import Verlet
+
+
+@dataclass
+class FakeEntryPoint:
+    name: str
+    value: str
+    target: object
+    dist_name: str = "a-plugin"
+
+    @property
+    def dist(self):
+        return SimpleNamespace(name=self.dist_name)
+
+    def load(self):
+        if isinstance(self.target, Exception):
+            raise self.target
+        return self.target
+
+
+class RenamedHarmonic(Harmonic):
+    name = "harmonic-again"
+
+
+@pytest.fixture
+def fake_points(monkeypatch):
+    """Replace the installed entry points with the ones a test lists; restore the real
+    registry afterwards."""
+    groups = {"longtime.problems": [], "longtime.integrators": []}
+    monkeypatch.setattr(registry, "entry_points", lambda group: list(groups[group]))
+    registry.reload()
+    yield groups
+    monkeypatch.undo()
+    registry.reload()
+
+
+def test_the_installed_built_ins_load_and_none_is_broken():
+    registry.reload()
+    assert {"harmonic", "kepler", "toda"} <= set(registry.problems())
+    assert {"rk4", "verlet", "gauss4"} <= set(registry.integrators())
+    assert registry.problem_class("kepler").name == "kepler"
+    assert [b for b in registry.broken() if b.target.startswith("longtime.")] == []
+
+
+def test_a_plugin_that_fails_to_import_is_broken_and_the_rest_load(fake_points):
+    fake_points["longtime.problems"] += [
+        FakeEntryPoint("harmonic", "longtime.problems.harmonic:Harmonic", Harmonic, "longtime"),
+        FakeEntryPoint("exploding", "boom:Problem", ImportError("no module named boom")),
+    ]
+    registry.reload()
+    assert list(registry.problems()) == ["harmonic"]
+    (bad,) = registry.broken()
+    assert bad.name == "exploding" and "no module named boom" in bad.error
+    with pytest.raises(InputError, match="'exploding' is a broken plugin: .*boom"):
+        registry.problem_class("exploding")
+
+
+def test_a_class_of_the_wrong_kind_or_name_is_broken(fake_points):
+    fake_points["longtime.problems"] += [
+        FakeEntryPoint("not-a-problem", "x:Verlet", Verlet),
+        FakeEntryPoint("other-name", "x:RenamedHarmonic", RenamedHarmonic),
+    ]
+    registry.reload()
+    assert registry.problems() == {}
+    errors = {b.name: b.error for b in registry.broken()}
+    assert "is not a subclass of longtime.problem.Problem" in errors["not-a-problem"]
+    assert "is named 'harmonic-again' but registered as 'other-name'" in errors["other-name"]
+
+
+def test_a_clash_with_a_built_in_keeps_the_built_in(fake_points):
+    fake_points["longtime.integrators"] += [
+        FakeEntryPoint("verlet", "longtime.integrators.splitting:Verlet", Verlet, "longtime"),
+        FakeEntryPoint("verlet", "mine:Verlet", Verlet, "my-plugin"),
+    ]
+    registry.reload()
+    assert registry.integrators() == {"verlet": Verlet}
+    (bad,) = registry.broken()
+    assert bad.target == "mine:Verlet" and "the built-in keeps it" in bad.error
+
+
+def test_a_clash_between_plugins_loads_neither(fake_points):
+    fake_points["longtime.integrators"] += [
+        FakeEntryPoint("leap", "one:Verlet", Verlet, "plugin-one"),
+        FakeEntryPoint("leap", "two:Verlet", Verlet, "plugin-two"),
+    ]
+    registry.reload()
+    assert registry.integrators() == {}
+    assert len(registry.broken()) == 2
+    assert all("none of them is loaded" in b.error for b in registry.broken())
+
+
+def test_unknown_names_are_reported_together_with_the_closest(fake_points):
+    fake_points["longtime.problems"] += [
+        FakeEntryPoint("harmonic", "longtime.problems.harmonic:Harmonic", Harmonic, "longtime")]
+    registry.reload()
+    with pytest.raises(InputError, match=r"'harmonik' \(did you mean harmonic\?\), 'zzz'"):
+        registry.check_names("problem", ["harmonik", "zzz", "harmonic"])
