@@ -62,16 +62,16 @@ def reached_round_off(delta, previous, scale):
 @numba.njit(cache=True, inline="always")
 def copy_into(dst, src):
     """dst[:] = src element by element. A slice assignment makes numba compile its
-    shape-mismatch error message (string formatting), which cost about 3 s of every cold
-    kernel compile (benchmarks/bench_compile.py --events)."""
+    shape-mismatch error message (string formatting), a large share of every cold kernel
+    compile (``python benchmarks/bench_compile.py --events`` lists it)."""
     for i in range(src.size):
         dst[i] = src[i]
 
 
 def inlined(dispatcher):
     """The same compiled function, inlined where it is called (numba IR inlining). A step
-    compiled apart is a call the optimiser cannot see into: on a cheap step (Verlet on the
-    figure-eight) that call cost 30 % of the run (benchmarks/bench_kernels.py)."""
+    compiled apart is a call the optimiser cannot see into, a visible share of a cheap
+    step's run (``python benchmarks/bench_kernels.py`` compares against hand-written loops)."""
     options = dict(dispatcher.targetoptions)
     if options.get("inline") == "always":
         return dispatcher
@@ -123,7 +123,7 @@ def fixed_step_loop(step):
 
 def sample_steps(nsteps: int, max_samples: int, per_decade: int = 20) -> np.ndarray:
     """Step counts after which a fixed-step run records its state: every ``stride``-th step
-    (stride = ceil(nsteps / (max_samples - 1)), as before) and, when max_samples allows,
+    (stride = ceil(nsteps / (max_samples - 1))) and, when max_samples allows,
     ``per_decade`` log-spaced steps in every decade of time from the first step, so a long
     run has points in every decade (growth-law fits) and no aliasing with a period. Sorted,
     unique, ending with nsteps, followed by a sentinel (nsteps + 1) the loop never reaches.

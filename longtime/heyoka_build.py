@@ -4,19 +4,14 @@
 Two choices live here:
 
 - **Compact mode for large systems.** heyoka's default straight-line code compiles in a
-  time that grows much faster than the system: toda measured here (double, high accuracy,
-  first build: heyoka's own disk cache makes later builds of a system instant) 3.8 s at
-  d = 32, 8 s at d = 50, 326 s at d = 200; compact mode 0.25 s at d = 2000 and 2.2 s at
-  d = 20000. Above COMPACT_ABOVE state variables the build uses compact mode (heyoka's
-  own advice for large systems), and extended precisions always do (outer solar system in
-  long double: 0.3 s instead of 90 s).
+  time that grows much faster than the system (docs/performance.md has the figures).
+  Above COMPACT_ABOVE state variables the build uses compact mode (heyoka's own advice for
+  large systems), and extended precisions always do.
   The reference (tolerance at double's epsilon, Taylor order 19) switches sooner, above
   REFERENCE_COMPACT_ABOVE: its straight-line code is about twice the default tolerance's, and
   a reference is computed once and then read from its cache, so only its compile is paid on
-  every new setting. Outer solar system (36 variables), first build: 10.0 s straight-line,
-  0.29 s compact; its run to t = 2e6 takes 0.20 s instead of 0.11 s. The ``heyoka`` scheme
-  keeps straight-line code up to COMPACT_ABOVE: its runs are the timed figures, and compact
-  mode runs about twice as long.
+  every new setting. The ``heyoka`` scheme keeps straight-line code up to COMPACT_ABOVE: its
+  runs are the timed figures, and compact mode runs about twice as long.
 - **A compile that can be interrupted.** LLVM runs in a thread (heyoka releases the GIL
   while it compiles), and the caller's thread waits on it in short slices: Ctrl-C reaches the
   waiting thread at once, and a time limit turns a compile that takes too long into
@@ -33,7 +28,7 @@ import numpy as np
 
 from .problem import Problem
 
-COMPACT_ABOVE = 40  # state variables (toda d = 20); at d = 32 straight-line code already takes 3.8 s
+COMPACT_ABOVE = 40  # state variables (toda d = 20)
 REFERENCE_COMPACT_ABOVE = 24  # state variables, for the high-accuracy reference
 _WAIT_SLICE_S = 0.1
 

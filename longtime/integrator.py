@@ -102,8 +102,8 @@ def same_run(a: "Trajectory", b: "Trajectory") -> bool:
 
 def _same_bits(x: np.ndarray, y: np.ndarray) -> bool:
     """Bit-for-bit equality (NaN equals the same NaN, 0.0 differs from -0.0), comparing the
-    float64 samples as 64-bit integers: 25 times faster than comparing their tobytes()
-    copies, which cost about a second of every main job."""
+    float64 samples as 64-bit integers, a view: no copy of the samples is made
+    (docs/performance.md)."""
     if x.shape != y.shape or x.dtype != y.dtype:
         return False
     x, y = np.ascontiguousarray(x), np.ascontiguousarray(y)
@@ -239,7 +239,7 @@ _UNSHARED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 # the loop each (scheme instance, problem instance) pair runs, found once: the timed repeats of
 # a cell (and the chunks of a run) reuse it without building and fingerprinting the closure
-# again, which cost about 2 ms a repeat (benchmarks/bench_harness.py: "untimed run")
+# again (docs/performance.md)
 _PAIRS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 

@@ -169,7 +169,7 @@ def _describe(value: Any, out: list, seen: dict[int, int]) -> None:
 @functools.lru_cache(maxsize=None)
 def _version_of(module: str) -> str:
     # a distribution named as its package (rocket_fft) is found directly; packages_distributions()
-    # scans every installed distribution, about 0.3 s of each worker process, so only as a fallback
+    # scans every installed distribution, a cost every worker process would pay: only as a fallback
     from importlib.metadata import PackageNotFoundError, packages_distributions, version
 
     top = module.partition(".")[0]

@@ -63,8 +63,8 @@ _PIECES = 16
 _TAYLOR: dict[tuple, object] = {}  # compiled integrators, by problem identity and precision
 _CHECKS: dict[str, dict[str, Any]] = {}  # check runs already loaded in this process
 # exact solutions already evaluated in this process, by problem and sample times: the cells of
-# one problem share their sample grids (every scheme at one dt), and kepler's long-double
-# Newton solve costs about 40 ms a grid; the oldest entries go past _EXACT_KEEP
+# one problem share their sample grids (every scheme at one dt), and an exact solution such
+# as kepler's long-double Newton solve is paid once a grid; the oldest entries go past _EXACT_KEEP
 _EXACT: dict[str, np.ndarray] = {}
 _EXACT_KEEP = 64
 

@@ -52,8 +52,7 @@ def one_step(scheme, problem) -> Callable[[np.ndarray, np.ndarray, float], bool]
     """step(u, params, h) -> accepted: one step of the scheme's own compiled step, in place on
     u, taken by the very loop its runs use (``compiled_loop``, called with the argument types
     of a run): the matrix's harmonic cells have compiled it already, so a cold main job's
-    intervals cost a disk load per scheme, not a compile of the bare step (15.6 core-s of the
-    main job before, about 3 after).
+    intervals cost a disk load per scheme, not a compile of the bare step.
     Accepted: the step returned OK (a non-finite result included: its growth is inf); an
     adaptive step must also have been taken whole, at once (error control off)."""
     from . import drivers

@@ -57,8 +57,7 @@ def _minor_labels(axis):
 def plain_log_ticks(ax) -> None:
     """Tick labels of ``ax``'s log axes as plain text: the decades, and 2 and 5 times them on
     an axis narrower than two decades. matplotlib's default labels are mathtext ($10^{-5}$),
-    whose parsing and path layout took most of the results page's time (about 0.5 s a
-    figure)."""
+    whose parsing and path layout would dominate the time the results page takes."""
     from matplotlib.ticker import FuncFormatter
 
     for axis in (ax.xaxis, ax.yaxis):

@@ -206,8 +206,8 @@ def _laplace_sum(t, u, coeffs, work, S, Sd, taylor_fallback):
 
 # -- the robust Pade, compiled once for every problem's kernel
 # Called directly, _prepare_pade (and the robust Pade, SVD and rank decisions under it) is
-# linked into each problem's kernel, and LLVM optimises and emits its code again every time:
-# about 4 s of each bpl kernel's first compile (12 kernels in the default matrix). Instead it
+# linked into each problem's kernel, and LLVM optimises and emits its code again every time
+# (most of a bpl kernel's first compile: docs/performance.md). Instead it
 # is compiled once as a C callback (a numba cfunc, disk-cached like the rest) and a kernel
 # calls it by symbol name, an ExternalFunction that the JIT resolves when the kernel is
 # compiled or loaded from the cache; ``_link_shared_code`` registers the symbol before any

@@ -16,8 +16,8 @@ The scratch array is flat: a header (N, the tolerance, the step's safety factor,
 the problem's scratch starts and its shape), the coefficients (N+1, dim), then the
 problem's own scratch of shape ``taylor_work_shape(N)``. The compiled step reads N and the
 shapes from the header at run time, so one compiled kernel per problem serves every N and
-every tol: taylor-adaptive's tolerance sweep (N follows tol) compiled one kernel per
-tolerance while N was closed over, about 4 s a problem on a cold machine.
+every tol: taylor-adaptive's tolerance sweep (N follows tol) would compile one kernel per
+tolerance if N were closed over.
 """
 from __future__ import annotations
 

@@ -19,8 +19,8 @@ def fit_slope(x: Iterable[float], y: Iterable[float]) -> tuple[float, float | No
     slope = float(xm @ (ly - ly.mean()) / sxx)
     if n < 3:
         return slope, None
-    # Student's t quantile from scipy.special: the same values as scipy.stats.t.ppf (checked
-    # for n < 200), without importing scipy.stats (about 1 s, on the report's critical path)
+    # Student's t quantile from scipy.special: the same values as scipy.stats.t.ppf (tested),
+    # without importing scipy.stats, a slow import on the report's critical path
     from scipy.special import stdtrit
 
     resid = ly - ly.mean() - slope * xm

@@ -28,8 +28,7 @@ numba, and its low-level ``r2c`` / ``c2r`` write into arrays we pass. The grid h
 smallest fast length n >= 3K + 1 (any factors 2, 3, 5: d need not be a power of two).
 ``params`` holds constants only; the rhs allocates its two grid buffers per call (the rhs
 contract has no work array), ``taylor`` keeps its grid rows in ``work``.
-``python benchmarks/bench_kdv_rhs.py`` times the rhs (it replaced a hand-written radix-2
-FFT and is at least 1.6 times faster at every d measured, see there).
+``python benchmarks/bench_kdv_rhs.py`` times the rhs against a hand-written radix-2 FFT.
 
 Capabilities beyond ``rhs``:
   ``exact``        the soliton u0(x - c t), c = c0 (1 + h/(2 delta)), projected on the modes
@@ -117,7 +116,7 @@ def _nonlinear(t, u, params, out):
     """N(u) = -(alpha/2) (u^2)_x in the state's basis."""
     n = int(params[P_N])
     # the rhs contract has no work array and params are constants: the two grid buffers
-    # are allocated per call (about 0.1 us, against a rhs of 1 to 5 us)
+    # are allocated per call (small beside the FFTs of the rhs)
     grid = np.empty(n)
     spec = np.empty(n // 2 + 1, dtype=np.complex128)
     _to_physical(u, params, spec, grid)
@@ -205,7 +204,7 @@ class KdV(Problem):
     default_dt = 1e-3
     sweep_dt = (2e-3, 1e-3)
     sweep_t_final = SOLITON_PERIOD / 2
-    long_t_final = 10 * SOLITON_PERIOD  # 10 periods, for the schemes that can afford it (issue 10)
+    long_t_final = 10 * SOLITON_PERIOD  # 10 periods, for the schemes that can afford it
     sweep_min_tolerance = 1e-7
 
     rhs = staticmethod(_rhs)
@@ -285,7 +284,7 @@ class KdV(Problem):
         momentum = np.sum(U**2, axis=1)  # orthonormal basis: the integral of u^2
         ux2 = np.sum((self.wavenumbers * np.abs(C * self.sigma)) ** 2, axis=1)
         # u^3 has modes up to 3M: its mean is exact on any grid of more than 3M points; the
-        # next fast FFT length is taken (3M+2 = 194 = 2 x 97 took 70 ms for 5001 samples, 200 takes 48)
+        # next fast FFT length is taken (3M+2 itself may have a large prime factor)
         n3 = scipy.fft.next_fast_len(3 * self.modes + 2, real=True)
         chunk = max(1, 2_000_000 // n3)  # bounded memory for long sample sets
         cube = np.concatenate([PERIOD_X * np.mean(self.values(U[i:i + chunk], n3) ** 3, axis=1)

@@ -74,7 +74,7 @@ class Toda(Problem):
     default_dt = 0.1
     sweep_dt = (0.1, 0.05, 0.025)
     sweep_t_final = 500.0
-    long_t_final = 5000.0  # the paper's, for the schemes that can afford it (issue 10)
+    long_t_final = 5000.0  # the paper's, for the schemes that can afford it
 
     rhs = staticmethod(_rhs)
     grad_T = staticmethod(_grad_T)
