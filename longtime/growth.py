@@ -30,7 +30,7 @@ rounding of a few eps per step:
 - an error at most R is round-off: the running maximum of a random walk moves in jumps,
   so its windows disagree by chance and the class is the whole fit's;
 - ``sqrt`` needs an error at most R: a larger error growing like t^0.5 is no walk of
-  round-off, and is ``undetermined``;
+  round-off, and is ``undetermined`` ("not round-off: ...");
 - a run whose samples span under 1.5 decades of t (two windows) is ``undetermined``.
 
 Without ``steps`` R is unknown: every error is held to the windows, and sqrt is not checked.
@@ -140,8 +140,8 @@ def _verdict(alpha: float, windows: list[tuple[float, float]], level: float,
         monotone = bool(np.all(rises > 0) or np.all(rises < 0))
         return "undetermined", f"{'pre-asymptotic: slopes' if monotone else 'slopes disagree:'} {slopes}"
     if name == "sqrt" and bound is not None:
-        return "undetermined", (f"alpha {alpha:.2f} as a random walk, but the error {level:.2g} is above "
-                                f"round-off's {ROUNDOFF_FACTOR:g} eps sqrt(steps) = {bound:.2g}")
+        return "undetermined", (f"not round-off: alpha {alpha:.2f} as a random walk, but the error {level:.2g} is "
+                                f"above {ROUNDOFF_FACTOR:g} eps sqrt(steps) = {bound:.2g}")
     return name, f"slopes {slopes}"
 
 

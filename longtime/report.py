@@ -204,20 +204,24 @@ def _growth_summary(rows: list[dict[str, Any]]) -> list[str]:
     shown = [n for n in (drift, "error") if n in names]
     if not shown:
         return []
-    lines, why = [], []
+    lines, why = [], {}
     for scheme in sorted({r["integrator"] for r in rows}):
         groups: dict[str, list[str]] = {}
         for text, mine in growth_settings([r for r in rows if r["integrator"] == scheme]):
             r = mine[0]
             classes = ", ".join(f"{n} {r.get(f'{n}.growth_class') or '-'}" for n in shown)
             groups.setdefault(classes, []).append(text or "-")
-            why += [f"{scheme} {text} {n}: {r.get(f'{n}.growth_reason') or '-'}".replace("  ", " ")
-                    for n in shown if r.get(f"{n}.growth_class") == "undetermined"]
+            for n in shown:
+                if r.get(f"{n}.growth_class") == "undetermined":
+                    kind, _, detail = str(r.get(f"{n}.growth_reason") or "-").partition(": ")
+                    why.setdefault((kind, scheme, n), []).append(f"{text or '-'} ({detail})" if detail else text)
         if groups:
             lines.append(f"{scheme}: " + "; ".join(f"{c} ({', '.join(t)})" for c, t in groups.items()))
     out = [f"growth of {', '.join(shown)} per setting (the longest run first):"]
     out += [f"  {line}" for line in lines]
-    out += [f"  undetermined: {w}" for w in why]
+    # each undetermined class with its reason: one line per scheme, name and kind of reason
+    out += [f"  undetermined, {kind}: {scheme} {n} at {'; '.join(settings)}"
+            for (kind, scheme, n), settings in sorted(why.items(), key=lambda kv: (kv[0][1], kv[0][2], kv[0][0]))]
     return out if lines else []
 
 
