@@ -45,6 +45,7 @@ from .report import (_not_ok, format_counts, main_t_final, pareto, pareto_field,
 DRIFT_BUDGET_S = 2.0  # stored cpu_s above which a drift curve is not recomputed for the page
 DRIFT_PROBLEM_BUDGET_S = 10.0  # and the stored cpu_s of the curves re-run for one problem, in all
 DRIFT_SAMPLES = 2001
+LINE_STYLES = ("-", "--", ":", "-.")
 MAX_PANELS = 12  # invariants (or diagnostics) a drift figure draws; the caption names the rest
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "*", "h")
 FAMILY_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2",
@@ -238,15 +239,17 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
         if k >= len(names):
             ax.set_visible(False)
             continue
-        for scheme, row, name, t, err in curves:
-            if name != names[k]:
-                continue
+        mine = [c for c in curves if c[2] == names[k]]
+        for i, (scheme, row, name, t, err) in enumerate(mine):
             keep = (t > t[0]) & (err > 0)
             st = style[scheme]
             every = max(1, int(keep.sum()) // 12)
             label = f"{scheme} {setting(row)}"
-            (line,) = ax.loglog(t[keep] - t[0], err[keep], color=st["color"], marker=st["marker"], markevery=every,
-                                ms=4 if len(names) == 1 else 3, lw=0.9, label=label)
+            # curves that coincide (a diagnostic the schemes all follow) stay apart: a dash
+            # pattern and the markers shifted per curve
+            (line,) = ax.loglog(t[keep] - t[0], err[keep], color=st["color"], marker=st["marker"],
+                                markevery=(i % every, every), ms=4 if len(names) == 1 else 3, lw=0.9,
+                                ls=LINE_STYLES[i % len(LINE_STYLES)], label=label)
             handles.setdefault(label, line)
         ax.grid(True, which="both", alpha=0.3)
         if len(names) == 1:
