@@ -3,18 +3,21 @@ script or style from the network, no server).
 
 Head: the run's metadata (command, commit, versions, machine) and the counts of each
 status. Per problem: the work-precision figure (error against the minimum CPU time of the
-repeats, a bar to the slowest repeat), the invariant drift against time for a
-representative setting of each scheme (log-log, so growth laws read as slopes), the
-Pareto front as a table, the growth classes, the fitted orders, and the stability
+repeats, a bar to the slowest repeat), the drift of every invariant against time for a
+representative setting of each scheme (log-log, so growth laws read as slopes; one panel
+per invariant), the change of the problem's diagnostics likewise, the Pareto front as a
+table, the growth classes per scheme and setting, the fitted orders, and the stability
 intervals of the schemes where they were measured. Then one capability matrix, schemes x
 problems: ran / skipped and why / diverged / failed.
 
 Colours: one per scheme family (the module that defines the scheme: explicit RK,
 splitting, ...), a marker per scheme within it; legends sit outside the axes.
 
-The drift curves come from the rows: each keeps the upper envelope of its first
-invariant's error at 80 log-spaced times (``drift_curve``, metrics.drift_envelope), so the
-page runs nothing. Only a row stored before rows kept it is run again, untimed, skipped when
+The drift curves come from the rows: each keeps the upper envelope of every invariant's
+error (and every diagnostic's change) at 80 log-spaced times (``drift_curves``,
+``diag_curves``, metrics.drift_envelope), so the page runs nothing; a row stored when rows
+kept only the first invariant's (``drift_curve``) shows that one. Only a row stored before
+rows kept any is run again, untimed, skipped when
 its stored CPU time exceeds ``DRIFT_BUDGET_S`` or once a problem's re-runs add up to
 ``DRIFT_PROBLEM_BUDGET_S`` (cheapest first); the caption says which setting was drawn and
 names those left out.
@@ -42,6 +45,8 @@ from .report import (_not_ok, format_counts, main_t_final, pareto, pareto_field,
 DRIFT_BUDGET_S = 2.0  # stored cpu_s above which a drift curve is not recomputed for the page
 DRIFT_PROBLEM_BUDGET_S = 10.0  # and the stored cpu_s of the curves re-run for one problem, in all
 DRIFT_SAMPLES = 2001
+LINE_STYLES = ("-", "--", ":", "-.")
+MAX_PANELS = 12  # invariants (or diagnostics) a drift figure draws; the caption names the rest
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "*", "h")
 FAMILY_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2",
                   "#17becf", "#7f7f7f", "#bcbd22")
@@ -164,13 +169,20 @@ def representative(rows: list[dict]) -> dict[str, dict]:
     return out
 
 
-def drift_curve(row: dict) -> tuple[np.ndarray, np.ndarray, str] | None:
-    """(t, e_I(t), invariant name) of a row's setting: the envelope the row keeps
-    (``drift_curve``, from metrics.drift_envelope, t counted from t0), or for a row stored
-    before rows kept one, a run of its setting again (untimed)."""
-    kept = row.get("drift_curve")
-    if isinstance(kept, dict) and kept.get("t"):
-        return np.r_[0.0, kept["t"]], np.r_[0.0, kept["error"]], kept["invariant"]
+def row_curves(row: dict) -> dict[str, list[tuple[str, np.ndarray, np.ndarray]]]:
+    """{"invariant": [(name, t, e(t))], "diagnostic": [...]} of a row's setting, t counted
+    from t[0]: the envelopes the row keeps (``drift_curves`` and ``diag_curves``, from
+    metrics.drift_envelope; a row stored when rows kept only ``drift_curve`` has its first
+    invariant's), or for a row stored before rows kept any, a run of its setting again
+    (untimed)."""
+    def kept(curves, key):
+        return [(c[key], np.r_[0.0, c["t"]], np.r_[0.0, c["error"]]) for c in curves or []
+                if isinstance(c, dict) and c.get("t")]
+
+    if "drift_curve" in row:
+        first = [row["drift_curve"]] if row.get("drift_curve") else []
+        return {"invariant": kept(row["drift_curves"] if "drift_curves" in row else first, "invariant"),
+                "diagnostic": kept(row.get("diag_curves"), "diagnostic")}
     from . import registry
     from .cells import Cell, integrate_cell
     from .metrics import relative_error
@@ -185,46 +197,74 @@ def drift_curve(row: dict) -> tuple[np.ndarray, np.ndarray, str] | None:
             isets[k] = int(row[k]) if k == "order" else row[k]
     problem, traj = integrate_cell(Cell(row["problem"], row["integrator"], psets, isets, row["t_final"]),
                                    max_samples=DRIFT_SAMPLES)
-    inv = problem.invariants(traj.t, traj.u)
-    name = "H" if "H" in inv else next(iter(inv), None)
-    if name is None:
-        return None
-    return traj.t, relative_error(inv[name]), name
+    with np.errstate(all="ignore"):
+        return {kind: [(name, traj.t, relative_error(values)) for name, values in found.items()]
+                for kind, found in (("invariant", problem.invariants(traj.t, traj.u)),
+                                    ("diagnostic", problem.diagnostics(traj.t, traj.u)))}
 
 
-def drift_svg(rows: list[dict], style: dict) -> tuple[str | None, list[str]]:
-    """The drift figure of one problem and the notes on what it leaves out."""
+def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[str | None, list[str]]:
+    """The drift figure of one problem, one panel per invariant (``kind`` "diagnostic": per
+    diagnostic, their change), and the notes on what it leaves out."""
     notes, curves, spent = [], [], 0.0
     # the cheapest first, so a problem's budget leaves out the fewest schemes
     for scheme, row in sorted(representative(rows).items(), key=lambda item: item[1]["cpu_s"]):
-        if "drift_curve" in row and not row["drift_curve"]:
-            continue  # no invariant to draw (a row measured since rows keep their curve)
         rerun = "drift_curve" not in row  # a row stored before rows kept it: run it again
+        if not rerun and not (row.get("drift_curves") or row.get("drift_curve") or row.get("diag_curves")):
+            continue  # nothing to draw (a row measured since rows keep their curves)
         if rerun and (row["cpu_s"] > DRIFT_BUDGET_S or spent + row["cpu_s"] > DRIFT_PROBLEM_BUDGET_S):
             notes.append(f"{scheme}: not drawn (its run takes {row['cpu_s']:.3g} s)")
             continue
         spent += row["cpu_s"] if rerun else 0.0
         try:
-            curve = drift_curve(row)
+            found = row_curves(row)[kind]
         except Exception as exc:  # a scheme that cannot be re-run here leaves a note, not a hole
             notes.append(f"{scheme}: not drawn ({type(exc).__name__}: {exc})")
             continue
-        if curve is not None:
-            curves.append((scheme, row, *curve))
-    if not curves:
+        curves += [(scheme, row, name, t, err) for name, t, err in found]
+    names = list(dict.fromkeys(c[2] for c in curves))
+    if not names:
         return None, notes
+    if len(names) > MAX_PANELS:
+        notes.append(f"{', '.join(names[MAX_PANELS:])}: not drawn here (longtime plot drift --invariant NAME)")
+        names = names[:MAX_PANELS]
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(7.0, 4.2))
-    for scheme, row, t, err, name in curves:
-        keep = (t > t[0]) & (err > 0)
-        st = style[scheme]
-        every = max(1, int(keep.sum()) // 12)
-        ax.loglog(t[keep] - t[0], err[keep], color=st["color"], marker=st["marker"], markevery=every, ms=4,
-                  lw=0.9, label=f"{scheme} {setting(row)}")
-    ax.set_xlabel("t - t0")
-    ax.set_ylabel(f"relative error of {curves[0][4]}")
-    ax.grid(True, which="both", alpha=0.3)
-    _legend_outside(ax)
+    cols = min(len(names), 3)
+    rows_ = -(-len(names) // cols)
+    size = (7.0, 4.2) if len(names) == 1 else (3.2 * cols, 2.6 * rows_ + 0.2)
+    fig, axes = plt.subplots(rows_, cols, figsize=size, squeeze=False, sharex=True)
+    what = "relative error" if kind == "invariant" else "relative change"
+    handles: dict[str, Any] = {}
+    for k, ax in enumerate(axes.flat):
+        if k >= len(names):
+            ax.set_visible(False)
+            continue
+        mine = [c for c in curves if c[2] == names[k]]
+        for i, (scheme, row, name, t, err) in enumerate(mine):
+            keep = (t > t[0]) & (err > 0)
+            st = style[scheme]
+            every = max(1, int(keep.sum()) // 12)
+            label = f"{scheme} {setting(row)}"
+            # curves that coincide (a diagnostic the schemes all follow) stay apart: a dash
+            # pattern and the markers shifted per curve
+            (line,) = ax.loglog(t[keep] - t[0], err[keep], color=st["color"], marker=st["marker"],
+                                markevery=(i % every, every), ms=4 if len(names) == 1 else 3, lw=0.9,
+                                ls=LINE_STYLES[i % len(LINE_STYLES)], label=label)
+            handles.setdefault(label, line)
+        ax.grid(True, which="both", alpha=0.3)
+        if len(names) == 1:
+            ax.set_ylabel(f"{what} of {names[k]}")
+        else:
+            ax.set_title(names[k], fontsize=10)
+            if k % cols == 0:
+                ax.set_ylabel(what, fontsize=9)
+            ax.tick_params(labelsize=8)
+        if k >= len(names) - cols:
+            ax.set_xlabel("t - t0")
+    axes[0, -1 if len(names) >= cols else len(names) - 1].legend(
+        list(handles.values()), list(handles), fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0),
+        borderaxespad=0.0, frameon=False)
+    fig.tight_layout()
     return svg(fig), notes
 
 
@@ -237,7 +277,7 @@ table{border-collapse:collapse;font-size:.85em;margin:.4em 0 1em}
 td,th{border:1px solid #ddd;padding:2px 6px;text-align:left;vertical-align:top}
 th{background:#f3f3f3}td.num{text-align:right;font-variant-numeric:tabular-nums}
 .ok{background:#e8f5e9}.skipped{background:#f5f5f5;color:#666}.diverged{background:#fff3e0}
-.failed,.timeout{background:#ffebee}.flag{color:#b71c1c;font-weight:bold}
+.failed,.timeout{background:#ffebee}.undetermined{background:#fff8e1}.flag{color:#b71c1c;font-weight:bold}
 figure{margin:.5em 0}figure svg{max-width:100%;height:auto}figcaption{font-size:.85em;color:#555}
 .meta td:first-child{font-weight:bold}.note{font-size:.85em;color:#555}
 nav a{margin-right:.8em}
@@ -303,29 +343,46 @@ def _pareto_table(rows: list[dict]) -> str:
                      body))
 
 
+def _growth_cell(row: dict, name: str) -> str:
+    """One growth law as a table cell: the class, alpha and its interval; an undetermined
+    class with its reason beside it, a class with what it rests on as its title."""
+    cls = row.get(f"{name}.growth_class")
+    if not cls:
+        return "<td>-</td>"
+    alpha, ci = row.get(f"{name}.growth"), row.get(f"{name}.growth_ci")
+    text = f"{cls} {alpha:.2f}" if isinstance(alpha, (int, float)) else cls  # exponents: two decimals
+    if isinstance(ci, list) and len(ci) == 2 and all(isinstance(c, (int, float)) for c in ci):
+        text += f" [{ci[0]:.2f}, {ci[1]:.2f}]"
+    if cls == "saturated" and row.get(f"{name}.saturated_t") is not None:
+        text += f" (at t = {_num(row[f'{name}.saturated_t'])}; alpha before)"
+    reason = row.get(f"{name}.growth_reason") or ""
+    if cls == "undetermined":
+        return f'<td class="undetermined">{_e(text)}<br><span class="note">{_e(reason)}</span></td>'
+    return f'<td title="{_e(reason)}">{_e(text)}</td>'
+
+
 def _growth_table(rows: list[dict]) -> str | None:
-    """One line per scheme: per invariant (and the error), the growth classes over its
-    settings and the range of the fitted exponents."""
-    names = sorted({k[: -len(".growth_class")] for r in rows for k in r
-                    if k.endswith(".growth_class") and r.get(k)})
+    """One line per scheme and setting (the longest run first): per invariant and the
+    solution error, the growth class, the fitted exponent and its interval."""
+    from .report import growth_names, growth_settings
+
+    names = growth_names(rows)
     if not names:
         return None
     body = []
-    ok = [r for r in rows if r.get("status") == "ok"]
-    for scheme in sorted({r["integrator"] for r in ok}):
-        mine = [r for r in ok if r["integrator"] == scheme]
-        cells = []
-        for n in names:
-            classes = sorted({str(r[f"{n}.growth_class"]) for r in mine if r.get(f"{n}.growth_class")})
-            exps = [r[f"{n}.growth"] for r in mine if positive(abs(r.get(f"{n}.growth") or 0))
-                    or r.get(f"{n}.growth") == 0]
-            span = "" if not exps else (f" {_num(min(exps))}" if min(exps) == max(exps)
-                                        else f" {_num(min(exps))}..{_num(max(exps))}")
-            cells.append(("/".join(classes) or "-") + span)
-        body.append([scheme, str(len(mine)), *cells])
-    return ('<p class="note">Growth law of each drift (and of the solution error) fitted over time: its class, '
-            'and the fitted exponent (range over the settings).</p>'
-            + _table(["scheme", "settings", *[f"{n}: class exponent" for n in names]], body))
+    for scheme in sorted({r["integrator"] for r in rows}):
+        for text, mine in growth_settings([r for r in rows if r["integrator"] == scheme]):
+            cells = [f"<td>{_e(scheme)}</td>", f"<td>{_e(text or '-')}</td>"]
+            body.append(cells + [_growth_cell(mine[0], n) for n in names])
+    if not body:
+        return None
+    return ('<p class="note">Growth law of each drift (and of the solution error) fitted over time, per setting: '
+            'the class, the exponent alpha of e ~ t^alpha on the last two decades and its interval (it spans the '
+            'slopes on three windows of a decade). A class stands only where the windows agree on it (or the '
+            'error is at round-off); otherwise it is undetermined, with the reason (docs/metrics.md). Hover a '
+            'class for the window slopes.</p>'
+            + _table(["scheme", "setting", *[f"{'solution error' if n == 'error' else n}" for n in names]], body,
+                     raw=True))
 
 
 def _orders_table(fits: list[dict]) -> str | None:
@@ -412,13 +469,17 @@ def _stability_table(found: dict[str, str]) -> str | None:
 
 def problem_figures(rows: list[dict[str, Any]], style: dict, drift: bool = True) -> dict[str, Any]:
     """One problem's figures: {"field", "work_precision" (SVG or None), "drift" (SVG or
-    None), "drift_notes"}."""
+    None), "drift_notes", "diagnostics" (SVG or None: the problem's diagnostics, where its
+    rows keep them), "diagnostics_notes"}."""
     field = pareto_field(rows)
-    out: dict[str, Any] = {"field": field, "work_precision": None, "drift": None, "drift_notes": []}
+    out: dict[str, Any] = {"field": field, "work_precision": None, "drift": None, "drift_notes": [],
+                           "diagnostics": None, "diagnostics_notes": []}
     if field:
         out["work_precision"] = work_precision_svg(rows, field, style)
     if drift:
         out["drift"], out["drift_notes"] = drift_svg(rows, style)
+        if any(r.get("diag_curves") for r in rows):
+            out["diagnostics"], out["diagnostics_notes"] = drift_svg(rows, style, "diagnostic")
     return out
 
 
@@ -565,8 +626,16 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
             fig, notes = figs["drift"], figs["drift_notes"]
             if fig:
                 out.append(f'<h3>Invariant drift against time</h3><figure class="plot">{fig}<figcaption>'
-                           f"Relative error of the invariant, log-log (a slope is a growth law), for each "
-                           f"scheme's setting of median CPU time (the upper envelope each row keeps)."
+                           f"Relative error of each invariant (absolute where it starts at 0), log-log (a "
+                           f"slope is a growth law), for each scheme's setting of median CPU time (the upper "
+                           f"envelope each row keeps); one panel per invariant."
+                           f"{_e(' ' + '; '.join(notes)) if notes else ''}</figcaption></figure>")
+            fig, notes = figs.get("diagnostics"), figs.get("diagnostics_notes") or []
+            if fig:
+                out.append(f'<h3>Diagnostics against time</h3><figure class="plot">{fig}<figcaption>'
+                           f"Change of each diagnostic from its initial value, relative (absolute where it "
+                           f"starts at 0), log-log: quantities the problem watches but the flow does not "
+                           f"conserve, so never a drift and never classed."
                            f"{_e(' ' + '; '.join(notes)) if notes else ''}</figcaption></figure>")
         growth = _growth_table(mine)
         if growth:

@@ -8,8 +8,13 @@ Against the reference, over the samples up to its horizon (``error_horizon`` is 
 one): ``l2_error`` = sqrt(sum |u - u_ref|^2 / sum |u_ref|^2), ``final_error`` the relative
 error at the last sample, null when the horizon ends before it.
 Growth law of each error (longtime.growth): NAME.growth, NAME.growth_ci, NAME.growth_class,
-NAME.saturated_t per invariant, and the same as ``error.`` for the relative solution error
-|u - u_ref| / |u_ref| over the samples up to the horizon.
+NAME.growth_reason, NAME.growth_windows, NAME.saturated_t per invariant, and the same as
+``error.`` for the relative solution error |u - u_ref| / |u_ref| over the samples up to the
+horizon. ``drift_curves`` keeps the drift curve of every invariant (``drift_curve``: the
+first one's alone).
+Diagnostics (``Problem.diagnostics``: quantities watched, not conserved): diag.NAME.max and
+diag.NAME.final of |D(t) - D(0)| / |D(0)| (absolute where D(0) = 0) and their curves in
+``diag_curves``; never a growth class.
 Non-finite values become null: a diverged run is a status, never a NaN in a table.
 """
 from __future__ import annotations
@@ -71,11 +76,13 @@ def drift_fields(name: str, t: np.ndarray, err: np.ndarray) -> dict[str, Any]:
     }
 
 
-def drift_envelope(name: str, t: np.ndarray, err: np.ndarray, points: int = DRIFT_POINTS) -> dict[str, Any] | None:
+def drift_envelope(name: str, t: np.ndarray, err: np.ndarray, points: int = DRIFT_POINTS,
+                   kind: str = "invariant") -> dict[str, Any] | None:
     """A drift curve small enough to keep in the row: e_I at the sample where it is largest
     within each of ``points`` log-spaced bins of t - t0 (its upper envelope, so a bounded
     but oscillating error keeps its peaks), 6 significant digits. The results page draws
-    it; nothing has to be run again to show how the error grew."""
+    it; nothing has to be run again to show how the error grew. ``kind`` names the key
+    that holds ``name`` ("invariant", or "diagnostic" for a diagnostic's curve)."""
     tau = t - t[0]
     keep = (tau > 0) & np.isfinite(err)
     if keep.sum() < 2:
@@ -85,8 +92,31 @@ def drift_envelope(name: str, t: np.ndarray, err: np.ndarray, points: int = DRIF
     bins = np.clip(np.searchsorted(edges, tau, side="right") - 1, 0, points - 1)
     starts = np.flatnonzero(np.r_[True, bins[1:] != bins[:-1]])  # tau is sorted: bins are runs
     peaks = [int(a + np.argmax(e[a:b])) for a, b in zip(starts, np.r_[starts[1:], tau.size])]
-    return {"invariant": name, "t": [float(f"{tau[i]:.6g}") for i in peaks],
+    return {kind: name, "t": [float(f"{tau[i]:.6g}") for i in peaks],
             "error": [float(f"{e[i]:.6g}") for i in peaks]}
+
+
+def diagnostic_fields(problem: Problem, t: np.ndarray, U: np.ndarray, notes: list[str]) -> dict[str, Any]:
+    """``diag.NAME.max``, ``diag.NAME.final`` (the change |D(t) - D(0)| relative to |D(0)|,
+    absolute where D(0) = 0, as for an invariant) and ``diag_curves`` (its envelope, as
+    drift_envelope) of each of the problem's diagnostics; a non-finite value on a finite
+    state is named in ``notes``. Diagnostics are watched, never classed."""
+    out: dict[str, Any] = {}
+    curves = []
+    for name, values in problem.diagnostics(t, U).items():
+        change = relative_error(values)
+        finite = np.isfinite(change)
+        upto = change.size if finite.all() else int(np.argmin(finite))
+        measured = upto >= 2  # the initial state alone measures nothing: null, never 0
+        out[f"diag.{name}.max"] = finite_or_none(np.max(change[:upto])) if measured else None
+        out[f"diag.{name}.final"] = finite_or_none(change[-1]) if measured else None
+        curve = drift_envelope(name, t, change, kind="diagnostic")
+        if curve is not None:
+            curves.append(curve)
+        if not finite.all():
+            notes.append(f"diagnostic {name} is not finite from t = {t[upto]:.6g} on a finite state")
+    out["diag_curves"] = curves or None
+    return out
 
 
 def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
@@ -112,6 +142,8 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
         "final_error": None,
         "error_horizon": None,  # the last sample time the errors cover
         "drift_curve": None,  # null: no invariant (the results page then runs nothing again)
+        "drift_curves": None,  # every invariant's curve, in the problem's order
+        "diag_curves": None,  # every diagnostic's curve
         **growth_fields("error", np.empty(0), np.empty(0), problem.t0),  # null without a reference
         **trust_fields(trust),
     }
@@ -123,16 +155,21 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
         return row
     notes: list[str] = []
     with np.errstate(all="ignore"):
+        curves = []
         for k, (name, values) in enumerate(problem.invariants(t, U).items()):
             err = relative_error(values)
+            curves.append(drift_envelope(name, t, err))
             if k == 0:  # the first invariant (H where there is one: listed first)
-                row["drift_curve"] = drift_envelope(name, t, err)
+                row["drift_curve"] = curves[0]
             row.update(drift_fields(name, t, err))
-            row.update(growth_fields(name, t, err, problem.t0, diverged))
+            row.update(growth_fields(name, t, err, problem.t0, diverged, steps=steps))
             bad = np.flatnonzero(~np.isfinite(err))
             if bad.size:  # a plugin's invariant on a finite state: say so, do not just null it
                 notes.append(f"invariant {name} is not finite from t = {t[bad[0]]:.6g} on a finite state "
                              f"(its drift is measured up to there)")
+        kept = [c for c in curves if c is not None]
+        row["drift_curves"] = kept or None
+        row.update(diagnostic_fields(problem, t, U, notes))
         for name, values in problem.violations(t, U).items():
             values = np.asarray(values, dtype=float)
             measured = values.size >= 2  # the initial state alone: not measured (null, never 0)
@@ -149,7 +186,7 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
             row["l2_error"] = finite_or_none(np.sqrt(np.sum(diff**2) / np.sum(ref**2)))
             # growth law of the relative error |u - u_ref| / |u_ref|, up to the horizon
             rel = diff / np.where(ref > 0, ref, 1.0)
-            row.update(growth_fields("error", t[:k], rel, problem.t0, diverged))
+            row.update(growth_fields("error", t[:k], rel, problem.t0, diverged, steps=steps))
             row["error_horizon"] = float(t[k - 1])
             if k == finite:
                 row["final_error"] = finite_or_none(diff[-1] / ref[-1] if ref[-1] > 0 else diff[-1])

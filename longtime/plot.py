@@ -12,6 +12,7 @@ signature accepts (and that were given, except ``out`` and ``formats``, always g
     dt, t_final             --dt (first value), --t-final
     problem_settings        --set key=value of the problem's parameters
     db, run, metric         the store, the run id ("all": every run), the drift metric
+    invariant               --invariant: the invariant (or diagnostic) a drift figure draws
 
 Every curve a kind draws from integration is computed in that call; work-precision
 draws the rows of the store (the measurements of a `longtime matrix` or `run`).
@@ -61,7 +62,7 @@ def cmd_plot(args) -> int:
     settings: dict[str, Any] = dict(args.set)
     paths = draw(args.kind, args.out, problems=args.problem, schemes=args.integrator, dt=args.dt,
                  t_final=args.t_final, problem_settings=settings or None, db=args.db, run=args.run,
-                 metric=args.metric, formats=tuple(args.format))
+                 metric=args.metric, invariant=args.invariant, formats=tuple(args.format))
     for p in paths:
         print(p)
     return 0
@@ -81,6 +82,8 @@ def add_parser(subparsers) -> None:
     p.add_argument("--db", default=None, help="store to read (work-precision)")
     p.add_argument("--run", default=None, help="run id, 'latest' (default) or 'all' (work-precision)")
     p.add_argument("--metric", choices=DRIFT_METRICS, default=None, help="drift metric of work-precision")
+    p.add_argument("--invariant", default=None, metavar="NAME",
+                   help="drift: the invariant (or diagnostic) to draw, e.g. L (default: H, else the first)")
     p.add_argument("--format", type=cli_args.names, default=["png", "svg"], metavar="FMT[,..]",
                    help="png, svg, pdf (default: png,svg)")
     p.set_defaults(func=cmd_plot)

@@ -22,6 +22,9 @@ Python-level capabilities (vectorised over samples; ``U`` has shape (n, dim)):
 
     invariants(t, U) -> {name: (n,) or (n, k) array}     conserved quantities
     violations(t, U) -> {name: (n,) array}              non-negative residuals (constraints)
+    diagnostics(t, U) -> {name: (n,) or (n, k) array}   quantities watched, not conserved
+                                                        (FPU's mode energies): recorded and
+                                                        drawn, never classed as a drift
     exact(t) -> U                                       exact solution at the times t,
                                                         through the state u0 as rounded
     exact_rtol                                          the relative accuracy of ``exact``
@@ -154,6 +157,12 @@ class Problem(ABC):
 
     def violations(self, t: np.ndarray, U: np.ndarray) -> dict[str, np.ndarray]:
         """Residuals that should stay zero (constraints): {name: (n,)}."""
+        return {}
+
+    def diagnostics(self, t: np.ndarray, U: np.ndarray) -> dict[str, np.ndarray]:
+        """Quantities worth watching that the exact flow does not conserve (energies that
+        modes exchange by design): {name: (n,) or (n, k)}. Each row records how far each
+        moved from its initial value and its curve; none is classed as a drift."""
         return {}
 
     @property

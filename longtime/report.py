@@ -169,20 +169,60 @@ def target_text(p: dict[str, Any]) -> str:
     return f"{p['target']:.0e}" if p["finest"] == p["target"] else f"{p['target']:.0e}..{p['finest']:.0e}"
 
 
+def growth_names(rows: list[dict[str, Any]]) -> list[str]:
+    """The names with a growth class in ``rows``: the invariants in the order the rows give
+    them, then ``error``."""
+    names = list(dict.fromkeys(k[: -len(".growth_class")] for r in rows for k in r
+                               if k.endswith(".growth_class") and r.get(k)))
+    return [n for n in names if n != "error"] + (["error"] if "error" in names else [])
+
+
+def growth_settings(rows: list[dict[str, Any]]) -> list[tuple[str, list[dict[str, Any]]]]:
+    """One scheme's ok rows with a growth class, as (setting text, rows): the longest run
+    first (then the smallest step). The setting names t_final where the scheme ran to
+    more than one."""
+    mine = [r for r in rows if r.get("status") == "ok" and any(k.endswith(".growth_class") and r.get(k) for k in r)]
+    several = len({r.get("t_final") for r in mine}) > 1
+    mine.sort(key=lambda r: (-(r.get("t_final") or 0.0), r.get("dt") or 0.0, r.get("tol") or 0.0, setting(r)))
+    out: list[tuple[str, list[dict[str, Any]]]] = []
+    for r in mine:
+        text = " ".join(x for x in (setting(r), f"t={r['t_final']:.4g}" if several and r.get("t_final") else "") if x)
+        if out and out[-1][0] == text:
+            out[-1][1].append(r)
+        else:
+            out.append((text, [r]))
+    return out
+
+
 def _growth_summary(rows: list[dict[str, Any]]) -> list[str]:
-    """'rk4 linear/sqrt, quadratic' per scheme: the growth classes (issue 10's fields) of
-    the energy H (else the first invariant) and of the solution error, over its settings."""
-    names = sorted({k[: -len(".growth_class")] for r in rows for k in r if k.endswith(".growth_class") and r.get(k)})
+    """Per scheme, the growth class of the energy H (else the first invariant) and of the
+    solution error at each of its settings, the longest run first; settings with the same
+    classes share a group ('rk4: H linear, error quadratic (dt=0.01, dt=0.02)'); then each
+    undetermined class with its reason."""
+    names = growth_names(rows)
     drift = "H" if "H" in names else next((n for n in names if n != "error"), None)
     shown = [n for n in (drift, "error") if n in names]
-    out = []
+    if not shown:
+        return []
+    lines, why = [], {}
     for scheme in sorted({r["integrator"] for r in rows}):
-        mine = [r for r in rows if r["integrator"] == scheme and r.get("status") == "ok"]
-        classes = ["/".join(sorted({str(r[f"{n}.growth_class"]) for r in mine if r.get(f"{n}.growth_class")})) or "-"
-                   for n in shown]
-        if mine and any(c != "-" for c in classes):
-            out.append(f"{scheme} {', '.join(classes)}")
-    return [f"growth of {', '.join(shown)}: " + "; ".join(out)] if out else []
+        groups: dict[str, list[str]] = {}
+        for text, mine in growth_settings([r for r in rows if r["integrator"] == scheme]):
+            r = mine[0]
+            classes = ", ".join(f"{n} {r.get(f'{n}.growth_class') or '-'}" for n in shown)
+            groups.setdefault(classes, []).append(text or "-")
+            for n in shown:
+                if r.get(f"{n}.growth_class") == "undetermined":
+                    kind, _, detail = str(r.get(f"{n}.growth_reason") or "-").partition(": ")
+                    why.setdefault((kind, scheme, n), []).append(f"{text or '-'} ({detail})" if detail else text)
+        if groups:
+            lines.append(f"{scheme}: " + "; ".join(f"{c} ({', '.join(t)})" for c, t in groups.items()))
+    out = [f"growth of {', '.join(shown)} per setting (the longest run first):"]
+    out += [f"  {line}" for line in lines]
+    # each undetermined class with its reason: one line per scheme, name and kind of reason
+    out += [f"  undetermined, {kind}: {scheme} {n} at {'; '.join(settings)}"
+            for (kind, scheme, n), settings in sorted(why.items(), key=lambda kv: (kv[0][1], kv[0][2], kv[0][0]))]
+    return out if lines else []
 
 
 def _order_text(f: dict[str, Any]) -> str:

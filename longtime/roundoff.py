@@ -135,7 +135,7 @@ def study(steps: int = 10**7, ensemble: int = 8, seed: int = 1, jobs: int = 0, s
                "settings": config.label, "steps": single["steps"], "status": single["status"],
                "t_final": float(single["t"][-1]), "cpu_s": single["cpu_s"],
                "nl_iters_per_step": single["nl_iters"] / max(1, single["steps"])}
-        fit = growth_fields("e", single["t"], single["err"], t0)
+        fit = growth_fields("e", single["t"], single["err"], t0, steps=single["steps"])
         row.update(alpha=fit["e.growth"], alpha_ci=fit["e.growth_ci"], law=fit["e.growth_class"],
                    error_max=float(np.max(single["err"])))
         members = [results[i][m] for m in range(ensemble)]
@@ -144,7 +144,7 @@ def study(steps: int = 10**7, ensemble: int = 8, seed: int = 1, jobs: int = 0, s
             if any(not np.array_equal(m["t"], single["t"]) for m in members):
                 raise RuntimeError("ensemble members sampled at different times")  # same dt, same steps
             rms = np.sqrt(np.mean([m["err"] ** 2 for m in members], axis=0))
-            fit = growth_fields("rms", single["t"], rms, t0)
+            fit = growth_fields("rms", single["t"], rms, t0, steps=single["steps"])
             row.update(rms_alpha=fit["rms.growth"], rms_alpha_ci=fit["rms.growth_ci"],
                        rms_law=fit["rms.growth_class"], rms_final=float(rms[-1]),
                        ensemble_cpu_s=float(sum(m["cpu_s"] for m in members)))
@@ -219,7 +219,8 @@ def explain(rows: list[dict], steps: int, ensemble: int, seed: int) -> str:
     return "\n".join([
         f"{steps:.3g} steps of dt = {DT} per run; ensemble of {ensemble} initial states perturbed by a relative "
         f"{PERTURBATION:g} (seed {seed}); alpha of e ~ C t^alpha fitted on the running maximum over the last "
-        "two decades (longtime.growth); `law` classifies alpha (sqrt: 0.25 to 0.75, Brouwer's law is 0.5).",
+        "two decades (longtime.growth); `law` classifies alpha (sqrt: 0.25 to 0.75, Brouwer's law is 0.5; "
+        "undetermined where the data support no class: docs/metrics.md).",
         "",
         "- Brouwer's law (RMS, or the single run without an ensemble): " + ("; ".join(sqrt) or "none") + ".",
         "- Linear or faster drift: " + ("; ".join(linear) or "none") + ".",

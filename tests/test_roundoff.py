@@ -60,7 +60,9 @@ def test_study_rows_have_alpha_and_ensemble_rms():
     assert [r["settings"] for r in rows] == ["plain", "compensated=True"]
     for r in rows:
         assert r["status"] == "ok" and r["steps"] == 2000 and r["ensemble"] == 2
-        assert r["law"] in ("bounded", "sqrt", "linear") and r["rms_final"] > 0
+        # 20 time units: verlet's bounded energy error peaks in the first period, so the
+        # windows' slopes fall (1.52, 0.35, 0.00) and no law is read from them yet
+        assert r["law"] == "undetermined" and r["rms_final"] > 0
     assert "| harmonic | H | verlet | plain |" in markdown(rows)
     with pytest.raises(Exception, match="steps"):
         study(steps=10)

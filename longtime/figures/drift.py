@@ -1,4 +1,4 @@
-"""``drift`` (an invariant's relative error against t) and ``toda-eigenvalues`` (the Lax
+"""``drift`` (an invariant's relative error, or a diagnostic's change, against t) and ``toda-eigenvalues`` (the Lax
 eigenvalues against t): every curve integrated in the call."""
 from __future__ import annotations
 
@@ -13,9 +13,11 @@ from . import pyplot, run, save
 
 def drift(out: Path, formats: Sequence[str] = ("png", "svg"), problems: list[str] | None = None,
           schemes: list[str] | None = None, dt: float | None = None, t_final: float | None = None,
-          problem_settings: dict | None = None, invariant: str = "H") -> list[Path]:
-    """e_H(t) = |H(t) - H(0)| / |H(0)| against t for each scheme (default: the paper's Toda
-    run, RK4 and RK4sym at dt = 0.1 to t = 5000), one panel per problem."""
+          problem_settings: dict | None = None, invariant: str | None = None) -> list[Path]:
+    """e_I(t) = |I(t) - I(0)| / |I(0)| (absolute where I(0) = 0) of the invariant ``invariant``
+    (default: H, else the problem's first) against t for each scheme (default: the paper's
+    Toda run, RK4 and RK4sym at dt = 0.1 to t = 5000), one panel per problem; a diagnostic's
+    name draws its change the same way."""
     from .. import registry
     from ..metrics import relative_error
 
@@ -24,11 +26,17 @@ def drift(out: Path, formats: Sequence[str] = ("png", "svg"), problems: list[str
     plt = pyplot()
     fig, axes = plt.subplots(len(problems), 1, figsize=(8, 3.8 * len(problems)), squeeze=False)
     for ax, name in zip(axes[:, 0], problems):
+        drawn = invariant
         for i, scheme in enumerate(schemes):
             problem, traj = run(name, scheme, dt, t_final, problem_settings)
-            values = problem.invariants(traj.t, traj.u).get(invariant)
+            found = problem.invariants(traj.t, traj.u)
+            watched = problem.diagnostics(traj.t, traj.u)
+            drawn = drawn or ("H" if "H" in found else next(iter(found), None))
+            values = found.get(drawn) if drawn in found else watched.get(drawn)
             if values is None:
-                raise InputError(f"problem '{name}' has no invariant '{invariant}'")
+                known = ", ".join([*found, *watched]) or "none"
+                raise InputError(f"--invariant {drawn}: problem '{name}' has no invariant or diagnostic of that "
+                                 f"name (it has: {known})")
             err = relative_error(values)
             ok = err > 0
             step = dt if dt is not None else problem.default_dt
@@ -39,9 +47,10 @@ def drift(out: Path, formats: Sequence[str] = ("png", "svg"), problems: list[str
             # the first scheme on top: oscillating curves of later ones must not hide it
             ax.semilogy(traj.t[ok], err[ok], lw=0.6, label=label, color=f"C{i}", zorder=len(schemes) - i,
                         alpha=0.9 if i == 0 else 0.6)
+        what = "relative error" if drawn not in watched else "relative change"
         ax.set_xlabel("t")
-        ax.set_ylabel(f"relative error of {invariant}")
-        ax.set_title(f"{problem.describe()}: drift of {invariant}")
+        ax.set_ylabel(f"{what} of {drawn}")
+        ax.set_title(f"{problem.describe()}: {'drift' if drawn not in watched else 'change'} of {drawn}")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
     fig.tight_layout()
