@@ -8,13 +8,13 @@ import argparse
 import dataclasses
 import importlib
 import json
-import shlex
 import sys
 from pathlib import Path
 
 from . import cli_args, registry, stability
 from .cells import DEFAULT_TIME_LIMIT, check_size, expand
 from .integrator import Timing
+from .lifecycle import command_line, recorded_run
 from .matrix import EXECUTORS, ExecOptions, run_matrix
 from .params import InputError
 from .reference import budget_seconds
@@ -156,17 +156,8 @@ def cmd_run(args) -> int:
     executor = args.executor or "serial"
     options = _options(args, executor)
     store = None if args.no_store else Store(args.db)
-    run_id = store.begin_run("run " + shlex.join(sys.argv[1:]), cells) if store else None
-    status = "interrupted"
-    try:
+    with recorded_run(store, command_line(args), cells) as run_id:
         rows = run_matrix(cells, store, run_id, executor, options)
-        status = "done"
-    except InputError:  # rejected as it started (an executor's setting): nothing to resume
-        status = "rejected"
-        raise
-    finally:
-        if store:
-            store.discard_run(run_id) if status == "rejected" else store.finish_run(run_id, status)
     print(render(rows, args.format))  # json: every row with the contract's keys (report.complete)
     return 1 if any(r["status"] == "failed" for r in rows) else 0
 
@@ -190,39 +181,26 @@ def cmd_matrix(args) -> int:
             print(f"run {run_id} ended inside {len(died)} cell(s): they run again one process each", file=sys.stderr)
             keys = {c.key for c in died}
             cells = [c for c in cells if c.key not in keys]
-            status = "interrupted"
-            try:
-                run_matrix(died, store, run_id, "isolated", options)
-            finally:
-                store.finish_run(run_id, status)
     else:
         problems = args.problem or registry.default_problems()
         schemes = args.integrator or sorted(registry.integrators())
         cells = expand(problems, schemes, **_selection(args), default_sweep=True)
         if not args.allow_large:
             check_size(cells, args.max_samples)
-        store = Store(args.db)
-        run_id = store.begin_run("matrix " + shlex.join(sys.argv[2:]), cells)
-        print(f"run {run_id}: {len(cells)} cells into {store.path}", file=sys.stderr)
+        store, run_id, died = Store(args.db), None, []
     ahead = None
-    if executor == "process" and args.resume is None and not args.no_report and not args.no_html:
-        from .html_report import FiguresAhead
+    with recorded_run(store, command_line(args), cells, run_id) as run_id:
+        if args.resume is None:
+            print(f"run {run_id}: {len(cells)} cells into {store.path}", file=sys.stderr)
+        if died:
+            run_matrix(died, store, run_id, "isolated", options)
+        if executor == "process" and args.resume is None and not args.no_report and not args.no_html:
+            from .html_report import FiguresAhead
 
-        ahead = FiguresAhead(cells, run_id)  # the page's figures on workers that have no cell left
-        options = dataclasses.replace(options, idle_work=ahead.task)
-    status = "interrupted"
-    try:
+            ahead = FiguresAhead(cells, run_id)  # the page's figures on workers that have no cell left
+            options = dataclasses.replace(options, idle_work=ahead.task)
         run_matrix(cells, store, run_id, executor, options,
                    progress=not args.no_progress, on_row=ahead.add if ahead is not None else None)
-        status = "done"
-    except InputError:  # rejected as it started (an executor's setting): nothing to resume
-        status = "rejected"
-        raise
-    finally:
-        if status == "rejected" and args.resume is None:
-            store.discard_run(run_id)
-        else:
-            store.finish_run(run_id, "interrupted" if status == "rejected" else status)
     if not args.no_report:
         from .report import report_text, write_html
 
@@ -322,7 +300,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
+    args.argv = argv  # the command a run records (lifecycle.command_line)
     try:
         return int(args.func(args) or 0)
     except InputError as exc:

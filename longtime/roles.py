@@ -73,6 +73,11 @@ def search_range(param: Param) -> tuple[float, float]:
     return param.search or DEFAULT_SEARCH
 
 
+def row_columns() -> list[str]:
+    """The row parameters in the order a cell's axes nest (by role): dt, tol, eps_res, order."""
+    return sorted(ROW_PARAMETERS, key=lambda k: ROLES.index(ROW_PARAMETERS[k][0]))
+
+
 def order_axes(names: Iterable[str], classes: Iterable[type]) -> list[str]:
     """``names`` in the order a cell's axes nest: by role, then as given."""
     params = declared(classes)
