@@ -10,7 +10,7 @@ from typing import Any, Iterable
 import pandas as pd
 
 from .fmt import number, positive
-from .roles import ROW_PARAMETERS, row_columns
+from .roles import ROW_PARAMETERS, row_columns, row_fields
 
 # the JSON contract (README.md, `--format json`): every row carries these keys (null where not applicable)
 CONTRACT_FIELDS = ("problem", "integrator", "status", "message", *ROW_PARAMETERS,
@@ -109,12 +109,10 @@ def format_counts(counts: dict[str, int]) -> str:
 def setting(row: dict[str, Any]) -> str:
     """The swept parameters of a row as text: 'dt=0.01', 'tol=1e-08', 'eps_res=1e-06 N=10'
     (the step only where no accuracy parameter is set), then its other settings."""
-    role = {k: r for k, (r, _) in ROW_PARAMETERS.items()}
-    accuracy = any(row.get(k) for k in role if role[k] == "accuracy")
-    parts = [f"{k}={row[k]:.3g}" for k in PARAMETER_COLUMNS if role.get(k) in ("step", "accuracy")
-             and positive(row.get(k)) and not (role[k] == "step" and accuracy)]
-    parts += [f"N={int(row[k])}" for k in role if role[k] == "order" and row.get(k) is not None
-              and row.get(k) == row.get(k)]
+    accuracy = any(row.get(k) for k in row_fields("accuracy"))
+    parts = [f"{k}={row[k]:.3g}" for k in (*row_fields("step"), *row_fields("accuracy"))
+             if positive(row.get(k)) and not (k in row_fields("step") and accuracy)]
+    parts += [f"N={int(row[k])}" for k in row_fields("order") if row.get(k) is not None and row.get(k) == row.get(k)]
     if row.get("settings"):
         parts.append(str(row["settings"]))
     return " ".join(parts)

@@ -78,6 +78,11 @@ def row_columns() -> list[str]:
     return sorted(ROW_PARAMETERS, key=lambda k: ROLES.index(ROW_PARAMETERS[k][0]))
 
 
+def row_fields(role: str) -> list[str]:
+    """The row parameters of ``role``: row_fields("accuracy") == ["tol", "eps_res"]."""
+    return [k for k, (r, _) in ROW_PARAMETERS.items() if r == role]
+
+
 def order_axes(names: Iterable[str], classes: Iterable[type]) -> list[str]:
     """``names`` in the order a cell's axes nest: by role, then as given."""
     params = declared(classes)
