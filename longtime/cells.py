@@ -9,6 +9,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import numbers
 import time
 import traceback
 from dataclasses import dataclass, field
@@ -80,7 +81,7 @@ def _horizons(t_final: float | Iterable[float] | None) -> list[float | None]:
     """The final times of a sweep: one, several, or none (the problem's)."""
     if t_final is None:
         return [None]
-    if isinstance(t_final, (int, float)):
+    if isinstance(t_final, numbers.Real):
         return [t_final]
     values = list(dict.fromkeys(t_final))
     return values or [None]
