@@ -9,19 +9,21 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import numbers
 import time
 import traceback
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping
 
-from . import metrics, registry
+from . import metrics, registry, roles
 from .integrator import FixedStepIntegrator, Integrator, Timing, Trajectory
 from .params import InputError, check_time_span
 from .problem import Problem
 from .reference import ReferenceUnavailable, has_reference, trusted_reference
+from .roles import ROW_PARAMETERS
 
-# parameters that have a flag of their own on the command line, swept as lists
-SWEEP_PARAMETERS = ("dt", "tol", "eps_res", "order")
+# the parameters with a row field and a flag of their own (longtime.roles)
+SWEEP_PARAMETERS = tuple(ROW_PARAMETERS)
 DEFAULT_MAX_SAMPLES = 100_001
 # a cell stops (a 'timeout' row) after this many seconds unless --time-limit says otherwise
 DEFAULT_TIME_LIMIT = 600.0
@@ -70,20 +72,60 @@ def check_set_keys(sets: Mapping[str, Any], problem_names: Iterable[str],
     iclasses = [registry.integrator_class(n) for n in integrator_names]
     for key in sets:
         if not any(key in c.parameters for c in pclasses + iclasses):
-            valid = sorted({k for c in pclasses + iclasses for k in c.parameters} - set(SWEEP_PARAMETERS))
+            valid = sorted({k for c in pclasses + iclasses for k in c.parameters} - set(ROW_PARAMETERS))
             raise InputError(f"--set {key}: unknown parameter for the selected problems and "
                              f"integrators; valid keys: {', '.join(valid) or 'none'}")
 
 
+def _horizons(t_final: float | Iterable[float] | None) -> list[float | None]:
+    """The final times of a sweep: one, several, or none (the problem's)."""
+    if t_final is None:
+        return [None]
+    if isinstance(t_final, numbers.Real):
+        return [t_final]
+    values = list(dict.fromkeys(t_final))
+    return values or [None]
+
+
+def _check_sweeps(sweeps: Mapping[str, list], sets: Mapping[str, Any], problem_names: list[str],
+                  integrator_names: list[str]) -> None:
+    """Every swept name is a parameter of a selected problem or scheme, and given once."""
+    for name in sweeps:
+        option = roles.flag(name)
+        if name in ROW_PARAMETERS:  # a flag of its own: it names the schemes that take it
+            if not any(name in registry.integrator_class(n).parameters for n in integrator_names):
+                takers = sorted(n for n, c in registry.integrators().items() if name in c.parameters)
+                raise InputError(f"{option} is not a parameter of any selected integrator "
+                                 f"({', '.join(integrator_names)}); it applies to {', '.join(takers) or 'none'}")
+        else:
+            check_set_keys({name: None}, problem_names, integrator_names)
+        if name in sets:  # both would set it: one would silently win
+            raise InputError(f"{option} and --set {name}= both give {name}: give one of them"
+                             if name in ROW_PARAMETERS else
+                             f"{name} is given both as a sweep and as one value: give one of them")
+
+
+def _axes(cls: type, sweeps: Mapping[str, list], defaults: Mapping[str, Iterable]) -> list[list[tuple]]:
+    """The sweep axes of one class: a list of (name, value) per swept parameter, nested by role."""
+    names = [n for n in cls.parameters if n in sweeps or defaults.get(n)]
+    return [[(n, v) for v in (sweeps[n] if n in sweeps else defaults[n])]
+            for n in roles.order_axes(names, [cls])]
+
+
 def expand(problem_names: list[str], integrator_names: list[str], *,
-           sweeps: Mapping[str, list] | None = None, t_final: float | None = None,
+           sweeps: Mapping[str, list] | None = None,
+           t_final: float | Iterable[float] | None = None,
            sets: Mapping[str, Any] | None = None, default_sweep: bool = False,
            strict: bool = False) -> list[Cell]:
     """All cells of problems x integrators x the sweep.
 
-    Without a flag for a swept parameter, a cell takes the parameter's default (or, with
-    ``default_sweep``, the problem's ``sweep_dt`` and the scheme's ``sweep``). An
-    incompatible pair becomes one cell with a skip reason, or an error when ``strict``.
+    ``sweeps`` maps any declared parameter of a selected problem or scheme to its values
+    (one cell per value; a problem's parameter varies the problem), ``t_final`` is one final
+    time or a list of them, ``sets`` fixes single values. Without values for a parameter
+    that sweeps (``Param.sweeps``), a cell takes the parameter's default (or, with
+    ``default_sweep``, the problem's ``sweep_dt`` for the step and the scheme's ``sweep``
+    for the rest). An incompatible pair becomes one cell with a skip reason, or an error
+    when ``strict``.
     """
     # a name or value given twice is one cell (a repeat would be run twice and stored once)
     problem_names, integrator_names = list(dict.fromkeys(problem_names)), list(dict.fromkeys(integrator_names))
@@ -92,64 +134,67 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
     registry.check_names("integrator", integrator_names)
     sets = dict(sets or {})
     check_set_keys(sets, problem_names, integrator_names)
-    for flag in sweeps:
-        if flag not in SWEEP_PARAMETERS:
-            raise InputError(f"unknown sweep parameter '{flag}'; valid: {', '.join(SWEEP_PARAMETERS)}")
-        option = f"--{flag.replace('_', '-')}"
-        if not any(flag in registry.integrator_class(n).parameters for n in integrator_names):
-            takers = sorted(n for n, c in registry.integrators().items() if flag in c.parameters)
-            raise InputError(f"{option} is not a parameter of any selected integrator "
-                             f"({', '.join(integrator_names)}); it applies to {', '.join(takers) or 'none'}")
-        if flag in sets:  # both would set it: the flag would silently win
-            raise InputError(f"{option} and --set {flag}= both give {flag}: give one of them")
+    _check_sweeps(sweeps, sets, problem_names, integrator_names)
+    horizons = _horizons(t_final)
     cells = []
     for pname in problem_names:
         pcls = registry.problem_class(pname)
-        psets = {k: v for k, v in sets.items() if k in pcls.parameters}
-        try:
-            problem = pcls(**psets)  # validates the problem's settings
-        except MemoryError:
-            raise InputError(f"problem {pname} with {psets}: out of memory while building it") from None
-        tf = t_final if t_final is not None else (
-            pcls.sweep_t_final if default_sweep and pcls.sweep_t_final else pcls.default_t_final)
-        check_time_span(pcls.t0, tf)
-        for iname in integrator_names:
-            icls = registry.integrator_class(iname)
-            isets = {k: v for k, v in sets.items() if k in icls.parameters}
-            reason = icls(**isets).incompatibility(problem)
-            if reason:
-                if strict:
-                    raise InputError(f"incompatible pair {iname} x {pname}: {reason}")
-                cells.append(Cell(pname, iname, psets, isets, tf, skip_reason=reason))
+        pfixed = {k: v for k, v in sets.items() if k in pcls.parameters}
+        for ppoint in itertools.product(*_axes(pcls, sweeps, {})):
+            psets = {**pfixed, **dict(ppoint)}
+            try:
+                problem = pcls(**psets)  # validates the problem's settings
+            except MemoryError:
+                raise InputError(f"problem {pname} with {psets}: out of memory while building it") from None
+            for horizon in horizons:
+                tf = horizon if horizon is not None else (
+                    pcls.sweep_t_final if default_sweep and pcls.sweep_t_final else pcls.default_t_final)
+                check_time_span(pcls.t0, tf)
+                for iname in integrator_names:
+                    cells += _scheme_cells(pname, pcls, problem, psets, iname, tf, sets, sweeps, default_sweep,
+                                           strict, given_t_final=horizons != [None])
+    return cells
+
+
+def _scheme_cells(pname: str, pcls, problem: Problem, psets: dict, iname: str, tf: float, sets: Mapping[str, Any],
+                  sweeps: Mapping[str, list], default_sweep: bool, strict: bool,
+                  given_t_final: bool) -> list[Cell]:
+    """The cells of one scheme on one problem setting and final time."""
+    icls = registry.integrator_class(iname)
+    isets = {k: v for k, v in sets.items() if k in icls.parameters}
+    reason = icls(**isets).incompatibility(problem)
+    if reason:
+        if strict:
+            raise InputError(f"incompatible pair {iname} x {pname}: {reason}")
+        return [Cell(pname, iname, psets, isets, tf, skip_reason=reason)]
+    defaults: dict[str, list] = {}
+    if default_sweep:
+        for name, param in icls.parameters.items():
+            if name in isets:
                 continue
-            axes = []
-            for flag in SWEEP_PARAMETERS:
-                if flag not in icls.parameters:
-                    continue
-                values = sweeps.get(flag)
-                if values is None and default_sweep:
-                    values = list(pcls.sweep_dt) if flag == "dt" else list(icls.sweep.get(flag, ()))
-                    if flag in ("tol", "eps_res") and pcls.sweep_min_tolerance:
-                        values = [v for v in values if v >= pcls.sweep_min_tolerance]
-                if values:
-                    axes.append([(flag, v) for v in values])
-            for point in itertools.product(*axes):
-                settings = {**isets, **dict(point)}
-                icls(**settings)  # validates dt > 0, tol > 0, ...
-                cells.append(Cell(pname, iname, psets, settings, tf))
-            # the default matrix's long-time cell (issue 10): the problem's paper-scale final
-            # time at its default step, for the schemes that can afford it (``long_runs``)
-            long_tf = pcls.long_t_final
-            if default_sweep and t_final is None and long_tf and icls.long_runs and "dt" not in sweeps:
-                cells.append(Cell(pname, iname, psets, {**isets, "dt": pcls.default_dt}, long_tf))
+            values = list(pcls.sweep_dt) if param.role == "step" else list(icls.sweep.get(name, ()))
+            if param.role == "accuracy" and pcls.sweep_min_tolerance:
+                values = [v for v in values if v >= pcls.sweep_min_tolerance]
+            defaults[name] = values
+    cells = []
+    for point in itertools.product(*_axes(icls, sweeps, defaults)):
+        settings = {**isets, **dict(point)}
+        icls(**settings)  # validates dt > 0, tol > 0, ...
+        cells.append(Cell(pname, iname, psets, settings, tf))
+    # the default matrix's long-time cell: the problem's paper-scale final time at its
+    # default step, for the schemes that can afford it (``long_runs``)
+    long_tf = pcls.long_t_final
+    step = roles.with_role([icls], "step")
+    if default_sweep and not given_t_final and long_tf and icls.long_runs and not any(n in sweeps for n in step):
+        cells.append(Cell(pname, iname, psets, {**isets, **{n: pcls.default_dt for n in step}}, long_tf))
     return cells
 
 
 def base_row(cell: Cell) -> dict[str, Any]:
     s = cell.integrator_settings
     row = {"problem": cell.problem, "integrator": cell.integrator, "status": "", "message": "",
-           **{k: s.get(k) for k in SWEEP_PARAMETERS}, "t_final": cell.t_final}
-    extra = {k: v for k, v in {**cell.problem_settings, **s}.items() if k not in SWEEP_PARAMETERS}
+           **{k: s.get(k) for k in ROW_PARAMETERS}, "t_final": cell.t_final}
+    extra = {k: v for k, v in {**cell.problem_settings, **s}.items() if k not in ROW_PARAMETERS}
     row["settings"] = json.dumps(extra, sort_keys=True) if extra else ""
     return row
 
@@ -189,7 +234,7 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         if isinstance(integrator, FixedStepIntegrator):
             row["dt"] = integrator.dt_for(problem)
         # every parameter actually used, defaults included (a default tol is not null)
-        row.update({k: v for k, v in integrator.settings.items() if k in SWEEP_PARAMETERS and row.get(k) is None})
+        row.update({k: v for k, v in integrator.settings.items() if k in ROW_PARAMETERS and row.get(k) is None})
         used = {**problem.settings, **integrator.settings}
         if isinstance(integrator, FixedStepIntegrator):
             used["dt"] = row["dt"]  # the step taken, also where it is the problem's default

@@ -8,17 +8,18 @@ import argparse
 import dataclasses
 import importlib
 import json
-import shlex
 import sys
 from pathlib import Path
 
 from . import cli_args, registry, stability
-from .cells import DEFAULT_TIME_LIMIT, SWEEP_PARAMETERS, check_size, expand
+from .cells import DEFAULT_TIME_LIMIT, check_size, expand
 from .integrator import Timing
+from .lifecycle import command_line, recorded_run
 from .matrix import EXECUTORS, ExecOptions, run_matrix
 from .params import InputError
 from .reference import budget_seconds
 from .report import render
+from .roles import ROW_PARAMETERS, flag
 from .store import Store, default_path
 
 # modules that add subcommands: each defines add_parser(subparsers) and sets func
@@ -27,7 +28,6 @@ COMMAND_MODULES: tuple[str, ...] = ("longtime.cache_cmd", "longtime.compare", "l
 
 # argument types: one set for every command (longtime.cli_args)
 _floats, _names, _key_value = cli_args.floats, cli_args.names, cli_args.key_value
-_ints = cli_args.ints("--order")
 _seconds = cli_args.seconds("--cell-timeout")
 _limit = cli_args.seconds("--time-limit", allow_zero=True)
 
@@ -46,13 +46,16 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
                    help="problem names (see `longtime list`)")
     p.add_argument("-i", "--integrator", type=_names, required=required, metavar="SCHEME[,..]",
                    help="scheme names (see `longtime list`)")
-    p.add_argument("--dt", type=_floats("--dt"), metavar="X[,..]", help="time steps (fixed-step schemes)")
-    p.add_argument("--tol", type=_floats("--tol"), metavar="X[,..]", help="tolerances (adaptive schemes)")
-    p.add_argument("--eps-res", type=_floats("--eps-res"), metavar="X[,..]", help="BPL residual bounds")
-    p.add_argument("--order", type=_ints, metavar="N[,..]", help="series orders N (taylor, bpl)")
-    p.add_argument("--t-final", type=float, metavar="T", help="final time (default: the problem's)")
-    p.add_argument("--set", type=_key_value, action="append", default=[], metavar="KEY=VALUE",
-                   help="any other parameter of a problem or scheme (repeatable)")
+    for name, (role, text) in ROW_PARAMETERS.items():  # the swept parameters with a flag of their own
+        if role == "order":
+            p.add_argument(flag(name), type=cli_args.ints(flag(name)), metavar="N[,..]", help=text + " (or A..B)")
+        else:
+            p.add_argument(flag(name), type=_floats(flag(name)), metavar="X[,..]", help=text)
+    p.add_argument("--t-final", type=_floats("--t-final"), metavar="T[,..]",
+                   help="final times, one cell each (default: the problem's)")
+    p.add_argument("--set", type=_key_value, action="append", default=[], metavar="KEY=VALUE[,..]",
+                   help="any other parameter of a problem or scheme (repeatable, once per key); "
+                        "several values sweep it, one cell each")
     p.add_argument("--executor", choices=sorted(EXECUTORS), help="where cells run")
     p.add_argument("--scheduler", action=_SchedulerAction, default=None, metavar="ADDRESS",
                    help="run the cells on this Dask cluster (implies --executor dask)")
@@ -79,8 +82,14 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
     p.add_argument("--db", default=None, help=f"SQLite store (default: $LONGTIME_DB or {default_path()})")
 
 
-def _sweeps(args) -> dict[str, list]:
-    return {k: getattr(args, k) for k in SWEEP_PARAMETERS if getattr(args, k, None)}
+def _selection(args) -> dict:
+    """expand's sweeps, single settings and final times from the flags and the --set pairs."""
+    sets, swept = cli_args.settings(args.set)
+    sweeps = {k: getattr(args, k) for k in ROW_PARAMETERS if getattr(args, k, None)}
+    for k in swept:
+        if k in sweeps:
+            raise InputError(f"{flag(k)} and --set {k}= both give {k}: give one of them")
+    return {"sweeps": {**sweeps, **swept}, "sets": sets, "t_final": args.t_final}
 
 
 def _options(args, executor: str) -> ExecOptions:
@@ -141,24 +150,14 @@ def cmd_list(args) -> int:
 
 def cmd_run(args) -> int:
     _warn_broken()
-    cells = expand(args.problem, args.integrator, sweeps=_sweeps(args), t_final=args.t_final,
-                   sets=dict(args.set), strict=True)
+    cells = expand(args.problem, args.integrator, **_selection(args), strict=True)
     if not args.allow_large:
         check_size(cells, args.max_samples)
     executor = args.executor or "serial"
     options = _options(args, executor)
     store = None if args.no_store else Store(args.db)
-    run_id = store.begin_run("run " + shlex.join(sys.argv[1:]), cells) if store else None
-    status = "interrupted"
-    try:
+    with recorded_run(store, command_line(args), cells) as run_id:
         rows = run_matrix(cells, store, run_id, executor, options)
-        status = "done"
-    except InputError:  # rejected as it started (an executor's setting): nothing to resume
-        status = "rejected"
-        raise
-    finally:
-        if store:
-            store.discard_run(run_id) if status == "rejected" else store.finish_run(run_id, status)
     print(render(rows, args.format))  # json: every row with the contract's keys (report.complete)
     return 1 if any(r["status"] == "failed" for r in rows) else 0
 
@@ -182,40 +181,26 @@ def cmd_matrix(args) -> int:
             print(f"run {run_id} ended inside {len(died)} cell(s): they run again one process each", file=sys.stderr)
             keys = {c.key for c in died}
             cells = [c for c in cells if c.key not in keys]
-            status = "interrupted"
-            try:
-                run_matrix(died, store, run_id, "isolated", options)
-            finally:
-                store.finish_run(run_id, status)
     else:
         problems = args.problem or registry.default_problems()
         schemes = args.integrator or sorted(registry.integrators())
-        cells = expand(problems, schemes, sweeps=_sweeps(args), t_final=args.t_final,
-                       sets=dict(args.set), default_sweep=True)
+        cells = expand(problems, schemes, **_selection(args), default_sweep=True)
         if not args.allow_large:
             check_size(cells, args.max_samples)
-        store = Store(args.db)
-        run_id = store.begin_run("matrix " + shlex.join(sys.argv[2:]), cells)
-        print(f"run {run_id}: {len(cells)} cells into {store.path}", file=sys.stderr)
+        store, run_id, died = Store(args.db), None, []
     ahead = None
-    if executor == "process" and args.resume is None and not args.no_report and not args.no_html:
-        from .html_report import FiguresAhead
+    with recorded_run(store, command_line(args), cells, run_id) as run_id:
+        if args.resume is None:
+            print(f"run {run_id}: {len(cells)} cells into {store.path}", file=sys.stderr)
+        if died:
+            run_matrix(died, store, run_id, "isolated", options)
+        if executor == "process" and args.resume is None and not args.no_report and not args.no_html:
+            from .html_report import FiguresAhead
 
-        ahead = FiguresAhead(cells, run_id)  # the page's figures on workers that have no cell left
-        options = dataclasses.replace(options, idle_work=ahead.task)
-    status = "interrupted"
-    try:
+            ahead = FiguresAhead(cells, run_id)  # the page's figures on workers that have no cell left
+            options = dataclasses.replace(options, idle_work=ahead.task)
         run_matrix(cells, store, run_id, executor, options,
                    progress=not args.no_progress, on_row=ahead.add if ahead is not None else None)
-        status = "done"
-    except InputError:  # rejected as it started (an executor's setting): nothing to resume
-        status = "rejected"
-        raise
-    finally:
-        if status == "rejected" and args.resume is None:
-            store.discard_run(run_id)
-        else:
-            store.finish_run(run_id, "interrupted" if status == "rejected" else status)
     if not args.no_report:
         from .report import report_text, write_html
 
@@ -315,7 +300,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
+    args.argv = argv  # the command a run records (lifecycle.command_line)
     try:
         return int(args.func(args) or 0)
     except InputError as exc:

@@ -1,12 +1,15 @@
 """Argument types shared by every ``longtime`` command (argparse ``type=`` callables).
 
 Each raises ``argparse.ArgumentTypeError`` naming the flag and what it takes, so a bad
-value is reported by argparse with exit code 2 like every other input error.
+value is reported by argparse with exit code 2 like every other input error; the --set
+pairs are checked as a whole (``settings``), with an InputError.
 """
 from __future__ import annotations
 
 import argparse
 from typing import Callable
+
+from .params import InputError
 
 
 def names(text: str) -> list[str]:
@@ -32,18 +35,33 @@ def floats(flag: str) -> Callable[[str], list[float]]:
     return parse
 
 
+# the most values a range A..B may expand to
+MAX_RANGE = 10_000
+
+
 def ints(flag: str) -> Callable[[str], list[int]]:
-    """A comma-separated list of integers; ``A..B`` is the range A to B inclusive."""
+    """A comma-separated list of integers; ``A..B`` is the range A to B inclusive (A <= B, at
+    most MAX_RANGE values)."""
 
     def parse(text: str) -> list[int]:
         try:
             if ".." in text:
-                a, b = text.split("..", 1)
-                return list(range(int(a), int(b) + 1))
-            return [int(x) for x in text.split(",") if x.strip()]
+                a, b = (int(x) for x in text.split("..", 1))
+            else:
+                values = [int(x) for x in text.split(",") if x.strip()]
         except ValueError:
             raise argparse.ArgumentTypeError(f"{flag} takes comma-separated integers (or A..B), "
                                              f"got {text!r}") from None
+        if ".." not in text:
+            if not values:
+                raise argparse.ArgumentTypeError(f"{flag} needs at least one value")
+            return values
+        if b < a:
+            raise argparse.ArgumentTypeError(f"{flag} {text}: an empty range (A..B needs A <= B)")
+        if b - a + 1 > MAX_RANGE:
+            raise argparse.ArgumentTypeError(f"{flag} {text}: {b - a + 1} values, over the limit of "
+                                             f"{MAX_RANGE} a range may expand to")
+        return list(range(a, b + 1))
 
     return parse
 
@@ -74,6 +92,32 @@ def key_value(text: str) -> tuple[str, str]:
         raise argparse.ArgumentTypeError(f"--set takes key=value, got {text!r}")
     key, value = text.split("=", 1)
     return key.strip(), value.strip()
+
+
+def single_settings(pairs: list[tuple[str, str]]) -> dict[str, str]:
+    """The --set pairs as a dict; a key given twice is an error, not the last one winning."""
+    out: dict[str, str] = {}
+    for key, value in pairs:
+        if key in out:
+            raise InputError(f"--set {key} is given twice ({out[key]}, {value}): give it once "
+                             f"(several values: --set {key}=V1,V2)")
+        out[key] = value
+    return out
+
+
+def settings(pairs: list[tuple[str, str]]) -> tuple[dict[str, str], dict[str, list[str]]]:
+    """(single values, sweeps) of the --set pairs: ``KEY=V1,V2,..`` sweeps KEY over the values
+    (one cell each), ``KEY=V`` sets it; a key given twice is an error."""
+    sets, sweeps = {}, {}
+    for key, value in single_settings(pairs).items():
+        values = [v.strip() for v in value.split(",")]
+        if len(values) > 1:
+            if not all(values):
+                raise InputError(f"--set {key}={value}: an empty value in the list")
+            sweeps[key] = values
+        else:
+            sets[key] = value
+    return sets, sweeps
 
 
 def seconds(flag: str, allow_zero: bool = False) -> Callable[[str], float]:

@@ -24,9 +24,11 @@ import sys
 from typing import Any
 
 from .params import InputError
+from .roles import row_columns
 
 ROUND_OFF = 1e-13
-MATCH_KEYS = ("problem", "integrator", "dt", "tol", "eps_res", "order", "t_final", "settings")
+# a cell is its problem, scheme, final time and every parameter (row fields and settings)
+MATCH_KEYS = ("problem", "integrator", *row_columns(), "t_final", "settings")
 ERROR_SUFFIXES = (".max", ".mean", ".final")
 ERROR_FIELDS = ("l2_error", "final_error")
 

@@ -39,6 +39,7 @@ import numpy as np
 from .figures import plain_log_ticks, pyplot
 from .fmt import positive
 from .orders import observed_orders
+from .roles import ROW_PARAMETERS
 from .report import (_not_ok, format_counts, main_t_final, pareto, pareto_field, pareto_groups, setting, status_counts,
                      target_text)
 
@@ -192,9 +193,9 @@ def row_curves(row: dict) -> dict[str, list[tuple[str, np.ndarray, np.ndarray]]]
     pcls, icls = registry.problem_class(row["problem"]), registry.integrator_class(row["integrator"])
     psets = {k: v for k, v in settings.items() if k in pcls.parameters}
     isets = {k: v for k, v in settings.items() if k in icls.parameters}
-    for k in ("dt", "tol", "eps_res", "order"):
+    for k in ROW_PARAMETERS:  # the parameters with a row field of their own
         if k in icls.parameters and row.get(k) is not None and row.get(k) == row.get(k):
-            isets[k] = int(row[k]) if k == "order" else row[k]
+            isets[k] = int(row[k]) if icls.parameters[k].kind is int else row[k]
     problem, traj = integrate_cell(Cell(row["problem"], row["integrator"], psets, isets, row["t_final"]),
                                    max_samples=DRIFT_SAMPLES)
     with np.errstate(all="ignore"):
@@ -507,11 +508,9 @@ def _all_figures(by_problem: dict[str, list[dict]], style: dict, drift: bool, jo
         figures.update({p: problem_figures(rows, style, drift) for p, rows in todo.items()})
         texts.update(interval_texts(missing, compute=True))
         return figures, texts
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
+    from .pool import spawn_pool
 
-    # spawn: the caller may hold threads (numba, heyoka, a Dask client) that fork would copy
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+    with spawn_pool(jobs) as pool:
         intervals = [pool.submit(interval_texts, {s: o}, True) for s, o in missing.items()]
         drawn = {p: pool.submit(problem_figures, rows, style, drift) for p, rows in todo.items()}
         for f in intervals:

@@ -283,7 +283,7 @@ class FixedStepIntegrator(Integrator):
     """A one-step (or self-starting multi-step) scheme with a constant step dt."""
 
     kind = "fixed"
-    parameters = {"dt": Param(None, "time step (default: the problem's)", float, positive=True)}
+    parameters = {"dt": Param(None, "time step (default: the problem's)", float, positive=True, role="step")}
 
     @abstractmethod
     def make_step(self, problem: Problem) -> Callable:

@@ -1,7 +1,7 @@
 """``longtime match``: schemes compared at matched accuracy, and how their cost scales.
 
-For each scheme, the parameter that sets its accuracy (``eps_res`` for BPL, ``tol`` for
-adaptive schemes, ``dt`` for fixed-step ones) is searched, by bracketing in decades and
+For each scheme, the parameter that sets its accuracy (its declared ``accuracy`` parameter:
+``eps_res`` for BPL, ``tol`` for adaptive schemes, a plugin's own; else its step ``dt``) is searched, by bracketing in decades and
 then bisection on its logarithm, for an error at t_final near ``--target`` (default 1e-5;
 the error is ``final_error``, for KdV the relative L2 norm in x at t = T, since its state
 is orthonormal Fourier coefficients). The evaluated point nearest the target (in log) is
@@ -22,14 +22,13 @@ from __future__ import annotations
 
 import json
 import math
-import shlex
-import sys
 from pathlib import Path
 
 from . import cli_args, registry
 from .cells import Cell, build, expand
 from .figures.scaling import scaling_figure
 from .fmt import column
+from .lifecycle import command_line, recorded_run
 from .paper import KDV_GROWTH_128_512, KDV_ROW, kdv_row
 from .params import InputError
 from .search import Matcher, accuracy_parameter  # noqa: F401  (the search lives in longtime.search)
@@ -167,7 +166,7 @@ def cmd_match(args) -> int:
     if len(args.problem) != 1:
         raise InputError(f"-p/--problem takes one problem, got {', '.join(args.problem)}")
     problem = args.problem[0]
-    sets = dict(args.set)
+    sets = cli_args.single_settings(args.set)
     for scheme in args.integrator:
         accuracy_parameter(scheme)
     bases = expand([problem], args.integrator, t_final=args.t_final, sets=sets)
@@ -175,13 +174,10 @@ def cmd_match(args) -> int:
     if args.scaling and "d" not in pcls.parameters:
         raise InputError(f"--scaling varies the parameter d, which problem '{problem}' does not have")
     store = None if args.no_store else Store(args.db)
-    run_id = store.begin_run("match " + shlex.join(sys.argv[2:] if sys.argv[1:2] == ["match"] else sys.argv[1:]),
-                             bases) if store else None
-    matcher = Matcher(store, run_id, args.metric, args.target, args.repeat, args.max_evals,
-                      verbose=not args.quiet)
-    status = "interrupted"
     out_rows: list[dict] = []
-    try:
+    with recorded_run(store, command_line(args), bases) as run_id:
+        matcher = Matcher(store, run_id, args.metric, args.target, args.repeat, args.max_evals,
+                          verbose=not args.quiet)
         matched = [matcher.match(c) for c in bases]
         # parsed values (--set gives strings)
         psettings = build(bases[0])[0].settings if bases else pcls().settings
@@ -215,10 +211,6 @@ def cmd_match(args) -> int:
             if not args.no_figure:
                 paths = scaling_figure(scaling, orders, problem, Path(args.out), args.metric)
                 text.append("figures: " + ", ".join(map(str, paths)))
-        status = "done"
-    finally:
-        if store:
-            store.finish_run(run_id, status)
     if args.format == "json":
         print(json.dumps(out_rows, indent=1, default=str))
     else:

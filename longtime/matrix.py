@@ -12,7 +12,6 @@ import contextlib
 import dataclasses
 import hashlib
 import json
-import multiprocessing
 import os
 import shutil
 import tempfile
@@ -26,6 +25,7 @@ from .cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, Cell, base_row, cell
 from .integrator import Timing
 from .isolation import die_with_parent, run_isolated
 from .params import InputError, check_choice
+from .pool import spawn_pool, workers as pool_workers
 from .store import Store
 
 
@@ -46,7 +46,7 @@ class ExecOptions:
     idle_work: Callable[[], "IdleTask | None"] | None = None
 
     def workers(self) -> int:
-        return self.jobs if self.jobs > 0 else max(1, os.cpu_count() or 1)
+        return pool_workers(self.jobs)
 
 
 Executor = Callable[[list[Cell], ExecOptions], Iterator[tuple[Cell, dict]]]
@@ -220,8 +220,6 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
     were running then are re-run each in its own process (longtime.isolation: only the one
     that crashes again gets a ``failed`` row, naming its signal), and the rest go on a fresh
     pool."""
-    # spawn: a fork after heyoka's or numba's threads have started can deadlock
-    ctx = multiprocessing.get_context("spawn")
     runnable = [c for c in cells if not c.skip_reason]
     for cell in cells:
         if cell.skip_reason:
@@ -238,8 +236,7 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
     try:
         while remaining:
             broken = False
-            pool = ProcessPoolExecutor(max_workers=min(workers, len(remaining)), mp_context=ctx,
-                                       initializer=_worker_init, initargs=(os.getpid(),))
+            pool = spawn_pool(min(workers, len(remaining)), _worker_init, (os.getpid(),))
             try:
                 for batch, fut in scheduled(pool, workers, batches_by_pair(remaining), run_batch,
                                             options.max_samples, options.timing, folder, options.time_limit,

@@ -26,6 +26,7 @@ from typing import Any, Iterable
 
 from .fmt import positive
 from .numerics.loglog import fit_slope
+from .roles import row_fields
 
 ROUND_OFF_FLOOR = 1e-13
 REFERENCE_MARGIN = 10.0
@@ -37,8 +38,13 @@ ERROR_FIELDS = ("l2_error", "H.max")
 GROUP_KEYS = ("run_id", "problem", "integrator", "t_final", "order", "settings")
 
 
+def _fixed_step(row: dict) -> bool:
+    """The row ran at its step: no accuracy parameter (a tolerance) is set."""
+    return all(row.get(k) is None for k in row_fields("accuracy"))
+
+
 def _x(row: dict) -> float | None:
-    if positive(row.get("dt")) and row.get("tol") is None and row.get("eps_res") is None:
+    if positive(row.get("dt")) and _fixed_step(row):
         return float(row["dt"])
     return float(row["mean_dt"]) if positive(row.get("mean_dt")) else None
 
@@ -99,7 +105,7 @@ def observed_orders(rows: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
         declared = declared_order(first)
         flag = (declared is not None and ci is not None
                 and abs(slope - declared) > max(ci, ORDER_TOLERANCE))
-        variable = "dt" if all(r.get("tol") is None and r.get("eps_res") is None for r in members) else "mean_dt"
+        variable = "dt" if all(_fixed_step(r) for r in members) else "mean_dt"
         out.append({"problem": first["problem"], "integrator": first["integrator"],
                     "run_id": first.get("run_id"), "t_final": first.get("t_final"),
                     "order": first.get("order"), "settings": first.get("settings"),

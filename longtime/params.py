@@ -2,7 +2,8 @@
 
 A problem or a scheme lists its parameters as ``Param`` objects; ``resolve`` merges user
 settings over the defaults and checks every value, so that a bad value is reported with
-the argument's name and what is allowed.
+the argument's name and what is allowed. Each parameter declares its role and whether it
+sweeps; longtime.roles derives from these declarations what every command does with it.
 """
 from __future__ import annotations
 
@@ -18,6 +19,21 @@ class InputError(ValueError):
     """Bad user input: unknown names, invalid values, incompatible pairs."""
 
 
+# what a parameter is, in the order a cell's sweep axes nest (outermost first):
+#   step      the time step of a fixed-step scheme (dt)
+#   accuracy  what sets an adaptive scheme's accuracy (tol, eps_res, a plugin's rtol): the
+#             parameter `longtime match` searches, switched off by the stability measurement
+#   order     a series order N
+#   horizon   a final time
+#   physical  a problem's parameter (kepler's e, toda's d)
+#   option    any other setting of a scheme (max_iter, a controller, a variant)
+ROLES = ("step", "accuracy", "order", "horizon", "physical", "option")
+# roles that sweep unless a parameter says otherwise: the default matrix varies them
+SWEEPING_ROLES = ("step", "accuracy", "order", "horizon")
+# the range of an integer parameter (numba compiles integers as int64)
+INT64_MIN, INT64_MAX = -2**63, 2**63 - 1
+
+
 @dataclass(frozen=True)
 class Param:
     default: Any
@@ -27,6 +43,16 @@ class Param:
     minimum: float | None = None  # inclusive
     maximum: float | None = None  # inclusive
     choices: tuple | None = None
+    role: str = "option"  # one of ROLES
+    sweeps: bool | None = None  # None: as its role (SWEEPING_ROLES sweep)
+    # the range `longtime match` searches an accuracy parameter over (None: 1e-14 to 0.1)
+    search: tuple[float, float] | None = None
+
+    def __post_init__(self):
+        if self.role not in ROLES:
+            raise ValueError(f"Param role {self.role!r} is not one of {', '.join(ROLES)}")
+        if self.sweeps is None:
+            object.__setattr__(self, "sweeps", self.role in SWEEPING_ROLES)
 
     def allowed(self) -> str:
         if self.choices is not None:
@@ -48,16 +74,25 @@ class Param:
                     raise ValueError(value)
                 v = value.lower() in ("true", "1", "yes")
             elif self.kind is int and not isinstance(value, (int, np.integer)):
-                number = float(value)  # "3", "3.0", 3.0 are 3; 2.5 and "2.5" are errors
-                if not number.is_integer():
-                    raise ValueError(value)
-                v = int(number)
+                try:
+                    v = int(value) if isinstance(value, str) else None  # exact, however many digits
+                except ValueError:
+                    v = None
+                if v is None:
+                    number = float(value)  # "3.0", 3.0 and "1e3" are integers; 2.5 and "2.5" are errors
+                    if not number.is_integer():
+                        raise ValueError(value)
+                    v = int(number)
             else:
                 v = self.kind(value)
         except (TypeError, ValueError):
             raise InputError(f"{name}={value!r} is not valid: expected {self.allowed()}") from None
         if self.choices is not None and v not in self.choices:
             raise InputError(f"{name}={value!r} is not valid: expected {self.allowed()}")
+        if self.kind is int and isinstance(v, (int, np.integer)) and not isinstance(v, bool):
+            if not INT64_MIN <= v <= INT64_MAX:
+                raise InputError(f"{name}={value!r} is not valid: outside the 64-bit integers ({self.allowed()})")
+            v = int(v)
         if isinstance(v, (int, float)) and not isinstance(v, bool):
             if isinstance(v, float) and not math.isfinite(v):
                 raise InputError(f"{name}={value!r} is not valid: must be finite ({self.allowed()})")

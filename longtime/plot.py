@@ -59,7 +59,7 @@ def draw(kind: str, out_dir: str | Path = "figures", **options: Any) -> list[Pat
 
 
 def cmd_plot(args) -> int:
-    settings: dict[str, Any] = dict(args.set)
+    settings: dict[str, Any] = cli_args.single_settings(args.set)
     paths = draw(args.kind, args.out, problems=args.problem, schemes=args.integrator, dt=args.dt,
                  t_final=args.t_final, problem_settings=settings or None, db=args.db, run=args.run,
                  metric=args.metric, invariant=args.invariant, formats=tuple(args.format))

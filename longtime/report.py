@@ -5,17 +5,18 @@ classes), and the full per-cell tables (``--full``, csv, json, markdown, parquet
 In Python: ``frame(Store("longtime.sqlite").rows())`` is one pandas row per cell."""
 from __future__ import annotations
 
-import os
 from typing import Any, Iterable
 
 import pandas as pd
 
 from .fmt import number, positive
+from .roles import ROW_PARAMETERS, row_columns, row_fields
 
 # the JSON contract (README.md, `--format json`): every row carries these keys (null where not applicable)
-CONTRACT_FIELDS = ("problem", "integrator", "status", "message", "dt", "order", "tol", "eps_res",
+CONTRACT_FIELDS = ("problem", "integrator", "status", "message", *ROW_PARAMETERS,
                    "t_final", "steps", "rhs_evals", "cpu_s", "wall_s", "mean_dt")
-PARAMETER_COLUMNS = ("dt", "tol", "eps_res", "order", "settings")
+# a row's parameters: its parameter fields by role (step, accuracy, order), then the rest
+PARAMETER_COLUMNS = (*row_columns(), "settings")
 ACCURACY_COLUMNS = ("H.mean", "H.max", "L.max", "I.max", "constraint.max", "l2_error", "final_error")
 COST_COLUMNS = ("cpu_s", "steps", "rhs_evals", "nl_iters", "mean_dt")
 
@@ -106,11 +107,12 @@ def format_counts(counts: dict[str, int]) -> str:
 
 
 def setting(row: dict[str, Any]) -> str:
-    """The swept parameters of a row as text: 'dt=0.01', 'tol=1e-08', 'eps_res=1e-06 N=10'."""
-    parts = [f"{k}={row[k]:.3g}" for k in ("dt", "tol", "eps_res") if positive(row.get(k))
-             and not (k == "dt" and (row.get("tol") or row.get("eps_res")))]
-    if row.get("order") is not None and row.get("order") == row.get("order"):
-        parts.append(f"N={int(row['order'])}")
+    """The swept parameters of a row as text: 'dt=0.01', 'tol=1e-08', 'eps_res=1e-06 N=10'
+    (the step only where no accuracy parameter is set), then its other settings."""
+    accuracy = any(row.get(k) for k in row_fields("accuracy"))
+    parts = [f"{k}={row[k]:.3g}" for k in (*row_fields("step"), *row_fields("accuracy"))
+             if positive(row.get(k)) and not (k in row_fields("step") and accuracy)]
+    parts += [f"N={int(row[k])}" for k in row_fields("order") if row.get(k) is not None and row.get(k) == row.get(k)]
     if row.get("settings"):
         parts.append(str(row["settings"]))
     return " ".join(parts)
@@ -323,4 +325,6 @@ def write_html(out_dir, rows: list[dict[str, Any]], store, run_ids: Iterable[int
 
     ids = sorted(set(run_ids) if run_ids is not None else {r.get("run_id") for r in rows if r.get("run_id")})
     runs = [r for r in store.runs() if r["id"] in ids]
-    return write_page(out_dir, rows, runs, jobs=jobs or os.cpu_count() or 1, ahead=ahead)
+    from .pool import workers
+
+    return write_page(out_dir, rows, runs, jobs=workers(jobs or 0), ahead=ahead)

@@ -16,7 +16,6 @@ whose error grows with time are then not comparable with the paper's.
 from __future__ import annotations
 
 import math
-import shlex
 import sys
 import time
 import traceback
@@ -30,6 +29,7 @@ import numpy as np
 from . import cli_args, registry, search
 from .cells import Cell, integrate_cell, run_cell
 from .fmt import markdown_table, number
+from .lifecycle import command_line, recorded_run
 from .matrix import EXECUTORS, ExecOptions, run_matrix
 from .paper import DUFFING1_BPL_STEP as PAPER_DUFFING1_BPL_STEP
 from .paper import DUFFING2_BPL_STEP as PAPER_DUFFING2_BPL_STEP
@@ -421,8 +421,6 @@ def reproduce(out: str | Path = "reproduction", quick: bool = False, figures: bo
     out.mkdir(parents=True, exist_ok=True)
     ctx = Context(quick=quick, out=out, figures=figures, executor=executor, options=options or ExecOptions(),
                   store=store)
-    if store is not None:
-        ctx.run_id = store.begin_run(command, [])
     env = environment()
     started = time.perf_counter()
     chosen = [(t, f) for t, f in SECTIONS if not sections or f.__name__.removeprefix("section_") in sections]
@@ -435,8 +433,7 @@ def reproduce(out: str | Path = "reproduction", quick: bool = False, figures: bo
         "Paper's numbers: quoted from docs/paper.md (its own code and machine). Ours: measured in this run "
         "(CPU = process time of the compiled integration alone). 'ours / paper' is the ratio of the two.", ""]
     failed = []
-    status = "interrupted"
-    try:
+    with recorded_run(store, command) as ctx.run_id:
         for title, build in chosen:
             print(f"reproduce: {title} ...", file=sys.stderr)
             t0 = time.perf_counter()
@@ -449,10 +446,6 @@ def reproduce(out: str | Path = "reproduction", quick: bool = False, figures: bo
                 body = ("**Section failed**:\n\n```\n" + "".join(traceback.format_exception(exc))[-3000:]
                         + "\n```")
             parts += [f"## {title}", "", body, "", f"*(section: {time.perf_counter() - t0:.1f} s wall)*", ""]
-        status = "done"
-    finally:
-        if store is not None:
-            store.finish_run(ctx.run_id, status)
     parts.append(f"Total: {time.perf_counter() - started:.1f} s wall, {ctx.cells_run} cells.")
     report = out / "report.md"
     report.write_text("\n".join(parts) + "\n")
@@ -471,7 +464,7 @@ def cmd_reproduce(args) -> int:
     options = ExecOptions(jobs=args.jobs, max_samples=args.max_samples)
     report, failed = reproduce(args.out, quick=args.quick, figures=not args.no_figures, executor=args.executor,
                                options=options, store=store, sections=args.section,
-                               command="reproduce " + shlex.join(sys.argv[2:]))
+                               command=command_line(args))
     print(report)
     for title in failed:
         print(f"longtime reproduce: section failed: {title} (details in {report})", file=sys.stderr)

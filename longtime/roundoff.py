@@ -94,16 +94,16 @@ def _tasks_run(tasks: list[tuple], jobs: int, scheduler: str | None):
         finally:
             client.close()
         return
-    import multiprocessing
-    import os
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import as_completed
 
-    workers = jobs if jobs > 0 else (os.cpu_count() or 1)
+    from .pool import spawn_pool, workers as pool_workers
+
+    workers = pool_workers(jobs)
     if workers == 1:
         for task in tasks:
             yield task, run_member(*task[1:])
         return
-    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+    with spawn_pool(workers) as pool:
         futures = {pool.submit(run_member, *task[1:]): task for task in tasks}
         for fut in as_completed(futures):
             yield futures[fut], fut.result()

@@ -20,13 +20,11 @@ import math
 import sys
 from typing import Callable
 
-from . import registry
+from . import registry, roles
 from .cells import Cell, build, run_cell
 from .params import InputError
 from .store import Store
 
-ACCURACY_PARAMETERS = ("eps_res", "tol", "dt")
-BOUNDS = {"eps_res": (1e-14, 1.0), "tol": (1e-14, 1e-1)}
 MAX_FIXED_STEPS = 2_000_000  # smallest dt tried: the span over this many steps
 CLOSE_ENOUGH = math.log(1.2)  # the matched search stops within 20 % of the target
 MATCH_SAMPLES = 2001  # states kept per run: the metrics need the final state, not every step
@@ -77,12 +75,12 @@ def nearest(tried: dict[float, float], target: float) -> float:
 
 
 def accuracy_parameter(scheme: str) -> str:
-    cls = registry.integrator_class(scheme)
-    for name in ACCURACY_PARAMETERS:
-        if name in cls.parameters:
-            return name
-    raise InputError(f"scheme '{scheme}' has none of the parameters {', '.join(ACCURACY_PARAMETERS)}: "
-                     "nothing to match")
+    """The parameter the search varies: the scheme's first accuracy parameter, else its step."""
+    names = roles.accuracy(registry.integrator_class(scheme))
+    if not names:
+        raise InputError(f"scheme '{scheme}' declares no parameter of role {' or '.join(roles.ACCURACY_ROLES)}: "
+                         "nothing to match")
+    return names[0]
 
 
 def _error(row: dict, metric: str) -> float:
@@ -132,10 +130,12 @@ class Matcher:
         name = accuracy_parameter(base.integrator)
         problem, integrator = build(base)
         span = base.t_final - problem.t0
-        if name == "dt":
+        param = integrator.parameters[name]
+        if param.role == "step":
             start, (low, high) = problem.default_dt, (span / MAX_FIXED_STEPS, span / 4)
         else:
-            start, (low, high) = integrator.parameters[name].default, BOUNDS[name]
+            (low, high) = roles.search_range(param)
+            start = param.default if param.default else math.sqrt(low * high)
         runs: dict[float, tuple[Cell, dict]] = {}
 
         def error(value: float) -> float:

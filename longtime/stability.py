@@ -30,6 +30,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
+from . import roles
 from .cache import discard, write_atomic
 from .params import InputError
 from .problems.linear_test import LinearTest
@@ -99,9 +100,10 @@ def _scheme(name: str, order: int | None = None):
     from . import registry
 
     cls = registry.integrator_class(name)
-    settings: dict[str, Any] = {k: OFF for k in ("tol", "eps_res") if k in cls.parameters}
+    # error control off: every accuracy parameter at OFF
+    settings: dict[str, Any] = {k: OFF for k in roles.with_role([cls], "accuracy")}
     if order is not None:
-        settings["order"] = order
+        settings.update({k: order for k in roles.with_role([cls], "order")})
     if "tol" in settings and name.startswith("taylor"):
         raise Unmeasurable(f"{name} chooses its order from tol: the fixed-order 'taylor' is measured")
     from .integrator import AdaptiveIntegrator, FixedStepIntegrator
@@ -194,7 +196,7 @@ def orders_of(name: str) -> list[int | None]:
     """The N at which a series scheme is measured ([None] for the others)."""
     from . import registry
 
-    return list(SERIES_ORDERS) if "order" in registry.integrator_class(name).parameters else [None]
+    return list(SERIES_ORDERS) if roles.with_role([registry.integrator_class(name)], "order") else [None]
 
 
 def format_interval(result: dict[str, Any]) -> str:

@@ -10,29 +10,25 @@ that differ only in a run-time value (dt, a tolerance) share one compilation.
 """
 from __future__ import annotations
 
-import multiprocessing
-import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
-from . import cli_args
+from . import cli_args, registry, roles
 from .cells import Cell, build, expand
 from .integrator import FixedStepIntegrator, Timing
-
-# integrator settings read at run time (not closed over by a kernel): cells that differ only
-# in these compile one kernel, so one of them is warmed
-RUN_TIME_SETTINGS = ("dt", "tol", "eps_res")
-
+from .pool import spawn_pool, workers as pool_workers
 
 def distinct_kernels(cells: list[Cell]) -> list[Cell]:
-    """One runnable cell per (problem, problem settings, scheme, compile-time settings)."""
+    """One runnable cell per (problem, problem settings, scheme, compile-time settings): the
+    settings a kernel reads at run time (``roles.run_time``: the step, the tolerances) are not
+    closed over, so cells that differ only in them compile one kernel and one is warmed."""
     seen: dict[str, Cell] = {}
     for cell in cells:
         if cell.skip_reason:
             continue
-        fixed = {k: v for k, v in cell.integrator_settings.items() if k not in RUN_TIME_SETTINGS}
+        run_time = roles.run_time([registry.integrator_class(cell.integrator)])
+        fixed = {k: v for k, v in cell.integrator_settings.items() if k not in run_time}
         key = repr((cell.problem, sorted(cell.problem_settings.items()), cell.integrator, sorted(fixed.items())))
         seen.setdefault(key, cell)
     return list(seen.values())
@@ -63,12 +59,11 @@ def warmup(cells: list[Cell], jobs: int = 0) -> list[dict[str, Any]]:
     from .matrix import batches_by_pair, scheduled
 
     batches = batches_by_pair(distinct_kernels(cells))
-    workers = min(jobs if jobs > 0 else (os.cpu_count() or 1), max(1, len(batches)))
+    workers = pool_workers(jobs, len(batches))
     if workers <= 1:
         return [r for batch in batches for r in _warm_batch(batch)]
     results = []
-    # spawn, as the matrix's pool: a fork after numba's or heyoka's threads start can deadlock
-    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+    with spawn_pool(workers) as pool:
         for _, future in scheduled(pool, workers, batches, _warm_batch):  # no function compiled twice at once
             results.extend(future.result())
     return results
@@ -81,7 +76,8 @@ def cmd_warmup(args) -> int:
     _warn_broken()
     problems = args.problem or registry.default_problems()
     schemes = args.integrator or sorted(registry.integrators())
-    cells = expand(problems, schemes, sets=dict(args.set), default_sweep=True)
+    sets, sweeps = cli_args.settings(args.set)
+    cells = expand(problems, schemes, sweeps=sweeps, sets=sets, default_sweep=True)
     start = time.perf_counter()
     results = warmup(cells, args.jobs)
     wall = time.perf_counter() - start
@@ -103,8 +99,8 @@ def add_parser(subparsers) -> None:
                    help="problems (default: all)")
     p.add_argument("-i", "--integrator", type=cli_args.names, default=None, metavar="SCHEME[,..]",
                    help="schemes (default: all)")
-    p.add_argument("--set", type=cli_args.key_value, action="append", default=[], metavar="KEY=VALUE",
-                   help="a problem or scheme parameter, as for `longtime matrix` (repeatable)")
+    p.add_argument("--set", type=cli_args.key_value, action="append", default=[], metavar="KEY=VALUE[,..]",
+                   help="a problem or scheme parameter, as for `longtime matrix` (repeatable, once per key)")
     p.add_argument("--jobs", type=cli_args.jobs, default=0, help="worker processes (default: one per core)")
     p.add_argument("-v", "--verbose", action="store_true", help="list every kernel and its seconds")
     p.set_defaults(func=cmd_warmup)

@@ -43,6 +43,11 @@ BAD = [
     (["-p", "toda", "-i", "rk4", "--set", "d=2"], ["d=", ">= 3"]),
     (["-p", "toda", "-i", "rk4", "--eps-res", "1e-6"], ["--eps-res", "not a parameter"]),
     (["-p", "toda", "-i", "midpoint", "--set", "max_iter=0"], ["max_iter", "> 0"]),
+    (["-p", "toda", "-i", "midpoint", "--set", "max_iter=1e19"], ["max_iter", "64-bit"]),
+    (["-p", "toda", "-i", "midpoint", "--set", "max_iter=99999999999999999999"], ["max_iter", "64-bit"]),
+    (["-p", "toda", "-i", "rk4", "--set", "d=3", "--set", "d=4"], ["--set d is given twice"]),
+    (["-p", "toda", "-i", "rk4", "--set", "d=3,4", "--set", "d=5"], ["--set d is given twice"]),
+    (["-p", "toda", "-i", "rk4", "--dt", "0.1", "--set", "dt=0.2,0.3"], ["--dt and --set dt="]),
 ]
 
 
@@ -55,6 +60,19 @@ def test_bad_input_is_a_clear_error_and_keeps_the_store(capsys, db, args, words)
     for word in words:
         assert word in err, err
     assert stored_rows(db) == before
+
+
+def test_input_errors_are_one_line(capsys):
+    code, out, err = run_cli(capsys, "run", "-p", "toda", "-i", "rk4", "--set", "d=3", "--set", "d=4", "--no-store")
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
+
+
+@pytest.mark.parametrize("order, words", [("5..1", "an empty range"), ("1..1000000000000", "over the limit")])
+def test_order_ranges_refused(capsys, order, words):
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "-p", "toda", "-i", "bpl", "--order", order, "--no-store"])
+    assert exc.value.code == 2
+    assert words in capsys.readouterr().err
 
 
 def test_argument_syntax_errors_exit_non_zero(capsys):
@@ -136,6 +154,20 @@ def test_sweeps_expand_to_one_row_per_point(capsys):
     assert sorted((r["integrator"], r["dt"]) for r in rows) == [
         ("rk4", 0.05), ("rk4", 0.1), ("verlet", 0.05), ("verlet", 0.1)]
     assert all(r["steps"] == round(5 / r["dt"]) for r in rows)
+
+
+def test_problem_parameter_and_final_time_sweep(capsys):
+    """--set e=V1,V2,V3 and --t-final T1,T2: one row per point; a more eccentric orbit at the
+    same step loses more energy, and the drift of the longer run is at least the shorter's."""
+    code, out, _ = run_cli(capsys, "run", "-p", "kepler", "-i", "verlet", "--dt", "0.01", "--set", "e=0.5,0.9,0.99",
+                           "--t-final", "10,100", "--format", "json", "--no-store", "--repeats", "1")
+    rows = json.loads(out)
+    assert code == 0 and len(rows) == 6
+    assert [(json.loads(r["settings"])["e"], r["t_final"]) for r in rows] == [
+        (e, t) for e in ("0.5", "0.9", "0.99") for t in (10.0, 100.0)]
+    drift = {(json.loads(r["settings"])["e"], r["t_final"]): r["H.max"] for r in rows}
+    assert drift["0.5", 10.0] < drift["0.9", 10.0] < drift["0.99", 10.0]
+    assert all(drift[e, 100.0] >= drift[e, 10.0] for e in ("0.5", "0.9", "0.99"))
 
 
 def test_list_shows_capabilities_and_requirements(capsys):

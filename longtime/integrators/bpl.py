@@ -350,11 +350,13 @@ class BorelPadeLaplace(AdaptiveIntegrator):
     requires = frozenset({"taylor"})
     order = None  # the series order N is a parameter
     parameters = {
-        "order": Param(10, "series order N (Taylor coefficients u_0..u_N)", int, minimum=2, maximum=60),
+        "order": Param(10, "series order N (Taylor coefficients u_0..u_N)", int, minimum=2, maximum=60,
+                       role="order"),
         "pade_num": Param(None, "Pade numerator degree (default (N-1)//2)", int, minimum=0),
         "pade_den": Param(None, "Pade denominator degree (default N-1-pade_num)", int, minimum=0),
         "nodes": Param(20, "Gauss-Laguerre nodes of the Laplace sum", int, minimum=1, maximum=100),
-        "eps_res": Param(1e-6, "residual tolerance ||S' - F(S)||_2 per step", float, positive=True),
+        "eps_res": Param(1e-6, "residual tolerance ||S' - F(S)||_2 per step", float, positive=True,
+                         role="accuracy", search=(1e-14, 1.0)),
         "pade_tol": Param(DEFAULT_TOL, "relative SVD tolerance of the robust Pade", float, minimum=0.0),
         "max_dt": Param(None, "largest step (default: the whole span)", float, positive=True),
         "fallback": Param("none", "untrusted Pade: none (the paper's algorithm: the residual judges "

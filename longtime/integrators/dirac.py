@@ -257,7 +257,7 @@ class DiracMidpoint(ConstrainedIntegrator):
     order = 1
     parameters = {
         **ConstrainedIntegrator.parameters,
-        "max_iter": Param(50, "fixed-point sweeps allowed per step", int, positive=True),
+        "max_iter": Param(50, "fixed-point sweeps allowed per step", int, positive=True, maximum=10**6),
     }
 
     def make_step(self, problem):

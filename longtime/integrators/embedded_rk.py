@@ -112,7 +112,7 @@ class EmbeddedRungeKutta(AdaptiveIntegrator):
     @classmethod
     def _parameters(cls, controller):
         return {
-            "tol": Param(1e-6, "relative tolerance rtol", float, positive=True),
+            "tol": Param(1e-6, "relative tolerance rtol", float, positive=True, role="accuracy"),
             "atol": Param(None, "absolute tolerance (default: tol)", float, positive=True),
             "controller": Param(controller, "step-size control", str, choices=("pi", "standard")),
         }

@@ -37,7 +37,7 @@ class Heyoka(Integrator):
     requires = frozenset({"heyoka"})
     parameters = {
         "tol": Param(float(np.finfo(float).eps), "heyoka's tolerance (order p = ceil(-ln(tol)/2 + 1))",
-                     float, positive=True),
+                     float, positive=True, role="accuracy"),
         "high_accuracy": Param(False, "compensated summation and more careful step (long runs)", bool),
     }
     sweep = {"tol": (1e-9, 1e-12, float(np.finfo(float).eps))}

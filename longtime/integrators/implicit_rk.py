@@ -39,7 +39,7 @@ class ImplicitRungeKutta(FixedStepIntegrator):
     c: np.ndarray
     parameters = {
         **FixedStepIntegrator.parameters,
-        "max_iter": Param(100, "fixed-point sweeps allowed per step", int, positive=True),
+        "max_iter": Param(100, "fixed-point sweeps allowed per step", int, positive=True, maximum=10**6),
         "stop": Param("round-off", "stopping rule of the stage iteration: round-off (increment at "
                       "machine precision or stalled) or brouwer (exactly 0 or stalled, no tolerance)",
                       str, choices=("round-off", "brouwer")),

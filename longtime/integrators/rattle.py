@@ -32,7 +32,7 @@ class Rattle(ConstrainedIntegrator):
     symplectic = True
     parameters = {
         **ConstrainedIntegrator.parameters,
-        "max_iter": Param(50, "Newton iterations allowed per step", int, positive=True),
+        "max_iter": Param(50, "Newton iterations allowed per step", int, positive=True, maximum=10**6),
     }
 
     def work_shape(self, problem):

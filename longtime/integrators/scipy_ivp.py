@@ -25,7 +25,7 @@ class DOP853(Integrator):
     kind = "external"
     order = 8
     parameters = {
-        "tol": Param(1e-8, "relative tolerance rtol", float, positive=True),
+        "tol": Param(1e-8, "relative tolerance rtol", float, positive=True, role="accuracy"),
         "atol": Param(None, "absolute tolerance (default: tol)", float, positive=True),
     }
     sweep = {"tol": (1e-6, 1e-9, 1e-12)}

@@ -35,7 +35,8 @@ from ..numerics.series import header_view, horner
 _ORDER, _TOL, _SAFETY, _O_SCRATCH, _SHAPE0 = range(5)  # the scratch shape: slots _SHAPE0.. (1 to 4)
 _HEADER = _SHAPE0 + 4
 
-ORDER = Param(10, "series order N (degree of the truncated Taylor polynomial)", int, minimum=1, maximum=60)
+ORDER = Param(10, "series order N (degree of the truncated Taylor polynomial)", int, minimum=1, maximum=60,
+              role="order")
 
 
 class _SeriesLayout:
@@ -106,9 +107,9 @@ class AdaptiveTaylor(_SeriesLayout, AdaptiveIntegrator):
     parameters = {
         "order": Param(None, "series order N >= 2 (default: Jorba-Zou's ceil(-ln(tol)/2 + 1), "
                        "the order that minimises the work per unit time at that tolerance)",
-                       int, minimum=2, maximum=60),
+                       int, minimum=2, maximum=60, role="order"),
         "tol": Param(1e-12, "local tolerance (absolute below |u| = 1, relative above)", float,
-                     positive=True),
+                     positive=True, role="accuracy"),
     }
     sweep = {"tol": (1e-6, 1e-9, 1e-12)}
 

@@ -137,15 +137,15 @@ class DoublePendulum(Problem):
     name = "double-pendulum"
     summary = "Cartesian double pendulum, two rod constraints (index-1 ODE for unconstrained schemes)"
     parameters = {
-        "m1": Param(1.0, "mass of the first bob", float, positive=True),
-        "m2": Param(1.0, "mass of the second bob", float, positive=True),
-        "l1": Param(1.0, "length of the first rod", float, positive=True),
-        "l2": Param(1.0, "length of the second rod", float, positive=True),
-        "g": Param(9.81, "gravity", float, minimum=0.0),
-        "theta1": Param(math.pi / 2, "initial angle of rod 1 from the downward vertical (rad)", float),
-        "theta2": Param(math.pi / 2, "initial angle of rod 2 from the downward vertical (rad)", float),
-        "omega1": Param(0.0, "initial angular velocity of rod 1 (rad/s)", float),
-        "omega2": Param(0.0, "initial angular velocity of rod 2 (rad/s)", float),
+        "m1": Param(1.0, "mass of the first bob", float, positive=True, role="physical"),
+        "m2": Param(1.0, "mass of the second bob", float, positive=True, role="physical"),
+        "l1": Param(1.0, "length of the first rod", float, positive=True, role="physical"),
+        "l2": Param(1.0, "length of the second rod", float, positive=True, role="physical"),
+        "g": Param(9.81, "gravity", float, minimum=0.0, role="physical"),
+        "theta1": Param(math.pi / 2, "initial angle of rod 1 from the downward vertical (rad)", float, role="physical"),
+        "theta2": Param(math.pi / 2, "initial angle of rod 2 from the downward vertical (rad)", float, role="physical"),
+        "omega1": Param(0.0, "initial angular velocity of rod 1 (rad/s)", float, role="physical"),
+        "omega2": Param(0.0, "initial angular velocity of rod 2 (rad/s)", float, role="physical"),
     }
     # cheap defaults for the matrix: the paper's run (dt 1e-4 to T 100) is `longtime run`'s
     default_t_final = 10.0

@@ -38,9 +38,9 @@ class Harmonic(Problem):
     name = "harmonic"
     summary = "harmonic oscillator, exact solution"
     parameters = {
-        "omega": Param(1.0, "angular frequency", float, positive=True),
-        "q0": Param(1.0, "initial position", float),
-        "p0": Param(0.0, "initial momentum", float),
+        "omega": Param(1.0, "angular frequency", float, positive=True, role="physical"),
+        "q0": Param(1.0, "initial position", float, role="physical"),
+        "p0": Param(0.0, "initial momentum", float, role="physical"),
     }
     default_t_final = 100.0
     default_dt = 0.1

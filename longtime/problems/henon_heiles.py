@@ -35,8 +35,8 @@ class HenonHeiles(Problem):
     summary = "Henon-Heiles potential, chaotic at energies near 1/6"
     parameters = {
         "energy": Param(1 / 6 - 1e-3, "energy E, 0 < E < 1/6 (bounded motion)", float, positive=True,
-                        maximum=1 / 6),
-        "y0": Param(0.1, "initial y (x = 0, py = 0, px > 0 from E)", float),
+                        maximum=1 / 6, role="physical"),
+        "y0": Param(0.1, "initial y (x = 0, py = 0, px > 0 from E)", float, role="physical"),
     }
     default_t_final = 1000.0
     default_dt = 0.05

@@ -191,9 +191,9 @@ class KdV(Problem):
     parameters = {
         # bounded so that a typo (d=1e8) is an input error, not minutes of setup and gigabytes
         "d": Param(128, "number of Fourier modes d = 2M (2M + 1 real unknowns), even", int, minimum=4,
-                   maximum=2**20),
+                   maximum=2**20, role="physical"),
         "dealias": Param("3/2", "aliasing of u^2: 3/2 padding (exact Galerkin) or the 2/3 rule",
-                         str, choices=("3/2", "2/3")),
+                         str, choices=("3/2", "2/3"), role="option"),
     }
     default_t_final = SOLITON_PERIOD
     # explicit schemes are stability-limited: max |omega_m| = 428 at d = 128 (the "about 476" of an

@@ -98,7 +98,7 @@ def kepler_orbit(u0: np.ndarray, tau: np.ndarray) -> np.ndarray:
 class Kepler(Problem):
     name = "kepler"
     summary = "Kepler orbit of eccentricity e (e = 0.9 is the hard case), exact solution"
-    parameters = {"e": Param(0.6, "eccentricity, 0 <= e < 1", float, minimum=0.0, maximum=0.99)}
+    parameters = {"e": Param(0.6, "eccentricity, 0 <= e < 1", float, minimum=0.0, maximum=0.99, role="physical")}
     default_t_final = 20 * np.pi
     default_dt = 0.01
     sweep_dt = (0.02, 0.01, 0.005)

@@ -39,8 +39,8 @@ class LinearTest(Problem):
     name = "linear-test"
     summary = "test equation u' = lambda u (complex lambda, as a real 2x2 system), exact solution"
     parameters = {
-        "re": Param(0.0, "real part of lambda", float),
-        "im": Param(1.0, "imaginary part of lambda", float),
+        "re": Param(0.0, "real part of lambda", float, role="physical"),
+        "im": Param(1.0, "imaginary part of lambda", float, role="physical"),
     }
     default_t_final = 20.0
     default_dt = 0.1
