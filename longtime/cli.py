@@ -140,6 +140,8 @@ def cmd_list(args) -> int:
 
 
 def cmd_run(args) -> int:
+    from .api import run_cells
+
     _warn_broken()
     cells = expand(args.problem, args.integrator, sweeps=_sweeps(args), t_final=args.t_final,
                    sets=dict(args.set), strict=True)
@@ -148,17 +150,8 @@ def cmd_run(args) -> int:
     executor = args.executor or "serial"
     options = _options(args, executor)
     store = None if args.no_store else Store(args.db)
-    run_id = store.begin_run("run " + shlex.join(sys.argv[1:]), cells) if store else None
-    status = "interrupted"
-    try:
-        rows = run_matrix(cells, store, run_id, executor, options)
-        status = "done"
-    except InputError:  # rejected as it started (an executor's setting): nothing to resume
-        status = "rejected"
-        raise
-    finally:
-        if store:
-            store.discard_run(run_id) if status == "rejected" else store.finish_run(run_id, status)
+    rows, _ = run_cells(cells, store=store, command="run " + shlex.join(sys.argv[1:]), executor=executor,
+                        options=options)
     print(render(rows, args.format))  # json: every row with the contract's keys (report.complete)
     return 1 if any(r["status"] == "failed" for r in rows) else 0
 
