@@ -22,7 +22,7 @@ from .report import render
 from .store import Store, default_path
 
 # modules that add subcommands: each defines add_parser(subparsers) and sets func
-COMMAND_MODULES: tuple[str, ...] = ("longtime.cache_cmd", "longtime.compare", "longtime.matched", "longtime.plot", "longtime.reproduce", "longtime.roundoff", "longtime.warmup")
+COMMAND_MODULES: tuple[str, ...] = ("longtime.asv_init", "longtime.cache_cmd", "longtime.compare", "longtime.matched", "longtime.plot", "longtime.reproduce", "longtime.roundoff", "longtime.warmup")
 
 
 # argument types: one set for every command (longtime.cli_args)

@@ -127,17 +127,18 @@ def register(cls: type, name: str | None = None) -> str:
             "integrators" if isinstance(cls, type) and issubclass(cls, Integrator) else None)
     if kind is None:
         raise InputError(f"{cls!r} is not a subclass of longtime.Problem or longtime.Integrator")
-    name = name or cls.name or kebab(cls.__name__)
+    own = vars(cls).get("name")  # a name inherited from a registered class is not this class's
+    name = name or own or kebab(cls.__name__)
     if not re.fullmatch(r"[a-z0-9]+(-[a-z0-9]+)*", name):
         raise InputError(f"name {name!r}: expected kebab-case (lower-case words joined by '-')")
-    if cls.name and cls.name != name:
+    if own and own != name:
         raise InputError(f"{cls.__module__}.{cls.__qualname__} is named '{cls.name}' but registered as '{name}'")
     check_registered(cls)  # ContractError: an InputError with the one-line reason
     installed = _load()[kind].get(name)
     if installed is not None and installed is not cls:
         raise InputError(f"{kind[:-1]} name '{name}' is taken by {installed.__module__}.{installed.__qualname__}; "
                          f"give {cls.__qualname__} another name")
-    if not cls.name:
+    if not own:
         cls.name = name
     _session[kind][name] = cls
     return name
