@@ -98,8 +98,15 @@ def test_convergence_names_why_a_scheme_has_no_order():
     assert len(order.dropped) == 2 and all(why == "above 0.1" for _, _, why in order.dropped)
     from longtime.report import summary
 
-    text = summary(rows.to_dict("records"))
-    assert "left out of the order table: euler (every point above 0.1)" in text
+    records = longtime.api.records(rows)
+    assert "left out of the order table: euler (every point above 0.1)" in summary(records)
+    from longtime.compare import compare, render
+    from longtime.html_report import build_page
+
+    text = render(compare(records, records))
+    assert "left out of A's order table: kepler euler (every point above 0.1)" in text
+    page = build_page(records, [], drift=False, jobs=1)
+    assert "Left out of the order table:" in page and "<li>euler: every point above 0.1</li>" in page
 
 
 def test_a_plugin_splitting_is_drawn_as_the_splitting_family():
