@@ -133,3 +133,9 @@ def test_plot_helpers_return_axes():
     assert np.nanmax(y) == pytest.approx(result.row["H.max"], rel=1e-12)
     ax = plot.drift(rows)  # from the rows' stored drift envelopes
     assert len(ax.get_lines()) == 4
+
+
+def test_an_in_memory_class_runs_isolated():
+    rows = longtime.sweep("kepler", ApiForestRuth, dt=[0.02, 0.01], t_final=10, executor="isolated", jobs=2,
+                          repeats=1)
+    assert list(rows["status"]) == ["ok", "ok"] and (rows["l2_error"] > 0).all()
