@@ -5,8 +5,18 @@ Importing the package compiles nothing: numba kernels compile on first use.
 from .integrator import AdaptiveIntegrator, FixedStepIntegrator, Integrator, Trajectory
 from .params import InputError, Param
 from .problem import Problem
-from .api import Order, Result, convergence, solve, sweep, work_precision
 
 __version__ = "0.1.0"
 __all__ = ["AdaptiveIntegrator", "FixedStepIntegrator", "InputError", "Integrator", "Order", "Param",
            "Problem", "Result", "Trajectory", "__version__", "convergence", "solve", "sweep", "work_precision"]
+
+# the Python API (docs/api.md), imported on first use: `import longtime` stays light
+_API = ("Order", "Result", "convergence", "solve", "sweep", "work_precision")
+
+
+def __getattr__(name: str):
+    if name in _API:
+        from . import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
