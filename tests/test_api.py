@@ -96,9 +96,8 @@ def test_convergence_names_why_a_scheme_has_no_order():
     order = longtime.convergence(rows)
     assert order.value is None and order.reason.startswith("every point above 0.1")
     assert len(order.dropped) == 2 and all(why == "above 0.1" for _, _, why in order.dropped)
-    from longtime.report import summary
-
     from longtime.api import records as as_records
+    from longtime.report import summary
 
     records = as_records(rows)
     assert "left out of the order table: euler (every point above 0.1)" in summary(records)
