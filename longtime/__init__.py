@@ -7,5 +7,17 @@ from .params import InputError, Param
 from .problem import Problem
 
 from .version import __version__
-__all__ = ["AdaptiveIntegrator", "FixedStepIntegrator", "InputError", "Integrator", "Param",
-           "Problem", "Trajectory", "__version__"]
+
+__all__ = ["AdaptiveIntegrator", "FixedStepIntegrator", "InputError", "Integrator", "Order", "Param",
+           "Problem", "Result", "Trajectory", "__version__", "convergence", "solve", "sweep", "work_precision"]
+
+# the Python API (docs/api.md), imported on first use: `import longtime` stays light
+_API = ("Order", "Result", "convergence", "solve", "sweep", "work_precision")
+
+
+def __getattr__(name: str):
+    if name in _API:
+        from . import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

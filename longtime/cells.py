@@ -220,10 +220,13 @@ def integrate_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES) -> tuple[
 
 
 def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool = True,
-             timing: Timing | None = None, time_limit: float | None = DEFAULT_TIME_LIMIT) -> dict[str, Any]:
+             timing: Timing | None = None, time_limit: float | None = DEFAULT_TIME_LIMIT,
+             keep: dict[str, Any] | None = None) -> dict[str, Any]:
     """Run one cell, timed by ``timing`` (default: ``Timing()``, the repeated timing of
     every row); every outcome is a row, nothing raises. Past ``time_limit`` seconds (None:
-    no limit) the integration stops where it got: a ``timeout`` row."""
+    no limit) the integration stops where it got: a ``timeout`` row. ``keep``, a dict,
+    receives what the row was measured from (``problem``, ``integrator``, ``trajectory``,
+    ``reference``: the trusted reference states, ``trust``), for ``longtime.solve``."""
     row = base_row(cell)
     deadline = time.monotonic() + time_limit if time_limit else None
     if cell.skip_reason:
@@ -250,6 +253,8 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
                 note = trust.message(float(traj.t[-1]))
             except ReferenceUnavailable as exc:
                 note = f"no reference: {exc}"
+        if keep is not None:
+            keep.update(problem=problem, integrator=integrator, trajectory=traj, reference=ref, trust=trust)
         row.update(metrics.evaluate(problem, traj, ref, trust))
         row["status"] = traj.status
         worst = max((e for e in (row.get("l2_error"), row.get("final_error")) if e is not None), default=None)

@@ -23,7 +23,7 @@ from .roles import ROW_PARAMETERS, flag
 from .store import Store, default_path
 
 # modules that add subcommands: each defines add_parser(subparsers) and sets func
-COMMAND_MODULES: tuple[str, ...] = ("longtime.cache_cmd", "longtime.compare", "longtime.matched", "longtime.plot", "longtime.reproduce", "longtime.roundoff", "longtime.warmup")
+COMMAND_MODULES: tuple[str, ...] = ("longtime.asv_init", "longtime.cache_cmd", "longtime.compare", "longtime.matched", "longtime.plot", "longtime.reproduce", "longtime.roundoff", "longtime.warmup")
 
 
 # argument types: one set for every command (longtime.cli_args)
@@ -149,6 +149,8 @@ def cmd_list(args) -> int:
 
 
 def cmd_run(args) -> int:
+    from .api import run_cells
+
     _warn_broken()
     cells = expand(args.problem, args.integrator, **_selection(args), strict=True)
     if not args.allow_large:
@@ -156,8 +158,8 @@ def cmd_run(args) -> int:
     executor = args.executor or "serial"
     options = _options(args, executor)
     store = None if args.no_store else Store(args.db)
-    with recorded_run(store, command_line(args), cells) as run_id:
-        rows = run_matrix(cells, store, run_id, executor, options)
+    rows, _ = run_cells(cells, store=store, command=command_line(args), executor=executor,
+                        options=options)
     print(render(rows, args.format))  # json: every row with the contract's keys (report.complete)
     return 1 if any(r["status"] == "failed" for r in rows) else 0
 

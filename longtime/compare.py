@@ -100,7 +100,34 @@ def compare(rows_a: list[dict], rows_b: list[dict], factor: float = 1.1, error_f
     common = [k for k in by_a if k in by_b]
     cells = [compare_rows(by_a[k], by_b[k], factor, error_factor, alpha) for k in common]
     return {"cells": cells, "only_a": len(set(by_a) - set(by_b)), "only_b": len(set(by_b) - set(by_a)),
-            "regressed": sum(bool(c["regressions"]) for c in cells)}
+            "regressed": sum(bool(c["regressions"]) for c in cells), **compare_orders(rows_a, rows_b)}
+
+
+ORDER_KEYS = ("problem", "integrator", "t_final", "order", "settings")
+
+
+def compare_orders(rows_a: list[dict], rows_b: list[dict]) -> dict[str, Any]:
+    """The observed orders of both runs side by side ("orders": each sweep with its order in
+    A and in B, None where that run has no fit; "changed" when they differ by more than
+    either interval and 0.1), and every problem x scheme left out of either run's order
+    table, with why ("left_out_a", "left_out_b")."""
+    from .orders import ORDER_TOLERANCE, left_out, observed_orders
+
+    fits = [{tuple(str(f.get(k)) for k in ORDER_KEYS): f for f in observed_orders(rows)} for rows in (rows_a, rows_b)]
+    out = []
+    for key in sorted(set(fits[0]) | set(fits[1])):
+        a, b = fits[0].get(key), fits[1].get(key)
+        first = a or b
+        entry = {k: first.get(k) for k in ORDER_KEYS}
+        entry.update(declared_order=first["declared_order"],
+                     order_a=a and a["observed_order"], ci_a=a and a["observed_order_ci"],
+                     order_b=b and b["observed_order"], ci_b=b and b["observed_order_ci"])
+        entry["changed"] = bool(a and b and abs(a["observed_order"] - b["observed_order"]) > max(
+            a["observed_order_ci"] or 0.0, b["observed_order_ci"] or 0.0, ORDER_TOLERANCE))
+        out.append(entry)
+    return {"orders": out,
+            "left_out_a": [{k: m[k] for k in ("problem", "integrator", "reason")} for m in left_out(rows_a)],
+            "left_out_b": [{k: m[k] for k in ("problem", "integrator", "reason")} for m in left_out(rows_b)]}
 
 
 def _label(c: dict) -> str:
@@ -124,7 +151,21 @@ def render(result: dict[str, Any], show_all: bool = False) -> str:
             for k, (x, y) in c["growth_class_changes"].items():
                 text += f"; {k} {x} -> {y}"
             lines.append(text)
+    for o in result.get("orders", []):
+        if o["changed"] or show_all:
+            lines.append(f"  {'CHANGED' if o['changed'] else 'ok':9s} {o['problem']} {o['integrator']}: observed order "
+                         f"{_order(o['order_a'], o['ci_a'])} -> {_order(o['order_b'], o['ci_b'])}"
+                         + (f" (declared {o['declared_order']})" if o["declared_order"] is not None else ""))
+    for side in ("a", "b"):
+        for m in result.get(f"left_out_{side}", []):
+            lines.append(f"  left out of {side.upper()}'s order table: {m['problem']} {m['integrator']} ({m['reason']})")
     return "\n".join(lines)
+
+
+def _order(value: float | None, ci: float | None) -> str:
+    if value is None:
+        return "-"
+    return f"{value:.2f}" + (f"+-{ci:.2f}" if ci is not None else "")
 
 
 def _rows(db, run: str) -> list[dict]:

@@ -17,7 +17,7 @@ from typing import Any
 
 from numba.core.registry import CPUDispatcher
 
-from .params import Param
+from .params import InputError, Param
 
 # capability name -> attribute(s) of a problem that provide it
 CAPABILITIES: dict[str, tuple[str, ...]] = {
@@ -36,8 +36,10 @@ CONSTRAINT_FUNCTIONS = ("phi", "grad_phi", "mass", "grad_U")
 KINDS = ("fixed", "adaptive", "external")
 
 
-class ContractError(TypeError):
-    """A problem or scheme class that breaks the plugin contract."""
+class ContractError(InputError, TypeError):
+    """A problem or scheme class that breaks the plugin contract: bad input (an in-memory
+    class defined or registered from Python fails with the one-line reason ``longtime
+    list`` gives a broken plugin), and a TypeError (the class itself is wrong)."""
 
 
 def _owner(cls: type) -> str:

@@ -38,7 +38,7 @@ import numpy as np
 
 from .figures import plain_log_ticks, pyplot
 from .fmt import positive
-from .orders import observed_orders
+from .orders import left_out, observed_orders
 from .roles import ROW_PARAMETERS
 from .report import (_not_ok, format_counts, main_t_final, pareto, pareto_field, pareto_groups, setting, status_counts,
                      target_text)
@@ -55,13 +55,18 @@ PAGE_NAME = "index.html"
 
 
 def family(scheme: str) -> str:
-    """The family of a scheme: the module that defines it ('explicit_rk', 'splitting', ...)."""
+    """The family of a scheme: the module of longtime.integrators that defines it or the
+    built-in family it subclasses ('explicit_rk', 'splitting', ...; a plugin's Splitting is
+    'splitting'), else the module that defines it."""
     from . import registry
 
     try:
-        return registry.integrator_class(scheme).__module__.rsplit(".", 1)[-1]
+        cls = registry.integrator_class(scheme)
     except Exception:  # a scheme of an old run that is no longer installed
         return "other"
+    builtin = next((k.__module__ for k in cls.__mro__ if k.__module__.startswith("longtime.integrators.")),
+                   cls.__module__)
+    return builtin.rsplit(".", 1)[-1]
 
 
 def styles(schemes: Sequence[str]) -> dict[str, dict[str, str]]:
@@ -604,6 +609,7 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
     builtin, plugins = _stability_schemes(rows) if stability else ({}, {})
     figures, intervals = _all_figures(by_problem, style, drift, jobs, builtin, ahead)
     fits = observed_orders(rows)
+    missing = left_out(rows)
     counts = status_counts(rows)
     out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
            '<meta name="viewport" content="width=device-width, initial-scale=1">',
@@ -644,6 +650,11 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
             out.append("<h3>Observed order</h3><p class=\"note\">Least-squares slope of log error against "
                        "log step over the asymptotic range (floors and pre-asymptotic points dropped), "
                        "with its 95 % interval.</p>" + orders)
+        mine_missing = [m for m in missing if m["problem"] == p]
+        if mine_missing:
+            out.append(("" if orders else "<h3>Observed order</h3>") + "<p>Left out of the order table:</p><ul>"
+                       + "".join(f"<li>{_e(m['integrator'])}: {_e(m['reason'])}</li>" for m in mine_missing)
+                       + "</ul>")
         folded = _not_ok(mine)
         if folded:
             out.append("<h3>Not run to the end, or the solution lost</h3><ul>" + "".join(

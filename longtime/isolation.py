@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
 
+from . import registry
 from .cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, Cell, base_row, run_cell
 from .integrator import Timing
 
@@ -77,6 +78,10 @@ def _start(cell: Cell, max_samples: int, timeout: float | None, timing: Timing,
     job = {"cell": cell.to_dict(), "max_samples": max_samples, "parent": os.getpid(), "time_limit": time_limit,
            "timing": {"repeats": timing.repeats, "min_time": timing.min_time}}
     (folder / "cell.json").write_text(json.dumps(job))
+    session = registry.session_payload()  # classes registered from Python, pickled by value
+    if session is not None:
+        (folder / "session.pkl").write_bytes(session)
+        (folder / "sys_path.json").write_text(json.dumps(sys.path))  # where their modules import from
     with open(folder / "stderr.txt", "wb") as err:
         proc = subprocess.Popen(
             [sys.executable, "-m", "longtime.isolation", str(folder)],
@@ -166,6 +171,9 @@ def _child_main(folder: str) -> None:
     path = Path(folder)
     job = json.loads((path / "cell.json").read_text())
     die_with_parent(job["parent"])
+    if (path / "session.pkl").exists():
+        sys.path[:0] = [p for p in json.loads((path / "sys_path.json").read_text()) if p not in sys.path]
+        registry.restore_session((path / "session.pkl").read_bytes())
     row = run_cell(Cell.from_dict(job["cell"]), job["max_samples"], timing=Timing(**job["timing"]),
                    time_limit=job.get("time_limit"))
     tmp = path / "row.json.part"

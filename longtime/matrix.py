@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
+from . import registry
 from .cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, Cell, base_row, cell_size, run_cell
 from .integrator import Timing
 from .isolation import die_with_parent, run_isolated
@@ -198,8 +199,10 @@ def _write(path: Path, data) -> None:
     tmp.replace(path)  # atomic: a reader never sees half a file
 
 
-def _worker_init(parent: int) -> None:
+def _worker_init(parent: int, session: bytes | None = None) -> None:
     die_with_parent(parent)
+    if session is not None:  # classes registered from Python in the parent (registry.register)
+        registry.restore_session(session)
 
 
 def _stop(pool: ProcessPoolExecutor) -> None:
@@ -236,7 +239,8 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
     try:
         while remaining:
             broken = False
-            pool = spawn_pool(min(workers, len(remaining)), _worker_init, (os.getpid(),))
+            pool = spawn_pool(min(workers, len(remaining)), _worker_init,
+                              (os.getpid(), registry.session_payload()))
             try:
                 for batch, fut in scheduled(pool, workers, batches_by_pair(remaining), run_batch,
                                             options.max_samples, options.timing, folder, options.time_limit,

@@ -49,20 +49,35 @@ def _x(row: dict) -> float | None:
     return float(row["mean_dt"]) if positive(row.get("mean_dt")) else None
 
 
-def asymptotic_points(points: list[tuple[float, float, float | None]]) -> list[tuple[float, float]]:
-    """(x, error, reference_error) -> the (x, error) of the asymptotic range, by increasing x."""
-    kept = sorted((x, e) for x, e, ref in points
-                  if e >= ROUND_OFF_FLOOR and e <= MAX_ERROR
-                  and not (ref is not None and positive(ref) and e < REFERENCE_MARGIN * ref))
+def classify_points(points: list[tuple[float, float, float | None]]
+                    ) -> tuple[list[tuple[float, float]], list[tuple[float, float, str]]]:
+    """(x, error, reference_error) -> (the (x, error) of the asymptotic range, by increasing
+    x; the (x, error, why) of the points left out: a floor, above MAX_ERROR, pre-asymptotic)."""
+    kept, dropped = [], []
+    for x, e, ref in points:
+        if e < ROUND_OFF_FLOOR:
+            dropped.append((x, e, f"below round-off {ROUND_OFF_FLOOR:g}"))
+        elif e > MAX_ERROR:
+            dropped.append((x, e, f"above {MAX_ERROR:g}"))
+        elif ref is not None and positive(ref) and e < REFERENCE_MARGIN * ref:
+            dropped.append((x, e, f"below {REFERENCE_MARGIN:g} x the reference's error"))
+        else:
+            kept.append((x, e))
     # one x per point (a repeated setting in one run would weigh twice)
-    kept = list({x: (x, e) for x, e in kept}.values())
+    kept = list({x: (x, e) for x, e in sorted(kept)}.values())
     while len(kept) > MIN_POINTS:
         slope, _ = fit_slope(*zip(*kept))
         local = [math.log(e2 / e1) / math.log(x2 / x1) for (x1, e1), (x2, e2) in zip(kept, kept[1:])]
         if max(abs(s - slope) for s in local) <= SLOPE_SPREAD:
             break
-        kept = kept[:-1]  # the largest step is the one furthest from the asymptotic regime
-    return kept
+        # the largest step is the one furthest from the asymptotic regime
+        dropped.append((*kept.pop(), "pre-asymptotic"))
+    return kept, sorted(dropped)
+
+
+def asymptotic_points(points: list[tuple[float, float, float | None]]) -> list[tuple[float, float]]:
+    """(x, error, reference_error) -> the (x, error) of the asymptotic range, by increasing x."""
+    return classify_points(points)[0]
 
 
 def declared_order(row: dict) -> int | None:
@@ -82,34 +97,84 @@ def declared_order(row: dict) -> int | None:
     return int(row["order"]) if positive(row.get("order")) else (int(param.default) if param.default else None)
 
 
+def _groups(rows: Iterable[dict[str, Any]]) -> list[list[dict]]:
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault(tuple(str(r.get(k)) for k in GROUP_KEYS), []).append(r)
+    return list(groups.values())
+
+
+def _fit(members: list[dict]) -> tuple[dict | None, dict]:
+    """(the fit of one sweep or None, why not: {"reason", "dropped"})."""
+    ok = [r for r in members if r.get("status") == "ok"]
+    if not ok:
+        counts: dict[str, int] = {}
+        for r in members:
+            counts[str(r.get("status"))] = counts.get(str(r.get("status")), 0) + 1
+        return None, {"reason": "no ok row (" + ", ".join(f"{n} {s}" for s, n in sorted(counts.items())) + ")",
+                      "dropped": []}
+    field = next((f for f in ERROR_FIELDS if sum(positive(r.get(f)) for r in ok) >= 2), None)
+    if field is None:
+        steps = {_x(r) for r in ok}
+        why = ("one step size: no sweep to fit" if len(steps) < 2 else
+               f"fewer than two rows with {' or '.join(ERROR_FIELDS)}")
+        return None, {"reason": why, "dropped": []}
+    points = [(_x(r), float(r[field]), r.get("reference_error") if field == "l2_error" else None)
+              for r in ok if positive(r.get(field)) and _x(r) is not None]
+    used, dropped = classify_points(points)
+    if len(used) < 2 or len({x for x, _ in used}) < 2:
+        whys: dict[str, int] = {}
+        for _, _, why in dropped:
+            whys[why] = whys.get(why, 0) + 1
+        if len(whys) == 1 and not used:
+            reason = f"every point {next(iter(whys))}"
+        else:
+            reason = (f"{len(used)} of {len(points)} points left: "
+                      + ", ".join(f"{n} {why}" for why, n in sorted(whys.items())))
+        return None, {"reason": reason, "dropped": [list(d) for d in dropped]}
+    slope, ci = fit_slope(*zip(*used))
+    first = members[0]
+    declared = declared_order(first)
+    flag = (declared is not None and ci is not None
+            and abs(slope - declared) > max(ci, ORDER_TOLERANCE))
+    variable = "dt" if all(_fixed_step(r) for r in members) else "mean_dt"
+    return {"problem": first["problem"], "integrator": first["integrator"],
+            "run_id": first.get("run_id"), "t_final": first.get("t_final"),
+            "order": first.get("order"), "settings": first.get("settings"),
+            "declared_order": declared, "observed_order": slope, "observed_order_ci": ci,
+            "order_points": [[x, e] for x, e in used], "order_dropped": [list(d) for d in dropped],
+            "order_variable": variable, "order_error_field": field, "order_flag": bool(flag)}, {}
+
+
 def observed_orders(rows: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
     """One fit per sweep with at least two usable points: problem, integrator, the fixed
     settings, declared_order, observed_order, observed_order_ci (None from two points),
-    order_points ([[x, error], ...] used), order_variable, order_error_field, order_flag."""
-    groups: dict[tuple, list[dict]] = {}
-    for r in rows:
-        if r.get("status") == "ok":
-            groups.setdefault(tuple(str(r.get(k)) for k in GROUP_KEYS), []).append(r)
-    out = []
-    for members in groups.values():
-        field = next((f for f in ERROR_FIELDS if sum(positive(r.get(f)) for r in members) >= 2), None)
-        if field is None:
-            continue
-        points = [(_x(r), float(r[field]), r.get("reference_error") if field == "l2_error" else None)
-                  for r in members if positive(r.get(field)) and _x(r) is not None]
-        used = asymptotic_points(points)
-        if len(used) < 2 or len({x for x, _ in used}) < 2:
-            continue
-        slope, ci = fit_slope(*zip(*used))
-        first = members[0]
-        declared = declared_order(first)
-        flag = (declared is not None and ci is not None
-                and abs(slope - declared) > max(ci, ORDER_TOLERANCE))
-        variable = "dt" if all(_fixed_step(r) for r in members) else "mean_dt"
-        out.append({"problem": first["problem"], "integrator": first["integrator"],
-                    "run_id": first.get("run_id"), "t_final": first.get("t_final"),
-                    "order": first.get("order"), "settings": first.get("settings"),
-                    "declared_order": declared, "observed_order": slope, "observed_order_ci": ci,
-                    "order_points": [[x, e] for x, e in used], "order_variable": variable,
-                    "order_error_field": field, "order_flag": bool(flag)})
+    order_points ([[x, error], ...] used), order_dropped ([[x, error, why], ...] left out),
+    order_variable, order_error_field, order_flag."""
+    out = [fit for fit, _ in map(_fit, _groups(rows)) if fit is not None]
     return sorted(out, key=lambda d: (d["problem"], d["integrator"], str(d["order"])))
+
+
+def left_out(rows: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Every problem x scheme with rows but no observed order, and why (from its sweep with
+    the most rows): 'every point above 0.1', 'no ok row (3 diverged)', 'one step size: no
+    sweep to fit', ... A pair whose rows are all ``skipped`` is left to the skip line that
+    names its missing capability."""
+    rows = list(rows)
+    fitted, why = set(), {}
+    for members in _groups(rows):
+        pair = (members[0]["problem"], members[0]["integrator"])
+        if all(r.get("status") == "skipped" for r in members):
+            continue
+        fit, reason = _fit(members)
+        if fit is not None:
+            fitted.add(pair)
+        elif pair not in why or len(members) > why[pair][0]:
+            why[pair] = (len(members), reason, declared_order(members[0]))
+    return [{"problem": p, "integrator": i, "reason": r["reason"], "dropped": r["dropped"], "declared_order": d}
+            for (p, i), (_, r, d) in sorted(why.items()) if (p, i) not in fitted]
+
+
+def left_out_text(entries: list[dict[str, Any]]) -> str:
+    """'verlet (every point above 0.1); rk4 (no ok row (3 diverged))'."""
+    return "; ".join(f"{m['integrator']} ({m['reason']})" for m in entries)

@@ -26,7 +26,7 @@ from typing import Any, Callable
 
 from . import cli_args
 from .figures import FORMATS, save  # noqa: F401  (the helpers every kind uses)
-from .figures.work_precision import DRIFT_METRICS, work_precision  # noqa: F401
+from .figures.work_precision import DRIFT_METRICS
 from .params import InputError, check_choice
 
 PLOT_KINDS: dict[str, str] = {
@@ -56,6 +56,88 @@ def draw(kind: str, out_dir: str | Path = "figures", **options: Any) -> list[Pat
     given = {k: v for k, v in options.items() if v is not None and (takes_all or k in accepted)}
     given.setdefault("formats", ("png", "svg"))
     return [Path(p) for p in fn(out=Path(out_dir) / kind, **given)]
+
+
+# ------------------------------------------------------------------ from Python: Axes
+def _axes(ax):
+    if ax is not None:
+        return ax
+    from .figures import pyplot
+
+    return pyplot().subplots(figsize=(7, 4.6))[1]
+
+
+def work_precision(rows: Any, ax=None, *, field: str | None = None, problem: str | None = None):
+    """Error (``field``, default the Pareto table's: l2_error, else H.max, ...) against CPU
+    seconds of the ok rows of one problem (a DataFrame from ``longtime.sweep``, or row
+    dicts), log-log, one curve per scheme, a colour per family; a bar reaches each point's
+    slowest repeat. Returns the matplotlib Axes (a new figure's unless ``ax``)."""
+    from .api import records
+    from .figures.work_precision import curves
+    from .fmt import positive
+    from .html_report import styles
+    from .report import pareto_field
+
+    rows = [r for r in records(rows) if r.get("status") == "ok" and positive(r.get("cpu_s"))
+            and (problem is None or r["problem"] == problem)]
+    problems = sorted({r["problem"] for r in rows})
+    if len(problems) != 1:
+        raise InputError(f"work_precision draws one problem's ok rows; these hold "
+                         f"{', '.join(problems) or 'none'}: pass problem=")
+    field = field or pareto_field(rows)
+    if field is None:
+        raise InputError("work_precision: no ok row has an error to draw")
+    ax = _axes(ax)
+    curves(ax, rows, field, styles(sorted({r["integrator"] for r in rows})))
+    ax.set_xlabel("CPU seconds (minimum of repeats, bar to the maximum)")
+    ax.set_ylabel(field)
+    ax.set_title(f"{problems[0]}: error against cost")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    return ax
+
+
+def drift(result_or_rows: Any, invariant: str = "H", ax=None):
+    """The relative error of ``invariant`` against t - t0, log-log: every sample of a
+    ``longtime.solve`` Result, or for rows (a DataFrame or dicts) the upper envelope each ok
+    row keeps (``drift_curve``; a row without one is run again, untimed). Returns the Axes."""
+    from .api import Result, records
+    from .html_report import drift_curve, styles
+    from .metrics import relative_error
+    from .report import setting
+
+    ax = _axes(ax)
+    if isinstance(result_or_rows, Result):
+        res = result_or_rows
+        if invariant not in res.invariants:
+            raise InputError(f"drift: no invariant {invariant!r}; this result has {', '.join(res.invariants) or 'none'}")
+        err = relative_error(res.invariants[invariant])
+        t = res.t - res.t[0]
+        shown = (t > 0) & (err > 0)
+        ax.loglog(t[shown], err[shown], lw=0.8, label=f"{res.row['integrator']} {setting(res.row)}".strip())
+        title = res.row["problem"]
+    else:
+        rows = [r for r in records(result_or_rows) if r.get("status") == "ok"]
+        style = styles(sorted({r["integrator"] for r in rows}))
+        drawn = 0
+        for r in rows:
+            curve = drift_curve(r)
+            if curve is None or curve[2] != invariant:
+                continue
+            t, err, _ = curve
+            shown = (t > 0) & (err > 0)
+            ax.loglog(t[shown], err[shown], lw=0.8, color=style[r["integrator"]]["color"],
+                      label=f"{r['problem']} {r['integrator']} {setting(r)}".strip())
+            drawn += 1
+        if not drawn:
+            raise InputError(f"drift: no ok row keeps a drift curve of {invariant!r}")
+        title = ", ".join(sorted({r["problem"] for r in rows}))
+    ax.set_xlabel("t - t0")
+    ax.set_ylabel(f"relative error of {invariant}")
+    ax.set_title(f"{title}: drift of {invariant}")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    return ax
 
 
 def cmd_plot(args) -> int:

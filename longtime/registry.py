@@ -6,6 +6,7 @@ the others go on.
 """
 from __future__ import annotations
 
+import re
 import traceback
 from dataclasses import dataclass
 from importlib.metadata import entry_points
@@ -28,6 +29,8 @@ class BrokenPlugin:
 
 _loaded: dict[str, dict[str, type]] | None = None
 _broken: list[BrokenPlugin] = []
+# classes registered from Python for this session (``register``): no entry point, no install
+_session: dict[str, dict[str, type]] = {"problems": {}, "integrators": {}}
 
 
 def _load() -> dict[str, dict[str, type]]:
@@ -105,8 +108,64 @@ def reload() -> None:
     _load()
 
 
+def kebab(name: str) -> str:
+    """'MyForestRuth' -> 'my-forest-ruth': the name of a class registered without one."""
+    return re.sub(r"(?<=[a-z0-9])(?=[A-Z])|(?<=[A-Z])(?=[A-Z][a-z])", "-", name).lower().replace("_", "-")
+
+
+def register(cls: type, name: str | None = None) -> str:
+    """Register a Problem or Integrator class defined in Python for this session, under
+    ``name`` (default: its ``name``, else its class name in kebab-case), and return the
+    name. Cells built from names then find it, in this process and in the process pool's
+    workers (``session_payload``). It passes the checks an entry point passes (complete,
+    named consistently); a class that breaks the contract, or a name an installed plugin
+    or another class holds, raises InputError with a one-line reason. Registering a class
+    again under its name (a redefined class in a notebook) replaces the earlier one."""
+    from .params import InputError
+
+    kind = ("problems" if isinstance(cls, type) and issubclass(cls, Problem) else
+            "integrators" if isinstance(cls, type) and issubclass(cls, Integrator) else None)
+    if kind is None:
+        raise InputError(f"{cls!r} is not a subclass of longtime.Problem or longtime.Integrator")
+    own = vars(cls).get("name")  # a name inherited from a registered class is not this class's
+    name = name or own or kebab(cls.__name__)
+    if not re.fullmatch(r"[a-z0-9]+(-[a-z0-9]+)*", name):
+        raise InputError(f"name {name!r}: expected kebab-case (lower-case words joined by '-')")
+    if own and own != name:
+        raise InputError(f"{cls.__module__}.{cls.__qualname__} is named '{cls.name}' but registered as '{name}'")
+    check_registered(cls)  # ContractError: an InputError with the one-line reason
+    installed = _load()[kind].get(name)
+    if installed is not None and installed is not cls:
+        raise InputError(f"{kind[:-1]} name '{name}' is taken by {installed.__module__}.{installed.__qualname__}; "
+                         f"give {cls.__qualname__} another name")
+    if not own:
+        cls.name = name
+    _session[kind][name] = cls
+    return name
+
+
+def session_payload() -> bytes | None:
+    """The session's registered classes, pickled by value where they live outside an
+    importable module (cloudpickle): what a worker process needs to find them (None when
+    there are none)."""
+    if not any(_session.values()):
+        return None
+    import cloudpickle
+
+    return cloudpickle.dumps(_session)
+
+
+def restore_session(payload: bytes | None) -> None:
+    """Register, in a worker process, the classes of ``session_payload``."""
+    if payload:
+        import pickle
+
+        for kind, classes in pickle.loads(payload).items():
+            _session[kind].update(classes)
+
+
 def problems() -> dict[str, type[Problem]]:
-    return dict(_load()["problems"])
+    return {**_load()["problems"], **_session["problems"]}
 
 
 def default_problems() -> list[str]:
@@ -115,7 +174,7 @@ def default_problems() -> list[str]:
 
 
 def integrators() -> dict[str, type[Integrator]]:
-    return dict(_load()["integrators"])
+    return {**_load()["integrators"], **_session["integrators"]}
 
 
 def broken() -> list[BrokenPlugin]:

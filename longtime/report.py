@@ -240,12 +240,13 @@ def summary(rows: list[dict[str, Any]], orders: bool = True) -> str:
     """The terminal report read first: status counts, then per problem its Pareto front
     (one line per accuracy decade), fitted orders that miss their declared order, growth
     classes and why pairs were skipped (one line per reason)."""
-    from .orders import observed_orders
+    from .orders import left_out, left_out_text, observed_orders
 
     if not rows:
         return "no rows"
     parts = [f"{len(rows)} cells: {format_counts(status_counts(rows))}"]
     fits = observed_orders(rows) if orders else []
+    missing = left_out(rows) if orders else []
     for problem in sorted({r["problem"] for r in rows}):
         mine = [r for r in rows if r["problem"] == problem]
         lines = [f"== {problem}: {format_counts(status_counts(mine))} =="]
@@ -264,6 +265,9 @@ def summary(rows: list[dict[str, Any]], orders: bool = True) -> str:
         mine_fits = [f for f in fits if f["problem"] == problem]
         if mine_fits:
             lines.append("  observed/declared order (+- 95 %): " + "; ".join(_order_text(f) for f in mine_fits))
+        mine_missing = [m for m in missing if m["problem"] == problem]
+        if mine_missing:
+            lines.append("  left out of the order table: " + left_out_text(mine_missing))
         lines += [f"  {g}" for g in _growth_summary(mine)]
         for why, schemes in sorted(_not_ok(mine).items()):
             lines.append(f"  {why}: {', '.join(schemes)}")

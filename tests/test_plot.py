@@ -6,7 +6,8 @@ import pytest
 from longtime import registry
 from longtime.cli import main
 from longtime.params import InputError
-from longtime.plot import PLOT_KINDS, draw, kind_function, work_precision
+from longtime.figures.work_precision import work_precision
+from longtime.plot import PLOT_KINDS, draw, kind_function
 
 
 def _png_ok(path):

@@ -28,6 +28,24 @@ def _store_rows(db, run) -> list[dict]:
         raise InputError(f"--run {run!r} is not valid: expected a run id, 'latest' or 'all'") from None
 
 
+def curves(ax, rows: list[dict], field: str, style: dict[str, dict[str, str]]) -> None:
+    """One curve per scheme of ``rows`` (ok rows of one problem): ``field`` against CPU
+    seconds, log-log, coloured by family (``style``: html_report.styles)."""
+    from ..html_report import family
+
+    for scheme in sorted({r["integrator"] for r in rows}):
+        # the point is the minimum cpu_s of the repeated runs; the bar reaches the
+        # slowest repeat (rows stored before repeated timing have no bar)
+        pts = sorted((r["cpu_s"], r[field], r.get("cpu_s_max") or r["cpu_s"]) for r in rows
+                     if r["integrator"] == scheme and positive(r.get(field)))
+        if pts:
+            x, y, x_max = zip(*pts)
+            color = style[scheme]["color"]
+            ax.loglog(x, y, marker=style[scheme]["marker"], ms=5, lw=1.2, color=color,
+                      label=f"{scheme} ({family(scheme)})")
+            ax.hlines(y, x, x_max, color=color, lw=2.5, alpha=0.45)
+
+
 def work_precision(out: Path, formats: Sequence[str] = ("png", "svg"), rows: list[dict] | None = None,
                    db=None, run=None, problems: list[str] | None = None, schemes: list[str] | None = None,
                    metric: str = "H.max") -> list[Path]:
@@ -52,21 +70,11 @@ def work_precision(out: Path, formats: Sequence[str] = ("png", "svg"), rows: lis
         if not panels:
             continue
         fig, axes = plt.subplots(1, len(panels), figsize=(6.2 * len(panels), 4.6), squeeze=False)
-        from ..html_report import family, styles
+        from ..html_report import styles
 
         style = styles(sorted({r["integrator"] for r in mine}))  # a colour per family, a marker per scheme
         for ax, (field, label) in zip(axes[0], panels):
-            for i, scheme in enumerate(sorted({r["integrator"] for r in mine})):
-                # the point is the minimum cpu_s of the repeated runs; the bar reaches the
-                # slowest repeat (rows stored before repeated timing have no bar)
-                pts = sorted((r["cpu_s"], r[field], r.get("cpu_s_max") or r["cpu_s"]) for r in mine
-                             if r["integrator"] == scheme and positive(r.get(field)))
-                if pts:
-                    x, y, x_max = zip(*pts)
-                    color = style[scheme]["color"]
-                    ax.loglog(x, y, marker=style[scheme]["marker"], ms=5, lw=1.2, color=color,
-                              label=f"{scheme} ({family(scheme)})")
-                    ax.hlines(y, x, x_max, color=color, lw=2.5, alpha=0.45)
+            curves(ax, mine, field, style)
             ax.set_xlabel("CPU seconds (integration: minimum of repeats, bar to the maximum)")
             ax.set_ylabel(label)
             ax.grid(True, which="both", alpha=0.3)

@@ -1,0 +1,291 @@
+"""longtime from Python (docs/api.md): ``solve`` one cell, ``sweep`` a matrix into a pandas
+DataFrame, ``convergence`` (the observed order of a sweep) and ``work_precision`` (the
+Pareto table). A problem or a scheme is a registered name, a class or an instance: a class
+defined in memory is registered for the session (``registry.register``, checked as an
+entry point is) and found by the process pool's workers too.
+
+``longtime run`` is a layer over this module: its cells come from ``cells_for`` and run
+through ``run_cells``, as ``sweep``'s do, and ``solve`` runs a cell with the arguments the
+serial executor passes, so ``solve(...).row`` is the row ``longtime run --format json``
+prints (timings aside).
+"""
+from __future__ import annotations
+
+import shlex
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+
+from . import registry
+from .cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, SWEEP_PARAMETERS, Cell, check_size, expand, run_cell
+from .integrator import Integrator, Timing
+from .params import InputError
+from .problem import Problem
+
+
+# ------------------------------------------------------------------ names, classes, instances
+def _registered_name(cls: type) -> str:
+    """The name ``cls`` is found under: its registered name, else registered now."""
+    found = registry.problems() if issubclass(cls, Problem) else registry.integrators()
+    own = vars(cls).get("name")
+    if own and found.get(own) is cls:
+        return own
+    return registry.register(cls)
+
+
+def resolve(thing: Any, kind: str) -> tuple[str, dict[str, Any]]:
+    """(registered name, settings) of a problem or scheme given as a name, a class or an
+    instance (whose settings that differ from the defaults are carried over)."""
+    base = Problem if kind == "problem" else Integrator
+    if isinstance(thing, str):
+        return thing, {}
+    if isinstance(thing, type) and issubclass(thing, base):
+        return _registered_name(thing), {}
+    if isinstance(thing, base):
+        cls = type(thing)
+        given = {k: v for k, v in thing.settings.items()
+                 if k in cls.parameters and v is not None and v != cls.parameters[k].default}
+        return _registered_name(cls), given
+    raise InputError(f"{kind} {thing!r}: expected a registered name, a subclass of longtime.{base.__name__} "
+                     f"or an instance of one")
+
+
+def _as_list(x: Any) -> list:
+    return list(x) if isinstance(x, (list, tuple)) else [x]
+
+
+def _values(v: Any) -> list:
+    return list(v) if isinstance(v, (list, tuple, np.ndarray, range)) else [v]
+
+
+def cells_for(problems: Sequence, schemes: Sequence, t_final: Any = None, settings: dict[str, Any] | None = None,
+              *, strict: bool = False, default_sweep: bool = False) -> list[Cell]:
+    """The cells of problems x schemes x settings, through ``cells.expand`` as the command
+    line builds them: a parameter with a flag of its own (dt, tol, eps_res, order) or given
+    as several values is swept (``sweeps``); any other single value is a ``--set``."""
+    pnames, inames, sets, sweeps = [], [], {}, {}
+    for p in problems:
+        name, given = resolve(p, "problem")
+        pnames.append(name)
+        sets.update(given)
+    for s in schemes:
+        name, given = resolve(s, "scheme")
+        inames.append(name)
+        sets.update(given)
+    for key, value in (settings or {}).items():
+        values = _values(value)
+        if key in SWEEP_PARAMETERS or len(values) != 1:
+            sweeps[key] = values
+            sets.pop(key, None)  # the keyword overrides an instance's own setting
+        else:
+            sets[key] = values[0]
+    return expand(pnames, inames, sweeps=sweeps, t_final=t_final, sets=sets, strict=strict,
+                  default_sweep=default_sweep)
+
+
+def run_cells(cells: list[Cell], *, store=None, command: str = "", executor: str = "serial",
+              options=None, progress: bool = False) -> tuple[list[dict], int | None]:
+    """Run ``cells`` on ``executor``, each row appended to ``store`` (a Store, a path or None)
+    as ``longtime run`` does: the plan first, each row as it finishes, the run marked done,
+    or interrupted (an input error as it starts discards it). Returns (rows, run id)."""
+    from .lifecycle import recorded_run
+    from .matrix import ExecOptions, run_matrix
+    from .store import Store
+
+    options = options or ExecOptions()
+    if store is not None and not isinstance(store, Store):
+        store = Store(store)
+    with recorded_run(store, command, cells) as run_id:
+        rows = run_matrix(cells, store, run_id, executor, options, progress=progress)
+    return rows, run_id
+
+
+# ------------------------------------------------------------------ solve
+@dataclass
+class Result:
+    """One cell: ``row`` (the fields of ``longtime run --format json``), the samples ``t``
+    (n,) and ``u`` (n, dim), ``invariants`` (name -> values at ``t``) and ``reference`` (the
+    reference states at ``t[:len(reference)]``, the times up to which it is trusted; None
+    without a trusted reference). ``t`` and ``u`` are None when the cell failed before it
+    ran (``row["message"]`` says why)."""
+
+    row: dict[str, Any]
+    t: np.ndarray | None = None
+    u: np.ndarray | None = None
+    invariants: dict[str, np.ndarray] = field(default_factory=dict)
+    reference: np.ndarray | None = None
+    problem: Problem | None = None
+    scheme: Integrator | None = None
+
+    @property
+    def status(self) -> str:
+        return self.row["status"]
+
+    def __repr__(self) -> str:
+        r = self.row
+        return (f"Result({r['problem']} x {r['integrator']}: {r['status']}, {len(self.t) if self.t is not None else 0} "
+                f"samples, l2_error={r.get('l2_error')!r})")
+
+
+def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_samples: int = DEFAULT_MAX_SAMPLES,
+          repeats: int = Timing.repeats, min_time: float = Timing.min_time,
+          time_limit: float | None = DEFAULT_TIME_LIMIT, allow_large: bool = False, **settings: Any) -> Result:
+    """Run ``scheme`` on ``problem`` once (timed as every row is) and return its Result.
+    ``settings`` are the parameters of --dt, --tol, --eps-res, --order and --set (one value
+    each). A pair that cannot run (a capability missing) raises InputError naming it."""
+    from .report import complete
+
+    cells = cells_for(_as_list(problem), _as_list(scheme), t_final, settings, strict=True)
+    if len(cells) != 1:
+        raise InputError(f"solve runs one cell; these settings give {len(cells)}: give one value per "
+                         f"parameter (longtime.sweep takes lists)")
+    if max_samples < 2:
+        raise InputError(f"max_samples={max_samples} is not valid: must be >= 2")
+    if not allow_large:
+        check_size(cells, max_samples)
+    keep: dict[str, Any] = {}
+    row = complete(run_cell(cells[0], max_samples, timing=Timing(repeats=repeats, min_time=min_time),
+                            time_limit=time_limit or None, keep=keep))
+    traj = keep.get("trajectory")
+    if traj is None:
+        return Result(row, problem=keep.get("problem"), scheme=keep.get("integrator"))
+    prob = keep["problem"]
+    return Result(row, traj.t, traj.u, prob.invariants(traj.t, traj.u), keep.get("reference"), prob,
+                  keep["integrator"])
+
+
+# ------------------------------------------------------------------ sweep
+def sweep(problems: Any, schemes: Any, *, t_final: Any = None, executor: str = "process", jobs: int = 0,
+          store=None, max_samples: int = DEFAULT_MAX_SAMPLES, repeats: int = Timing.repeats,
+          min_time: float = Timing.min_time, time_limit: float | None = DEFAULT_TIME_LIMIT,
+          default_sweep: bool = False, allow_large: bool = False, **sweeps: Any):
+    """The matrix problems x schemes x every value of each parameter (a value or a list) as
+    a pandas DataFrame, one row per cell. ``executor`` is serial, process (default), isolated
+    or dask; ``store`` a path (or Store) appends the run to that store as ``longtime run``
+    does, and the rows then come back as stored (with ``run_id``)."""
+    from .matrix import ExecOptions
+    from .report import frame
+    from .store import Store
+
+    if store is not None and not isinstance(store, Store):
+        store = Store(store)
+    if max_samples < 2:
+        raise InputError(f"max_samples={max_samples} is not valid: must be >= 2")
+    cells = cells_for(_as_list(problems), _as_list(schemes), t_final, sweeps, default_sweep=default_sweep)
+    if not allow_large:
+        check_size(cells, max_samples)
+    options = ExecOptions(jobs=jobs if executor != "serial" else 0, max_samples=max_samples,
+                          timing=Timing(repeats=repeats, min_time=min_time), time_limit=time_limit or None)
+    command = "sweep " + shlex.join([f"{k}={v}" for k, v in
+                                     {"problems": problems, "schemes": schemes, "t_final": t_final,
+                                      **sweeps}.items() if v is not None])
+    rows, run_id = run_cells(cells, store=store, command=command, executor=executor, options=options)
+    return frame(store.rows(run_id) if store is not None else rows)
+
+
+# ------------------------------------------------------------------ orders and the Pareto table
+def records(rows: Any) -> list[dict[str, Any]]:
+    """Rows as a list of dicts from a DataFrame (missing values as None), a Result, or dicts."""
+    if isinstance(rows, Result):
+        return [rows.row]
+    if hasattr(rows, "to_dict") and hasattr(rows, "columns"):
+        return [{k: (None if _missing(v) else v) for k, v in r.items()} for r in rows.to_dict("records")]
+    return [dict(r) for r in rows]
+
+
+def _missing(v: Any) -> bool:
+    return v is None or (isinstance(v, float) and v != v)
+
+
+@dataclass(frozen=True)
+class Order:
+    """The observed order of one sweep (one problem, one scheme, one final time and setting):
+    ``value`` (the least-squares slope of log error against log step; None when no order
+    could be fitted, ``reason`` says why), ``ci`` its 95 % half-width (None from two
+    points), ``points`` the (step, error) pairs used, ``dropped`` the (step, error, why)
+    pairs left out (floors, above 0.1, pre-asymptotic), ``declared`` the scheme's declared
+    order and ``flag`` (the fit misses it beyond its interval and 0.1)."""
+
+    problem: str
+    scheme: str
+    value: float | None
+    ci: float | None
+    points: list[tuple[float, float]]
+    dropped: list[tuple[float, float, str]]
+    declared: int | None
+    flag: bool = False
+    error_field: str | None = None
+    variable: str | None = None
+    t_final: float | None = None
+    settings: str | None = None
+    reason: str | None = None
+
+    @property
+    def interval(self) -> tuple[float, float] | None:
+        if self.value is None or self.ci is None:
+            return None
+        return (self.value - self.ci, self.value + self.ci)
+
+    def __str__(self) -> str:
+        head = f"{self.scheme} on {self.problem}: "
+        if self.value is None:
+            return head + f"no observed order ({self.reason})"
+        text = head + f"observed order {self.value:.3f}"
+        text += f" +- {self.ci:.3f} (95 %)" if self.ci is not None else " (2 points: no interval)"
+        text += f", declared {self.declared}" if self.declared is not None else ""
+        text += f"; {len(self.points)} points used ({self.error_field} against {self.variable} "
+        text += ", ".join(f"{x:.3g}" for x, _ in self.points) + ")"
+        if self.dropped:
+            text += "; dropped: " + ", ".join(f"{self.variable}={x:.3g} ({why})" for x, _, why in self.dropped)
+        return text
+
+
+def orders(rows: Any) -> list[Order]:
+    """An Order per sweep in ``rows``, and one without a value (its ``reason``) per
+    problem x scheme that has no fit."""
+    from .orders import left_out, observed_orders
+
+    rows = records(rows)
+    out = [Order(f["problem"], f["integrator"], f["observed_order"], f["observed_order_ci"],
+                 [tuple(p) for p in f["order_points"]], [tuple(p) for p in f["order_dropped"]],
+                 f["declared_order"], f["order_flag"], f["order_error_field"], f["order_variable"],
+                 f["t_final"], f["settings"]) for f in observed_orders(rows)]
+    out += [Order(m["problem"], m["integrator"], None, None, [], [tuple(p) for p in m["dropped"]],
+                  m["declared_order"], reason=m["reason"]) for m in left_out(rows)]
+    return sorted(out, key=lambda o: (o.problem, o.scheme, str(o.t_final)))
+
+
+def convergence(rows: Any) -> Order | list[Order]:
+    """The observed order of the sweep in ``rows`` (a DataFrame from ``sweep``, or row
+    dicts): an Order, or a list of them (one per problem x scheme and setting) when the
+    rows hold several sweeps."""
+    found = orders(rows)
+    if not found:
+        raise InputError("convergence: no rows")
+    return found[0] if len(found) == 1 else found
+
+
+def work_precision(rows: Any):
+    """The Pareto table of ``rows`` as a DataFrame: per problem and accuracy decade, the
+    fastest ok row meeting it (minimum CPU of its repeats) and the fastest of another
+    scheme (``next``, ``slower`` = its time / the fastest's), as ``longtime report`` shows."""
+    import pandas as pd
+
+    from .report import pareto, pareto_field, setting
+
+    rows = records(rows)
+    out = []
+    for problem in sorted({r["problem"] for r in rows}):
+        mine = [r for r in rows if r["problem"] == problem]
+        field_ = pareto_field(mine)
+        for p in pareto(mine, field_) if field_ else []:
+            b, n = p["best"], p["next"]
+            out.append({"problem": problem, "target": p["target"], "field": p["field"],
+                        "scheme": b["integrator"], "setting": setting(b), "cpu_s": b["cpu_s"],
+                        "error": b[p["field"]], "t_final": b.get("t_final"),
+                        "next": n["integrator"] if n else None, "next_setting": setting(n) if n else None,
+                        "slower": p["slower"]})
+    columns = ["problem", "target", "field", "scheme", "setting", "cpu_s", "error", "t_final", "next",
+               "next_setting", "slower"]
+    return pd.DataFrame(out, columns=columns)

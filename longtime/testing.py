@@ -1,0 +1,217 @@
+"""Assertions for a scheme author's tests (pytest or any runner): each measures with
+``longtime.sweep`` / ``longtime.solve`` and fails with an AssertionError that states what was
+measured, what was expected and the points used. See docs/api.md.
+
+    assert_order(scheme, problem, order, dts=None, slack=0.1, **settings)
+    assert_bounded(scheme, problem, invariant, bound, t_final=..., **settings)
+    assert_growth(scheme, problem, invariant, allowed_classes, t_final=..., **settings)
+    assert_no_regression(store, baseline_run, run, ...)
+    benchmark_cell(benchmark, problem, scheme, **settings)   # pytest-benchmark's fixture
+
+A scheme or a problem is a registered name, a class (registered for the session, no
+install needed) or an instance.
+"""
+from __future__ import annotations
+
+from typing import Any, Iterable, Sequence
+
+from . import registry
+from .api import Order, Result, cells_for, convergence, resolve, solve, sweep
+
+# a fit needs points in the asymptotic range: the problem's sweep and this many halvings below it
+EXTRA_HALVINGS = 2
+
+
+def default_dts(problem: Any) -> list[float]:
+    """The steps ``assert_order`` sweeps by default: the problem's ``sweep_dt`` and two
+    halvings of its smallest step."""
+    cls = registry.problem_class(resolve(problem, "problem")[0])
+    dts = sorted({float(x) for x in cls.sweep_dt} or {float(cls.default_dt)}, reverse=True)
+    return dts + [dts[-1] / 2 ** k for k in range(1, EXTRA_HALVINGS + 1)]
+
+
+def _label(scheme: Any, problem: Any) -> str:
+    return f"{resolve(scheme, 'scheme')[0]} on {resolve(problem, 'problem')[0]}"
+
+
+def _points(order: Order) -> str:
+    var = order.variable or "dt"
+    used = ", ".join(f"{var}={x:.4g}: {e:.3e}" for x, e in order.points)
+    text = f"points used ({order.error_field or 'error'}): {used or 'none'}"
+    if order.dropped:
+        text += "; dropped: " + ", ".join(f"{var}={x:.4g}: {e:.3e} ({why})" for x, e, why in order.dropped)
+    return text
+
+
+def assert_order(scheme: Any, problem: Any, order: float, *, dts: Sequence[float] | None = None,
+                 slack: float = 0.1, t_final: float | None = None, executor: str = "serial",
+                 **settings: Any) -> Order:
+    """The observed order of ``scheme`` on ``problem`` over the steps ``dts`` (default
+    ``default_dts``) is within ``slack`` of ``order``. Returns the Order."""
+    dts = list(dts) if dts is not None else default_dts(problem)
+    rows = sweep(problem, scheme, t_final=t_final, executor=executor, repeats=1, min_time=0.0, dt=dts, **settings)
+    found = convergence(rows)
+    if isinstance(found, list):
+        raise AssertionError(f"assert_order: the settings give {len(found)} sweeps; give one value per "
+                             f"parameter other than dts")
+    expected = f"expected order {order:g} +- {slack:g}"
+    if found.value is None:
+        raise AssertionError(f"{_label(scheme, problem)}: no observed order ({found.reason}); {expected}; "
+                             + _points(found) + _not_ok(rows))
+    if abs(found.value - order) > slack:
+        ci = f" +- {found.ci:.3f} (95 %)" if found.ci is not None else " (2 points: no interval)"
+        raise AssertionError(f"{_label(scheme, problem)}: observed order {found.value:.3f}{ci}, {expected}; "
+                             + _points(found))
+    return found
+
+
+def _not_ok(rows) -> str:
+    bad = rows[rows["status"] != "ok"]
+    if bad.empty:
+        return ""
+    return "; not ok: " + ", ".join(f"dt={r['dt']:.4g} {r['status']} ({r['message']})" for _, r in bad.iterrows())
+
+
+def _solve(scheme: Any, problem: Any, t_final: float, settings: dict) -> Result:
+    result = solve(problem, scheme, t_final=t_final, repeats=1, min_time=0.0, **settings)
+    if result.status != "ok":
+        raise AssertionError(f"{_label(scheme, problem)} to t={t_final:g} ({_settings(result)}): "
+                             f"status {result.status}: {result.row['message']}")
+    return result
+
+
+def _settings(result: Result) -> str:
+    r = result.row
+    parts = [f"{k}={r[k]:g}" for k in ("dt", "tol", "eps_res") if isinstance(r.get(k), (int, float))]
+    if r.get("settings"):
+        parts.append(str(r["settings"]))
+    return ", ".join(parts) or "default settings"
+
+
+def assert_bounded(scheme: Any, problem: Any, invariant: str, bound: float, *, t_final: float,
+                   **settings: Any) -> Result:
+    """The largest relative error of ``invariant`` (``NAME.max``) over one run to ``t_final``
+    is at most ``bound``. Returns the Result."""
+    result = _solve(scheme, problem, t_final, settings)
+    field = f"{invariant}.max"
+    if field not in result.row or result.row[field] is None:
+        have = sorted(k[:-4] for k, v in result.row.items() if k.endswith(".max") and v is not None)
+        raise AssertionError(f"{_label(scheme, problem)}: no invariant {invariant!r}; measured: {', '.join(have)}")
+    value = result.row[field]
+    if not value <= bound:
+        growth = result.row.get(f"{invariant}.growth_class")
+        raise AssertionError(
+            f"{_label(scheme, problem)} to t={t_final:g} ({_settings(result)}): max relative error of "
+            f"{invariant} {value:.3e}, expected at most {bound:.3e} (x{value / bound:.3g} the bound); "
+            f"final {_g(result.row.get(invariant + '.final'))}, growth {growth} "
+            f"(alpha {_g(result.row.get(invariant + '.growth'))}); {result.row['steps']} steps")
+    return result
+
+
+def assert_growth(scheme: Any, problem: Any, invariant: str, allowed_classes: Iterable[str] | str, *,
+                  t_final: float, **settings: Any) -> Result:
+    """The growth class of ``invariant``'s error over one run to ``t_final`` (``NAME.growth_class``:
+    bounded, sqrt, linear, quadratic, faster, saturated, diverged; ``error`` for the solution
+    error) is one of ``allowed_classes``. Returns the Result."""
+    allowed = [allowed_classes] if isinstance(allowed_classes, str) else list(allowed_classes)
+    result = _solve(scheme, problem, t_final, settings)
+    got = result.row.get(f"{invariant}.growth_class")
+    if got is None:
+        have = sorted(k[:-13] for k, v in result.row.items() if k.endswith(".growth_class") and v is not None)
+        raise AssertionError(f"{_label(scheme, problem)}: no growth law of {invariant!r}; measured: {', '.join(have)}")
+    if got not in allowed:
+        alpha, ci = result.row.get(f"{invariant}.growth"), result.row.get(f"{invariant}.growth_ci")
+        raise AssertionError(
+            f"{_label(scheme, problem)} to t={t_final:g} ({_settings(result)}): error of {invariant} grows as "
+            f"t^{_g(alpha)} (95 % interval {_interval(ci)}), class {got!r}; expected {' or '.join(map(repr, allowed))}; "
+            f"max {_g(result.row.get(invariant + '.max'))}, fitted over the last two decades of t")
+    return result
+
+
+def assert_no_regression(store: Any, baseline_run: int, run: int | None = None, *, factor: float = 1.1,
+                         error_factor: float = 2.0, alpha: float = 0.05, timing: bool = True,
+                         store_b: Any = None) -> dict[str, Any]:
+    """``longtime compare``'s verdict on ``run`` (default: the store's latest) against
+    ``baseline_run``: no common cell slower (with ``timing``), less accurate or no longer ok,
+    and no observed order changed. ``store_b`` holds ``run`` when it is another store.
+    Returns compare's result."""
+    from .compare import compare
+    from .store import Store
+
+    a = store if isinstance(store, Store) else Store(store, readonly=True)
+    b = a if store_b is None else (store_b if isinstance(store_b, Store) else Store(store_b, readonly=True))
+    run = b.latest_run() if run is None else run
+    rows_a, rows_b = a.rows(int(baseline_run)), b.rows(int(run))
+    result = compare(rows_a, rows_b, factor, error_factor, alpha)
+    if not result["cells"]:
+        raise AssertionError(f"runs {baseline_run} and {run} have no cell in common")
+    problems = []
+    for c in result["cells"]:
+        regressions = [x for x in c["regressions"] if timing or not x.startswith("cpu")]
+        if regressions:
+            problems.append(f"{c['problem']} {c['integrator']} ({_cell(c)}): " + "; ".join(regressions))
+    for o in result["orders"]:
+        if o["changed"]:
+            problems.append(f"{o['problem']} {o['integrator']}: observed order {o['order_a']:.3f} -> {o['order_b']:.3f}")
+    lost = {(m["problem"], m["integrator"]) for m in result["left_out_b"]} - \
+        {(m["problem"], m["integrator"]) for m in result["left_out_a"]}
+    for m in result["left_out_b"]:
+        if (m["problem"], m["integrator"]) in lost:
+            problems.append(f"{m['problem']} {m['integrator']}: no observed order any more ({m['reason']})")
+    if problems:
+        raise AssertionError(f"run {run} against run {baseline_run} ({len(result['cells'])} common cells; "
+                             f"slower beyond x{factor:g} at p <= {alpha:g}, errors beyond x{error_factor:g}): "
+                             + " | ".join(problems))
+    return result
+
+
+def _interval(ci: Any) -> str:
+    return f"[{_g(ci[0])}, {_g(ci[1])}]" if isinstance(ci, (list, tuple)) and len(ci) == 2 else str(ci)
+
+
+def _g(x: Any) -> str:
+    return f"{x:.3g}" if isinstance(x, (int, float)) and not isinstance(x, bool) else str(x)
+
+
+def _cell(c: dict) -> str:
+    from .report import setting
+
+    return setting(c) or "default settings"
+
+
+def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float | None = None,
+                   **settings: Any) -> dict[str, Any]:
+    """Time one cell with pytest-benchmark's ``benchmark`` fixture: the cell runs once
+    first (compiling its kernel, measuring its accuracy against the reference), then the
+    fixture times its integration alone, which must reproduce that run bitwise. The row's
+    accuracy fields (``l2_error``, ``final_error``, each invariant's ``.max``/``.mean``/
+    ``.final``/``.growth``/``.growth_class``, ``status``, ``steps``, ``rhs_evals``) go into
+    ``benchmark.extra_info``, so ``pytest --benchmark-json`` carries them beside the time.
+    Returns the row."""
+    from .cells import run_cell
+    from .integrator import Timing, same_run
+    from .report import complete
+
+    cells = cells_for([problem], [scheme], t_final, settings, strict=True)
+    if len(cells) != 1:
+        raise AssertionError(f"benchmark_cell times one cell; the settings give {len(cells)}")
+    keep: dict[str, Any] = {}
+    row = complete(run_cell(cells[0], timing=Timing(repeats=1), keep=keep))
+    if "trajectory" not in keep or row["status"] != "ok":
+        raise AssertionError(f"{cells[0].integrator} on {cells[0].problem}: status {row['status']}: {row['message']}")
+    prob, integ, first = keep["problem"], keep["integrator"], keep["trajectory"]
+    t_end = prob.default_t_final if cells[0].t_final is None else cells[0].t_final
+    timed = benchmark(integ.integrate, prob, t_end)
+    if not same_run(first, timed):
+        raise AssertionError(f"{integ.name} on {prob.name}: the timed integration did not reproduce the measured one")
+    benchmark.extra_info.update(accuracy_fields(row))
+    return row
+
+
+def accuracy_fields(row: dict[str, Any]) -> dict[str, Any]:
+    """The fields of a row that say how accurate it was (and what it ran)."""
+    keep = ("problem", "integrator", "status", "dt", "tol", "eps_res", "order", "t_final", "settings", "steps",
+            "rhs_evals", "l2_error", "final_error", "reference", "reference_error", "error_horizon")
+    suffixes = (".max", ".mean", ".final", ".growth", ".growth_class")
+    return {k: v for k, v in row.items()
+            if (k in keep or k.endswith(suffixes)) and (v is None or isinstance(v, (str, int, float, bool)))}

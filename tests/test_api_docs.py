@@ -1,0 +1,46 @@
+"""Every Python example of docs/api.md runs as it stands: a block is run as a script in a
+fresh folder, or, when its first line names a test file (``# test_....py``), with pytest
+(and ``--benchmark-json``, which must then carry l2_error in extra_info)."""
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "api.md"
+BLOCKS = re.findall(r"```python\n(.*?)```", DOC.read_text(), flags=re.S)
+
+
+def test_the_page_has_its_examples():
+    assert len(BLOCKS) >= 6
+    script = next(b for b in BLOCKS if "convergence(rows)" in b)
+    assert len(script.strip().splitlines()) <= 15  # the in-memory scheme's order, in at most 15 lines
+
+
+@pytest.mark.parametrize("index", range(len(BLOCKS)))
+def test_example_runs(index, tmp_path):
+    block = BLOCKS[index]
+    first = block.splitlines()[0]
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    test_file = re.match(r"# (test_\w+\.py)", first)
+    if test_file:
+        path = tmp_path / test_file.group(1)
+        path.write_text(block)
+        res = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", str(path),
+                              f"--benchmark-json={tmp_path / 'bench.json'}", "-o", "addopts="],
+                             capture_output=True, text=True, timeout=600, cwd=tmp_path, env=env)
+        assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+        extra = [b["extra_info"] for b in json.loads((tmp_path / "bench.json").read_text())["benchmarks"]]
+        assert extra and all(e["l2_error"] > 0 for e in extra)
+        return
+    path = tmp_path / f"example_{index}.py"
+    path.write_text(block)
+    res = subprocess.run([sys.executable, str(path)], capture_output=True, text=True, timeout=600, cwd=tmp_path,
+                         env=env)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    if "convergence(rows)" in block:
+        value = float(re.search(r"observed order (\d+\.\d+)", res.stdout).group(1))
+        assert abs(value - 4) < 0.1, res.stdout
