@@ -146,6 +146,7 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
                 problem = pcls(**psets)  # validates the problem's settings
             except MemoryError:
                 raise InputError(f"problem {pname} with {psets}: out of memory while building it") from None
+            psets = {k: problem.settings[k] for k in psets}  # typed: "0.5" from the command line is 0.5
             for horizon in horizons:
                 tf = horizon if horizon is not None else (
                     pcls.sweep_t_final if default_sweep and pcls.sweep_t_final else pcls.default_t_final)
@@ -162,7 +163,9 @@ def _scheme_cells(pname: str, pcls, problem: Problem, psets: dict, iname: str, t
     """The cells of one scheme on one problem setting and final time."""
     icls = registry.integrator_class(iname)
     isets = {k: v for k, v in sets.items() if k in icls.parameters}
-    reason = icls(**isets).incompatibility(problem)
+    scheme = icls(**isets)
+    isets = {k: scheme.settings[k] for k in isets}  # typed, as the problem's
+    reason = scheme.incompatibility(problem)
     if reason:
         if strict:
             raise InputError(f"incompatible pair {iname} x {pname}: {reason}")
@@ -179,7 +182,8 @@ def _scheme_cells(pname: str, pcls, problem: Problem, psets: dict, iname: str, t
     cells = []
     for point in itertools.product(*_axes(icls, sweeps, defaults)):
         settings = {**isets, **dict(point)}
-        icls(**settings)  # validates dt > 0, tol > 0, ...
+        built = icls(**settings)  # validates dt > 0, tol > 0, ...
+        settings = {k: built.settings[k] for k in settings}
         cells.append(Cell(pname, iname, psets, settings, tf))
     # the default matrix's long-time cell: the problem's paper-scale final time at its
     # default step, for the schemes that can afford it (``long_runs``)

@@ -100,9 +100,9 @@ def work_precision(rows: Any, ax=None, *, field: str | None = None, problem: str
 def drift(result_or_rows: Any, invariant: str = "H", ax=None):
     """The relative error of ``invariant`` against t - t0, log-log: every sample of a
     ``longtime.solve`` Result, or for rows (a DataFrame or dicts) the upper envelope each ok
-    row keeps (``drift_curve``; a row without one is run again, untimed). Returns the Axes."""
+    row keeps (``drift_curves``, ``diag_curves``; a row without them is run again, untimed). Returns the Axes."""
     from .api import Result, records
-    from .html_report import drift_curve, styles
+    from .html_report import row_curves, styles
     from .metrics import relative_error
     from .report import setting
 
@@ -121,10 +121,11 @@ def drift(result_or_rows: Any, invariant: str = "H", ax=None):
         style = styles(sorted({r["integrator"] for r in rows}))
         drawn = 0
         for r in rows:
-            curve = drift_curve(r)
-            if curve is None or curve[2] != invariant:
+            curves = row_curves(r)
+            found = [(t, e) for name, t, e in curves["invariant"] + curves["diagnostic"] if name == invariant]
+            if not found:
                 continue
-            t, err, _ = curve
+            t, err = found[0]
             shown = (t > 0) & (err > 0)
             ax.loglog(t[shown], err[shown], lw=0.8, color=style[r["integrator"]]["color"],
                       label=f"{r['problem']} {r['integrator']} {setting(r)}".strip())

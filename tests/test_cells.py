@@ -11,13 +11,13 @@ def test_problem_parameter_and_final_time_sweep():
     cells = expand(["kepler"], ["verlet"], sweeps={"dt": [0.01], "e": ["0.5", "0.9", "0.99"]},
                    t_final=[10.0, 100.0])
     assert [(c.problem_settings["e"], c.t_final) for c in cells] == [
-        ("0.5", 10.0), ("0.5", 100.0), ("0.9", 10.0), ("0.9", 100.0), ("0.99", 10.0), ("0.99", 100.0)]
+        (0.5, 10.0), (0.5, 100.0), (0.9, 10.0), (0.9, 100.0), (0.99, 10.0), (0.99, 100.0)]  # typed
     assert all(c.integrator_settings == {"dt": 0.01} for c in cells)
 
 
 def test_scalar_final_time_and_sets_still_work():
     (cell,) = expand(["toda"], ["rk4"], sweeps={"dt": [0.1]}, t_final=50.0, sets={"d": "4"})
-    assert cell.t_final == 50.0 and cell.problem_settings == {"d": "4"}
+    assert cell.t_final == 50.0 and cell.problem_settings == {"d": 4}
     (cell,) = expand(["toda"], ["rk4"])
     assert cell.t_final is not None and cell.integrator_settings == {}
 
@@ -39,7 +39,7 @@ def test_axes_nest_by_role():
 def test_a_sweep_reaches_only_the_classes_that_declare_it():
     cells = expand(["toda", "kepler"], ["rk4"], sweeps={"d": ["3", "4"]})
     assert [(c.problem, c.problem_settings) for c in cells] == [
-        ("toda", {"d": "3"}), ("toda", {"d": "4"}), ("kepler", {})]
+        ("toda", {"d": 3}), ("toda", {"d": 4}), ("kepler", {})]
 
 
 def test_bad_sweeps_are_input_errors():
@@ -63,7 +63,7 @@ def test_default_sweep_of_a_plugin_accuracy_parameter(monkeypatch):
     cells = expand(["harmonic"], [RTOL], default_sweep=True)
     assert [c.integrator_settings for c in cells] == [{"rtol": 1e-4}, {"rtol": 1e-7}]
     cells = expand(["harmonic"], [RTOL], sweeps={"rtol": ["1e-5", "1e-9"]}, default_sweep=True)
-    assert [c.integrator_settings for c in cells] == [{"rtol": "1e-5"}, {"rtol": "1e-9"}]
+    assert [c.integrator_settings for c in cells] == [{"rtol": 1e-5}, {"rtol": 1e-9}]
 
 
 def test_default_sweep_of_the_builtins():
