@@ -20,7 +20,8 @@ from numba.core.registry import CPUDispatcher
 from .params import Param
 
 # compiled functions a problem may provide (see docs/plugins.md)
-COMPILED_ATTRIBUTES = ("rhs", "grad_T", "grad_V", "jac", "taylor", "linear_part", "nonlinear")
+COMPILED_ATTRIBUTES = ("rhs", "grad_T", "grad_V", "jac", "taylor", "linear_part", "nonlinear",
+                       "frequencies", "grad_U")
 CONSTRAINT_FUNCTIONS = ("phi", "grad_phi", "mass", "grad_U")
 KINDS = ("fixed", "adaptive", "external")
 

@@ -17,11 +17,16 @@ schemes can close compiled loops over them.
                                         solution through (t0, u): coeffs[k] = u^(k)(t0)/k!
                                         for k = 0..N, N = coeffs.shape[0] - 1 (row 0 = u);
                                         work: scratch of shape taylor_work_shape(N)
+    frequencies(params, out)            ("oscillatory", with grad_U) H = |p|^2/2 +
+    grad_U(q, params, out)              |Omega q|^2/2 + U(q): out = diag(Omega), shape (n,),
+                                        and dU/dq (the slow force's negative), shape (n,)
 
 Python-level capabilities (vectorised over samples; ``U`` has shape (n, dim)):
 
     invariants(t, U) -> {name: (n,) or (n, k) array}     conserved quantities
     violations(t, U) -> {name: (n,) array}              non-negative residuals (constraints)
+    diagnostics(t, U) -> {name: (n,) array}             quantities worth recording that are
+                                                        not conserved (fpu's I1..Im)
     exact(t) -> U                                       exact solution at the times t,
                                                         through the state u0 as rounded
     exact_rtol                                          the relative accuracy of ``exact``
@@ -67,6 +72,8 @@ CAPABILITIES: dict[str, tuple[str, ...]] = {
     "taylor": ("taylor",),
     "constraints": ("constraints",),
     "linear_part": ("linear_part", "nonlinear"),
+    # a fast linear oscillation with unit masses: q'' = -Omega^2 q - grad U(q), Omega diagonal
+    "oscillatory": ("frequencies", "grad_U"),
 }
 
 
@@ -123,6 +130,8 @@ class Problem(ABC):
     constraints: ClassVar[Any] = None
     linear_part: ClassVar[Any] = None
     nonlinear: ClassVar[Any] = None
+    frequencies: ClassVar[Callable | None] = None
+    grad_U: ClassVar[Callable | None] = None
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -166,6 +175,10 @@ class Problem(ABC):
 
     def violations(self, t: np.ndarray, U: np.ndarray) -> dict[str, np.ndarray]:
         """Residuals that should stay zero (constraints): {name: (n,)}."""
+        return {}
+
+    def diagnostics(self, t: np.ndarray, U: np.ndarray) -> dict[str, np.ndarray]:
+        """Quantities over the samples that are recorded but not conserved: {name: (n,)}."""
         return {}
 
     @property
