@@ -82,8 +82,8 @@ class FPU(Problem):
     default_t_final = 200.0
     default_dt = 0.005
     # h omega = 1.5, 1.0, 0.5, 0.25, 0.1 at omega = 50, over 8000 fast periods: I's
-    # conservation shows. No longer paper-scale cell: its reference check alone (heyoka to
-    # real128: the motion is chaotic) would cost the default matrix about a minute
+    # conservation shows. No longer paper-scale cell: the motion is chaotic, so a reference
+    # check to a later time runs heyoka in real128 as well
     sweep_dt = (0.03, 0.02, 0.01, 0.005, 0.002)
     sweep_t_final = 1000.0
 
