@@ -90,3 +90,12 @@ def test_oscillatory_energy_over_5000():
     rk4 = runs["rk4"]
     assert rk4.status == "ok" and max_deviation_of_I(p, rk4.t, rk4.u) > 0.5
     assert metrics.evaluate(p, rk4, None, None)["I.growth_class"] == "saturated"
+
+
+@pytest.mark.parametrize("settings, word", [({"m": 0}, "m"), ({"omega": 0.0}, "omega"),
+                                            ({"oscillatory_energy": "maybe"}, "oscillatory_energy")])
+def test_bad_settings(settings, word):
+    from longtime.params import InputError
+
+    with pytest.raises(InputError, match=word):
+        fpu(**settings)

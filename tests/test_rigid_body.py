@@ -64,3 +64,11 @@ def test_rk4_energy_drifts_linearly():
     assert row["C.growth_class"] == "linear"
     early = metrics.evaluate(p, rk4.integrate(p, 1000.0), None, None)
     assert 7 < row["H.final"] / early["H.final"] < 13  # ten times longer, ten times larger
+
+
+@pytest.mark.parametrize("settings, word", [({"I1": 0.0}, "I1"), ({"I3": -1.0}, "I3"), ({"angle": "x"}, "angle")])
+def test_bad_settings(settings, word):
+    from longtime.params import InputError
+
+    with pytest.raises(InputError, match=word):
+        rigid_body(**settings)
