@@ -3,7 +3,7 @@ Numerical Integration, chapter XIII.2).
 
 For q'' = -Omega^2 q + g(q), g = -grad U, Omega diagonal (the ``oscillatory`` capability:
 ``frequencies(params, out)`` gives diag(Omega), ``grad_U(q, params, out)`` the slow potential's
-gradient; unit masses, p = q'), the one-step formulation (HLW XIII (2.7)) with filter
+gradient; unit masses, p = q'), the one-step formulation (HLW XIII.2.2) with filter
 functions psi, psi0, psi1, phi of xi = h Omega:
 
     q+ = cos(h Omega) q + Omega^-1 sin(h Omega) p + h^2/2 Psi g_n,
@@ -39,7 +39,7 @@ def sinc(x):
 @numba.njit(cache=True)
 def mollified_impulse_filters(xi):
     """(psi, psi0, psi1, phi) of the mollified impulse method: phi = sinc, psi = sinc phi,
-    psi0 = cos phi, psi1 = phi (HLW XIII.2.2, method (C))."""
+    psi0 = cos phi, psi1 = phi (Garcia-Archilla, Sanz-Serna, Skeel 1999; HLW XIII.2.2)."""
     phi = sinc(xi)
     return sinc(xi) * phi, math.cos(xi) * phi, phi, phi
 
