@@ -28,10 +28,13 @@ CAPABILITIES: dict[str, tuple[str, ...]] = {
     "taylor": ("taylor",),
     "constraints": ("constraints",),
     "linear_part": ("linear_part", "nonlinear"),
+    # a fast linear oscillation with unit masses: q'' = -Omega^2 q - grad U(q), Omega diagonal
+    "oscillatory": ("frequencies", "grad_U"),
 }
 
 # compiled functions a problem may provide (see docs/plugins.md)
-COMPILED_ATTRIBUTES = ("rhs", "grad_T", "grad_V", "jac", "taylor", "linear_part", "nonlinear")
+COMPILED_ATTRIBUTES = ("rhs", "grad_T", "grad_V", "jac", "taylor", "linear_part", "nonlinear",
+                       "frequencies", "grad_U")
 CONSTRAINT_FUNCTIONS = ("phi", "grad_phi", "mass", "grad_U")
 KINDS = ("fixed", "adaptive", "external")
 

@@ -17,6 +17,9 @@ schemes can close compiled loops over them.
                                         solution through (t0, u): coeffs[k] = u^(k)(t0)/k!
                                         for k = 0..N, N = coeffs.shape[0] - 1 (row 0 = u);
                                         work: scratch of shape taylor_work_shape(N)
+    frequencies(params, out)            ("oscillatory", with grad_U) H = |p|^2/2 +
+    grad_U(q, params, out)              |Omega q|^2/2 + U(q): out = diag(Omega), shape (n,),
+                                        and dU/dq (the slow force's negative), shape (n,)
 
 Python-level capabilities (vectorised over samples; ``U`` has shape (n, dim)):
 
@@ -116,6 +119,8 @@ class Problem(ABC):
     constraints: ClassVar[Any] = None
     linear_part: ClassVar[Any] = None
     nonlinear: ClassVar[Any] = None
+    frequencies: ClassVar[Callable | None] = None
+    grad_U: ClassVar[Callable | None] = None
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)

@@ -11,6 +11,8 @@ import heyoka or scipy's solvers):
                           from Verlet steps of sizes gamma_k h (splitting)
     ConstrainedIntegrator Dirac / RATTLE schemes on constraints (dirac)
     Taylor, AdaptiveTaylor, BorelPadeLaplace   series schemes over ``taylor``
+    Trigonometric         filter functions psi, psi0, psi1, phi of h Omega over
+                          ``oscillatory`` (trigonometric)
 """
 from __future__ import annotations
 
@@ -26,6 +28,7 @@ _EXPORTS = {
     "Taylor": "taylor",
     "AdaptiveTaylor": "taylor",
     "BorelPadeLaplace": "bpl",
+    "Trigonometric": "trigonometric",
     "check_tableau": "tableau",
     "TableauError": "tableau",
 }
