@@ -138,10 +138,12 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
                 icls(**settings)  # validates dt > 0, tol > 0, ...
                 cells.append(Cell(pname, iname, psets, settings, tf))
             # the default matrix's long-time cell (issue 10): the problem's paper-scale final
-            # time at its default step, for the schemes that can afford it (``long_runs``)
+            # time at its default step, for the schemes that can afford it (``long_runs``); a
+            # scheme without a step (an adaptive external one) runs it at its default settings
             long_tf = pcls.long_t_final
             if default_sweep and t_final is None and long_tf and icls.long_runs and "dt" not in sweeps:
-                cells.append(Cell(pname, iname, psets, {**isets, "dt": pcls.default_dt}, long_tf))
+                step = {"dt": pcls.default_dt} if "dt" in icls.parameters else {}
+                cells.append(Cell(pname, iname, psets, {**isets, **step}, long_tf))
     return cells
 
 
