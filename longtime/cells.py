@@ -141,7 +141,8 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
             # time at its default step, for the schemes that can afford it (``long_runs``); a
             # scheme without a step (an adaptive external one) runs it at its default settings
             long_tf = pcls.long_t_final
-            if default_sweep and t_final is None and long_tf and icls.long_runs and "dt" not in sweeps:
+            runs_long = icls.long_runs if isinstance(icls.long_runs, bool) else pname in icls.long_runs
+            if default_sweep and t_final is None and long_tf and runs_long and "dt" not in sweeps:
                 step = {"dt": pcls.default_dt} if "dt" in icls.parameters else {}
                 cells.append(Cell(pname, iname, psets, {**isets, **step}, long_tf))
     return cells

@@ -115,7 +115,10 @@ def test_without_rebound_the_rows_are_skipped_and_name_the_extra(monkeypatch):
 
 
 def test_default_matrix_runs_rebound_on_the_outer_solar_system_to_1e6_days():
-    cells = expand(["outer-solar-system"], ["rebound-leapfrog", "rebound-whfast", "rebound-ias15"],
+    cells = expand(["outer-solar-system", "figure-eight"], ["rebound-leapfrog", "rebound-whfast", "rebound-ias15"],
                    default_sweep=True)
     long = {c.integrator: c.integrator_settings for c in cells if c.t_final == 1e6}
     assert long == {"rebound-leapfrog": {"dt": 10.0}, "rebound-whfast": {"dt": 10.0}, "rebound-ias15": {}}
+    # the figure-eight's sweep only: its 2200 periods cost IAS15 minutes
+    eight = {c.t_final for c in cells if c.problem == "figure-eight"}
+    assert eight == {registry.problem_class("figure-eight").sweep_t_final}
