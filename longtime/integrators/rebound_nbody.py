@@ -221,19 +221,21 @@ class ReboundFixed(Rebound):
 
 class ReboundLeapfrog(ReboundFixed):
     name = "rebound-leapfrog"
-    summary = "REBOUND's leapfrog (drift-kick-drift, order 2), external: needs rebound"
+    summary = "REBOUND's leapfrog (drift-kick-drift, order 2) on n-body problems; external, needs rebound"
     integrator = "leapfrog"
 
 
 class ReboundWHFast(ReboundFixed):
     name = "rebound-whfast"
-    summary = "REBOUND's WHFast (Wisdom-Holman, Jacobi coordinates, order 2), external: needs rebound"
+    summary = ("REBOUND's WHFast (Wisdom-Holman, Jacobi coordinates, order 2) on n-body problems; external, "
+               "needs rebound")
     integrator = "whfast"
 
 
 class ReboundIAS15(Rebound):
     name = "rebound-ias15"
-    summary = "REBOUND's IAS15 (adaptive Gauss-Radau, order 15, tol = epsilon), external: needs rebound"
+    summary = ("REBOUND's IAS15 (adaptive Gauss-Radau, order 15, tol = epsilon) on n-body problems; external, "
+               "needs rebound")
     integrator = "ias15"
     order = 15
     symplectic = False
