@@ -122,3 +122,12 @@ def test_default_matrix_runs_rebound_on_the_outer_solar_system_to_1e6_days():
     # the figure-eight's sweep only: its 2200 periods cost IAS15 minutes
     eight = {c.t_final for c in cells if c.problem == "figure-eight"}
     assert eight == {registry.problem_class("figure-eight").sweep_t_final}
+
+
+@pytest.mark.parametrize("scheme, settings", [("rebound-leapfrog", {"dt": 10.0}), ("rebound-ias15", {})])
+def test_a_deadline_stops_the_run_where_it_got(oss, scheme, settings):
+    import time
+
+    traj = registry.integrator_class(scheme)(**settings).integrate(oss, 1e6, deadline=time.monotonic() - 1.0)
+    assert traj.status == "timeout" and "time limit" in traj.message
+    assert traj.t[-1] < 1e5 and traj.steps < 10_000  # stopped at the first look, 64 samples or steps in

@@ -263,7 +263,7 @@ class ReboundIAS15(Rebound):
             vs.append(v)
             if deadline is not None and len(ts) % DEADLINE_EVERY == 0 and time.monotonic() > deadline:
                 outcome["timeout"] = True
-                here.status = 1  # REBOUND's REB_STATUS_USER: stop after this step
+                here.stop()  # REBOUND stops after this step
 
         sim.heartbeat = heartbeat
         status, message = "ok", ""
