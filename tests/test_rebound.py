@@ -142,3 +142,13 @@ def test_a_deadline_stops_the_run_where_it_got(oss, scheme, settings):
     traj = registry.integrator_class(scheme)(**settings).integrate(oss, 1e6, deadline=time.monotonic() - 1.0)
     assert traj.status == "timeout" and "time limit" in traj.message
     assert traj.t[-1] < 1e5 and traj.steps < 10_000  # stopped at the first look, 64 samples or steps in
+
+
+@needs_rebound
+def test_rebounds_warnings_reach_the_row():
+    # WHFast on the figure-eight: body 2 falls radially from rest towards body 1 in Jacobi
+    # coordinates, a Kepler orbit REBOUND's solver cannot take
+    problem = registry.problem_class("figure-eight")()
+    traj = registry.integrator_class("rebound-whfast")(dt=0.0253).integrate(problem, 1.0)
+    assert traj.status == "diverged" and traj.t[-1] == pytest.approx(0.0253)
+    assert "REBOUND: Possible convergence issue" in traj.message

@@ -121,7 +121,7 @@ class Rebound(Integrator):
         first = problem.first_blowup(u)
         if first is not None:
             t, u = t[:first + 1], u[:first + 1]
-            status, message = "diverged", BLOWUP_MESSAGE.format(t=t[-1])
+            status, message = "diverged", "; ".join(m for m in (BLOWUP_MESSAGE.format(t=t[-1]), message) if m)
         # a run that did not finish reports the REBOUND calls and steps of its sampled run
         dt_range = (None, None)
         if status == "ok":
