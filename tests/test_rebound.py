@@ -60,7 +60,8 @@ def test_ias15_keeps_energy_to_round_off_without_drift(oss):
     assert error.max() < 1e-14  # measured 2.9e-15 over 852 steps
     alpha = fit_power_law(traj.t - traj.t[0], np.maximum.accumulate(error))[0]
     assert alpha < 0.75  # no linear drift: a random walk at most (Brouwer's law)
-    assert traj.t[-1] == DAYS and "rhs_evals" not in traj.counters
+    assert traj.t[0] == 0.0 and traj.t[-1] == DAYS and "rhs_evals" not in traj.counters
+    assert traj.t.size == traj.steps + 1  # every step recorded (below the sample budget)
     # a looser epsilon takes fewer steps: the tolerance is IAS15's
     loose = registry.integrator_class("rebound-ias15")(tol=1e-4).integrate(oss, DAYS, max_samples=101)
     assert loose.status == "ok" and loose.steps < traj.steps
