@@ -187,9 +187,11 @@ def _scheme_cells(pname: str, pcls, problem: Problem, psets: dict, iname: str, t
         cells.append(Cell(pname, iname, psets, settings, tf))
     # the default matrix's long-time cell: the problem's paper-scale final time at its
     # default step, for the schemes that can afford it (``long_runs``)
+    # (a scheme without a step, an adaptive external one, runs it at its default settings)
     long_tf = pcls.long_t_final
     step = roles.with_role([icls], "step")
-    if default_sweep and not given_t_final and long_tf and icls.long_runs and not any(n in sweeps for n in step):
+    runs_long = icls.long_runs if isinstance(icls.long_runs, bool) else pname in icls.long_runs
+    if default_sweep and not given_t_final and long_tf and runs_long and not any(n in sweeps for n in step):
         cells.append(Cell(pname, iname, psets, {**isets, **{n: pcls.default_dt for n in step}}, long_tf))
     return cells
 

@@ -150,8 +150,9 @@ class Integrator(ABC):
     # names of counters EXTRA1, EXTRA2 when a scheme uses them
     extra_counters: ClassVar[tuple[str, ...]] = ()
     # cheap enough per step for the default matrix's paper-scale final times (a problem's
-    # ``long_t_final``): one more cell at the problem's default step
-    long_runs: ClassVar[bool] = False
+    # ``long_t_final``): one more cell at the problem's default step; a set of problem names
+    # limits those cells to these problems
+    long_runs: ClassVar[bool | frozenset[str]] = False
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)

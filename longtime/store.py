@@ -89,7 +89,7 @@ def environment() -> dict[str, Any]:
     from importlib.metadata import PackageNotFoundError, version
 
     versions = {"python": sys.version.split()[0]}
-    for pkg in ("longtime", "numpy", "scipy", "numba", "heyoka", "pandas"):
+    for pkg in ("longtime", "numpy", "scipy", "numba", "heyoka", "pandas", "rebound"):
         try:
             versions[pkg] = version(pkg)
         except PackageNotFoundError:

@@ -143,3 +143,59 @@ class Yoshida8(Splitting):
     kicks, drifts = _yoshida([0.102799849391985, -1.96061023297549, 1.93813913762276,
                               -0.158240635368243, -1.44485223686048, 0.253693336566229,
                               0.914844246229740])
+
+
+# Blanes and Moan, "Practical symplectic partitioned Runge-Kutta and Runge-Kutta-Nystrom
+# methods", J. Comput. Appl. Math. 142 (2002) 313-330, Table 2, method S6 (order 4): the
+# PRK form q first, e^{a1 h A} e^{b1 h B} ... e^{b1 h B} e^{a1 h A} with A the drift (T) and
+# B the kick (V); 7 drifts a1 a2 a3 a4 a3 a2 a1 and 6 kicks b1 b2 b3 b3 b2 b1.
+_BM_A = (0.0792036964311957, 0.353172906049774, -0.0420650803577195)
+_BM_B = (0.209515106613362, -0.143851773179818)
+
+
+def _blanes_moan_s6():
+    a1, a2, a3 = _BM_A
+    a4 = 1.0 - 2.0 * (a1 + a2 + a3)
+    b1, b2 = _BM_B
+    b3 = 0.5 - (b1 + b2)
+    # (kick, drift) pairs: the step opens with a drift (a kick of 0), ends with a drift
+    return (np.array([0.0, b1, b2, b3, b3, b2, b1]),
+            np.array([a1, a2, a3, a4, a3, a2, a1]))
+
+
+class BlanesMoanS6(Splitting):
+    name = "blanes-moan-s6"
+    summary = "Blanes-Moan S6: 6-stage symmetric PRK splitting, drift first (order 4, 2002)"
+    order = 4
+    long_runs = False  # verlet and yoshida carry the family's paper-scale cells
+    kicks, drifts = _blanes_moan_s6()
+
+
+# Suzuki, "Fractal decomposition of exponential operators...", Phys. Lett. A 146 (1990)
+# 319-323: S4(h) = S2(p h)^2 S2((1 - 4p) h) S2(p h)^2 with p = 1/(4 - 4^(1/3)), S2 = Verlet
+SUZUKI_P = 1.0 / (4.0 - 4.0 ** (1.0 / 3.0))
+
+
+class Suzuki4(Splitting):
+    name = "suzuki4"
+    summary = "Suzuki's fractal composition of 5 Verlet steps p, p, 1-4p, p, p (order 4, 1990)"
+    order = 4
+    long_runs = False  # verlet and yoshida carry the family's paper-scale cells
+    kicks, drifts = compose([SUZUKI_P, SUZUKI_P, 1.0 - 4.0 * SUZUKI_P, SUZUKI_P, SUZUKI_P])
+
+
+# Kahan and Li, "Composition constants for raising the orders of unconventional schemes for
+# ordinary differential equations", Math. Comp. 66 (1997) 1089-1099, s15odr8; as printed in
+# Hairer-Lubich-Wanner, Geometric Numerical Integration, V.3.2 (and Hairer's gni_comp):
+# gamma_1..gamma_7 (gamma_15..gamma_9 by symmetry) and the middle gamma_8.
+KAHAN_LI_8 = (0.74167036435061295345, -0.40910082580003159400, 0.19075471029623837995,
+              -0.57386247111608226666, 0.29906418130365592384, 0.33462491824529818378,
+              0.31529309239676659663, -0.79688793935291635402)
+
+
+class KahanLi8(Splitting):
+    name = "kahan-li-8"
+    summary = "Kahan-Li s15odr8: symmetric composition of 15 Verlet steps (order 8, 1997)"
+    order = 8
+    long_runs = False  # verlet and yoshida carry the family's paper-scale cells
+    kicks, drifts = compose(list(KAHAN_LI_8) + list(KAHAN_LI_8[-2::-1]))
