@@ -152,7 +152,7 @@ class Rebound(Integrator):
 
 
 class ReboundFixed(Rebound):
-    parameters = {"dt": Param(None, "time step (default: the problem's)", float, positive=True)}
+    parameters = {"dt": Param(None, "time step (default: the problem's)", float, positive=True, role="step")}
     order = 2
 
     def dt_for(self, problem) -> float:
@@ -240,7 +240,7 @@ class ReboundIAS15(Rebound):
     order = 15
     symplectic = False
     parameters = {"tol": Param(1e-9, "IAS15's epsilon: the step-size control's tolerance (accuracy)",
-                               float, positive=True)}
+                               float, positive=True, role="accuracy")}
 
     def configure(self, sim, problem):
         super().configure(sim, problem)
