@@ -1,6 +1,8 @@
 """The ``longtime`` command: list | run | matrix | report (and commands added by modules).
 
-Exit codes: 0 done; 1 a requested cell failed (``run``); 2 bad input; 130 interrupted.
+Exit codes: 0 done; 1 a requested cell failed (``run``) or a failure that changing the
+command does not fix; 2 bad input; 130, 143, 129 stopped by SIGINT, SIGTERM, SIGHUP
+(longtime.guard).
 """
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ import shlex
 import sys
 from pathlib import Path
 
-from . import cli_args, registry, stability
+from . import cli_args, guard, registry, stability
 from .cells import DEFAULT_TIME_LIMIT, SWEEP_PARAMETERS, check_size, expand
 from .integrator import Timing
 from .matrix import EXECUTORS, ExecOptions, run_matrix
@@ -54,7 +56,7 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
     p.add_argument("--set", type=_key_value, action="append", default=[], metavar="KEY=VALUE",
                    help="any other parameter of a problem or scheme (repeatable)")
     p.add_argument("--executor", choices=sorted(EXECUTORS), help="where cells run")
-    p.add_argument("--scheduler", action=_SchedulerAction, default=None, metavar="ADDRESS",
+    p.add_argument("--scheduler", action=_SchedulerAction, type=cli_args.scheduler, default=None, metavar="ADDRESS",
                    help="run the cells on this Dask cluster (implies --executor dask)")
     p.add_argument("--cell-timeout", type=_seconds, default=None, metavar="SECONDS",
                    help="time limit per cell: each cell runs in its own process and one that "
@@ -171,9 +173,9 @@ def cmd_matrix(args) -> int:
         store = Store(args.db, create=False)  # resuming never creates an empty store
         if args.resume < 0:
             raise InputError(f"--resume {args.resume}: a run id is > 0 (or none: the latest matrix run)")
-        run_id = args.resume or store.latest_run("matrix")
+        run_id = args.resume or store.latest_incomplete_run("matrix")
         if run_id is None:
-            raise InputError(f"--resume: no matrix run in {store.path}")
+            raise InputError(f"--resume: no incomplete matrix run in {store.path} (give a run id to pick one)")
         store.run(run_id)  # an unknown id is an error, not "0 cells left"
         cells = store.pending(run_id)
         print(f"resuming run {run_id}: {len(cells)} cells left", file=sys.stderr)
@@ -238,7 +240,7 @@ def cmd_report(args) -> int:
     if args.run == "all":
         rows = store.rows()
     else:
-        if args.run and not args.run.isdigit():
+        if args.run and not (args.run.isascii() and args.run.isdigit()):  # isdigit alone takes '¹'
             raise InputError(f"--run {args.run!r}: expected a run id (a positive integer) or 'all'")
         run_id = int(args.run) if args.run else store.latest_run()
         if run_id is None:
@@ -257,10 +259,13 @@ def cmd_report(args) -> int:
     if args.html:
         print(f"results page: {write_html(args.html, rows, store)}", file=sys.stderr)
     if args.format == "parquet":
-        to_parquet(rows, args.out or "longtime.parquet")
+        with cli_args.writing("--out", args.out or "longtime.parquet"):
+            to_parquet(rows, args.out or "longtime.parquet")
         print(f"wrote {len(rows)} rows to {args.out or 'longtime.parquet'}", file=sys.stderr)
     elif args.out:
-        Path(args.out).write_text(report_text(rows, args.format, full=args.full))
+        text = report_text(rows, args.format, full=args.full)
+        with cli_args.writing("--out", args.out):
+            Path(args.out).write_text(text)
     else:
         print(report_text(rows, args.format, full=args.full))
     return 0
@@ -268,6 +273,8 @@ def cmd_report(args) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="longtime", description=__doc__.splitlines()[0])
+    parser.add_argument("--debug", action="store_true",
+                        help="an error's traceback too, not only its one-line message")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("list", help="problems, schemes, their capabilities and broken plugins")
@@ -290,7 +297,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--no-report", action="store_true", help="do not print the report at the end")
     p.add_argument("--full", action="store_true", help="the full per-cell tables after the summary")
-    p.add_argument("--html", default=None, metavar="DIR",
+    p.add_argument("--html", default=None, type=cli_args.out_folder("--html"), metavar="DIR",
                    help="folder of the results page (default: longtime-report/run-RUN_ID beside the store)")
     p.add_argument("--no-html", action="store_true", help="do not write the results page")
     p.set_defaults(func=cmd_matrix)
@@ -303,8 +310,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="table: the summary (status counts, Pareto front per problem); csv, json, "
                         "markdown: every cell; parquet: every cell into --out")
     p.add_argument("--full", action="store_true", help="the full per-cell tables after the summary")
-    p.add_argument("--html", default=None, metavar="DIR", help="also write the results page DIR/index.html")
-    p.add_argument("--out", default=None, metavar="FILE",
+    p.add_argument("--html", default=None, type=cli_args.out_folder("--html"), metavar="DIR",
+                   help="also write the results page DIR/index.html")
+    p.add_argument("--out", default=None, type=cli_args.out_file("--out"), metavar="FILE",
                    help="write the report to FILE (parquet: default longtime.parquet)")
     p.set_defaults(func=cmd_report)
 
@@ -316,15 +324,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    try:
-        return int(args.func(args) or 0)
-    except InputError as exc:
-        print(f"longtime {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        hint = "; `longtime matrix --resume RUN_ID` completes the rest (`longtime report` names the run)"
-        print(f"interrupted: finished cells are in the store{hint}", file=sys.stderr)
-        return 130
+    return guard.run_command(args)  # every failure caught there: one line, its exit code
 
 
 if __name__ == "__main__":
