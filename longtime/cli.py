@@ -172,10 +172,10 @@ def cmd_matrix(args) -> int:
     if args.resume is not None:
         store = Store(args.db, create=False)  # resuming never creates an empty store
         if args.resume < 0:
-            raise InputError(f"--resume {args.resume}: a run id is > 0 (or none: the latest matrix run)")
-        run_id = args.resume or store.latest_incomplete_run("matrix")
+            raise InputError(f"--resume {args.resume}: a run id is > 0 (or none: the newest incomplete run)")
+        run_id = args.resume or store.latest_incomplete_run(("matrix", "run"))
         if run_id is None:
-            raise InputError(f"--resume: no incomplete matrix run in {store.path} (give a run id to pick one)")
+            raise InputError(f"--resume: no incomplete run in {store.path} (give a run id to pick one)")
         store.run(run_id)  # an unknown id is an error, not "0 cells left"
         cells = store.pending(run_id)
         print(f"resuming run {run_id}: {len(cells)} cells left", file=sys.stderr)
@@ -272,7 +272,7 @@ def cmd_report(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="longtime", description=__doc__.splitlines()[0])
+    parser = guard.Parser(prog="longtime", description=__doc__.splitlines()[0])  # errors in one line
     parser.add_argument("--debug", action="store_true",
                         help="an error's traceback too, not only its one-line message")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -293,7 +293,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("matrix", help="every scheme on every problem over the default sweep")
     add_selection(p, required=False)
     p.add_argument("--resume", type=int, nargs="?", const=0, default=None, metavar="RUN_ID",
-                   help="finish an interrupted run (default: the latest)")
+                   help="finish an interrupted run (default: the newest incomplete run of matrix or run)")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--no-report", action="store_true", help="do not print the report at the end")
     p.add_argument("--full", action="store_true", help="the full per-cell tables after the summary")

@@ -90,6 +90,14 @@ def _stdout_closed() -> bool:
         return False
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse's parser, its errors one line (``longtime CMD: error: ...``, exit 2) without
+    the usage text; ``--help`` gives that."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see `{self.prog} --help`)\n")
+
+
 def run_command(args: argparse.Namespace) -> int:
     """``args.func(args)``'s exit code, every failure caught here (see the module's doc)."""
     from .store import INTERRUPTED, StoreError
@@ -105,7 +113,9 @@ def run_command(args: argparse.Namespace) -> int:
 
     try:
         with stop_signals():
-            return int(args.func(args) or 0)
+            code = int(args.func(args) or 0)
+            sys.stdout.flush()  # a reader that has gone is found here, not in the exit's flush
+            return code
     except InputError as exc:
         return fail(f"error: {exc}", 2)
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM / SIGHUP (Stopped)

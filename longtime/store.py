@@ -331,9 +331,9 @@ class Store:
         runs = [r for r in self.runs() if not command_prefix or (r["command"] or "").startswith(command_prefix)]
         return runs[-1]["id"] if runs else None
 
-    def latest_incomplete_run(self, command_prefix: str | None = None) -> int | None:
-        """The newest run (of commands starting with ``command_prefix``) that did not finish:
-        a cell not stored, or not marked done (interrupted, or its process died)."""
+    def latest_incomplete_run(self, command_prefix: str | tuple[str, ...] | None = None) -> int | None:
+        """The newest run (of commands starting with ``command_prefix``, or one of them) that
+        did not finish: a cell not stored, or not marked done (interrupted, or its process died)."""
         runs = [r for r in self.runs() if (not command_prefix or (r["command"] or "").startswith(command_prefix))
                 and (r["status"] != "done" or r["done"] < r["planned"])]
         return runs[-1]["id"] if runs else None
