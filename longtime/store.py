@@ -6,6 +6,7 @@ transaction as the cell finishes, so an interrupted matrix keeps every finished 
 """
 from __future__ import annotations
 
+import functools
 import json
 import os
 import platform
@@ -13,6 +14,7 @@ import sqlite3
 import subprocess
 import sys
 import threading
+import time
 from contextlib import closing, contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
@@ -61,6 +63,13 @@ PRAGMA user_version = %d;
 INTERRUPTED: list[tuple[str, int]] = []
 
 
+SETTLE_S = 1.0  # how long a file that may be a store in creation is looked at before it is refused
+
+
+class _Unsettled(Exception):
+    """A file that is not a store yet, perhaps only for the moment (its message says why)."""
+
+
 class StoreError(RuntimeError):
     """A write to the store failed during a run (a full disk, an I/O error, a lock held too
     long): the run cannot go on; every row committed before is kept."""
@@ -70,6 +79,7 @@ def _columns(con: sqlite3.Connection, tables: Iterable[str]) -> dict[str, list[s
     return {t: [r[1] for r in con.execute("SELECT * FROM pragma_table_info(?)", (t,))] for t in tables}
 
 
+@functools.lru_cache(maxsize=None)
 def _schema_columns() -> dict[str, list[str]]:
     """The columns of every table of SCHEMA (built in memory: SCHEMA is their one home)."""
     with closing(sqlite3.connect(":memory:")) as con:
@@ -172,10 +182,22 @@ class Store:
 
     def _identify(self) -> None:
         """A store is recognised by its stamp and its schema (tables and their columns), never
-        by its table names alone."""
+        by its table names alone. A file that is empty, or a database without a table, may be
+        a store that another process is creating (its schema is one transaction): it is
+        looked at again for up to SETTLE_S seconds before it is refused."""
+        deadline = time.monotonic() + SETTLE_S
+        while True:
+            try:
+                return self._identify_once()
+            except _Unsettled as exc:
+                if time.monotonic() > deadline:
+                    raise InputError(str(exc)) from None
+                time.sleep(0.05)
+
+    def _identify_once(self) -> None:
         refuse = "refusing to touch it: use another --db"
         if self.path.stat().st_size == 0:
-            raise InputError(f"store {self.path}: an empty file, not a longtime store; {refuse}")
+            raise _Unsettled(f"store {self.path}: an empty file, not a longtime store; {refuse}")
         try:
             with closing(self._open_ro()) as con:
                 app = con.execute("PRAGMA application_id").fetchone()[0]
@@ -195,6 +217,8 @@ class Store:
             if wrong:  # every schema version so far has every table of SCHEMA
                 raise InputError(f"store {self.path}: stamped as a longtime store, but its tables are not a "
                                  f"store's ({', '.join(wrong)} missing or different); {refuse}")
+        elif app == 0 and version == 0 and not tables:
+            raise _Unsettled(f"store {self.path}: an SQLite database without tables, not a longtime store; {refuse}")
         elif app != 0 or version != 0 or tables != _TABLES or any(columns[t] != expected[t] for t in tables):
             what = (f"tables {', '.join(sorted(tables))}, not a longtime store's columns" if tables == _TABLES
                     else f"tables: {', '.join(sorted(tables)) or 'none'}")

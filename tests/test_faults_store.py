@@ -84,6 +84,30 @@ def test_empty_file_and_stamped_file_without_tables_are_refused(tmp_path, capsys
     assert sha256(db) == before and sorted(p.name for p in tmp_path.iterdir()) == ["s.sqlite"]
 
 
+def test_a_store_that_another_process_is_creating_is_waited_for(tmp_path):
+    """An empty file or a database without tables is refused, but it is also what a store
+    looks like for a moment while another process creates it: that store is accepted."""
+    import threading
+
+    from longtime.store import SCHEMA
+
+    db = tmp_path / "new.sqlite"
+    creator = sqlite3.connect(db, check_same_thread=False)
+    creator.execute("PRAGMA journal_mode=WAL")  # as Store does: a database without tables so far
+
+    def create_schema():
+        time.sleep(0.3)
+        creator.executescript("BEGIN IMMEDIATE;\n" + SCHEMA + "COMMIT;")
+
+    thread = threading.Thread(target=create_schema)
+    thread.start()
+    try:
+        assert Store(db).runs() == []
+    finally:
+        thread.join()
+        creator.close()
+
+
 def test_empty_db_path_is_an_input_error(tmp_path, monkeypatch, capsys):
     """Before: --db "" silently wrote ./longtime.sqlite."""
     monkeypatch.chdir(tmp_path)
