@@ -69,15 +69,21 @@ def stop_signals() -> Iterator[None]:
             signal.signal(sig, old)
 
 
+def _resume(path: str, rid: int) -> str:
+    """The command that completes run ``rid`` of the store ``path``."""
+    from .store import default_path
+
+    return f"`longtime matrix --resume {rid}" + ("" if path == default_path() else f" --db {path}") + "`"
+
+
 def _resume_hint(what: str) -> str:
     """Where the runs that this command marked interrupted stand, and how to complete them."""
-    from .store import INTERRUPTED, default_path
+    from .store import INTERRUPTED
 
     if not INTERRUPTED:
         return ""
     path, rid = INTERRUPTED[-1]
-    db = "" if path == default_path() else f" --db {path}"
-    return f"; run {rid} is marked interrupted: `longtime matrix --resume {rid}{db}` {what}"
+    return f"; run {rid} is marked interrupted: {_resume(path, rid)} {what}"
 
 
 def _stdout_closed() -> bool:
@@ -127,8 +133,10 @@ def run_command(args: argparse.Namespace) -> int:
     except ExecutorLost as exc:
         return fail(f"error: {exc}{_resume_hint('runs them (on any executor)')}", 1)
     except StoreError as exc:
-        hint = _resume_hint("completes it") or "; `longtime matrix --resume` completes the run once the store can be written"
-        return fail(f"error: {exc}; the rows committed before are kept{hint}", 1)
+        hint = _resume_hint("completes it")
+        if not hint and exc.run_id is not None:  # not even its end could be written: it reads as incomplete
+            hint = f"; {_resume(exc.path, exc.run_id)} completes run {exc.run_id} once the store can be written"
+        return fail(f"error: {exc}" + (f"; the rows committed before are kept{hint}" if hint else ""), 1)
     except BrokenPipeError:
         if not _stdout_closed():
             return fail(f"error: {_describe(sys.exc_info()[1])}{_debug_hint(debug)}", 1)

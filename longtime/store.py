@@ -72,7 +72,12 @@ class _Unsettled(Exception):
 
 class StoreError(RuntimeError):
     """A write to the store failed during a run (a full disk, an I/O error, a lock held too
-    long): the run cannot go on; every row committed before is kept."""
+    long): the run cannot go on; every row committed before is kept. ``run_id``: the run it
+    was writing (None: no run was recorded)."""
+
+    def __init__(self, message: str, path: str, run_id: int | None = None) -> None:
+        super().__init__(message)
+        self.path, self.run_id = path, run_id
 
 
 def _columns(con: sqlite3.Connection, tables: Iterable[str]) -> dict[str, list[str]]:
@@ -261,12 +266,12 @@ class Store:
                 self._writer = None
 
     @contextmanager
-    def _writing(self, what: str) -> Iterator[None]:
-        """A failed write (sqlite3.Error) as a StoreError naming the store and ``what``."""
+    def _writing(self, what: str, run_id: int | None = None) -> Iterator[None]:
+        """A failed write (sqlite3.Error) as a StoreError naming the store, ``what`` and the run."""
         try:
             yield
         except sqlite3.Error as exc:
-            raise StoreError(f"store {self.path}: cannot write {what}: {exc}") from exc
+            raise StoreError(f"store {self.path}: cannot write {what}: {exc}", str(self.path), run_id) from exc
 
     def begin_run(self, command: str, cells: Iterable[Cell]) -> int:
         env = environment()
@@ -282,7 +287,7 @@ class Store:
 
     def add_row(self, run_id: int, cell: Cell, row: dict[str, Any]) -> None:
         what = f"the row of {cell.problem} x {cell.integrator} (run {run_id})"
-        with self._writing(what), self._writer_lock, self._row_writer() as con:  # commits the row
+        with self._writing(what, run_id), self._writer_lock, self._row_writer() as con:  # commits the row
             con.execute(
                 "INSERT OR REPLACE INTO rows (run_id, cell_key, problem, integrator, status, row, created) "
                 "VALUES (?, ?, ?, ?, ?, ?, ?)",
@@ -292,7 +297,7 @@ class Store:
     def mark_started(self, run_id: int, cell: Cell) -> None:
         """Record that this process starts ``cell`` (in-process executors): if the process
         dies in it (a plugin's os.abort, a segfault), the store knows which cell it was."""
-        with self._writing(f"the start of a cell (run {run_id})"), self._writer_lock, self._row_writer() as con:
+        with self._writing(f"the start of a cell (run {run_id})", run_id), self._writer_lock, self._row_writer() as con:
             con.execute("INSERT OR REPLACE INTO started (run_id, cell_key, pid, host, started) VALUES (?, ?, ?, ?, ?)",
                         (run_id, cell.key, os.getpid(), platform.node(), _now()))
 
@@ -320,7 +325,7 @@ class Store:
 
     def finish_run(self, run_id: int, status: str) -> None:
         self.close()
-        with self._writing(f"the end of run {run_id} ({status})"), closing(self._connect()) as con, con:
+        with self._writing(f"the end of run {run_id} ({status})", run_id), closing(self._connect()) as con, con:
             con.execute("UPDATE runs SET finished = ?, status = ? WHERE id = ?", (_now(), status, run_id))
         if status == "interrupted":
             INTERRUPTED.append((str(self.path), run_id))
