@@ -84,7 +84,7 @@ def _columns(con: sqlite3.Connection, tables: Iterable[str]) -> dict[str, list[s
     return {t: [r[1] for r in con.execute("SELECT * FROM pragma_table_info(?)", (t,))] for t in tables}
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _schema_columns() -> dict[str, list[str]]:
     """The columns of every table of SCHEMA (built in memory: SCHEMA is their one home)."""
     with closing(sqlite3.connect(":memory:")) as con:

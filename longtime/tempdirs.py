@@ -14,7 +14,7 @@ import tempfile
 from pathlib import Path
 
 KINDS = ("pool", "cell")
-_NAME = re.compile(r"longtime-(?:%s)-(\d+)-[^/]+" % "|".join(KINDS))
+_NAME = re.compile(rf"longtime-(?:{'|'.join(KINDS)})-(\d+)-[^/]+")
 _swept = False
 
 

@@ -3,7 +3,6 @@ stores, a full disk, SIGTERM and SIGHUP, leftover temp folders, errors in one li
 
 Each test states what the code before it did wrong."""
 import hashlib
-import json
 import os
 import resource
 import signal
@@ -174,7 +173,7 @@ def _stored_rows(db) -> int:
         return 0
 
 
-def test_lost_dask_scheduler_is_an_interruption_not_failed_rows(tmp_path):
+def test_lost_dask_scheduler_is_an_interruption_not_failed_rows(tmp_path, capsys):
     """Before: killing the scheduler stored the unfinished cells as failed
     ("FutureCancelledError"), marked the run done, exited 0, and --resume found 0 cells."""
     pytest.importorskip("distributed")
@@ -182,12 +181,13 @@ def test_lost_dask_scheduler_is_an_interruption_not_failed_rows(tmp_path):
     address = f"tcp://127.0.0.1:{port}"
     logs = tmp_path / "logs"
     logs.mkdir()
-    scheduler = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
-                                  "--port", str(port), "--no-dashboard"],
-                                 stdout=subprocess.DEVNULL, stderr=open(logs / "scheduler.txt", "w"))
-    worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nworkers", "1",
-                               "--nthreads", "1", "--no-nanny", "--no-dashboard", "--death-timeout", "10"],
-                              stdout=subprocess.DEVNULL, stderr=open(logs / "worker.txt", "w"))
+    with open(logs / "scheduler.txt", "w") as scheduler_log, open(logs / "worker.txt", "w") as worker_log:
+        scheduler = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+                                      "--port", str(port), "--no-dashboard"],
+                                     stdout=subprocess.DEVNULL, stderr=scheduler_log)
+        worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nworkers", "1",
+                                   "--nthreads", "1", "--no-nanny", "--no-dashboard", "--death-timeout", "10"],
+                                  stdout=subprocess.DEVNULL, stderr=worker_log)
     db = tmp_path / "dask.sqlite"
     try:
         _wait_for(lambda: "Registered to" in (logs / "worker.txt").read_text(), 60, "the Dask worker")
@@ -212,10 +212,9 @@ def test_lost_dask_scheduler_is_an_interruption_not_failed_rows(tmp_path):
     assert runs(db) == [(1, "interrupted")]
     last = err.strip().splitlines()[-1]
     assert "Traceback" not in err and "was lost" in last and f"--resume 1 --db {db}" in last, err
-    res = longtime(os.environ, "matrix", "--resume", "--executor", "serial", "--repeats", "1", "--min-time", "0",
-                   "--db", str(db), "--no-progress", "--no-report")
-    assert res.returncode == 0, res.stderr
-    assert f"resuming run 1: {8 - kept} cells left" in res.stderr
+    assert main(["matrix", "--resume", "--executor", "serial", "--repeats", "1", "--min-time", "0",
+                 "--db", str(db), "--no-progress", "--no-report"]) == 0
+    assert f"resuming run 1: {8 - kept} cells left" in capsys.readouterr().err
     assert statuses(db) == ["ok"] * 8 and runs(db) == [(1, "done")]
 
 
@@ -238,13 +237,13 @@ def _file_size_limit(limit: int):
     return set_limit
 
 
-def test_a_full_disk_is_one_line_and_resume_completes(tmp_path):
+def test_a_full_disk_is_one_line_and_resume_completes(tmp_path, capsys):
     """Before: a double traceback (the row, then marking the run) and the run left
     'running'. RLIMIT_FSIZE stands for the full disk: a write past it fails."""
     cells = ["run", "-p", "harmonic", "-i", "verlet", "--dt", ",".join(f"{0.1 + i / 1000:g}" for i in range(20)),
              "--t-final", "1", "--repeats", "1", "--min-time", "0", "--format", "csv"]
-    warm = longtime(os.environ, *cells, "--no-store")  # compiled and cached before the limit
-    assert warm.returncode == 0, warm.stderr
+    assert main([*cells, "--no-store"]) == 0  # compiled and cached before the limit
+    capsys.readouterr()
 
     def limited(db, limit):
         return subprocess.run([sys.executable, "-m", "longtime.cli", *cells, "--db", str(db)], capture_output=True,
@@ -263,9 +262,8 @@ def test_a_full_disk_is_one_line_and_resume_completes(tmp_path):
     kept = statuses(middle)
     assert 0 < len(kept) < 20 and set(kept) == {"ok"}
     assert runs(middle) == [(1, "interrupted")]
-    res = longtime(os.environ, "matrix", "--resume", "--executor", "serial", "--db", str(middle),
-                   "--no-progress", "--no-report")
-    assert res.returncode == 0, res.stderr
+    assert main(["matrix", "--resume", "--executor", "serial", "--db", str(middle), "--no-progress",
+                 "--no-report"]) == 0
     assert statuses(middle) == ["ok"] * 20 and runs(middle) == [(1, "done")]
 
 
@@ -387,7 +385,7 @@ def test_sigterm_and_sighup_are_handled_like_ctrl_c(tmp_path, sig, code):
 
 def test_a_later_run_removes_the_folders_of_killed_processes(tmp_path):
     """Before: every kill -9 of a matrix left its pool folder in the temp folder for good."""
-    proc, db, tmp = _pool_matrix(tmp_path)
+    proc, _, tmp = _pool_matrix(tmp_path)
     proc.kill()
     proc.wait()
     (left,) = _pool_folders(tmp)
