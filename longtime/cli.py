@@ -1,6 +1,8 @@
 """The ``longtime`` command: list | run | matrix | report (and commands added by modules).
 
-Exit codes: 0 done; 1 a requested cell failed (``run``); 2 bad input; 130 interrupted.
+Exit codes: 0 done; 1 a requested cell failed (``run``) or a failure that changing the
+command does not fix; 2 bad input; 130, 143, 129 stopped by SIGINT, SIGTERM, SIGHUP
+(longtime.guard).
 """
 from __future__ import annotations
 
@@ -11,7 +13,7 @@ import json
 import sys
 from pathlib import Path
 
-from . import cli_args, registry, stability
+from . import cli_args, guard, registry, stability
 from .cells import DEFAULT_TIME_LIMIT, check_size, expand
 from .integrator import Timing
 from .lifecycle import command_line, recorded_run
@@ -57,7 +59,7 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
                    help="any other parameter of a problem or scheme (repeatable, once per key); "
                         "several values sweep it, one cell each")
     p.add_argument("--executor", choices=sorted(EXECUTORS), help="where cells run")
-    p.add_argument("--scheduler", action=_SchedulerAction, default=None, metavar="ADDRESS",
+    p.add_argument("--scheduler", action=_SchedulerAction, type=cli_args.scheduler, default=None, metavar="ADDRESS",
                    help="run the cells on this Dask cluster (implies --executor dask)")
     p.add_argument("--cell-timeout", type=_seconds, default=None, metavar="SECONDS",
                    help="time limit per cell: each cell runs in its own process and one that "
@@ -171,10 +173,10 @@ def cmd_matrix(args) -> int:
     if args.resume is not None:
         store = Store(args.db, create=False)  # resuming never creates an empty store
         if args.resume < 0:
-            raise InputError(f"--resume {args.resume}: a run id is > 0 (or none: the latest matrix run)")
-        run_id = args.resume or store.latest_run("matrix")
+            raise InputError(f"--resume {args.resume}: a run id is > 0 (or none: the newest incomplete run)")
+        run_id = args.resume or store.latest_incomplete_run(("matrix", "run"))
         if run_id is None:
-            raise InputError(f"--resume: no matrix run in {store.path}")
+            raise InputError(f"--resume: no incomplete run in {store.path} (give a run id to pick one)")
         store.run(run_id)  # an unknown id is an error, not "0 cells left"
         cells = store.pending(run_id)
         print(f"resuming run {run_id}: {len(cells)} cells left", file=sys.stderr)
@@ -225,7 +227,7 @@ def cmd_report(args) -> int:
     if args.run == "all":
         rows = store.rows()
     else:
-        if args.run and not args.run.isdigit():
+        if args.run and not (args.run.isascii() and args.run.isdigit()):  # isdigit alone takes '¹'
             raise InputError(f"--run {args.run!r}: expected a run id (a positive integer) or 'all'")
         run_id = int(args.run) if args.run else store.latest_run()
         if run_id is None:
@@ -244,17 +246,22 @@ def cmd_report(args) -> int:
     if args.html:
         print(f"results page: {write_html(args.html, rows, store)}", file=sys.stderr)
     if args.format == "parquet":
-        to_parquet(rows, args.out or "longtime.parquet")
+        with cli_args.writing("--out", args.out or "longtime.parquet"):
+            to_parquet(rows, args.out or "longtime.parquet")
         print(f"wrote {len(rows)} rows to {args.out or 'longtime.parquet'}", file=sys.stderr)
     elif args.out:
-        Path(args.out).write_text(report_text(rows, args.format, full=args.full))
+        text = report_text(rows, args.format, full=args.full)
+        with cli_args.writing("--out", args.out):
+            Path(args.out).write_text(text)
     else:
         print(report_text(rows, args.format, full=args.full))
     return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="longtime", description=__doc__.splitlines()[0])
+    parser = guard.Parser(prog="longtime", description=__doc__.splitlines()[0])  # errors in one line
+    parser.add_argument("--debug", action="store_true",
+                        help="an error's traceback too, not only its one-line message")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("list", help="problems, schemes, their capabilities and broken plugins")
@@ -273,11 +280,11 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("matrix", help="every scheme on every problem over the default sweep")
     add_selection(p, required=False)
     p.add_argument("--resume", type=int, nargs="?", const=0, default=None, metavar="RUN_ID",
-                   help="finish an interrupted run (default: the latest)")
+                   help="finish an interrupted run (default: the newest incomplete run of matrix or run)")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--no-report", action="store_true", help="do not print the report at the end")
     p.add_argument("--full", action="store_true", help="the full per-cell tables after the summary")
-    p.add_argument("--html", default=None, metavar="DIR",
+    p.add_argument("--html", default=None, type=cli_args.out_folder("--html"), metavar="DIR",
                    help="folder of the results page (default: longtime-report/run-RUN_ID beside the store)")
     p.add_argument("--no-html", action="store_true", help="do not write the results page")
     p.set_defaults(func=cmd_matrix)
@@ -290,8 +297,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="table: the summary (status counts, Pareto front per problem); csv, json, "
                         "markdown: every cell; parquet: every cell into --out")
     p.add_argument("--full", action="store_true", help="the full per-cell tables after the summary")
-    p.add_argument("--html", default=None, metavar="DIR", help="also write the results page DIR/index.html")
-    p.add_argument("--out", default=None, metavar="FILE",
+    p.add_argument("--html", default=None, type=cli_args.out_folder("--html"), metavar="DIR",
+                   help="also write the results page DIR/index.html")
+    p.add_argument("--out", default=None, type=cli_args.out_file("--out"), metavar="FILE",
                    help="write the report to FILE (parquet: default longtime.parquet)")
     p.set_defaults(func=cmd_report)
 
@@ -305,15 +313,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
     args.argv = argv  # the command a run records (lifecycle.command_line)
-    try:
-        return int(args.func(args) or 0)
-    except InputError as exc:
-        print(f"longtime {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        hint = "; `longtime matrix --resume RUN_ID` completes the rest (`longtime report` names the run)"
-        print(f"interrupted: finished cells are in the store{hint}", file=sys.stderr)
-        return 130
+    return guard.run_command(args)  # every failure caught there: one line, its exit code
 
 
 if __name__ == "__main__":

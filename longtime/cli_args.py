@@ -7,7 +7,8 @@ pairs are checked as a whole (``settings``), with an InputError.
 from __future__ import annotations
 
 import argparse
-from typing import Callable
+import contextlib
+from typing import Callable, Iterator
 
 from .params import InputError
 
@@ -151,3 +152,60 @@ def out_folder(flag: str) -> Callable[[str], str]:
         return text
 
     return parse
+
+
+def out_file(flag: str) -> Callable[[str], str]:
+    """A file to write: a folder, a regular file on its path, or a folder that exists and
+    cannot be written is an error before anything runs (``writing`` catches the rest)."""
+
+    def parse(text: str) -> str:
+        import os
+        from pathlib import Path
+
+        path = Path(text)
+        if not text.strip() or path.is_dir():
+            raise argparse.ArgumentTypeError(f"{flag} {text!r}: a folder, not a file name")
+        for p in path.parents:
+            if p.exists():
+                if not p.is_dir():
+                    raise argparse.ArgumentTypeError(f"{flag} {text}: {p} is a file, not a folder")
+                if not os.access(p, os.W_OK | os.X_OK):
+                    raise argparse.ArgumentTypeError(f"{flag} {text}: the folder {p} cannot be written")
+                break
+        return text
+
+    return parse
+
+
+@contextlib.contextmanager
+def writing(flag: str, path) -> Iterator[None]:
+    """An OSError while writing the file of ``flag`` as an InputError naming it (one line,
+    exit 2): the user picks another path."""
+    from .params import InputError
+
+    try:
+        yield
+    except OSError as exc:
+        raise InputError(f"{flag} {path}: cannot write it: {exc.strerror or exc}") from None
+
+
+def scheduler(text: str) -> str:
+    """--scheduler: a Dask scheduler address, ``[PROTOCOL://]HOST:PORT`` (checked by Dask's
+    own parser when dask.distributed is installed; without it the executor says so)."""
+    try:
+        from distributed.comm.addressing import parse_address, parse_host_port
+        from distributed.comm.registry import backends
+    except ImportError:
+        return text
+    try:
+        protocol, location = parse_address(text)
+        if protocol not in backends:
+            raise ValueError(f"unknown protocol {protocol!r} (known: {', '.join(sorted(backends))})")
+        if protocol in ("tcp", "tls", "ws", "wss"):
+            host, _ = parse_host_port(location)
+            if not host or any(c.isspace() for c in host):
+                raise ValueError(f"no host name in {location!r}")
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"--scheduler {text!r}: not a Dask scheduler address "
+                                         f"(expected tcp://HOST:PORT): {exc}") from None
+    return text

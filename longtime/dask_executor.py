@@ -10,14 +10,18 @@ store, so a store on the client's disk serves any cluster.
 A worker that dies (killed, out of memory, a crashing cell) loses only its running batch:
 Dask reschedules the batch on another worker, up to the scheduler's
 ``distributed.scheduler.allowed-failures`` (default 3); a batch that kills that many workers
-comes back as ``failed`` rows naming the error. An interrupted client keeps every stored row,
-and ``longtime matrix --resume`` runs the rest (on any cluster, or none).
+comes back as ``failed`` rows naming the error. Only a task that ran and raised is a property
+of its cells: a future that the cluster gave up on (the scheduler lost, the future cancelled,
+the client's connection closed) raises ``ExecutorLost``, none of its cells is stored, and
+the run is marked ``interrupted``. An interrupted client keeps every stored row, and
+``longtime matrix --resume`` runs the rest (on any cluster, or none).
 """
 from __future__ import annotations
 
 from typing import Iterator
 
 from .cells import Cell, base_row, run_cell
+from .guard import ExecutorLost
 from .params import InputError
 
 BATCH_CELLS = 64  # cells per task at most: large enough to amortise dispatch, small to balance
@@ -42,7 +46,7 @@ def _connect(options, n_cells: int):
     if options.scheduler:
         try:
             return Client(options.scheduler, timeout="10s"), None
-        except (OSError, TimeoutError) as exc:
+        except (OSError, TimeoutError, ValueError) as exc:
             raise InputError(f"--scheduler {options.scheduler}: cannot connect to a Dask scheduler "
                              f"there ({exc})") from None
     cluster = LocalCluster(n_workers=min(options.workers(), n_cells), threads_per_worker=1,
@@ -77,16 +81,40 @@ def dask_cluster(cells: list[Cell], options) -> Iterator[tuple[Cell, dict]]:
             futures = {client.submit(run_batch, batch, options.max_samples, options.timing,
                                      time_limit=options.time_limit, pure=False): batch
                        for batch in batches(runnable, workers)}
+        left = len(runnable)
         for fut in as_completed(futures):
             batch = futures[fut]
             try:
                 rows = fut.result()
                 rows = rows if isinstance(rows, list) else [rows]
-            except Exception as exc:  # the batch killed allowed-failures workers, or could not run
+            except Exception as exc:
+                if fut.status != "error":  # not the task's own failure: the cluster gave the future up
+                    where = f"the Dask scheduler {options.scheduler}" if options.scheduler else "the local Dask cluster"
+                    raise ExecutorLost(f"{where} was lost ({type(exc).__name__}): {left} of {len(runnable)} "
+                                       f"cells not run, none of them stored") from None
+                # the batch raised, or killed allowed-failures workers (KilledWorker)
                 rows = [{**base_row(c), "status": "failed", "message": f"dask task failed: {exc!r}"}
                         for c in batch]
+            left -= len(batch)
             yield from zip(batch, rows)
     finally:
+        _close(client, cluster)
+
+
+def _close(client, cluster) -> None:
+    """Close the client (and the local cluster), its logs silenced: after the scheduler is lost
+    the client's reconnection logs tracebacks as it is cancelled, and the command reports the
+    loss in one line."""
+    import logging
+
+    loggers = [logging.getLogger(name) for name in ("distributed.client", "distributed.utils", "distributed.core")]
+    levels = [lg.level for lg in loggers]
+    try:
+        for lg in loggers:
+            lg.setLevel(logging.CRITICAL)
         client.close()
         if cluster is not None:
             cluster.close()
+    finally:
+        for lg, level in zip(loggers, levels):
+            lg.setLevel(level)

@@ -17,16 +17,16 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
 
-from . import registry
+from . import registry, tempdirs
 from .cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, Cell, base_row, run_cell
 from .integrator import Timing
 
@@ -74,7 +74,7 @@ class _Child:
 
 def _start(cell: Cell, max_samples: int, timeout: float | None, timing: Timing,
            time_limit: float | None = DEFAULT_TIME_LIMIT) -> _Child:
-    folder = Path(tempfile.mkdtemp(prefix="longtime-cell-"))
+    folder = tempdirs.make("cell")
     job = {"cell": cell.to_dict(), "max_samples": max_samples, "parent": os.getpid(), "time_limit": time_limit,
            "timing": {"repeats": timing.repeats, "min_time": timing.min_time}}
     (folder / "cell.json").write_text(json.dumps(job))
@@ -153,10 +153,11 @@ def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, time
             if len(still) == len(running) and running:
                 time.sleep(POLL_S)
             running = still
-    finally:  # interrupted: no orphan keeps computing
+    finally:  # interrupted: no orphan keeps computing, no folder stays
         for child in running:
             if child.proc.poll() is None:
                 _kill(child.proc)
+            shutil.rmtree(child.folder, ignore_errors=True)
 
 
 def run_cell_isolated(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, timeout: float | None = None,

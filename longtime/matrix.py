@@ -14,14 +14,13 @@ import hashlib
 import json
 import os
 import shutil
-import tempfile
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
-from . import registry
+from . import registry, tempdirs
 from .cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, Cell, base_row, cell_size, run_cell
 from .integrator import Timing
 from .isolation import die_with_parent, run_isolated
@@ -233,7 +232,7 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
     if workers == 1:
         yield from serial(runnable, options)
         return
-    folder = tempfile.mkdtemp(prefix="longtime-pool-")
+    folder = str(tempdirs.make("pool"))  # removed below, or by a later run if this one is killed
     done: set[str] = set()
     remaining = runnable
     try:

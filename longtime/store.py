@@ -6,6 +6,7 @@ transaction as the cell finishes, so an interrupted matrix keeps every finished 
 """
 from __future__ import annotations
 
+import functools
 import json
 import os
 import platform
@@ -13,10 +14,11 @@ import sqlite3
 import subprocess
 import sys
 import threading
-from contextlib import closing
+import time
+from contextlib import closing, contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, Iterator
 from urllib.parse import quote
 
 from .cells import Cell
@@ -24,8 +26,9 @@ from .params import InputError
 
 DEFAULT_PATH = "longtime.sqlite"
 # A longtime store says so in its SQLite header: application_id (ASCII "LTim") and
-# user_version (the schema version). A file without them is refused untouched unless it is
-# an empty database or a store written before the version existed (same three tables).
+# user_version (the schema version), and has the tables and columns of SCHEMA. A file
+# without the stamp is refused untouched unless it is a store written before the version
+# existed (the same three tables, with the same columns, and nothing else).
 APPLICATION_ID = 0x4C54696D
 SCHEMA_VERSION = 1
 _TABLES = {"runs", "planned", "rows"}  # a store before the schema version (no 'started' yet)
@@ -55,6 +58,40 @@ PRAGMA application_id = %d;
 PRAGMA user_version = %d;
 """ % (APPLICATION_ID, SCHEMA_VERSION)
 
+# runs that this process marked interrupted, as (store path, run id): the message of an
+# interrupted command names them (longtime.guard)
+INTERRUPTED: list[tuple[str, int]] = []
+
+
+SETTLE_S = 1.0  # how long a file that may be a store in creation is looked at before it is refused
+
+
+class _Unsettled(Exception):
+    """A file that is not a store yet, perhaps only for the moment (its message says why)."""
+
+
+class StoreError(RuntimeError):
+    """A write to the store failed during a run (a full disk, an I/O error, a lock held too
+    long): the run cannot go on; every row committed before is kept. ``run_id``: the run it
+    was writing (None: no run was recorded)."""
+
+    def __init__(self, message: str, path: str, run_id: int | None = None) -> None:
+        super().__init__(message)
+        self.path, self.run_id = path, run_id
+
+
+def _columns(con: sqlite3.Connection, tables: Iterable[str]) -> dict[str, list[str]]:
+    return {t: [r[1] for r in con.execute("SELECT * FROM pragma_table_info(?)", (t,))] for t in tables}
+
+
+@functools.cache
+def _schema_columns() -> dict[str, list[str]]:
+    """The columns of every table of SCHEMA (built in memory: SCHEMA is their one home)."""
+    with closing(sqlite3.connect(":memory:")) as con:
+        con.executescript(SCHEMA)
+        return _columns(con, [r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type = 'table' "
+                                                        "AND name NOT LIKE 'sqlite_%'")])
+
 
 def _check_path(path: Path, must_exist: bool) -> bool:
     """Whether ``path`` exists as a regular file; an InputError for anything else, before
@@ -78,7 +115,7 @@ def _check_path(path: Path, must_exist: bool) -> bool:
 
 
 def default_path() -> str:
-    return os.environ.get("LONGTIME_DB", DEFAULT_PATH)
+    return os.environ.get("LONGTIME_DB") or DEFAULT_PATH  # set but empty: unset, as in a shell
 
 
 def _now() -> str:
@@ -108,11 +145,13 @@ class Store:
     """A store file. ``readonly`` opens an existing store without writing anything (no
     journal switch, no table created: ``report`` on a read-only file); ``create=False``
     refuses a missing file instead of creating an empty store (``--resume``, ``report``).
-    Anything that is not a longtime store of this or an older schema is an InputError
-    naming the file, and the file is left as it was."""
+    Anything that is not a longtime store of this or an older schema (an empty file
+    included) is an InputError naming the file, and the file is left as it was."""
 
     def __init__(self, path: str | os.PathLike | None = None, *, readonly: bool = False,
                  create: bool = True) -> None:
+        if path is not None and not str(path).strip():
+            raise InputError(f"store path {str(path)!r} is empty: give --db a file name")
         self.path = Path(path or default_path())
         self.readonly = readonly
         self._writer: sqlite3.Connection | None = None  # see _row_writer
@@ -125,9 +164,13 @@ class Store:
         try:
             if not self.path.parent.exists():
                 self.path.parent.mkdir(parents=True, exist_ok=True)
-            with closing(self._connect()) as con, con:
-                con.executescript(SCHEMA)
+            with closing(self._connect()) as con:
+                # one transaction: a failure (a full disk) leaves no half-made store
+                con.executescript("BEGIN IMMEDIATE;\n" + SCHEMA + "COMMIT;")
         except (OSError, sqlite3.Error) as exc:
+            if not exists:  # the file this call began: nothing of it stays
+                for p in (self.path, *(Path(f"{self.path}{x}") for x in ("-wal", "-shm", "-journal"))):
+                    p.unlink(missing_ok=True)
             raise InputError(f"store {self.path}: cannot write it: {exc}") from None
 
     def _check_identity(self) -> None:
@@ -143,22 +186,48 @@ class Store:
             raise
 
     def _identify(self) -> None:
+        """A store is recognised by its stamp and its schema (tables and their columns), never
+        by its table names alone. A file that is empty, or a database without a table, may be
+        a store that another process is creating (its schema is one transaction): it is
+        looked at again for up to SETTLE_S seconds before it is refused."""
+        deadline = time.monotonic() + SETTLE_S
+        while True:
+            try:
+                return self._identify_once()
+            except _Unsettled as exc:
+                if time.monotonic() > deadline:
+                    raise InputError(str(exc)) from None
+                time.sleep(0.05)
+
+    def _identify_once(self) -> None:
+        refuse = "refusing to touch it: use another --db"
+        if self.path.stat().st_size == 0:
+            raise _Unsettled(f"store {self.path}: an empty file, not a longtime store; {refuse}")
         try:
             with closing(self._open_ro()) as con:
                 app = con.execute("PRAGMA application_id").fetchone()[0]
                 version = con.execute("PRAGMA user_version").fetchone()[0]
                 tables = {r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+                tables.discard("sqlite_sequence")
+                columns = _columns(con, tables)
                 con.execute("PRAGMA quick_check(1)").fetchone()  # a truncated file fails here
         except sqlite3.DatabaseError as exc:
             raise InputError(f"store {self.path}: not a readable SQLite database ({exc})") from None
-        tables.discard("sqlite_sequence")
+        expected = _schema_columns()
         if app == APPLICATION_ID:
             if version > SCHEMA_VERSION:
                 raise InputError(f"store {self.path}: schema version {version} is newer than this longtime "
                                  f"reads ({SCHEMA_VERSION}); upgrade longtime or use another --db")
-        elif app != 0 or not (tables == set() or tables == _TABLES):
-            raise InputError(f"store {self.path}: a SQLite file of another program (tables: "
-                             f"{', '.join(sorted(tables)) or 'none'}); refusing to touch it: use another --db")
+            wrong = sorted(t for t in expected if columns.get(t) != expected[t])
+            if wrong:  # every schema version so far has every table of SCHEMA
+                raise InputError(f"store {self.path}: stamped as a longtime store, but its tables are not a "
+                                 f"store's ({', '.join(wrong)} missing or different); {refuse}")
+        elif app == 0 and version == 0 and not tables:
+            raise _Unsettled(f"store {self.path}: an SQLite database without tables, not a longtime store; {refuse}")
+        elif app != 0 or version != 0 or tables != _TABLES or any(columns[t] != expected[t] for t in tables):
+            what = (f"tables {', '.join(sorted(tables))}, not a longtime store's columns" if tables == _TABLES
+                    else f"tables: {', '.join(sorted(tables)) or 'none'}")
+            raise InputError(f"store {self.path}: a SQLite file of another program ({what}); {refuse}")
 
     def _open_ro(self) -> sqlite3.Connection:
         uri = f"file:{quote(str(self.path.absolute()))}?mode=ro"
@@ -196,9 +265,17 @@ class Store:
                 self._writer.close()
                 self._writer = None
 
+    @contextmanager
+    def _writing(self, what: str, run_id: int | None = None) -> Iterator[None]:
+        """A failed write (sqlite3.Error) as a StoreError naming the store, ``what`` and the run."""
+        try:
+            yield
+        except sqlite3.Error as exc:
+            raise StoreError(f"store {self.path}: cannot write {what}: {exc}", str(self.path), run_id) from exc
+
     def begin_run(self, command: str, cells: Iterable[Cell]) -> int:
         env = environment()
-        with closing(self._connect()) as con, con:
+        with self._writing("a new run"), closing(self._connect()) as con, con:
             cur = con.execute(
                 "INSERT INTO runs (started, status, command, git_commit, versions, machine) "
                 "VALUES (?, 'running', ?, ?, ?, ?)",
@@ -209,7 +286,8 @@ class Store:
         return run_id
 
     def add_row(self, run_id: int, cell: Cell, row: dict[str, Any]) -> None:
-        with self._writer_lock, self._row_writer() as con:  # commits the row
+        what = f"the row of {cell.problem} x {cell.integrator} (run {run_id})"
+        with self._writing(what, run_id), self._writer_lock, self._row_writer() as con:  # commits the row
             con.execute(
                 "INSERT OR REPLACE INTO rows (run_id, cell_key, problem, integrator, status, row, created) "
                 "VALUES (?, ?, ?, ?, ?, ?, ?)",
@@ -219,7 +297,7 @@ class Store:
     def mark_started(self, run_id: int, cell: Cell) -> None:
         """Record that this process starts ``cell`` (in-process executors): if the process
         dies in it (a plugin's os.abort, a segfault), the store knows which cell it was."""
-        with self._writer_lock, self._row_writer() as con:
+        with self._writing(f"the start of a cell (run {run_id})", run_id), self._writer_lock, self._row_writer() as con:
             con.execute("INSERT OR REPLACE INTO started (run_id, cell_key, pid, host, started) VALUES (?, ?, ?, ?, ?)",
                         (run_id, cell.key, os.getpid(), platform.node(), _now()))
 
@@ -247,8 +325,10 @@ class Store:
 
     def finish_run(self, run_id: int, status: str) -> None:
         self.close()
-        with closing(self._connect()) as con, con:
+        with self._writing(f"the end of run {run_id} ({status})", run_id), closing(self._connect()) as con, con:
             con.execute("UPDATE runs SET finished = ?, status = ? WHERE id = ?", (_now(), status, run_id))
+        if status == "interrupted":
+            INTERRUPTED.append((str(self.path), run_id))
 
     def pending(self, run_id: int) -> list[Cell]:
         with closing(self._connect()) as con:
@@ -278,6 +358,13 @@ class Store:
 
     def latest_run(self, command_prefix: str | None = None) -> int | None:
         runs = [r for r in self.runs() if not command_prefix or (r["command"] or "").startswith(command_prefix)]
+        return runs[-1]["id"] if runs else None
+
+    def latest_incomplete_run(self, command_prefix: str | tuple[str, ...] | None = None) -> int | None:
+        """The newest run (of commands starting with ``command_prefix``, or one of them) that
+        did not finish: a cell not stored, or not marked done (interrupted, or its process died)."""
+        runs = [r for r in self.runs() if (not command_prefix or (r["command"] or "").startswith(command_prefix))
+                and (r["status"] != "done" or r["done"] < r["planned"])]
         return runs[-1]["id"] if runs else None
 
     def rows(self, run_id: int | None = None) -> list[dict[str, Any]]:

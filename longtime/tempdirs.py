@@ -1,0 +1,65 @@
+"""Temporary folders of longtime's processes (a pool's row files, an isolated cell's files).
+
+Each folder is named after the process that makes it, ``longtime-KIND-PID-XXXXXXXX`` in the
+temp folder. Its maker removes it on every exit it sees (an error, Ctrl-C, SIGTERM, SIGHUP:
+``finally`` blocks); a process killed outright (SIGKILL, a power cut) cannot, so the first
+folder a later process makes also removes the folders whose process is gone.
+"""
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import tempfile
+from pathlib import Path
+
+KINDS = ("pool", "cell")
+_NAME = re.compile(rf"longtime-(?:{'|'.join(KINDS)})-(\d+)-[^/]+")
+_swept = False
+
+
+def make(kind: str) -> Path:
+    """A new folder of this process (``kind``: one of KINDS); the process's first call also
+    sweeps the folders of processes that are gone."""
+    global _swept
+    if kind not in KINDS:
+        raise ValueError(f"temp folder kind {kind!r}: expected one of {', '.join(KINDS)}")
+    if not _swept:
+        _swept = True
+        sweep()
+    return Path(tempfile.mkdtemp(prefix=f"longtime-{kind}-{os.getpid()}-"))
+
+
+def alive(pid: int) -> bool:
+    """Whether process ``pid`` exists on this machine and is not a zombie."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return True
+
+
+def sweep(root: str | os.PathLike | None = None) -> list[Path]:
+    """Remove the folders in ``root`` (default: the temp folder) whose process is gone;
+    returns them. Folders of other users or of live processes are left alone."""
+    removed = []
+    try:
+        entries = list(Path(root or tempfile.gettempdir()).iterdir())
+    except OSError:
+        return removed
+    for path in entries:
+        found = _NAME.fullmatch(path.name)
+        if not found or int(found[1]) == os.getpid() or alive(int(found[1])):
+            continue
+        try:
+            if path.is_dir() and not path.is_symlink() and path.stat().st_uid == os.getuid():
+                shutil.rmtree(path, ignore_errors=True)
+                removed.append(path)
+        except OSError:
+            continue
+    return removed
