@@ -164,10 +164,10 @@ def test_problem_parameter_and_final_time_sweep(capsys):
     rows = json.loads(out)
     assert code == 0 and len(rows) == 6
     assert [(json.loads(r["settings"])["e"], r["t_final"]) for r in rows] == [
-        (e, t) for e in ("0.5", "0.9", "0.99") for t in (10.0, 100.0)]
+        (e, t) for e in (0.5, 0.9, 0.99) for t in (10.0, 100.0)]
     drift = {(json.loads(r["settings"])["e"], r["t_final"]): r["H.max"] for r in rows}
-    assert drift["0.5", 10.0] < drift["0.9", 10.0] < drift["0.99", 10.0]
-    assert all(drift[e, 100.0] >= drift[e, 10.0] for e in ("0.5", "0.9", "0.99"))
+    assert drift[0.5, 10.0] < drift[0.9, 10.0] < drift[0.99, 10.0]
+    assert all(drift[e, 100.0] >= drift[e, 10.0] for e in (0.5, 0.9, 0.99))
 
 
 def test_list_shows_capabilities_and_requirements(capsys):
