@@ -189,3 +189,29 @@ def drift_text(points: list[dict[str, Any]]) -> str:
     if d["within"] is not None:
         text += f"; slowest repeat +{100 * d['within']:.1f} % over the fastest"
     return text + ")"
+
+
+def calibration_svg(points: list[dict[str, Any]]) -> str | None:
+    """The run's calibrations against time (one marker per calibration, a bar to its
+    slowest repeat; one colour per process), as inline SVG; None with fewer than two."""
+    if len(points) < 2:
+        return None
+    from .figures import pyplot
+    from .html_report import svg
+
+    t0 = min(p["t"] for p in points)
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7.0, 2.2))
+    pids = sorted({p.get("pid") for p in points}, key=str)
+    for k, pid in enumerate(pids):
+        mine = sorted((p for p in points if p.get("pid") == pid), key=lambda p: p["t"])
+        x = np.array([p["t"] - t0 for p in mine])
+        y = np.array([1e3 * p["cpu_s"] for p in mine])
+        top = np.array([1e3 * p["cpu_s_max"] for p in mine])
+        ax.errorbar(x, y, yerr=[np.zeros_like(y), top - y], marker="o", ms=3, lw=0.8, capsize=0,
+                    label=f"process {pid}" + (" (this run's own)" if k == 0 and mine[0].get("phase") == "before" else ""))
+    ax.set_xlabel("seconds since the first calibration")
+    ax.set_ylabel("reference workload, ms")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, frameon=False)
+    return svg(fig)
