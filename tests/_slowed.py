@@ -1,11 +1,12 @@
 """Test helper: a plugin scheme whose code is made slower or less accurate on purpose, as a
 scheme author's commit might, for `longtime compare` and `longtime history`.
 
-``source(slowdown, bias)`` is the text of a module defining ``SlowedRK4`` (registered as
-``slowed-rk4``): classical RK4 that repeats its step's work into scratch on a fraction
-``slowdown - 1`` of its steps (so the same cell takes about ``slowdown`` times as long and
-its results are unchanged) and adds ``bias * h**5`` to the first component each step (an
-error of order h^4 over a run, like RK4's own: ``bias`` costs accuracy). The constants are
+``source(repeat, bias)`` is the text of a module defining ``SlowedRK4`` (registered as
+``slowed-rk4``): classical RK4 that repeats its four stages into scratch on a fraction
+``repeat`` of its steps (the cell takes longer, by less than ``repeat``: the driver's own
+work per step is not repeated; its results are unchanged bit for bit) and adds
+``bias * h**5`` to the first component each step (an error of order h^4 over a run, like
+RK4's own: ``bias`` costs accuracy). The constants are
 in the module's text, so each version is other code (another kernel), not another setting:
 the cells keep their identity across versions.
 """
@@ -13,19 +14,20 @@ import importlib.util
 import sys
 from pathlib import Path
 
-TEMPLATE = '''"""RK4, slowed down by {slowdown}x and biased by {bias} h^5 a step (a test plugin)."""
+TEMPLATE = '''"""RK4 repeating its stages on a fraction {repeat} of its steps and biased by {bias} h^5 a step
+(a test plugin)."""
 import numba
 
 from longtime import FixedStepIntegrator
 from longtime.drivers import OK, RHS_EVALS
 
-SLOWDOWN = {slowdown!r}
+REPEAT = {repeat!r}
 BIAS = {bias!r}
 
 
 class SlowedRK4(FixedStepIntegrator):
     name = "slowed-rk4"
-    summary = "classical RK4 with work repeated on a fraction SLOWDOWN - 1 of its steps (test plugin)"
+    summary = "classical RK4 with its stages repeated on a fraction REPEAT of its steps (test plugin)"
     order = 4
 
     def work_shape(self, problem):
@@ -33,7 +35,7 @@ class SlowedRK4(FixedStepIntegrator):
 
     def make_step(self, problem):
         rhs = problem.rhs
-        extra, bias = SLOWDOWN - 1.0, BIAS
+        extra, bias = REPEAT, BIAS
 
         @numba.njit
         def increment(t, u, h, params, work, out):
@@ -68,8 +70,8 @@ class SlowedRK4(FixedStepIntegrator):
 '''
 
 
-def source(slowdown: float = 1.0, bias: float = 0.0) -> str:
-    return TEMPLATE.format(slowdown=float(slowdown), bias=float(bias))
+def source(repeat: float = 0.0, bias: float = 0.0) -> str:
+    return TEMPLATE.format(repeat=float(repeat), bias=float(bias))
 
 
 def load(path: Path, tag: str):
