@@ -361,9 +361,11 @@ def render(result: dict[str, Any], show_all: bool = False) -> str:
                     cpu += " (too short to time)"
             else:
                 cpu = f"cpu x{c['cpu_ratio']:.3g}" if c.get("cpu_ratio") is not None else "cpu -"
-            text = f"  {'REGRESSED' if c['regressions'] else 'ok':9s} {_label(c)}: {cpu}"
+            text = f"  {'REGRESSED' if c['regressions'] else 'ok':9s} {_label(c)}"
+            if c["time_verdict"] not in ("slower", "faster"):  # those say it below
+                text += f": {cpu}"
             if c["regressions"]:
-                text += "; " + "; ".join(c["regressions"])
+                text += ("; " if c["time_verdict"] not in ("slower", "faster") else ": ") + "; ".join(c["regressions"])
             if c["improvements"]:
                 text += "; better: " + ", ".join(c["improvements"])
             for k, (x, y) in c["growth_class_changes"].items():
