@@ -43,7 +43,7 @@ from .params import InputError
 TIME_FACTOR = 1.2
 CELL_FACTOR = 2.0
 MIN_BATCHES = 3
-SHORT_CPU_S = 5e-4
+SHORT_CPU_S = 2e-5
 MACHINE_FACTOR = 1.03  # reference workloads further apart than this: the machine's speed differed
 ROUND_OFF = 1e-13
 MATCH_KEYS = ("problem", "integrator", "dt", "tol", "eps_res", "order", "t_final", "settings")
@@ -318,7 +318,7 @@ def _counts_text(counts: dict[str, dict[str, int]], result: dict) -> str:
     t, acc = counts["time"], counts["accuracy"]
     basis = result["time_basis"] or "not timed"
     return (f"time ({basis}): {t['slower']} slower, {t['faster']} faster, {t['within']} within the spread, "
-            f"{t['too short']} too short to time (< {1e3 * result['short_cpu_s']:g} ms); "
+            f"{t['too short']} too short to time (< {1e6 * result['short_cpu_s']:g} us); "
             f"accuracy: {acc['less accurate']} less accurate, {acc['more accurate']} more accurate, "
             f"{acc['same']} within x{result['error_factor']:g}; status: {counts['status']['no longer ok']} no longer ok; "
             f"growth class: {counts['growth class']['changed']} changed; observed order: "

@@ -236,9 +236,10 @@ def page_section(store, rows: list[dict], style: dict) -> str | None:
     for problem in sorted({c["cell"]["problem"] for c in found}):
         mine = [c for c in found if c["cell"]["problem"] == problem]
         fig = _small_multiples(mine, style)
-        marked = sum(len(c["steps"]) for c in mine)
+        marked = sum(s["field"] in (TIME_FIELD, _main_error(c)) for c in mine for s in c["steps"])
         out.append(f'<h3 id="history-{_slug(problem)}">{_e(problem)}</h3><figure class="plot">{fig}<figcaption>'
-                   f"{len(mine)} cells; {marked} step{'s' if marked != 1 else ''} marked.</figcaption></figure>")
+                   f"{len(mine)} cell{'s' if len(mine) != 1 else ''}, {marked} step{'s' if marked != 1 else ''} "
+                   f"marked (<code>longtime history -p {_e(problem)}</code> lists every field's).</figcaption></figure>")
     return "\n".join(out)
 
 

@@ -109,9 +109,9 @@ def test_a_scheme_slower_on_every_problem_is_flagged_a_batch_flip_is_not():
 
 
 def test_too_short_cells_get_no_verdict():
-    result = compare(_rows({("harmonic", "rk4"): 1.0}, cpu=1e-4), _rows({("harmonic", "rk4"): 3.0}, cpu=1e-4))
+    result = compare(_rows({("harmonic", "rk4"): 1.0}, cpu=1e-5), _rows({("harmonic", "rk4"): 3.0}, cpu=1e-5))
     assert {c["time_verdict"] for c in result["cells"]} == {"too short"} and result["regressed"] == 0
-    assert "2 too short to time (< 0.5 ms)" in render(result)
+    assert "2 too short to time (< 20 us)" in render(result)
 
 
 def test_counts_once_under_each_heading_and_orders_and_machine():

@@ -70,6 +70,10 @@ def test_five_commits_slower_at_3_less_accurate_at_4(tmp_path, monkeypatch, caps
     text = capsys.readouterr().out
     assert f"STEP time x" in text and f"at run 3, commit {commits[2][:10]}" in text
     assert f"STEP l2_error x" in text and f"at run 4, commit {commits[3][:10]}" in text
+    # the results page of the latest run gains the history: one panel, the two steps marked
+    assert cli.main(["report", "--db", str(db), "--html", str(tmp_path / "page")]) == 0
+    page = (tmp_path / "page" / "index.html").read_text()
+    assert 'id="history-harmonic"' in page and "1 cell, 2 steps marked" in page
 
 
 def test_bad_selection_is_one_line(tmp_path, capsys):
