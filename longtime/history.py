@@ -44,8 +44,11 @@ def levels(values: list[float | None], factor: float, min_runs: int) -> list[dic
     present = [v for v in values if v is not None and math.isfinite(v)]
     if not present:
         return []
-    pieces = [[l, r] for l, r, *_ in detect_steps([v if v is not None and math.isfinite(v) else None
-                                                   for v in values])]
+    if len(set(present)) == 1:  # one value throughout (an error, bit for bit): one level
+        pieces = [[0, len(values)]]
+    else:
+        pieces = [[l, r] for l, r, *_ in detect_steps([v if v is not None and math.isfinite(v) else None
+                                                       for v in values])]
     limit = math.log(factor)
 
     def value(piece: list[int]) -> float:
@@ -114,12 +117,14 @@ def _same(have, text: str) -> bool:
 
 
 def history(store, problems=None, schemes=None, sets: dict[str, str] | None = None,
-            factor: float = TIME_FACTOR, error_factor: float = ERROR_FACTOR) -> list[dict[str, Any]]:
+            factor: float = TIME_FACTOR, error_factor: float = ERROR_FACTOR,
+            fields: tuple[str, ...] | None = None) -> list[dict[str, Any]]:
     """Per cell identity (in the store's order of first appearance): ``cell`` (the matched
     keys), ``runs`` (per run holding the cell, by run id: run_id, commit, date, status,
     cpu_s, cpu_s_calibrated and every error field) and ``steps`` (field, run_id, commit,
-    date, before, after, ratio, kind)."""
+    date, before, after, ratio, kind) of every series, or of ``fields`` only."""
     runs = {r["id"]: r for r in store.runs()}
+    only = fields
     cells: dict[tuple, dict[int, dict]] = {}
     for row in store.rows():
         if _selected(row, problems, schemes, sets or {}):
@@ -128,15 +133,17 @@ def history(store, problems=None, schemes=None, sets: dict[str, str] | None = No
     for by_run in cells.values():
         ids = sorted(by_run)
         first = by_run[ids[0]]
-        fields = sorted({f for r in by_run.values() for f in error_fields(r)})
+        errors = sorted({f for r in by_run.values() for f in error_fields(r)})
         points = []
         for rid in ids:
             r, run = by_run[rid], runs.get(rid, {})
             points.append({"run_id": rid, "commit": run.get("git_commit"), "date": run.get("started"),
                            "status": r.get("status"), "cpu_s": r.get("cpu_s"), TIME_FIELD: r.get(TIME_FIELD),
-                           **{f: r.get(f) for f in fields}})
+                           **{f: r.get(f) for f in errors}})
         found = []
-        for field in (TIME_FIELD, *fields):
+        for field in (TIME_FIELD, *errors):
+            if only is not None and field not in only:
+                continue
             values = [p[field] if p["status"] == "ok" and isinstance(p.get(field), (int, float)) else None
                       for p in points]
             is_time = field == TIME_FIELD
@@ -216,7 +223,9 @@ def repeated(store, rows: list[dict]) -> list[dict[str, Any]]:
     keys = {cell_key(r) for r in rows}
     problems = sorted({r["problem"] for r in rows})
     schemes = sorted({r["integrator"] for r in rows})
-    return [c for c in history(store, problems, schemes)
+    from .report import PARETO_FIELDS
+
+    return [c for c in history(store, problems, schemes, fields=(TIME_FIELD, *PARETO_FIELDS))
             if len(c["runs"]) > 1 and cell_key(c["cell"]) in keys]
 
 
