@@ -2,9 +2,9 @@
 scheme author's commit might, for `longtime compare` and `longtime history`.
 
 ``source(repeat, bias)`` is the text of a module defining ``SlowedRK4`` (registered as
-``slowed-rk4``): classical RK4 that repeats its four stages into scratch on a fraction
-``repeat`` of its steps (the cell takes longer, by less than ``repeat``: the driver's own
-work per step is not repeated; its results are unchanged bit for bit) and adds
+``slowed-rk4``): classical RK4 that repeats its four stages into scratch ``repeat`` times a
+step on average (the cell takes longer, by less than ``repeat``: the driver's own work per
+step is not repeated; its results are unchanged bit for bit) and adds
 ``bias * h**5`` to the first component each step (an error of order h^4 over a run, like
 RK4's own: ``bias`` costs accuracy). The constants are
 in the module's text, so each version is other code (another kernel), not another setting:
@@ -14,7 +14,7 @@ import importlib.util
 import sys
 from pathlib import Path
 
-TEMPLATE = '''"""RK4 repeating its stages on a fraction {repeat} of its steps and biased by {bias} h^5 a step
+TEMPLATE = '''"""RK4 repeating its stages {repeat} times a step on average and biased by {bias} h^5 a step
 (a test plugin)."""
 import numba
 
@@ -27,7 +27,7 @@ BIAS = {bias!r}
 
 class SlowedRK4(FixedStepIntegrator):
     name = "slowed-rk4"
-    summary = "classical RK4 with its stages repeated on a fraction REPEAT of its steps (test plugin)"
+    summary = "classical RK4 with its stages repeated REPEAT times a step on average (test plugin)"
     order = 4
 
     def work_shape(self, problem):
@@ -57,7 +57,7 @@ class SlowedRK4(FixedStepIntegrator):
         def step(t, u, h, params, work, counters, first):
             increment(t, u, h, params, work, work[5])
             n = work[7, 0]
-            if int((n + 1.0) * extra) > int(n * extra):  # the repeated work, into scratch
+            for _ in range(int((n + 1.0) * extra) - int(n * extra)):  # the repeated work, into scratch
                 increment(t, u, h, params, work, work[6])
             work[7, 0] = n + 1.0
             for i in range(u.size):
