@@ -418,7 +418,7 @@ def cmd_compare(args) -> int:
 
 
 def add_time_flags(p) -> None:
-    """The flags that judge times and errors (compare, and matrix --baseline)."""
+    """The flags that judge times and errors."""
     p.add_argument("--factor", type=float, default=TIME_FACTOR,
                    help=f"time ratio of a scheme or a problem (median over its batches) that counts as slower "
                         f"(default {TIME_FACTOR:g}: beyond the measured spread of identical runs)")
