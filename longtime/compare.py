@@ -38,12 +38,12 @@ import numpy as np
 
 from .params import InputError
 
-# measured (README, "compare"): between runs of identical code on a shared 2-core machine,
-# with and without two CPU-bound processes beside them
-TIME_FACTOR = 1.2
-CELL_FACTOR = 2.0
-MIN_BATCHES = 3
-SHORT_CPU_S = 2e-5
+# set above the spread measured between runs of identical code, alone and beside CPU-bound
+# processes (README, "compare")
+TIME_FACTOR = 1.2  # a scheme's (a problem's) median batch ratio beyond this: slower
+CELL_FACTOR = 2.0  # a single cell's ratio beyond this: slower
+MIN_BATCHES = 3  # batches a scheme's (a problem's) median needs
+SHORT_CPU_S = 2e-5  # cells below this CPU time (shorter than any measured) get no time verdict
 MACHINE_FACTOR = 1.03  # reference workloads further apart than this: the machine's speed differed
 ROUND_OFF = 1e-13
 MATCH_KEYS = ("problem", "integrator", "dt", "tol", "eps_res", "order", "t_final", "settings")
