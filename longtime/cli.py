@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from . import cli_args, guard, registry, stability
+from .calibration import drift_text
 from .cells import DEFAULT_TIME_LIMIT, check_size, expand
 from .integrator import Timing
 from .lifecycle import command_line, recorded_run
@@ -25,7 +26,9 @@ from .roles import ROW_PARAMETERS, flag
 from .store import Store, default_path
 
 # modules that add subcommands: each defines add_parser(subparsers) and sets func
-COMMAND_MODULES: tuple[str, ...] = ("longtime.asv_init", "longtime.cache_cmd", "longtime.compare", "longtime.matched", "longtime.plot", "longtime.reproduce", "longtime.roundoff", "longtime.warmup")
+COMMAND_MODULES: tuple[str, ...] = ("longtime.asv_init", "longtime.cache_cmd", "longtime.compare", "longtime.history",
+                                   "longtime.matched", "longtime.plot", "longtime.reproduce", "longtime.roundoff",
+                                   "longtime.warmup")
 
 
 # argument types: one set for every command (longtime.cli_args)
@@ -192,6 +195,8 @@ def cmd_matrix(args) -> int:
         if not args.allow_large:
             check_size(cells, args.max_samples)
         store, run_id, died = Store(args.db), None, []
+    if args.baseline is not None:
+        store.run(args.baseline)  # an unknown baseline is bad input, before anything runs
     ahead = None
     with recorded_run(store, command_line(args), cells, run_id) as run_id:
         if args.resume is None:
@@ -217,8 +222,14 @@ def cmd_matrix(args) -> int:
             except Exception as exc:  # the rows are stored; `longtime report --html DIR` can retry
                 print(f"warning: results page not written: {type(exc).__name__}: {exc}", file=sys.stderr)
         print(report_text(rows, "table", full=args.full))
+        print(f"\ncalibration: {drift_text(store.calibrations(run_id))}")
         if page is not None:
             print(f"\nresults page: {page}")
+    if args.baseline is not None:  # CI's gate: this run against the baseline, exit 1 on a regression
+        from . import compare
+
+        print(f"\n== compared with run {args.baseline} (longtime compare {args.baseline} {run_id}) ==")
+        return compare.report(compare.run_compare(store.path, str(args.baseline), store.path, str(run_id)))
     return 0
 
 
@@ -255,6 +266,8 @@ def cmd_report(args) -> int:
             Path(args.out).write_text(text)
     else:
         print(report_text(rows, args.format, full=args.full))
+        if args.format == "table" and args.run != "all":
+            print(f"\ncalibration: {drift_text(store.calibrations(run_id))}")
     return 0
 
 
@@ -287,6 +300,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--html", default=None, type=cli_args.out_folder("--html"), metavar="DIR",
                    help="folder of the results page (default: longtime-report/run-RUN_ID beside the store)")
     p.add_argument("--no-html", action="store_true", help="do not write the results page")
+    p.add_argument("--baseline", type=cli_args.integer("--baseline", 1), default=None, metavar="RUN",
+                   help="end with `longtime compare RUN` against this run (same store) and exit 1 on a regression")
     p.set_defaults(func=cmd_matrix)
 
     p = sub.add_parser("report", help="tables of stored rows: accuracy against cost per problem")

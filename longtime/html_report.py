@@ -331,6 +331,10 @@ def _meta(runs: list[dict]) -> str:
                  ["commit", r.get("git_commit") or "-"],
                  ["versions", ", ".join(f"{k} {v}" for k, v in versions.items() if v)],
                  ["machine", ", ".join(f"{k} {v}" for k, v in machine.items() if v)]]
+        if "calibrations" in r:
+            from .calibration import drift_text
+
+            body.append(["calibration", drift_text(r["calibrations"])])
     rows = "".join(f"<tr><td>{_e(a)}</td><td>{_e(b)}</td></tr>" for a, b in body)
     return f'<table class="meta">{rows}</table>'
 
@@ -596,9 +600,11 @@ class FiguresAhead:
 
 
 def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bool = True,
-               stability: bool = True, jobs: int = 1, ahead: FiguresAhead | None = None) -> str:
+               stability: bool = True, jobs: int = 1, ahead: FiguresAhead | None = None,
+               history: str | None = None) -> str:
     """The page's HTML for ``rows`` (of the ``runs`` whose metadata heads it); the figures are
-    drawn on ``jobs`` processes, but for those ``ahead`` drew from the same rows."""
+    drawn on ``jobs`` processes, but for those ``ahead`` drew from the same rows. ``history``:
+    the history section (longtime.history.page_section), placed before the capability matrix."""
     problems = sorted({r["problem"] for r in rows})
     style = styles(sorted({r["integrator"] for r in rows}))
     # the heaviest problems first, so the processes finish together
@@ -614,9 +620,10 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
     out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
            '<meta name="viewport" content="width=device-width, initial-scale=1">',
            "<title>longtime results</title>", f"<style>{CSS}</style>", "</head><body>",
-           "<h1>longtime: results</h1>", _meta(runs),
+           "<h1>longtime: results</h1>", _meta(runs), *_calibration_figures(runs),
            f"<p><b>{len(rows)} cells:</b> " + _e(format_counts(counts)) + "</p>",
            "<nav>" + "".join(f'<a href="#{_slug(p)}">{_e(p)}</a>' for p in problems)
+           + ('<a href="#history">history</a>' if history else "")
            + '<a href="#capabilities">capability matrix</a></nav>']
     for p in problems:
         mine, figs = by_problem[p], figures[p]
@@ -659,6 +666,8 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
         if folded:
             out.append("<h3>Not run to the end, or the solution lost</h3><ul>" + "".join(
                 f"<li>{_e(why)}: {_e(', '.join(s))}</li>" for why, s in sorted(folded.items())) + "</ul>")
+    if history:
+        out.append(history)
     out.append('<h2 id="capabilities">Capability matrix</h2>' + _capability_matrix(rows))
     stab = _stability_table({**interval_texts(plugins), **intervals}) if stability else None
     if stab:
@@ -669,12 +678,28 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
     return "\n".join(out)
 
 
+def _calibration_figures(runs: list[dict[str, Any]]) -> list[str]:
+    """Per run with calibrations: how the machine's speed drifted during it."""
+    from .calibration import calibration_svg
+
+    out = []
+    for r in runs:
+        fig = calibration_svg(r.get("calibrations") or [])
+        if fig:
+            out.append(f'<figure class="plot">{fig}<figcaption>Run {r["id"]}: the reference workload\'s CPU time '
+                       f"(the fastest of its repeats, a bar to the slowest) at each calibration; each row's "
+                       f"<code>cpu_s_calibrated</code> is its <code>cpu_s</code> over the calibration of its "
+                       f"process nearest in time.</figcaption></figure>")
+    return out
+
+
 def write_page(out_dir: str | Path, rows: list[dict[str, Any]], runs: list[dict[str, Any]],
-               drift: bool = True, jobs: int = 1, ahead: FiguresAhead | None = None) -> Path:
+               drift: bool = True, jobs: int = 1, ahead: FiguresAhead | None = None,
+               history: str | None = None) -> Path:
     """Write ``out_dir``/index.html (figures drawn on ``jobs`` processes, or ``ahead``);
     return its path."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     path = out / PAGE_NAME
-    path.write_text(build_page(rows, runs, drift=drift, jobs=jobs, ahead=ahead), encoding="utf-8")
+    path.write_text(build_page(rows, runs, drift=drift, jobs=jobs, ahead=ahead, history=history), encoding="utf-8")
     return path

@@ -14,13 +14,14 @@ import hashlib
 import json
 import os
 import shutil
+import time
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
-from . import registry, tempdirs
+from . import calibration, registry, tempdirs
 from .cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, Cell, base_row, cell_size, run_cell
 from .integrator import Timing
 from .isolation import die_with_parent, run_isolated
@@ -54,10 +55,20 @@ IdleTask = tuple[Callable, tuple, Callable[[Any], None]]
 
 
 def serial(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
+    here = calibration.here()
+    here.start()
     for cell in cells:
         if options.on_start is not None and not cell.skip_reason:
             options.on_start(cell)
-        yield cell, run_cell(cell, options.max_samples, timing=options.timing, time_limit=options.time_limit)
+        yield cell, _calibrated(here, cell, options.max_samples, options.timing, options.time_limit)
+
+
+def _calibrated(here: calibration.Calibrator, cell: Cell, max_samples: int, timing: Timing,
+                time_limit: float | None) -> dict:
+    """run_cell's row with the machine's speed beside it (longtime.calibration)."""
+    t0 = time.time()
+    row = run_cell(cell, max_samples, timing=timing, time_limit=time_limit)
+    return row if cell.skip_reason else here.cell(row, t0, time.time())
 
 
 def batches_by_pair(cells: list[Cell]) -> list[list[Cell]]:
@@ -176,15 +187,18 @@ def run_batch(cells: list[Cell], max_samples: int, timing: Timing, folder: str |
     row are also written there, so that a pool broken by another worker's crash loses
     nothing finished and knows which cells were running."""
     rows = []
+    here = calibration.here()
+    here.start()
     for c in cells:
         marker = Path(folder, f"running-{os.getpid()}") if folder else None
         if marker is not None:
             _write(marker, c.to_dict())
-        row = run_cell(c, max_samples, timing=timing, time_limit=time_limit)
+        row = _calibrated(here, c, max_samples, timing, time_limit)
         if marker is not None:
             _write(Path(folder, f"row-{_digest(c.key)}.json"), {"cell": c.to_dict(), "row": row})
             marker.unlink()
         rows.append(row)
+    here.finish()
     return rows
 
 
@@ -339,10 +353,17 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
         from tqdm import tqdm
 
         bar = tqdm(total=len(cells), unit="cell", dynamic_ncols=True)
+    storing = store is not None and run_id is not None
+    here = calibration.here(reset=True)  # the machine's speed before the cells, and after them
+    if storing:
+        store.add_calibrations(run_id, [here.take("before")])
+        here.handed()
     try:
         for cell, row in run(cells, options):
+            points = calibration.take_points(row)
             rows[cell.key] = row
-            if store is not None and run_id is not None:
+            if storing:
+                store.add_calibrations(run_id, points)
                 store.add_row(run_id, cell, row)
             if on_row is not None:
                 on_row(cell, row)
@@ -352,4 +373,6 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
     finally:
         if bar is not None:
             bar.close()
+    if storing:
+        store.add_calibrations(run_id, [here.take("after")])
     return [rows[c.key] for c in cells if c.key in rows]

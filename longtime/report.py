@@ -325,10 +325,12 @@ def write_html(out_dir, rows: list[dict[str, Any]], store, run_ids: Iterable[int
     ``run_ids`` (default: every run the rows come from), its figures drawn on ``jobs``
     processes (default: one per core) but for those drawn ``ahead`` (an
     html_report.FiguresAhead); returns its path."""
-    from .html_report import write_page
+    from .history import page_section
+    from .html_report import styles, write_page
 
     ids = sorted(set(run_ids) if run_ids is not None else {r.get("run_id") for r in rows if r.get("run_id")})
-    runs = [r for r in store.runs() if r["id"] in ids]
+    runs = [{**r, "calibrations": store.calibrations(r["id"])} for r in store.runs() if r["id"] in ids]
+    history = page_section(store, rows, styles(sorted({r["integrator"] for r in rows})))
     from .pool import workers
 
-    return write_page(out_dir, rows, runs, jobs=workers(jobs or 0), ahead=ahead)
+    return write_page(out_dir, rows, runs, jobs=workers(jobs or 0), ahead=ahead, history=history)

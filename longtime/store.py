@@ -30,7 +30,8 @@ DEFAULT_PATH = "longtime.sqlite"
 # without the stamp is refused untouched unless it is a store written before the version
 # existed (the same three tables, with the same columns, and nothing else).
 APPLICATION_ID = 0x4C54696D
-SCHEMA_VERSION = 1
+# 2: the calibrations table (a store of version 1 gains it when opened for writing)
+SCHEMA_VERSION = 2
 _TABLES = {"runs", "planned", "rows"}  # a store before the schema version (no 'started' yet)
 
 SCHEMA = """
@@ -53,6 +54,10 @@ CREATE TABLE IF NOT EXISTS rows (
 CREATE TABLE IF NOT EXISTS started (
     run_id INTEGER NOT NULL REFERENCES runs(id), cell_key TEXT NOT NULL, pid INTEGER, host TEXT,
     started TEXT NOT NULL, PRIMARY KEY (run_id, cell_key)
+);
+CREATE TABLE IF NOT EXISTS calibrations (
+    run_id INTEGER NOT NULL REFERENCES runs(id), t REAL NOT NULL, pid INTEGER, phase TEXT,
+    cpu_s REAL NOT NULL, point TEXT NOT NULL, PRIMARY KEY (run_id, pid, t)
 );
 PRAGMA application_id = %d;
 PRAGMA user_version = %d;
@@ -133,9 +138,12 @@ def environment() -> dict[str, Any]:
             versions[pkg] = None
     machine = {"platform": platform.platform(), "machine": platform.machine(),
                "processor": platform.processor(), "cpus": os.cpu_count(), "node": platform.node()}
+    # the commit of the code measured: $LONGTIME_GIT_COMMIT where the caller names it (a
+    # plugin's repository, a CI checkout), else longtime's own checkout
+    commit = os.environ.get("LONGTIME_GIT_COMMIT") or None
     try:
-        commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
-                                timeout=5, cwd=Path(__file__).parent).stdout.strip() or None
+        commit = commit or subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
+                                          timeout=5, cwd=Path(__file__).parent).stdout.strip() or None
     except (OSError, subprocess.SubprocessError):
         commit = None
     return {"versions": versions, "machine": machine, "git_commit": commit}
@@ -319,9 +327,31 @@ class Store:
         with closing(self._connect()) as con, con:
             if con.execute("SELECT COUNT(*) FROM rows WHERE run_id = ?", (run_id,)).fetchone()[0]:
                 return
-            for table in ("started", "planned"):
+            for table in ("started", "planned", "calibrations"):
                 con.execute(f"DELETE FROM {table} WHERE run_id = ?", (run_id,))
             con.execute("DELETE FROM runs WHERE id = ?", (run_id,))
+
+    def add_calibrations(self, run_id: int, points: Iterable[dict[str, Any]]) -> None:
+        """Store calibrations of the machine's speed (longtime.calibration) taken during the
+        run; one already stored is kept as it is."""
+        points = list(points)
+        if not points:
+            return
+        with self._writer_lock, self._row_writer() as con:
+            con.executemany("INSERT OR IGNORE INTO calibrations (run_id, t, pid, phase, cpu_s, point) "
+                            "VALUES (?, ?, ?, ?, ?, ?)",
+                            [(run_id, p["t"], p.get("pid"), p.get("phase"), p["cpu_s"], json.dumps(p))
+                             for p in points])
+
+    def calibrations(self, run_id: int) -> list[dict[str, Any]]:
+        """The calibrations of ``run_id`` in time order (none for a run stored before them)."""
+        with closing(self._connect()) as con:
+            try:
+                fetched = con.execute("SELECT point FROM calibrations WHERE run_id = ? ORDER BY t",
+                                      (run_id,)).fetchall()
+            except sqlite3.OperationalError:  # a store of schema version 1, opened read-only
+                return []
+        return [json.loads(text) for (text,) in fetched]
 
     def finish_run(self, run_id: int, status: str) -> None:
         self.close()

@@ -1,17 +1,18 @@
-"""longtime compare: an injected slowdown and an injected accuracy loss make it exit 1."""
+"""longtime compare: an injected slowdown and an injected accuracy loss make it exit 1; a slower
+machine, a batch's change of speed between processes and too-short cells do not."""
 import json
 import sqlite3
 
 import pytest
 
 from longtime import cli
-from longtime.compare import compare, slower_p
+from longtime.compare import compare, order_changes, render, slower_p
 
 
 @pytest.fixture(scope="module")
 def store(tmp_path_factory):
     db = tmp_path_factory.mktemp("compare") / "runs.sqlite"
-    assert cli.main(["run", "-p", "harmonic", "-i", "rk4", "--dt", "0.1,0.05", "--t-final", "2000",
+    assert cli.main(["run", "-p", "harmonic", "-i", "rk4", "--dt", "0.1,0.05", "--t-final", "4000",
                      "--repeats", "7", "--min-time", "0.02", "--db", str(db), "--format", "json"]) == 0
     return db
 
@@ -43,10 +44,11 @@ def test_same_run_has_no_regression(store, capsys, tmp_path):
 
 def test_injected_slowdown_and_accuracy_loss_exit_1(store, capsys):
     def edit(i, row):
-        assert len(row["cpu_s_samples"]) >= 3  # the repeats the rank test needs
-        if i == 0:  # 1.5x slower, every repeat
-            row["cpu_s_samples"] = [1.5 * c for c in row["cpu_s_samples"]]
+        assert row["cpu_s_calibrated"] == pytest.approx(row["cpu_s"] / row["calibration_cpu_s"])
+        if i == 0:  # 2.5x slower code: raw and calibrated time alike
+            row["cpu_s_samples"] = [2.5 * c for c in row["cpu_s_samples"]]
             row["cpu_s"] = min(row["cpu_s_samples"])
+            row["cpu_s_calibrated"] *= 2.5
         else:  # ten times less accurate
             row["l2_error"] *= 10
         return row
@@ -56,14 +58,99 @@ def test_injected_slowdown_and_accuracy_loss_exit_1(store, capsys):
     result = json.loads(capsys.readouterr().out)
     by_dt = {c["dt"]: c for c in result["cells"]}
     slow, worse = by_dt[0.1], by_dt[0.05]
-    assert slow["cpu_ratio"] == pytest.approx(1.5)
-    assert slow["p_slower"] <= 0.05 and any(r.startswith("cpu x1.5") for r in slow["regressions"])
+    assert slow["cpu_ratio"] == pytest.approx(2.5) and slow["time_ratio"] == pytest.approx(2.5)
+    assert slow["time_basis"] == "calibrated" and slow["time_verdict"] == "slower"
+    assert any(r.startswith("time x2.5 (calibrated") for r in slow["regressions"])
     assert [r for r in worse["regressions"] if r.startswith("l2_error x10")]
-    assert not [r for r in worse["regressions"] if r.startswith("cpu")]
-    # a generous factor lets the slowdown pass, not the accuracy loss
-    assert cli.main(["compare", "1", str(run_b), "--db", str(store), "--factor", "2"]) == 1
+    assert worse["time_verdict"] == "within" and worse["error_verdict"] == "less accurate"
+    assert result["counts"]["time"]["slower"] == 1 and result["counts"]["accuracy"]["less accurate"] == 1
+    # a generous cell factor lets the slowdown pass, not the accuracy loss
+    assert cli.main(["compare", "1", str(run_b), "--db", str(store), "--cell-factor", "3"]) == 1
     text = capsys.readouterr().out
-    assert "1 regressed" in text and "l2_error x10" in text and "cpu x1.5 (p=" not in text
+    assert "1 regressed" in text and "l2_error x10" in text and "time x2.5" not in text
+
+
+def test_a_slower_machine_is_not_a_regression_of_calibrated_times(store, capsys):
+    def edit(i, row):  # the machine 2.5x slower: cells and the reference workload alike
+        row["cpu_s"] *= 2.5
+        row["calibration_cpu_s"] *= 2.5
+        return row
+
+    run_b = _inject(store, edit)
+    assert cli.main(["compare", "1", str(run_b), "--db", str(store)]) == 0
+    assert "0 regressed" in capsys.readouterr().out
+    assert cli.main(["compare", "1", str(run_b), "--db", str(store), "--raw-time", "--format", "json"]) == 1
+    result = json.loads(capsys.readouterr().out)
+    assert result["time_basis"] == "raw" and result["counts"]["time"]["slower"] == 2
+
+
+def _rows(times: dict[tuple[str, str], float], error: float = 1e-6, cpu: float = 0.01) -> list[dict]:
+    """Synthetic ok rows, two cells (dt) per problem x scheme, calibrated time scaled per pair."""
+    return [{"problem": p, "integrator": s, "status": "ok", "dt": dt, "t_final": 10.0, "settings": "",
+             "cpu_s": cpu * f, "cpu_s_calibrated": 5 * f * dt, "l2_error": error * (dt / 0.1) ** 4}
+            for (p, s), f in times.items() for dt in (0.1, 0.05)]
+
+
+PAIRS = [(p, s) for p in ("harmonic", "toda", "kepler") for s in ("rk4", "verlet")]
+
+
+def test_a_scheme_slower_on_every_problem_is_flagged_a_batch_flip_is_not():
+    a = _rows({k: 1.0 for k in PAIRS})
+    slowed = compare(a, _rows({k: 1.3 if k[1] == "rk4" else 1.0 for k in PAIRS}))
+    assert slowed["schemes"]["rk4"]["verdict"] == "slower" and slowed["schemes"]["verlet"]["verdict"] == "within"
+    assert slowed["regressed"] == 6 and {c["integrator"] for c in slowed["cells"] if c["regressions"]} == {"rk4"}
+    # identical code: one batch (a problem x scheme in one process) took another speed
+    flipped = compare(a, _rows({k: 1.8 if k == ("toda", "rk4") else 1.0 for k in PAIRS}))
+    assert flipped["regressed"] == 0 and flipped["counts"]["time"]["within"] == 12
+    # too few problems for a scheme's verdict: only the cell factor judges
+    two = [k for k in PAIRS if k[0] != "kepler"]
+    few = compare(_rows({k: 1.0 for k in two}), _rows({k: 1.3 if k[1] == "rk4" else 1.0 for k in two}))
+    assert few["schemes"]["rk4"]["verdict"] is None and few["regressed"] == 0
+
+
+def test_too_short_cells_get_no_verdict():
+    result = compare(_rows({("harmonic", "rk4"): 1.0}, cpu=1e-5), _rows({("harmonic", "rk4"): 3.0}, cpu=1e-5))
+    assert {c["time_verdict"] for c in result["cells"]} == {"too short"} and result["regressed"] == 0
+    assert "2 too short to time (< 20 us)" in render(result)
+
+
+def test_counts_once_under_each_heading_and_orders_and_machine():
+    a = _rows({k: 1.0 for k in PAIRS})
+    b = _rows({k: 2.5 if k == ("toda", "rk4") else 1.0 for k in PAIRS})
+    for r in b:
+        if r["problem"] == "toda" and r["integrator"] == "rk4":
+            r["l2_error"] /= 10  # slower and more accurate
+        if r["problem"] == "kepler" and r["integrator"] == "verlet":
+            r["l2_error"] = 1e-6 * (r["dt"] / 0.1) ** 2  # second order: less accurate at dt 0.05
+    cals = ([{"t": 0.0, "cpu_s": 3e-3, "cpu_s_max": 3.1e-3}], [{"t": 9.0, "cpu_s": 3.6e-3, "cpu_s_max": 3.7e-3}])
+    result = compare(a, b, calibrations=cals)
+    counts = result["counts"]
+    assert counts["time"] == {"slower": 2, "faster": 0, "within": 10, "too short": 0, "not compared": 0}
+    assert counts["accuracy"]["more accurate"] == 2 and counts["accuracy"]["less accurate"] == 1
+    assert result["regressed"] == 3 and result["improved"] == 2
+    assert sum(counts["time"].values()) == sum(counts["accuracy"].values()) == len(result["cells"])
+    orders = {(o["problem"], o["integrator"]): o for o in order_changes(a, b)}
+    assert orders[("kepler", "verlet")]["order_changed"]
+    assert orders[("kepler", "verlet")]["observed_order_b"] == pytest.approx(2.0)
+    assert not orders[("toda", "rk4")]["order_changed"]
+    assert result["machine"]["differed"] and result["machine"]["ratio"] == pytest.approx(1.2)
+    text = render(result)
+    assert "its speed differed" in text and "kepler verlet (2 cells)" in text and "CHANGED" in text
+
+
+def test_matrix_baseline_exits_1_on_a_regression(tmp_path, capsys):
+    db = tmp_path / "base.sqlite"
+    argv = ["matrix", "-p", "harmonic", "-i", "verlet", "--dt", "0.1,0.05", "--t-final", "20", "--executor",
+            "serial", "--no-html", "--no-progress", "--db", str(db)]
+    assert cli.main(argv) == 0
+    assert "calibration: reference workload" in capsys.readouterr().out
+    assert cli.main([*argv, "--baseline", "1"]) == 0  # identical code: no regression
+    assert "== compared with run 1" in capsys.readouterr().out
+    run = _inject(db, lambda i, row: {**row, "l2_error": row["l2_error"] / 10})  # a more accurate baseline
+    assert cli.main([*argv, "--baseline", str(run)]) == 1
+    assert "l2_error x10" in capsys.readouterr().out
+    assert cli.main([*argv, "--baseline", "99"]) == 2
+    assert "run 99 is not in" in capsys.readouterr().err
 
 
 def test_rank_test_and_round_off_floor():

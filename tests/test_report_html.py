@@ -33,7 +33,8 @@ def test_page_content(page):
     text = path.read_text()
     # self-contained: nothing loaded from anywhere (SVG namespaces are names, not loads)
     assert not re.search(r"""(src|href)=["']?(https?:|//)|url\(\s*["']?https?:|@import""", text)
-    assert text.count('<figure class="plot">') == 4  # work-precision and drift, per problem
+    # work-precision and drift per problem, and the run's calibrations
+    assert text.count('<figure class="plot">') == 5
     assert "14 cells:</b> 12 ok, 2 skipped" in text
     assert 'title="skipped: needs constraints, which harmonic does not provide">skipped: needs constraints<' in text
     # measured from the schemes' own steps: RK4's 2 sqrt 2 and Verlet's 2 on the imaginary axis
@@ -79,7 +80,7 @@ def test_page_in_headless_chromium(page):
     body = re.search(r"<body[^>]*>", res.stdout)
     assert body, res.stderr[-2000:]
     attrs = dict(re.findall(r'data-(\w+)="([^"]*)"', body.group(0)))
-    assert attrs.get("figures") == "4" and attrs.get("rendered") == "4", attrs
+    assert attrs.get("figures") == "5" and attrs.get("rendered") == "5", attrs
     assert attrs.get("errors") == "", attrs
     console = [line for line in res.stderr.splitlines() if ":CONSOLE" in line]
     assert console == [], console
@@ -145,7 +146,7 @@ def test_main_job_page_takes_the_figures_its_workers_drew(tmp_path, monkeypatch)
                      "--no-progress", "--html", str(tmp_path / "page")]) == 0
     assert sorted(taken) == [("harmonic", True), ("kepler", True)]
     text = (tmp_path / "page" / "index.html").read_text()
-    assert text.count('<figure class="plot">') == 4
+    assert text.count('<figure class="plot">') == 5  # and the run's calibrations
     assert "<td>rk4</td><td>[0, 2.82]" in text and "<td>verlet</td><td>[0, 2]" in text
 
 

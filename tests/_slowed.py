@@ -1,0 +1,84 @@
+"""Test helper: a plugin scheme whose code is made slower or less accurate on purpose, as a
+scheme author's commit might, for `longtime compare` and `longtime history`.
+
+``source(repeat, bias)`` is the text of a module defining ``SlowedRK4`` (registered as
+``slowed-rk4``): classical RK4 that repeats its four stages into scratch ``repeat`` times a
+step on average (the cell takes longer, by less than ``repeat``: the driver's own work per
+step is not repeated; its results are unchanged bit for bit) and adds
+``bias * h**5`` to the first component each step (an error of order h^4 over a run, like
+RK4's own: ``bias`` costs accuracy). The constants are
+in the module's text, so each version is other code (another kernel), not another setting:
+the cells keep their identity across versions.
+"""
+import importlib.util
+import sys
+from pathlib import Path
+
+TEMPLATE = '''"""RK4 repeating its stages {repeat} times a step on average and biased by {bias} h^5 a step
+(a test plugin)."""
+import numba
+
+from longtime import FixedStepIntegrator
+from longtime.drivers import OK, RHS_EVALS
+
+REPEAT = {repeat!r}
+BIAS = {bias!r}
+
+
+class SlowedRK4(FixedStepIntegrator):
+    name = "slowed-rk4"
+    summary = "classical RK4 with its stages repeated REPEAT times a step on average (test plugin)"
+    order = 4
+
+    def work_shape(self, problem):
+        return (8, problem.dim)  # k1..k4, a stage, the increment, its repeat, a step counter
+
+    def make_step(self, problem):
+        rhs = problem.rhs
+        extra, bias = REPEAT, BIAS
+
+        @numba.njit
+        def increment(t, u, h, params, work, out):
+            k1, k2, k3, k4, y = work[0], work[1], work[2], work[3], work[4]
+            rhs(t, u, params, k1)
+            for i in range(u.size):
+                y[i] = u[i] + 0.5 * h * k1[i]
+            rhs(t + 0.5 * h, y, params, k2)
+            for i in range(u.size):
+                y[i] = u[i] + 0.5 * h * k2[i]
+            rhs(t + 0.5 * h, y, params, k3)
+            for i in range(u.size):
+                y[i] = u[i] + h * k3[i]
+            rhs(t + h, y, params, k4)
+            for i in range(u.size):
+                out[i] = h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+
+        @numba.njit
+        def step(t, u, h, params, work, counters, first):
+            increment(t, u, h, params, work, work[5])
+            n = work[7, 0]
+            for _ in range(int((n + 1.0) * extra) - int(n * extra)):  # the repeated work, into scratch
+                increment(t, u, h, params, work, work[6])
+            work[7, 0] = n + 1.0
+            for i in range(u.size):
+                u[i] += work[5, i]
+            u[0] += bias * h ** 5
+            counters[RHS_EVALS] += 4
+            return OK
+
+        return step
+'''
+
+
+def source(repeat: float = 0.0, bias: float = 0.0) -> str:
+    return TEMPLATE.format(repeat=float(repeat), bias=float(bias))
+
+
+def load(path: Path, tag: str):
+    """The SlowedRK4 class of the module file ``path`` (imported under a name of its own)."""
+    name = f"_slowed_rk4_{tag}"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module.SlowedRK4
