@@ -32,6 +32,7 @@ DEFAULT_PATH = "longtime.sqlite"
 APPLICATION_ID = 0x4C54696D
 # 2: the calibrations table (a store of version 1 gains it when opened for writing)
 SCHEMA_VERSION = 2
+ADDED_IN = {"calibrations": 2}  # the schema version that added a table (1: every other)
 _TABLES = {"runs", "planned", "rows"}  # a store before the schema version (no 'started' yet)
 
 SCHEMA = """
@@ -226,8 +227,9 @@ class Store:
             if version > SCHEMA_VERSION:
                 raise InputError(f"store {self.path}: schema version {version} is newer than this longtime "
                                  f"reads ({SCHEMA_VERSION}); upgrade longtime or use another --db")
-            wrong = sorted(t for t in expected if columns.get(t) != expected[t])
-            if wrong:  # every schema version so far has every table of SCHEMA
+            # a table of SCHEMA belongs to every version from the one that added it on
+            wrong = sorted(t for t in expected if ADDED_IN.get(t, 1) <= version and columns.get(t) != expected[t])
+            if wrong:
                 raise InputError(f"store {self.path}: stamped as a longtime store, but its tables are not a "
                                  f"store's ({', '.join(wrong)} missing or different); {refuse}")
         elif app == 0 and version == 0 and not tables:

@@ -128,31 +128,36 @@ def assert_growth(scheme: Any, problem: Any, invariant: str, allowed_classes: It
     return result
 
 
-def assert_no_regression(store: Any, baseline_run: int, run: int | None = None, *, factor: float = 1.1,
-                         error_factor: float = 2.0, alpha: float = 0.05, timing: bool = True,
+def assert_no_regression(store: Any, baseline_run: int, run: int | None = None, *, factor: float | None = None,
+                         error_factor: float = 2.0, timing: bool = True, raw_time: bool = False,
                          store_b: Any = None) -> dict[str, Any]:
     """``longtime compare``'s verdict on ``run`` (default: the store's latest) against
-    ``baseline_run``: no common cell slower (with ``timing``), less accurate or no longer ok,
-    and no observed order changed. ``store_b`` holds ``run`` when it is another store.
-    Returns compare's result."""
-    from .compare import compare
+    ``baseline_run``: no common cell slower (with ``timing``; calibrated times unless
+    ``raw_time``, a scheme's median beyond ``factor``, default compare's), less accurate or
+    no longer ok, no observed order changed and no scheme newly left out of the order table.
+    ``store_b`` holds ``run`` when it is another store. Returns compare's result."""
+    from .compare import TIME_FACTOR, compare
     from .store import Store
 
+    factor = TIME_FACTOR if factor is None else factor
     a = store if isinstance(store, Store) else Store(store, readonly=True)
     b = a if store_b is None else (store_b if isinstance(store_b, Store) else Store(store_b, readonly=True))
     run = b.latest_run() if run is None else run
     rows_a, rows_b = a.rows(int(baseline_run)), b.rows(int(run))
-    result = compare(rows_a, rows_b, factor, error_factor, alpha)
+    result = compare(rows_a, rows_b, factor, error_factor, raw=raw_time,
+                     calibrations=(a.calibrations(int(baseline_run)), b.calibrations(int(run))))
     if not result["cells"]:
         raise AssertionError(f"runs {baseline_run} and {run} have no cell in common")
     problems = []
     for c in result["cells"]:
-        regressions = [x for x in c["regressions"] if timing or not x.startswith("cpu")]
+        regressions = [x for x in c["regressions"] if timing or not x.startswith(("cpu", "time"))]
         if regressions:
             problems.append(f"{c['problem']} {c['integrator']} ({_cell(c)}): " + "; ".join(regressions))
-    for o in result["orders"]:
-        if o["changed"]:
-            problems.append(f"{o['problem']} {o['integrator']}: observed order {o['order_a']:.3f} -> {o['order_b']:.3f}")
+    for pair in result["pairs"]:
+        for o in pair["orders"]:
+            if o["order_changed"]:
+                problems.append(f"{o['problem']} {o['integrator']}: observed order "
+                                f"{o['observed_order_a']:.3f} -> {o['observed_order_b']:.3f}")
     lost = {(m["problem"], m["integrator"]) for m in result["left_out_b"]} - \
         {(m["problem"], m["integrator"]) for m in result["left_out_a"]}
     for m in result["left_out_b"]:
@@ -160,8 +165,8 @@ def assert_no_regression(store: Any, baseline_run: int, run: int | None = None, 
             problems.append(f"{m['problem']} {m['integrator']}: no observed order any more ({m['reason']})")
     if problems:
         raise AssertionError(f"run {run} against run {baseline_run} ({len(result['cells'])} common cells; "
-                             f"slower beyond x{factor:g} at p <= {alpha:g}, errors beyond x{error_factor:g}): "
-                             + " | ".join(problems))
+                             f"slower beyond x{factor:g} (a scheme's median) or x{result['cell_factor']:g} "
+                             f"(a cell), errors beyond x{error_factor:g}): " + " | ".join(problems))
     return result
 
 
