@@ -12,12 +12,13 @@ prints (timings aside).
 from __future__ import annotations
 
 import shlex
+import time
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import numpy as np
 
-from . import registry
+from . import calibration, registry
 from .cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, SWEEP_PARAMETERS, Cell, check_size, expand, run_cell
 from .integrator import Integrator, Timing
 from .params import InputError
@@ -145,8 +146,15 @@ def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_sample
     if not allow_large:
         check_size(cells, max_samples)
     keep: dict[str, Any] = {}
-    row = complete(run_cell(cells[0], max_samples, timing=Timing(repeats=repeats, min_time=min_time),
-                            time_limit=time_limit or None, keep=keep))
+    here = calibration.here()  # the machine's speed beside the time, as every stored row has it
+    here.start()
+    t0 = time.time()
+    row = run_cell(cells[0], max_samples, timing=Timing(repeats=repeats, min_time=min_time),
+                   time_limit=time_limit or None, keep=keep)
+    if not cells[0].skip_reason:
+        here.cell(row, t0, time.time())
+        calibration.take_points(row)  # the calibrations themselves belong to a stored run
+    row = complete(row)
     traj = keep.get("trajectory")
     if traj is None:
         return Result(row, problem=keep.get("problem"), scheme=keep.get("integrator"))

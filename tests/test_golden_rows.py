@@ -31,7 +31,7 @@ FAST = ["--repeats", "1", "--min-time", "0", "--format", "json", "--no-store"]
 
 
 def machine_dependent(key: str) -> bool:
-    return key.startswith(("cpu_s", "wall_s")) or key == "repeats"
+    return key.startswith(("cpu_s", "wall_s", "calibration_")) or key == "repeats"
 
 
 def rows_of(argv: list[str]) -> list[dict]:

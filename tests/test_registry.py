@@ -33,10 +33,11 @@ class RenamedHarmonic(Harmonic):
 
 @pytest.fixture
 def fake_points(monkeypatch):
-    """Replace the installed entry points with the ones a test lists; restore the real
-    registry afterwards."""
+    """Replace the installed entry points with the ones a test lists, with no class
+    registered from Python; restore the real registry afterwards."""
     groups = {"longtime.problems": [], "longtime.integrators": []}
     monkeypatch.setattr(registry, "entry_points", lambda group: list(groups[group]))
+    monkeypatch.setattr(registry, "_session", {"problems": {}, "integrators": {}})  # nothing registered from Python
     registry.reload()
     yield groups
     monkeypatch.undo()
