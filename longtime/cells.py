@@ -136,6 +136,7 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
             for point in itertools.product(*axes):
                 settings = {**isets, **dict(point)}
                 icls(**settings)  # validates dt > 0, tol > 0, ...
+                check_step(pname, iname, settings, tf)
                 cells.append(Cell(pname, iname, psets, settings, tf))
             # the default matrix's long-time cell (issue 10): the problem's paper-scale final
             # time at its default step, for the schemes that can afford it (``long_runs``)
@@ -143,6 +144,21 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
             if default_sweep and t_final is None and long_tf and icls.long_runs and "dt" not in sweeps:
                 cells.append(Cell(pname, iname, psets, {**isets, "dt": pcls.default_dt}, long_tf))
     return cells
+
+
+def check_step(problem: str, scheme: str, settings: Mapping[str, Any], t_final: float) -> None:
+    """A fixed step larger than the span is refused: one step of the span would be taken and
+    the row labelled with the larger dt (dt 1, 5 and 10 over a span of 1 give one row thrice)."""
+    pcls, icls = registry.problem_class(problem), registry.integrator_class(scheme)
+    if not issubclass(icls, FixedStepIntegrator):
+        return
+    given = settings.get("dt")
+    dt = float(pcls.default_dt if given is None else given)
+    span = float(t_final) - pcls.t0
+    if dt > span * (1 + 1e-9):
+        what = f"--dt {dt:g}" if given is not None else f"the default step dt={dt:g} of {problem}"
+        raise InputError(f"{what}: larger than the span t_final - t0 = {span:g} ({problem} x {scheme}); "
+                         f"a fixed step must be <= the span (pass a smaller --dt or a larger --t-final)")
 
 
 def base_row(cell: Cell) -> dict[str, Any]:

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 from . import cli_args, registry, stability
+from .cache import check_cache_root
 from .cells import DEFAULT_TIME_LIMIT, SWEEP_PARAMETERS, check_size, expand
 from .integrator import Timing
 from .matrix import EXECUTORS, ExecOptions, run_matrix
@@ -92,6 +93,7 @@ def _options(args, executor: str) -> ExecOptions:
     if args.max_samples < 2:
         raise InputError(f"--max-samples {args.max_samples}: must be >= 2")
     budget_seconds()  # $LONGTIME_REFERENCE_SECONDS: a bad value is bad input, before anything runs
+    check_cache_root()  # $LONGTIME_CACHE_DIR: one error now, not one per cell
     return ExecOptions(jobs=args.jobs, max_samples=args.max_samples,
                        timing=Timing(repeats=args.repeats, min_time=args.min_time),
                        cell_timeout=getattr(args, "cell_timeout", None),

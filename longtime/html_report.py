@@ -181,7 +181,7 @@ def drift_curve(row: dict) -> tuple[np.ndarray, np.ndarray, str] | None:
     psets = {k: v for k, v in settings.items() if k in pcls.parameters}
     isets = {k: v for k, v in settings.items() if k in icls.parameters}
     for k in ("dt", "tol", "eps_res", "order"):
-        if k in icls.parameters and row.get(k) is not None and row.get(k) == row.get(k):
+        if k in icls.parameters and positive(row.get(k)):
             isets[k] = int(row[k]) if k == "order" else row[k]
     problem, traj = integrate_cell(Cell(row["problem"], row["integrator"], psets, isets, row["t_final"]),
                                    max_samples=DRIFT_SAMPLES)

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from .contract import check_name
 from .growth import growth_fields
 from .integrator import Trajectory
 from .problem import Problem
@@ -124,6 +125,7 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
     notes: list[str] = []
     with np.errstate(all="ignore"):
         for k, (name, values) in enumerate(problem.invariants(t, U).items()):
+            check_name("invariant", name)  # it names row fields (NAME.max) and the page's text
             err = relative_error(values)
             if k == 0:  # the first invariant (H where there is one: listed first)
                 row["drift_curve"] = drift_envelope(name, t, err)
@@ -134,6 +136,7 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
                 notes.append(f"invariant {name} is not finite from t = {t[bad[0]]:.6g} on a finite state "
                              f"(its drift is measured up to there)")
         for name, values in problem.violations(t, U).items():
+            check_name("constraint violation", name)
             values = np.asarray(values, dtype=float)
             measured = values.size >= 2  # the initial state alone: not measured (null, never 0)
             row[f"{name}.max"] = finite_or_none(np.max(values)) if measured else None

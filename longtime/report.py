@@ -109,8 +109,11 @@ def setting(row: dict[str, Any]) -> str:
     """The swept parameters of a row as text: 'dt=0.01', 'tol=1e-08', 'eps_res=1e-06 N=10'."""
     parts = [f"{k}={row[k]:.3g}" for k in ("dt", "tol", "eps_res") if positive(row.get(k))
              and not (k == "dt" and (row.get("tol") or row.get("eps_res")))]
-    if row.get("order") is not None and row.get("order") == row.get("order"):
-        parts.append(f"N={int(row['order'])}")
+    order = row.get("order")
+    if positive(order):
+        parts.append(f"N={int(order)}")
+    elif order is not None and order == order:  # a stored value that is not a number: shown as it is
+        parts.append(f"N={order}")
     if row.get("settings"):
         parts.append(str(row["settings"]))
     return " ".join(parts)
