@@ -12,11 +12,12 @@ import shlex
 import sys
 from pathlib import Path
 
-from . import cli_args, registry, stability
+from . import cli_args, limits, registry, stability
 from .cache import check_cache_root
 from .cells import DEFAULT_TIME_LIMIT, SWEEP_PARAMETERS, check_size, expand
 from .integrator import Timing
 from .matrix import EXECUTORS, ExecOptions, run_matrix
+from .outputs import contract_stdout
 from .params import InputError
 from .reference import budget_seconds
 from .report import render
@@ -62,7 +63,13 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
                         "passes the limit becomes a 'timeout' row")
     p.add_argument("--time-limit", type=_limit, default=DEFAULT_TIME_LIMIT, metavar="SECONDS",
                    help=f"a cell's integration stops past this, keeping what it reached: a 'timeout' "
-                        f"row (default {DEFAULT_TIME_LIMIT:g}; 0: no limit)")
+                        f"row (default {DEFAULT_TIME_LIMIT:g}; 0: no limit); a cell stuck elsewhere is "
+                        f"killed {limits.GRACE_S:g} s + {limits.GRACE_SHARE:.0%} of it later (a 'timeout' row)")
+    p.add_argument("--memory-limit", type=limits.memory_argument, default=f"{limits.MEMORY_SHARE:.0%}",
+                   metavar="GIB|PERCENT",
+                   help=f"memory a cell's process may allocate, in GiB or as a share of the machine's "
+                        f"(default {limits.MEMORY_SHARE:.0%}; 0: no limit); past it the cell fails with "
+                        f"'memory limit', and a cell estimated beyond it is refused up front")
     p.add_argument("--allow-large", action="store_true",
                    help="run cells estimated beyond 1e9 steps or 4 GiB of samples (refused by default)")
     p.add_argument("--jobs", type=cli_args.jobs, default=0,
@@ -98,6 +105,7 @@ def _options(args, executor: str) -> ExecOptions:
                        timing=Timing(repeats=args.repeats, min_time=args.min_time),
                        cell_timeout=getattr(args, "cell_timeout", None),
                        time_limit=getattr(args, "time_limit", DEFAULT_TIME_LIMIT) or None,
+                       memory_limit=getattr(args, "memory_limit", limits.default_memory_limit()),
                        scheduler=getattr(args, "scheduler", None))
 
 
@@ -146,7 +154,7 @@ def cmd_run(args) -> int:
     cells = expand(args.problem, args.integrator, sweeps=_sweeps(args), t_final=args.t_final,
                    sets=dict(args.set), strict=True)
     if not args.allow_large:
-        check_size(cells, args.max_samples)
+        check_size(cells, args.max_samples, args.memory_limit)
     executor = args.executor or "serial"
     options = _options(args, executor)
     store = None if args.no_store else Store(args.db)
@@ -195,7 +203,7 @@ def cmd_matrix(args) -> int:
         cells = expand(problems, schemes, sweeps=_sweeps(args), t_final=args.t_final,
                        sets=dict(args.set), default_sweep=True)
         if not args.allow_large:
-            check_size(cells, args.max_samples)
+            check_size(cells, args.max_samples, args.memory_limit)
         store = Store(args.db)
         run_id = store.begin_run("matrix " + shlex.join(sys.argv[2:]), cells)
         print(f"run {run_id}: {len(cells)} cells into {store.path}", file=sys.stderr)
@@ -319,7 +327,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args.func(args) or 0)
+        with contract_stdout():  # what plugins print, even from compiled code, goes to stderr
+            return int(args.func(args) or 0)
     except InputError as exc:
         print(f"longtime {args.command}: error: {exc}", file=sys.stderr)
         return 2

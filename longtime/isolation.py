@@ -28,6 +28,7 @@ from typing import Iterator
 
 from .cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, Cell, base_row, run_cell
 from .integrator import Timing
+from .limits import set_memory_limit
 
 POLL_S = 0.05
 STDERR_TAIL = 600  # characters of a dead child's stderr kept in its row's message
@@ -72,10 +73,10 @@ class _Child:
 
 
 def _start(cell: Cell, max_samples: int, timeout: float | None, timing: Timing,
-           time_limit: float | None = DEFAULT_TIME_LIMIT) -> _Child:
+           time_limit: float | None = DEFAULT_TIME_LIMIT, memory_limit: int | None = None) -> _Child:
     folder = Path(tempfile.mkdtemp(prefix="longtime-cell-"))
     job = {"cell": cell.to_dict(), "max_samples": max_samples, "parent": os.getpid(), "time_limit": time_limit,
-           "timing": {"repeats": timing.repeats, "min_time": timing.min_time}}
+           "timing": {"repeats": timing.repeats, "min_time": timing.min_time}, "memory_limit": memory_limit}
     (folder / "cell.json").write_text(json.dumps(job))
     with open(folder / "stderr.txt", "wb") as err:
         proc = subprocess.Popen(
@@ -119,8 +120,8 @@ def _finish(child: _Child, timed_out: bool, timeout: float | None) -> dict:
 
 
 def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, timeout: float | None = None,
-                 jobs: int = 1, timing: Timing | None = None,
-                 time_limit: float | None = DEFAULT_TIME_LIMIT) -> Iterator[tuple[Cell, dict]]:
+                 jobs: int = 1, timing: Timing | None = None, time_limit: float | None = DEFAULT_TIME_LIMIT,
+                 memory_limit: int | None = None) -> Iterator[tuple[Cell, dict]]:
     """Rows of ``cells``, each run in its own child process, ``jobs`` at a time, as they end."""
     queue = list(cells)
     running: list[_Child] = []
@@ -135,7 +136,7 @@ def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, time
                 # timeout, early enough to report before it is killed
                 limit = min(x for x in (time_limit, 0.8 * (timeout or 0), float("inf")) if x)
                 running.append(_start(cell, max_samples, timeout, timing or Timing(),
-                                      None if limit == float("inf") else limit))
+                                      None if limit == float("inf") else limit, memory_limit))
             still = []
             for child in running:
                 if child.proc.poll() is not None:
@@ -166,6 +167,7 @@ def _child_main(folder: str) -> None:
     path = Path(folder)
     job = json.loads((path / "cell.json").read_text())
     die_with_parent(job["parent"])
+    set_memory_limit(job.get("memory_limit"))
     row = run_cell(Cell.from_dict(job["cell"]), job["max_samples"], timing=Timing(**job["timing"]),
                    time_limit=job.get("time_limit"))
     tmp = path / "row.json.part"

@@ -24,7 +24,8 @@ from typing import Any, Callable, Iterator
 
 from .cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, Cell, base_row, cell_size, run_cell
 from .integrator import Timing
-from .isolation import die_with_parent, run_isolated
+from .isolation import run_isolated
+from .limits import Watchdog, default_memory_limit, grace, hard_limit, worker_init
 from .params import InputError, check_choice
 from .store import Store
 
@@ -35,6 +36,8 @@ class ExecOptions:
     max_samples: int = DEFAULT_MAX_SAMPLES
     cell_timeout: float | None = None  # a hard limit: each cell in a process, killed past it
     time_limit: float | None = DEFAULT_TIME_LIMIT  # the integration stops itself past it (None: never)
+    # bytes a cell's worker process may allocate (None: no limit); see longtime.limits
+    memory_limit: int | None = field(default_factory=default_memory_limit)
     scheduler: str | None = None  # Dask scheduler address
     timing: Timing = field(default_factory=Timing)
     # called with each cell just before it runs in this process (the store marks it started)
@@ -183,7 +186,7 @@ def run_batch(cells: list[Cell], max_samples: int, timing: Timing, folder: str |
         row = run_cell(c, max_samples, timing=timing, time_limit=time_limit)
         if marker is not None:
             _write(Path(folder, f"row-{_digest(c.key)}.json"), {"cell": c.to_dict(), "row": row})
-            marker.unlink()
+            marker.unlink(missing_ok=True)  # gone when the watchdog has claimed it
         rows.append(row)
     return rows
 
@@ -198,8 +201,23 @@ def _write(path: Path, data) -> None:
     tmp.replace(path)  # atomic: a reader never sees half a file
 
 
-def _worker_init(parent: int) -> None:
-    die_with_parent(parent)
+def _record_timeout(folder: str, time_limit: float) -> Callable[[dict, float], None]:
+    """The watchdog's record of a cell whose worker it killed: a ``timeout`` row file, where
+    the pool's recovery reads the rows of a broken pool (unless the cell's own row is there)."""
+
+    def record(cell_dict: dict, elapsed: float) -> None:
+        cell = Cell.from_dict(cell_dict)
+        path = Path(folder, f"row-{_digest(cell.key)}.json")
+        if path.exists():  # it ended just before its worker was killed: its own row stands
+            return
+        limit = hard_limit(time_limit)
+        row = {**base_row(cell), "status": "timeout",
+               "message": f"cell exceeded its hard time limit of {limit:g} s (--time-limit {time_limit:g} s "
+                          f"+ grace {grace(time_limit):g} s) where the integration could not stop itself; "
+                          f"its process was killed after {elapsed:.1f} s"}
+        _write(path, {"cell": cell.to_dict(), "row": row})
+
+    return record
 
 
 def _stop(pool: ProcessPoolExecutor) -> None:
@@ -229,7 +247,8 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
     if not runnable:
         return
     workers = min(options.workers(), len(runnable))
-    if workers == 1:
+    limit = hard_limit(options.time_limit)
+    if workers == 1 and limit is None:  # no limit to enforce: this process is the worker
         yield from serial(runnable, options)
         return
     folder = tempfile.mkdtemp(prefix="longtime-pool-")
@@ -239,7 +258,8 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
         while remaining:
             broken = False
             pool = ProcessPoolExecutor(max_workers=min(workers, len(remaining)), mp_context=ctx,
-                                       initializer=_worker_init, initargs=(os.getpid(),))
+                                       initializer=worker_init, initargs=(os.getpid(), options.memory_limit))
+            watchdog = Watchdog(folder, limit, _record_timeout(folder, options.time_limit)).start() if limit else None
             try:
                 for batch, fut in scheduled(pool, workers, batches_by_pair(remaining), run_batch,
                                             options.max_samples, options.timing, folder, options.time_limit,
@@ -257,6 +277,8 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
                             done.add(c.key)
                             yield c, row
             finally:
+                if watchdog is not None:
+                    watchdog.stop()
                 _stop(pool)
             if not broken:
                 break
@@ -274,8 +296,8 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
                 path.unlink()
             if not suspects:  # broken outside any cell: one process per cell, no endless retries
                 suspects = [c for c in remaining if c.key not in done]
-            for cell, row in run_isolated(suspects, options.max_samples, None, workers, timing=options.timing,
-                                          time_limit=options.time_limit):
+            for cell, row in run_isolated(suspects, options.max_samples, limit, workers, timing=options.timing,
+                                          time_limit=options.time_limit, memory_limit=options.memory_limit):
                 done.add(cell.key)
                 yield cell, row
             remaining = [c for c in remaining if c.key not in done]
@@ -289,7 +311,7 @@ def isolated(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, di
     from .isolation import run_isolated
 
     yield from run_isolated(cells, options.max_samples, options.cell_timeout, options.workers(),
-                            timing=options.timing, time_limit=options.time_limit)
+                            timing=options.timing, time_limit=options.time_limit, memory_limit=options.memory_limit)
 
 
 def dask_cluster(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
@@ -301,12 +323,16 @@ def dask_cluster(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
 
 
 def _with_limits(default: Executor) -> Executor:
-    """``default`` unless a time limit is set: a pool worker or this process cannot stop a
-    hung cell, so the cells then run isolated (one process each)."""
+    """``default`` under the hard limits: with ``--cell-timeout`` each cell isolated (one
+    process each); the serial executor runs its cells one at a time in one worker process,
+    which the watchdog can kill (longtime.limits), unless there is no time limit (then in
+    this process)."""
 
     def run(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
         if options.cell_timeout:
             return isolated(cells, options)
+        if default is serial and hard_limit(options.time_limit) is not None:
+            return process_pool(cells, dataclasses.replace(options, jobs=1))
         return default(cells, options)
 
     run.__doc__ = default.__doc__

@@ -12,6 +12,7 @@ from importlib.metadata import entry_points
 
 from .contract import NAME_RULE, check_registered, name_error
 from .integrator import Integrator
+from .outputs import to_stderr
 from .params import check_choice, check_choices
 from .problem import Problem
 
@@ -30,6 +31,7 @@ _loaded: dict[str, dict[str, type]] | None = None
 _broken: list[BrokenPlugin] = []
 
 
+@to_stderr  # a plugin's module runs as it loads: its output is not the contract's
 def _load() -> dict[str, dict[str, type]]:
     global _loaded
     if _loaded is not None:
