@@ -155,8 +155,12 @@ def cmd_run(args) -> int:
                    sets=dict(args.set), strict=True)
     if not args.allow_large:
         check_size(cells, args.max_samples, args.memory_limit)
-    executor = args.executor or "serial"
+    # by default one cell at a time in one worker process, under the hard limits (longtime.limits);
+    # --executor serial runs them in this process
+    executor = args.executor or "process"
     options = _options(args, executor)
+    if not args.executor and not args.jobs:
+        options = dataclasses.replace(options, jobs=1)
     store = None if args.no_store else Store(args.db)
     run_id = store.begin_run("run " + shlex.join(sys.argv[1:]), cells) if store else None
     status = "interrupted"

@@ -323,16 +323,12 @@ def dask_cluster(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
 
 
 def _with_limits(default: Executor) -> Executor:
-    """``default`` under the hard limits: with ``--cell-timeout`` each cell isolated (one
-    process each); the serial executor runs its cells one at a time in one worker process,
-    which the watchdog can kill (longtime.limits), unless there is no time limit (then in
-    this process)."""
+    """``default`` unless a time limit is set: a pool worker or this process cannot stop a
+    hung cell, so the cells then run isolated (one process each)."""
 
     def run(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
         if options.cell_timeout:
             return isolated(cells, options)
-        if default is serial and hard_limit(options.time_limit) is not None:
-            return process_pool(cells, dataclasses.replace(options, jobs=1))
         return default(cells, options)
 
     run.__doc__ = default.__doc__
