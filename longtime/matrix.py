@@ -306,11 +306,13 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
 
 
 def isolated(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
-    """Each cell in a fresh child process, killed past ``cell_timeout`` (a ``timeout`` row);
-    a child that dies (os._exit, segfault) gives a ``failed`` row. See longtime.isolation."""
+    """Each cell in a fresh child process, killed past ``cell_timeout`` (else the hard limit of
+    ``time_limit``, longtime.limits) (a ``timeout`` row); a child that dies (os._exit,
+    segfault) gives a ``failed`` row. See longtime.isolation."""
     from .isolation import run_isolated
 
-    yield from run_isolated(cells, options.max_samples, options.cell_timeout, options.workers(),
+    timeout = options.cell_timeout or hard_limit(options.time_limit)
+    yield from run_isolated(cells, options.max_samples, timeout, options.workers(),
                             timing=options.timing, time_limit=options.time_limit, memory_limit=options.memory_limit)
 
 
