@@ -177,7 +177,9 @@ def test_ctrl_c_ends_a_run_stuck_in_a_compiled_step(env, tmp_path):
     worker = int((tmp_path / "spin.txt.step").read_text().split()[0])
     time.sleep(0.5)  # inside the step
     os.kill(proc.pid, signal.SIGINT)
+    start = time.monotonic()
     _, err = proc.communicate(timeout=30)
+    assert time.monotonic() - start < 10  # a hang would take the 30 s (it ends in well under a second)
     assert proc.returncode == 130, err
     time.sleep(0.5)
     assert not os.path.exists(f"/proc/{worker}") or open(f"/proc/{worker}/stat").read().split()[2] == "Z"
