@@ -64,11 +64,11 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
     p.add_argument("--time-limit", type=_limit, default=DEFAULT_TIME_LIMIT, metavar="SECONDS",
                    help=f"a cell's integration stops past this, keeping what it reached: a 'timeout' "
                         f"row (default {DEFAULT_TIME_LIMIT:g}; 0: no limit); a cell stuck elsewhere is "
-                        f"killed {limits.GRACE_S:g} s + {limits.GRACE_SHARE:.0%} of it later (a 'timeout' row)")
+                        f"killed {limits.GRACE_S:g} s + {100 * limits.GRACE_SHARE:g} %% of it later (a 'timeout' row)")
     p.add_argument("--memory-limit", type=limits.memory_argument, default=f"{limits.MEMORY_SHARE:.0%}",
                    metavar="GIB|PERCENT",
                    help=f"memory a cell's process may allocate, in GiB or as a share of the machine's "
-                        f"(default {limits.MEMORY_SHARE:.0%}; 0: no limit); past it the cell fails with "
+                        f"(default {100 * limits.MEMORY_SHARE:g}%%; 0: no limit); past it the cell fails with "
                         f"'memory limit', and a cell estimated beyond it is refused up front")
     p.add_argument("--allow-large", action="store_true",
                    help="run cells estimated beyond 1e9 steps or 4 GiB of samples (refused by default)")

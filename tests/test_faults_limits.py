@@ -247,6 +247,13 @@ def test_a_cell_past_the_memory_limit_fails_alone(env):
     assert rows["verlet"]["status"] == "ok"
 
 
+def test_help_states_the_limits(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "--help"])
+    out = capsys.readouterr().out
+    assert exc.value.code == 0 and "--memory-limit" in out and "(default 50%;" in out and "10 % of it" in out
+
+
 @pytest.mark.parametrize("value", ["-1", "abc", "150%", "inf"])
 def test_bad_memory_limit_is_an_input_error(value, capsys):
     with pytest.raises(SystemExit) as exc:
