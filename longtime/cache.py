@@ -25,6 +25,28 @@ def cache_dir(*parts: str) -> Path:
     return path
 
 
+def check_cache_root() -> None:
+    """Refuse, before anything runs, a cache folder that cannot be used (a file, a read-only
+    folder, a path under a file): every cell would fail on its own otherwise. Tried by
+    creating the folder and a file in it, so that it holds for root too."""
+    import tempfile
+
+    from .params import InputError
+
+    root = cache_root()
+    try:
+        if root.exists() and not root.is_dir():
+            raise NotADirectoryError(0, "it is not a folder")
+        root.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=root, prefix=".probe-")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        source = "$LONGTIME_CACHE_DIR" if os.environ.get("LONGTIME_CACHE_DIR") else "the default cache folder"
+        raise InputError(f"cache folder {root} ({source}) cannot be used: {exc.strerror or exc}; "
+                         f"set LONGTIME_CACHE_DIR to a writable folder") from None
+
+
 def digest(*chunks: bytes | str) -> str:
     h = hashlib.sha256()
     for c in chunks:

@@ -15,8 +15,9 @@ import traceback
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping
 
-from . import metrics, registry, roles
+from . import limits, metrics, registry, roles
 from .integrator import FixedStepIntegrator, Integrator, Timing, Trajectory
+from .outputs import to_stderr
 from .params import InputError, check_time_span
 from .problem import Problem
 from .reference import ReferenceUnavailable, has_reference, trusted_reference
@@ -112,6 +113,7 @@ def _axes(cls: type, sweeps: Mapping[str, list], defaults: Mapping[str, Iterable
             for n in roles.order_axes(names, [cls])]
 
 
+@to_stderr  # plugin code runs here: its output is not the contract's
 def expand(problem_names: list[str], integrator_names: list[str], *,
            sweeps: Mapping[str, list] | None = None,
            t_final: float | Iterable[float] | None = None,
@@ -184,6 +186,7 @@ def _scheme_cells(pname: str, pcls, problem: Problem, psets: dict, iname: str, t
         settings = {**isets, **dict(point)}
         built = icls(**settings)  # validates dt > 0, tol > 0, ...
         settings = {k: built.settings[k] for k in settings}
+        check_step(pname, iname, settings, tf)
         cells.append(Cell(pname, iname, psets, settings, tf))
     # the default matrix's long-time cell: the problem's paper-scale final time at its
     # default step, for the schemes that can afford it (``long_runs``)
@@ -194,6 +197,21 @@ def _scheme_cells(pname: str, pcls, problem: Problem, psets: dict, iname: str, t
     if default_sweep and not given_t_final and long_tf and runs_long and not any(n in sweeps for n in step):
         cells.append(Cell(pname, iname, psets, {**isets, **{n: pcls.default_dt for n in step}}, long_tf))
     return cells
+
+
+def check_step(problem: str, scheme: str, settings: Mapping[str, Any], t_final: float) -> None:
+    """A fixed step larger than the span is refused: one step of the span would be taken and
+    the row labelled with the larger dt (dt 1, 5 and 10 over a span of 1 give one row thrice)."""
+    pcls, icls = registry.problem_class(problem), registry.integrator_class(scheme)
+    if not issubclass(icls, FixedStepIntegrator):
+        return
+    given = settings.get("dt")
+    dt = float(pcls.default_dt if given is None else given)
+    span = float(t_final) - pcls.t0
+    if dt > span * (1 + 1e-9):
+        what = f"--dt {dt:g}" if given is not None else f"the default step dt={dt:g} of {problem}"
+        raise InputError(f"{what}: larger than the span t_final - t0 = {span:g} ({problem} x {scheme}); "
+                         f"a fixed step must be <= the span (pass a smaller --dt or a larger --t-final)")
 
 
 def base_row(cell: Cell) -> dict[str, Any]:
@@ -225,6 +243,7 @@ def integrate_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES) -> tuple[
     return problem, integrator.integrate(problem, t_final, max_samples=max_samples)
 
 
+@to_stderr  # plugin code runs here: its output is not the contract's
 def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool = True,
              timing: Timing | None = None, time_limit: float | None = DEFAULT_TIME_LIMIT,
              keep: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -269,6 +288,9 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
             note = "; ".join(m for m in (note, f"error O(1) (relative error {worst:.3g} >= {O1_ERROR:g}): "
                                                f"the solution is not followed") if m)
         row["message"] = "; ".join(m for m in (traj.message, note, row["message"]) if m)  # + metrics' notes
+    except MemoryError as exc:  # past the worker's memory limit (longtime.limits), or the machine's
+        row["status"] = "failed"
+        row["message"] = limits.memory_message(exc)
     except (Exception, SystemExit) as exc:  # a failing cell never takes the matrix down
         # (a plugin's sys.exit too; os.abort or a segfault need a process per cell)
         row["status"] = "failed"
@@ -293,14 +315,19 @@ def cell_size(cell: Cell, dims: dict[str, int]) -> tuple[int, float, float]:
     return dims[key], steps, dt
 
 
-def check_size(cells: Iterable[Cell], max_samples: int = DEFAULT_MAX_SAMPLES) -> None:
-    """Refuse, before anything runs, a cell whose estimated step count passes MAX_STEPS or
-    whose recorded samples pass MAX_SAMPLE_BYTES (``--allow-large`` skips this). Steps are
-    (t_final - t0) / dt, with the problem's default step for adaptive schemes (a rough
-    size); samples as the integrator keeps them (see Integrator.integrate)."""
+@to_stderr  # plugin code runs here: its output is not the contract's
+def check_size(cells: Iterable[Cell], max_samples: int = DEFAULT_MAX_SAMPLES,
+               memory_limit: int | None = None) -> None:
+    """Refuse, before anything runs, a cell whose estimated step count passes MAX_STEPS,
+    whose recorded samples pass MAX_SAMPLE_BYTES, or whose samples and what its metrics
+    allocate (``Problem.metrics_bytes``) pass ``memory_limit`` (the cell's, --memory-limit)
+    (``--allow-large`` skips this). Steps are (t_final - t0) / dt, with the problem's default
+    step for adaptive schemes (a rough size); samples as the integrator keeps them (see
+    Integrator.integrate)."""
     from .integrator import SAMPLE_BUDGET
 
     dims: dict[str, int] = {}
+    problems: dict[str, Problem] = {}
     for cell in cells:
         if cell.skip_reason:
             continue
@@ -317,3 +344,13 @@ def check_size(cells: Iterable[Cell], max_samples: int = DEFAULT_MAX_SAMPLES) ->
             raise InputError(f"{what}: its samples need about {size / 2**30:.3g} GiB (dimension {dim}), over "
                              f"the limit of {MAX_SAMPLE_BYTES / 2**30:g} GiB; pass --allow-large to run it "
                              f"anyway (or lower --max-samples)")
+        if memory_limit:
+            key = json.dumps(cell.problem_settings, sort_keys=True, default=str) + cell.problem
+            if key not in problems:
+                problems[key] = registry.problem_class(cell.problem)(**cell.problem_settings)
+            need = size + problems[key].metrics_bytes(int(samples))
+            if need > memory_limit:
+                raise InputError(f"{what}: its samples and metrics need about {limits.gib(need)} (dimension {dim}, "
+                                 f"{int(samples)} samples), over the cell's memory limit of "
+                                 f"{limits.gib(memory_limit)} (--memory-limit); lower --max-samples, raise "
+                                 f"--memory-limit or pass --allow-large to run it anyway")

@@ -13,7 +13,8 @@ import json
 import sys
 from pathlib import Path
 
-from . import cli_args, guard, registry, stability
+from . import cli_args, guard, limits, registry, stability
+from .cache import check_cache_root
 from .calibration import drift_text
 from .cells import DEFAULT_TIME_LIMIT, check_size, expand
 from .integrator import Timing
@@ -69,7 +70,13 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
                         "passes the limit becomes a 'timeout' row")
     p.add_argument("--time-limit", type=_limit, default=DEFAULT_TIME_LIMIT, metavar="SECONDS",
                    help=f"a cell's integration stops past this, keeping what it reached: a 'timeout' "
-                        f"row (default {DEFAULT_TIME_LIMIT:g}; 0: no limit)")
+                        f"row (default {DEFAULT_TIME_LIMIT:g}; 0: no limit); a cell stuck elsewhere is "
+                        f"killed {limits.GRACE_S:g} s + {100 * limits.GRACE_SHARE:g} %% of it later (a 'timeout' row)")
+    p.add_argument("--memory-limit", type=limits.memory_argument, default=f"{limits.MEMORY_SHARE:.0%}",
+                   metavar="GIB|PERCENT",
+                   help=f"memory a cell's process may allocate, in GiB or as a share of the machine's "
+                        f"(default {100 * limits.MEMORY_SHARE:g}%%; 0: no limit); past it the cell fails with "
+                        f"'memory limit', and a cell estimated beyond it is refused up front")
     p.add_argument("--allow-large", action="store_true",
                    help="run cells estimated beyond 1e9 steps or 4 GiB of samples (refused by default)")
     p.add_argument("--jobs", type=cli_args.jobs, default=0,
@@ -106,10 +113,12 @@ def _options(args, executor: str) -> ExecOptions:
     if args.max_samples < 2:
         raise InputError(f"--max-samples {args.max_samples}: must be >= 2")
     budget_seconds()  # $LONGTIME_REFERENCE_SECONDS: a bad value is bad input, before anything runs
+    check_cache_root()  # $LONGTIME_CACHE_DIR: one error now, not one per cell
     return ExecOptions(jobs=args.jobs, max_samples=args.max_samples,
                        timing=Timing(repeats=args.repeats, min_time=args.min_time),
                        cell_timeout=getattr(args, "cell_timeout", None),
                        time_limit=getattr(args, "time_limit", DEFAULT_TIME_LIMIT) or None,
+                       memory_limit=getattr(args, "memory_limit", limits.default_memory_limit()),
                        scheduler=getattr(args, "scheduler", None))
 
 
@@ -159,9 +168,13 @@ def cmd_run(args) -> int:
     _warn_broken()
     cells = expand(args.problem, args.integrator, **_selection(args), strict=True)
     if not args.allow_large:
-        check_size(cells, args.max_samples)
-    executor = args.executor or "serial"
+        check_size(cells, args.max_samples, args.memory_limit)
+    # by default one cell at a time in one worker process, under the hard limits (longtime.limits);
+    # --executor serial runs them in this process
+    executor = args.executor or "process"
     options = _options(args, executor)
+    if not args.executor and not args.jobs:
+        options = dataclasses.replace(options, jobs=1)
     store = None if args.no_store else Store(args.db)
     rows, _ = run_cells(cells, store=store, command=command_line(args), executor=executor,
                         options=options)
@@ -193,7 +206,7 @@ def cmd_matrix(args) -> int:
         schemes = args.integrator or sorted(registry.integrators())
         cells = expand(problems, schemes, **_selection(args), default_sweep=True)
         if not args.allow_large:
-            check_size(cells, args.max_samples)
+            check_size(cells, args.max_samples, args.memory_limit)
         store, run_id, died = Store(args.db), None, []
     if args.baseline is not None:
         store.run(args.baseline)  # an unknown baseline is bad input, before anything runs

@@ -13,6 +13,7 @@ every attribute its family declares (an annotation without a value, as ``A``, ``
 from __future__ import annotations
 
 import inspect
+import re
 from typing import Any
 
 from numba.core.registry import CPUDispatcher
@@ -37,6 +38,11 @@ COMPILED_ATTRIBUTES = ("rhs", "grad_T", "grad_V", "jac", "taylor", "linear_part"
                        "frequencies", "grad_U")
 CONSTRAINT_FUNCTIONS = ("phi", "grad_phi", "mass", "grad_U")
 KINDS = ("fixed", "adaptive", "external")
+# every name a plugin gives (problem, scheme, parameter, invariant): it becomes part of file
+# names, row fields (NAME.max) and the results page, so it is a plain identifier
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_+-]{0,63}")
+NAME_RULE = ("a name is 1 to 64 characters: ASCII letters, digits, '_', '-' and '+', starting with "
+             "a letter or a digit")
 
 
 class ContractError(InputError, TypeError):
@@ -85,7 +91,7 @@ def check_problem_definition(cls: type) -> None:
             if getattr(constraints, attr, None) is None:
                 raise ContractError(f"{owner}.constraints has no {attr} (needs {', '.join(CONSTRAINT_FUNCTIONS)})")
             _check_compiled(f"{owner}.constraints", attr, getattr(constraints, attr), via_class=False)
-    _check_common(cls, owner)
+    _check_common(cls, owner, "problem")
 
 
 def check_integrator_definition(cls: type) -> None:
@@ -99,16 +105,33 @@ def check_integrator_definition(cls: type) -> None:
         raise ContractError(f"{owner}.kind = {cls.kind!r}: expected one of {', '.join(KINDS)}")
     if cls.order is not None and not (isinstance(cls.order, int) and cls.order >= 1):
         raise ContractError(f"{owner}.order = {cls.order!r}: expected an integer >= 1 or None")
-    _check_common(cls, owner)
+    _check_common(cls, owner, "scheme")
 
 
-def _check_common(cls: type, owner: str) -> None:
+def name_error(kind: str, name: Any) -> str | None:
+    """Why ``name`` is not a valid name of a ``kind`` (None when it is): see NAME_RULE."""
+    if isinstance(name, str) and NAME_PATTERN.fullmatch(name):
+        return None
+    return f"{kind} name {name!r} is not valid: {NAME_RULE}"
+
+
+def check_name(kind: str, name: Any) -> None:
+    reason = name_error(kind, name)
+    if reason:
+        raise ContractError(reason)
+
+
+def _check_common(cls: type, owner: str, kind: str) -> None:
     if not isinstance(cls.name, str):
         raise ContractError(f"{owner}.name must be a string, got {cls.name!r}")
+    if cls.name:  # an empty name is set from the entry point at registration
+        check_name(kind, cls.name)
     params = cls.parameters
     if not isinstance(params, dict) or not all(isinstance(k, str) and isinstance(v, Param)
                                                for k, v in params.items()):
         raise ContractError(f"{owner}.parameters must map names to longtime.Param")
+    for key in params:
+        check_name(f"{owner} parameter", key)
 
 
 def check_registered(cls: type) -> None:

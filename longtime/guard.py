@@ -25,6 +25,7 @@ import threading
 import traceback
 from typing import Iterator
 
+from .outputs import contract_stdout
 from .params import InputError
 
 STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
@@ -118,7 +119,7 @@ def run_command(args: argparse.Namespace) -> int:
         return code
 
     try:
-        with stop_signals():
+        with stop_signals(), contract_stdout():  # what plugins print, even compiled, goes to stderr
             code = int(args.func(args) or 0)
             sys.stdout.flush()  # a reader that has gone is found here, not in the exit's flush
             return code

@@ -199,8 +199,9 @@ def row_curves(row: dict) -> dict[str, list[tuple[str, np.ndarray, np.ndarray]]]
     psets = {k: v for k, v in settings.items() if k in pcls.parameters}
     isets = {k: v for k, v in settings.items() if k in icls.parameters}
     for k in ROW_PARAMETERS:  # the parameters with a row field of their own
-        if k in icls.parameters and row.get(k) is not None and row.get(k) == row.get(k):
-            isets[k] = int(row[k]) if icls.parameters[k].kind is int else row[k]
+        value = row.get(k)
+        if k in icls.parameters and positive(value):
+            isets[k] = int(value) if icls.parameters[k].kind is int else value
     problem, traj = integrate_cell(Cell(row["problem"], row["integrator"], psets, isets, row["t_final"]),
                                    max_samples=DRIFT_SAMPLES)
     with np.errstate(all="ignore"):

@@ -29,6 +29,7 @@ from typing import Iterator
 from . import registry, tempdirs
 from .cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, Cell, base_row, run_cell
 from .integrator import Timing
+from .limits import set_memory_limit
 
 POLL_S = 0.05
 STDERR_TAIL = 600  # characters of a dead child's stderr kept in its row's message
@@ -73,10 +74,10 @@ class _Child:
 
 
 def _start(cell: Cell, max_samples: int, timeout: float | None, timing: Timing,
-           time_limit: float | None = DEFAULT_TIME_LIMIT) -> _Child:
+           time_limit: float | None = DEFAULT_TIME_LIMIT, memory_limit: int | None = None) -> _Child:
     folder = tempdirs.make("cell")
     job = {"cell": cell.to_dict(), "max_samples": max_samples, "parent": os.getpid(), "time_limit": time_limit,
-           "timing": {"repeats": timing.repeats, "min_time": timing.min_time}}
+           "timing": {"repeats": timing.repeats, "min_time": timing.min_time}, "memory_limit": memory_limit}
     (folder / "cell.json").write_text(json.dumps(job))
     session = registry.session_payload()  # classes registered from Python, pickled by value
     if session is not None:
@@ -124,8 +125,8 @@ def _finish(child: _Child, timed_out: bool, timeout: float | None) -> dict:
 
 
 def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, timeout: float | None = None,
-                 jobs: int = 1, timing: Timing | None = None,
-                 time_limit: float | None = DEFAULT_TIME_LIMIT) -> Iterator[tuple[Cell, dict]]:
+                 jobs: int = 1, timing: Timing | None = None, time_limit: float | None = DEFAULT_TIME_LIMIT,
+                 memory_limit: int | None = None) -> Iterator[tuple[Cell, dict]]:
     """Rows of ``cells``, each run in its own child process, ``jobs`` at a time, as they end."""
     queue = list(cells)
     running: list[_Child] = []
@@ -140,7 +141,7 @@ def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, time
                 # timeout, early enough to report before it is killed
                 limit = min(x for x in (time_limit, 0.8 * (timeout or 0), float("inf")) if x)
                 running.append(_start(cell, max_samples, timeout, timing or Timing(),
-                                      None if limit == float("inf") else limit))
+                                      None if limit == float("inf") else limit, memory_limit))
             still = []
             for child in running:
                 if child.proc.poll() is not None:
@@ -175,6 +176,7 @@ def _child_main(folder: str) -> None:
     if (path / "session.pkl").exists():
         sys.path[:0] = [p for p in json.loads((path / "sys_path.json").read_text()) if p not in sys.path]
         registry.restore_session((path / "session.pkl").read_bytes())
+    set_memory_limit(job.get("memory_limit"))
     row = run_cell(Cell.from_dict(job["cell"]), job["max_samples"], timing=Timing(**job["timing"]),
                    time_limit=job.get("time_limit"))
     tmp = path / "row.json.part"

@@ -24,7 +24,8 @@ from typing import Any, Callable, Iterator
 from . import calibration, registry, tempdirs
 from .cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, Cell, base_row, cell_size, run_cell
 from .integrator import Timing
-from .isolation import die_with_parent, run_isolated
+from .isolation import run_isolated
+from .limits import Watchdog, default_memory_limit, grace, hard_limit, worker_init
 from .params import InputError, check_choice
 from .pool import spawn_pool, workers as pool_workers
 from .store import Store
@@ -36,6 +37,8 @@ class ExecOptions:
     max_samples: int = DEFAULT_MAX_SAMPLES
     cell_timeout: float | None = None  # a hard limit: each cell in a process, killed past it
     time_limit: float | None = DEFAULT_TIME_LIMIT  # the integration stops itself past it (None: never)
+    # bytes a cell's worker process may allocate (None: no limit); see longtime.limits
+    memory_limit: int | None = field(default_factory=default_memory_limit)
     scheduler: str | None = None  # Dask scheduler address
     timing: Timing = field(default_factory=Timing)
     # called with each cell just before it runs in this process (the store marks it started)
@@ -196,7 +199,7 @@ def run_batch(cells: list[Cell], max_samples: int, timing: Timing, folder: str |
         row = _calibrated(here, c, max_samples, timing, time_limit)
         if marker is not None:
             _write(Path(folder, f"row-{_digest(c.key)}.json"), {"cell": c.to_dict(), "row": row})
-            marker.unlink()
+            marker.unlink(missing_ok=True)  # gone when the watchdog has claimed it
         rows.append(row)
     here.finish()
     return rows
@@ -212,10 +215,29 @@ def _write(path: Path, data) -> None:
     tmp.replace(path)  # atomic: a reader never sees half a file
 
 
-def _worker_init(parent: int, session: bytes | None = None) -> None:
-    die_with_parent(parent)
+def _worker_init(parent: int, memory_limit: int | None, session: bytes | None = None) -> None:
+    worker_init(parent, memory_limit)  # dies with its parent, under the memory limit
     if session is not None:  # classes registered from Python in the parent (registry.register)
         registry.restore_session(session)
+
+
+def _record_timeout(folder: str, time_limit: float) -> Callable[[dict, float], None]:
+    """The watchdog's record of a cell whose worker it killed: a ``timeout`` row file, where
+    the pool's recovery reads the rows of a broken pool (unless the cell's own row is there)."""
+
+    def record(cell_dict: dict, elapsed: float) -> None:
+        cell = Cell.from_dict(cell_dict)
+        path = Path(folder, f"row-{_digest(cell.key)}.json")
+        if path.exists():  # it ended just before its worker was killed: its own row stands
+            return
+        limit = hard_limit(time_limit)
+        row = {**base_row(cell), "status": "timeout",
+               "message": f"cell exceeded its hard time limit of {limit:g} s (--time-limit {time_limit:g} s "
+                          f"+ grace {grace(time_limit):g} s) where the integration could not stop itself; "
+                          f"its process was killed after {elapsed:.1f} s"}
+        _write(path, {"cell": cell.to_dict(), "row": row})
+
+    return record
 
 
 def _stop(pool: ProcessPoolExecutor) -> None:
@@ -243,7 +265,8 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
     if not runnable:
         return
     workers = min(options.workers(), len(runnable))
-    if workers == 1:
+    limit = hard_limit(options.time_limit)
+    if workers == 1 and limit is None:  # no limit to enforce: this process is the worker
         yield from serial(runnable, options)
         return
     folder = str(tempdirs.make("pool"))  # removed below, or by a later run if this one is killed
@@ -253,7 +276,8 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
         while remaining:
             broken = False
             pool = spawn_pool(min(workers, len(remaining)), _worker_init,
-                              (os.getpid(), registry.session_payload()))
+                              (os.getpid(), options.memory_limit, registry.session_payload()))
+            watchdog = Watchdog(folder, limit, _record_timeout(folder, options.time_limit)).start() if limit else None
             try:
                 for batch, fut in scheduled(pool, workers, batches_by_pair(remaining), run_batch,
                                             options.max_samples, options.timing, folder, options.time_limit,
@@ -271,6 +295,8 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
                             done.add(c.key)
                             yield c, row
             finally:
+                if watchdog is not None:
+                    watchdog.stop()
                 _stop(pool)
             if not broken:
                 break
@@ -288,8 +314,8 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
                 path.unlink()
             if not suspects:  # broken outside any cell: one process per cell, no endless retries
                 suspects = [c for c in remaining if c.key not in done]
-            for cell, row in run_isolated(suspects, options.max_samples, None, workers, timing=options.timing,
-                                          time_limit=options.time_limit):
+            for cell, row in run_isolated(suspects, options.max_samples, limit, workers, timing=options.timing,
+                                          time_limit=options.time_limit, memory_limit=options.memory_limit):
                 done.add(cell.key)
                 yield cell, row
             remaining = [c for c in remaining if c.key not in done]
@@ -298,12 +324,14 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
 
 
 def isolated(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
-    """Each cell in a fresh child process, killed past ``cell_timeout`` (a ``timeout`` row);
-    a child that dies (os._exit, segfault) gives a ``failed`` row. See longtime.isolation."""
+    """Each cell in a fresh child process, killed past ``cell_timeout`` (else the hard limit of
+    ``time_limit``, longtime.limits) (a ``timeout`` row); a child that dies (os._exit,
+    segfault) gives a ``failed`` row. See longtime.isolation."""
     from .isolation import run_isolated
 
-    yield from run_isolated(cells, options.max_samples, options.cell_timeout, options.workers(),
-                            timing=options.timing, time_limit=options.time_limit)
+    timeout = options.cell_timeout or hard_limit(options.time_limit)
+    yield from run_isolated(cells, options.max_samples, timeout, options.workers(),
+                            timing=options.timing, time_limit=options.time_limit, memory_limit=options.memory_limit)
 
 
 def dask_cluster(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from .contract import check_name
 from .growth import growth_fields
 from .integrator import Trajectory
 from .problem import Problem
@@ -157,6 +158,7 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
     with np.errstate(all="ignore"):
         curves = []
         for k, (name, values) in enumerate(problem.invariants(t, U).items()):
+            check_name("invariant", name)  # it names row fields (NAME.max) and the page's text
             err = relative_error(values)
             curves.append(drift_envelope(name, t, err))
             if k == 0:  # the first invariant (H where there is one: listed first)
@@ -171,6 +173,7 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
         row["drift_curves"] = kept or None
         row.update(diagnostic_fields(problem, t, U, notes))
         for name, values in problem.violations(t, U).items():
+            check_name("constraint violation", name)
             values = np.asarray(values, dtype=float)
             measured = values.size >= 2  # the initial state alone: not measured (null, never 0)
             row[f"{name}.max"] = finite_or_none(np.max(values)) if measured else None

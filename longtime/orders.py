@@ -80,6 +80,25 @@ def asymptotic_points(points: list[tuple[float, float, float | None]]) -> list[t
     return classify_points(points)[0]
 
 
+def distinct_runs(members: list[dict], field: str) -> list[dict]:
+    """The rows of one sweep, one per computation: rows with the same step count and the same
+    error are one run under different labels (a dt larger than the span takes one step of the
+    span whatever its value), and only the one whose label is nearest its mean step
+    (``mean_dt``) is a point of the fit."""
+    best: dict[tuple, dict] = {}
+    out = []
+    for r in members:
+        steps, x, mean = r.get("steps"), _x(r), r.get("mean_dt")
+        if not (isinstance(steps, int) and steps > 0 and x is not None and positive(mean)):
+            out.append(r)
+            continue
+        key = (steps, r.get(field))
+        other = best.get(key)
+        if other is None or abs(math.log(x / mean)) < abs(math.log(_x(other) / other["mean_dt"])):
+            best[key] = r
+    return out + list(best.values())
+
+
 def declared_order(row: dict) -> int | None:
     from . import registry
 
@@ -120,7 +139,7 @@ def _fit(members: list[dict]) -> tuple[dict | None, dict]:
                f"fewer than two rows with {' or '.join(ERROR_FIELDS)}")
         return None, {"reason": why, "dropped": []}
     points = [(_x(r), float(r[field]), r.get("reference_error") if field == "l2_error" else None)
-              for r in ok if positive(r.get(field)) and _x(r) is not None]
+              for r in distinct_runs(ok, field) if positive(r.get(field)) and _x(r) is not None]
     used, dropped = classify_points(points)
     if len(used) < 2 or len({x for x, _ in used}) < 2:
         whys: dict[str, int] = {}

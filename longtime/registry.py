@@ -11,8 +11,9 @@ import traceback
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 
-from .contract import check_registered
+from .contract import NAME_RULE, check_registered, name_error
 from .integrator import Integrator
+from .outputs import to_stderr
 from .params import check_choice, check_choices
 from .problem import Problem
 
@@ -33,6 +34,7 @@ _broken: list[BrokenPlugin] = []
 _session: dict[str, dict[str, type]] = {"problems": {}, "integrators": {}}
 
 
+@to_stderr  # a plugin's module runs as it loads: its output is not the contract's
 def _load() -> dict[str, dict[str, type]]:
     global _loaded
     if _loaded is not None:
@@ -42,6 +44,15 @@ def _load() -> dict[str, dict[str, type]]:
     for kind, (group, base) in GROUPS.items():
         found: dict[str, type] = {}
         for ep in _without_clashes(kind, entry_points(group=group)):
+            if not ep.pattern.match(ep.value):  # e.g. a name with '=': "a=b = mod:Cls" reads as a = "b = mod:Cls"
+                _broken.append(BrokenPlugin(group, ep.name, ep.value,
+                                            f"entry point '{ep.name} = {ep.value}' is not NAME = module:Class; "
+                                            f"{NAME_RULE}"))
+                continue
+            reason = name_error(kind[:-1].replace("integrator", "scheme"), ep.name)
+            if reason:  # never loaded: its name would build file names and fields
+                _broken.append(BrokenPlugin(group, ep.name, ep.value, reason))
+                continue
             try:
                 cls = ep.load()
                 if not (isinstance(cls, type) and issubclass(cls, base)):

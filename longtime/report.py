@@ -112,7 +112,12 @@ def setting(row: dict[str, Any]) -> str:
     accuracy = any(row.get(k) for k in row_fields("accuracy"))
     parts = [f"{k}={row[k]:.3g}" for k in (*row_fields("step"), *row_fields("accuracy"))
              if positive(row.get(k)) and not (k in row_fields("step") and accuracy)]
-    parts += [f"N={int(row[k])}" for k in row_fields("order") if row.get(k) is not None and row.get(k) == row.get(k)]
+    for k in row_fields("order"):
+        order = row.get(k)
+        if positive(order):
+            parts.append(f"N={int(order)}")
+        elif order is not None and order == order:  # a stored value that is not a number: shown as it is
+            parts.append(f"N={order}")
     if row.get("settings"):
         parts.append(str(row["settings"]))
     return " ".join(parts)

@@ -476,10 +476,11 @@ def test_serial_run_killed_by_a_plugin_names_the_cell_and_resumes(fault_env, tmp
     """Before: os.abort() in a serial `run` left the run 'running' with no trace of the cell,
     and --resume said there was no matrix run. Now the store knows the cell it died in; the
     report says so and --resume runs that cell in its own process (a failed row naming
-    SIGABRT) and the rest as usual."""
+    SIGABRT) and the rest as usual. (By default `run` runs its cells in a worker process,
+    where the abort is a failed row: test_faults_limits; --executor serial runs them here.)"""
     db = tmp_path / "abort.sqlite"
     res = longtime(fault_env, "run", "-p", "harmonic", "-i", "verlet,plug-abort,euler", "--dt", "0.1",
-                   "--t-final", "2", "--db", str(db))
+                   "--t-final", "2", "--db", str(db), "--executor", "serial")
     assert res.returncode == -signal.SIGABRT or res.returncode == 134
     assert [r["integrator"] for r in stored(db)] == ["verlet"]
     rep = longtime(fault_env, "report", "--db", str(db), "--format", "csv")

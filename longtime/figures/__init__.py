@@ -15,10 +15,13 @@ FORMATS = ("png", "svg", "pdf")
 
 
 def pyplot():
-    """matplotlib's pyplot on the Agg backend (files only, no display)."""
+    """matplotlib's pyplot on the Agg backend (files only, no display). Text is drawn as
+    given, never parsed as mathtext: a name or setting with '$' shows as typed (a label
+    that wants mathematics passes ``parse_math=True``)."""
     import matplotlib
 
     matplotlib.use("Agg")
+    matplotlib.rcParams["text.parse_math"] = False
     import matplotlib.pyplot as plt
 
     return plt

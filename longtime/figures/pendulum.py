@@ -73,8 +73,8 @@ def pendulum_region(schemes: Sequence[str] | None = None, dt: float | None = Non
                 th1, th2 = problem.angles(U)
                 step = max(1, t.size // PATH_POINTS)
                 ax.plot(th1[::step], th2[::step], lw=0.3, color="C0", rasterized=True)
-                ax.set_xlabel(r"$\theta_1$")
-                ax.set_ylabel(r"$\theta_2$")
+                ax.set_xlabel(r"$\theta_1$", parse_math=True)
+                ax.set_ylabel(r"$\theta_2$", parse_math=True)
                 continue
             step = max(1, t.size // RODS_PER_PANEL)
             x1, y1, x2, y2 = (U[::step, k] for k in range(4))

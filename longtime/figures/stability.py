@@ -42,14 +42,12 @@ def stability_regions(out: str | Path = "stability", formats: Sequence[str] = ("
                       resolution: int = 81, phases: int = 12) -> list[Path]:
     """Draw the regions and the imaginary-axis growth of ``schemes`` (default: euler, rk4,
     verlet, gauss4, rk45, bpl); ``problem_settings`` carries ``order`` (N of series schemes)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from .. import registry
     from ..plot import save
     from ..stability import Unmeasurable, format_interval, imaginary_growth, imaginary_interval, region
+    from . import pyplot
+
+    plt = pyplot()
 
     schemes = list(schemes or DEFAULT_SCHEMES)
     registry.check_names("integrator", schemes) if hasattr(registry, "check_names") else None

@@ -65,6 +65,10 @@ def _taylor(t0, u, params, coeffs, work):
             coeffs[n + 1, d + k] = (work[d + (k - 1) % d, n] - work[d + k, n]) / (n + 1)
 
 
+# bytes of Lax matrices built at once by Toda.lax_eigenvalues
+LAX_CHUNK_BYTES = 64 * 2**20
+
+
 class Toda(Problem):
     name = "toda"
     summary = "periodic Toda lattice (integrable; H and Lax eigenvalues conserved)"
@@ -101,19 +105,34 @@ class Toda(Problem):
         return 0.5 * np.sum(p**2, axis=1) + np.sum(np.exp(q - np.roll(q, -1, axis=1)), axis=1)
 
     def lax_eigenvalues(self, t, U):
+        """Eigenvalues of the Lax matrix at each sample, (n, d). The matrices are built and
+        solved a chunk of samples at a time (about LAX_CHUNK_BYTES of matrices), so memory
+        stays bounded whatever the number of samples (all at once, d = 80 and 62500 samples
+        would hold 3.2 GB of matrices)."""
         d = self.settings["d"]
-        q, p = U[:, :d], U[:, d:]
-        b = np.exp(0.5 * (q - np.roll(q, -1, axis=1)))
-        L = np.zeros((U.shape[0], d, d))
+        n = U.shape[0]
+        eig = np.full((n, d), np.nan)
+        per = max(1, LAX_CHUNK_BYTES // (8 * d * d))
         k = np.arange(d)
-        L[:, k, k] = -p
-        L[:, k, (k + 1) % d] = b
-        L[:, (k + 1) % d, k] = b
-        # a blown-up state (entries near overflow) has no meaningful spectrum: NaN, not an error
-        sane = np.all(np.abs(L) < 1e100, axis=(1, 2))
-        eig = np.full((U.shape[0], d), np.nan)
-        eig[sane] = np.linalg.eigvalsh(L[sane])
+        for a in range(0, n, per):
+            q, p = U[a:a + per, :d], U[a:a + per, d:]
+            b = np.exp(0.5 * (q - np.roll(q, -1, axis=1)))
+            L = np.zeros((q.shape[0], d, d))
+            L[:, k, k] = -p
+            L[:, k, (k + 1) % d] = b
+            L[:, (k + 1) % d, k] = b
+            # a blown-up state (entries near overflow) has no meaningful spectrum: NaN, not an error
+            sane = np.all(np.abs(L) < 1e100, axis=(1, 2))
+            if sane.any():
+                eig[a:a + q.shape[0]][sane] = np.linalg.eigvalsh(L[sane])
         return eig
+
+    def metrics_bytes(self, samples):
+        d = self.settings["d"]
+        chunk = min(samples, max(1, LAX_CHUNK_BYTES // (8 * d * d))) * 8 * d * d
+        # the generic metrics, the eigenvalues and their relative errors (2 x n x d), and a chunk
+        # of matrices three times over (L, the sane ones, LAPACK's copy)
+        return super().metrics_bytes(samples) + 2 * samples * d * 8 + 3 * chunk
 
     def invariants(self, t, U):
         out = {"H": self.hamiltonian(t, U)}
