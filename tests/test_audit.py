@@ -170,7 +170,7 @@ def _cli(capsys, *argv):
     # a flag and --set giving one parameter: the flag used to win silently
     (["-i", "rk4", "--dt", "0.2", "--set", "dt=0.1"], ["--dt and --set dt= both give dt"]),
     # --jobs with the serial executor used to be ignored (and --jobs -2 meant 'one per core')
-    (["-i", "rk4", "--jobs", "2"], ["--jobs 2", "serial"]),
+    (["-i", "rk4", "--jobs", "2", "--executor", "serial"], ["--jobs 2", "serial"]),
     (["-i", "rk4", "--jobs", "-2", "--executor", "process"], ["--jobs", ">= 0"]),
     (["-i", "rk4", "--repeats", "0"], ["--repeats", ">= 1"]),
     (["-i", "rk4", "--min-time", "-1"], ["--min-time", ">= 0"]),

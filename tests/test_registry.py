@@ -1,6 +1,7 @@
 """Discovery of problems and schemes (longtime.registry), on entry points made in the test:
 what loads, what is broken and why, and how name clashes resolve."""
 from dataclasses import dataclass
+from importlib.metadata import EntryPoint
 from types import SimpleNamespace
 
 import pytest
@@ -16,6 +17,7 @@ class FakeEntryPoint:
     value: str
     target: object
     dist_name: str = "a-plugin"
+    pattern = EntryPoint.pattern  # what a NAME = module:Class value must match
 
     @property
     def dist(self):
