@@ -80,10 +80,10 @@ def step_cap_lines(problem: str, bases: list[Cell], rows: list[dict]) -> list[st
     """Why pure bpl's step is capped on a problem with a stiff linear part, measured: the
     largest frequency omega_max of the linear part, omega_max x bpl's mean step, the mean
     steps over the eps_res searched, and where one bpl step starts to amplify a rotation
-    (``bpl.amplification_onset``). Empty when there is no bpl row or no linear part."""
+    (``stability.amplification_onset``). Empty when there is no bpl row or no linear part."""
     import numpy as np
 
-    from .integrators.bpl import AMPLIFICATION_GROWTH, amplification_onset
+    from .stability import AMPLIFICATION_GROWTH, amplification_onset
 
     by = {c.integrator: (c, r) for c, r in zip(bases, rows) if r.get("status") == "ok" and r.get("mean_dt")}
     if "bpl" not in by or registry.problem_class(problem).linear_part is None:
@@ -99,7 +99,7 @@ def step_cap_lines(problem: str, bases: list[Cell], rows: list[dict]) -> list[st
     lines = [f"why bpl's step is capped on {problem} (measured): the linear part's largest frequency is "
              f"omega_max = {omega_max:.4g}; one bpl step (N = {order}) amplifies some rotation exp(i y) by "
              f"more than {100 * AMPLIFICATION_GROWTH:g} % from y = omega h = {onset:g} on "
-             f"(bpl.amplification_onset); bpl's mean step {h:.3g} puts the top modes at y = {omega_max * h:.3g}: "
+             f"(stability.amplification_onset); bpl's mean step {h:.3g} puts the top modes at y = {omega_max * h:.3g}: "
              "the residual test holds the step where their growth stays small, and that, not eps_res, "
              "sets the step"]
     steps = row.get("match_mean_steps") or {}

@@ -36,8 +36,8 @@ from .params import InputError
 from .problems.linear_test import LinearTest
 
 TOL = 1e-9  # |R| above 1 + TOL is growth (round-off in |R| is ~1e-15)
-GROWTH_1PCT = 1e-2  # the looser bound of bpl.AMPLIFICATION_GROWTH: a mode grows by 1 % per step
-PHASES = 48  # starting phases where a step is not linear (as bpl.amplification)
+GROWTH_1PCT = 1e-2  # the looser bound (bpl's amplification onset): a mode grows by 1 % per step
+PHASES = 48  # starting phases where a step is not linear (BPL's componentwise Pade)
 Y_MAX = 12.0  # the imaginary axis is scanned on [0, Y_MAX]
 Y_STEP = 0.01
 SERIES_ORDERS = (4, 6, 8, 10, 12, 14)
@@ -327,3 +327,39 @@ def interval_texts(schemes: dict[str, Iterable[int] | None], compute: bool = Fal
         if found:
             out[s] = _text(found)
     return out
+
+
+# ------------------------------------------------------------------ bpl's amplification
+AMPLIFICATION_GROWTH = GROWTH_1PCT  # |R| above 1 + this counts as amplification
+
+
+def amplification(ys, order: int = 10, phases: int = PHASES, **settings) -> np.ndarray:
+    """|R(iy)|: the growth of one step of length y of ``bpl`` (its compiled step, the
+    residual test switched off) on the rotation q' = p, p' = -q (the harmonic oscillator,
+    omega = 1), the worst over ``phases`` starting phases. A Fourier mode of frequency
+    omega is such a rotation, so this is how one step of length h treats it at y = omega h.
+    Each component gets its own Pade approximant, so the step is not a linear map and its
+    growth depends on the phase; the maximum is what a mode with any phase can see.
+    A step the kernel cannot take at y (non-finite sum) gives inf."""
+    from .integrators.bpl import BorelPadeLaplace
+    from .problems.harmonic import Harmonic
+
+    problem = Harmonic()
+    scheme = BorelPadeLaplace(order=order, **{**settings, "eps_res": 1e300})
+    step = one_step(scheme, problem)  # the cached loop of bpl on harmonic: no compile per call
+    ys = np.asarray(ys, dtype=float)
+    worst = np.zeros(ys.size)
+    for phase in np.linspace(0.0, np.pi, phases, endpoint=False):
+        for k, y in enumerate(ys):
+            u = np.array([math.cos(phase), -math.sin(phase)])
+            growth = math.hypot(u[0], u[1]) if step(u, problem.params, float(y)) else np.inf
+            worst[k] = max(worst[k], growth)
+    return worst
+
+
+def amplification_onset(order: int = 10, growth: float = AMPLIFICATION_GROWTH, **settings) -> float:
+    """The smallest y = omega h (to 0.02) at which one bpl step amplifies some rotation
+    by more than 1 + ``growth``: past it, a mode of frequency omega grows step after step."""
+    ys = np.arange(0.02, 8.0 + 1e-9, 0.02)
+    over = np.nonzero(amplification(ys, order, **settings) > 1.0 + growth)[0]
+    return round(float(ys[over[0]]), 2) if over.size else math.inf
