@@ -17,7 +17,7 @@ from typing import Callable
 BENCH_STEPS = 5000
 
 try:  # an old commit may predate the registry: then every family is empty
-    from longtime import registry
+    from longtime.core import registry
 except Exception:  # pragma: no cover - depends on the checked-out history
     registry = None
 
@@ -70,8 +70,8 @@ def warm_up(problem, integrator) -> None:
 def rows_of_pairs(problems: list[str], schemes: list[str]) -> dict[str, dict]:
     """Metric rows of every compatible pair (for track_ benchmarks; skipped pairs left out),
     run through the suite's own matrix runner on local worker processes."""
-    from longtime.cells import Cell
-    from longtime.matrix import ExecOptions, run_matrix
+    from longtime.execution.cells import Cell
+    from longtime.execution.matrix import ExecOptions, run_matrix
 
     cells = []
     for p in problems:

@@ -40,7 +40,7 @@ FAMILIES = {
 _CHILD = r"""
 import contextlib, json, sys, time
 from numba.core import event
-from longtime import registry
+from longtime.core import registry
 problem_name, scheme_name, events = sys.argv[1], sys.argv[2], sys.argv[3] == "1"
 problem = registry.problem_class(problem_name)()
 scheme = registry.integrator_class(scheme_name)()

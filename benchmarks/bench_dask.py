@@ -29,7 +29,7 @@ STEPS = [float(x) for x in np.geomspace(0.02, 0.1, 34)]
 
 
 def sweep(dims: int):
-    from longtime.cells import expand
+    from longtime.execution.cells import expand
 
     cells = []
     for d in range(3, 3 + dims):
@@ -39,8 +39,8 @@ def sweep(dims: int):
 
 def throughput(cells, executor: str, jobs: int) -> tuple[float, float]:
     """(cells per wall second, wall seconds) of one pass; every row must come back ok."""
-    from longtime.integrator import Timing
-    from longtime.matrix import ExecOptions, run_matrix
+    from longtime.core.integrator import Timing
+    from longtime.execution.matrix import ExecOptions, run_matrix
 
     options = ExecOptions(jobs=jobs, timing=Timing(repeats=3, min_time=0.0), max_samples=2001)
     start = time.perf_counter()

@@ -38,7 +38,9 @@ GOAL = 0.60
 @contextmanager
 def accounting():
     """Patch the phases' entry points with timers; yields the per-phase totals (seconds)."""
-    from longtime import cells, integrator, metrics
+    from longtime.execution import cells
+    from longtime.core import integrator
+    from longtime.measure import metrics
 
     totals: dict[str, float] = defaultdict(float)
     originals = {}
@@ -84,7 +86,7 @@ def _timed_walls(traj) -> list[float]:
 
 
 def breakdown(cells) -> tuple[dict[str, float], float, list[dict]]:
-    from longtime.cells import run_cell
+    from longtime.execution.cells import run_cell
 
     with accounting() as totals:
         start = time.perf_counter()
@@ -98,8 +100,8 @@ def after_the_cells(rows: list[dict]) -> dict[str, float]:
     summary, and the results page (figures on one process per core, as the matrix draws them)."""
     import os
 
-    from longtime.html_report import build_page
-    from longtime.report import report_text
+    from longtime.reporting.page import build_page
+    from longtime.reporting.report import report_text
 
     start = time.perf_counter()
     report_text(rows, "table")
@@ -140,8 +142,8 @@ def main(argv: list[str] | None = None) -> int:
         folder = tempfile.mkdtemp(prefix="bench_harness_cold_")
         for name in CACHE_VARIABLES:
             os.environ[name] = os.path.join(folder, name.lower())
-    from longtime import registry
-    from longtime.cells import expand
+    from longtime.core import registry
+    from longtime.execution.cells import expand
 
     problems = args.problem.split(",") if args.problem else registry.default_problems()
     schemes = args.integrator.split(",") if args.integrator else sorted(registry.integrators())

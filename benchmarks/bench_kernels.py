@@ -140,7 +140,7 @@ class KernelCase:
         self.dt, self.t_final, self._hand = dt, t_final, hand
 
     def build(self):
-        from longtime import registry
+        from longtime.core import registry
 
         self.problem = registry.problem_class(self.problem_name)()
         self.integrator = registry.integrator_class(self.scheme_name)(dt=self.dt)
@@ -208,7 +208,7 @@ class KernelRatio:
 
     def setup(self):
         try:
-            from longtime import registry
+            from longtime.core import registry
 
             for make in CASES.values():
                 case = make()

@@ -54,7 +54,7 @@ def longtime_command() -> str:
 
 def integration_core_s(store: Path) -> tuple[float, int]:
     """Sum of every timed repeat's CPU seconds in ``store``, and its number of rows."""
-    from longtime.store import Store
+    from longtime.execution.store import Store
 
     rows = Store(str(store), readonly=True).rows()
     return sum(sum(row.get("cpu_s_samples") or []) for row in rows), len(rows)
@@ -111,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
         else:
             shutil.rmtree(folder, ignore_errors=True)
 
-    from longtime.matrix import ExecOptions
+    from longtime.execution.matrix import ExecOptions
 
     n = ExecOptions().workers()  # the worker processes the main job ran
     print(f"\n`{' '.join(['longtime matrix', *matrix_args])}` on {n} cores")

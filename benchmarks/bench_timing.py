@@ -30,7 +30,7 @@ def invocations(runs: int = 5, command: list[str] = COMMAND) -> dict[str, list[f
     times: dict[str, list[float]] = {}
     env = {**os.environ, "PYTHONWARNINGS": "ignore"}
     for _ in range(runs):
-        out = subprocess.run([sys.executable, "-m", "longtime.cli", *command], capture_output=True,
+        out = subprocess.run([sys.executable, "-m", "longtime.commands.cli", *command], capture_output=True,
                              text=True, env=env, check=True).stdout
         for row in json.loads(out):
             if row["status"] == "ok":
@@ -56,10 +56,10 @@ class TimingSpread:
 
     def setup(self):
         try:
-            from longtime import registry
+            from longtime.core import registry
 
             registry.integrator_class("gauss4")
-            from longtime.integrator import Timing  # noqa: F401  (repeated timing exists)
+            from longtime.core.integrator import Timing  # noqa: F401  (repeated timing exists)
         except Exception as exc:  # an old version: nothing to measure
             raise NotImplementedError(str(exc)) from None
 

@@ -2,11 +2,10 @@
 
 Importing the package compiles nothing: numba kernels compile on first use.
 """
-from .integrator import AdaptiveIntegrator, FixedStepIntegrator, Integrator, Trajectory
-from .params import InputError, Param
-from .problem import Problem
-
-from .version import __version__
+from longtime.core.integrator import AdaptiveIntegrator, FixedStepIntegrator, Integrator, Trajectory
+from longtime.core.params import InputError, Param
+from longtime.core.problem import Problem
+from longtime.core.version import __version__
 
 __all__ = ["AdaptiveIntegrator", "FixedStepIntegrator", "InputError", "Integrator", "Order", "Param",
            "Problem", "Result", "Trajectory", "__version__", "convergence", "solve", "sweep", "work_precision"]
@@ -17,7 +16,7 @@ _API = ("Order", "Result", "convergence", "solve", "sweep", "work_precision")
 
 def __getattr__(name: str):
     if name in _API:
-        from . import api
+        from longtime import api
 
         return getattr(api, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

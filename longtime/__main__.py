@@ -1,6 +1,6 @@
 """`python -m longtime ...` is the `longtime` command."""
 import sys
 
-from longtime.cli import main
+from longtime.commands.cli import main
 
 sys.exit(main())

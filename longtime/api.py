@@ -18,11 +18,20 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from . import calibration, registry
-from .cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, SWEEP_PARAMETERS, Cell, check_size, expand, run_cell
-from .integrator import Integrator, Timing
-from .params import InputError
-from .problem import Problem
+from longtime.core import registry
+from longtime.core.integrator import Integrator, Timing
+from longtime.core.params import InputError
+from longtime.core.problem import Problem
+from longtime.execution import calibration
+from longtime.execution.cells import (
+    DEFAULT_MAX_SAMPLES,
+    DEFAULT_TIME_LIMIT,
+    SWEEP_PARAMETERS,
+    Cell,
+    check_size,
+    expand,
+    run_cell,
+)
 
 
 # ------------------------------------------------------------------ names, classes, instances
@@ -90,9 +99,9 @@ def run_cells(cells: list[Cell], *, store=None, command: str = "", executor: str
     """Run ``cells`` on ``executor``, each row appended to ``store`` (a Store, a path or None)
     as ``longtime run`` does: the plan first, each row as it finishes, the run marked done,
     or interrupted (an input error as it starts discards it). Returns (rows, run id)."""
-    from .lifecycle import recorded_run
-    from .matrix import ExecOptions, run_matrix
-    from .store import Store
+    from longtime.execution.lifecycle import recorded_run
+    from longtime.execution.matrix import ExecOptions, run_matrix
+    from longtime.execution.store import Store
 
     options = options or ExecOptions()
     if store is not None and not isinstance(store, Store):
@@ -135,7 +144,7 @@ def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_sample
     """Run ``scheme`` on ``problem`` once (timed as every row is) and return its Result.
     ``settings`` are the parameters of --dt, --tol, --eps-res, --order and --set (one value
     each). A pair that cannot run (a capability missing) raises InputError naming it."""
-    from .report import complete
+    from longtime.reporting.report import complete
 
     cells = cells_for(_as_list(problem), _as_list(scheme), t_final, settings, strict=True)
     if len(cells) != 1:
@@ -172,9 +181,9 @@ def sweep(problems: Any, schemes: Any, *, t_final: Any = None, executor: str = "
     a pandas DataFrame, one row per cell. ``executor`` is serial, process (default), isolated
     or dask; ``store`` a path (or Store) appends the run to that store as ``longtime run``
     does, and the rows then come back as stored (with ``run_id``)."""
-    from .matrix import ExecOptions
-    from .report import frame
-    from .store import Store
+    from longtime.execution.matrix import ExecOptions
+    from longtime.execution.store import Store
+    from longtime.reporting.report import frame
 
     if store is not None and not isinstance(store, Store):
         store = Store(store)
@@ -252,7 +261,7 @@ class Order:
 def orders(rows: Any) -> list[Order]:
     """An Order per sweep in ``rows``, and one without a value (its ``reason``) per
     problem x scheme that has no fit."""
-    from .orders import left_out, observed_orders
+    from longtime.measure.orders import left_out, observed_orders
 
     rows = records(rows)
     out = [Order(f["problem"], f["integrator"], f["observed_order"], f["observed_order_ci"],
@@ -280,7 +289,7 @@ def work_precision(rows: Any):
     scheme (``next``, ``slower`` = its time / the fastest's), as ``longtime report`` shows."""
     import pandas as pd
 
-    from .report import pareto, pareto_field, setting
+    from longtime.reporting.report import pareto, pareto_field, setting
 
     rows = records(rows)
     out = []

@@ -38,7 +38,7 @@ def _combinations(settings: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
 
 
 def _cell(problem: str, scheme: str, point: dict[str, Any], t_final):
-    from .api import cells_for
+    from longtime.api import cells_for
 
     cells = cells_for([problem], [scheme], t_final, point)
     if len(cells) != 1:
@@ -58,7 +58,7 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
     """{class name: asv benchmark class} for problems x schemes x settings; put them into
     the benchmark module's namespace (``globals().update(...)``): asv looks a class up by
     its name there."""
-    from .api import _as_list, resolve
+    from longtime.api import _as_list, resolve
 
     pnames = [resolve(p, "problem")[0] for p in _as_list(problems)]
     inames = [resolve(s, "scheme")[0] for s in _as_list(schemes)]
@@ -68,7 +68,7 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
     names = ["problem", "scheme", "setting"]
 
     def setup(self, problem, scheme, setting):
-        from .cells import build
+        from longtime.execution.cells import build
 
         cell = _cell(problem, scheme, points[setting], t_final)
         self.problem, self.integrator = build(cell)
@@ -84,9 +84,9 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
         "__doc__": "The integration of each cell alone (its kernel compiled in setup)."})
 
     def setup_cache(self):
-        from .cells import run_cell
-        from .integrator import Timing
-        from .testing import accuracy_fields
+        from longtime.core.integrator import Timing
+        from longtime.execution.cells import run_cell
+        from longtime.testing import accuracy_fields
 
         rows = {}
         for p, s, (label, point) in itertools.product(pnames, inames, combos):

@@ -1,7 +1,7 @@
 """``longtime plot KIND``: the suite's figures, saved as PNG and SVG (matplotlib, Agg).
 
 Kinds are a registry, ``PLOT_KINDS``: name -> "module:function" of the package
-``longtime.figures`` (one module per family), imported only when drawn, so a module adds a
+``longtime.reporting.figures`` (one module per family), imported only when drawn, so a module adds a
 kind with one line. A kind function takes keyword arguments and
 returns the paths it wrote; ``longtime plot`` passes it only the options below that its
 signature accepts (and that were given, except ``out`` and ``formats``, always given):
@@ -24,18 +24,18 @@ import inspect
 from pathlib import Path
 from typing import Any, Callable
 
-from . import cli_args
-from .figures import FORMATS, save  # noqa: F401  (the helpers every kind uses)
-from .figures.work_precision import DRIFT_METRICS
-from .params import InputError, check_choice
+from longtime.core import cli_args
+from longtime.core.params import InputError, check_choice
+from longtime.reporting.figures import FORMATS, save  # noqa: F401  (the helpers every kind uses)
+from longtime.reporting.figures.work_precision import DRIFT_METRICS
 
 PLOT_KINDS: dict[str, str] = {
-    "work-precision": "longtime.figures.work_precision:work_precision",
-    "drift": "longtime.figures.drift:drift",
-    "toda-eigenvalues": "longtime.figures.drift:toda_eigenvalues",
-    "duffing-phase": "longtime.figures.duffing:duffing_phase",
-    "pendulum-region": "longtime.figures.pendulum:pendulum_region",
-    "stability": "longtime.figures.stability:stability_regions",
+    "work-precision": "longtime.reporting.figures.work_precision:work_precision",
+    "drift": "longtime.reporting.figures.drift:drift",
+    "toda-eigenvalues": "longtime.reporting.figures.drift:toda_eigenvalues",
+    "duffing-phase": "longtime.reporting.figures.duffing:duffing_phase",
+    "pendulum-region": "longtime.reporting.figures.pendulum:pendulum_region",
+    "stability": "longtime.reporting.figures.stability:stability_regions",
 }
 
 
@@ -62,7 +62,7 @@ def draw(kind: str, out_dir: str | Path = "figures", **options: Any) -> list[Pat
 def _axes(ax):
     if ax is not None:
         return ax
-    from .figures import pyplot
+    from longtime.reporting.figures import pyplot
 
     return pyplot().subplots(figsize=(7, 4.6))[1]
 
@@ -72,11 +72,11 @@ def work_precision(rows: Any, ax=None, *, field: str | None = None, problem: str
     seconds of the ok rows of one problem (a DataFrame from ``longtime.sweep``, or row
     dicts), log-log, one curve per scheme, a colour per family; a bar reaches each point's
     slowest repeat. Returns the matplotlib Axes (a new figure's unless ``ax``)."""
-    from .api import records
-    from .figures.work_precision import curves
-    from .fmt import positive
-    from .html_report import styles
-    from .report import pareto_field
+    from longtime.api import records
+    from longtime.core.fmt import positive
+    from longtime.reporting.figures.style import styles
+    from longtime.reporting.figures.work_precision import curves
+    from longtime.reporting.report import pareto_field
 
     rows = [r for r in records(rows) if r.get("status") == "ok" and positive(r.get("cpu_s"))
             and (problem is None or r["problem"] == problem)]
@@ -101,10 +101,11 @@ def drift(result_or_rows: Any, invariant: str = "H", ax=None):
     """The relative error of ``invariant`` against t - t0, log-log: every sample of a
     ``longtime.solve`` Result, or for rows (a DataFrame or dicts) the upper envelope each ok
     row keeps (``drift_curves``, ``diag_curves``; a row without them is run again, untimed). Returns the Axes."""
-    from .api import Result, records
-    from .html_report import row_curves, styles
-    from .metrics import relative_error
-    from .report import setting
+    from longtime.api import Result, records
+    from longtime.measure.metrics import relative_error
+    from longtime.reporting.figures.results import row_curves
+    from longtime.reporting.figures.style import styles
+    from longtime.reporting.report import setting
 
     ax = _axes(ax)
     if isinstance(result_or_rows, Result):

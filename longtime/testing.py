@@ -15,8 +15,8 @@ from __future__ import annotations
 
 from typing import Any, Iterable, Sequence
 
-from . import registry
-from .api import Order, Result, cells_for, convergence, resolve, solve, sweep
+from longtime.api import Order, Result, cells_for, convergence, resolve, solve, sweep
+from longtime.core import registry
 
 # a fit needs points in the asymptotic range: the problem's sweep and this many halvings below it
 EXTRA_HALVINGS = 2
@@ -136,8 +136,8 @@ def assert_no_regression(store: Any, baseline_run: int, run: int | None = None, 
     ``raw_time``, a scheme's median beyond ``factor``, default compare's), less accurate or
     no longer ok, no observed order changed and no scheme newly left out of the order table.
     ``store_b`` holds ``run`` when it is another store. Returns compare's result."""
-    from .compare import TIME_FACTOR, compare
-    from .store import Store
+    from longtime.execution.store import Store
+    from longtime.reporting.compare import TIME_FACTOR, compare
 
     factor = TIME_FACTOR if factor is None else factor
     a = store if isinstance(store, Store) else Store(store, readonly=True)
@@ -179,7 +179,7 @@ def _g(x: Any) -> str:
 
 
 def _cell(c: dict) -> str:
-    from .report import setting
+    from longtime.reporting.report import setting
 
     return setting(c) or "default settings"
 
@@ -193,9 +193,9 @@ def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float 
     ``.final``/``.growth``/``.growth_class``, ``status``, ``steps``, ``rhs_evals``) go into
     ``benchmark.extra_info``, so ``pytest --benchmark-json`` carries them beside the time.
     Returns the row."""
-    from .cells import run_cell
-    from .integrator import Timing, same_run
-    from .report import complete
+    from longtime.core.integrator import Timing, same_run
+    from longtime.execution.cells import run_cell
+    from longtime.reporting.report import complete
 
     cells = cells_for([problem], [scheme], t_final, settings, strict=True)
     if len(cells) != 1:

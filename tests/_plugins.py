@@ -50,5 +50,5 @@ def install_plugin(root: Path, name: str, entry_points: dict[str, dict[str, str]
 
 
 def longtime(env, *args):
-    return subprocess.run([sys.executable, "-m", "longtime.cli", *args], env=env, capture_output=True,
+    return subprocess.run([sys.executable, "-m", "longtime.commands.cli", *args], env=env, capture_output=True,
                           text=True, timeout=600)

@@ -1,9 +1,9 @@
 """Test helper: a plugin scheme whose accuracy parameter is called ``rtol`` (Dormand-Prince
 5(4) under another name for its tolerance), registered for one test by ``register``."""
-from longtime import registry
-from longtime.contract import check_registered
+from longtime.core import registry
+from longtime.core.contract import check_registered
 from longtime.integrators.embedded_rk import DormandPrince45
-from longtime.params import Param
+from longtime.core.params import Param
 
 NAME = "test-rtol"
 

@@ -19,7 +19,7 @@ TEMPLATE = '''"""RK4 repeating its stages {repeat} times a step on average and b
 import numba
 
 from longtime import FixedStepIntegrator
-from longtime.drivers import OK, RHS_EVALS
+from longtime.core.drivers import OK, RHS_EVALS
 
 REPEAT = {repeat!r}
 BIAS = {bias!r}

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import longtime
-from longtime import InputError, registry
+from longtime import InputError
+from longtime.core import registry
 from longtime.integrators import Splitting, compose
 
 G = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
@@ -28,7 +29,7 @@ TIMING = ("cpu_s", "wall_s", "cpu_s_median", "cpu_s_max", "wall_s_median", "wall
 
 
 def test_solve_row_is_the_cli_json_row():
-    res = subprocess.run([sys.executable, "-m", "longtime.cli", "run", "-p", "kepler", "-i", "verlet", "--dt", "0.01",
+    res = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "run", "-p", "kepler", "-i", "verlet", "--dt", "0.01",
                           "--t-final", "30", "--set", "e=0.5", "--repeats", "1", "--no-store", "--format", "json"],
                          capture_output=True, text=True, timeout=300, env=os.environ)
     assert res.returncode == 0, res.stderr
@@ -97,12 +98,12 @@ def test_convergence_names_why_a_scheme_has_no_order():
     assert order.value is None and order.reason.startswith("every point above 0.1")
     assert len(order.dropped) == 2 and all(why == "above 0.1" for _, _, why in order.dropped)
     from longtime.api import records as as_records
-    from longtime.report import summary
+    from longtime.reporting.report import summary
 
     records = as_records(rows)
     assert "left out of the order table: euler (every point above 0.1)" in summary(records)
-    from longtime.compare import compare, render
-    from longtime.html_report import build_page
+    from longtime.reporting.compare import compare, render
+    from longtime.reporting.page import build_page
 
     text = render(compare(records, records))
     assert "left out of A's order table: kepler euler (every point above 0.1)" in text
@@ -111,7 +112,7 @@ def test_convergence_names_why_a_scheme_has_no_order():
 
 
 def test_a_plugin_splitting_is_drawn_as_the_splitting_family():
-    from longtime.html_report import family, styles
+    from longtime.reporting.figures.style import family, styles
 
     longtime.solve("kepler", ApiForestRuth, t_final=1, repeats=1)  # registers it
     assert family("api-forest-ruth") == family("verlet") == "splitting"

@@ -54,7 +54,7 @@ def test_asv_init_writes_a_loadable_suite(tmp_path):
     (tmp_path / "pyproject.toml").write_text(
         '[project]\nname = "my-schemes"\n[project.entry-points."longtime.integrators"]\n'
         'my-scheme = "my_schemes:MyScheme"\n')
-    res = subprocess.run([sys.executable, "-m", "longtime.cli", "asv-init", str(tmp_path), "-p", "kepler",
+    res = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "asv-init", str(tmp_path), "-p", "kepler",
                           "-i", "verlet", "--dt", "0.01,0.005"], capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stderr
     conf = json.loads("\n".join(l for l in (tmp_path / "asv.conf.json").read_text().splitlines()
@@ -68,6 +68,6 @@ def test_asv_init_writes_a_loadable_suite(tmp_path):
     assert res.returncode == 0, res.stderr
     assert "[['kepler'], ['verlet'], ['dt=0.01', 'dt=0.005']] relative error" in res.stdout
     # without -p the declared names are taken, and a problem is still needed
-    res = subprocess.run([sys.executable, "-m", "longtime.cli", "asv-init", str(tmp_path), "--force"],
+    res = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "asv-init", str(tmp_path), "--force"],
                          capture_output=True, text=True, timeout=120)
     assert res.returncode == 2 and re.search(r"declares problems none, schemes \['my-scheme'\]", res.stderr)

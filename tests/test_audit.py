@@ -11,16 +11,16 @@ import sqlite3
 import struct
 import subprocess
 import sys
-import textwrap
 
 import numpy as np
 import pytest
 
-from longtime import FixedStepIntegrator, registry
-from longtime import cells as cells_module
-from longtime.cells import SWEEP_PARAMETERS, Cell, run_cell
-from longtime.cli import main
-from longtime.integrator import Timing, same_run
+from longtime import FixedStepIntegrator
+from longtime.core import registry
+from longtime.execution import cells as cells_module
+from longtime.execution.cells import SWEEP_PARAMETERS, Cell, run_cell
+from longtime.commands.cli import main
+from longtime.core.integrator import Timing, same_run
 
 # tiny problems, first compatible one wins (constraints: the pendulum; a linear part: kdv)
 PROBLEMS = (("harmonic", {}), ("kepler", {}), ("double-pendulum", {}), ("kdv", {"d": 16}))
@@ -291,7 +291,7 @@ def test_report_parquet_keeps_every_float_bitwise(stored, capsys, tmp_path):
 
 @pytest.mark.parametrize("fmt", ["table", "markdown"])
 def test_human_formats_round_but_never_show_a_tiny_value_as_zero(fmt):
-    from longtime.report import render
+    from longtime.reporting.report import render
 
     rows = [{"problem": "p", "integrator": "a", "status": "ok", "message": "", "dt": 0.1, "cpu_s": 1.5e-6,
              "H.max": 3e-17, "l2_error": 1e-300, "steps": 12345678901},
@@ -307,7 +307,7 @@ def test_human_formats_round_but_never_show_a_tiny_value_as_zero(fmt):
 def test_stability_cache_that_is_corrupt_is_discarded_and_rebuilt(tmp_path, monkeypatch):
     """Before: a truncated stability file crashed `longtime list` (JSONDecodeError) on every
     run, and one of the wrong shape crashed format_interval (KeyError)."""
-    from longtime import stability
+    from longtime.measure import stability
 
     monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))
     result = {"y": 2.0, "bounded": True, "why": "|R| = 1.1 at y = 2.01", "y_1pct": 2.5}
@@ -332,7 +332,7 @@ def test_reference_cache_file_with_flipped_bits_is_not_believed(tmp_path, monkey
     """Before: a states file whose data bytes were damaged (right shape, finite values) was
     used as the reference; only unreadable files were caught. Now every file is checked
     against the checksum written with it."""
-    from longtime import reference
+    from longtime.measure import reference
 
     monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))
     path = tmp_path / "states.npy"
@@ -355,7 +355,7 @@ def test_reference_cache_key_covers_the_equations(monkeypatch, tmp_path):
     """Before: the key was the problem's name, settings and initial state: an edited
     right-hand side (a coefficient in heyoka_system) reused the old reference."""
     pytest.importorskip("heyoka")
-    from longtime import reference
+    from longtime.measure import reference
 
     monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))
     problem = registry.problem_class("harmonic")()
@@ -371,7 +371,7 @@ def test_reference_cache_key_covers_the_equations(monkeypatch, tmp_path):
 
 
 def _longtime_run(env, *argv):
-    return subprocess.run([sys.executable, "-m", "longtime.cli", "run", *argv], env=env,
+    return subprocess.run([sys.executable, "-m", "longtime.commands.cli", "run", *argv], env=env,
                           capture_output=True, text=True, timeout=300)
 
 
@@ -418,7 +418,7 @@ def test_numba_cache_of_a_function_whose_callee_changed_is_not_used(tmp_path):
     """numba keys a cached function by its own bytecode and its own file: a callee edited in
     another file used to leave the caller's cache valid, and the old code ran. The cache
     guard adds the fingerprint of everything the function reaches to the key."""
-    (tmp_path / "caller.py").write_text("import longtime.jitcache\n" + CALLER)
+    (tmp_path / "caller.py").write_text("import longtime.core.jitcache\n" + CALLER)
     callee = tmp_path / "callee.py"
     path = os.pathsep.join(p for p in (str(tmp_path), os.environ.get("PYTHONPATH")) if p)
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"), "PYTHONPATH": path}

@@ -2,11 +2,11 @@
 import numpy as np
 import pytest
 
-from longtime import registry
-from longtime.cells import Cell, run_cell
-from longtime.integrator import Timing
+from longtime.core import registry
+from longtime.execution.cells import Cell, run_cell
+from longtime.core.integrator import Timing
 from longtime.integrators.avf import gauss_legendre
-from longtime.orders import observed_orders
+from longtime.measure.orders import observed_orders
 
 
 def energy_error(scheme, **settings):
@@ -50,7 +50,7 @@ def test_quadrature_rule():
 
 
 def test_a_bad_node_count_is_one_line():
-    from longtime.params import InputError
+    from longtime.core.params import InputError
 
     with pytest.raises(InputError, match="nodes"):
         registry.integrator_class("avf")(nodes=0)

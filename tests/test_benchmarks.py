@@ -15,9 +15,9 @@ from pathlib import Path
 
 import pytest
 
-from longtime import registry
-from longtime.metrics import evaluate
-from longtime.reference import has_reference, reference_states
+from longtime.core import registry
+from longtime.measure.metrics import evaluate
+from longtime.measure.reference import has_reference, reference_states
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository's benchmarks/
 from benchmarks.bench_kernels import CASES, RATIO_GOAL  # noqa: E402

@@ -7,11 +7,11 @@ import numba
 import numpy as np
 import pytest
 
-from longtime import registry
-from longtime.cells import Cell, run_cell
+from longtime.core import registry
+from longtime.execution.cells import Cell, run_cell
 from longtime.integrators.bpl import BorelPadeLaplace
-from longtime.params import InputError
-from longtime.problem import Problem
+from longtime.core.params import InputError
+from longtime.core.problem import Problem
 
 
 # ---------------------------------------------------------------- tiny test problems
@@ -274,7 +274,7 @@ def test_amplification_on_the_imaginary_axis(monkeypatch):
     """One step on a rotation: exact to the tolerance for small y = omega h, amplifying
     past an onset that grows with the series order (measured: 0.72, 1.74, 2.34 for
     N = 4, 10, 14 at 1 % growth)."""
-    from longtime.stability import amplification, amplification_onset
+    from longtime.measure.stability import amplification, amplification_onset
 
     # amplification builds (and numba compiles, seconds each) a new step closure at every
     # call: build each order's once here, the calls below ask for orders 10 and 4 twice

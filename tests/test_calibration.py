@@ -5,9 +5,10 @@ import sqlite3
 
 import pytest
 
-from longtime import calibration, cli
-from longtime.calibration import Calibrator, annotate, drift, drift_text, measure
-from longtime.store import SCHEMA_VERSION, Store
+from longtime.execution import calibration
+from longtime.commands import cli
+from longtime.execution.calibration import Calibrator, annotate, drift, drift_text, measure
+from longtime.execution.store import SCHEMA_VERSION, Store
 
 
 def test_a_calibration_times_the_reference_workload_repeatedly():

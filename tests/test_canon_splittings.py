@@ -1,18 +1,19 @@
 """The published splittings: Blanes-Moan S6, Suzuki's fractal composition, Kahan-Li s15odr8.
 
 Their coefficients are checked against the order conditions through the flows they compose
-(on non-commuting matrices), their orders observed on kepler through longtime.orders, and
-their imaginary-axis intervals measured by longtime.stability against the spectral radius of
+(on non-commuting matrices), their orders observed on kepler through longtime.measure.orders, and
+their imaginary-axis intervals measured by longtime.measure.stability against the spectral radius of
 the composed rotation step.
 """
 import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from longtime import registry, stability
-from longtime.cells import Cell, run_cell
-from longtime.integrator import Timing
-from longtime.orders import observed_orders
+from longtime.core import registry
+from longtime.measure import stability
+from longtime.execution.cells import Cell, run_cell
+from longtime.core.integrator import Timing
+from longtime.measure.orders import observed_orders
 
 # scheme, order, force evaluations per step, kepler steps per unit of time 2 (asymptotic range)
 CANON = [

@@ -6,9 +6,10 @@ import numba
 import numpy as np
 import pytest
 
-from longtime import Problem, registry
-from longtime.cli import main
-from longtime.params import InputError
+from longtime import Problem
+from longtime.core import registry
+from longtime.commands.cli import main
+from longtime.core.params import InputError
 
 
 def run_cli(capsys, *argv):

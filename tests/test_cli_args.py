@@ -1,10 +1,10 @@
-"""Argument types of the command line (longtime.cli_args): ranges and --set pairs."""
+"""Argument types of the command line (longtime.core.cli_args): ranges and --set pairs."""
 import argparse
 
 import pytest
 
-from longtime import cli_args
-from longtime.params import InputError
+from longtime.core import cli_args
+from longtime.core.params import InputError
 
 
 def test_ranges():

@@ -5,8 +5,8 @@ import sqlite3
 
 import pytest
 
-from longtime import cli
-from longtime.compare import compare, order_changes, render, slower_p
+from longtime.commands import cli
+from longtime.reporting.compare import compare, order_changes, render, slower_p
 
 
 @pytest.fixture(scope="module")

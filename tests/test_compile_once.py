@@ -9,12 +9,12 @@ import sys
 
 import numpy as np
 
-from longtime import heyoka_build, registry
+from longtime.core import heyoka_build, registry
 
 _CHILD = r"""
 import json, sys
 from numba.core import event
-from longtime import registry
+from longtime.core import registry
 compiled = []
 
 class Listener(event.Listener):
@@ -57,7 +57,7 @@ def test_bpl_kernels_call_the_pade_compiled_once(tmp_path):
     """bpl's robust Pade is a cfunc the kernels call by symbol: a kernel loaded from the cache
     in a new process finds it (registered before any kernel loads) and runs bitwise alike."""
     from longtime.integrators import bpl
-    from longtime.jitcache import _names_used
+    from longtime.core.jitcache import _names_used
 
     called = _names_used(bpl.make_try_step.__code__)  # the names its nested kernels read
     assert "_prepare_pade_shared" in called and "_prepare_pade" not in called  # not linked in
@@ -77,19 +77,19 @@ def test_the_reference_switches_to_compact_mode_sooner_than_the_scheme():
 
 
 def _batches(pairs):
-    from longtime.cells import Cell
+    from longtime.execution.cells import Cell
 
     return [[Cell(problem, scheme, {}, {}, None)] for problem, scheme in pairs]
 
 
 def test_no_two_running_batches_share_code_that_is_not_compiled_yet():
-    from longtime.matrix import CompileOnce, shared_code
+    from longtime.execution.matrix import CompileOnce, shared_code
 
     batches = _batches([("kdv", "rk4"), ("kdv", "rk4sym"), ("toda", "rk4"), ("harmonic", "verlet"),
                         ("toda", "bpl"), ("kepler", "bpl-exp")])
     assert "longtime.problems.kdv" in shared_code(batches[0])
     assert "longtime.integrators.bpl" in shared_code(batches[5])  # bpl-exp inherits bpl's Pade
-    assert not any(m.startswith("longtime.integrator") and "." not in m[9:] for b in batches for m in shared_code(b))
+    assert not any(m.startswith("longtime.core.integrator") and "." not in m[9:] for b in batches for m in shared_code(b))
     order = CompileOnce(batches)
     first, second = order.take(), order.take()
     assert (first[0].problem, second[0].problem) == ("kdv", "harmonic")  # not kdv twice, not rk4 twice
@@ -110,7 +110,7 @@ def test_idle_workers_take_extra_work_only_once_every_batch_is_handed_out():
     import threading
     from concurrent.futures import ThreadPoolExecutor
 
-    from longtime.matrix import scheduled
+    from longtime.execution.matrix import scheduled
 
     batches = _batches([("toda", "rk4"), ("kepler", "verlet"), ("harmonic", "euler"), ("duffing-1", "rk45")])
     log, results, seen = [], {}, []

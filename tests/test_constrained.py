@@ -1,15 +1,14 @@
 """Constrained mechanics: the Cartesian double pendulum, dirac-1/2/midpoint and RATTLE."""
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest
 
-from longtime import registry
-from longtime.params import InputError
+from longtime.core import registry
+from longtime.core.params import InputError
 from longtime.problems.double_pendulum import DoublePendulum
-from longtime.reference import reference_states
+from longtime.measure.reference import reference_states
 
 CONSTRAINED = ("dirac-1", "dirac-2", "dirac-midpoint", "rattle")
 
@@ -201,7 +200,7 @@ def test_index1_rhs_keeps_the_constraints_to_second_order():
 
 
 def test_region_figure_is_written(tmp_path):
-    from longtime.figures.pendulum import pendulum_region
+    from longtime.reporting.figures.pendulum import pendulum_region
 
     paths = pendulum_region(schemes=("dirac-2", "rattle"), dt=1e-3, times=(1.0, 2.0), out=tmp_path / "region")
     assert [p.suffix for p in paths] == [".png", ".svg"]

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from longtime import FixedStepIntegrator, Problem
-from longtime.contract import ContractError, check_registered
+from longtime.core.contract import ContractError, check_registered
 from longtime.integrators import ExplicitRungeKutta, Splitting, TableauError, compose
 
 
@@ -66,7 +66,7 @@ def test_family_members_must_set_what_the_family_declares():
 
 
 def test_every_builtin_passes_the_contract():
-    from longtime import registry
+    from longtime.core import registry
 
     registry.reload()
     assert registry.broken() == []

@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import pytest
 
-from longtime.cells import expand
-from longtime.cli import build_parser
-from longtime.matrix import ExecOptions, run_matrix
+from longtime.execution.cells import expand
+from longtime.commands.cli import build_parser
+from longtime.execution.matrix import ExecOptions, run_matrix
 
 distributed = pytest.importorskip("distributed")
 

@@ -7,8 +7,8 @@ import sys
 
 import pytest
 
-from longtime.cells import expand
-from longtime.dask_executor import BATCH_CELLS, BATCHES_PER_WORKER, batches
+from longtime.execution.cells import expand
+from longtime.execution.dask_executor import BATCH_CELLS, BATCHES_PER_WORKER, batches
 
 distributed = pytest.importorskip("distributed")
 
@@ -30,10 +30,10 @@ def test_batches_hold_one_pair_each_and_keep_every_worker_busy():
 KILL_PROBE = r"""
 import json, os, signal
 from distributed import Client, LocalCluster
-from longtime.cells import expand
-from longtime.dask_executor import dask_cluster
-from longtime.integrator import Timing
-from longtime.matrix import ExecOptions
+from longtime.execution.cells import expand
+from longtime.execution.dask_executor import dask_cluster
+from longtime.core.integrator import Timing
+from longtime.execution.matrix import ExecOptions
 
 if __name__ == "__main__":
     cells = expand(["harmonic"], ["rk4", "verlet"], sweeps={"dt": [0.02, 0.01, 0.005, 0.004, 0.002, 0.001]},

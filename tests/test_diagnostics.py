@@ -7,9 +7,11 @@ import json
 import numpy as np
 import pytest
 
-from longtime import registry
-from longtime.cli import main
-from longtime.html_report import build_page, drift_svg, styles
+from longtime.core import registry
+from longtime.commands.cli import main
+from longtime.reporting.page import build_page
+from longtime.reporting.figures.results import drift_svg
+from longtime.reporting.figures.style import styles
 
 
 def _rows(capsys, tmp_path, *args):

@@ -1,4 +1,4 @@
-"""The compiled loops every scheme runs through (longtime.drivers), tested directly on
+"""The compiled loops every scheme runs through (longtime.core.drivers), tested directly on
 hand-written steps whose results are known exactly."""
 import math
 
@@ -6,7 +6,7 @@ import numba
 import numpy as np
 import pytest
 
-from longtime import drivers
+from longtime.core import drivers
 
 
 @numba.njit

@@ -4,9 +4,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from longtime import registry
-from longtime.params import InputError
-from longtime.reference import reference_states
+from longtime.core import registry
+from longtime.core.params import InputError
+from longtime.measure.reference import reference_states
 
 
 def rhs_of(problem, t, U):
@@ -113,9 +113,9 @@ def test_duffing1_bound_follows_the_growing_solution():
 
 
 def test_a_run_past_the_growing_bound_is_diverged_and_an_o1_error_is_flagged(monkeypatch):
-    from longtime import reference
-    from longtime.cells import Cell, run_cell
-    from longtime.report import LOST, _not_ok
+    from longtime.measure import reference
+    from longtime.execution.cells import Cell, run_cell
+    from longtime.reporting.report import LOST, _not_ok
 
     # past t = 35 double leaves long double, so the full ladder would also run real128, which
     # spends its whole time budget (120 s) on duffing-1 and ends before t = 35 (the horizon

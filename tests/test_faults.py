@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 from _plugins import install_plugin, longtime
 
-from longtime.cli import main
-from longtime.store import Store
+from longtime.commands.cli import main
+from longtime.execution.store import Store
 
 FAULTS = '''
 import ctypes
@@ -310,7 +310,7 @@ def _alive(pid):
 def _stuck_matrix(fault_env, tmp_path):
     stuck_file = tmp_path / "stuck.txt"
     env = {**fault_env, "STUCK_FILE": str(stuck_file), "LONGTIME_DB": str(tmp_path / "stuck.sqlite")}
-    proc = subprocess.Popen([sys.executable, "-m", "longtime.cli", "matrix", "-p", "harmonic",
+    proc = subprocess.Popen([sys.executable, "-m", "longtime.commands.cli", "matrix", "-p", "harmonic",
                              "-i", "plug-stuck,verlet", "--dt", "0.1", "--t-final", "1", "--jobs", "2",
                              "--executor", "process", "--no-progress", "--no-report"],
                             env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
@@ -389,7 +389,7 @@ def test_ctrl_c_stops_a_long_compiled_loop(tmp_path):
     warm = longtime(env, "run", "-p", "harmonic", "-i", "rk4", "--dt", "1e-6", "--t-final", "0.01",
                     "--repeats", "1", "--no-store")
     assert warm.returncode == 0, warm.stderr
-    proc = subprocess.Popen([sys.executable, "-m", "longtime.cli", "run", "-p", "harmonic", "-i", "rk4",
+    proc = subprocess.Popen([sys.executable, "-m", "longtime.commands.cli", "run", "-p", "harmonic", "-i", "rk4",
                              "--dt", "1e-6", "--t-final", "900", "--repeats", "1"],
                             env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 120  # the run is recorded once its input is checked: main() is running
@@ -410,10 +410,10 @@ def test_unmeasured_metrics_are_null_and_defaults_are_stored():
     """Before: a run that blew up in its first step (toda --dt 1) reported H.max 0.0."""
     import numpy as np
 
-    from longtime import metrics
-    from longtime.cells import Cell, run_cell
-    from longtime.integrator import Trajectory
-    from longtime.registry import problem_class
+    from longtime.measure import metrics
+    from longtime.execution.cells import Cell, run_cell
+    from longtime.core.integrator import Trajectory
+    from longtime.core.registry import problem_class
 
     problem = problem_class("harmonic")()
     traj = Trajectory("diverged", "blew up", t=np.array([0.0, 1.0]),
@@ -454,8 +454,8 @@ def test_bad_reference_budget_variable_is_an_input_error(fault_env):
 
 
 def test_corrupt_reference_cache_is_discarded_and_rebuilt(tmp_path, monkeypatch):
-    from longtime import reference
-    from longtime.registry import problem_class
+    from longtime.measure import reference
+    from longtime.core.registry import problem_class
 
     monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(reference, "_CHECKS", {})
@@ -494,7 +494,7 @@ def test_serial_run_killed_by_a_plugin_names_the_cell_and_resumes(fault_env, tmp
 
 
 def test_an_order_one_error_does_not_read_as_a_plain_ok():
-    from longtime.cells import Cell, run_cell
+    from longtime.execution.cells import Cell, run_cell
 
     row = run_cell(Cell("harmonic", "euler", {}, {"dt": 1.0}, 50.0))
     assert row["l2_error"] > 0.5
@@ -536,8 +536,8 @@ def test_out_that_is_a_file_is_an_input_error(command, tmp_path, capsys):
 def test_a_matrix_rejected_as_it_starts_leaves_no_run(tmp_path, capsys, monkeypatch):
     """Before: a matrix rejected for bad input (found as the executor started) was recorded
     as a resumable run."""
-    from longtime import matrix
-    from longtime.params import InputError
+    from longtime.execution import matrix
+    from longtime.core.params import InputError
 
     def rejecting(cells, options):
         raise InputError("--scheduler tcp://nowhere:1: cannot connect")
@@ -568,7 +568,7 @@ def _unprivileged():
 
 
 def _cli(prefix, *args, env=None):
-    return subprocess.run([*prefix, sys.executable, "-m", "longtime.cli", *args], env=env or os.environ,
+    return subprocess.run([*prefix, sys.executable, "-m", "longtime.commands.cli", *args], env=env or os.environ,
                           capture_output=True, text=True, timeout=300)
 
 
@@ -640,7 +640,7 @@ def test_a_growing_solution_is_not_called_diverged():
     an accurate rk45 run diverged at t = 34.9 (its 1-norm passes 1e10 there)."""
     import numpy as np
 
-    from longtime.registry import integrator_class, problem_class
+    from longtime.core.registry import integrator_class, problem_class
 
     problem = problem_class("duffing-1")()
     traj = integrator_class("rk45")().integrate(problem, 40.0)
@@ -662,7 +662,7 @@ def test_report_of_a_killed_run_says_it_is_incomplete(fault_env, tmp_path):
     """Before: the report of a SIGKILLed run read like a finished one."""
     db = tmp_path / "killed.sqlite"
     stuck_file = tmp_path / "stuck.txt"
-    proc = subprocess.Popen([sys.executable, "-m", "longtime.cli", "run", "-p", "harmonic", "-i",
+    proc = subprocess.Popen([sys.executable, "-m", "longtime.commands.cli", "run", "-p", "harmonic", "-i",
                              "verlet,plug-stuck", "--dt", "0.1", "--t-final", "1", "--db", str(db)],
                             env={**fault_env, "STUCK_FILE": str(stuck_file)}, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)

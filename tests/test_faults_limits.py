@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from _plugins import install_plugin, longtime
 
-from longtime.cli import main
+from longtime.commands.cli import main
 
 PLUGINS = '''
 import os
@@ -135,10 +135,10 @@ def _spin_env(env, tmp_path):
 def test_a_stuck_cell_of_run_ends_as_a_timeout_row(env, tmp_path, scheme):
     """Before: a compiled step that spins (or a plugin's Python that never returns) hung
     `longtime run` for ever; --time-limit applied between chunks only."""
-    from longtime.limits import hard_limit
+    from longtime.execution.limits import hard_limit
 
     start = time.monotonic()
-    res = subprocess.run([sys.executable, "-m", "longtime.cli", "run", "-p", "harmonic", "-i", f"{scheme},verlet",
+    res = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "run", "-p", "harmonic", "-i", f"{scheme},verlet",
                           "--dt", "0.1", "--t-final", "1", "--time-limit", "1", "--no-store", "--format", "json"],
                          env=_spin_env(env, tmp_path), capture_output=True, text=True, timeout=120)
     elapsed = time.monotonic() - start
@@ -168,7 +168,7 @@ def test_a_spinning_cell_of_the_default_matrix_ends_as_a_timeout_row(env, tmp_pa
 def test_ctrl_c_ends_a_run_stuck_in_a_compiled_step(env, tmp_path):
     """Before: SIGINT did not end a `run` whose cell spun in compiled code."""
     spin = _spin_env(env, tmp_path)
-    proc = subprocess.Popen([sys.executable, "-m", "longtime.cli", "run", "-p", "harmonic", "-i", "plug-spin",
+    proc = subprocess.Popen([sys.executable, "-m", "longtime.commands.cli", "run", "-p", "harmonic", "-i", "plug-spin",
                              "--dt", "0.1", "--t-final", "1"], env=spin, stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 120
@@ -189,7 +189,7 @@ def test_toda_invariants_are_bounded_in_memory():
     """Before: every sample's Lax matrix was built at once (d = 80, 62500 samples: 3.2 GB,
     5.9 GB with eigvalsh's copy). In chunks the eigenvalues are the same, bitwise."""
     from longtime.problems import toda
-    from longtime.registry import problem_class
+    from longtime.core.registry import problem_class
 
     problem = problem_class("toda")(d=6)
     rng = np.random.default_rng(1)
@@ -211,7 +211,7 @@ def test_the_estimate_counts_the_metrics_and_the_memory_limit(capsys):
     assert main([*argv, "--memory-limit", "0.05"]) == 2
     err = capsys.readouterr().err
     assert "--memory-limit" in err and "metrics" in err and "Traceback" not in err
-    from longtime.cells import check_size, expand
+    from longtime.execution.cells import check_size, expand
 
     check_size(expand(["toda"], ["rk4"], sweeps={"dt": [0.01]}, t_final=1000.0, sets={"d": 80}),
                memory_limit=2**30)  # fits in 1 GiB: the eigenvalues go in chunks
@@ -219,10 +219,10 @@ def test_the_estimate_counts_the_metrics_and_the_memory_limit(capsys):
 
 def test_toda_d5000_ends_within_its_limit(tmp_path):
     """The issue's command ran for minutes at 9.1 GB; SIGINT did not end it."""
-    from longtime.limits import hard_limit
+    from longtime.execution.limits import hard_limit
 
     start = time.monotonic()
-    res = subprocess.run([sys.executable, "-m", "longtime.cli", "run", "--no-store", "-p", "toda", "-i", "rk4",
+    res = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "run", "--no-store", "-p", "toda", "-i", "rk4",
                           "--dt", "0.1", "--t-final", "2", "--set", "d=5000", "--time-limit", "1",
                           "--format", "json"], capture_output=True, text=True, timeout=300)
     elapsed = time.monotonic() - start
@@ -289,7 +289,7 @@ def test_a_fixed_step_larger_than_the_span_is_refused(capsys, tmp_path):
 
 def test_one_computation_under_several_labels_is_one_point_of_an_order_fit():
     """Before: dt 1, 5 and 10 over a span of 1 (one step each, one row) were three points."""
-    from longtime.orders import observed_orders
+    from longtime.measure.orders import observed_orders
 
     base = {"status": "ok", "problem": "harmonic", "integrator": "rk4", "t_final": 1.0, "settings": "",
             "run_id": 1, "order": None, "tol": None, "eps_res": None}
@@ -327,7 +327,7 @@ def test_an_unusable_cache_folder_is_refused_up_front(tmp_path, kind):
         cache.mkdir()
         os.chmod(cache, 0o555)
     try:
-        res = subprocess.run([*prefix, sys.executable, "-m", "longtime.cli", "run", "-p", "harmonic", "-i", "verlet",
+        res = subprocess.run([*prefix, sys.executable, "-m", "longtime.commands.cli", "run", "-p", "harmonic", "-i", "verlet",
                               "--dt", "0.1", "--t-final", "1", "--no-store"],
                              env={**os.environ, "LONGTIME_CACHE_DIR": str(cache)}, capture_output=True, text=True,
                              timeout=120)
@@ -359,7 +359,7 @@ def test_a_stored_order_that_is_not_a_number_does_not_break_the_report(tmp_path,
 def test_names_that_break_the_rule_are_broken_plugins(env):
     """Before: a scheme registered as ../../../../tmp/x was loaded (its name built cache file
     names), and 'a=b' failed with an AttributeError."""
-    from longtime.contract import NAME_RULE
+    from longtime.core.contract import NAME_RULE
 
     res = longtime(env, "list", "--format", "json")
     assert res.returncode == 0, res.stderr
@@ -373,8 +373,8 @@ def test_names_that_break_the_rule_are_broken_plugins(env):
 
 
 def test_every_builtin_name_follows_the_rule():
-    from longtime import registry
-    from longtime.contract import name_error
+    from longtime.core import registry
+    from longtime.core.contract import name_error
 
     for kind, found in (("problem", registry.problems()), ("scheme", registry.integrators())):
         for name, cls in found.items():
@@ -395,7 +395,7 @@ def test_an_invariant_name_that_breaks_the_rule_fails_its_cell(env):
 
 def test_figure_text_is_not_mathtext():
     r"""Before: a label '$\alpha$' was drawn as the Greek letter."""
-    from longtime.figures import pyplot
+    from longtime.reporting.figures import pyplot
 
     plt = pyplot()
     fig, ax = plt.subplots()

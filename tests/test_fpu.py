@@ -4,8 +4,9 @@ schemes keep it as the true solution does, rk4 loses most of it."""
 import numpy as np
 import pytest
 
-from longtime import metrics, registry
-from longtime.reference import reference_states
+from longtime.measure import metrics
+from longtime.core import registry
+from longtime.measure.reference import reference_states
 
 T_FINAL, DT = 5000.0, 0.005
 
@@ -95,7 +96,7 @@ def test_oscillatory_energy_over_5000():
 @pytest.mark.parametrize("settings, word", [({"m": 0}, "m"), ({"omega": 0.0}, "omega"),
                                             ({"oscillatory_energy": "maybe"}, "oscillatory_energy")])
 def test_bad_settings(settings, word):
-    from longtime.params import InputError
+    from longtime.core.params import InputError
 
     with pytest.raises(InputError, match=word):
         fpu(**settings)

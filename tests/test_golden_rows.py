@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from longtime.cli import main
+from longtime.commands.cli import main
 
 DATA = Path(__file__).parent / "data" / "golden_rows.json"
 

@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from longtime.cli import main
-from longtime.growth import classify, fit_power_law, growth_fields
+from longtime.commands.cli import main
+from longtime.measure.growth import classify, fit_power_law, growth_fields
 
 
 @pytest.mark.parametrize("alpha, expected", [(0.0, "bounded"), (0.5, "sqrt"), (1.0, "linear"),
@@ -55,7 +55,7 @@ def test_kepler_classes_from_the_command_line(capsys, tmp_path):
 
 
 def test_growth_fields_keep_full_precision():
-    from longtime.growth import growth_fields
+    from longtime.measure.growth import growth_fields
 
     t = np.linspace(0.0, 1e4, 100_001)
     fields = growth_fields("H", t, 1e-9 * t**0.123456789, 0.0)

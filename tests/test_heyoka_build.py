@@ -5,8 +5,8 @@ import time
 import numpy as np
 import pytest
 
-from longtime import heyoka_build, registry
-from longtime.cells import Cell, run_cell
+from longtime.core import heyoka_build, registry
+from longtime.execution.cells import Cell, run_cell
 
 pytest.importorskip("heyoka")
 

@@ -2,11 +2,11 @@
 import json
 import subprocess
 
-import pytest
 
 from _slowed import load, source
-from longtime import cli, registry
-from longtime.history import levels, steps
+from longtime.commands import cli
+from longtime.core import registry
+from longtime.reporting.history import levels, steps
 
 
 def test_steps_of_a_series():

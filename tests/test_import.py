@@ -7,7 +7,7 @@ import textwrap
 PROBE = textwrap.dedent('''
     import sys
     from numba.core.registry import CPUDispatcher
-    from longtime import registry
+    from longtime.core import registry
     problems, schemes = registry.problems(), registry.integrators()
     assert not registry.broken(), registry.broken()
     dispatchers = [v for name, mod in list(sys.modules.items()) if name.startswith("longtime")

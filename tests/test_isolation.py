@@ -6,18 +6,17 @@ path (PYTHONPATH for the child processes), as an installed package would be.
 """
 from __future__ import annotations
 
-import json
 import sys
 import textwrap
 import time
 
 import pytest
 
-from longtime import registry
-from longtime.cells import expand, run_cell
-from longtime.cli import main
-from longtime.matrix import ExecOptions, run_matrix
-from longtime.store import Store
+from longtime.core import registry
+from longtime.execution.cells import expand, run_cell
+from longtime.commands.cli import main
+from longtime.execution.matrix import ExecOptions, run_matrix
+from longtime.execution.store import Store
 
 PLUGIN = '''
 """Schemes that misbehave on purpose (tests of longtime's isolation)."""
@@ -25,7 +24,7 @@ import os
 import signal
 import time
 
-from longtime.integrator import FixedStepIntegrator
+from longtime.core.integrator import FixedStepIntegrator
 
 
 class _Misbehaving(FixedStepIntegrator):

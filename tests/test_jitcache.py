@@ -6,11 +6,11 @@ import textwrap
 
 import numpy as np
 
-from longtime import drivers, jitcache, registry
+from longtime.core import drivers, jitcache, registry
 
 PROBE = textwrap.dedent('''
-    from longtime import registry
-    from longtime.integrator import _LOOPS
+    from longtime.core import registry
+    from longtime.core.integrator import _LOOPS
     p = registry.problem_class("toda")()
     traj = registry.integrator_class("rk4sym")(dt=0.1).integrate(p, 5.0)
     (loop,) = _LOOPS.values()

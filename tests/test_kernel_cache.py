@@ -11,8 +11,9 @@ import numba
 import numpy as np
 from _plugins import install_plugin, longtime
 
-from longtime import FixedStepIntegrator, drivers
-from longtime.cli import main
+from longtime import FixedStepIntegrator
+from longtime.core import drivers
+from longtime.commands.cli import main
 from longtime.problems.toda import Toda
 
 
@@ -87,7 +88,7 @@ def test_a_kernel_without_fingerprint_is_never_shared():
 SCHEMES = {"rk4": {"dt": 0.1}, "verlet": {"dt": 0.1}, "rk4sym": {"dt": 0.1}, "taylor": {"dt": 0.1}, "bpl": {}}
 TODA_PROBE = textwrap.dedent(f'''
     import json, sys
-    from longtime import registry
+    from longtime.core import registry
     out = {{}}
     for d in map(int, sys.argv[1:]):
         problem = registry.problem_class("toda")(d=d)

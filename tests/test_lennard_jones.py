@@ -4,9 +4,11 @@ verlet's bounded energy error, the heyoka reference and the schemes' orders agai
 import numpy as np
 import pytest
 
-from longtime import cells, metrics, registry
-from longtime.integrator import Timing
-from longtime.reference import reference_check
+from longtime.execution import cells
+from longtime.measure import metrics
+from longtime.core import registry
+from longtime.core.integrator import Timing
+from longtime.measure.reference import reference_check
 
 
 def crystal():

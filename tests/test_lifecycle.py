@@ -1,14 +1,14 @@
-"""A recorded run's life (longtime.lifecycle): done, interrupted, rejected, and the command
+"""A recorded run's life (longtime.execution.lifecycle): done, interrupted, rejected, and the command
 line it records."""
 import sys
 
 import pytest
 
-from longtime.cells import Cell
-from longtime.cli import main
-from longtime.lifecycle import recorded_run
-from longtime.params import InputError
-from longtime.store import Store
+from longtime.execution.cells import Cell
+from longtime.commands.cli import main
+from longtime.execution.lifecycle import recorded_run
+from longtime.core.params import InputError
+from longtime.execution.store import Store
 
 CELL = Cell("harmonic", "rk4", {}, {"dt": 0.1}, 1.0)
 

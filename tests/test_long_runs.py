@@ -5,10 +5,10 @@ import time
 
 import numpy as np
 
-from longtime import integrator as integrator_module
-from longtime.drivers import sample_steps
-from longtime.integrator import Timing
-from longtime.registry import integrator_class, problem_class
+from longtime.core import integrator as integrator_module
+from longtime.core.drivers import sample_steps
+from longtime.core.integrator import Timing
+from longtime.core.registry import integrator_class, problem_class
 
 
 def test_samples_are_evenly_and_log_spaced_and_bounded():
@@ -46,7 +46,7 @@ def test_a_deadline_stops_a_run_between_chunks(monkeypatch):
 
 
 def test_default_matrix_has_paper_scale_cells_for_the_schemes_that_can_afford_them():
-    from longtime.cells import expand
+    from longtime.execution.cells import expand
 
     cells = expand(["toda", "kepler"], ["rk4", "verlet", "gauss4", "rk45"], default_sweep=True)
     long = {(c.problem, c.integrator): c for c in cells if c.t_final in (5000.0, 2000 * np.pi)}

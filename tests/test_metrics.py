@@ -4,9 +4,9 @@ import json
 import numpy as np
 import pytest
 
-from longtime import registry
-from longtime.cells import Cell, run_cell
-from longtime.metrics import first_crossing, relative_error, time_mean
+from longtime.core import registry
+from longtime.execution.cells import Cell, run_cell
+from longtime.measure.metrics import first_crossing, relative_error, time_mean
 
 
 def test_relative_error_scalar_vector_and_zero_initial_value():
@@ -63,9 +63,9 @@ def test_l2_error_against_exact_solution_decreases_with_dt():
 
 
 def test_errors_cover_only_the_samples_up_to_the_reference_horizon():
-    from longtime.integrator import Trajectory
-    from longtime.metrics import evaluate
-    from longtime.reference import Trust
+    from longtime.core.integrator import Trajectory
+    from longtime.measure.metrics import evaluate
+    from longtime.measure.reference import Trust
 
     p = registry.problem_class("harmonic")()
     t = np.linspace(0.0, 4.0, 5)
@@ -84,7 +84,7 @@ def test_errors_cover_only_the_samples_up_to_the_reference_horizon():
 
 
 def test_drift_envelope_keeps_the_peaks_at_log_spaced_times():
-    from longtime.metrics import DRIFT_POINTS, drift_envelope
+    from longtime.measure.metrics import DRIFT_POINTS, drift_envelope
 
     t = np.linspace(0.0, 1000.0, 200_001)
     err = 1e-6 * np.abs(np.sin(t)) * (1 + t)  # oscillating, growing linearly

@@ -1,7 +1,7 @@
 """Observed order: a least-squares slope over the automatically chosen asymptotic range."""
 import pytest
 
-from longtime.orders import asymptotic_points, fit_slope, observed_orders
+from longtime.measure.orders import asymptotic_points, fit_slope, observed_orders
 
 
 def rows(scheme, dts, errors, **extra):

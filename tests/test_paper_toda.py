@@ -4,9 +4,9 @@ import json
 import numpy as np
 import pytest
 
-from longtime import registry
-from longtime.cli import main
-from longtime.metrics import relative_error
+from longtime.core import registry
+from longtime.commands.cli import main
+from longtime.measure.metrics import relative_error
 
 PAPER_H_MEAN = {"rk4": 3.7902e-1, "rk4sym": 2.261e-3}
 

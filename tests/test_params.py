@@ -1,7 +1,7 @@
-"""Declared parameters: roles, and how a value is parsed and checked (longtime.params)."""
+"""Declared parameters: roles, and how a value is parsed and checked (longtime.core.params)."""
 import pytest
 
-from longtime.params import INT64_MAX, INT64_MIN, InputError, Param
+from longtime.core.params import INT64_MAX, INT64_MIN, InputError, Param
 
 
 def test_role_decides_whether_it_sweeps():

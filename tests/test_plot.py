@@ -3,10 +3,10 @@ from __future__ import annotations
 
 import pytest
 
-from longtime import registry
-from longtime.cli import main
-from longtime.params import InputError
-from longtime.figures.work_precision import work_precision
+from longtime.core import registry
+from longtime.commands.cli import main
+from longtime.core.params import InputError
+from longtime.reporting.figures.work_precision import work_precision
 from longtime.plot import PLOT_KINDS, draw, kind_function
 
 

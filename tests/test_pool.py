@@ -1,7 +1,7 @@
-"""Worker processes (longtime.pool): the --jobs rule and the spawned pool."""
+"""Worker processes (longtime.execution.pool): the --jobs rule and the spawned pool."""
 import os
 
-from longtime.pool import spawn_pool, workers
+from longtime.execution.pool import spawn_pool, workers
 
 
 def test_jobs_rule():

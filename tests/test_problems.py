@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from longtime import registry
-from longtime.params import InputError
-from longtime.reference import reference_states
+from longtime.core import registry
+from longtime.core.params import InputError
+from longtime.measure.reference import reference_states
 
 
 def problem(name, **settings):
@@ -107,7 +107,7 @@ def test_reference_on_a_grid_that_starts_after_t0():
 
 
 def test_reference_past_its_time_budget_is_unavailable_not_a_hang():
-    from longtime.reference import ReferenceUnavailable
+    from longtime.measure.reference import ReferenceUnavailable
 
     p = problem("duffing-1")
     with pytest.raises(ReferenceUnavailable, match="time budget"):
@@ -115,9 +115,9 @@ def test_reference_past_its_time_budget_is_unavailable_not_a_hang():
 
 
 def test_a_cell_without_reference_keeps_its_status_and_says_why(monkeypatch, tmp_path):
-    from longtime import cells
+    from longtime.execution import cells
 
-    monkeypatch.setattr("longtime.reference.DEFAULT_BUDGET_S", 0.0)
+    monkeypatch.setattr("longtime.measure.reference.DEFAULT_BUDGET_S", 0.0)
     monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))  # nothing cached: heyoka must run
     row = cells.run_cell(cells.Cell("toda", "rk4", {}, {"dt": 0.1}, 50.0))
     assert row["status"] == "ok" and row["l2_error"] is None and row["H.max"] is not None

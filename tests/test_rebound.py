@@ -8,9 +8,9 @@ import sys
 import numpy as np
 import pytest
 
-from longtime import registry
-from longtime.cells import Cell, expand, run_cell
-from longtime.integrator import Timing
+from longtime.core import registry
+from longtime.execution.cells import expand, run_cell
+from longtime.core.integrator import Timing
 from longtime.problems.nbody import NBody
 
 from longtime.integrators.rebound_nbody import _rebound
@@ -54,7 +54,7 @@ def test_whfast_energy_error_at_ten_days(oss):
 
 @needs_rebound
 def test_ias15_keeps_energy_to_round_off_without_drift(oss):
-    from longtime.growth import fit_power_law
+    from longtime.measure.growth import fit_power_law
 
     error, traj = energy_error("rebound-ias15", oss, DAYS)
     assert error.max() < 1e-14  # measured 2.9e-15 over 852 steps

@@ -1,5 +1,5 @@
 """The reference check: error estimates, horizons, the exact solutions' own accuracy, caching
-and the time budget (longtime.reference)."""
+and the time budget (longtime.measure.reference)."""
 import itertools
 import json
 import time
@@ -7,8 +7,9 @@ import time
 import numpy as np
 import pytest
 
-from longtime import reference, registry
-from longtime.cells import Cell, run_cell
+from longtime.measure import reference
+from longtime.core import registry
+from longtime.execution.cells import Cell, run_cell
 from longtime.problems.kepler import Kepler
 
 
@@ -131,7 +132,8 @@ def test_exact_states_are_evaluated_once_per_grid_and_setting(monkeypatch):
     problem share their sample times. Another grid or another setting is evaluated anew."""
     import numpy as np
 
-    from longtime import reference, registry
+    from longtime.measure import reference
+    from longtime.core import registry
 
     calls = []
     kepler_cls = registry.problems()["kepler"]

@@ -1,4 +1,4 @@
-"""Discovery of problems and schemes (longtime.registry), on entry points made in the test:
+"""Discovery of problems and schemes (longtime.core.registry), on entry points made in the test:
 what loads, what is broken and why, and how name clashes resolve."""
 from dataclasses import dataclass
 from importlib.metadata import EntryPoint
@@ -6,7 +6,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from longtime import InputError, registry
+from longtime import InputError
+from longtime.core import registry
 from longtime.problems.harmonic import Harmonic
 from longtime.integrators.splitting import Verlet
 
@@ -75,7 +76,7 @@ def test_a_class_of_the_wrong_kind_or_name_is_broken(fake_points):
     registry.reload()
     assert registry.problems() == {}
     errors = {b.name: b.error for b in registry.broken()}
-    assert "is not a subclass of longtime.problem.Problem" in errors["not-a-problem"]
+    assert "is not a subclass of longtime.core.problem.Problem" in errors["not-a-problem"]
     assert "is named 'harmonic-again' but registered as 'other-name'" in errors["other-name"]
 
 

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from longtime import cli
-from longtime.report import pareto, summary
-from longtime.store import Store
+from longtime.commands import cli
+from longtime.reporting.report import pareto, summary
+from longtime.execution.store import Store
 
 ARTEFACTS = Path(os.environ.get("LONGTIME_TEST_ARTEFACTS", Path(__file__).resolve().parents[1] / "test-artefacts"))
 BROWSERS = ("chromium", "chromium-browser", "google-chrome", "chrome")
@@ -105,8 +105,9 @@ def test_whole_store_as_parquet_and_csv(page, tmp_path):
 
 
 def test_drift_figure_comes_from_the_rows_without_running_anything(page, monkeypatch):
-    from longtime import cells
-    from longtime.html_report import drift_svg, styles
+    from longtime.execution import cells
+    from longtime.reporting.figures.results import drift_svg
+    from longtime.reporting.figures.style import styles
 
     _, rows = page
     assert all(r["drift_curve"]["invariant"] == "H" and len(r["drift_curve"]["t"]) <= 80
@@ -123,13 +124,14 @@ def test_drift_figure_comes_from_the_rows_without_running_anything(page, monkeyp
 
 def test_main_job_page_takes_the_figures_its_workers_drew(tmp_path, monkeypatch):
     """`longtime matrix` on the process pool: each problem's figures are drawn by a worker
-    with no cell left (html_report.FiguresAhead), and the page uses them as drawn; the
+    with no cell left (figures_ahead.FiguresAhead), and the page uses them as drawn; the
     stability intervals too, measured there into an empty cache."""
-    from longtime import html_report, stability
+    from longtime.reporting import figures_ahead
+    from longtime.measure import stability
 
     monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path / "cache"))  # the pool's workers inherit it
     taken = []
-    original = html_report.FiguresAhead.figures
+    original = figures_ahead.FiguresAhead.figures
 
     def spy(self, problem, *args):
         figures = original(self, problem, *args)
@@ -139,7 +141,7 @@ def test_main_job_page_takes_the_figures_its_workers_drew(tmp_path, monkeypatch)
     def not_here(*args, **kwargs):
         raise AssertionError("an interval measured after the matrix")
 
-    monkeypatch.setattr(html_report.FiguresAhead, "figures", spy)
+    monkeypatch.setattr(figures_ahead.FiguresAhead, "figures", spy)
     monkeypatch.setattr(stability, "imaginary_interval", not_here)
     assert cli.main(["matrix", "-p", "harmonic,kepler", "-i", "rk4,verlet", "--dt", "0.04,0.02", "--t-final", "20",
                      "--repeats", "3", "--min-time", "0", "--db", str(tmp_path / "r.sqlite"), "--jobs", "2",
@@ -151,8 +153,8 @@ def test_main_job_page_takes_the_figures_its_workers_drew(tmp_path, monkeypatch)
 
 
 def test_figures_drawn_ahead_serve_only_the_rows_they_were_drawn_from():
-    from longtime.cells import Cell
-    from longtime.html_report import FiguresAhead
+    from longtime.execution.cells import Cell
+    from longtime.reporting.figures_ahead import FiguresAhead
 
     cells = [Cell("harmonic", s, {}, {}, 10.0) for s in ("rk4", "verlet")]
     ahead = FiguresAhead(cells, run_id=7)
@@ -174,7 +176,7 @@ def test_figures_drawn_ahead_serve_only_the_rows_they_were_drawn_from():
 
 
 def test_a_tol_sweep_whose_order_follows_tol_is_one_curve_and_set_orders_split():
-    from longtime.html_report import sweeps
+    from longtime.reporting.figures.results import sweeps
 
     def row(scheme, tol=None, order=None, eps=None):
         return {"integrator": scheme, "t_final": 10.0, "settings": "", "tol": tol, "order": order, "eps_res": eps}

@@ -6,9 +6,9 @@ import re
 
 import pytest
 
-from longtime import registry
-from longtime import reproduce as rep
-from longtime.cli import main
+from longtime.core import registry
+from longtime.commands import reproduce as rep
+from longtime.commands.cli import main
 
 
 def _row(report: str, first_cells: str) -> list[str]:

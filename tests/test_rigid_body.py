@@ -3,7 +3,8 @@ under midpoint, the Gauss schemes and rk4 (docs/problems.md)."""
 import numpy as np
 import pytest
 
-from longtime import metrics, registry
+from longtime.measure import metrics
+from longtime.core import registry
 
 
 def rigid_body(**settings):
@@ -68,7 +69,7 @@ def test_rk4_energy_drifts_linearly():
 
 @pytest.mark.parametrize("settings, word", [({"I1": 0.0}, "I1"), ({"I3": -1.0}, "I3"), ({"angle": "x"}, "angle")])
 def test_bad_settings(settings, word):
-    from longtime.params import InputError
+    from longtime.core.params import InputError
 
     with pytest.raises(InputError, match=word):
         rigid_body(**settings)

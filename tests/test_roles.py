@@ -1,6 +1,6 @@
-"""Roles derived from declarations (longtime.roles), for the built-ins as for a plugin."""
-from longtime import registry, roles
-from longtime.params import ROLES
+"""Roles derived from declarations (longtime.core.roles), for the built-ins as for a plugin."""
+from longtime.core import registry, roles
+from longtime.core.params import ROLES
 
 
 def test_builtins_declare_the_contract_roles():

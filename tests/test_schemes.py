@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from longtime import registry
+from longtime.core import registry
 from longtime.integrators.implicit_rk import RK4Sym
 
 T_FINAL = 2.0  # not a period of the orbit: at a full period some errors cancel (superconvergence)

@@ -1,11 +1,11 @@
-"""The parameter searches (longtime.search) and `longtime match` on a plugin scheme whose
+"""The parameter searches (longtime.execution.search) and `longtime match` on a plugin scheme whose
 accuracy parameter is called ``rtol``: found from its declared role, swept and matched."""
 import json
 import math
 
 from _rtol_scheme import NAME as RTOL, register
-from longtime.cli import main
-from longtime.search import CLOSE_ENOUGH, accuracy_parameter
+from longtime.commands.cli import main
+from longtime.execution.search import CLOSE_ENOUGH, accuracy_parameter
 
 
 def test_accuracy_parameter_from_roles(monkeypatch):

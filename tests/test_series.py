@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from longtime import registry
-from longtime.problem import Problem
+from longtime.core import registry
+from longtime.core.problem import Problem
 from longtime.numerics import series
 
 ORDER = 20  # heyoka's order at machine-epsilon tolerance
@@ -171,7 +171,7 @@ def test_taylor_fixed_step_converges_with_order_N(order):
 
 
 def test_taylor_on_non_autonomous_problem_against_reference():
-    from longtime.reference import reference_states
+    from longtime.measure.reference import reference_states
 
     problem = registry.problem_class("duffing-forced")(c=0.37)
     errors = []
@@ -211,8 +211,8 @@ def test_equilibrium_does_not_break_the_taylor_schemes():
 
 
 def test_taylor_order_is_reported_and_validated():
-    from longtime.cells import Cell, run_cell
-    from longtime.params import InputError
+    from longtime.execution.cells import Cell, run_cell
+    from longtime.core.params import InputError
 
     row = run_cell(Cell("harmonic", "taylor", {}, {"dt": 0.1}, 10.0))
     assert row["status"] == "ok" and row["order"] == 10
@@ -237,7 +237,7 @@ def test_one_compiled_kernel_serves_every_series_order(name, settings):
     tolerance sweep (N follows tol) or an N sweep compiles one kernel per problem, and each
     run still uses its own N (different final states; at a fixed step, more terms give a
     smaller error)."""
-    from longtime.jitcache import fingerprint
+    from longtime.core.jitcache import fingerprint
 
     problem = registry.problem_class("toda")()
     kernels, finals, errors = set(), [], []
@@ -257,7 +257,7 @@ def test_one_compiled_kernel_serves_every_series_order(name, settings):
 
 
 def test_taylor_is_skipped_without_a_recurrence():
-    from longtime.problem import Problem
+    from longtime.core.problem import Problem
 
     class NoSeries(Problem):
         name = "no-series"
@@ -290,7 +290,7 @@ def test_heyoka_scheme_reproduces_kepler_and_harmonic():
 
 
 def test_heyoka_scheme_tolerance_and_divergence():
-    from longtime.cells import Cell, run_cell
+    from longtime.execution.cells import Cell, run_cell
     from longtime.problems.duffing import Duffing1
 
     loose = run_cell(Cell("kepler", "heyoka", {}, {"tol": 1e-6}, 10.0))

@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from longtime import cli, stability
+from longtime.commands import cli
+from longtime.measure import stability
 
 
 def test_rk4_amplification_factor_is_its_taylor_polynomial():
@@ -54,7 +55,7 @@ def test_plot_kind_stability(tmp_path):
 
 
 def test_the_test_equation_is_a_diagnostic_not_part_of_the_default_matrix():
-    from longtime import registry
+    from longtime.core import registry
 
     assert "linear-test" in registry.problems()
     assert "linear-test" not in registry.default_problems()
@@ -62,7 +63,7 @@ def test_the_test_equation_is_a_diagnostic_not_part_of_the_default_matrix():
 
 
 def test_cached_texts_leave_only_what_a_page_would_have_to_measure(tmp_path, monkeypatch):
-    from longtime.stability import cached_texts, interval_texts
+    from longtime.measure.stability import cached_texts, interval_texts
 
     monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))
     wanted = {"rk4": None, "taylor-adaptive": [8, 12]}  # taylor-adaptive: never measurable, nothing to do
@@ -78,8 +79,8 @@ def test_one_step_runs_the_loop_a_run_compiled(name):
     """The interval is measured through the very loop the scheme's runs use, called with a
     run's argument types: after a run on the harmonic oscillator one_step takes the same
     compiled loop and adds no signature to it (a cold main job loads, not compiles, it)."""
-    from longtime import registry
-    from longtime.integrator import _PAIRS
+    from longtime.core import registry
+    from longtime.core.integrator import _PAIRS
     from longtime.problems.harmonic import Harmonic
 
     problem = Harmonic()

@@ -9,9 +9,9 @@ import time
 
 import pytest
 
-from longtime import matrix
-from longtime.cli import main
-from longtime.store import Store
+from longtime.execution import matrix
+from longtime.commands.cli import main
+from longtime.execution.store import Store
 
 
 def rows_by_key(path):
@@ -52,7 +52,7 @@ def test_ctrl_c_keeps_finished_cells_and_resume_completes(tmp_path, monkeypatch,
 def test_killed_matrix_keeps_finished_cells(tmp_path):
     db = tmp_path / "killed.sqlite"
     env = {**os.environ, "LONGTIME_DB": str(db)}
-    cmd = [sys.executable, "-m", "longtime.cli", "matrix", "-p", "toda", "-i", "rk4sym,gauss6,rk4",
+    cmd = [sys.executable, "-m", "longtime.commands.cli", "matrix", "-p", "toda", "-i", "rk4sym,gauss6,rk4",
            "--dt", "0.1,0.05,0.025,0.0125", "--t-final", "3000", "--executor", "serial", "--no-progress"]
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 240
@@ -95,8 +95,8 @@ def test_each_row_is_committed_when_added_and_survives_a_killed_process(tmp_path
     db = tmp_path / "k.sqlite"
     script = f"""
 import os, sys
-from longtime.cells import Cell
-from longtime.store import Store
+from longtime.execution.cells import Cell
+from longtime.execution.store import Store
 store = Store({str(db)!r})
 run = store.begin_run("matrix", [Cell("harmonic", "rk4"), Cell("harmonic", "verlet")])
 store.add_row(run, Cell("harmonic", "rk4"), {{"problem": "harmonic", "integrator": "rk4", "status": "ok"}})

@@ -82,13 +82,13 @@ def test_broken_tableau_plugin_is_reported_by_list(tmp_path):
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: bad-tableau\nVersion: 1.0\n")
     (info / "entry_points.txt").write_text("[longtime.integrators]\nthree-weights = bad_tableau:ThreeWeights\n")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")])}
-    out = subprocess.run([sys.executable, "-m", "longtime.cli", "list", "--format", "json"],
+    out = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "list", "--format", "json"],
                          capture_output=True, text=True, env=env, check=True).stdout
     broken = {b["name"]: b for b in json.loads(out)["broken"]}
     assert "three-weights" in broken
     assert "inconsistent shapes" in broken["three-weights"]["error"]
     assert "three-weights" not in [i["name"] for i in json.loads(out)["integrators"]]
-    run = subprocess.run([sys.executable, "-m", "longtime.cli", "run", "-p", "harmonic", "-i", "three-weights",
+    run = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "run", "-p", "harmonic", "-i", "three-weights",
                           "--no-store"], capture_output=True, text=True, env=env)
     assert run.returncode == 2
     assert "broken plugin" in run.stderr and "inconsistent shapes" in run.stderr, textwrap.shorten(run.stderr, 300)

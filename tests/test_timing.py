@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from longtime.cells import Cell, run_cell
-from longtime.integrator import Integrator, Timing, Trajectory, same_run
-from longtime.params import InputError
+from longtime.execution.cells import Cell, run_cell
+from longtime.core.integrator import Integrator, Timing, Trajectory, same_run
+from longtime.core.params import InputError
 from longtime.problems.harmonic import Harmonic
 
 

@@ -4,8 +4,9 @@ fails (docs/schemes.md)."""
 import numpy as np
 import pytest
 
-from longtime import metrics, registry
-from longtime.reference import reference_states
+from longtime.measure import metrics
+from longtime.core import registry
+from longtime.measure.reference import reference_states
 
 
 def fpu(**settings):

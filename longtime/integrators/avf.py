@@ -23,10 +23,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..drivers import FAILED, NL_ITERS, OK, RHS_EVALS, reached_round_off, state_scale
-from ..integrator import FixedStepIntegrator
-from ..params import Param
-from .implicit_rk import ImplicitRungeKutta, settled
+from longtime.core.drivers import FAILED, NL_ITERS, OK, RHS_EVALS, reached_round_off, state_scale
+from longtime.core.integrator import FixedStepIntegrator
+from longtime.core.params import Param
+from longtime.integrators.implicit_rk import ImplicitRungeKutta, settled
 
 
 def gauss_legendre(nodes: int) -> tuple[np.ndarray, np.ndarray]:

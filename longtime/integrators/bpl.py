@@ -53,11 +53,11 @@ import math
 import numba
 import numpy as np
 
-from ..drivers import EXTRA1, EXTRA2, FALLBACKS, RHS_EVALS
-from ..integrator import AdaptiveIntegrator
-from ..params import InputError, Param
-from ..numerics.pade import DEFAULT_TOL, polynomial_and_derivative, robust_pade, scratch_size
-from ..numerics.series import header_view
+from longtime.core.drivers import EXTRA1, EXTRA2, FALLBACKS, RHS_EVALS
+from longtime.core.integrator import AdaptiveIntegrator
+from longtime.core.params import InputError, Param
+from longtime.numerics.pade import DEFAULT_TOL, polynomial_and_derivative, robust_pade, scratch_size
+from longtime.numerics.series import header_view
 
 # header of the flat work array: sizes and offsets, read by the compiled step
 (_N, _M, _NDEN, _K, _DIM, _TOL, _EPS_RES, _TW0, _TW1, _TW2, _TW3, _O_COEF, _O_TW, _O_INVFACT,

@@ -10,7 +10,7 @@ setting), and maps the sum back: U(s) = exp(L s) V(s).
 
 Why: on KdV, pure bpl's step is capped near 3 / max|omega| whatever eps_res, because its
 amplification on the imaginary axis exceeds 1 past omega h of about 2.9 (N = 10) and the
-top modes (omega = 428 at d = 128) are pumped up (``longtime.stability.amplification``
+top modes (omega = 428 at d = 128) are pumped up (``longtime.measure.stability.amplification``
 measures it through the compiled step). Here the stiff rotation exp(L s) is exact and the
 series sees only the slow nonlinear dynamics.
 
@@ -34,8 +34,8 @@ import math
 
 import numba
 
-from ..contract import pairs_incompatibility
-from .bpl import _O_LIN, BorelPadeLaplace
+from longtime.core.contract import pairs_incompatibility
+from longtime.integrators.bpl import _O_LIN, BorelPadeLaplace
 
 
 @numba.njit(cache=True)

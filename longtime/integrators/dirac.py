@@ -28,11 +28,18 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..drivers import FAILED, JAC_EVALS, NL_ITERS, OK, RHS_EVALS, reached_round_off, state_scale
-from ..integrator import FixedStepIntegrator
-from ..params import InputError, Param
-from ..problem import Problem
-
+from longtime.core.drivers import (
+    FAILED,
+    JAC_EVALS,
+    NL_ITERS,
+    OK,
+    RHS_EVALS,
+    reached_round_off,
+    state_scale,
+)
+from longtime.core.integrator import FixedStepIntegrator
+from longtime.core.params import InputError, Param
+from longtime.core.problem import Problem
 
 
 @numba.njit(cache=True)

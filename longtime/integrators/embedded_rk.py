@@ -20,10 +20,10 @@ import math
 import numba
 import numpy as np
 
-from ..drivers import RHS_EVALS
-from ..integrator import AdaptiveIntegrator
-from ..params import Param
-from .tableau import checked_on_definition
+from longtime.core.drivers import RHS_EVALS
+from longtime.core.integrator import AdaptiveIntegrator
+from longtime.core.params import Param
+from longtime.integrators.tableau import checked_on_definition
 
 SAFETY, FAC_MIN, FAC_MAX, PI_BETA = 0.9, 0.2, 10.0, 0.04
 # meta row of the work array

@@ -28,11 +28,10 @@ from __future__ import annotations
 import cmath
 
 import numba
-import numpy as np
 
-from ..drivers import OK, RHS_EVALS
-from ..contract import pairs_incompatibility
-from ..integrator import FixedStepIntegrator
+from longtime.core.contract import pairs_incompatibility
+from longtime.core.drivers import OK, RHS_EVALS
+from longtime.core.integrator import FixedStepIntegrator
 
 CONTOUR_POINTS = 64
 # rows of the work array (each of length dim, complex quantities as (Re, Im) pairs)

@@ -4,9 +4,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..drivers import OK, RHS_EVALS
-from ..integrator import COMPENSATED, FixedStepIntegrator
-from .tableau import add_weighted_slopes, checked_on_definition
+from longtime.core.drivers import OK, RHS_EVALS
+from longtime.core.integrator import COMPENSATED, FixedStepIntegrator
+from longtime.integrators.tableau import add_weighted_slopes, checked_on_definition
 
 
 class ExplicitRungeKutta(FixedStepIntegrator):

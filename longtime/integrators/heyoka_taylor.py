@@ -3,7 +3,7 @@
 heyoka picks its order from the tolerance (p = ceil(-ln(tol)/2 + 1): 20 at machine epsilon)
 and its step from the last two coefficients (Jorba-Zou). Its LLVM compilation happens once
 per (problem identity, tol, high_accuracy), outside the timing (large systems in compact
-mode: longtime.heyoka_build); the timing covers ``propagate_grid`` alone, whose dense output
+mode: longtime.core.heyoka_build); the timing covers ``propagate_grid`` alone, whose dense output
 gives the samples without clipping heyoka's own steps.
 
 The cell's time limit: the compiled drivers check it between chunks, but heyoka's grid must
@@ -20,10 +20,10 @@ import time
 
 import numpy as np
 
-from .. import heyoka_build
-from ..integrator import Integrator, Trajectory
-from ..params import Param
-from ..problem import BLOWUP_MESSAGE
+from longtime.core import heyoka_build
+from longtime.core.integrator import Integrator, Trajectory
+from longtime.core.params import Param
+from longtime.core.problem import BLOWUP_MESSAGE
 
 # compiled taylor_adaptive objects, by (problem identity, tol, high_accuracy)
 _COMPILED: dict[tuple, object] = {}

@@ -16,11 +16,18 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..drivers import (FAILED, NL_ITERS, OK, RHS_EVALS, copy_into, reached_round_off,
-                       state_scale)
-from ..integrator import COMPENSATED, FixedStepIntegrator
-from ..params import Param
-from .tableau import add_weighted_slopes, checked_on_definition
+from longtime.core.drivers import (
+    FAILED,
+    NL_ITERS,
+    OK,
+    RHS_EVALS,
+    copy_into,
+    reached_round_off,
+    state_scale,
+)
+from longtime.core.integrator import COMPENSATED, FixedStepIntegrator
+from longtime.core.params import Param
+from longtime.integrators.tableau import add_weighted_slopes, checked_on_definition
 
 
 @numba.njit(cache=True, inline="always")

@@ -19,10 +19,23 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..drivers import EPS, FAILED, JAC_EVALS, NL_ITERS, OK, RHS_EVALS, reached_round_off, state_scale
-from ..params import Param
-from .dirac import ConstrainedIntegrator, constraint_gram, project_velocity, solve_small
-
+from longtime.core.drivers import (
+    EPS,
+    FAILED,
+    JAC_EVALS,
+    NL_ITERS,
+    OK,
+    RHS_EVALS,
+    reached_round_off,
+    state_scale,
+)
+from longtime.core.params import Param
+from longtime.integrators.dirac import (
+    ConstrainedIntegrator,
+    constraint_gram,
+    project_velocity,
+    solve_small,
+)
 
 
 class Rattle(ConstrainedIntegrator):

@@ -33,9 +33,9 @@ import warnings
 
 import numpy as np
 
-from ..integrator import Integrator, Trajectory, _sample_steps
-from ..params import Param
-from ..problem import BLOWUP_MESSAGE
+from longtime.core.integrator import Integrator, Trajectory, _sample_steps
+from longtime.core.params import Param
+from longtime.core.problem import BLOWUP_MESSAGE
 
 EXTRA = "rebound"  # pip install "longtime[rebound]"
 SAMPLES = 10_001  # the fixed-step schemes' sample budget, heyoka's (docs/metrics.md)
@@ -63,7 +63,7 @@ class Rebound(Integrator):
     long_runs = frozenset({"outer-solar-system"})
 
     def incompatibility(self, problem):
-        from ..problems.nbody import NBody
+        from longtime.problems.nbody import NBody
 
         reason = super().incompatibility(problem)
         if reason:

@@ -11,9 +11,9 @@ import time
 
 import numpy as np
 
-from ..integrator import Integrator, Trajectory, cached_kernel
-from ..params import Param
-from ..problem import BLOWUP_MESSAGE
+from longtime.core.integrator import Integrator, Trajectory, cached_kernel
+from longtime.core.params import Param
+from longtime.core.problem import BLOWUP_MESSAGE
 
 DEADLINE_EVERY = 256  # steps between two looks at the cell's deadline
 

@@ -10,9 +10,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..drivers import OK, RHS_EVALS, compensated_add
-from ..contract import check_splitting
-from ..integrator import COMPENSATED, FixedStepIntegrator
+from longtime.core.contract import check_splitting
+from longtime.core.drivers import OK, RHS_EVALS, compensated_add
+from longtime.core.integrator import COMPENSATED, FixedStepIntegrator
 
 
 def compose(gammas) -> tuple[np.ndarray, np.ndarray]:

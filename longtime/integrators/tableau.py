@@ -10,8 +10,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..contract import ContractError
-from ..drivers import compensated_add
+from longtime.core.contract import ContractError
+from longtime.core.drivers import compensated_add
 
 TOL = 1e-12  # coefficient sums are exact up to a few roundings of O(1) numbers
 

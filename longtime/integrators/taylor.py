@@ -26,10 +26,10 @@ import math
 import numba
 import numpy as np
 
-from ..drivers import EXTRA1, OK
-from ..integrator import AdaptiveIntegrator, FixedStepIntegrator
-from ..params import Param
-from ..numerics.series import header_view, horner
+from longtime.core.drivers import EXTRA1, OK
+from longtime.core.integrator import AdaptiveIntegrator, FixedStepIntegrator
+from longtime.core.params import Param
+from longtime.numerics.series import header_view, horner
 
 # header of the flat work array, written by prepare_work and read by the compiled step
 _ORDER, _TOL, _SAFETY, _O_SCRATCH, _SHAPE0 = range(5)  # the scratch shape: slots _SHAPE0.. (1 to 4)

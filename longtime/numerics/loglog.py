@@ -1,5 +1,5 @@
 """Least-squares slope of log y against log x, with its 95 % interval: the one fit behind
-the observed convergence orders (longtime.orders) and the growth laws (longtime.growth)."""
+the observed convergence orders (longtime.measure.orders) and the growth laws (longtime.measure.growth)."""
 from __future__ import annotations
 
 import math

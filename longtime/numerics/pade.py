@@ -298,7 +298,7 @@ def pade(coefficients, m: int, n: int, tol: float = DEFAULT_TOL):
 
     ``coefficients`` are c_0, c_1, ... (zero-padded to m+n+1 terms if shorter).
     """
-    from ..params import InputError
+    from longtime.core.params import InputError
 
     if int(m) != m or m < 0 or int(n) != n or n < 0:
         raise InputError(f"Pade degrees m={m!r}, n={n!r} are not valid: expected integers >= 0")

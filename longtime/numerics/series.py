@@ -16,7 +16,7 @@ import math
 
 import numba
 
-from ..params import InputError
+from longtime.core.params import InputError
 
 
 @numba.njit(cache=True, inline="always")

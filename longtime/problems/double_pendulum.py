@@ -49,8 +49,8 @@ import math
 import numba
 import numpy as np
 
-from ..params import InputError, Param
-from ..problem import Problem
+from longtime.core.params import InputError, Param
+from longtime.core.problem import Problem
 
 # kernel params: (m1, m2, l1, l2, g)
 

@@ -18,9 +18,9 @@ import math
 import numba
 import numpy as np
 
-from ..params import Param
-from ..problem import Problem
-from ..numerics.series import cos_wt_coeff, product, square
+from longtime.core.params import Param
+from longtime.core.problem import Problem
+from longtime.numerics.series import cos_wt_coeff, product, square
 
 _A, _B, _R, _C, _W = range(5)
 

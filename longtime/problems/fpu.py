@@ -23,8 +23,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..params import Param
-from ..problem import Problem, separable_rhs
+from longtime.core.params import Param
+from longtime.core.problem import Problem, separable_rhs
 
 
 @numba.njit(cache=True, inline="always")

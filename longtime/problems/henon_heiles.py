@@ -10,8 +10,8 @@ import math
 import numba
 import numpy as np
 
-from ..params import InputError, Param
-from ..problem import Problem, separable_rhs
+from longtime.core.params import InputError, Param
+from longtime.core.problem import Problem, separable_rhs
 
 
 @numba.njit(cache=True)

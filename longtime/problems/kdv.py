@@ -55,8 +55,8 @@ import numpy as np
 import scipy.fft
 from rocket_fft.lowlevel import c2r, r2c
 
-from ..params import InputError, Param
-from ..problem import Problem
+from longtime.core.params import InputError, Param
+from longtime.core.problem import Problem
 
 # constants (docs/problems.md 5): depth delta, gravity g, soliton amplitude h, period X
 DEPTH, GRAVITY, AMPLITUDE, PERIOD_X = 2.0, 10.0, 0.5, 24.0 * math.pi

@@ -11,9 +11,9 @@ import math
 import numba
 import numpy as np
 
-from ..params import Param
-from ..problem import Problem, separable_rhs
-from ..numerics.series import power_coeff, product, square
+from longtime.core.params import Param
+from longtime.core.problem import Problem, separable_rhs
+from longtime.numerics.series import power_coeff, product, square
 
 
 @numba.njit(cache=True)

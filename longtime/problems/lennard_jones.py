@@ -16,7 +16,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..problem import Problem, separable_rhs
+from longtime.core.problem import Problem, separable_rhs
 
 K_B = 1.380658e-23  # J / K, the value HLW use
 ARGON_MASS = 66.34e-27  # kg

@@ -1,13 +1,13 @@
 """Dahlquist's test equation u' = lambda u (complex lambda = re + i im) as the real 2x2
 system x' = re x - im y, y' = im x + re y for u = x + i y: the problem on which
-longtime.stability measures each scheme's amplification factor R(z)."""
+longtime.measure.stability measures each scheme's amplification factor R(z)."""
 from __future__ import annotations
 
 import numba
 import numpy as np
 
-from ..params import Param
-from ..problem import Problem
+from longtime.core.params import Param
+from longtime.core.problem import Problem
 
 
 @numba.njit(cache=True)

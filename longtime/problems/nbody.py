@@ -12,9 +12,9 @@ import math
 import numba
 import numpy as np
 
-from ..params import Param
-from ..problem import Problem
-from ..numerics.series import power_coeff, product, square
+from longtime.core.params import Param
+from longtime.core.problem import Problem
+from longtime.numerics.series import power_coeff, product, square
 
 
 def _kernels(s: int):
@@ -216,12 +216,22 @@ class FigureEightPerturbed(FigureEight):
     long_t_final = 2200 * FIGURE_EIGHT_PERIOD  # the paper's, for the schemes that can afford it
 
     def initial_state(self):
-        from ..reference import reference_states
-
         u = figure_eight_state()
-        shifted = reference_states(FigureEight(), np.array([0.0, self.period / self.settings["shift"]]))[-1]
+        shifted = _figure_eight_at(self.period / self.settings["shift"])
         u[4:6], u[10:12] = shifted[4:6], shifted[10:12]
         return u
+
+
+def _figure_eight_at(t: float) -> np.ndarray:
+    """The figure-eight's state at time t, by heyoka as the reference integrates it (double,
+    high accuracy, the reference's code mode): the same numbers as its reference states."""
+    from longtime.core import heyoka_build
+
+    base = FigureEight()
+    ta = heyoka_build.taylor_adaptive(base, base.u0.astype(np.float64), None, high_accuracy=True,
+                                      fp_type=np.float64, time=np.float64(base.t0),
+                                      compact_mode=heyoka_build.compact_mode(base, np.float64, reference=True))
+    return np.asarray(ta.propagate_grid(np.array([base.t0, t], dtype=np.float64))[-1], dtype=float)[-1]
 
 
 # Hairer, Lubich, Wanner, Geometric Numerical Integration, section I.2.4: the Sun (with the

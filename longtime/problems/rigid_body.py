@@ -26,8 +26,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..params import Param
-from ..problem import Problem
+from longtime.core.params import Param
+from longtime.core.problem import Problem
 
 
 @numba.njit(cache=True)

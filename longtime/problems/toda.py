@@ -11,9 +11,9 @@ import math
 import numba
 import numpy as np
 
-from ..params import Param
-from ..problem import Problem
-from ..numerics.series import exp_coeff
+from longtime.core.params import Param
+from longtime.core.problem import Problem
+from longtime.numerics.series import exp_coeff
 
 
 @numba.njit(cache=True, inline="always")

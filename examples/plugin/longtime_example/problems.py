@@ -6,7 +6,7 @@ import numba
 import numpy as np
 
 from longtime import Param, Problem
-from longtime.problem import separable_rhs
+from longtime.core.problem import separable_rhs
 
 
 # compiled functions: (input, params, out), write into out, allocate nothing

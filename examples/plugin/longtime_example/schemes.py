@@ -4,7 +4,7 @@ import numba
 import numpy as np
 
 from longtime import FixedStepIntegrator
-from longtime.drivers import OK, RHS_EVALS
+from longtime.core.drivers import OK, RHS_EVALS
 from longtime.integrators import ExplicitRungeKutta, Splitting, compose
 
 

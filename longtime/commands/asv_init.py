@@ -1,0 +1,143 @@
+"""``longtime asv-init DIR``: asv benchmarks for a plugin's repository.
+
+Writes DIR/asv.conf.json and DIR/benchmarks/ (``__init__.py`` and ``bench_longtime.py``,
+which builds its benchmarks with ``longtime.asvbench``) for the selected problems and
+schemes; by default the problems and schemes DIR/pyproject.toml declares as entry points.
+An existing file is left as it is unless ``--force``.
+"""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from longtime.core import cli_args
+from longtime.core.params import InputError
+
+CONF_TEMPLATE = {
+    "version": 1,
+    "project": "",
+    "repo": ".",
+    "branches": ["HEAD"],
+    "dvcs": "git",
+    "environment_type": "existing",
+    "pythons": [f"{sys.version_info.major}.{sys.version_info.minor}"],
+    "matrix": {"req": {"longtime": [""]}},
+    "build_command": ["python -m pip wheel --no-deps -w {build_cache_dir} {build_dir}"],
+    "install_command": ["in-dir={env_dir} python -m pip install {wheel_file}"],
+    "uninstall_command": ["return-code=any python -m pip uninstall -y {project}"],
+    "benchmark_dir": "benchmarks",
+    "env_dir": ".asv/env",
+    "results_dir": ".asv/results",
+    "html_dir": ".asv/html",
+    "default_benchmark_timeout": 600,
+}
+
+CONF_HEAD = """\
+// asv configuration written by `longtime asv-init`.
+// On the environment that has this package and longtime installed:
+//     asv machine --yes
+//     asv run --quick --python=same --set-commit-hash HEAD
+//     asv publish && asv preview
+// History, each commit built in a fresh virtualenv: asv run -E virtualenv --steps 10 ALL
+"""
+
+BENCH_TEMPLATE = '''\
+"""asv benchmarks of {what}, written by `longtime asv-init`.
+
+Integration.time_integrate times the integration alone; Accuracy.track_l2_error,
+track_drift (the first invariant's maximum relative error) and track_growth (its growth
+exponent) track the accuracy of each cell (see longtime.asvbench)."""
+from longtime.asvbench import benchmarks
+
+PROBLEMS = {problems!r}
+SCHEMES = {schemes!r}
+SETTINGS = {settings!r}
+
+globals().update(benchmarks(PROBLEMS, SCHEMES, t_final={t_final!r}, **SETTINGS))
+'''
+
+
+def declared(folder: Path) -> tuple[str, list[str], list[str]]:
+    """(distribution name, problems, schemes) that folder/pyproject.toml declares."""
+    path = folder / "pyproject.toml"
+    if not path.is_file():
+        return folder.resolve().name, [], []
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10
+        import tomli as tomllib  # type: ignore[no-redef]
+    try:
+        project = tomllib.loads(path.read_text()).get("project", {})
+    except Exception as exc:
+        raise InputError(f"{path}: not readable as TOML ({exc})") from None
+    points = project.get("entry-points", {})
+    return (project.get("name") or folder.resolve().name, sorted(points.get("longtime.problems", {})),
+            sorted(points.get("longtime.integrators", {})))
+
+
+def repo_path(folder: Path) -> str:
+    """The git repository's top folder relative to ``folder`` (asv's "repo"): "." for a
+    plugin at the top of its repository, "../.." for one in a subfolder (examples/plugin)."""
+    import os
+    import subprocess
+
+    try:
+        top = subprocess.run(["git", "-C", str(folder), "rev-parse", "--show-toplevel"], capture_output=True,
+                             text=True, timeout=30).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        top = ""
+    return os.path.relpath(top, folder.resolve()) if top else "."
+
+
+def write(folder: Path, problems: list[str], schemes: list[str], settings: dict, t_final: float | None,
+          force: bool = False) -> list[Path]:
+    name, found_p, found_s = declared(folder)
+    problems, schemes = problems or found_p, schemes or found_s
+    if not problems or not schemes:
+        raise InputError(f"{folder}: no problems or schemes to benchmark: pass -p and -i (its pyproject.toml "
+                         f"declares problems {found_p or 'none'}, schemes {found_s or 'none'})")
+    conf = {**CONF_TEMPLATE, "project": name, "repo": repo_path(folder)}
+    files = {folder / "asv.conf.json": CONF_HEAD + json.dumps(conf, indent=4) + "\n",
+             folder / "benchmarks" / "__init__.py": "",
+             folder / "benchmarks" / "bench_longtime.py": BENCH_TEMPLATE.format(
+                 what=", ".join(schemes) + " on " + ", ".join(problems), problems=problems, schemes=schemes,
+                 settings=settings, t_final=t_final)}
+    written = []
+    for path, text in files.items():
+        if path.exists() and not force:
+            print(f"kept {path} (exists; --force replaces it)", file=sys.stderr)
+            continue
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+        written.append(path)
+    return written
+
+
+def cmd_asv_init(args) -> int:
+    folder = Path(args.dir)
+    if not folder.is_dir():
+        raise InputError(f"{folder}: not a folder (the plugin's repository)")
+    settings = {k: v for k, v in (("dt", args.dt), ("tol", args.tol)) if v}
+    for key, value in args.set:
+        settings[key] = value
+    for path in write(folder, args.problem or [], args.integrator or [], settings, args.t_final, args.force):
+        print(path)
+    return 0
+
+
+def add_parser(subparsers) -> None:
+    p = subparsers.add_parser("asv-init", help="asv.conf.json and benchmarks/ for a plugin's repository",
+                              description=__doc__.splitlines()[0])
+    p.add_argument("dir", metavar="DIR", help="the plugin's repository")
+    p.add_argument("-p", "--problem", type=cli_args.names, default=None, metavar="PROBLEM[,..]",
+                   help="problems (default: those DIR/pyproject.toml declares)")
+    p.add_argument("-i", "--integrator", type=cli_args.names, default=None, metavar="SCHEME[,..]",
+                   help="schemes (default: those DIR/pyproject.toml declares)")
+    p.add_argument("--dt", type=cli_args.floats("--dt"), default=None, metavar="X[,..]", help="time steps")
+    p.add_argument("--tol", type=cli_args.floats("--tol"), default=None, metavar="X[,..]", help="tolerances")
+    p.add_argument("--t-final", type=float, default=None, metavar="T", help="final time (default: the problem's)")
+    p.add_argument("--set", type=cli_args.key_value, action="append", default=[], metavar="KEY=VALUE",
+                   help="any other parameter (repeatable)")
+    p.add_argument("--force", action="store_true", help="replace existing files")
+    p.set_defaults(func=cmd_asv_init)

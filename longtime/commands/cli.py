@@ -1,0 +1,353 @@
+"""The ``longtime`` command: list | run | matrix | report (and commands added by modules).
+
+Exit codes: 0 done; 1 a requested cell failed (``run``) or a failure that changing the
+command does not fix; 2 bad input; 130, 143, 129 stopped by SIGINT, SIGTERM, SIGHUP
+(longtime.commands.guard).
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import importlib
+import json
+import sys
+from pathlib import Path
+
+from longtime.commands import guard
+from longtime.core import cli_args, registry
+from longtime.core.cache import check_cache_root
+from longtime.core.integrator import Timing
+from longtime.core.params import InputError
+from longtime.core.roles import ROW_PARAMETERS, flag
+from longtime.execution import limits
+from longtime.execution.calibration import drift_text
+from longtime.execution.cells import DEFAULT_TIME_LIMIT, check_size, expand
+from longtime.execution.lifecycle import command_line, recorded_run
+from longtime.execution.matrix import EXECUTORS, ExecOptions, run_matrix
+from longtime.execution.store import Store, default_path
+from longtime.measure import stability
+from longtime.measure.reference import budget_seconds
+from longtime.reporting.report import render
+
+# modules that add subcommands: each defines add_parser(subparsers) and sets func
+COMMAND_MODULES: tuple[str, ...] = ("longtime.commands.asv_init", "longtime.commands.cache_cmd", "longtime.reporting.compare", "longtime.reporting.history",
+                                   "longtime.commands.matched", "longtime.plot", "longtime.commands.reproduce", "longtime.commands.roundoff",
+                                   "longtime.commands.warmup")
+
+
+# argument types: one set for every command (longtime.core.cli_args)
+_floats, _names, _key_value = cli_args.floats, cli_args.names, cli_args.key_value
+_seconds = cli_args.seconds("--cell-timeout")
+_limit = cli_args.seconds("--time-limit", allow_zero=True)
+
+
+class _SchedulerAction(argparse.Action):
+    """--scheduler ADDRESS selects the dask executor unless --executor says otherwise."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        setattr(namespace, self.dest, values)
+        if getattr(namespace, "executor", None) is None:
+            namespace.executor = "dask"
+
+
+def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
+    p.add_argument("-p", "--problem", type=_names, required=required, metavar="PROBLEM[,..]",
+                   help="problem names (see `longtime list`)")
+    p.add_argument("-i", "--integrator", type=_names, required=required, metavar="SCHEME[,..]",
+                   help="scheme names (see `longtime list`)")
+    for name, (role, text) in ROW_PARAMETERS.items():  # the swept parameters with a flag of their own
+        if role == "order":
+            p.add_argument(flag(name), type=cli_args.ints(flag(name)), metavar="N[,..]", help=text + " (or A..B)")
+        else:
+            p.add_argument(flag(name), type=_floats(flag(name)), metavar="X[,..]", help=text)
+    p.add_argument("--t-final", type=_floats("--t-final"), metavar="T[,..]",
+                   help="final times, one cell each (default: the problem's)")
+    p.add_argument("--set", type=_key_value, action="append", default=[], metavar="KEY=VALUE[,..]",
+                   help="any other parameter of a problem or scheme (repeatable, once per key); "
+                        "several values sweep it, one cell each")
+    p.add_argument("--executor", choices=sorted(EXECUTORS), help="where cells run")
+    p.add_argument("--scheduler", action=_SchedulerAction, type=cli_args.scheduler, default=None, metavar="ADDRESS",
+                   help="run the cells on this Dask cluster (implies --executor dask)")
+    p.add_argument("--cell-timeout", type=_seconds, default=None, metavar="SECONDS",
+                   help="time limit per cell: each cell runs in its own process and one that "
+                        "passes the limit becomes a 'timeout' row")
+    p.add_argument("--time-limit", type=_limit, default=DEFAULT_TIME_LIMIT, metavar="SECONDS",
+                   help=f"a cell's integration stops past this, keeping what it reached: a 'timeout' "
+                        f"row (default {DEFAULT_TIME_LIMIT:g}; 0: no limit); a cell stuck elsewhere is "
+                        f"killed {limits.GRACE_S:g} s + {100 * limits.GRACE_SHARE:g} %% of it later (a 'timeout' row)")
+    p.add_argument("--memory-limit", type=limits.memory_argument, default=f"{limits.MEMORY_SHARE:.0%}",
+                   metavar="GIB|PERCENT",
+                   help=f"memory a cell's process may allocate, in GiB or as a share of the machine's "
+                        f"(default {100 * limits.MEMORY_SHARE:g}%%; 0: no limit); past it the cell fails with "
+                        f"'memory limit', and a cell estimated beyond it is refused up front")
+    p.add_argument("--allow-large", action="store_true",
+                   help="run cells estimated beyond 1e9 steps or 4 GiB of samples (refused by default)")
+    p.add_argument("--jobs", type=cli_args.jobs, default=0,
+                   help="worker processes of the process, isolated and dask executors (default: one per core)")
+    p.add_argument("--max-samples", type=int, default=100_001,
+                   help="states kept per run for the metrics (every step below this)")
+    p.add_argument("--repeats", type=cli_args.integer("--repeats", 1), default=Timing.repeats, metavar="N",
+                   help=f"timed runs of each cell after the warm-up: at least {Timing.MIN_RUNS} "
+                        f"(or N if fewer), more while their total is below --min-time, at most N; "
+                        f"cpu_s is the minimum (default {Timing.repeats})")
+    p.add_argument("--min-time", type=cli_args.seconds("--min-time", allow_zero=True), default=Timing.min_time,
+                   metavar="SECONDS",
+                   help=f"repeat a cell's timed run until the timed total passes this "
+                        f"(default {Timing.min_time})")
+    p.add_argument("--db", default=None, help=f"SQLite store (default: $LONGTIME_DB or {default_path()})")
+
+
+def _selection(args) -> dict:
+    """expand's sweeps, single settings and final times from the flags and the --set pairs."""
+    sets, swept = cli_args.settings(args.set)
+    sweeps = {k: getattr(args, k) for k in ROW_PARAMETERS if getattr(args, k, None)}
+    for k in swept:
+        if k in sweeps:
+            raise InputError(f"{flag(k)} and --set {k}= both give {k}: give one of them")
+    return {"sweeps": {**sweeps, **swept}, "sets": sets, "t_final": args.t_final}
+
+
+def _options(args, executor: str) -> ExecOptions:
+    """The execution options of ``args`` for ``executor`` (checked before a run is recorded:
+    bad input leaves nothing to resume)."""
+    if args.jobs and executor == "serial" and not getattr(args, "cell_timeout", None):
+        raise InputError(f"--jobs {args.jobs}: the serial executor runs one cell at a time; --jobs applies to "
+                         f"--executor process, isolated or dask (or with --cell-timeout)")
+    if args.max_samples < 2:
+        raise InputError(f"--max-samples {args.max_samples}: must be >= 2")
+    budget_seconds()  # $LONGTIME_REFERENCE_SECONDS: a bad value is bad input, before anything runs
+    check_cache_root()  # $LONGTIME_CACHE_DIR: one error now, not one per cell
+    return ExecOptions(jobs=args.jobs, max_samples=args.max_samples,
+                       timing=Timing(repeats=args.repeats, min_time=args.min_time),
+                       cell_timeout=getattr(args, "cell_timeout", None),
+                       time_limit=getattr(args, "time_limit", DEFAULT_TIME_LIMIT) or None,
+                       memory_limit=getattr(args, "memory_limit", limits.default_memory_limit()),
+                       scheduler=getattr(args, "scheduler", None))
+
+
+def _warn_broken() -> None:
+    for b in registry.broken():
+        print(f"warning: plugin {b.group} '{b.name}' ({b.target}) failed to load: {b.error}", file=sys.stderr)
+
+
+def cmd_list(args) -> int:
+    problems, schemes = registry.problems(), registry.integrators()
+    data = {
+        "problems": [{"name": n, "summary": c.summary, "capabilities": sorted(c.capabilities()),
+                      "parameters": {k: p.default for k, p in c.parameters.items()}}
+                     for n, c in problems.items()],
+        "integrators": [{"name": n, "summary": c.summary, "kind": c.kind, "order": c.order,
+                         "symplectic": c.symplectic, "requires": sorted(c.requires),
+                         "parameters": {k: p.default for k, p in c.parameters.items()},
+                         "imaginary_interval": stability.intervals(n, compute=args.stability)}
+                        for n, c in schemes.items()],
+        "broken": [vars(b) for b in registry.broken()],
+    }
+    if args.format == "json":
+        print(json.dumps(data, indent=1))
+        return 0
+    print("problems:")
+    for p in data["problems"]:
+        print(f"  {p['name']:24s} {p['summary']}\n  {'':24s} provides: {', '.join(p['capabilities'])}")
+    print("integrators:")
+    for i in data["integrators"]:
+        needs = ", ".join(i["requires"]) or "-"
+        sym = " symplectic" if i["symplectic"] else ""
+        print(f"  {i['name']:24s} {i['kind']:8s} order {i['order']}{sym}; needs {needs}\n"
+              f"  {'':24s} {i['summary']}; parameters: {', '.join(i['parameters']) or '-'}")
+        if i["imaginary_interval"]:
+            print(f"  {'':24s} stable on the imaginary axis (|R(iy)| <= 1), y in: " + "; ".join(
+                f"{label} {stability.format_interval(r)}".strip() for label, r in i["imaginary_interval"].items()))
+    if data["broken"]:
+        print("broken plugins:")
+        for b in data["broken"]:
+            print(f"  {b['group']} '{b['name']}' ({b['target']}): {b['error']}")
+    return 0
+
+
+def cmd_run(args) -> int:
+    from longtime.api import run_cells
+
+    _warn_broken()
+    cells = expand(args.problem, args.integrator, **_selection(args), strict=True)
+    if not args.allow_large:
+        check_size(cells, args.max_samples, args.memory_limit)
+    # by default one cell at a time in one worker process, under the hard limits (longtime.execution.limits);
+    # --executor serial runs them in this process
+    executor = args.executor or "process"
+    options = _options(args, executor)
+    if not args.executor and not args.jobs:
+        options = dataclasses.replace(options, jobs=1)
+    store = None if args.no_store else Store(args.db)
+    rows, _ = run_cells(cells, store=store, command=command_line(args), executor=executor,
+                        options=options)
+    print(render(rows, args.format))  # json: every row with the contract's keys (report.complete)
+    return 1 if any(r["status"] == "failed" for r in rows) else 0
+
+
+def cmd_matrix(args) -> int:
+    _warn_broken()
+    executor = args.executor or "process"
+    options = _options(args, executor)
+    if args.resume is not None:
+        store = Store(args.db, create=False)  # resuming never creates an empty store
+        if args.resume < 0:
+            raise InputError(f"--resume {args.resume}: a run id is > 0 (or none: the newest incomplete run)")
+        run_id = args.resume or store.latest_incomplete_run(("matrix", "run"))
+        if run_id is None:
+            raise InputError(f"--resume: no incomplete run in {store.path} (give a run id to pick one)")
+        store.run(run_id)  # an unknown id is an error, not "0 cells left"
+        cells = store.pending(run_id)
+        print(f"resuming run {run_id}: {len(cells)} cells left", file=sys.stderr)
+        died = store.died_in(run_id)
+        if died:  # perhaps killed, perhaps the cell's crash: each runs again in a process of its own
+            print(f"run {run_id} ended inside {len(died)} cell(s): they run again one process each", file=sys.stderr)
+            keys = {c.key for c in died}
+            cells = [c for c in cells if c.key not in keys]
+    else:
+        problems = args.problem or registry.default_problems()
+        schemes = args.integrator or sorted(registry.integrators())
+        cells = expand(problems, schemes, **_selection(args), default_sweep=True)
+        if not args.allow_large:
+            check_size(cells, args.max_samples, args.memory_limit)
+        store, run_id, died = Store(args.db), None, []
+    if args.baseline is not None:
+        store.run(args.baseline)  # an unknown baseline is bad input, before anything runs
+    ahead = None
+    with recorded_run(store, command_line(args), cells, run_id) as run_id:
+        if args.resume is None:
+            print(f"run {run_id}: {len(cells)} cells into {store.path}", file=sys.stderr)
+        if died:
+            run_matrix(died, store, run_id, "isolated", options)
+        if executor == "process" and args.resume is None and not args.no_report and not args.no_html:
+            from longtime.reporting.figures_ahead import FiguresAhead
+
+            ahead = FiguresAhead(cells, run_id)  # the page's figures on workers that have no cell left
+            options = dataclasses.replace(options, idle_work=ahead.task)
+        run_matrix(cells, store, run_id, executor, options,
+                   progress=not args.no_progress, on_row=ahead.add if ahead is not None else None)
+    if not args.no_report:
+        from longtime.reporting.page import write_html
+        from longtime.reporting.report import report_text
+
+        rows = store.rows(run_id)
+        page = None
+        if not args.no_html:  # the results page, written before the text so a long report ends with its path
+            try:
+                page = write_html(args.html or store.path.parent / "longtime-report" / f"run-{run_id}", rows,
+                                  store, [run_id], ahead=ahead)  # default: beside the store
+            except Exception as exc:  # the rows are stored; `longtime report --html DIR` can retry
+                print(f"warning: results page not written: {type(exc).__name__}: {exc}", file=sys.stderr)
+        print(report_text(rows, "table", full=args.full))
+        print(f"\ncalibration: {drift_text(store.calibrations(run_id))}")
+        if page is not None:
+            print(f"\nresults page: {page}")
+    if args.baseline is not None:  # CI's gate: this run against the baseline, exit 1 on a regression
+        from longtime.reporting import compare
+
+        print(f"\n== compared with run {args.baseline} (longtime compare {args.baseline} {run_id}) ==")
+        return compare.report(compare.run_compare(store.path, str(args.baseline), store.path, str(run_id)))
+    return 0
+
+
+def cmd_report(args) -> int:
+    store = Store(args.db, readonly=True)  # a report writes nothing, not even an empty store
+    if args.run == "all":
+        rows = store.rows()
+    else:
+        if args.run and not (args.run.isascii() and args.run.isdigit()):  # isdigit alone takes '¹'
+            raise InputError(f"--run {args.run!r}: expected a run id (a positive integer) or 'all'")
+        run_id = int(args.run) if args.run else store.latest_run()
+        if run_id is None:
+            raise InputError(f"no runs in {store.path}: run `longtime matrix` first")
+        run = store.run(run_id)
+        if run["status"] != "done" or run["done"] < run["planned"]:
+            died = ", ".join(f"{c.problem} x {c.integrator}" for c in store.died_in(run_id)[:3])
+            print(f"note: run {run_id} is incomplete ({run['status']}, {run['done']} of {run['planned']} "
+                  f"cells stored)" + (f"; its process ended inside {died}" if died else "")
+                  + f"; `longtime matrix --resume {run_id}` completes it", file=sys.stderr)
+        rows = store.rows(run_id)
+    if args.problem:
+        rows = [r for r in rows if r["problem"] in args.problem]
+    from longtime.reporting.page import write_html
+    from longtime.reporting.report import report_text, to_parquet
+
+    if args.html:
+        print(f"results page: {write_html(args.html, rows, store)}", file=sys.stderr)
+    if args.format == "parquet":
+        with cli_args.writing("--out", args.out or "longtime.parquet"):
+            to_parquet(rows, args.out or "longtime.parquet")
+        print(f"wrote {len(rows)} rows to {args.out or 'longtime.parquet'}", file=sys.stderr)
+    elif args.out:
+        text = report_text(rows, args.format, full=args.full)
+        with cli_args.writing("--out", args.out):
+            Path(args.out).write_text(text)
+    else:
+        print(report_text(rows, args.format, full=args.full))
+        if args.format == "table" and args.run != "all":
+            print(f"\ncalibration: {drift_text(store.calibrations(run_id))}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = guard.Parser(prog="longtime", description=__doc__.splitlines()[0])  # errors in one line
+    parser.add_argument("--debug", action="store_true",
+                        help="an error's traceback too, not only its one-line message")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("list", help="problems, schemes, their capabilities and broken plugins")
+    p.add_argument("--format", choices=["table", "json"], default="table")
+    p.add_argument("--stability", action="store_true",
+                   help="measure each scheme's imaginary-axis stability interval where it is not "
+                        "cached (compiles every step kernel: about a minute the first time)")
+    p.set_defaults(func=cmd_list)
+
+    p = sub.add_parser("run", help="run problems x schemes and print one row per cell")
+    add_selection(p, required=True)
+    p.add_argument("--format", choices=["table", "csv", "json", "markdown"], default="table")
+    p.add_argument("--no-store", action="store_true", help="do not append the rows to the store")
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("matrix", help="every scheme on every problem over the default sweep")
+    add_selection(p, required=False)
+    p.add_argument("--resume", type=int, nargs="?", const=0, default=None, metavar="RUN_ID",
+                   help="finish an interrupted run (default: the newest incomplete run of matrix or run)")
+    p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--no-report", action="store_true", help="do not print the report at the end")
+    p.add_argument("--full", action="store_true", help="the full per-cell tables after the summary")
+    p.add_argument("--html", default=None, type=cli_args.out_folder("--html"), metavar="DIR",
+                   help="folder of the results page (default: longtime-report/run-RUN_ID beside the store)")
+    p.add_argument("--no-html", action="store_true", help="do not write the results page")
+    p.add_argument("--baseline", type=cli_args.integer("--baseline", 1), default=None, metavar="RUN",
+                   help="end with `longtime compare RUN` against this run (same store) and exit 1 on a regression")
+    p.set_defaults(func=cmd_matrix)
+
+    p = sub.add_parser("report", help="tables of stored rows: accuracy against cost per problem")
+    p.add_argument("--db", default=None)
+    p.add_argument("--run", default=None, help="run id, or 'all' (default: the latest run)")
+    p.add_argument("-p", "--problem", type=_names, default=None)
+    p.add_argument("--format", choices=["table", "csv", "json", "markdown", "parquet"], default="table",
+                   help="table: the summary (status counts, Pareto front per problem); csv, json, "
+                        "markdown: every cell; parquet: every cell into --out")
+    p.add_argument("--full", action="store_true", help="the full per-cell tables after the summary")
+    p.add_argument("--html", default=None, type=cli_args.out_folder("--html"), metavar="DIR",
+                   help="also write the results page DIR/index.html")
+    p.add_argument("--out", default=None, type=cli_args.out_file("--out"), metavar="FILE",
+                   help="write the report to FILE (parquet: default longtime.parquet)")
+    p.set_defaults(func=cmd_report)
+
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = parser.parse_args(argv)
+    args.argv = argv  # the command a run records (lifecycle.command_line)
+    return guard.run_command(args)  # every failure caught there: one line, its exit code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

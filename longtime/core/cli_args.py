@@ -1,0 +1,211 @@
+"""Argument types shared by every ``longtime`` command (argparse ``type=`` callables).
+
+Each raises ``argparse.ArgumentTypeError`` naming the flag and what it takes, so a bad
+value is reported by argparse with exit code 2 like every other input error; the --set
+pairs are checked as a whole (``settings``), with an InputError.
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+from typing import Callable, Iterator
+
+from longtime.core.params import InputError
+
+
+def names(text: str) -> list[str]:
+    """A comma-separated list of names, each once: "toda, kepler" -> ["toda", "kepler"]."""
+    found = list(dict.fromkeys(x.strip() for x in text.split(",") if x.strip()))  # a repeat runs once
+    if not found:  # "-p ," must not mean "everything"
+        raise argparse.ArgumentTypeError(f"expected comma-separated names, got {text!r}")
+    return found
+
+
+def floats(flag: str) -> Callable[[str], list[float]]:
+    """A comma-separated list of numbers, at least one."""
+
+    def parse(text: str) -> list[float]:
+        try:
+            values = [float(x) for x in text.split(",") if x.strip()]
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{flag} takes comma-separated numbers, got {text!r}") from None
+        if not values:
+            raise argparse.ArgumentTypeError(f"{flag} needs at least one value")
+        return values
+
+    return parse
+
+
+# the most values a range A..B may expand to
+MAX_RANGE = 10_000
+
+
+def ints(flag: str) -> Callable[[str], list[int]]:
+    """A comma-separated list of integers; ``A..B`` is the range A to B inclusive (A <= B, at
+    most MAX_RANGE values)."""
+
+    def parse(text: str) -> list[int]:
+        try:
+            if ".." in text:
+                a, b = (int(x) for x in text.split("..", 1))
+            else:
+                values = [int(x) for x in text.split(",") if x.strip()]
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{flag} takes comma-separated integers (or A..B), "
+                                             f"got {text!r}") from None
+        if ".." not in text:
+            if not values:
+                raise argparse.ArgumentTypeError(f"{flag} needs at least one value")
+            return values
+        if b < a:
+            raise argparse.ArgumentTypeError(f"{flag} {text}: an empty range (A..B needs A <= B)")
+        if b - a + 1 > MAX_RANGE:
+            raise argparse.ArgumentTypeError(f"{flag} {text}: {b - a + 1} values, over the limit of "
+                                             f"{MAX_RANGE} a range may expand to")
+        return list(range(a, b + 1))
+
+    return parse
+
+
+def integer(flag: str, minimum: int, note: str = "") -> Callable[[str], int]:
+    """One integer >= ``minimum`` (``note`` says what the smallest means, e.g. 0: one per core)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < minimum:
+            raise argparse.ArgumentTypeError(f"{flag} takes an integer >= {minimum}{note}, got {text!r}")
+        return value
+
+    return parse
+
+
+def jobs(text: str) -> int:
+    """--jobs: worker processes, 0 for one per core (every command that has the flag)."""
+    return integer("--jobs", 0, " (0: one per core)")(text)
+
+
+def key_value(text: str) -> tuple[str, str]:
+    """``--set key=value``: the pair of stripped strings (the parameter parses the value)."""
+    if "=" not in text:
+        raise argparse.ArgumentTypeError(f"--set takes key=value, got {text!r}")
+    key, value = text.split("=", 1)
+    return key.strip(), value.strip()
+
+
+def single_settings(pairs: list[tuple[str, str]]) -> dict[str, str]:
+    """The --set pairs as a dict; a key given twice is an error, not the last one winning."""
+    out: dict[str, str] = {}
+    for key, value in pairs:
+        if key in out:
+            raise InputError(f"--set {key} is given twice ({out[key]}, {value}): give it once "
+                             f"(several values: --set {key}=V1,V2)")
+        out[key] = value
+    return out
+
+
+def settings(pairs: list[tuple[str, str]]) -> tuple[dict[str, str], dict[str, list[str]]]:
+    """(single values, sweeps) of the --set pairs: ``KEY=V1,V2,..`` sweeps KEY over the values
+    (one cell each), ``KEY=V`` sets it; a key given twice is an error."""
+    sets, sweeps = {}, {}
+    for key, value in single_settings(pairs).items():
+        values = [v.strip() for v in value.split(",")]
+        if len(values) > 1:
+            if not all(values):
+                raise InputError(f"--set {key}={value}: an empty value in the list")
+            sweeps[key] = values
+        else:
+            sets[key] = value
+    return sets, sweeps
+
+
+def seconds(flag: str, allow_zero: bool = False) -> Callable[[str], float]:
+    """A finite number of seconds, > 0 (or >= 0 with ``allow_zero``)."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        ok = (0 <= value if allow_zero else 0 < value) and value < float("inf")
+        if not ok:
+            raise argparse.ArgumentTypeError(f"{flag} takes a finite number of seconds "
+                                             f"{'>= 0' if allow_zero else '> 0'}, got {text!r}")
+        return value
+
+    return parse
+
+
+def out_folder(flag: str) -> Callable[[str], str]:
+    """A folder to write into: an existing regular file (or one on its path) is an error
+    before anything runs, not a traceback after."""
+
+    def parse(text: str) -> str:
+        from pathlib import Path
+
+        path = Path(text)
+        for p in (path, *path.parents):
+            if p.exists() and not p.is_dir():
+                raise argparse.ArgumentTypeError(f"{flag} {text}: {p} is a file, not a folder")
+        return text
+
+    return parse
+
+
+def out_file(flag: str) -> Callable[[str], str]:
+    """A file to write: a folder, a regular file on its path, or a folder that exists and
+    cannot be written is an error before anything runs (``writing`` catches the rest)."""
+
+    def parse(text: str) -> str:
+        import os
+        from pathlib import Path
+
+        path = Path(text)
+        if not text.strip() or path.is_dir():
+            raise argparse.ArgumentTypeError(f"{flag} {text!r}: a folder, not a file name")
+        for p in path.parents:
+            if p.exists():
+                if not p.is_dir():
+                    raise argparse.ArgumentTypeError(f"{flag} {text}: {p} is a file, not a folder")
+                if not os.access(p, os.W_OK | os.X_OK):
+                    raise argparse.ArgumentTypeError(f"{flag} {text}: the folder {p} cannot be written")
+                break
+        return text
+
+    return parse
+
+
+@contextlib.contextmanager
+def writing(flag: str, path) -> Iterator[None]:
+    """An OSError while writing the file of ``flag`` as an InputError naming it (one line,
+    exit 2): the user picks another path."""
+    from longtime.core.params import InputError
+
+    try:
+        yield
+    except OSError as exc:
+        raise InputError(f"{flag} {path}: cannot write it: {exc.strerror or exc}") from None
+
+
+def scheduler(text: str) -> str:
+    """--scheduler: a Dask scheduler address, ``[PROTOCOL://]HOST:PORT`` (checked by Dask's
+    own parser when dask.distributed is installed; without it the executor says so)."""
+    try:
+        from distributed.comm.addressing import parse_address, parse_host_port
+        from distributed.comm.registry import backends
+    except ImportError:
+        return text
+    try:
+        protocol, location = parse_address(text)
+        if protocol not in backends:
+            raise ValueError(f"unknown protocol {protocol!r} (known: {', '.join(sorted(backends))})")
+        if protocol in ("tcp", "tls", "ws", "wss"):
+            host, _ = parse_host_port(location)
+            if not host or any(c.isspace() for c in host):
+                raise ValueError(f"no host name in {location!r}")
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"--scheduler {text!r}: not a Dask scheduler address "
+                                         f"(expected tcp://HOST:PORT): {exc}") from None
+    return text

@@ -1,0 +1,75 @@
+"""Batches of cells as one worker runs them: the cells of one problem x scheme pair
+together (a worker compiles the pair's kernel once), largest first, each row calibrated
+against the machine's speed and, with a folder, written there as it finishes (a pool broken
+by another worker's crash loses nothing finished). The process pool and the Dask executor
+both run their batches here."""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from pathlib import Path
+
+from longtime.core.integrator import Timing
+from longtime.execution import calibration
+from longtime.execution.cells import DEFAULT_TIME_LIMIT, Cell, cell_size, run_cell
+
+
+def batches_by_pair(cells: list[Cell]) -> list[list[Cell]]:
+    """Cells of one problem x scheme pair together: one worker compiles each kernel once.
+    Largest first (by ``estimated_work``), so no long batch starts last and runs alone."""
+    groups: dict[tuple[str, str], list[Cell]] = {}
+    for c in cells:
+        groups.setdefault((c.problem, c.integrator), []).append(c)
+    dims: dict[str, int] = {}
+    return sorted(groups.values(), key=lambda batch: -sum(estimated_work(c, dims) for c in batch))
+
+
+def estimated_work(cell: Cell, dims: dict[str, int]) -> float:
+    """A rough size of a cell, for ordering only: state dimension x steps (the cell's dt, or
+    the problem's default step for adaptive schemes). ``dims`` caches dimensions."""
+    try:
+        dim, steps, _ = cell_size(cell, dims)
+        return dim * max(steps, 0.0)
+    except Exception:  # an invalid setting: run_cell reports it; order it anywhere
+        return 0.0
+
+
+def _calibrated(here: calibration.Calibrator, cell: Cell, max_samples: int, timing: Timing,
+                time_limit: float | None) -> dict:
+    """run_cell's row with the machine's speed beside it (longtime.execution.calibration)."""
+    t0 = time.time()
+    row = run_cell(cell, max_samples, timing=timing, time_limit=time_limit)
+    return row if cell.skip_reason else here.cell(row, t0, time.time())
+
+
+def run_batch(cells: list[Cell], max_samples: int, timing: Timing, folder: str | None = None,
+              time_limit: float | None = DEFAULT_TIME_LIMIT) -> list[dict]:
+    """Rows of ``cells`` in this worker. With ``folder``, the cell in progress and each finished
+    row are also written there, so that a pool broken by another worker's crash loses
+    nothing finished and knows which cells were running."""
+    rows = []
+    here = calibration.here()
+    here.start()
+    for c in cells:
+        marker = Path(folder, f"running-{os.getpid()}") if folder else None
+        if marker is not None:
+            _write(marker, c.to_dict())
+        row = _calibrated(here, c, max_samples, timing, time_limit)
+        if marker is not None:
+            _write(Path(folder, f"row-{_digest(c.key)}.json"), {"cell": c.to_dict(), "row": row})
+            marker.unlink(missing_ok=True)  # gone when the watchdog has claimed it
+        rows.append(row)
+    here.finish()
+    return rows
+
+
+def _digest(text: str) -> str:
+    return hashlib.sha1(text.encode()).hexdigest()
+
+
+def _write(path: Path, data) -> None:
+    tmp = path.with_name(path.name + ".part")
+    tmp.write_text(json.dumps(data))
+    tmp.replace(path)  # atomic: a reader never sees half a file

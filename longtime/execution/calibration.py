@@ -1,0 +1,191 @@
+"""The machine's speed, measured with a fixed reference workload beside the cells.
+
+The reference workload is ``STEPS`` classical RK4 steps on the harmonic oscillator
+q' = p, p' = -q, a compiled loop on two scalars (no allocation, no memory traffic): the
+kind of work a cell's kernel does. A *calibration* times it ``REPEATS`` times in a row
+(process time, as a cell's ``cpu_s``) and keeps the minimum (``cpu_s``), the median, the
+maximum and every sample, with the wall-clock time it was taken (``t``, seconds since
+the epoch), the process and where in the run it was taken (``phase``: ``before`` the
+cells, ``batch`` between them, ``after`` them).
+
+A run calibrates in the process that starts it before its cells and after them; a process
+that runs cells (this one for the serial executor, each pool or Dask worker) calibrates
+before a batch of cells, after a cell and after a batch, whenever ``INTERVAL`` seconds
+have passed since its last calibration (so between batches, at a small fixed share of the
+time). Each row gets ``cpu_s_calibrated`` = ``cpu_s`` / the reference workload's
+``cpu_s`` of the calibration of its own process nearest in time to the cell (in units of
+the reference workload: a row of 2.0 took as long as two reference workloads), and
+``calibration_cpu_s``, ``calibration_t`` saying which calibration that was. The
+calibrations of a run are kept in the store (``Store.calibrations``), so its drift can be
+read afterwards (``drift``).
+
+The kernel is compiled once and cached on disk (numba's cache): a process loads it.
+"""
+from __future__ import annotations
+
+import os
+import platform
+import statistics
+import time
+from typing import Any
+
+import numba
+import numpy as np
+
+STEPS = 400_000  # a few milliseconds on a current core
+REPEATS = 5
+INTERVAL = 5.0  # seconds between the calibrations of one process while it runs cells
+# rows carry the calibrations their process took under this key until run_matrix stores
+# them in the run (it is never part of a stored row)
+POINTS_KEY = "_calibrations"
+
+
+@numba.njit(cache=True, nogil=True)
+def reference_workload(steps: int, h: float) -> float:
+    """``steps`` RK4 steps of size ``h`` on q' = p, p' = -q from (1, 0); returns the
+    energy error (so the loop cannot be optimised away)."""
+    q, p = 1.0, 0.0
+    for _ in range(steps):
+        k1q, k1p = p, -q
+        k2q, k2p = p + 0.5 * h * k1p, -(q + 0.5 * h * k1q)
+        k3q, k3p = p + 0.5 * h * k2p, -(q + 0.5 * h * k2q)
+        k4q, k4p = p + h * k3p, -(q + h * k3q)
+        q += h / 6.0 * (k1q + 2.0 * k2q + 2.0 * k3q + k4q)
+        p += h / 6.0 * (k1p + 2.0 * k2p + 2.0 * k3p + k4p)
+    return 0.5 * (q * q + p * p) - 0.5
+
+
+def measure(phase: str = "batch", repeats: int = REPEATS, steps: int = STEPS) -> dict[str, Any]:
+    """One calibration: the reference workload timed ``repeats`` times (after a call that
+    loads or compiles it)."""
+    reference_workload(10, 0.01)
+    samples = []
+    t = time.time()
+    for _ in range(repeats):
+        c0 = time.process_time()
+        reference_workload(steps, 0.01)
+        samples.append(time.process_time() - c0)
+    return {"t": t, "phase": phase, "pid": os.getpid(), "host": platform.node(), "steps": steps,
+            "cpu_s": min(samples), "cpu_s_median": statistics.median(samples), "cpu_s_max": max(samples),
+            "cpu_s_samples": samples}
+
+
+class Calibrator:
+    """The calibrations of one process that runs cells, and the rows they calibrate.
+
+    ``start()`` before a batch of cells, ``cell(row, t0, t1)`` after each cell (which ran
+    from wall time ``t0`` to ``t1``: the row gets the calibration nearest in time to its
+    middle), ``finish()`` after the batch (re-annotates the batch's rows, which a batch
+    returns together, with a calibration taken then). Each of them calibrates only once
+    ``interval`` seconds have passed since this process's last calibration (or before its
+    first), so calibrating costs a fixed small share of the time. A new calibration rides
+    on the next row handed back (``POINTS_KEY``) until the run stores it."""
+
+    def __init__(self, interval: float = INTERVAL) -> None:
+        self.interval = interval
+        self.points: list[dict[str, Any]] = []
+        self._rows: list[tuple[dict, float]] = []  # the batch's rows and their mid times
+        self._new: list[dict[str, Any]] = []  # calibrations not yet handed to a row
+
+    def take(self, phase: str) -> dict[str, Any]:
+        point = measure(phase)
+        self.points.append(point)
+        self._new.append(point)
+        return point
+
+    def due(self) -> bool:
+        return not self.points or time.time() - self.points[-1]["t"] >= self.interval
+
+    def start(self) -> None:
+        self._rows = []
+        if self.due():
+            self.take("batch")
+
+    def cell(self, row: dict[str, Any], t0: float, t1: float) -> dict[str, Any]:
+        if self.due():
+            self.take("batch")
+        mid = 0.5 * (t0 + t1)
+        self._rows.append((row, mid))
+        annotate(row, self.points, mid)
+        self._hand_over(row)
+        return row
+
+    def finish(self) -> None:
+        if self._rows and self.due():
+            self.take("batch")
+            for row, mid in self._rows:
+                annotate(row, self.points, mid)
+            self._hand_over(self._rows[-1][0])
+        self._rows = []
+
+    def handed(self) -> None:
+        """The run has stored the calibrations taken so far (they ride on no row)."""
+        self._new = []
+
+    def _hand_over(self, row: dict[str, Any]) -> None:
+        if self._new:
+            row.setdefault(POINTS_KEY, []).extend(self._new)
+            self._new = []
+
+
+_HERE: Calibrator | None = None
+
+
+def here(reset: bool = False) -> Calibrator:
+    """This process's calibrator (a pool worker keeps it across batches); ``reset`` starts
+    a new run's (the calibrations of an earlier run in the same process are not its own)."""
+    global _HERE
+    if _HERE is None or reset:
+        _HERE = Calibrator()
+    return _HERE
+
+
+def nearest(points: list[dict[str, Any]], t: float) -> dict[str, Any] | None:
+    return min(points, key=lambda p: abs(p["t"] - t)) if points else None
+
+
+def annotate(row: dict[str, Any], points: list[dict[str, Any]], t: float) -> None:
+    """``cpu_s_calibrated``, ``calibration_cpu_s`` and ``calibration_t`` of ``row`` from the
+    calibration of ``points`` nearest to ``t`` (nothing for a row without a CPU time)."""
+    point = nearest(points, t)
+    cpu = row.get("cpu_s")
+    if point is None or not isinstance(cpu, (int, float)) or isinstance(cpu, bool) or not point["cpu_s"] > 0:
+        return
+    row.update(cpu_s_calibrated=cpu / point["cpu_s"], calibration_cpu_s=point["cpu_s"], calibration_t=point["t"])
+
+
+def take_points(row: dict[str, Any]) -> list[dict[str, Any]]:
+    """The calibrations a row carries (removed from it: they belong to the run, not the row)."""
+    return row.pop(POINTS_KEY, None) or []
+
+
+def drift(points: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """A run's calibration in brief: the reference workload's CPU seconds (median over the
+    calibrations of their minima), its range and its change from the first to the last
+    calibration, and the spread within a calibration (median of max / min - 1)."""
+    if not points:
+        return None
+    ordered = sorted(points, key=lambda p: p["t"])
+    values = [p["cpu_s"] for p in ordered]
+    within = [p["cpu_s_max"] / p["cpu_s"] - 1 for p in ordered if p["cpu_s"] > 0]
+    return {"calibrations": len(values), "reference_cpu_s": float(np.median(values)),
+            "min": min(values), "max": max(values), "range": max(values) / min(values) - 1 if min(values) > 0 else None,
+            "first_to_last": values[-1] / values[0] if values[0] > 0 else None,
+            "within": float(np.median(within)) if within else None,
+            "span_s": ordered[-1]["t"] - ordered[0]["t"]}
+
+
+def drift_text(points: list[dict[str, Any]]) -> str:
+    """'reference workload 2.01 ms (12 calibrations over 40 s: 1.98 .. 2.15 ms, last/first
+    x1.03; within one calibration +2.1 %)'."""
+    d = drift(points)
+    if d is None:
+        return "no calibration (the run's executor does not calibrate, or it was stored before calibrations)"
+    text = f"reference workload {1e3 * d['reference_cpu_s']:.3g} ms ({d['calibrations']} calibration"
+    text += "s" if d["calibrations"] != 1 else ""
+    if d["calibrations"] > 1:
+        text += (f" over {d['span_s']:.0f} s: {1e3 * d['min']:.3g} .. {1e3 * d['max']:.3g} ms, "
+                 f"last/first x{d['first_to_last']:.3g}")
+    if d["within"] is not None:
+        text += f"; slowest repeat +{100 * d['within']:.1f} % over the fastest"
+    return text + ")"

@@ -1,0 +1,358 @@
+"""Cells of the matrix: one problem x scheme x parameter point, and how one is run.
+
+``expand`` validates everything up front (names, flags, --set keys, values), so bad input
+fails before anything runs; ``run_cell`` never raises: whatever happens becomes a row with
+a status (ok, diverged, failed, skipped).
+"""
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import numbers
+import time
+import traceback
+from dataclasses import dataclass, field
+from typing import Any, Iterable, Mapping
+
+from longtime.core import registry, roles
+from longtime.core.integrator import FixedStepIntegrator, Integrator, Timing, Trajectory
+from longtime.core.outputs import to_stderr
+from longtime.core.params import InputError, check_time_span
+from longtime.core.problem import Problem
+from longtime.core.roles import ROW_PARAMETERS
+from longtime.execution import limits
+from longtime.measure import metrics
+from longtime.measure.reference import ReferenceUnavailable, has_reference, trusted_reference
+
+# the parameters with a row field and a flag of their own (longtime.core.roles)
+SWEEP_PARAMETERS = tuple(ROW_PARAMETERS)
+DEFAULT_MAX_SAMPLES = 100_001
+# a cell stops (a 'timeout' row) after this many seconds unless --time-limit says otherwise
+DEFAULT_TIME_LIMIT = 600.0
+# a cell beyond these is refused before anything runs, unless --allow-large
+MAX_STEPS = 10**9
+MAX_SAMPLE_BYTES = 4 * 2**30
+# a relative error (l2 or final) from this on is O(1): the row's message says so
+O1_ERROR = 0.5
+
+
+@dataclass(frozen=True)
+class Cell:
+    problem: str
+    integrator: str
+    problem_settings: dict[str, Any] = field(default_factory=dict)
+    integrator_settings: dict[str, Any] = field(default_factory=dict)
+    t_final: float | None = None
+    skip_reason: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "problem": self.problem,
+            "integrator": self.integrator,
+            "problem_settings": dict(sorted(self.problem_settings.items())),
+            "integrator_settings": dict(sorted(self.integrator_settings.items())),
+            "t_final": self.t_final,
+            "skip_reason": self.skip_reason,
+        }
+
+    @property
+    def key(self) -> str:
+        d = self.to_dict()
+        d.pop("skip_reason")
+        return json.dumps(d, sort_keys=True)
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> "Cell":
+        return cls(d["problem"], d["integrator"], dict(d["problem_settings"]),
+                   dict(d["integrator_settings"]), d["t_final"], d.get("skip_reason"))
+
+
+def check_set_keys(sets: Mapping[str, Any], problem_names: Iterable[str],
+                   integrator_names: Iterable[str]) -> None:
+    """Every --set key must be a parameter of a selected problem or scheme."""
+    pclasses = [registry.problem_class(n) for n in problem_names]
+    iclasses = [registry.integrator_class(n) for n in integrator_names]
+    for key in sets:
+        if not any(key in c.parameters for c in pclasses + iclasses):
+            valid = sorted({k for c in pclasses + iclasses for k in c.parameters} - set(ROW_PARAMETERS))
+            raise InputError(f"--set {key}: unknown parameter for the selected problems and "
+                             f"integrators; valid keys: {', '.join(valid) or 'none'}")
+
+
+def _horizons(t_final: float | Iterable[float] | None) -> list[float | None]:
+    """The final times of a sweep: one, several, or none (the problem's)."""
+    if t_final is None:
+        return [None]
+    if isinstance(t_final, numbers.Real):
+        return [t_final]
+    values = list(dict.fromkeys(t_final))
+    return values or [None]
+
+
+def _check_sweeps(sweeps: Mapping[str, list], sets: Mapping[str, Any], problem_names: list[str],
+                  integrator_names: list[str]) -> None:
+    """Every swept name is a parameter of a selected problem or scheme, and given once."""
+    for name in sweeps:
+        option = roles.flag(name)
+        if name in ROW_PARAMETERS:  # a flag of its own: it names the schemes that take it
+            if not any(name in registry.integrator_class(n).parameters for n in integrator_names):
+                takers = sorted(n for n, c in registry.integrators().items() if name in c.parameters)
+                raise InputError(f"{option} is not a parameter of any selected integrator "
+                                 f"({', '.join(integrator_names)}); it applies to {', '.join(takers) or 'none'}")
+        else:
+            check_set_keys({name: None}, problem_names, integrator_names)
+        if name in sets:  # both would set it: one would silently win
+            raise InputError(f"{option} and --set {name}= both give {name}: give one of them"
+                             if name in ROW_PARAMETERS else
+                             f"{name} is given both as a sweep and as one value: give one of them")
+
+
+def _axes(cls: type, sweeps: Mapping[str, list], defaults: Mapping[str, Iterable]) -> list[list[tuple]]:
+    """The sweep axes of one class: a list of (name, value) per swept parameter, nested by role."""
+    names = [n for n in cls.parameters if n in sweeps or defaults.get(n)]
+    return [[(n, v) for v in (sweeps[n] if n in sweeps else defaults[n])]
+            for n in roles.order_axes(names, [cls])]
+
+
+@to_stderr  # plugin code runs here: its output is not the contract's
+def expand(problem_names: list[str], integrator_names: list[str], *,
+           sweeps: Mapping[str, list] | None = None,
+           t_final: float | Iterable[float] | None = None,
+           sets: Mapping[str, Any] | None = None, default_sweep: bool = False,
+           strict: bool = False) -> list[Cell]:
+    """All cells of problems x integrators x the sweep.
+
+    ``sweeps`` maps any declared parameter of a selected problem or scheme to its values
+    (one cell per value; a problem's parameter varies the problem), ``t_final`` is one final
+    time or a list of them, ``sets`` fixes single values. Without values for a parameter
+    that sweeps (``Param.sweeps``), a cell takes the parameter's default (or, with
+    ``default_sweep``, the problem's ``sweep_dt`` for the step and the scheme's ``sweep``
+    for the rest). An incompatible pair becomes one cell with a skip reason, or an error
+    when ``strict``.
+    """
+    # a name or value given twice is one cell (a repeat would be run twice and stored once)
+    problem_names, integrator_names = list(dict.fromkeys(problem_names)), list(dict.fromkeys(integrator_names))
+    sweeps = {k: list(dict.fromkeys(v)) for k, v in (sweeps or {}).items() if v}
+    registry.check_names("problem", problem_names)  # every unknown name at once
+    registry.check_names("integrator", integrator_names)
+    sets = dict(sets or {})
+    check_set_keys(sets, problem_names, integrator_names)
+    _check_sweeps(sweeps, sets, problem_names, integrator_names)
+    horizons = _horizons(t_final)
+    cells = []
+    for pname in problem_names:
+        pcls = registry.problem_class(pname)
+        pfixed = {k: v for k, v in sets.items() if k in pcls.parameters}
+        for ppoint in itertools.product(*_axes(pcls, sweeps, {})):
+            psets = {**pfixed, **dict(ppoint)}
+            try:
+                problem = pcls(**psets)  # validates the problem's settings
+            except MemoryError:
+                raise InputError(f"problem {pname} with {psets}: out of memory while building it") from None
+            psets = {k: problem.settings[k] for k in psets}  # typed: "0.5" from the command line is 0.5
+            for horizon in horizons:
+                tf = horizon if horizon is not None else (
+                    pcls.sweep_t_final if default_sweep and pcls.sweep_t_final else pcls.default_t_final)
+                check_time_span(pcls.t0, tf)
+                for iname in integrator_names:
+                    cells += _scheme_cells(pname, pcls, problem, psets, iname, tf, sets, sweeps, default_sweep,
+                                           strict, given_t_final=horizons != [None])
+    return cells
+
+
+def _scheme_cells(pname: str, pcls, problem: Problem, psets: dict, iname: str, tf: float, sets: Mapping[str, Any],
+                  sweeps: Mapping[str, list], default_sweep: bool, strict: bool,
+                  given_t_final: bool) -> list[Cell]:
+    """The cells of one scheme on one problem setting and final time."""
+    icls = registry.integrator_class(iname)
+    isets = {k: v for k, v in sets.items() if k in icls.parameters}
+    scheme = icls(**isets)
+    isets = {k: scheme.settings[k] for k in isets}  # typed, as the problem's
+    reason = scheme.incompatibility(problem)
+    if reason:
+        if strict:
+            raise InputError(f"incompatible pair {iname} x {pname}: {reason}")
+        return [Cell(pname, iname, psets, isets, tf, skip_reason=reason)]
+    defaults: dict[str, list] = {}
+    if default_sweep:
+        for name, param in icls.parameters.items():
+            if name in isets:
+                continue
+            values = list(pcls.sweep_dt) if param.role == "step" else list(icls.sweep.get(name, ()))
+            if param.role == "accuracy" and pcls.sweep_min_tolerance:
+                values = [v for v in values if v >= pcls.sweep_min_tolerance]
+            defaults[name] = values
+    cells = []
+    for point in itertools.product(*_axes(icls, sweeps, defaults)):
+        settings = {**isets, **dict(point)}
+        built = icls(**settings)  # validates dt > 0, tol > 0, ...
+        settings = {k: built.settings[k] for k in settings}
+        check_step(pname, iname, settings, tf)
+        cells.append(Cell(pname, iname, psets, settings, tf))
+    # the default matrix's long-time cell: the problem's paper-scale final time at its
+    # default step, for the schemes that can afford it (``long_runs``)
+    # (a scheme without a step, an adaptive external one, runs it at its default settings)
+    long_tf = pcls.long_t_final
+    step = roles.with_role([icls], "step")
+    runs_long = icls.long_runs if isinstance(icls.long_runs, bool) else pname in icls.long_runs
+    if default_sweep and not given_t_final and long_tf and runs_long and not any(n in sweeps for n in step):
+        cells.append(Cell(pname, iname, psets, {**isets, **{n: pcls.default_dt for n in step}}, long_tf))
+    return cells
+
+
+def check_step(problem: str, scheme: str, settings: Mapping[str, Any], t_final: float) -> None:
+    """A fixed step larger than the span is refused: one step of the span would be taken and
+    the row labelled with the larger dt (dt 1, 5 and 10 over a span of 1 give one row thrice)."""
+    pcls, icls = registry.problem_class(problem), registry.integrator_class(scheme)
+    if not issubclass(icls, FixedStepIntegrator):
+        return
+    given = settings.get("dt")
+    dt = float(pcls.default_dt if given is None else given)
+    span = float(t_final) - pcls.t0
+    if dt > span * (1 + 1e-9):
+        what = f"--dt {dt:g}" if given is not None else f"the default step dt={dt:g} of {problem}"
+        raise InputError(f"{what}: larger than the span t_final - t0 = {span:g} ({problem} x {scheme}); "
+                         f"a fixed step must be <= the span (pass a smaller --dt or a larger --t-final)")
+
+
+def base_row(cell: Cell) -> dict[str, Any]:
+    s = cell.integrator_settings
+    row = {"problem": cell.problem, "integrator": cell.integrator, "status": "", "message": "",
+           **{k: s.get(k) for k in ROW_PARAMETERS}, "t_final": cell.t_final}
+    extra = {k: v for k, v in {**cell.problem_settings, **s}.items() if k not in ROW_PARAMETERS}
+    row["settings"] = json.dumps(extra, sort_keys=True) if extra else ""
+    return row
+
+
+def build(cell: Cell) -> tuple[Problem, Integrator]:
+    """The problem and the scheme a cell names, with its settings (validated): the one
+    place they are made from names, for the matrix, the searches and the figures."""
+    problem = registry.problem_class(cell.problem)(**cell.problem_settings)
+    integrator = registry.integrator_class(cell.integrator)(**cell.integrator_settings)
+    return problem, integrator
+
+
+def integrate_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES) -> tuple[Problem, Trajectory]:
+    """Build and run one cell once, for a caller that needs the trajectory itself (a
+    figure): an incompatible pair is an InputError; a run that diverges or fails is a
+    trajectory with that status, as in ``run_cell`` (which also measures and times)."""
+    problem, integrator = build(cell)
+    reason = integrator.incompatibility(problem)
+    if reason:
+        raise InputError(reason)
+    t_final = problem.default_t_final if cell.t_final is None else cell.t_final
+    return problem, integrator.integrate(problem, t_final, max_samples=max_samples)
+
+
+@to_stderr  # plugin code runs here: its output is not the contract's
+def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool = True,
+             timing: Timing | None = None, time_limit: float | None = DEFAULT_TIME_LIMIT,
+             keep: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Run one cell, timed by ``timing`` (default: ``Timing()``, the repeated timing of
+    every row); every outcome is a row, nothing raises. Past ``time_limit`` seconds (None:
+    no limit) the integration stops where it got: a ``timeout`` row. ``keep``, a dict,
+    receives what the row was measured from (``problem``, ``integrator``, ``trajectory``,
+    ``reference``: the trusted reference states, ``trust``), for ``longtime.solve``."""
+    row = base_row(cell)
+    deadline = time.monotonic() + time_limit if time_limit else None
+    if cell.skip_reason:
+        row.update(status="skipped", message=cell.skip_reason)
+        return row
+    try:
+        problem, integrator = build(cell)
+        if isinstance(integrator, FixedStepIntegrator):
+            row["dt"] = integrator.dt_for(problem)
+        # every parameter actually used, defaults included (a default tol is not null)
+        row.update({k: v for k, v in integrator.settings.items() if k in ROW_PARAMETERS and row.get(k) is None})
+        used = {**problem.settings, **integrator.settings}
+        if isinstance(integrator, FixedStepIntegrator):
+            used["dt"] = row["dt"]  # the step taken, also where it is the problem's default
+        row["parameters"] = json.dumps(used, sort_keys=True, default=str)
+        traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
+                                    timing=timing or Timing(), deadline=deadline)
+        if traj.status == "timeout":
+            traj.message = f"{traj.message} (cell time limit {time_limit:g} s: --time-limit)"
+        ref, trust, note = None, None, ""
+        if reference and has_reference(problem):
+            try:
+                ref, trust = trusted_reference(problem, traj.t, cell.t_final)
+                note = trust.message(float(traj.t[-1]))
+            except ReferenceUnavailable as exc:
+                note = f"no reference: {exc}"
+        if keep is not None:
+            keep.update(problem=problem, integrator=integrator, trajectory=traj, reference=ref, trust=trust)
+        row.update(metrics.evaluate(problem, traj, ref, trust))
+        row["status"] = traj.status
+        worst = max((e for e in (row.get("l2_error"), row.get("final_error")) if e is not None), default=None)
+        row["solution_lost"] = None if worst is None else bool(worst >= O1_ERROR)
+        if row["solution_lost"]:  # finite but wrong: never a plain "ok" (the report folds it too)
+            note = "; ".join(m for m in (note, f"error O(1) (relative error {worst:.3g} >= {O1_ERROR:g}): "
+                                               f"the solution is not followed") if m)
+        row["message"] = "; ".join(m for m in (traj.message, note, row["message"]) if m)  # + metrics' notes
+    except MemoryError as exc:  # past the worker's memory limit (longtime.execution.limits), or the machine's
+        row["status"] = "failed"
+        row["message"] = limits.memory_message(exc)
+    except (Exception, SystemExit) as exc:  # a failing cell never takes the matrix down
+        # (a plugin's sys.exit too; os.abort or a segfault need a process per cell)
+        row["status"] = "failed"
+        row["message"] = "".join(traceback.format_exception_only(type(exc), exc)).strip()
+    return row
+
+
+def cell_size(cell: Cell, dims: dict[str, int]) -> tuple[int, float, float]:
+    """(state dimension, estimated steps, step) of a cell: steps = (t_final - t0) / dt with
+    the cell's dt, or the problem's default step for adaptive schemes (a rough size).
+    ``dims`` caches the dimension of each problem setting across calls."""
+    pcls = registry.problem_class(cell.problem)
+    key = json.dumps(cell.problem_settings, sort_keys=True, default=str) + cell.problem
+    if key not in dims:
+        dims[key] = pcls(**cell.problem_settings).dim
+    dt = float(cell.integrator_settings.get("dt") or pcls.default_dt)
+    span = float(cell.t_final if cell.t_final is not None else pcls.default_t_final) - pcls.t0
+    try:
+        steps = span / dt
+    except OverflowError:  # 1e308 / 1e-300
+        steps = math.inf
+    return dims[key], steps, dt
+
+
+@to_stderr  # plugin code runs here: its output is not the contract's
+def check_size(cells: Iterable[Cell], max_samples: int = DEFAULT_MAX_SAMPLES,
+               memory_limit: int | None = None) -> None:
+    """Refuse, before anything runs, a cell whose estimated step count passes MAX_STEPS,
+    whose recorded samples pass MAX_SAMPLE_BYTES, or whose samples and what its metrics
+    allocate (``Problem.metrics_bytes``) pass ``memory_limit`` (the cell's, --memory-limit)
+    (``--allow-large`` skips this). Steps are (t_final - t0) / dt, with the problem's default
+    step for adaptive schemes (a rough size); samples as the integrator keeps them (see
+    Integrator.integrate)."""
+    from longtime.core.integrator import SAMPLE_BUDGET
+
+    dims: dict[str, int] = {}
+    problems: dict[str, Problem] = {}
+    for cell in cells:
+        if cell.skip_reason:
+            continue
+        dim, steps, dt = cell_size(cell, dims)
+        given = cell.integrator_settings.get("dt")
+        step = f"dt={dt:g}" if given else f"steps of about the problem's dt={dt:g}"
+        what = f"{cell.problem} x {cell.integrator} ({step}, t_final={cell.t_final:g})"
+        if not steps <= MAX_STEPS:
+            raise InputError(f"{what}: about {steps:.3g} steps, over the limit of {MAX_STEPS:.0e}; "
+                             f"pass --allow-large to run it anyway")
+        samples = min(steps + 1, max_samples, max(2001, SAMPLE_BUDGET // dim))
+        size = samples * (dim + 1) * 8
+        if size > MAX_SAMPLE_BYTES:
+            raise InputError(f"{what}: its samples need about {size / 2**30:.3g} GiB (dimension {dim}), over "
+                             f"the limit of {MAX_SAMPLE_BYTES / 2**30:g} GiB; pass --allow-large to run it "
+                             f"anyway (or lower --max-samples)")
+        if memory_limit:
+            key = json.dumps(cell.problem_settings, sort_keys=True, default=str) + cell.problem
+            if key not in problems:
+                problems[key] = registry.problem_class(cell.problem)(**cell.problem_settings)
+            need = size + problems[key].metrics_bytes(int(samples))
+            if need > memory_limit:
+                raise InputError(f"{what}: its samples and metrics need about {limits.gib(need)} (dimension {dim}, "
+                                 f"{int(samples)} samples), over the cell's memory limit of "
+                                 f"{limits.gib(memory_limit)} (--memory-limit); lower --max-samples, raise "
+                                 f"--memory-limit or pass --allow-large to run it anyway")

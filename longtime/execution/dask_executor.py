@@ -1,0 +1,125 @@
+"""The Dask executor: cells as batched tasks on a cluster; only this process writes the store.
+
+Cells go to the workers in batches of one problem x scheme pair (at most ``BATCH_CELLS``
+each, and enough batches to keep every worker busy), so a worker compiles a pair's kernel
+once and keeps it (a worker is a long-lived process: its compiled loops stay in memory
+between tasks), and the scheduler's per-task cost is paid per batch, not per cell. Rows
+come back to the client, which yields them to ``run_matrix``: workers never touch the
+store, so a store on the client's disk serves any cluster.
+
+A worker that dies (killed, out of memory, a crashing cell) loses only its running batch:
+Dask reschedules the batch on another worker, up to the scheduler's
+``distributed.scheduler.allowed-failures`` (default 3); a batch that kills that many workers
+comes back as ``failed`` rows naming the error. Only a task that ran and raised is a property
+of its cells: a future that the cluster gave up on (the scheduler lost, the future cancelled,
+the client's connection closed) raises ``ExecutorLost``, none of its cells is stored, and
+the run is marked ``interrupted``. An interrupted client keeps every stored row, and
+``longtime matrix --resume`` runs the rest (on any cluster, or none).
+"""
+from __future__ import annotations
+
+from typing import Iterator
+
+from longtime.core.params import InputError
+from longtime.execution.cells import Cell, base_row, run_cell
+
+
+class ExecutorLost(RuntimeError):
+    """The executor lost cells it was running (a Dask scheduler gone, a cancelled future, a
+    closed client): an interruption, not a property of the cells, so none of them is stored."""
+
+
+BATCH_CELLS = 64  # cells per task at most: large enough to amortise dispatch, small to balance
+BATCHES_PER_WORKER = 4  # at least this many tasks per worker, so no worker idles at the end
+
+
+def batches(cells: list[Cell], workers: int) -> list[list[Cell]]:
+    """``cells`` (runnable) as tasks: each pair's cells (largest pairs first) cut into
+    chunks of at most BATCH_CELLS, and small enough for BATCHES_PER_WORKER tasks per worker."""
+    from longtime.execution.batches import batches_by_pair
+
+    # floor: then sum over pairs of ceil(n / size) >= len(cells) / size >= the tasks wanted
+    size = max(1, min(BATCH_CELLS, len(cells) // (BATCHES_PER_WORKER * max(1, workers))))
+    return [pair[i:i + size] for pair in batches_by_pair(cells) for i in range(0, len(pair), size)]
+
+
+def _connect(options, n_cells: int):
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise InputError("executor 'dask' needs dask.distributed: pip install 'longtime[dask]'") from None
+    if options.scheduler:
+        try:
+            return Client(options.scheduler, timeout="10s"), None
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise InputError(f"--scheduler {options.scheduler}: cannot connect to a Dask scheduler "
+                             f"there ({exc})") from None
+    cluster = LocalCluster(n_workers=min(options.workers(), n_cells), threads_per_worker=1,
+                           dashboard_address=None)
+    return Client(cluster), cluster
+
+
+def dask_cluster(cells: list[Cell], options) -> Iterator[tuple[Cell, dict]]:
+    """Cells as tasks on a Dask cluster: ``options.scheduler`` is its address (without one, a
+    local cluster of ``options.jobs`` single-threaded worker processes). Workers need longtime
+    and the plugins installed. With ``cell_timeout`` each cell is its own task, run in a child
+    process of the worker (longtime.execution.isolation), so a hung cell cannot hold a worker."""
+    from distributed import as_completed  # _connect has checked that it is installed
+
+    from longtime.execution.batches import run_batch
+    from longtime.execution.isolation import run_cell_isolated
+
+    for cell in cells:
+        if cell.skip_reason:
+            yield cell, run_cell(cell)
+    runnable = [c for c in cells if not c.skip_reason]
+    if not runnable:
+        return
+    client, cluster = _connect(options, len(runnable))
+    try:
+        if options.cell_timeout:
+            futures = {client.submit(run_cell_isolated, c, options.max_samples, options.cell_timeout,
+                                     timing=options.timing, time_limit=options.time_limit, pure=False): [c]
+                       for c in runnable}
+        else:
+            workers = max(1, len(client.scheduler_info().get("workers", {})))
+            futures = {client.submit(run_batch, batch, options.max_samples, options.timing,
+                                     time_limit=options.time_limit, pure=False): batch
+                       for batch in batches(runnable, workers)}
+        left = len(runnable)
+        for fut in as_completed(futures):
+            batch = futures[fut]
+            try:
+                rows = fut.result()
+                rows = rows if isinstance(rows, list) else [rows]
+            except Exception as exc:
+                if fut.status != "error":  # not the task's own failure: the cluster gave the future up
+                    where = f"the Dask scheduler {options.scheduler}" if options.scheduler else "the local Dask cluster"
+                    raise ExecutorLost(f"{where} was lost ({type(exc).__name__}): {left} of {len(runnable)} "
+                                       f"cells not run, none of them stored") from None
+                # the batch raised, or killed allowed-failures workers (KilledWorker)
+                rows = [{**base_row(c), "status": "failed", "message": f"dask task failed: {exc!r}"}
+                        for c in batch]
+            left -= len(batch)
+            yield from zip(batch, rows)
+    finally:
+        _close(client, cluster)
+
+
+def _close(client, cluster) -> None:
+    """Close the client (and the local cluster), its logs silenced: after the scheduler is lost
+    the client's reconnection logs tracebacks as it is cancelled, and the command reports the
+    loss in one line."""
+    import logging
+
+    loggers = [logging.getLogger(name) for name in ("distributed.client", "distributed.utils", "distributed.core")]
+    levels = [lg.level for lg in loggers]
+    try:
+        for lg in loggers:
+            lg.setLevel(logging.CRITICAL)
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    finally:
+        for lg, level in zip(loggers, levels):
+            lg.setLevel(level)

@@ -1,0 +1,183 @@
+"""One cell per process, with a time limit.
+
+A cell that hangs or takes the interpreter down (``os._exit``, a segfault in compiled
+code, out of memory) must become a row, not stop the matrix. Each cell runs in a fresh
+child interpreter (``python -m longtime.execution.isolation``) started with ``subprocess``, not
+``multiprocessing``: the child then also works from daemonic processes such as Dask's
+workers, which may not have multiprocessing children. The child reads the cell from a
+JSON file and writes its row to another; the parent kills the child's whole process
+group when the time limit passes (a ``timeout`` row) and reads a dead child's exit code
+or signal and the end of its stderr (a ``failed`` row).
+
+The price is one interpreter start and one kernel compilation per cell (about a second):
+use this executor for untrusted or unstable plugins and time limits, the process pool for
+speed.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterator
+
+from longtime.core import registry
+from longtime.core.integrator import Timing
+from longtime.execution import tempdirs
+from longtime.execution.cells import (
+    DEFAULT_MAX_SAMPLES,
+    DEFAULT_TIME_LIMIT,
+    Cell,
+    base_row,
+    run_cell,
+)
+from longtime.execution.limits import die_with_parent, set_memory_limit
+
+POLL_S = 0.05
+STDERR_TAIL = 600  # characters of a dead child's stderr kept in its row's message
+
+
+def _signal_name(code: int) -> str:
+    try:
+        return signal.Signals(code).name
+    except ValueError:
+        return f"signal {code}"
+
+
+@dataclass
+class _Child:
+    cell: Cell
+    folder: Path
+    proc: subprocess.Popen
+    deadline: float
+    started: float = field(default_factory=time.perf_counter)
+
+    @property
+    def out_path(self) -> Path:
+        return self.folder / "row.json"
+
+    @property
+    def err_path(self) -> Path:
+        return self.folder / "stderr.txt"
+
+
+def _start(cell: Cell, max_samples: int, timeout: float | None, timing: Timing,
+           time_limit: float | None = DEFAULT_TIME_LIMIT, memory_limit: int | None = None) -> _Child:
+    folder = tempdirs.make("cell")
+    job = {"cell": cell.to_dict(), "max_samples": max_samples, "parent": os.getpid(), "time_limit": time_limit,
+           "timing": {"repeats": timing.repeats, "min_time": timing.min_time}, "memory_limit": memory_limit}
+    (folder / "cell.json").write_text(json.dumps(job))
+    session = registry.session_payload()  # classes registered from Python, pickled by value
+    if session is not None:
+        (folder / "session.pkl").write_bytes(session)
+        (folder / "sys_path.json").write_text(json.dumps(sys.path))  # where their modules import from
+    with open(folder / "stderr.txt", "wb") as err:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "longtime.execution.isolation", str(folder)],
+            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err,
+            start_new_session=True)  # its own process group: a kill reaches its children too
+    deadline = time.perf_counter() + timeout if timeout else float("inf")
+    return _Child(cell, folder, proc, deadline)
+
+
+def _kill(proc: subprocess.Popen) -> None:
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        proc.kill()
+    proc.wait()
+
+
+def _finish(child: _Child, timed_out: bool, timeout: float | None) -> dict:
+    """The row of a child that has ended (or was killed)."""
+    try:
+        if child.out_path.exists():  # written atomically: a whole row
+            return json.loads(child.out_path.read_text())
+        row = base_row(child.cell)
+        elapsed = time.perf_counter() - child.started
+        if timed_out:
+            row.update(status="timeout",
+                       message=f"cell exceeded its time limit of {timeout:g} s (process killed after "
+                               f"{elapsed:.1f} s)")
+            return row
+        code = child.proc.returncode
+        how = f"killed by {_signal_name(-code)}" if code < 0 else f"exited with code {code}"
+        tail = child.err_path.read_text(errors="replace").strip()[-STDERR_TAIL:] if child.err_path.exists() else ""
+        row.update(status="failed",
+                   message=f"cell process {how} without a result" + (f"; stderr: {tail}" if tail else ""))
+        return row
+    finally:
+        for p in child.folder.iterdir():
+            p.unlink()
+        child.folder.rmdir()
+
+
+def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, timeout: float | None = None,
+                 jobs: int = 1, timing: Timing | None = None, time_limit: float | None = DEFAULT_TIME_LIMIT,
+                 memory_limit: int | None = None) -> Iterator[tuple[Cell, dict]]:
+    """Rows of ``cells``, each run in its own child process, ``jobs`` at a time, as they end."""
+    queue = list(cells)
+    running: list[_Child] = []
+    try:
+        while queue or running:
+            while queue and len(running) < max(1, jobs):
+                cell = queue.pop(0)
+                if cell.skip_reason:  # nothing to run: no process needed
+                    yield cell, run_cell(cell)
+                    continue
+                # the cell stops itself at its time limit, keeping what it reached; under a hard
+                # timeout, early enough to report before it is killed
+                limit = min(x for x in (time_limit, 0.8 * (timeout or 0), float("inf")) if x)
+                running.append(_start(cell, max_samples, timeout, timing or Timing(),
+                                      None if limit == float("inf") else limit, memory_limit))
+            still = []
+            for child in running:
+                if child.proc.poll() is not None:
+                    yield child.cell, _finish(child, False, timeout)
+                elif time.perf_counter() > child.deadline:
+                    _kill(child.proc)
+                    yield child.cell, _finish(child, True, timeout)
+                else:
+                    still.append(child)
+            if len(still) == len(running) and running:
+                time.sleep(POLL_S)
+            running = still
+    finally:  # interrupted: no orphan keeps computing, no folder stays
+        for child in running:
+            if child.proc.poll() is None:
+                _kill(child.proc)
+            shutil.rmtree(child.folder, ignore_errors=True)
+
+
+def run_cell_isolated(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, timeout: float | None = None,
+                      timing: Timing | None = None, time_limit: float | None = DEFAULT_TIME_LIMIT) -> dict:
+    """One cell's row, run in a child process with a time limit (for remote executors)."""
+    for _, row in run_isolated([cell], max_samples, timeout, jobs=1, timing=timing, time_limit=time_limit):
+        return row
+    raise AssertionError("unreachable")
+
+
+def _child_main(folder: str) -> None:
+    path = Path(folder)
+    job = json.loads((path / "cell.json").read_text())
+    die_with_parent(job["parent"])
+    if (path / "session.pkl").exists():
+        sys.path[:0] = [p for p in json.loads((path / "sys_path.json").read_text()) if p not in sys.path]
+        registry.restore_session((path / "session.pkl").read_bytes())
+    set_memory_limit(job.get("memory_limit"))
+    row = run_cell(Cell.from_dict(job["cell"]), job["max_samples"], timing=Timing(**job["timing"]),
+                   time_limit=job.get("time_limit"))
+    tmp = path / "row.json.part"
+    tmp.write_text(json.dumps(row))
+    tmp.replace(path / "row.json")  # atomic: the parent never reads half a row
+    sys.stderr.flush()
+    os._exit(0)  # skip interpreter teardown: a thread a plugin left running cannot hang us
+
+
+if __name__ == "__main__":
+    _child_main(sys.argv[1])

@@ -1,0 +1,185 @@
+"""Hard limits of a cell: time and memory, whatever the cell is doing.
+
+``--time-limit`` is a soft limit: the shared drivers stop the integration between chunks of
+compiled steps and the row keeps what it reached. A cell stuck where no driver looks (a
+compiled step that never returns, a plugin's Python, the metrics, the reference) is ended
+from outside: cells run in worker processes, each writes a marker file when it starts a
+cell (``running-PID``, see ``batches.run_batch``), and a ``Watchdog`` thread in the parent
+kills a worker whose cell has run past its hard limit, ``time_limit + GRACE_S +
+GRACE_SHARE * time_limit`` (``hard_limit``), and records a ``timeout`` row for that cell.
+
+Memory: each worker runs under ``RLIMIT_DATA`` (its heap and anonymous mappings), by default
+``MEMORY_SHARE`` of the machine's memory (``--memory-limit`` changes it): an allocation
+past it raises ``MemoryError`` in that cell (a ``failed`` row saying "memory limit") instead
+of inviting the kernel's OOM killer into the whole matrix.
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import signal
+import threading
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+# the hard limit of a cell: its --time-limit, plus this many seconds, plus this share of it
+GRACE_S = 10.0
+GRACE_SHARE = 0.1
+# a cell may use this share of the machine's memory unless --memory-limit says otherwise
+MEMORY_SHARE = 0.5
+POLL_S = 0.1
+
+
+def hard_limit(time_limit: float | None) -> float | None:
+    """Seconds after which a cell's process is killed (None: never)."""
+    if not time_limit:
+        return None
+    return time_limit + GRACE_S + GRACE_SHARE * time_limit
+
+
+def grace(time_limit: float) -> float:
+    return GRACE_S + GRACE_SHARE * time_limit
+
+
+def machine_memory() -> int:
+    """Bytes of physical memory (0 where the platform does not say)."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        return 0
+
+
+def default_memory_limit() -> int | None:
+    total = machine_memory()
+    return int(MEMORY_SHARE * total) if total else None
+
+
+def memory_argument(text: str) -> int | None:
+    """--memory-limit: GiB (``8``, ``0.5``), or a share of the machine's memory (``25%``);
+    0: no limit. Returns bytes (None: no limit)."""
+    raw = text.strip()
+    try:
+        value = float(raw[:-1]) if raw.endswith("%") else float(raw)
+    except ValueError:
+        value = float("nan")
+    if not (value >= 0 and value < float("inf")) or (raw.endswith("%") and value > 100):
+        raise argparse.ArgumentTypeError(f"--memory-limit takes GiB (e.g. 8 or 0.5) or a share of the machine's "
+                                         f"memory (e.g. 25%), 0 for none; got {text!r}")
+    if value == 0:
+        return None
+    if raw.endswith("%"):
+        total = machine_memory()
+        if not total:
+            raise argparse.ArgumentTypeError(f"--memory-limit {text}: the machine's memory is unknown here; give GiB")
+        return int(total * value / 100)
+    return int(value * 2**30)
+
+
+def gib(nbytes: float) -> str:
+    return f"{nbytes / 2**30:.3g} GiB"
+
+
+def set_memory_limit(nbytes: int | None) -> None:
+    """Limit this process's data (heap and anonymous mappings) to ``nbytes`` (None: leave it)."""
+    if not nbytes:
+        return
+    try:
+        import resource
+
+        _, hard = resource.getrlimit(resource.RLIMIT_DATA)
+        soft = nbytes if hard == resource.RLIM_INFINITY else min(nbytes, hard)
+        resource.setrlimit(resource.RLIMIT_DATA, (soft, hard))
+    except (ImportError, ValueError, OSError):  # not on this platform: no limit
+        pass
+
+
+def memory_message(exc: BaseException) -> str:
+    """The message of a cell that ran out of memory: the limit it ran into, when there is one."""
+    limit = None
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_DATA)
+        limit = None if soft == resource.RLIM_INFINITY else soft
+    except (ImportError, ValueError, OSError):
+        pass
+    what = str(exc).strip() or type(exc).__name__
+    if limit is None:
+        return f"out of memory: {what}"
+    return f"memory limit: the cell may use {gib(limit)} (--memory-limit); {what}"
+
+
+def die_with_parent(parent: int) -> None:
+    """Ask Linux to kill this process when its parent dies (a SIGKILLed matrix leaves no
+    orphan computing); elsewhere a no-op. Exits at once if the parent is already gone."""
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent:
+        os._exit(1)
+
+
+def worker_init(parent: int, memory_limit: int | None) -> None:
+    """Initializer of a pool worker: it dies with its parent and runs under the memory limit."""
+    die_with_parent(parent)
+    set_memory_limit(memory_limit)
+
+
+class Watchdog:
+    """Kills a pool worker whose cell has run longer than ``limit`` seconds.
+
+    Workers write ``running-PID`` (the cell, as JSON) into ``folder`` when a cell starts and
+    remove it when the cell ends; the file's age is the cell's. Past the limit the watchdog
+    claims the marker (renamed to ``killed-PID``, so the pool's recovery does not run that
+    cell again), kills the worker and calls ``record(cell_dict, elapsed)``, which stores the
+    cell's ``timeout`` row where the recovery finds it. Killing a worker breaks the pool:
+    the caller recovers the rows finished and re-runs the cells that were running."""
+
+    def __init__(self, folder: str | Path, limit: float, record: Callable[[dict[str, Any], float], None]):
+        self.folder, self.limit, self.record = Path(folder), limit, record
+        self.killed = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._watch, name="longtime-watchdog", daemon=True)
+
+    def start(self) -> "Watchdog":
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join()
+
+    def __enter__(self) -> "Watchdog":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    def _watch(self) -> None:
+        while not self._stop.wait(POLL_S):
+            for marker in self.folder.glob("running-*"):
+                if marker.name.endswith(".part"):
+                    continue
+                with contextlib.suppress(OSError, ValueError):
+                    self._check(marker)
+
+    def _check(self, marker: Path) -> None:
+        elapsed = time.time() - marker.stat().st_mtime
+        if elapsed <= self.limit:
+            return
+        pid = int(marker.name.split("-", 1)[1])
+        cell = json.loads(marker.read_text())
+        claimed = marker.with_name(f"killed-{pid}")
+        marker.rename(claimed)  # fails when the cell has just ended (its worker removed it)
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.kill(pid, signal.SIGKILL)
+        self.killed += 1
+        self.record(cell, elapsed)

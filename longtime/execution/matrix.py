@@ -1,0 +1,354 @@
+"""Running many cells: executors and the loop that stores each row as it finishes.
+
+An executor is a function ``(cells, options) -> iterator of (cell, row)`` yielding rows as
+they complete, in any order. ``serial`` runs in this process; ``process`` (the default)
+on a pool of local worker processes, each keeping its compiled kernels across cells.
+Rows are written to the store one transaction each, so an interruption loses nothing
+already measured.
+"""
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import os
+import shutil
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+from longtime.core import registry
+from longtime.core.integrator import Timing
+from longtime.core.params import InputError, check_choice
+from longtime.execution import calibration, tempdirs
+from longtime.execution.batches import _calibrated, _digest, _write, batches_by_pair, run_batch
+from longtime.execution.cells import (
+    DEFAULT_MAX_SAMPLES,
+    DEFAULT_TIME_LIMIT,
+    Cell,
+    base_row,
+    run_cell,
+)
+from longtime.execution.isolation import run_isolated
+from longtime.execution.limits import Watchdog, default_memory_limit, grace, hard_limit, worker_init
+from longtime.execution.pool import spawn_pool
+from longtime.execution.pool import workers as pool_workers
+from longtime.execution.store import Store
+
+
+@dataclass
+class ExecOptions:
+    jobs: int = 0  # 0: one per core
+    max_samples: int = DEFAULT_MAX_SAMPLES
+    cell_timeout: float | None = None  # a hard limit: each cell in a process, killed past it
+    time_limit: float | None = DEFAULT_TIME_LIMIT  # the integration stops itself past it (None: never)
+    # bytes a cell's worker process may allocate (None: no limit); see longtime.execution.limits
+    memory_limit: int | None = field(default_factory=default_memory_limit)
+    scheduler: str | None = None  # Dask scheduler address
+    timing: Timing = field(default_factory=Timing)
+    # called with each cell just before it runs in this process (the store marks it started)
+    on_start: Callable[[Cell], None] | None = None
+    # work for a pool worker that has no cell left to run (the results page's figures and
+    # stability intervals): returns (picklable function, its arguments, a callback taking
+    # its result), or None when there is none for now; the process pool asks again as rows
+    # come in
+    idle_work: Callable[[], "IdleTask | None"] | None = None
+
+    def workers(self) -> int:
+        return pool_workers(self.jobs)
+
+
+Executor = Callable[[list[Cell], ExecOptions], Iterator[tuple[Cell, dict]]]
+IdleTask = tuple[Callable, tuple, Callable[[Any], None]]
+
+
+def serial(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
+    here = calibration.here()
+    here.start()
+    for cell in cells:
+        if options.on_start is not None and not cell.skip_reason:
+            options.on_start(cell)
+        yield cell, _calibrated(here, cell, options.max_samples, options.timing, options.time_limit)
+
+
+_FAMILY_PACKAGES = ("longtime.integrators.", "longtime.problems.")
+
+
+def shared_code(batch: list[Cell]) -> frozenset[str]:
+    """The modules whose compiled functions the batch's kernels may share with other batches:
+    the problem class's module (kdv's spectral helpers, nbody's forces, the Taylor series
+    other schemes of the problem reuse) and the scheme class's own modules (bpl's Pade and
+    Laplace sums, which bpl-exp inherits). Unknown names give none: run_cell reports them."""
+    from longtime.core import registry
+
+    cell = batch[0]
+    try:
+        modules = {registry.problem_class(cell.problem).__module__}
+        modules.update(k.__module__ for k in registry.integrator_class(cell.integrator).__mro__)
+    except Exception:
+        return frozenset()
+    return frozenset(m for m in modules if _family_module(m))
+
+
+def _family_module(module: str) -> bool:
+    """A module of problems or schemes (longtime's own, or a plugin's); the base classes'
+    modules (longtime.core.integrator, abc, builtins) are every batch's, so never a key."""
+    return module.startswith(_FAMILY_PACKAGES) or module.split(".")[0] not in ("longtime", "abc", "builtins")
+
+
+class CompileOnce:
+    """Hands out batches, largest first, so that two workers do not compile the same function
+    at once: numba's disk cache is per function, and two processes that both miss it both
+    compile (a cold default matrix compiled 24 functions twice, bpl's Pade among them). A
+    batch waits while a running batch shares a module with it that no finished batch has
+    compiled yet, unless every waiting batch is in that case: a worker never idles."""
+
+    def __init__(self, batches: list[list[Cell]]):
+        self.queue = [(b, shared_code(b)) for b in batches]
+        self.compiled: set[str] = set()
+        self.running: dict[int, frozenset[str]] = {}
+
+    def __bool__(self) -> bool:
+        return bool(self.queue)
+
+    def take(self) -> list[Cell]:
+        busy = set().union(*self.running.values()) - self.compiled
+        index = next((i for i, (_, keys) in enumerate(self.queue) if not keys & busy), 0)
+        batch, keys = self.queue.pop(index)
+        self.running[id(batch)] = keys
+        return batch
+
+    def finished(self, batch: list[Cell]) -> None:
+        self.compiled |= self.running.pop(id(batch), frozenset())
+
+
+def scheduled(pool, workers: int, batches: list[list[Cell]], fn: Callable, *args,
+              idle_work: Callable[[], IdleTask | None] | None = None) -> Iterator[tuple[list[Cell], Future]]:
+    """(batch, its finished future of ``fn(batch, *args)``) as they complete on ``pool``, the
+    batches handed out in CompileOnce's order, one per idle worker: each worker gets its next
+    batch before the caller sees the last one's result. A pool that breaks gets no more.
+    Once every batch is handed out, a worker that would idle runs ``idle_work``'s tasks
+    instead (never beside a waiting batch, so they take no time from a timed cell); their
+    results go to their callbacks, and the caller sees only the batches."""
+    order, futures, broken = CompileOnce(batches), {}, False
+    idle: dict[Future, Callable[[Any], None]] = {}
+
+    def fill() -> None:
+        while order and not broken and len(futures) + len(idle) < workers:
+            batch = order.take()
+            futures[pool.submit(fn, batch, *args)] = batch
+        while idle_work is not None and not order and not broken and len(futures) + len(idle) < workers:
+            task = idle_work()
+            if task is None:
+                break
+            work, work_args, callback = task
+            idle[pool.submit(work, *work_args)] = callback
+
+    fill()
+    while futures or idle:
+        ready, _ = wait([*futures, *idle], return_when=FIRST_COMPLETED)
+        finished = [(futures.pop(fut), fut) for fut in ready if fut in futures]
+        for batch, fut in finished:
+            order.finished(batch)
+            broken = broken or isinstance(fut.exception(), BrokenProcessPool)
+        for fut in (f for f in ready if f in idle):
+            callback = idle.pop(fut)
+            broken = broken or isinstance(fut.exception(), BrokenProcessPool)
+            if fut.exception() is None:  # a failed task is only not done ahead: its owner does it later
+                callback(fut.result())
+        fill()  # before the caller sees the results: no worker idles while it stores rows
+        yield from finished
+        fill()  # idle work the caller's new rows made ready
+
+
+def _worker_init(parent: int, memory_limit: int | None, session: bytes | None = None) -> None:
+    worker_init(parent, memory_limit)  # dies with its parent, under the memory limit
+    if session is not None:  # classes registered from Python in the parent (registry.register)
+        registry.restore_session(session)
+
+
+def _record_timeout(folder: str, time_limit: float) -> Callable[[dict, float], None]:
+    """The watchdog's record of a cell whose worker it killed: a ``timeout`` row file, where
+    the pool's recovery reads the rows of a broken pool (unless the cell's own row is there)."""
+
+    def record(cell_dict: dict, elapsed: float) -> None:
+        cell = Cell.from_dict(cell_dict)
+        path = Path(folder, f"row-{_digest(cell.key)}.json")
+        if path.exists():  # it ended just before its worker was killed: its own row stands
+            return
+        limit = hard_limit(time_limit)
+        row = {**base_row(cell), "status": "timeout",
+               "message": f"cell exceeded its hard time limit of {limit:g} s (--time-limit {time_limit:g} s "
+                          f"+ grace {grace(time_limit):g} s) where the integration could not stop itself; "
+                          f"its process was killed after {elapsed:.1f} s"}
+        _write(path, {"cell": cell.to_dict(), "row": row})
+
+    return record
+
+
+def _stop(pool: ProcessPoolExecutor) -> None:
+    """Shut the pool down, its workers killed first. After Ctrl-C or an error this returns at
+    once even while a worker is stuck in compiled code (the interpreter's exit would wait
+    for it); after the last result, when the workers have nothing left, it only spares
+    their interpreter's exit (numba's and LLVM's teardown: 0.7 to 1.1 s of a main job's wall
+    time, measured)."""
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):  # no public API for this
+        with contextlib.suppress(Exception):
+            proc.kill()
+    pool.shutdown(wait=False, cancel_futures=True)
+
+
+def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
+    """Batches of cells on a pool of worker processes. A worker that dies (a segfault, os.abort,
+    out of memory) breaks the whole pool: the rows finished before are kept, the cells that
+    were running then are re-run each in its own process (longtime.execution.isolation: only the one
+    that crashes again gets a ``failed`` row, naming its signal), and the rest go on a fresh
+    pool."""
+    runnable = [c for c in cells if not c.skip_reason]
+    for cell in cells:
+        if cell.skip_reason:
+            yield cell, run_cell(cell)
+    if not runnable:
+        return
+    workers = min(options.workers(), len(runnable))
+    limit = hard_limit(options.time_limit)
+    if workers == 1 and limit is None:  # no limit to enforce: this process is the worker
+        yield from serial(runnable, options)
+        return
+    folder = str(tempdirs.make("pool"))  # removed below, or by a later run if this one is killed
+    done: set[str] = set()
+    remaining = runnable
+    try:
+        while remaining:
+            broken = False
+            pool = spawn_pool(min(workers, len(remaining)), _worker_init,
+                              (os.getpid(), options.memory_limit, registry.session_payload()))
+            watchdog = Watchdog(folder, limit, _record_timeout(folder, options.time_limit)).start() if limit else None
+            try:
+                for batch, fut in scheduled(pool, workers, batches_by_pair(remaining), run_batch,
+                                            options.max_samples, options.timing, folder, options.time_limit,
+                                            idle_work=options.idle_work):
+                    try:
+                        rows = fut.result()
+                    except BrokenProcessPool:  # some worker died: sorted out below
+                        broken = True
+                        continue
+                    except Exception as exc:  # the batch could not be sent or returned
+                        rows = [{**base_row(c), "status": "failed",
+                                 "message": f"worker process failed: {exc!r}"} for c in batch]
+                    for c, row in zip(batch, rows):
+                        if c.key not in done:
+                            done.add(c.key)
+                            yield c, row
+            finally:
+                if watchdog is not None:
+                    watchdog.stop()
+                _stop(pool)
+            if not broken:
+                break
+            # rows the broken pool's workers finished but could not return
+            for path in sorted(Path(folder).glob("row-*.json")):
+                data = json.loads(path.read_text())
+                cell = Cell.from_dict(data["cell"])
+                if cell.key not in done:
+                    done.add(cell.key)
+                    yield cell, data["row"]
+            suspects = [Cell.from_dict(json.loads(p.read_text())) for p in Path(folder).glob("running-*")
+                        if not p.name.endswith(".part")]
+            suspects = [c for c in suspects if c.key not in done]
+            for path in Path(folder).iterdir():
+                path.unlink()
+            if not suspects:  # broken outside any cell: one process per cell, no endless retries
+                suspects = [c for c in remaining if c.key not in done]
+            for cell, row in run_isolated(suspects, options.max_samples, limit, workers, timing=options.timing,
+                                          time_limit=options.time_limit, memory_limit=options.memory_limit):
+                done.add(cell.key)
+                yield cell, row
+            remaining = [c for c in remaining if c.key not in done]
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def isolated(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
+    """Each cell in a fresh child process, killed past ``cell_timeout`` (else the hard limit of
+    ``time_limit``, longtime.execution.limits) (a ``timeout`` row); a child that dies (os._exit,
+    segfault) gives a ``failed`` row. See longtime.execution.isolation."""
+    from longtime.execution.isolation import run_isolated
+
+    timeout = options.cell_timeout or hard_limit(options.time_limit)
+    yield from run_isolated(cells, options.max_samples, timeout, options.workers(),
+                            timing=options.timing, time_limit=options.time_limit, memory_limit=options.memory_limit)
+
+
+def dask_cluster(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
+    """Cells as batched tasks on a Dask cluster (``options.scheduler``, or a local one of
+    ``jobs`` workers); see longtime.execution.dask_executor, imported only when used."""
+    from longtime.execution.dask_executor import dask_cluster as run_on_dask
+
+    yield from run_on_dask(cells, options)
+
+
+def _with_limits(default: Executor) -> Executor:
+    """``default`` unless a time limit is set: a pool worker or this process cannot stop a
+    hung cell, so the cells then run isolated (one process each)."""
+
+    def run(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
+        if options.cell_timeout:
+            return isolated(cells, options)
+        return default(cells, options)
+
+    run.__doc__ = default.__doc__
+    return run
+
+
+EXECUTORS: dict[str, Executor] = {"serial": _with_limits(serial), "process": _with_limits(process_pool),
+                                  "isolated": isolated, "dask": dask_cluster}
+
+
+def get_executor(name: str) -> Executor:
+    check_choice("executor", name, EXECUTORS)
+    return EXECUTORS[name]
+
+
+def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, executor: str = "process",
+               options: ExecOptions | None = None, progress: bool = False,
+               on_row: Callable[[Cell, dict], None] | None = None) -> list[dict]:
+    """Run the cells, storing each row as it completes (then ``on_row(cell, row)``); returns
+    the rows in cell order."""
+    options = options or ExecOptions()
+    if options.max_samples < 2:
+        raise InputError(f"max_samples={options.max_samples} is not valid: must be >= 2")
+    run = get_executor(executor)
+    if store is not None and run_id is not None and options.on_start is None:
+        options = dataclasses.replace(options, on_start=lambda cell: store.mark_started(run_id, cell))
+    rows: dict[str, dict] = {}
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(cells), unit="cell", dynamic_ncols=True)
+    storing = store is not None and run_id is not None
+    here = calibration.here(reset=True)  # the machine's speed before the cells, and after them
+    if storing:
+        store.add_calibrations(run_id, [here.take("before")])
+        here.handed()
+    try:
+        for cell, row in run(cells, options):
+            points = calibration.take_points(row)
+            rows[cell.key] = row
+            if storing:
+                store.add_calibrations(run_id, points)
+                store.add_row(run_id, cell, row)
+            if on_row is not None:
+                on_row(cell, row)
+            if bar is not None:
+                bar.set_postfix_str(f"{cell.problem} x {cell.integrator}: {row['status']}", refresh=False)
+                bar.update()
+    finally:
+        if bar is not None:
+            bar.close()
+    if storing:
+        store.add_calibrations(run_id, [here.take("after")])
+    return [rows[c.key] for c in cells if c.key in rows]

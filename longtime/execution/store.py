@@ -1,0 +1,408 @@
+"""The results store: an embedded SQLite database (stdlib sqlite3).
+
+A run records its plan (every cell) when it starts and appends each row in its own
+transaction as the cell finishes, so an interrupted matrix keeps every finished cell and
+``--resume`` runs only the rest. Metadata: time, command, git commit, versions, machine.
+"""
+from __future__ import annotations
+
+import functools
+import json
+import os
+import platform
+import sqlite3
+import subprocess
+import sys
+import threading
+import time
+from contextlib import closing, contextmanager
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Iterable, Iterator
+from urllib.parse import quote
+
+from longtime.core.params import InputError
+from longtime.execution.cells import Cell
+
+DEFAULT_PATH = "longtime.sqlite"
+# A longtime store says so in its SQLite header: application_id (ASCII "LTim") and
+# user_version (the schema version), and has the tables and columns of SCHEMA. A file
+# without the stamp is refused untouched unless it is a store written before the version
+# existed (the same three tables, with the same columns, and nothing else).
+APPLICATION_ID = 0x4C54696D
+# 2: the calibrations table (a store of version 1 gains it when opened for writing)
+SCHEMA_VERSION = 2
+ADDED_IN = {"calibrations": 2}  # the schema version that added a table (1: every other)
+_TABLES = {"runs", "planned", "rows"}  # a store before the schema version (no 'started' yet)
+
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS runs (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    started TEXT NOT NULL, finished TEXT, status TEXT NOT NULL,
+    command TEXT, git_commit TEXT, versions TEXT, machine TEXT
+);
+CREATE TABLE IF NOT EXISTS planned (
+    run_id INTEGER NOT NULL REFERENCES runs(id), cell_key TEXT NOT NULL, cell TEXT NOT NULL,
+    PRIMARY KEY (run_id, cell_key)
+);
+CREATE TABLE IF NOT EXISTS rows (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    run_id INTEGER NOT NULL REFERENCES runs(id), cell_key TEXT NOT NULL,
+    problem TEXT NOT NULL, integrator TEXT NOT NULL, status TEXT NOT NULL,
+    row TEXT NOT NULL, created TEXT NOT NULL,
+    UNIQUE (run_id, cell_key)
+);
+CREATE TABLE IF NOT EXISTS started (
+    run_id INTEGER NOT NULL REFERENCES runs(id), cell_key TEXT NOT NULL, pid INTEGER, host TEXT,
+    started TEXT NOT NULL, PRIMARY KEY (run_id, cell_key)
+);
+CREATE TABLE IF NOT EXISTS calibrations (
+    run_id INTEGER NOT NULL REFERENCES runs(id), t REAL NOT NULL, pid INTEGER, phase TEXT,
+    cpu_s REAL NOT NULL, point TEXT NOT NULL, PRIMARY KEY (run_id, pid, t)
+);
+PRAGMA application_id = %d;
+PRAGMA user_version = %d;
+""" % (APPLICATION_ID, SCHEMA_VERSION)
+
+# runs that this process marked interrupted, as (store path, run id): the message of an
+# interrupted command names them (longtime.commands.guard)
+INTERRUPTED: list[tuple[str, int]] = []
+
+
+SETTLE_S = 1.0  # how long a file that may be a store in creation is looked at before it is refused
+
+
+class _Unsettled(Exception):
+    """A file that is not a store yet, perhaps only for the moment (its message says why)."""
+
+
+class StoreError(RuntimeError):
+    """A write to the store failed during a run (a full disk, an I/O error, a lock held too
+    long): the run cannot go on; every row committed before is kept. ``run_id``: the run it
+    was writing (None: no run was recorded)."""
+
+    def __init__(self, message: str, path: str, run_id: int | None = None) -> None:
+        super().__init__(message)
+        self.path, self.run_id = path, run_id
+
+
+def _columns(con: sqlite3.Connection, tables: Iterable[str]) -> dict[str, list[str]]:
+    return {t: [r[1] for r in con.execute("SELECT * FROM pragma_table_info(?)", (t,))] for t in tables}
+
+
+@functools.cache
+def _schema_columns() -> dict[str, list[str]]:
+    """The columns of every table of SCHEMA (built in memory: SCHEMA is their one home)."""
+    with closing(sqlite3.connect(":memory:")) as con:
+        con.executescript(SCHEMA)
+        return _columns(con, [r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type = 'table' "
+                                                        "AND name NOT LIKE 'sqlite_%'")])
+
+
+def _check_path(path: Path, must_exist: bool) -> bool:
+    """Whether ``path`` exists as a regular file; an InputError for anything else, before
+    SQLite sees it (it would create /dev/null-journal, or a traceback)."""
+    if path.is_dir():
+        raise InputError(f"store {path}: is a directory, not a store file")
+    if path.exists():
+        if not path.is_file():
+            raise InputError(f"store {path}: not a regular file")
+        if not os.access(path, os.R_OK):
+            raise InputError(f"store {path}: not readable (permission denied)")
+        return True
+    for parent in path.absolute().parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise InputError(f"store {path}: {parent} is a file, not a folder")
+            break
+    if must_exist:
+        raise InputError(f"store {path}: no such file (nothing was created)")
+    return False
+
+
+def default_path() -> str:
+    return os.environ.get("LONGTIME_DB") or DEFAULT_PATH  # set but empty: unset, as in a shell
+
+
+def _now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+def environment() -> dict[str, Any]:
+    from importlib.metadata import PackageNotFoundError, version
+
+    versions = {"python": sys.version.split()[0]}
+    for pkg in ("longtime", "numpy", "scipy", "numba", "heyoka", "pandas", "rebound"):
+        try:
+            versions[pkg] = version(pkg)
+        except PackageNotFoundError:
+            versions[pkg] = None
+    machine = {"platform": platform.platform(), "machine": platform.machine(),
+               "processor": platform.processor(), "cpus": os.cpu_count(), "node": platform.node()}
+    # the commit of the code measured: $LONGTIME_GIT_COMMIT where the caller names it (a
+    # plugin's repository, a CI checkout), else longtime's own checkout
+    commit = os.environ.get("LONGTIME_GIT_COMMIT") or None
+    try:
+        commit = commit or subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
+                                          timeout=5, cwd=Path(__file__).parent).stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        commit = None
+    return {"versions": versions, "machine": machine, "git_commit": commit}
+
+
+class Store:
+    """A store file. ``readonly`` opens an existing store without writing anything (no
+    journal switch, no table created: ``report`` on a read-only file); ``create=False``
+    refuses a missing file instead of creating an empty store (``--resume``, ``report``).
+    Anything that is not a longtime store of this or an older schema (an empty file
+    included) is an InputError naming the file, and the file is left as it was."""
+
+    def __init__(self, path: str | os.PathLike | None = None, *, readonly: bool = False,
+                 create: bool = True) -> None:
+        if path is not None and not str(path).strip():
+            raise InputError(f"store path {str(path)!r} is empty: give --db a file name")
+        self.path = Path(path or default_path())
+        self.readonly = readonly
+        self._writer: sqlite3.Connection | None = None  # see _row_writer
+        self._writer_lock = threading.Lock()
+        exists = _check_path(self.path, must_exist=readonly or not create)
+        if exists:
+            self._check_identity()
+        if readonly:
+            return
+        try:
+            if not self.path.parent.exists():
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+            with closing(self._connect()) as con:
+                # one transaction: a failure (a full disk) leaves no half-made store
+                con.executescript("BEGIN IMMEDIATE;\n" + SCHEMA + "COMMIT;")
+        except (OSError, sqlite3.Error) as exc:
+            if not exists:  # the file this call began: nothing of it stays
+                for p in (self.path, *(Path(f"{self.path}{x}") for x in ("-wal", "-shm", "-journal"))):
+                    p.unlink(missing_ok=True)
+            raise InputError(f"store {self.path}: cannot write it: {exc}") from None
+
+    def _check_identity(self) -> None:
+        """Refuse, untouched, a file that is not a longtime store (or is a newer one)."""
+        sidecars = [Path(f"{self.path}{x}") for x in ("-wal", "-shm", "-journal")]
+        before = {p for p in sidecars if p.exists()}
+        try:
+            self._identify()
+        except InputError:
+            for p in sidecars:  # reading a WAL file may have created these: leave nothing behind
+                if p not in before and p.exists():
+                    p.unlink()
+            raise
+
+    def _identify(self) -> None:
+        """A store is recognised by its stamp and its schema (tables and their columns), never
+        by its table names alone. A file that is empty, or a database without a table, may be
+        a store that another process is creating (its schema is one transaction): it is
+        looked at again for up to SETTLE_S seconds before it is refused."""
+        deadline = time.monotonic() + SETTLE_S
+        while True:
+            try:
+                return self._identify_once()
+            except _Unsettled as exc:
+                if time.monotonic() > deadline:
+                    raise InputError(str(exc)) from None
+                time.sleep(0.05)
+
+    def _identify_once(self) -> None:
+        refuse = "refusing to touch it: use another --db"
+        if self.path.stat().st_size == 0:
+            raise _Unsettled(f"store {self.path}: an empty file, not a longtime store; {refuse}")
+        try:
+            with closing(self._open_ro()) as con:
+                app = con.execute("PRAGMA application_id").fetchone()[0]
+                version = con.execute("PRAGMA user_version").fetchone()[0]
+                tables = {r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+                tables.discard("sqlite_sequence")
+                columns = _columns(con, tables)
+                con.execute("PRAGMA quick_check(1)").fetchone()  # a truncated file fails here
+        except sqlite3.DatabaseError as exc:
+            raise InputError(f"store {self.path}: not a readable SQLite database ({exc})") from None
+        expected = _schema_columns()
+        if app == APPLICATION_ID:
+            if version > SCHEMA_VERSION:
+                raise InputError(f"store {self.path}: schema version {version} is newer than this longtime "
+                                 f"reads ({SCHEMA_VERSION}); upgrade longtime or use another --db")
+            # a table of SCHEMA belongs to every version from the one that added it on
+            wrong = sorted(t for t in expected if ADDED_IN.get(t, 1) <= version and columns.get(t) != expected[t])
+            if wrong:
+                raise InputError(f"store {self.path}: stamped as a longtime store, but its tables are not a "
+                                 f"store's ({', '.join(wrong)} missing or different); {refuse}")
+        elif app == 0 and version == 0 and not tables:
+            raise _Unsettled(f"store {self.path}: an SQLite database without tables, not a longtime store; {refuse}")
+        elif app != 0 or version != 0 or tables != _TABLES or any(columns[t] != expected[t] for t in tables):
+            what = (f"tables {', '.join(sorted(tables))}, not a longtime store's columns" if tables == _TABLES
+                    else f"tables: {', '.join(sorted(tables)) or 'none'}")
+            raise InputError(f"store {self.path}: a SQLite file of another program ({what}); {refuse}")
+
+    def _open_ro(self) -> sqlite3.Connection:
+        uri = f"file:{quote(str(self.path.absolute()))}?mode=ro"
+        if not Path(f"{self.path}-wal").exists():
+            # nothing left in a write-ahead log: read the file as it is, creating no -shm/-wal
+            # beside it (a read-only folder allows none)
+            uri += "&immutable=1"
+        try:
+            return sqlite3.connect(uri, uri=True, timeout=30)
+        except sqlite3.Error as exc:
+            raise InputError(f"store {self.path}: cannot open it: {exc}") from None
+
+    def _connect(self, check_same_thread: bool = True) -> sqlite3.Connection:
+        if self.readonly:
+            return self._open_ro()
+        con = sqlite3.connect(self.path, timeout=30, check_same_thread=check_same_thread)
+        con.execute("PRAGMA journal_mode=WAL")
+        return con
+
+    def _row_writer(self) -> sqlite3.Connection:
+        """One connection kept open for the per-cell writes (rows, started marks). A connection
+        per row cost about 5 ms (a main job's 668 rows: 3.4 s of the client's CPU beside the
+        workers, profiled): closing the last connection checkpoints the write-ahead log, and each commit
+        synced it to disk. In WAL mode, synchronous=NORMAL still keeps every committed row
+        through a crash of the process (only a power loss can drop the last few)."""
+        if self._writer is None:
+            self._writer = self._connect(check_same_thread=False)  # the lock serialises its users
+            self._writer.execute("PRAGMA synchronous=NORMAL")
+        return self._writer
+
+    def close(self) -> None:
+        """Close the per-cell writer (finish_run does; reopened if needed)."""
+        with self._writer_lock:
+            if self._writer is not None:
+                self._writer.close()
+                self._writer = None
+
+    @contextmanager
+    def _writing(self, what: str, run_id: int | None = None) -> Iterator[None]:
+        """A failed write (sqlite3.Error) as a StoreError naming the store, ``what`` and the run."""
+        try:
+            yield
+        except sqlite3.Error as exc:
+            raise StoreError(f"store {self.path}: cannot write {what}: {exc}", str(self.path), run_id) from exc
+
+    def begin_run(self, command: str, cells: Iterable[Cell]) -> int:
+        env = environment()
+        with self._writing("a new run"), closing(self._connect()) as con, con:
+            cur = con.execute(
+                "INSERT INTO runs (started, status, command, git_commit, versions, machine) "
+                "VALUES (?, 'running', ?, ?, ?, ?)",
+                (_now(), command, env["git_commit"], json.dumps(env["versions"]), json.dumps(env["machine"])))
+            run_id = int(cur.lastrowid)
+            con.executemany("INSERT OR IGNORE INTO planned (run_id, cell_key, cell) VALUES (?, ?, ?)",
+                            [(run_id, c.key, json.dumps(c.to_dict())) for c in cells])
+        return run_id
+
+    def add_row(self, run_id: int, cell: Cell, row: dict[str, Any]) -> None:
+        what = f"the row of {cell.problem} x {cell.integrator} (run {run_id})"
+        with self._writing(what, run_id), self._writer_lock, self._row_writer() as con:  # commits the row
+            con.execute(
+                "INSERT OR REPLACE INTO rows (run_id, cell_key, problem, integrator, status, row, created) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?)",
+                (run_id, cell.key, row["problem"], row["integrator"], row["status"],
+                 json.dumps(row), _now()))
+
+    def mark_started(self, run_id: int, cell: Cell) -> None:
+        """Record that this process starts ``cell`` (in-process executors): if the process
+        dies in it (a plugin's os.abort, a segfault), the store knows which cell it was."""
+        with self._writing(f"the start of a cell (run {run_id})", run_id), self._writer_lock, self._row_writer() as con:
+            con.execute("INSERT OR REPLACE INTO started (run_id, cell_key, pid, host, started) VALUES (?, ?, ?, ?, ?)",
+                        (run_id, cell.key, os.getpid(), platform.node(), _now()))
+
+    def died_in(self, run_id: int) -> list[Cell]:
+        """Cells of ``run_id`` that a process started and never finished: where it died."""
+        with closing(self._connect()) as con:
+            try:
+                rows = con.execute(
+                    "SELECT p.cell FROM planned p JOIN started s ON s.run_id = p.run_id AND s.cell_key = p.cell_key "
+                    "WHERE p.run_id = ? AND p.cell_key NOT IN (SELECT cell_key FROM rows WHERE run_id = ?) "
+                    "ORDER BY p.rowid", (run_id, run_id)).fetchall()
+            except sqlite3.OperationalError:  # a store from before the 'started' table, opened read-only
+                return []
+        return [Cell.from_dict(json.loads(r[0])) for r in rows]
+
+    def discard_run(self, run_id: int) -> None:
+        """Remove a run that stored no row (rejected before any cell ran: nothing to resume)."""
+        self.close()
+        with closing(self._connect()) as con, con:
+            if con.execute("SELECT COUNT(*) FROM rows WHERE run_id = ?", (run_id,)).fetchone()[0]:
+                return
+            for table in ("started", "planned", "calibrations"):
+                con.execute(f"DELETE FROM {table} WHERE run_id = ?", (run_id,))
+            con.execute("DELETE FROM runs WHERE id = ?", (run_id,))
+
+    def add_calibrations(self, run_id: int, points: Iterable[dict[str, Any]]) -> None:
+        """Store calibrations of the machine's speed (longtime.execution.calibration) taken during the
+        run; one already stored is kept as it is."""
+        points = list(points)
+        if not points:
+            return
+        with self._writer_lock, self._row_writer() as con:
+            con.executemany("INSERT OR IGNORE INTO calibrations (run_id, t, pid, phase, cpu_s, point) "
+                            "VALUES (?, ?, ?, ?, ?, ?)",
+                            [(run_id, p["t"], p.get("pid"), p.get("phase"), p["cpu_s"], json.dumps(p))
+                             for p in points])
+
+    def calibrations(self, run_id: int) -> list[dict[str, Any]]:
+        """The calibrations of ``run_id`` in time order (none for a run stored before them)."""
+        with closing(self._connect()) as con:
+            try:
+                fetched = con.execute("SELECT point FROM calibrations WHERE run_id = ? ORDER BY t",
+                                      (run_id,)).fetchall()
+            except sqlite3.OperationalError:  # a store of schema version 1, opened read-only
+                return []
+        return [json.loads(text) for (text,) in fetched]
+
+    def finish_run(self, run_id: int, status: str) -> None:
+        self.close()
+        with self._writing(f"the end of run {run_id} ({status})", run_id), closing(self._connect()) as con, con:
+            con.execute("UPDATE runs SET finished = ?, status = ? WHERE id = ?", (_now(), status, run_id))
+        if status == "interrupted":
+            INTERRUPTED.append((str(self.path), run_id))
+
+    def pending(self, run_id: int) -> list[Cell]:
+        with closing(self._connect()) as con:
+            rows = con.execute(
+                "SELECT cell FROM planned WHERE run_id = ? AND cell_key NOT IN "
+                "(SELECT cell_key FROM rows WHERE run_id = ?) ORDER BY rowid", (run_id, run_id)).fetchall()
+        return [Cell.from_dict(json.loads(r[0])) for r in rows]
+
+    def runs(self) -> list[dict[str, Any]]:
+        with closing(self._connect()) as con:
+            con.row_factory = sqlite3.Row
+            out = []
+            for r in con.execute(
+                    "SELECT r.*, (SELECT COUNT(*) FROM planned p WHERE p.run_id = r.id) AS planned, "
+                    "(SELECT COUNT(*) FROM rows w WHERE w.run_id = r.id) AS done FROM runs r ORDER BY id"):
+                out.append(dict(r))
+        return out
+
+    def run(self, run_id: int) -> dict[str, Any]:
+        """The run ``run_id`` (with its planned and done counts); InputError if none."""
+        found = [r for r in self.runs() if r["id"] == run_id]
+        if not found:
+            ids = [r["id"] for r in self.runs()]
+            known = f"runs {ids[0]}..{ids[-1]}" if ids else "no runs"
+            raise InputError(f"run {run_id} is not in {self.path} ({known})")
+        return found[0]
+
+    def latest_run(self, command_prefix: str | None = None) -> int | None:
+        runs = [r for r in self.runs() if not command_prefix or (r["command"] or "").startswith(command_prefix)]
+        return runs[-1]["id"] if runs else None
+
+    def latest_incomplete_run(self, command_prefix: str | tuple[str, ...] | None = None) -> int | None:
+        """The newest run (of commands starting with ``command_prefix``, or one of them) that
+        did not finish: a cell not stored, or not marked done (interrupted, or its process died)."""
+        runs = [r for r in self.runs() if (not command_prefix or (r["command"] or "").startswith(command_prefix))
+                and (r["status"] != "done" or r["done"] < r["planned"])]
+        return runs[-1]["id"] if runs else None
+
+    def rows(self, run_id: int | None = None) -> list[dict[str, Any]]:
+        query, args = "SELECT run_id, row FROM rows", ()
+        if run_id is not None:
+            query, args = query + " WHERE run_id = ?", (run_id,)
+        with closing(self._connect()) as con:
+            fetched = con.execute(query + " ORDER BY id", args).fetchall()
+        return [{"run_id": rid, **json.loads(text)} for rid, text in fetched]

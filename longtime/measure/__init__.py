@@ -1,0 +1,1 @@
+"""What a run is measured by: metrics, the trusted reference, growth laws, observed orders, linear stability."""

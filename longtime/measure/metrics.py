@@ -1,0 +1,198 @@
+"""The quantities of docs/metrics.md, computed the same way for every scheme.
+
+e_I(t) = |I(u(t)) - I(u0)| / |I(u0)| (a vector invariant: Euclidean norms), the absolute
+error where I(u0) = 0. Per invariant NAME: NAME.max, NAME.final, NAME.mean (time average of
+e_I by the trapezoid rule over the samples, which are every step up to max_samples),
+NAME.t_1pct, NAME.t_50pct (first sample time with e_I > 1 % / 50 %, null if never).
+Against the reference, over the samples up to its horizon (``error_horizon`` is the last
+one): ``l2_error`` = sqrt(sum |u - u_ref|^2 / sum |u_ref|^2), ``final_error`` the relative
+error at the last sample, null when the horizon ends before it.
+Growth law of each error (longtime.measure.growth): NAME.growth, NAME.growth_ci, NAME.growth_class,
+NAME.growth_reason, NAME.growth_windows, NAME.saturated_t per invariant, and the same as
+``error.`` for the relative solution error |u - u_ref| / |u_ref| over the samples up to the
+horizon. ``drift_curves`` keeps the drift curve of every invariant (``drift_curve``: the
+first one's alone).
+Diagnostics (``Problem.diagnostics``: quantities watched, not conserved): diag.NAME.max and
+diag.NAME.final of |D(t) - D(0)| / |D(0)| (absolute where D(0) = 0) and their curves in
+``diag_curves``; never a growth class.
+Non-finite values become null: a diverged run is a status, never a NaN in a table.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from longtime.core.contract import check_name
+from longtime.core.integrator import Trajectory
+from longtime.core.problem import Problem
+from longtime.measure.growth import growth_fields
+from longtime.measure.reference import Trust, trust_fields
+
+DRIFT_POINTS = 80  # points of the drift curve each row keeps (drift_envelope)
+
+
+def finite_or_none(x) -> float | None:
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def relative_error(values: np.ndarray) -> np.ndarray:
+    values = np.asarray(values, dtype=float)
+    v0 = values[0]
+    diff = values - v0
+    if values.ndim == 1:
+        num, den = np.abs(diff), abs(float(v0))
+    else:
+        num, den = np.linalg.norm(diff, axis=1), float(np.linalg.norm(v0))
+    return num / den if den > 0 else num
+
+
+def time_mean(t: np.ndarray, y: np.ndarray) -> float:
+    span = float(t[-1] - t[0])
+    if t.size < 2 or span <= 0:
+        return float(y[-1])
+    return float(np.trapezoid(y, t) / span)
+
+
+def first_crossing(t: np.ndarray, err: np.ndarray, level: float) -> float | None:
+    above = np.flatnonzero(~(err <= level))  # NaN counts as crossed
+    return float(t[above[0]]) if above.size else None
+
+
+def drift_fields(name: str, t: np.ndarray, err: np.ndarray) -> dict[str, Any]:
+    finite = np.isfinite(err)
+    upto = int(np.argmin(finite)) if not finite.all() else err.size
+    tt, ee = t[:upto], err[:upto]
+    if upto < 2:  # the initial sample alone measures no drift: null, never 0
+        return {f"{name}.{k}": None for k in ("max", "mean", "final", "t_1pct", "t_50pct")}
+    return {
+        f"{name}.max": finite_or_none(np.max(ee)),
+        f"{name}.mean": finite_or_none(time_mean(tt, ee)),
+        f"{name}.final": finite_or_none(err[-1]),
+        f"{name}.t_1pct": first_crossing(t, err, 0.01),
+        f"{name}.t_50pct": first_crossing(t, err, 0.5),
+    }
+
+
+def drift_envelope(name: str, t: np.ndarray, err: np.ndarray, points: int = DRIFT_POINTS,
+                   kind: str = "invariant") -> dict[str, Any] | None:
+    """A drift curve small enough to keep in the row: e_I at the sample where it is largest
+    within each of ``points`` log-spaced bins of t - t0 (its upper envelope, so a bounded
+    but oscillating error keeps its peaks), 6 significant digits. The results page draws
+    it; nothing has to be run again to show how the error grew. ``kind`` names the key
+    that holds ``name`` ("invariant", or "diagnostic" for a diagnostic's curve)."""
+    tau = t - t[0]
+    keep = (tau > 0) & np.isfinite(err)
+    if keep.sum() < 2:
+        return None
+    tau, e = tau[keep], err[keep]
+    edges = np.logspace(np.log10(tau[0]), np.log10(tau[-1]), points + 1)
+    bins = np.clip(np.searchsorted(edges, tau, side="right") - 1, 0, points - 1)
+    starts = np.flatnonzero(np.r_[True, bins[1:] != bins[:-1]])  # tau is sorted: bins are runs
+    peaks = [int(a + np.argmax(e[a:b])) for a, b in zip(starts, np.r_[starts[1:], tau.size])]
+    return {kind: name, "t": [float(f"{tau[i]:.6g}") for i in peaks],
+            "error": [float(f"{e[i]:.6g}") for i in peaks]}
+
+
+def diagnostic_fields(problem: Problem, t: np.ndarray, U: np.ndarray, notes: list[str]) -> dict[str, Any]:
+    """``diag.NAME.max``, ``diag.NAME.final`` (the change |D(t) - D(0)| relative to |D(0)|,
+    absolute where D(0) = 0, as for an invariant) and ``diag_curves`` (its envelope, as
+    drift_envelope) of each of the problem's diagnostics; a non-finite value on a finite
+    state is named in ``notes``. Diagnostics are watched, never classed."""
+    out: dict[str, Any] = {}
+    curves = []
+    for name, values in problem.diagnostics(t, U).items():
+        change = relative_error(values)
+        finite = np.isfinite(change)
+        upto = change.size if finite.all() else int(np.argmin(finite))
+        measured = upto >= 2  # the initial state alone measures nothing: null, never 0
+        out[f"diag.{name}.max"] = finite_or_none(np.max(change[:upto])) if measured else None
+        out[f"diag.{name}.final"] = finite_or_none(change[-1]) if measured else None
+        curve = drift_envelope(name, t, change, kind="diagnostic")
+        if curve is not None:
+            curves.append(curve)
+        if not finite.all():
+            notes.append(f"diagnostic {name} is not finite from t = {t[upto]:.6g} on a finite state")
+    out["diag_curves"] = curves or None
+    return out
+
+
+def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
+             trust: Trust | None = None) -> dict[str, Any]:
+    """Row fields of one trajectory. ``reference`` holds the true states at the leading
+    samples traj.t[:len(reference)], those up to the reference's horizon (``trust``): the
+    errors cover those samples only; final_error is null unless they reach the last one.
+    """
+    t, U = traj.t, traj.u
+    steps = traj.steps
+    span = float(t[-1] - problem.t0)
+    row: dict[str, Any] = {
+        "steps": steps,
+        **{k: v for k, v in traj.counters.items() if k != "steps"},
+        "cpu_s": traj.cpu_s,
+        "wall_s": traj.wall_s,
+        "mean_dt": span / steps if steps else None,
+        "min_dt": traj.min_dt,
+        "max_dt": traj.max_dt,
+        "t_reached": float(t[-1]),
+        "samples": int(t.size),
+        "l2_error": None,  # null unless a reference is at hand
+        "final_error": None,
+        "error_horizon": None,  # the last sample time the errors cover
+        "drift_curve": None,  # null: no invariant (the results page then runs nothing again)
+        "drift_curves": None,  # every invariant's curve, in the problem's order
+        "diag_curves": None,  # every diagnostic's curve
+        **growth_fields("error", np.empty(0), np.empty(0), problem.t0),  # null without a reference
+        **trust_fields(trust),
+    }
+    # a diverged run ends on a non-finite state: measure the finite part (until the blow-up)
+    finite = int(np.argmin(np.isfinite(U).all(axis=1))) if not np.isfinite(U).all() else t.size
+    t, U = t[:finite], U[:finite]
+    diverged = traj.status == "diverged"
+    if finite == 0:
+        return row
+    notes: list[str] = []
+    with np.errstate(all="ignore"):
+        curves = []
+        for k, (name, values) in enumerate(problem.invariants(t, U).items()):
+            check_name("invariant", name)  # it names row fields (NAME.max) and the page's text
+            err = relative_error(values)
+            curves.append(drift_envelope(name, t, err))
+            if k == 0:  # the first invariant (H where there is one: listed first)
+                row["drift_curve"] = curves[0]
+            row.update(drift_fields(name, t, err))
+            row.update(growth_fields(name, t, err, problem.t0, diverged, steps=steps))
+            bad = np.flatnonzero(~np.isfinite(err))
+            if bad.size:  # a plugin's invariant on a finite state: say so, do not just null it
+                notes.append(f"invariant {name} is not finite from t = {t[bad[0]]:.6g} on a finite state "
+                             f"(its drift is measured up to there)")
+        kept = [c for c in curves if c is not None]
+        row["drift_curves"] = kept or None
+        row.update(diagnostic_fields(problem, t, U, notes))
+        for name, values in problem.violations(t, U).items():
+            check_name("constraint violation", name)
+            values = np.asarray(values, dtype=float)
+            measured = values.size >= 2  # the initial state alone: not measured (null, never 0)
+            row[f"{name}.max"] = finite_or_none(np.max(values)) if measured else None
+            row[f"{name}.final"] = finite_or_none(values[-1]) if measured else None
+        # the initial state alone says nothing about the error: at least one sample after t0
+        k = min(len(reference), finite) if reference is not None else 0
+        if k >= 2 and not np.isfinite(reference[:k]).all():
+            bad = int(np.argmin(np.isfinite(reference[:k]).all(axis=1)))
+            notes.append(f"the reference is not finite at t = {t[bad]:.6g}: no error measured")
+        elif k >= 2:
+            diff = np.linalg.norm(U[:k] - reference[:k], axis=1)
+            ref = np.linalg.norm(reference[:k], axis=1)
+            row["l2_error"] = finite_or_none(np.sqrt(np.sum(diff**2) / np.sum(ref**2)))
+            # growth law of the relative error |u - u_ref| / |u_ref|, up to the horizon
+            rel = diff / np.where(ref > 0, ref, 1.0)
+            row.update(growth_fields("error", t[:k], rel, problem.t0, diverged, steps=steps))
+            row["error_horizon"] = float(t[k - 1])
+            if k == finite:
+                row["final_error"] = finite_or_none(diff[-1] / ref[-1] if ref[-1] > 0 else diff[-1])
+    row.update(traj.extra)
+    if notes:
+        row["message"] = "; ".join(notes)
+    return row

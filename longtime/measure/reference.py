@@ -1,0 +1,429 @@
+"""Reference trajectories, and how far they are trusted.
+
+A cell's reference is its problem's exact solution where it has one, else heyoka's adaptive
+Taylor integrator at machine-epsilon tolerance with ``high_accuracy`` (compensated summation
+for long runs), evaluated at the cell's samples through ``propagate_grid`` (dense output, so
+heyoka's own steps are not clipped) and cached on disk.
+
+``reference_check`` estimates the reference's error, once per problem, initial state and
+final time (cached on disk): heyoka in double is compared with heyoka in long double (80-bit
+on x86_64) on a check grid of about CHECK_POINTS times, every k-th step of the double run,
+so fast passages (a pericentre) are sampled as densely as heyoka resolves them. The relative
+difference estimates the double reference's error; the horizon is the last check time up to
+which it stays <= REFERENCE_RTOL. Where that horizon ends before t_final (chaos), long double
+is checked against real128 the same way, and the cells use the long-double reference when
+its horizon is the longer one. An exact solution is compared with the long-double run; one
+without a heyoka system carries the accuracy its problem declares (``exact_rtol``). Every
+heyoka run has the wall-time budget $LONGTIME_REFERENCE_SECONDS (default 120): a check that
+passes it trusts the reference at most as far as it got, and says so.
+"""
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from longtime.core import heyoka_build
+from longtime.core.cache import cache_dir, digest, discard, write_atomic
+from longtime.core.params import InputError
+from longtime.core.problem import Problem
+
+# the relative accuracy a heyoka reference must keep to be trusted (the horizon's level)
+REFERENCE_RTOL = 1e-8
+CHECK_POINTS = 2000  # the check grid holds between this many and twice as many times
+PRECISIONS = ("double", "long double", "real128")
+# a heyoka run that takes longer than this (wall seconds) is given up: the row keeps its
+# status and says so (duffing-1 far past t = 40 needs ever more steps per unit time)
+DEFAULT_BUDGET_S = 120.0
+BUDGET_VARIABLE = "LONGTIME_REFERENCE_SECONDS"
+
+
+def budget_seconds() -> float:
+    """The wall-time budget of one heyoka run: $LONGTIME_REFERENCE_SECONDS, else 120 s. Read
+    when needed (a bad value is an InputError naming the variable, not a crash at import)."""
+    text = os.environ.get(BUDGET_VARIABLE, "").strip()
+    if not text:
+        return DEFAULT_BUDGET_S
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (value > 0 and np.isfinite(value)):
+        raise InputError(f"{BUDGET_VARIABLE}={text!r} is not valid: expected a finite number of seconds > 0")
+    return value
+# the real128 run goes in this many pieces and stops once long double is seen to fail
+_PIECES = 16
+_TAYLOR: dict[tuple, object] = {}  # compiled integrators, by problem identity and precision
+_CHECKS: dict[str, dict[str, Any]] = {}  # check runs already loaded in this process
+# exact solutions already evaluated in this process, by problem and sample times: the cells of
+# one problem share their sample grids (every scheme at one dt), and an exact solution such
+# as kepler's long-double Newton solve is paid once a grid; the oldest entries go past _EXACT_KEEP
+_EXACT: dict[str, np.ndarray] = {}
+_EXACT_KEEP = 64
+
+
+class ReferenceUnavailable(RuntimeError):
+    """The reference could not be computed (its time budget ran out, or heyoka failed)."""
+
+
+@dataclass(frozen=True)
+class Trust:
+    """How far a problem's reference is trusted over [t0, t_final] (see ``reference_check``).
+
+    ``error`` estimates the relative error of the reference states: the maximum over the
+    check times in [t0, horizon] of |u_ref(t) - u_hi(t)| / |u_hi(t)| (Euclidean norms), u_hi
+    the heyoka run in the next precision, or the accuracy the problem declares for its exact
+    solution (``exact_rtol``); None when nothing could check it. ``horizon`` is the last
+    check time up to which that estimate stays <= ``rtol``.
+    """
+
+    source: str  # "exact", or the precision of the heyoka reference the cells use
+    rtol: float
+    horizon: float
+    error: float | None
+    basis: str  # what was compared
+    note: str = ""  # a time budget that ran out, a declared accuracy
+
+    def fields(self) -> dict[str, Any]:
+        return {"reference": self.source if self.source == "exact" else f"heyoka {self.source}",
+                "reference_error": self.error, "reference_horizon": self.horizon,
+                "reference_rtol": self.rtol}
+
+    def message(self, t_end: float) -> str:
+        """What a row ending at ``t_end`` must say about its reference ('' if nothing)."""
+        parts = [self.note] if self.note else []
+        if self.horizon < t_end - _slack(t_end):
+            parts.append(f"reference trusted to {self.rtol:g} only up to t = {self.horizon:.6g} "
+                         f"({self.basis}); errors measured up to there")
+        return "; ".join(parts)
+
+
+def trust_fields(trust: Trust | None) -> dict[str, Any]:
+    """The row fields of ``trust``; all null without a reference."""
+    if trust is None:
+        return dict.fromkeys(("reference", "reference_error", "reference_horizon", "reference_rtol"))
+    return trust.fields()
+
+
+def _slack(t: float) -> float:
+    return 1e-12 * max(1.0, abs(t))
+
+
+def has_reference(problem: Problem) -> bool:
+    caps = problem.capabilities()
+    return "exact" in caps or "heyoka" in caps
+
+
+def trusted_reference(problem: Problem, times: np.ndarray, t_final: float,
+                      budget_s: float | None = None) -> tuple[np.ndarray, Trust]:
+    """The reference states at the leading ``times`` up to the horizon of the check over
+    [t0, t_final], and that check. Raises ReferenceUnavailable when no time after t0 is
+    trusted (a check that passed its time budget at once)."""
+    trust = reference_check(problem, t_final, budget_s)
+    k = int(np.searchsorted(times, trust.horizon + _slack(trust.horizon), side="right"))
+    if k < 2:
+        raise ReferenceUnavailable(trust.note or f"not trusted past t = {trust.horizon:.6g} ({trust.basis})")
+    precision = "double" if trust.source == "exact" else trust.source
+    return reference_states(problem, times[:k], precision, budget_s), trust
+
+
+def reference_states(problem: Problem, times: np.ndarray, precision: str = "double",
+                     budget_s: float | None = None) -> np.ndarray:
+    """States (len(times), dim) of the problem's true trajectory from problem.u0 at t0: the
+    exact solution, else heyoka in ``precision`` (cached).
+
+    Raises ReferenceUnavailable when heyoka stops early or takes more than ``budget_s``
+    wall seconds (default $LONGTIME_REFERENCE_SECONDS or 120).
+    """
+    times = np.asarray(times, dtype=float)
+    if problem.exact is not None:
+        key = digest(*_problem_chunks(problem), times.tobytes())
+        if key not in _EXACT:
+            while len(_EXACT) >= _EXACT_KEEP:
+                del _EXACT[next(iter(_EXACT))]
+            _EXACT[key] = np.asarray(problem.exact(times), dtype=float)
+        return _EXACT[key].copy()
+    if problem.heyoka_system is None:
+        raise InputError(f"problem '{problem.name}' has neither an exact solution nor a heyoka system")
+    _fp(precision)  # validates
+    path = _cache_path(problem, "states", precision, times.tobytes(), suffix=".npy")
+    def read():
+        states = np.load(path)
+        if states.shape != (times.size, problem.dim) or not np.isfinite(states).all():
+            raise ValueError(f"holds {states.shape} states, expected {(times.size, problem.dim)}, all finite")
+        return states
+
+    cached = _load(path, read)
+    if cached is not None:
+        return cached
+    # propagate_grid wants a strictly increasing grid that starts at the current time
+    grid, inverse = np.unique(times, return_inverse=True)
+    if grid[0] < problem.t0:
+        raise InputError(f"reference times start at {grid[0]} < t0 = {problem.t0}")
+    starts_later = grid[0] > problem.t0
+    if starts_later:
+        grid = np.r_[problem.t0, grid]
+    states, stopped = _propagate(problem, grid, precision, budget_s)
+    if stopped is not None:
+        raise ReferenceUnavailable(f"heyoka {precision} reference for {problem.name} passed its time "
+                                   f"budget at t = {stopped:.6g} (LONGTIME_REFERENCE_SECONDS)")
+    states = states[int(starts_later):][inverse]
+    _save(path, states)
+    return states
+
+
+def reference_check(problem: Problem, t_final: float, budget_s: float | None = None) -> Trust:
+    """How far the reference of ``problem`` is trusted over [t0, t_final] (see the module)."""
+    ladder = _ladder()
+    declared = problem.exact_rtol if problem.exact is not None else None
+    rtol = max(REFERENCE_RTOL, declared or 0.0)
+    if problem.heyoka_system is None or len(ladder) < 2:
+        source = "exact" if problem.exact is not None else ladder[0]
+        if declared is not None:
+            return Trust(source, rtol, float(t_final), declared, "declared by the problem",
+                         f"exact solution trusted to {declared:g} only (declared by the problem)")
+        why = "no heyoka system" if problem.heyoka_system is None else "no precision above double here"
+        return Trust(source, rtol, float(t_final), None, "unchecked", f"reference unchecked ({why})")
+    runs = _check_runs(problem, float(t_final), ladder, budget_s)
+    times, hi = runs["times"], runs[ladder[1]]
+    note = ""
+    if runs["stopped"]:
+        p, t = min(runs["stopped"].items(), key=lambda item: item[1])
+        note = f"the heyoka {p} reference check passed its time budget at t = {t:.6g} (LONGTIME_REFERENCE_SECONDS)"
+    if problem.exact is not None:
+        err = _relative(problem.exact(times[:len(hi)]), hi)
+        return _trust("exact", rtol, times, np.maximum(err, declared or 0.0),
+                      f"exact solution vs heyoka {ladder[1]}", note)
+    trust = _trust(ladder[0], rtol, times, _relative(runs[ladder[0]][:len(hi)], hi),
+                   f"heyoka {ladder[0]} vs {ladder[1]}", note)
+    if len(ladder) > 2 and ladder[2] in runs:
+        top = runs[ladder[2]]
+        finer = _trust(ladder[1], rtol, times, _relative(hi[:len(top)], top),
+                       f"heyoka {ladder[1]} vs {ladder[2]}; heyoka {ladder[0]} alone up to "
+                       f"t = {trust.horizon:.6g}", note)
+        if finer.horizon > trust.horizon:
+            return finer
+    return trust
+
+
+def _trust(source: str, rtol: float, times: np.ndarray, err: np.ndarray, basis: str, note: str) -> Trust:
+    bad = np.flatnonzero(~(err <= rtol))  # NaN counts as untrusted
+    last = (bad[0] if bad.size else err.size) - 1
+    if last < 0:  # not even the initial state agrees
+        return Trust(source, rtol, float(times[0]), float(err[0]), basis, note)
+    return Trust(source, rtol, float(times[last]), float(np.max(err[:last + 1])), basis, note)
+
+
+def _relative(u: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    diff, norm = np.linalg.norm(u - hi, axis=1), np.linalg.norm(hi, axis=1)
+    return diff / np.where(norm > 0, norm, 1.0)  # absolute at a zero state
+
+
+def _check_runs(problem: Problem, t_final: float, ladder: list[str],
+                budget_s: float | None) -> dict[str, Any]:
+    """The heyoka runs behind ``reference_check`` on its check grid, cached on disk: "times",
+    one float64 array of states per precision run (rows reached), "stopped" {precision: t}
+    for runs that passed their budget."""
+    budget = budget_seconds() if budget_s is None else budget_s
+    parts = ("check", repr(t_final), str(CHECK_POINTS), repr(REFERENCE_RTOL), ",".join(ladder))
+    paths = [_cache_path(problem, *parts), _cache_path(problem, *parts, f"budget={budget!r}")]
+    for path in paths:
+        if str(path) in _CHECKS:
+            return _CHECKS[str(path)]
+        def read(path=path):
+            with np.load(path) as data:
+                runs = {k: data[k] for k in data.files if k != "stopped"}
+                runs["stopped"] = json.loads(str(data["stopped"]))
+            return runs
+
+        runs = _load(path, read)
+        if runs is not None:
+            _CHECKS[str(path)] = runs
+            return runs
+    times, low, stopped = _stepped_run(problem, t_final, budget)
+    runs: dict[str, Any] = {"times": times, ladder[0]: low}
+    stops = {ladder[0]: stopped} if stopped is not None else {}
+    hi, stopped = _propagate(problem, times, ladder[1], budget)
+    runs[ladder[1]] = hi
+    if stopped is not None:
+        stops[ladder[1]] = stopped
+    if (problem.exact is None and len(ladder) > 2
+            and np.any(~(_relative(low[:len(hi)], hi) <= REFERENCE_RTOL))):
+        def found_out(rows: np.ndarray) -> bool:
+            return bool(np.any(~(_relative(hi[:len(rows)], rows) <= REFERENCE_RTOL)))
+
+        runs[ladder[2]], stopped = _propagate(problem, times[:len(hi)], ladder[2], budget, found_out)
+        if stopped is not None:
+            stops[ladder[2]] = stopped
+    runs["stopped"] = stops
+    path = paths[1] if stops else paths[0]  # a partial check holds only for its budget
+    _save(path, **{k: v for k, v in runs.items() if k != "stopped"}, stopped=np.array(json.dumps(stops)))
+    _CHECKS[str(path)] = runs
+    return runs
+
+
+def _stepped_run(problem: Problem, t_final: float, budget_s: float) -> tuple[np.ndarray, np.ndarray, float | None]:
+    """The double heyoka run from t0 to t_final, recorded at every k-th step: k doubles
+    whenever 2 CHECK_POINTS steps are held. Returns (times, states, t where the budget
+    stopped it or None); the last row is where it ended."""
+    import heyoka as hy
+
+    deadline = time.perf_counter() + budget_s  # the compile counts against the budget
+    ta = _start(problem, "double", deadline)
+    times, states, stride, count = [problem.t0], [problem.u0.copy()], 1, 0
+
+    def record(ta) -> bool:
+        nonlocal stride, count
+        count += 1
+        if count % stride == 0:
+            times.append(ta.time)
+            states.append(ta.state.copy())
+            if len(times) >= 2 * CHECK_POINTS:
+                del times[1::2], states[1::2]
+                stride *= 2
+        return time.perf_counter() < deadline
+
+    outcome = ta.propagate_until(float(t_final), callback=record)[0]
+    if outcome not in (hy.taylor_outcome.time_limit, hy.taylor_outcome.cb_stop):
+        raise ReferenceUnavailable(f"heyoka double check for {problem.name} stopped early: {outcome}")
+    if times[-1] != ta.time:
+        times.append(ta.time)
+        states.append(ta.state.copy())
+    stopped = ta.time if outcome == hy.taylor_outcome.cb_stop else None
+    return np.array(times, dtype=float), np.array(states, dtype=float), stopped
+
+
+def _propagate(problem: Problem, grid: np.ndarray, precision: str, budget_s: float | None = None,
+               found_out: Callable[[np.ndarray], bool] | None = None) -> tuple[np.ndarray, float | None]:
+    """float64 states at the increasing ``grid`` (grid[0] = t0) by heyoka in ``precision``,
+    and the time where the budget stopped it (None: it did not; then fewer rows). With
+    ``found_out``, the grid goes in _PIECES pieces, ending after one where found_out(rows)."""
+    import heyoka as hy
+
+    fp = _fp(precision)
+    deadline = time.perf_counter() + (budget_seconds() if budget_s is None else budget_s)
+    ta = _start(problem, precision, deadline)  # its compile counts against the budget
+    pieces = _PIECES if found_out is not None else 1
+    bounds = np.unique(np.linspace(0, grid.size - 1, pieces + 1).round().astype(int))
+    if bounds.size == 1:  # a grid of one time
+        bounds = np.r_[0, 0]
+    rows: list[np.ndarray] = []
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        outcome = ta.propagate_grid(grid[a:b + 1].astype(fp), callback=lambda _: time.perf_counter() < deadline)
+        part = np.asarray(outcome[-1]).astype(float)
+        rows.append(part if a == 0 else part[1:])  # a piece starts where the last one ended
+        if outcome[0] == hy.taylor_outcome.cb_stop:
+            return np.concatenate(rows), float(ta.time)
+        if outcome[0] != hy.taylor_outcome.time_limit:
+            raise ReferenceUnavailable(f"heyoka {precision} reference for {problem.name} stopped early: {outcome[0]}")
+        if found_out is not None and found_out(np.concatenate(rows)):
+            break
+    return np.concatenate(rows), None
+
+
+def _fp(precision: str):
+    if precision not in PRECISIONS:
+        raise InputError(f"precision={precision!r} is not valid: expected one of {', '.join(PRECISIONS)}")
+    if precision == "real128":
+        import heyoka as hy
+
+        return hy.real128
+    return np.float64 if precision == "double" else np.longdouble
+
+
+def _ladder() -> list[str]:
+    """The precisions at hand, each finer than the one before (x86_64: all three; where long
+    double is double, or already quadruple, the ladder is shorter)."""
+    import heyoka as hy
+
+    ladder, eps = ["double"], np.finfo(np.float64).eps
+    if np.finfo(np.longdouble).eps < eps:
+        ladder.append("long double")
+        eps = np.finfo(np.longdouble).eps
+    if hasattr(hy, "real128") and 2.0**-112 < eps:
+        ladder.append("real128")
+    return ladder
+
+
+def _start(problem: Problem, precision: str, deadline: float):
+    """The problem's heyoka integrator in ``precision``, set to (t0, u0); its compile counts
+    against the run's budget (``deadline``, a perf_counter time)."""
+    ident = (problem.identity(), precision)
+    ta = _TAYLOR.get(ident)
+    fp = _fp(precision)
+    if ta is None:
+        try:
+            ta = heyoka_build.taylor_adaptive(problem, problem.u0.astype(fp), deadline - time.perf_counter(),
+                                              high_accuracy=True, fp_type=fp, time=fp(problem.t0),
+                                              compact_mode=heyoka_build.compact_mode(problem, fp, reference=True))
+        except heyoka_build.CompileTimeout as exc:
+            raise ReferenceUnavailable(f"{exc}: past the reference's time budget "
+                                       f"({BUDGET_VARIABLE})") from None
+        _TAYLOR[ident] = ta
+    ta.time = fp(problem.t0)
+    ta.state[:] = problem.u0.astype(fp)
+    return ta
+
+
+def _problem_chunks(problem: Problem) -> tuple[str | bytes, ...]:
+    """What identifies a problem's trajectory in a key: name and settings, initial state, t0
+    and kernel parameters."""
+    return problem.identity(), problem.u0.tobytes(), repr(problem.t0), problem.params.tobytes()
+
+
+def _cache_path(problem: Problem, *parts: str | bytes, suffix: str = ".npz") -> Path:
+    """The cache file of ``parts`` for ``problem``. Its key covers all that decides the
+    content: the problem (name, settings, initial state, t0, kernel parameters), its ODE as
+    heyoka reads it (an edited right-hand side or coefficient is another file), ``parts``,
+    the code mode of the double run and heyoka's version."""
+    import heyoka as hy
+
+    ode = "" if problem.heyoka_system is None else repr([str(e) for e in problem.heyoka_system()[1]])
+    # compact and straight-line code round differently: the double run's mode is part of the key
+    mode = "compact" if heyoka_build.compact_mode(problem, np.float64, reference=True) else "straight-line"
+    key = digest(*_problem_chunks(problem), ode, *parts, mode, hy.__version__)
+    return cache_dir("reference") / f"{problem.name}-{key}{suffix}"
+
+
+# every cache file ends with this and the SHA-256 (hex) of the bytes before it; np.load
+# reads an .npy or .npz up to its own end, so the trailer is invisible to it
+_TRAILER = b"\nlongtime-sha256:"
+
+
+def _load(path: Path, read: Callable[[], Any]) -> Any:
+    """``read()`` of a cache file, or None when there is none. The file is trusted only when
+    its bytes match the checksum ``_save`` appended; one that does not (truncated, corrupt,
+    written without it) or that ``read`` rejects is deleted with a warning naming it, so it
+    is recomputed instead of failing, or being believed, on every rerun."""
+    if not path.exists():
+        return None
+    try:
+        data = path.read_bytes()
+        body, mark, checksum = data.rpartition(_TRAILER)
+        if not mark:
+            raise ValueError("no checksum at its end")
+        if hashlib.sha256(body).hexdigest().encode() != checksum:
+            raise ValueError("its checksum does not match its contents")
+        return read()
+    except Exception as exc:  # np.load raises ValueError, OSError, EOFError, BadZipFile, KeyError...
+        discard(path, "reference", exc)
+        return None
+
+
+def _save(path: Path, array: np.ndarray | None = None, **arrays: np.ndarray) -> None:
+    """Write the file with its checksum, atomically: workers that compute the same
+    reference at once both write whole files."""
+    buffer = io.BytesIO()
+    if array is not None:
+        np.save(buffer, array)
+    else:
+        np.savez(buffer, **arrays)
+    body = buffer.getvalue()
+    write_atomic(path, body + _TRAILER + hashlib.sha256(body).hexdigest().encode())

@@ -1,0 +1,1 @@
+"""What a person reads: the terminal report, the results page, figures, compare, history, the paper's numbers."""

@@ -1,0 +1,273 @@
+"""The results page's figures of one problem: work-precision (error against the minimum
+CPU time of the repeats, a bar to the slowest repeat), the drift of every invariant and the
+change of every diagnostic against time for a representative setting of each scheme (log-log,
+one panel per quantity), and a run's calibrations against time.
+
+The drift curves come from the rows: each keeps the upper envelope of every invariant's
+error (and every diagnostic's change) at 80 log-spaced times (``drift_curves``,
+``diag_curves``, metrics.drift_envelope), so the page runs nothing; a row stored when rows
+kept only the first invariant's (``drift_curve``) shows that one. Only a row stored before
+rows kept any is run again, untimed, skipped when its stored CPU time exceeds
+``DRIFT_BUDGET_S`` or once a problem's re-runs add up to ``DRIFT_PROBLEM_BUDGET_S``
+(cheapest first); the caption says which setting was drawn and names those left out.
+"""
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import numpy as np
+
+from longtime.core.fmt import positive
+from longtime.core.roles import ROW_PARAMETERS
+from longtime.reporting.figures import pyplot
+from longtime.reporting.figures.style import LINE_STYLES, family, legend_outside, svg
+from longtime.reporting.report import (
+    main_t_final,
+    pareto_field,
+    setting,
+)
+
+DRIFT_BUDGET_S = 2.0  # stored cpu_s above which a drift curve is not recomputed for the page
+DRIFT_PROBLEM_BUDGET_S = 10.0  # and the stored cpu_s of the curves re-run for one problem, in all
+DRIFT_SAMPLES = 2001
+MAX_PANELS = 12  # invariants (or diagnostics) a drift figure draws; the caption names the rest
+
+
+def sweeps(rows: list[dict]) -> dict[tuple, list[dict]]:
+    """The rows as curves, (scheme, t_final, settings, N or None) -> rows, in that order: a
+    scheme's points at another final time or other settings are another curve, never
+    joined to its main sweep. N splits a scheme's rows into curves where it was set (bpl's
+    N=10 and N=15), not where the scheme derived it from the tolerance (heyoka,
+    taylor-adaptive without --order: each tol has its own N, and the tol sweep is one curve)."""
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault((r["integrator"], r.get("t_final"), r.get("settings") or ""), []).append(r)
+    out: dict[tuple, list[dict]] = {}
+    for key, mine in sorted(groups.items(), key=lambda kv: (kv[0][0], str(kv[0][1]), kv[0][2])):
+        orders = {_order(r) for r in mine}
+        per_tol: dict[Any, set] = {}
+        for r in mine:
+            per_tol.setdefault(r.get("tol"), set()).add(_order(r))
+        derived = len(per_tol) > 1 and None not in per_tol and all(len(n) == 1 for n in per_tol.values())
+        if len(orders) == 1 or derived:
+            out[(*key, None)] = mine
+            continue
+        for n in sorted(orders, key=lambda n: -1 if n is None else n):
+            out[(*key, n)] = [r for r in mine if _order(r) == n]
+    return out
+
+
+def _order(row: dict) -> int | None:
+    n = row.get("order")
+    return int(n) if isinstance(n, (int, float)) and n == n else None
+
+
+def work_precision_svg(rows: list[dict], field: str, style: dict) -> str | None:
+    ok = [r for r in rows if r.get("status") == "ok" and positive(r.get("cpu_s")) and positive(r.get(field))]
+    if not ok:
+        return None
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7.0, 4.2))
+    t_main = main_t_final(ok)
+    for (scheme, t_final, settings, order), mine in sweeps(ok).items():
+        pts = sorted((r["cpu_s"], r[field], r.get("cpu_s_max") or r["cpu_s"]) for r in mine)
+        x, y, x_max = (np.array(v) for v in zip(*pts))
+        st, other_t = style[scheme], t_final != t_main
+        label = f"{scheme} ({family(scheme)})" + (f" t_final={t_final:.4g}" if other_t else "") \
+            + (f" N={order}" if order is not None else "") + (f" {settings}" if settings else "")
+        ax.errorbar(x, y, xerr=[np.zeros_like(x), x_max - x], color=st["color"], marker=st["marker"], ms=5,
+                    lw=1.1, ls="--" if other_t or settings else "-", capsize=0, elinewidth=2.2, alpha=0.9,
+                    label=label)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("CPU seconds (minimum of repeats; bar to the slowest)")
+    ax.set_ylabel(field)
+    ax.grid(True, which="both", alpha=0.3)
+    legend_outside(ax)
+    return svg(fig)
+
+
+def representative(rows: list[dict]) -> dict[str, dict]:
+    """scheme -> the ok row of median CPU time among its rows (the drawn setting)."""
+    out = {}
+    for scheme in sorted({r["integrator"] for r in rows}):
+        ok = sorted((r for r in rows if r["integrator"] == scheme and r.get("status") == "ok"
+                     and positive(r.get("cpu_s"))), key=lambda r: r["cpu_s"])
+        if ok:
+            out[scheme] = ok[(len(ok) - 1) // 2]
+    return out
+
+
+def row_curves(row: dict) -> dict[str, list[tuple[str, np.ndarray, np.ndarray]]]:
+    """{"invariant": [(name, t, e(t))], "diagnostic": [...]} of a row's setting, t counted
+    from t[0]: the envelopes the row keeps (``drift_curves`` and ``diag_curves``, from
+    metrics.drift_envelope; a row stored when rows kept only ``drift_curve`` has its first
+    invariant's), or for a row stored before rows kept any, a run of its setting again
+    (untimed)."""
+    def kept(curves, key):
+        return [(c[key], np.r_[0.0, c["t"]], np.r_[0.0, c["error"]]) for c in curves or []
+                if isinstance(c, dict) and c.get("t")]
+
+    if "drift_curve" in row:
+        first = [row["drift_curve"]] if row.get("drift_curve") else []
+        return {"invariant": kept(row["drift_curves"] if "drift_curves" in row else first, "invariant"),
+                "diagnostic": kept(row.get("diag_curves"), "diagnostic")}
+    from longtime.core import registry
+    from longtime.execution.cells import Cell, integrate_cell
+    from longtime.measure.metrics import relative_error
+
+    # the row's settings are the problem's and the scheme's merged (cells.base_row): split them
+    settings = json.loads(row["settings"]) if row.get("settings") else {}
+    pcls, icls = registry.problem_class(row["problem"]), registry.integrator_class(row["integrator"])
+    psets = {k: v for k, v in settings.items() if k in pcls.parameters}
+    isets = {k: v for k, v in settings.items() if k in icls.parameters}
+    for k in ROW_PARAMETERS:  # the parameters with a row field of their own
+        value = row.get(k)
+        if k in icls.parameters and positive(value):
+            isets[k] = int(value) if icls.parameters[k].kind is int else value
+    problem, traj = integrate_cell(Cell(row["problem"], row["integrator"], psets, isets, row["t_final"]),
+                                   max_samples=DRIFT_SAMPLES)
+    with np.errstate(all="ignore"):
+        return {kind: [(name, traj.t, relative_error(values)) for name, values in found.items()]
+                for kind, found in (("invariant", problem.invariants(traj.t, traj.u)),
+                                    ("diagnostic", problem.diagnostics(traj.t, traj.u)))}
+
+
+def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[str | None, list[str]]:
+    """The drift figure of one problem, one panel per invariant (``kind`` "diagnostic": per
+    diagnostic, their change), and the notes on what it leaves out."""
+    notes, curves, spent = [], [], 0.0
+    # the cheapest first, so a problem's budget leaves out the fewest schemes
+    for scheme, row in sorted(representative(rows).items(), key=lambda item: item[1]["cpu_s"]):
+        rerun = "drift_curve" not in row  # a row stored before rows kept it: run it again
+        if not rerun and not (row.get("drift_curves") or row.get("drift_curve") or row.get("diag_curves")):
+            continue  # nothing to draw (a row measured since rows keep their curves)
+        if rerun and (row["cpu_s"] > DRIFT_BUDGET_S or spent + row["cpu_s"] > DRIFT_PROBLEM_BUDGET_S):
+            notes.append(f"{scheme}: not drawn (its run takes {row['cpu_s']:.3g} s)")
+            continue
+        spent += row["cpu_s"] if rerun else 0.0
+        try:
+            found = row_curves(row)[kind]
+        except Exception as exc:  # a scheme that cannot be re-run here leaves a note, not a hole
+            notes.append(f"{scheme}: not drawn ({type(exc).__name__}: {exc})")
+            continue
+        curves += [(scheme, row, name, t, err) for name, t, err in found]
+    names = list(dict.fromkeys(c[2] for c in curves))
+    if not names:
+        return None, notes
+    if len(names) > MAX_PANELS:
+        notes.append(f"{', '.join(names[MAX_PANELS:])}: not drawn here (longtime plot drift --invariant NAME)")
+        names = names[:MAX_PANELS]
+    plt = pyplot()
+    cols = min(len(names), 3)
+    rows_ = -(-len(names) // cols)
+    size = (7.0, 4.2) if len(names) == 1 else (3.2 * cols, 2.6 * rows_ + 0.2)
+    fig, axes = plt.subplots(rows_, cols, figsize=size, squeeze=False, sharex=True)
+    what = "relative error" if kind == "invariant" else "relative change"
+    handles: dict[str, Any] = {}
+    for k, ax in enumerate(axes.flat):
+        if k >= len(names):
+            ax.set_visible(False)
+            continue
+        mine = [c for c in curves if c[2] == names[k]]
+        for i, (scheme, row, name, t, err) in enumerate(mine):
+            keep = (t > t[0]) & (err > 0)
+            st = style[scheme]
+            every = max(1, int(keep.sum()) // 12)
+            label = f"{scheme} {setting(row)}"
+            # curves that coincide (a diagnostic the schemes all follow) stay apart: a dash
+            # pattern and the markers shifted per curve
+            (line,) = ax.loglog(t[keep] - t[0], err[keep], color=st["color"], marker=st["marker"],
+                                markevery=(i % every, every), ms=4 if len(names) == 1 else 3, lw=0.9,
+                                ls=LINE_STYLES[i % len(LINE_STYLES)], label=label)
+            handles.setdefault(label, line)
+        ax.grid(True, which="both", alpha=0.3)
+        if len(names) == 1:
+            ax.set_ylabel(f"{what} of {names[k]}")
+        else:
+            ax.set_title(names[k], fontsize=10)
+            if k % cols == 0:
+                ax.set_ylabel(what, fontsize=9)
+            ax.tick_params(labelsize=8)
+        if k >= len(names) - cols:
+            ax.set_xlabel("t - t0")
+    axes[0, -1 if len(names) >= cols else len(names) - 1].legend(
+        list(handles.values()), list(handles), fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0),
+        borderaxespad=0.0, frameon=False)
+    fig.tight_layout()
+    return svg(fig), notes
+
+
+def problem_figures(rows: list[dict[str, Any]], style: dict, drift: bool = True) -> dict[str, Any]:
+    """One problem's figures: {"field", "work_precision" (SVG or None), "drift" (SVG or
+    None), "drift_notes", "diagnostics" (SVG or None: the problem's diagnostics, where its
+    rows keep them), "diagnostics_notes"}."""
+    field = pareto_field(rows)
+    out: dict[str, Any] = {"field": field, "work_precision": None, "drift": None, "drift_notes": [],
+                           "diagnostics": None, "diagnostics_notes": []}
+    if field:
+        out["work_precision"] = work_precision_svg(rows, field, style)
+    if drift:
+        out["drift"], out["drift_notes"] = drift_svg(rows, style)
+        if any(r.get("diag_curves") for r in rows):
+            out["diagnostics"], out["diagnostics_notes"] = drift_svg(rows, style, "diagnostic")
+    return out
+
+
+def all_figures(by_problem: dict[str, list[dict]], style: dict, drift: bool, jobs: int,
+                 stability: dict[str, list | None], ahead: Any = None
+                 ) -> tuple[dict[str, dict], dict[str, str]]:
+    """problem_figures of every problem, and the interval texts of the ``stability`` schemes
+    (measured where not cached), on ``jobs`` processes: matplotlib spends about a third of a
+    second a figure, and a scheme's stability interval about a second when not cached, all of
+    it in Python, so only processes run them side by side. Figures ``ahead`` drew from the
+    same rows and styles are taken as they are, and the intervals it found at the same N."""
+    from longtime.measure.stability import cached_texts, interval_texts
+
+    figures = {}
+    for p, rows in by_problem.items():
+        found = ahead.figures(p, rows, style, drift) if ahead is not None else None
+        if found is not None:
+            figures[p] = found
+    todo = {p: rows for p, rows in by_problem.items() if p not in figures}
+    texts = {s: ahead.interval(s, o) for s, o in stability.items()} if ahead is not None else {}
+    texts = {s: text for s, text in texts.items() if text is not None}
+    found, missing = cached_texts({s: o for s, o in stability.items() if s not in texts})
+    texts.update(found)
+    if jobs <= 1 or len(todo) + len(missing) < 4:
+        figures.update({p: problem_figures(rows, style, drift) for p, rows in todo.items()})
+        texts.update(interval_texts(missing, compute=True))
+        return figures, texts
+    from longtime.execution.pool import spawn_pool
+
+    with spawn_pool(jobs) as pool:
+        intervals = [pool.submit(interval_texts, {s: o}, True) for s, o in missing.items()]
+        drawn = {p: pool.submit(problem_figures, rows, style, drift) for p, rows in todo.items()}
+        for f in intervals:
+            texts.update(f.result())
+        figures.update({p: f.result() for p, f in drawn.items()})
+        return figures, texts
+
+
+def calibration_svg(points: list[dict[str, Any]]) -> str | None:
+    """The run's calibrations against time (one marker per calibration, a bar to its
+    slowest repeat; one colour per process), as inline SVG; None with fewer than two."""
+    if len(points) < 2:
+        return None
+    t0 = min(p["t"] for p in points)
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7.0, 2.2))
+    pids = sorted({p.get("pid") for p in points}, key=str)
+    for k, pid in enumerate(pids):
+        mine = sorted((p for p in points if p.get("pid") == pid), key=lambda p: p["t"])
+        x = np.array([p["t"] - t0 for p in mine])
+        y = np.array([1e3 * p["cpu_s"] for p in mine])
+        top = np.array([1e3 * p["cpu_s_max"] for p in mine])
+        ax.errorbar(x, y, yerr=[np.zeros_like(y), top - y], marker="o", ms=3, lw=0.8, capsize=0,
+                    label=f"process {pid}" + (" (this run's own)" if k == 0 and mine[0].get("phase") == "before" else ""))
+    ax.set_xlabel("seconds since the first calibration")
+    ax.set_ylabel("reference workload, ms")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, frameon=False)
+    return svg(fig)

@@ -1,0 +1,113 @@
+"""The results page's figures drawn ahead: while the matrix runs, a pool worker that has no
+cell left draws the figures of each problem whose cells are all stored, and measures the
+stability interval of each scheme whose cells are; the page takes what was drawn from the
+rows it shows."""
+from __future__ import annotations
+
+import hashlib
+import json
+from typing import Any, Sequence
+
+from longtime.reporting.figures.results import problem_figures
+from longtime.reporting.figures.style import styles
+
+
+def stability_schemes(rows: list[dict]) -> tuple[dict[str, list | None], dict[str, list | None]]:
+    """The schemes of ``rows`` whose stability intervals the page shows, each with the N its
+    rows ran with (a series scheme; its default N where the row has none): (built-in ones,
+    measured here where not cached: their solves are capped; plugins', read from the cache
+    only, since a plugin's step that never returns would hang the page: `longtime list
+    --stability` measures them)."""
+    from longtime.core import registry
+    from longtime.measure.stability import SERIES_ORDERS
+
+    wanted: dict[str, set | None] = {}
+    for r in rows:
+        if r.get("status") == "skipped":
+            wanted.setdefault(r["integrator"], None)
+            continue
+        n = r.get("order")
+        orders = wanted.get(r["integrator"]) or set()
+        orders.add(int(n) if isinstance(n, (int, float)) and n == n else None)
+        wanted[r["integrator"]] = orders
+    schemes = {}
+    for s, orders in wanted.items():
+        param = registry.integrator_class(s).parameters.get("order") if s in registry.integrators() else None
+        if param is None:
+            schemes[s] = None
+        else:
+            schemes[s] = sorted({param.default if n is None else n for n in (orders or {None})}) or [SERIES_ORDERS[0]]
+    builtin = {s: o for s, o in schemes.items()
+               if s in registry.integrators() and registry.integrator_class(s).__module__.startswith("longtime.")}
+    return builtin, {s: o for s, o in schemes.items() if s not in builtin}
+
+
+class FiguresAhead:
+    """A page's figures drawn while the matrix still runs: each problem's as soon as its last
+    cell is stored, by a pool worker that has no cell left to run (``task`` is the process
+    pool's ``ExecOptions.idle_work``; ``add`` sees each row as it is stored), and likewise a
+    built-in scheme's stability interval once its last cell is stored (measured into the
+    cache on a cold machine: about a second a scheme). The figures of a main job's last
+    problems are then drawn beside its last cells instead of after them. The page takes a
+    figure only if it was drawn from the very rows and styles it would draw it from (a
+    resumed run's page has older rows too), an interval only for the same N; it does the
+    others itself."""
+
+    def __init__(self, cells: Sequence, run_id: int | None, drift: bool = True):
+        self.run_id, self.drift = run_id, drift
+        self.left: dict[str, int] = {}  # cells not stored yet, per problem and per scheme
+        for c in cells:
+            for name in (("problem", c.problem), ("scheme", c.integrator)):
+                self.left[name] = self.left.get(name, 0) + 1
+        self.style = styles(sorted({c.integrator for c in cells}))
+        self.rows: dict[str, list[dict]] = {}
+        self.outcomes: dict[str, list[dict]] = {}  # per scheme: what stability_schemes reads
+        self.ready: list[tuple[str, str]] = []
+        self.drawn: dict[str, tuple[str, dict]] = {}
+        self.intervals: dict[str, tuple[Any, str | None]] = {}  # scheme -> (its N, its text)
+
+    def add(self, cell, row: dict) -> None:
+        """A stored row (kept as the store gives it back: JSON and its run id)."""
+        self.rows.setdefault(cell.problem, []).append({"run_id": self.run_id, **json.loads(json.dumps(row))})
+        self.outcomes.setdefault(cell.integrator, []).append(
+            {k: row.get(k) for k in ("integrator", "status", "order")})
+        for name in (("problem", cell.problem), ("scheme", cell.integrator)):
+            self.left[name] = self.left.get(name, 1) - 1
+            if self.left[name] == 0:
+                self.ready.append(name)
+
+    def task(self):
+        """(a function, its arguments, where its result goes): the figures of a problem whose
+        rows are all in, or the stability interval of such a scheme; None when there is none."""
+        while self.ready:
+            kind, name = self.ready.pop(0)
+            if kind == "problem":
+                rows = self.rows.pop(name)
+                key = self._key(rows, self.style, self.drift)
+                return problem_figures, (rows, self.style, self.drift), \
+                    lambda figs: self.drawn.__setitem__(name, (key, figs))
+            builtin, _ = stability_schemes(self.outcomes.pop(name))
+            if name in builtin:  # a plugin's is read from the cache only (see stability_schemes)
+                from longtime.measure.stability import interval_texts
+
+                orders = builtin[name]
+                return interval_texts, ({name: orders}, True), \
+                    lambda texts: self.intervals.__setitem__(name, (orders, texts.get(name)))
+        return None
+
+    def figures(self, problem: str, rows: list[dict], style: dict, drift: bool) -> dict | None:
+        """The figures drawn ahead for ``problem`` if they were drawn from these rows and styles."""
+        key, figs = self.drawn.get(problem, (None, None))
+        return figs if key is not None and key == self._key(rows, style, drift) else None
+
+    def interval(self, scheme: str, orders) -> str | None:
+        """``scheme``'s interval text if it was found ahead at these N (None: a scheme without N)."""
+        if scheme not in self.intervals:
+            return None
+        found_orders, text = self.intervals[scheme]
+        return text if found_orders == orders else None
+
+    @staticmethod
+    def _key(rows: list[dict], style: dict, drift: bool) -> str:
+        text = json.dumps([rows, style, drift], sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()

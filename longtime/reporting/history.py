@@ -1,0 +1,301 @@
+"""``longtime history``: every cell's calibrated time and errors over every stored run, with
+the commit and date of each run, and the steps in each series.
+
+A cell is identified as ``longtime compare`` matches cells (problem, scheme, t_final, every
+setting). Its series are ``cpu_s_calibrated`` (the CPU time in units of the machine's
+reference workload, longtime.execution.calibration) and every error and drift field (``l2_error``,
+``final_error``, ``NAME.max``, ...). Steps are found with asv's step detection
+(``asv.step_detect.detect_steps``: a piecewise-constant fit, the Potts model asv uses for
+its regression reports), then read as a benchmark suite reads them:
+
+- neighbouring pieces closer than the factor (time: ``compare.TIME_FACTOR``; errors:
+  ``ERROR_FACTOR``) are one level;
+- for time, a level held by fewer than ``MIN_RUNS`` runs between two levels that agree is a
+  run's chance (one batch of cells keeps one speed in its process: README, "compare"),
+  not a step, unless it is the latest run; errors are deterministic, so every level counts;
+- a step is where one level ends and the next begins: the run (and commit) that first has
+  the new level, its ratio to the level before, and whether that is slower / faster or
+  less / more accurate. Errors at round-off (below ``compare.ROUND_OFF`` on both sides)
+  make no step.
+"""
+from __future__ import annotations
+
+import json
+import math
+from typing import Any
+
+from longtime.core.params import InputError
+from longtime.reporting.compare import MATCH_KEYS, ROUND_OFF, TIME_FACTOR, cell_key, error_fields
+
+TIME_FIELD = "cpu_s_calibrated"
+ERROR_FACTOR = 2.0
+MIN_RUNS = 2
+# the error fields the table shows (every field is in --format json and has its steps found)
+SHOWN_ERRORS = ("l2_error", "final_error", "H.max", "I.max", "constraint.max")
+
+
+def levels(values: list[float | None], factor: float, min_runs: int) -> list[dict[str, Any]]:
+    """The levels of a series (``None``: no value in that run): asv's pieces, neighbours
+    within ``factor`` joined, short levels between two that agree dropped (see the module
+    docstring). Each level: ``start`` and ``end`` (indices into ``values``), ``value`` (the
+    median of its values)."""
+    from asv.step_detect import detect_steps
+
+    present = [v for v in values if v is not None and math.isfinite(v)]
+    if not present:
+        return []
+    if len(set(present)) == 1:  # one value throughout (an error, bit for bit): one level
+        pieces = [[0, len(values)]]
+    else:
+        pieces = [[l, r] for l, r, *_ in detect_steps([v if v is not None and math.isfinite(v) else None
+                                                       for v in values])]
+    limit = math.log(factor)
+
+    def value(piece: list[int]) -> float:
+        vs = sorted(v for v in values[piece[0]:piece[1]] if v is not None and math.isfinite(v))
+        return vs[len(vs) // 2] if len(vs) % 2 else math.sqrt(max(vs[len(vs) // 2 - 1] * vs[len(vs) // 2], 0.0))
+
+    def size(piece: list[int]) -> int:
+        return sum(v is not None for v in values[piece[0]:piece[1]])
+
+    def close(x: float, y: float) -> bool:
+        if x <= 0 or y <= 0:
+            return x == y
+        return abs(math.log(y / x)) <= limit
+
+    changed = True
+    while changed:
+        changed = False
+        for i in range(len(pieces) - 1):  # neighbours within the factor: one level
+            if close(value(pieces[i]), value(pieces[i + 1])):
+                pieces[i:i + 2] = [[pieces[i][0], pieces[i + 1][1]]]
+                changed = True
+                break
+        if changed:
+            continue
+        for i in range(1, len(pieces) - 1):  # a short excursion between two agreeing levels
+            if size(pieces[i]) < min_runs and close(value(pieces[i - 1]), value(pieces[i + 1])):
+                pieces[i - 1:i + 2] = [[pieces[i - 1][0], pieces[i + 1][1]]]
+                changed = True
+                break
+    return [{"start": l, "end": r, "value": value([l, r])} for l, r in pieces]
+
+
+def steps(values: list[float | None], factor: float, min_runs: int, floor: float = 0.0) -> list[dict[str, Any]]:
+    """Where the level of ``values`` changes: ``index`` (the first value of the new level),
+    ``before``, ``after``, ``ratio``. Both levels at or below ``floor``: no step."""
+    found = levels(values, factor, min_runs)
+    out = []
+    for a, b in zip(found, found[1:]):
+        if a["value"] <= floor and b["value"] <= floor:
+            continue
+        ratio = b["value"] / a["value"] if a["value"] > 0 else math.inf
+        start = next(i for i in range(b["start"], b["end"]) if values[i] is not None)
+        out.append({"index": start, "before": a["value"], "after": b["value"], "ratio": ratio})
+    return out
+
+
+def _selected(row: dict, problems, schemes, sets: dict[str, str]) -> bool:
+    if problems and row.get("problem") not in problems:
+        return False
+    if schemes and row.get("integrator") not in schemes:
+        return False
+    if sets:
+        settings = json.loads(row["settings"]) if row.get("settings") else {}
+        for k, v in sets.items():
+            have = row.get(k) if k in ("dt", "tol", "eps_res", "order") else settings.get(k)
+            if have is None or not _same(have, v):
+                return False
+    return True
+
+
+def _same(have, text: str) -> bool:
+    try:
+        return float(have) == float(text)
+    except (TypeError, ValueError):
+        return str(have).lower() == text.lower()
+
+
+def history(store, problems=None, schemes=None, sets: dict[str, str] | None = None,
+            factor: float = TIME_FACTOR, error_factor: float = ERROR_FACTOR,
+            fields: tuple[str, ...] | None = None) -> list[dict[str, Any]]:
+    """Per cell identity (in the store's order of first appearance): ``cell`` (the matched
+    keys), ``runs`` (per run holding the cell, by run id: run_id, commit, date, status,
+    cpu_s, cpu_s_calibrated and every error field) and ``steps`` (field, run_id, commit,
+    date, before, after, ratio, kind) of every series, or of ``fields`` only."""
+    runs = {r["id"]: r for r in store.runs()}
+    only = fields
+    cells: dict[tuple, dict[int, dict]] = {}
+    for row in store.rows():
+        if _selected(row, problems, schemes, sets or {}):
+            cells.setdefault(cell_key(row), {})[row["run_id"]] = row
+    out = []
+    for by_run in cells.values():
+        ids = sorted(by_run)
+        first = by_run[ids[0]]
+        errors = sorted({f for r in by_run.values() for f in error_fields(r)})
+        points = []
+        for rid in ids:
+            r, run = by_run[rid], runs.get(rid, {})
+            points.append({"run_id": rid, "commit": run.get("git_commit"), "date": run.get("started"),
+                           "status": r.get("status"), "cpu_s": r.get("cpu_s"), TIME_FIELD: r.get(TIME_FIELD),
+                           **{f: r.get(f) for f in errors}})
+        found = []
+        for field in (TIME_FIELD, *errors):
+            if only is not None and field not in only:
+                continue
+            values = [p[field] if p["status"] == "ok" and isinstance(p.get(field), (int, float)) else None
+                      for p in points]
+            is_time = field == TIME_FIELD
+            for s in steps(values, factor if is_time else error_factor, MIN_RUNS if is_time else 1,
+                           0.0 if is_time else ROUND_OFF):
+                p = points[s["index"]]
+                up = s["ratio"] > 1
+                kind = ("slower" if up else "faster") if is_time else ("less accurate" if up else "more accurate")
+                found.append({"field": field, "run_id": p["run_id"], "commit": p["commit"], "date": p["date"],
+                              "before": s["before"], "after": s["after"], "ratio": s["ratio"], "kind": kind})
+        out.append({"cell": {k: first.get(k) for k in MATCH_KEYS}, "runs": points, "steps": found})
+    return out
+
+
+def _label(cell: dict) -> str:
+    from longtime.reporting.report import setting
+
+    return f"{cell['problem']} {cell['integrator']} {setting(cell)}".strip()
+
+
+def _short(commit: str | None) -> str:
+    return (commit or "-")[:10]
+
+
+def render(found: list[dict[str, Any]]) -> str:
+    from longtime.core.fmt import number
+
+    parts = []
+    for c in found:
+        shown = [f for f in SHOWN_ERRORS if any(p.get(f) is not None for p in c["runs"])]
+        header = ["run", "commit", "date", "status", "time (calibrated)", "cpu_s", *shown]
+        body = [[str(p["run_id"]), _short(p["commit"]), (p["date"] or "-")[:19], str(p["status"]),
+                 number(p[TIME_FIELD]), number(p["cpu_s"]), *(number(p.get(f)) for f in shown)] for p in c["runs"]]
+        widths = [max(len(h), *(len(r[i]) for r in body)) for i, h in enumerate(header)]
+        lines = [f"== {_label(c['cell'])}: {len(c['runs'])} run{'s' if len(c['runs']) != 1 else ''} =="]
+        lines += ["  " + "  ".join(x.ljust(w) for x, w in zip(row, widths)) for row in [header, *body]]
+        for s in c["steps"]:
+            name = "time" if s["field"] == TIME_FIELD else s["field"]
+            lines.append(f"  STEP {name} x{s['ratio']:.3g} ({s['kind']}: {number(s['before'])} -> "
+                         f"{number(s['after'])}) at run {s['run_id']}, commit {_short(s['commit'])}")
+        if not c["steps"]:
+            lines.append("  no step")
+        parts.append("\n".join(lines))
+    return "\n\n".join(parts) if parts else "no stored cell matches"
+
+
+def cmd_history(args) -> int:
+    from longtime.execution.store import Store
+
+    store = Store(args.db, readonly=True)
+    sets = dict(args.set)
+    found = history(store, args.problem, args.integrator, sets)
+    if not found:
+        raise InputError(f"no stored cell in {store.path} matches -p/-i/--set")
+    print(json.dumps(found, indent=1) if args.format == "json" else render(found))
+    return 0
+
+
+def add_parser(subparsers) -> None:
+    from longtime.core import cli_args
+
+    p = subparsers.add_parser("history", help="each cell's calibrated time and errors over every stored run, "
+                                              "with the steps marked",
+                              description=__doc__.split("\n\n")[0])
+    p.add_argument("-p", "--problem", type=cli_args.names, default=None, metavar="PROBLEM[,..]")
+    p.add_argument("-i", "--integrator", type=cli_args.names, default=None, metavar="SCHEME[,..]")
+    p.add_argument("--set", type=cli_args.key_value, action="append", default=[], metavar="KEY=VALUE",
+                   help="only cells with this setting (dt, tol, eps_res, order or any --set parameter)")
+    p.add_argument("--db", default=None, help="the store (default: $LONGTIME_DB or longtime.sqlite)")
+    p.add_argument("--format", choices=["table", "json"], default="table")
+    p.set_defaults(func=cmd_history)
+
+
+# ------------------------------------------------------------------ the results page
+def repeated(store, rows: list[dict]) -> list[dict[str, Any]]:
+    """The history of the cells of ``rows`` that more than one stored run holds."""
+    keys = {cell_key(r) for r in rows}
+    problems = sorted({r["problem"] for r in rows})
+    schemes = sorted({r["integrator"] for r in rows})
+    from longtime.reporting.report import PARETO_FIELDS
+
+    return [c for c in history(store, problems, schemes, fields=(TIME_FIELD, *PARETO_FIELDS))
+            if len(c["runs"]) > 1 and cell_key(c["cell"]) in keys]
+
+
+def page_section(store, rows: list[dict], style: dict) -> str | None:
+    """The results page's history section: per problem, small multiples (one panel per
+    scheme) of each cell's calibrated time and main error relative to its first run, over
+    the runs, with the steps marked; None when no cell is in more than one run."""
+    from longtime.reporting.markup import escape, slug
+
+    found = repeated(store, rows)
+    if not found:
+        return None
+    out = ['<h2 id="history">History</h2><p class="note">Each cell of this page that more than one stored run '
+           'holds: its calibrated CPU time (solid) and its main error (dashed) relative to its first run, '
+           'against the runs (labelled by commit); a marker where <code>longtime history</code> finds a step '
+           '(triangle up: slower or less accurate; down: faster or more accurate).</p>']
+    for problem in sorted({c["cell"]["problem"] for c in found}):
+        mine = [c for c in found if c["cell"]["problem"] == problem]
+        fig = _small_multiples(mine, style)
+        marked = sum(s["field"] in (TIME_FIELD, _main_error(c)) for c in mine for s in c["steps"])
+        out.append(f'<h3 id="history-{slug(problem)}">{escape(problem)}</h3><figure class="plot">{fig}<figcaption>'
+                   f"{len(mine)} cell{'s' if len(mine) != 1 else ''}, {marked} step{'s' if marked != 1 else ''} "
+                   f"marked (<code>longtime history -p {escape(problem)}</code> lists every field's).</figcaption></figure>")
+    return "\n".join(out)
+
+
+def _main_error(cell: dict) -> str | None:
+    from longtime.reporting.report import PARETO_FIELDS
+
+    return next((f for f in PARETO_FIELDS if any(isinstance(p.get(f), (int, float)) for p in cell["runs"])), None)
+
+
+def _small_multiples(cells: list[dict], style: dict) -> str:
+    from longtime.reporting.figures import pyplot
+    from longtime.reporting.figures.style import svg
+
+    schemes = sorted({c["cell"]["integrator"] for c in cells})
+    run_ids = sorted({p["run_id"] for c in cells for p in c["runs"]})
+    commits = {p["run_id"]: p["commit"] for c in cells for p in c["runs"]}
+    x_of = {rid: i for i, rid in enumerate(run_ids)}
+    cols = min(3, len(schemes))
+    rows = math.ceil(len(schemes) / cols)
+    plt = pyplot()
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.3 * rows), squeeze=False, sharex=True)
+    for ax, scheme in zip(axes.flat, schemes):
+        colour = style.get(scheme, {}).get("color", "#1f77b4")
+        for c in (c for c in cells if c["cell"]["integrator"] == scheme):
+            err = _main_error(c)
+            for field, ls in ((TIME_FIELD, "-"), (err, "--")):
+                if field is None:
+                    continue
+                pts = [(x_of[p["run_id"]], p[field]) for p in c["runs"]
+                       if isinstance(p.get(field), (int, float)) and p[field] > 0]
+                if len(pts) < 1:
+                    continue
+                base = pts[0][1]
+                ax.plot([x for x, _ in pts], [v / base for _, v in pts], ls=ls, color=colour, lw=0.9, alpha=0.8)
+                for s in c["steps"]:
+                    if s["field"] == field:
+                        x = x_of[s["run_id"]]
+                        ax.plot([x], [s["after"] / base], marker="^" if s["ratio"] > 1 else "v", color="#b71c1c",
+                                ms=6, ls="none")
+        ax.set_yscale("log")
+        ax.set_title(scheme, fontsize=8)
+        ax.tick_params(labelsize=6)
+        ax.grid(True, which="both", alpha=0.3)
+    for ax in list(axes.flat)[len(schemes):]:
+        ax.set_visible(False)
+    for ax in axes[-1]:
+        ax.set_xticks(range(len(run_ids)))
+        ax.set_xticklabels([(commits.get(r) or str(r))[:7] for r in run_ids], rotation=60, fontsize=6)
+    axes[0][0].set_ylabel("relative to first run", fontsize=7)
+    return svg(fig)

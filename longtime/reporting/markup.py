@@ -1,0 +1,51 @@
+"""HTML pieces of the results page and its sections: escaping, numbers, tables, anchors."""
+from __future__ import annotations
+
+import html
+import math
+import re
+from typing import Any, Sequence
+
+CSS = """
+body{font-family:DejaVu Sans,Helvetica,Arial,sans-serif;margin:1.5em auto;max-width:1100px;color:#222;
+line-height:1.35;padding:0 1em}
+h1{font-size:1.5em}h2{font-size:1.25em;border-bottom:1px solid #ccc;margin-top:2em}h3{font-size:1.05em}
+table{border-collapse:collapse;font-size:.85em;margin:.4em 0 1em}
+td,th{border:1px solid #ddd;padding:2px 6px;text-align:left;vertical-align:top}
+th{background:#f3f3f3}td.num{text-align:right;font-variant-numeric:tabular-nums}
+.ok{background:#e8f5e9}.skipped{background:#f5f5f5;color:#666}.diverged{background:#fff3e0}
+.failed,.timeout{background:#ffebee}.undetermined{background:#fff8e1}.flag{color:#b71c1c;font-weight:bold}
+figure{margin:.5em 0}figure svg{max-width:100%;height:auto}figcaption{font-size:.85em;color:#555}
+.meta td:first-child{font-weight:bold}.note{font-size:.85em;color:#555}
+nav a{margin-right:.8em}
+"""
+
+# records errors and checks that every figure has a drawn size; a browser test reads the
+# result from <body data-figures="..." data-errors="..."> (no network, no external script)
+SCRIPT = """
+(function(){var errs=[];
+window.addEventListener('error',function(e){errs.push(String(e.message));document.body.dataset.errors=errs.join('|');});
+window.addEventListener('load',function(){var figs=document.querySelectorAll('figure.plot');var drawn=0;
+figs.forEach(function(f){var s=f.querySelector('svg');if(s){var b=s.getBoundingClientRect();
+if(b.width>50&&b.height>50&&s.querySelectorAll('path').length>0){drawn++;f.dataset.rendered='yes';}}});
+document.body.dataset.figures=figs.length;document.body.dataset.rendered=drawn;
+document.body.dataset.errors=errs.join('|');});})();
+"""
+
+
+def escape(x: Any) -> str:
+    return html.escape("" if x is None else str(x))
+
+
+def num(x, digits: int = 3) -> str:
+    return f"{x:.{digits}g}" if isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) else "-"
+
+
+def table(header: Sequence[str], body: list[Sequence[str]], raw: bool = False) -> str:
+    head = "".join(f"<th>{escape(h)}</th>" for h in header)
+    rows = "".join("<tr>" + "".join(c if raw else f"<td>{escape(c)}</td>" for c in r) + "</tr>" for r in body)
+    return f"<table><tr>{head}</tr>{rows}</table>"
+
+
+def slug(name: str) -> str:
+    return re.sub(r"[^a-z0-9-]", "-", name.lower())

@@ -1,0 +1,324 @@
+"""Reports of stored rows (pandas): the summary a person reads first (status counts and,
+per problem, the Pareto front of accuracy against cost, with the fitted orders and growth
+classes), and the full per-cell tables (``--full``, csv, json, markdown, parquet).
+
+In Python: ``frame(Store("longtime.sqlite").rows())`` is one pandas row per cell."""
+from __future__ import annotations
+
+from typing import Any, Iterable
+
+import pandas as pd
+
+from longtime.core.fmt import number, positive
+from longtime.core.roles import ROW_PARAMETERS, row_columns, row_fields
+
+# the JSON contract (README.md, `--format json`): every row carries these keys (null where not applicable)
+CONTRACT_FIELDS = ("problem", "integrator", "status", "message", *ROW_PARAMETERS,
+                   "t_final", "steps", "rhs_evals", "cpu_s", "wall_s", "mean_dt")
+# a row's parameters: its parameter fields by role (step, accuracy, order), then the rest
+PARAMETER_COLUMNS = (*row_columns(), "settings")
+ACCURACY_COLUMNS = ("H.mean", "H.max", "L.max", "I.max", "constraint.max", "l2_error", "final_error")
+COST_COLUMNS = ("cpu_s", "steps", "rhs_evals", "nl_iters", "mean_dt")
+
+
+def complete(row: dict[str, Any]) -> dict[str, Any]:
+    return {**{k: None for k in CONTRACT_FIELDS}, **row}
+
+
+def frame(rows: Iterable[dict[str, Any]]) -> pd.DataFrame:
+    return pd.DataFrame([complete(r) for r in rows])
+
+
+def _fmt(x) -> str:
+    return number(x)  # one number format for every report (longtime.core.fmt)
+
+
+def problem_table(df: pd.DataFrame) -> pd.DataFrame:
+    """One problem's rows, sorted by cost: parameters, status, accuracy, cost."""
+    cols = ["integrator"]
+    cols += [c for c in PARAMETER_COLUMNS if c in df and df[c].notna().any() and (df[c] != "").any()]
+    cols += ["status"]
+    cols += [c for c in ACCURACY_COLUMNS if c in df and df[c].notna().any()]
+    cols += [c for c in COST_COLUMNS if c in df and df[c].notna().any()]
+    out = df[cols].copy()
+    return out.sort_values(["status", "cpu_s"] if "cpu_s" in out else ["status"],
+                           key=lambda s: s.map(lambda v: v != "ok") if s.name == "status" else s,
+                           na_position="last")
+
+
+def _object_frame(rows: list[dict[str, Any]]) -> pd.DataFrame:
+    """The rows for output: every value as stored, so that each float round-trips bitwise
+    and a count stays an integer beside nulls (object columns: ``frame`` would make it a
+    float), and a list or dict (a confidence interval, the drift curve) as JSON text."""
+    import json
+
+    df = pd.DataFrame([complete(r) for r in rows], dtype=object)
+    for c in df.columns:
+        if df[c].map(lambda v: isinstance(v, (list, dict))).any():
+            df[c] = df[c].map(lambda v: json.dumps(v) if isinstance(v, (list, dict)) else v)
+    return df
+
+
+def render(rows: list[dict[str, Any]], fmt: str = "table") -> str:
+    """The rows as text. csv and json hold every stored value at full precision (floats
+    as repr: they read back bitwise); table and markdown are for reading: 4 significant
+    digits, exponent notation below 1e-2 (so a tiny value never shows as 0), '-' for null."""
+    if not rows:
+        return "[]" if fmt == "json" else "no rows"
+    if fmt == "json":
+        import json
+
+        return json.dumps([complete(r) for r in rows], indent=1)
+    if fmt == "csv":
+        return _object_frame(rows).to_csv(index=False)
+    df = _object_frame(rows)
+    parts = []
+    for problem, sub in df.groupby("problem", sort=True):
+        table = problem_table(sub)
+        if fmt == "markdown":
+            text = table.map(_fmt).to_markdown(index=False)
+        else:
+            text = table.map(_fmt).to_string(index=False)
+        parts.append(f"== {problem}: accuracy against cost ({len(sub)} rows) ==\n{text}")
+        notes = sub[sub["status"].isin(["skipped", "failed", "diverged", "timeout"])]
+        for _, r in notes.iterrows():
+            parts.append(f"  {r['status']}: {r['integrator']}: {r['message']}")
+    return "\n\n".join(parts)
+
+
+# ------------------------------------------------------------------ the summary read first
+STATUSES = ("ok", "diverged", "failed", "timeout", "skipped")
+# the accuracy a Pareto front ranks by, first present wins: the solution error where a
+# reference exists, else the energy drift
+PARETO_FIELDS = ("l2_error", "H.max", "I.max", "constraint.max")
+DECADES = tuple(10.0 ** -k for k in range(1, 16))
+
+
+def status_counts(rows: Iterable[dict[str, Any]]) -> dict[str, int]:
+    counts = {s: 0 for s in STATUSES}
+    for r in rows:
+        counts[r.get("status") or "unknown"] = counts.get(r.get("status") or "unknown", 0) + 1
+    return counts
+
+
+def format_counts(counts: dict[str, int]) -> str:
+    shown = [f"{n} {s}" for s, n in counts.items() if n]
+    return ", ".join(shown) or "no rows"
+
+
+def setting(row: dict[str, Any]) -> str:
+    """The swept parameters of a row as text: 'dt=0.01', 'tol=1e-08', 'eps_res=1e-06 N=10'
+    (the step only where no accuracy parameter is set), then its other settings."""
+    accuracy = any(row.get(k) for k in row_fields("accuracy"))
+    parts = [f"{k}={row[k]:.3g}" for k in (*row_fields("step"), *row_fields("accuracy"))
+             if positive(row.get(k)) and not (k in row_fields("step") and accuracy)]
+    for k in row_fields("order"):
+        order = row.get(k)
+        if positive(order):
+            parts.append(f"N={int(order)}")
+        elif order is not None and order == order:  # a stored value that is not a number: shown as it is
+            parts.append(f"N={order}")
+    if row.get("settings"):
+        parts.append(str(row["settings"]))
+    return " ".join(parts)
+
+
+def pareto_field(rows: list[dict[str, Any]]) -> str | None:
+    ok = [r for r in rows if r.get("status") == "ok"]
+    return next((f for f in PARETO_FIELDS if any(positive(r.get(f)) for r in ok)), None)
+
+
+def main_t_final(rows: list[dict[str, Any]]) -> float | None:
+    """The final time most of a problem's ok rows ran to (a sweep may add a few long runs)."""
+    counts: dict[float, int] = {}
+    for r in rows:
+        if r.get("status") == "ok" and positive(r.get("t_final")):
+            counts[r["t_final"]] = counts.get(r["t_final"], 0) + 1
+    return max(sorted(counts), key=lambda t: counts[t]) if counts else None
+
+
+def pareto(rows: list[dict[str, Any]], field: str | None = None) -> list[dict[str, Any]]:
+    """For one problem's rows at its main final time (errors over different spans do not
+    compare): per accuracy decade 10^-k, the fastest ok row whose ``field`` is at most 10^-k
+    (minimum CPU of its repeats), and the fastest row of another scheme meeting the same
+    target (``next``, with ``slower`` = its time / the fastest's). Only decades some row
+    meets, from the coarsest to the finest."""
+    field = field or pareto_field(rows)
+    t_main = main_t_final(rows)
+    ok = [r for r in rows if r.get("status") == "ok" and positive(r.get("cpu_s")) and positive(r.get(field))
+          and r.get("t_final") == t_main]
+    out = []
+    for target in DECADES:
+        meets = sorted((r for r in ok if r[field] <= target), key=lambda r: r["cpu_s"])
+        if not meets:
+            break
+        best = meets[0]
+        runner = next((r for r in meets if r["integrator"] != best["integrator"]), None)
+        out.append({"target": target, "field": field, "best": best, "next": runner,
+                    "slower": runner["cpu_s"] / best["cpu_s"] if runner else None})
+    return out
+
+
+def pareto_groups(front: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Consecutive decades with the same fastest row and the same runner-up folded into one
+    entry: ``target`` the loosest, ``finest`` the tightest of them."""
+    out: list[dict[str, Any]] = []
+    for p in front:
+        last = out[-1] if out else None
+        if last and last["best"] is p["best"] and last["next"] is p["next"]:
+            last["finest"] = p["target"]
+        else:
+            out.append({**p, "finest": p["target"]})
+    return out
+
+
+def target_text(p: dict[str, Any]) -> str:
+    return f"{p['target']:.0e}" if p["finest"] == p["target"] else f"{p['target']:.0e}..{p['finest']:.0e}"
+
+
+def growth_names(rows: list[dict[str, Any]]) -> list[str]:
+    """The names with a growth class in ``rows``: the invariants in the order the rows give
+    them, then ``error``."""
+    names = list(dict.fromkeys(k[: -len(".growth_class")] for r in rows for k in r
+                               if k.endswith(".growth_class") and r.get(k)))
+    return [n for n in names if n != "error"] + (["error"] if "error" in names else [])
+
+
+def growth_settings(rows: list[dict[str, Any]]) -> list[tuple[str, list[dict[str, Any]]]]:
+    """One scheme's ok rows with a growth class, as (setting text, rows): the longest run
+    first (then the smallest step). The setting names t_final where the scheme ran to
+    more than one."""
+    mine = [r for r in rows if r.get("status") == "ok" and any(k.endswith(".growth_class") and r.get(k) for k in r)]
+    several = len({r.get("t_final") for r in mine}) > 1
+    mine.sort(key=lambda r: (-(r.get("t_final") or 0.0), r.get("dt") or 0.0, r.get("tol") or 0.0, setting(r)))
+    out: list[tuple[str, list[dict[str, Any]]]] = []
+    for r in mine:
+        text = " ".join(x for x in (setting(r), f"t={r['t_final']:.4g}" if several and r.get("t_final") else "") if x)
+        if out and out[-1][0] == text:
+            out[-1][1].append(r)
+        else:
+            out.append((text, [r]))
+    return out
+
+
+def _growth_summary(rows: list[dict[str, Any]]) -> list[str]:
+    """Per scheme, the growth class of the energy H (else the first invariant) and of the
+    solution error at each of its settings, the longest run first; settings with the same
+    classes share a group ('rk4: H linear, error quadratic (dt=0.01, dt=0.02)'); then each
+    undetermined class with its reason."""
+    names = growth_names(rows)
+    drift = "H" if "H" in names else next((n for n in names if n != "error"), None)
+    shown = [n for n in (drift, "error") if n in names]
+    if not shown:
+        return []
+    lines, why = [], {}
+    for scheme in sorted({r["integrator"] for r in rows}):
+        groups: dict[str, list[str]] = {}
+        for text, mine in growth_settings([r for r in rows if r["integrator"] == scheme]):
+            r = mine[0]
+            classes = ", ".join(f"{n} {r.get(f'{n}.growth_class') or '-'}" for n in shown)
+            groups.setdefault(classes, []).append(text or "-")
+            for n in shown:
+                if r.get(f"{n}.growth_class") == "undetermined":
+                    kind, _, detail = str(r.get(f"{n}.growth_reason") or "-").partition(": ")
+                    why.setdefault((kind, scheme, n), []).append(f"{text or '-'} ({detail})" if detail else text)
+        if groups:
+            lines.append(f"{scheme}: " + "; ".join(f"{c} ({', '.join(t)})" for c, t in groups.items()))
+    out = [f"growth of {', '.join(shown)} per setting (the longest run first):"]
+    out += [f"  {line}" for line in lines]
+    # each undetermined class with its reason: one line per scheme, name and kind of reason
+    out += [f"  undetermined, {kind}: {scheme} {n} at {'; '.join(settings)}"
+            for (kind, scheme, n), settings in sorted(why.items(), key=lambda kv: (kv[0][1], kv[0][2], kv[0][0]))]
+    return out if lines else []
+
+
+def _order_text(f: dict[str, Any]) -> str:
+    """'rk4 4.70+-0.53/4 MISSES': observed +- 95 % / declared."""
+    ci = f["observed_order_ci"]
+    text = f"{f['integrator']}{'' if f['order'] is None else ' N=' + str(f['order'])} {f['observed_order']:.2f}"
+    text += f"+-{ci:.2f}" if ci is not None else "(2 points)"
+    text += f"/{f['declared_order']}" if f["declared_order"] is not None else ""
+    return text + (" MISSES" if f["order_flag"] else "")
+
+
+def summary(rows: list[dict[str, Any]], orders: bool = True) -> str:
+    """The terminal report read first: status counts, then per problem its Pareto front
+    (one line per accuracy decade), fitted orders that miss their declared order, growth
+    classes and why pairs were skipped (one line per reason)."""
+    from longtime.measure.orders import left_out, left_out_text, observed_orders
+
+    if not rows:
+        return "no rows"
+    parts = [f"{len(rows)} cells: {format_counts(status_counts(rows))}"]
+    fits = observed_orders(rows) if orders else []
+    missing = left_out(rows) if orders else []
+    for problem in sorted({r["problem"] for r in rows}):
+        mine = [r for r in rows if r["problem"] == problem]
+        lines = [f"== {problem}: {format_counts(status_counts(mine))} =="]
+        field = pareto_field(mine)
+        front = pareto(mine, field) if field else []
+        if front:
+            lines.append(f"  fastest scheme per accuracy ({field} <= target at t_final {main_t_final(mine):.6g}; "
+                         f"CPU s, minimum of repeats):")
+            for p in pareto_groups(front):
+                b, n = p["best"], p["next"]
+                nxt = f"next {n['integrator']} x{p['slower']:.3g}" if n else "no other scheme"
+                lines.append(f"  {target_text(p):>14s}  {b['integrator']:<16s} {setting(b):<20s} "
+                             f"{b['cpu_s']:9.3g} s  {nxt}")
+        else:
+            lines.append("  no ok row with an error and a CPU time")
+        mine_fits = [f for f in fits if f["problem"] == problem]
+        if mine_fits:
+            lines.append("  observed/declared order (+- 95 %): " + "; ".join(_order_text(f) for f in mine_fits))
+        mine_missing = [m for m in missing if m["problem"] == problem]
+        if mine_missing:
+            lines.append("  left out of the order table: " + left_out_text(mine_missing))
+        lines += [f"  {g}" for g in _growth_summary(mine)]
+        for why, schemes in sorted(_not_ok(mine).items()):
+            lines.append(f"  {why}: {', '.join(schemes)}")
+        parts.append("\n".join(lines))
+    return "\n\n".join(parts)
+
+
+# an ok row whose error reached O(1) (cells.O1_ERROR): it ran to the end, but lost the solution
+LOST = "ok but error O(1), the solution not followed"
+
+
+def _not_ok(rows: list[dict[str, Any]]) -> dict[str, list[str]]:
+    """Rows that did not run to the end, or lost the solution, folded: 'skipped (needs
+    constraints, which toda does not provide)' -> schemes; 'diverged' -> ['rk4 (2 of 3)', ...]."""
+    kinds = [(s, lambda r, s=s: r.get("status") == s) for s in ("skipped", "diverged", "failed", "timeout")]
+    kinds.append((LOST, lambda r: r.get("status") == "ok" and bool(r.get("solution_lost"))))
+    out: dict[str, list[str]] = {}
+    for kind, of_kind in kinds:
+        for scheme in sorted({r["integrator"] for r in rows if of_kind(r)}):
+            mine = [r for r in rows if r["integrator"] == scheme]
+            bad = [r for r in mine if of_kind(r)]
+            if kind == "skipped":
+                why = str(bad[0].get("message") or "").removeprefix(scheme + " ")
+                out.setdefault(f"skipped ({why})", []).append(scheme)
+            else:
+                out.setdefault(kind, []).append(f"{scheme} ({len(bad)} of {len(mine)})")
+    return out
+
+
+# ------------------------------------------------------------------ the report command
+def to_parquet(rows: list[dict[str, Any]], path) -> None:
+    """Every row as one parquet table (list values, such as confidence intervals, as JSON text)."""
+    df = _object_frame(rows).infer_objects()  # typed columns: a float column stays float64
+    try:
+        df.to_parquet(path, index=False)
+    except ImportError as exc:
+        from longtime.core.params import InputError
+
+        raise InputError(f"--format parquet needs a parquet engine: pip install pyarrow "
+                         f"(the extra longtime[parquet]); {str(exc).splitlines()[0]}") from None
+
+
+def report_text(rows: list[dict[str, Any]], fmt: str = "table", full: bool = False) -> str:
+    """What ``longtime report`` prints: the summary first (format table), the full
+    per-cell tables after it with ``full``; csv, json and markdown are the full tables."""
+    if fmt != "table":
+        return render(rows, fmt)
+    text = summary(rows)
+    return text + "\n\n" + render(rows, "table") if full else text
