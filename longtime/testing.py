@@ -17,6 +17,7 @@ from typing import Any, Iterable, Sequence
 
 from longtime.api import Order, Result, cells_for, convergence, resolve, solve, sweep
 from longtime.core import registry
+from longtime.core.roles import row_columns, row_fields
 
 # a fit needs points in the asymptotic range: the problem's sweep and this many halvings below it
 EXTRA_HALVINGS = 2
@@ -82,7 +83,8 @@ def _solve(scheme: Any, problem: Any, t_final: float, settings: dict) -> Result:
 
 def _settings(result: Result) -> str:
     r = result.row
-    parts = [f"{k}={r[k]:g}" for k in ("dt", "tol", "eps_res") if isinstance(r.get(k), (int, float))]
+    parts = [f"{k}={r[k]:g}" for k in (*row_fields("step"), *row_fields("accuracy"))
+             if isinstance(r.get(k), (int, float))]
     if r.get("settings"):
         parts.append(str(r["settings"]))
     return ", ".join(parts) or "default settings"
@@ -215,7 +217,7 @@ def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float 
 
 def accuracy_fields(row: dict[str, Any]) -> dict[str, Any]:
     """The fields of a row that say how accurate it was (and what it ran)."""
-    keep = ("problem", "integrator", "status", "dt", "tol", "eps_res", "order", "t_final", "settings", "steps",
+    keep = ("problem", "integrator", "status", *row_columns(), "t_final", "settings", "steps",
             "rhs_evals", "l2_error", "final_error", "reference", "reference_error", "error_horizon")
     suffixes = (".max", ".mean", ".final", ".growth", ".growth_class")
     return {k: v for k, v in row.items()

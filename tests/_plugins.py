@@ -52,3 +52,15 @@ def install_plugin(root: Path, name: str, entry_points: dict[str, dict[str, str]
 def longtime(env, *args):
     return subprocess.run([sys.executable, "-m", "longtime.commands.cli", *args], env=env, capture_output=True,
                           text=True, timeout=600)
+
+
+# Heun's method as a plugin module defines it (needs numpy as np and ExplicitRungeKutta):
+# the base of the misbehaving test schemes
+HEUN_SOURCE = '''
+class _Heun(ExplicitRungeKutta):
+    summary = "Heun's method (order 2)"
+    order = 2
+    A = np.array([[0.0, 0.0], [1.0, 0.0]])
+    b = np.array([0.5, 0.5])
+    c = np.array([0.0, 1.0])
+'''

@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 
 import pytest
-from _plugins import install_plugin, longtime
+from _plugins import HEUN_SOURCE, install_plugin, longtime
 
 from longtime.commands.cli import main
 from longtime.execution.store import Store
@@ -33,13 +33,7 @@ from longtime.integrators.explicit_rk import ExplicitRungeKutta
 from longtime.problems.harmonic import Harmonic
 
 
-class _Heun(ExplicitRungeKutta):
-    summary = "Heun's method (order 2)"
-    order = 2
-    A = np.array([[0.0, 0.0], [1.0, 0.0]])
-    b = np.array([0.5, 0.5])
-    c = np.array([0.0, 1.0])
-
+''' + HEUN_SOURCE + '''
 
 class Segfault(_Heun):
     summary = "segfaults inside the cell"

@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 import pytest
-from _plugins import install_plugin, longtime
+from _plugins import HEUN_SOURCE, install_plugin, longtime
 
 from longtime.commands.cli import main
 
@@ -25,13 +25,7 @@ from longtime.integrators.explicit_rk import ExplicitRungeKutta
 from longtime.problems.harmonic import Harmonic
 
 
-class _Heun(ExplicitRungeKutta):
-    summary = "Heun's method (order 2)"
-    order = 2
-    A = np.array([[0.0, 0.0], [1.0, 0.0]])
-    b = np.array([0.5, 0.5])
-    c = np.array([0.0, 1.0])
-
+''' + HEUN_SOURCE + '''
 
 def _entered():
     with open(os.environ["SPIN_FILE"] + ".step", "a") as f:

@@ -18,7 +18,7 @@ from _plugins import longtime
 from test_faults import _cli, _permission_prefix
 
 from longtime.commands import cli
-from longtime.execution import matrix
+from longtime.execution import batches
 from longtime.commands.cli import main
 from longtime.execution.store import APPLICATION_ID, Store
 
@@ -123,7 +123,7 @@ def test_resume_without_an_id_takes_the_newest_incomplete_run(tmp_path, monkeypa
     """Before: it took the newest run, complete or not ("0 cells left"), and the interrupt
     message said RUN_ID instead of the run's id."""
     db = tmp_path / "r.sqlite"
-    real = matrix.run_cell
+    real = batches.run_cell
     calls = []
 
     def interrupted_on_second(cell, *args, **kwargs):
@@ -134,10 +134,10 @@ def test_resume_without_an_id_takes_the_newest_incomplete_run(tmp_path, monkeypa
 
     argv = ["matrix", "-p", "harmonic", "-i", "verlet,euler", "--dt", "0.1", "--t-final", "1",
             "--executor", "serial", "--db", str(db), "--no-progress", "--no-report"]
-    monkeypatch.setattr(matrix, "run_cell", interrupted_on_second)
+    monkeypatch.setattr(batches, "run_cell", interrupted_on_second)
     assert main(argv) == 130
     assert f"`longtime matrix --resume 1 --db {db}`" in capsys.readouterr().err
-    monkeypatch.setattr(matrix, "run_cell", real)
+    monkeypatch.setattr(batches, "run_cell", real)
     assert main(argv) == 0  # run 2, complete
     assert main(["matrix", "--resume", "--executor", "serial", "--db", str(db), "--no-progress",
                  "--no-report"]) == 0

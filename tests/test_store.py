@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from longtime.execution import matrix
+from longtime.execution import batches
 from longtime.commands.cli import main
 from longtime.execution.store import Store
 
@@ -21,7 +21,7 @@ def rows_by_key(path):
 
 def test_ctrl_c_keeps_finished_cells_and_resume_completes(tmp_path, monkeypatch, capsys):
     db = tmp_path / "m.sqlite"
-    real = matrix.run_cell
+    real = batches.run_cell
     calls = []
 
     def interrupted_on_third(cell, *args, **kwargs):
@@ -30,7 +30,7 @@ def test_ctrl_c_keeps_finished_cells_and_resume_completes(tmp_path, monkeypatch,
             raise KeyboardInterrupt
         return real(cell, *args, **kwargs)
 
-    monkeypatch.setattr(matrix, "run_cell", interrupted_on_third)
+    monkeypatch.setattr(batches, "run_cell", interrupted_on_third)
     argv = ["matrix", "-p", "harmonic", "-i", "rk4,verlet,euler", "--executor", "serial",
             "--db", str(db), "--no-progress", "--t-final", "10"]
     assert main(argv) == 130
@@ -38,7 +38,7 @@ def test_ctrl_c_keeps_finished_cells_and_resume_completes(tmp_path, monkeypatch,
     run = store.runs()[-1]
     assert run["status"] == "interrupted" and run["planned"] == 9 and run["done"] == 2
     first_two = rows_by_key(db)
-    monkeypatch.setattr(matrix, "run_cell", real)
+    monkeypatch.setattr(batches, "run_cell", real)
 
     assert main(["matrix", "--resume", "--executor", "serial", "--db", str(db), "--no-progress"]) == 0
     run = store.runs()[-1]

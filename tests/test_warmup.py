@@ -26,7 +26,7 @@ def test_warmup_fills_the_cache_that_a_later_process_loads(tmp_path):
     kernels = list((tmp_path / "cache" / "kernels").glob("longtime_kernel_*.py"))
     assert len(kernels) >= 2  # each loop and the step it closes over
     # a later process loads those kernels: numba compiles nothing of them (its compile events)
-    probe = ("from numba.core import event; from longtime import registry; "
+    probe = ("from numba.core import event; from longtime.core import registry; "
              "p = registry.problem_class('harmonic')(); s = registry.integrator_class('verlet')()\n"
              "with event.install_recorder('numba:compile') as rec: s.integrate(p, 0.1, max_samples=16)\n"
              "print(sum(e.is_start and 'longtime_kernel_' in getattr(e.data.get('dispatcher'), "

@@ -115,7 +115,7 @@ def _options(args, executor: str) -> ExecOptions:
                          f"--executor process, isolated or dask (or with --cell-timeout)")
     if args.max_samples < 2:
         raise InputError(f"--max-samples {args.max_samples}: must be >= 2")
-    budget_seconds()  # $LONGTIME_REFERENCE_SECONDS: a bad value is bad input, before anything runs
+    budget_seconds()  # $LONGTIME_REFERENCE_SECONDS: a bad value is bad input, caught up front
     check_cache_root()  # $LONGTIME_CACHE_DIR: one error now, not one per cell
     return ExecOptions(jobs=args.jobs, max_samples=args.max_samples,
                        timing=Timing(repeats=args.repeats, min_time=args.min_time),
@@ -212,7 +212,7 @@ def cmd_matrix(args) -> int:
             check_size(cells, args.max_samples, args.memory_limit)
         store, run_id, died = Store(args.db), None, []
     if args.baseline is not None:
-        store.run(args.baseline)  # an unknown baseline is bad input, before anything runs
+        store.run(args.baseline)  # an unknown baseline is bad input, caught up front
     ahead = None
     with recorded_run(store, command_line(args), cells, run_id) as run_id:
         if args.resume is None:
@@ -232,7 +232,7 @@ def cmd_matrix(args) -> int:
 
         rows = store.rows(run_id)
         page = None
-        if not args.no_html:  # the results page, written before the text so a long report ends with its path
+        if not args.no_html:  # the results page first, so that a long report ends with its path
             try:
                 page = write_html(args.html or store.path.parent / "longtime-report" / f"run-{run_id}", rows,
                                   store, [run_id], ahead=ahead)  # default: beside the store

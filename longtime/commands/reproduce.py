@@ -399,7 +399,7 @@ def section_kdv(ctx: Context) -> str:
 
 
 def section_roundoff(ctx: Context) -> str:
-    from longtime.commands.roundoff import section  # issue 10: Brouwer's law or drift, per scheme and setting
+    from longtime.commands.roundoff import section  # Brouwer's law or drift, per scheme and setting
 
     return section(ctx.quick, jobs=ctx.options.jobs)
 

@@ -30,7 +30,7 @@ SWEEP_PARAMETERS = tuple(ROW_PARAMETERS)
 DEFAULT_MAX_SAMPLES = 100_001
 # a cell stops (a 'timeout' row) after this many seconds unless --time-limit says otherwise
 DEFAULT_TIME_LIMIT = 600.0
-# a cell beyond these is refused before anything runs, unless --allow-large
+# a cell beyond these is refused up front, unless --allow-large
 MAX_STEPS = 10**9
 MAX_SAMPLE_BYTES = 4 * 2**30
 # a relative error (l2 or final) from this on is O(1): the row's message says so

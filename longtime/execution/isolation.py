@@ -131,7 +131,7 @@ def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, time
                     yield cell, run_cell(cell)
                     continue
                 # the cell stops itself at its time limit, keeping what it reached; under a hard
-                # timeout, early enough to report before it is killed
+                # timeout, early enough to report ahead of the kill
                 limit = min(x for x in (time_limit, 0.8 * (timeout or 0), float("inf")) if x)
                 running.append(_start(cell, max_samples, timeout, timing or Timing(),
                                       None if limit == float("inf") else limit, memory_limit))

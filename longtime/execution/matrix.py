@@ -48,7 +48,7 @@ class ExecOptions:
     memory_limit: int | None = field(default_factory=default_memory_limit)
     scheduler: str | None = None  # Dask scheduler address
     timing: Timing = field(default_factory=Timing)
-    # called with each cell just before it runs in this process (the store marks it started)
+    # called with each cell as it starts in this process (the store marks it started)
     on_start: Callable[[Cell], None] | None = None
     # work for a pool worker that has no cell left to run (the results page's figures and
     # stability intervals): returns (picklable function, its arguments, a callback taking
@@ -158,7 +158,7 @@ def scheduled(pool, workers: int, batches: list[list[Cell]], fn: Callable, *args
             broken = broken or isinstance(fut.exception(), BrokenProcessPool)
             if fut.exception() is None:  # a failed task is only not done ahead: its owner does it later
                 callback(fut.result())
-        fill()  # before the caller sees the results: no worker idles while it stores rows
+        fill()  # ahead of the caller's turn: no worker idles while it stores rows
         yield from finished
         fill()  # idle work the caller's new rows made ready
 
@@ -176,7 +176,7 @@ def _record_timeout(folder: str, time_limit: float) -> Callable[[dict, float], N
     def record(cell_dict: dict, elapsed: float) -> None:
         cell = Cell.from_dict(cell_dict)
         path = Path(folder, f"row-{_digest(cell.key)}.json")
-        if path.exists():  # it ended just before its worker was killed: its own row stands
+        if path.exists():  # it ended just ahead of the kill: its own row stands
             return
         limit = hard_limit(time_limit)
         row = {**base_row(cell), "status": "timeout",
@@ -330,7 +330,7 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
 
         bar = tqdm(total=len(cells), unit="cell", dynamic_ncols=True)
     storing = store is not None and run_id is not None
-    here = calibration.here(reset=True)  # the machine's speed before the cells, and after them
+    here = calibration.here(reset=True)  # the machine's speed ahead of the cells, and after them
     if storing:
         store.add_calibrations(run_id, [here.take("before")])
         here.handed()

@@ -27,13 +27,13 @@ from longtime.execution.cells import Cell
 DEFAULT_PATH = "longtime.sqlite"
 # A longtime store says so in its SQLite header: application_id (ASCII "LTim") and
 # user_version (the schema version), and has the tables and columns of SCHEMA. A file
-# without the stamp is refused untouched unless it is a store written before the version
+# without the stamp is refused untouched unless it is a store of the first layout (no version)
 # existed (the same three tables, with the same columns, and nothing else).
 APPLICATION_ID = 0x4C54696D
 # 2: the calibrations table (a store of version 1 gains it when opened for writing)
 SCHEMA_VERSION = 2
 ADDED_IN = {"calibrations": 2}  # the schema version that added a table (1: every other)
-_TABLES = {"runs", "planned", "rows"}  # a store before the schema version (no 'started' yet)
+_TABLES = {"runs", "planned", "rows"}  # a store of the first layout, without a schema version or 'started'
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS runs (
@@ -69,7 +69,7 @@ PRAGMA user_version = %d;
 INTERRUPTED: list[tuple[str, int]] = []
 
 
-SETTLE_S = 1.0  # how long a file that may be a store in creation is looked at before it is refused
+SETTLE_S = 1.0  # how long a file that may be a store in creation is looked at again until it is refused
 
 
 class _Unsettled(Exception):
@@ -319,7 +319,7 @@ class Store:
                     "SELECT p.cell FROM planned p JOIN started s ON s.run_id = p.run_id AND s.cell_key = p.cell_key "
                     "WHERE p.run_id = ? AND p.cell_key NOT IN (SELECT cell_key FROM rows WHERE run_id = ?) "
                     "ORDER BY p.rowid", (run_id, run_id)).fetchall()
-            except sqlite3.OperationalError:  # a store from before the 'started' table, opened read-only
+            except sqlite3.OperationalError:  # a store of the first layout, without 'started', opened read-only
                 return []
         return [Cell.from_dict(json.loads(r[0])) for r in rows]
 

@@ -210,7 +210,7 @@ def _laplace_sum(t, u, coeffs, work, S, Sd, taylor_fallback):
 # (most of a bpl kernel's first compile: docs/performance.md). Instead it
 # is compiled once as a C callback (a numba cfunc, disk-cached like the rest) and a kernel
 # calls it by symbol name, an ExternalFunction that the JIT resolves when the kernel is
-# compiled or loaded from the cache; ``_link_shared_code`` registers the symbol before any
+# compiled or loaded from the cache; ``_link_shared_code`` registers the symbol ahead of any
 # kernel is built. The same machine code runs, once per step, and rounds the same (rows are
 # bitwise those of the linked version). The Laplace sum, called at every trial of the step
 # search and cheap to compile, stays linked, where LLVM optimises it with the residual.

@@ -252,7 +252,7 @@ class ReboundIAS15(Rebound):
         deadline = self._deadline
         outcome = {"timeout": False}
 
-        def heartbeat(pointer):  # after every step (and once before the first)
+        def heartbeat(pointer):  # after every step (and once at the start)
             here = pointer.contents
             if ts and here.t == ts[-1]:
                 return

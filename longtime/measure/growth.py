@@ -167,7 +167,7 @@ def growth_fields(name: str, t: np.ndarray, err: np.ndarray, t0: float,
     end = err.size
     if above.size:
         out[f"{name}.saturated_t"] = float(t[above[0]])
-        end = int(above[0])  # fit the part before the error meant nothing
+        end = int(above[0])  # fit the part up to where the error meant nothing
     tau, m = t[:end] - t0, running[:end]
     fit = fit_power_law(tau, m)
     if fit is None:

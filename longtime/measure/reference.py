@@ -392,7 +392,7 @@ def _cache_path(problem: Problem, *parts: str | bytes, suffix: str = ".npz") -> 
     return cache_dir("reference") / f"{problem.name}-{key}{suffix}"
 
 
-# every cache file ends with this and the SHA-256 (hex) of the bytes before it; np.load
+# every cache file ends with this and the SHA-256 (hex) of the bytes that precede it; np.load
 # reads an .npy or .npz up to its own end, so the trailer is invisible to it
 _TRAILER = b"\nlongtime-sha256:"
 

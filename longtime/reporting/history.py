@@ -25,6 +25,7 @@ import math
 from typing import Any
 
 from longtime.core.params import InputError
+from longtime.core.roles import ROW_PARAMETERS
 from longtime.reporting.compare import MATCH_KEYS, ROUND_OFF, TIME_FACTOR, cell_key, error_fields
 
 TIME_FIELD = "cpu_s_calibrated"
@@ -103,7 +104,7 @@ def _selected(row: dict, problems, schemes, sets: dict[str, str]) -> bool:
     if sets:
         settings = json.loads(row["settings"]) if row.get("settings") else {}
         for k, v in sets.items():
-            have = row.get(k) if k in ("dt", "tol", "eps_res", "order") else settings.get(k)
+            have = row.get(k) if k in ROW_PARAMETERS else settings.get(k)
             if have is None or not _same(have, v):
                 return False
     return True

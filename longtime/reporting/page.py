@@ -13,14 +13,8 @@ problems: ran / skipped and why / diverged / failed.
 Colours: one per scheme family (the module that defines the scheme: explicit RK,
 splitting, ...), a marker per scheme within it; legends sit outside the axes.
 
-The drift curves come from the rows: each keeps the upper envelope of every invariant's
-error (and every diagnostic's change) at 80 log-spaced times (``drift_curves``,
-``diag_curves``, metrics.drift_envelope), so the page runs nothing; a row stored when rows
-kept only the first invariant's (``drift_curve``) shows that one. Only a row stored before
-rows kept any is run again, untimed, skipped when
-its stored CPU time exceeds ``DRIFT_BUDGET_S`` or once a problem's re-runs add up to
-``DRIFT_PROBLEM_BUDGET_S`` (cheapest first); the caption says which setting was drawn and
-names those left out.
+The figures are drawn by longtime.reporting.figures.results (ahead of the page, by idle
+pool workers, with longtime.reporting.figures_ahead).
 """
 from __future__ import annotations
 

@@ -51,7 +51,7 @@ def pendulum_region(schemes: Sequence[str] | None = None, dt: float | None = Non
         raise InputError(f"times={times!r} is not valid: expected final times > 0")
     if space not in ("plane", "angles"):
         raise InputError(f"space={space!r} is not valid: expected one of plane, angles")
-    check_formats(formats)  # before the integrations, not after
+    check_formats(formats)  # checked first: a bad format costs no integration
     runs = {}
     for name in schemes:
         problem, runs[name] = run("double-pendulum", name, dt, times[-1], problem_settings,

@@ -140,7 +140,7 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
     notes, curves, spent = [], [], 0.0
     # the cheapest first, so a problem's budget leaves out the fewest schemes
     for scheme, row in sorted(representative(rows).items(), key=lambda item: item[1]["cpu_s"]):
-        rerun = "drift_curve" not in row  # a row stored before rows kept it: run it again
+        rerun = "drift_curve" not in row  # a row of an older store keeps none: run it again
         if not rerun and not (row.get("drift_curves") or row.get("drift_curve") or row.get("diag_curves")):
             continue  # nothing to draw (a row measured since rows keep their curves)
         if rerun and (row["cpu_s"] > DRIFT_BUDGET_S or spent + row["cpu_s"] > DRIFT_PROBLEM_BUDGET_S):

@@ -35,7 +35,7 @@ def curves(ax, rows: list[dict], field: str, style: dict[str, dict[str, str]]) -
 
     for scheme in sorted({r["integrator"] for r in rows}):
         # the point is the minimum cpu_s of the repeated runs; the bar reaches the
-        # slowest repeat (rows stored before repeated timing have no bar)
+        # slowest repeat (rows of a store without repeated timing have no bar)
         pts = sorted((r["cpu_s"], r[field], r.get("cpu_s_max") or r["cpu_s"]) for r in rows
                      if r["integrator"] == scheme and positive(r.get(field)))
         if pts:
