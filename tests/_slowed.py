@@ -55,6 +55,8 @@ class SlowedRK4(FixedStepIntegrator):
 
         @numba.njit
         def step(t, u, h, params, work, counters, first):
+            if first:  # the work array is not zeroed between runs: the step counter starts here
+                work[7, 0] = 0.0
             increment(t, u, h, params, work, work[5])
             n = work[7, 0]
             for _ in range(int((n + 1.0) * extra) - int(n * extra)):  # the repeated work, into scratch
