@@ -11,6 +11,9 @@ in the module's text, so each version is other code (another kernel), not anothe
 the cells keep their identity across versions.
 """
 import importlib.util
+import json
+import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -84,3 +87,39 @@ def load(path: Path, tag: str):
     sys.modules[name] = module
     spec.loader.exec_module(module)
     return module.SlowedRK4
+
+
+def _git(repo: Path, *args: str) -> str:
+    return subprocess.run(["git", *args], cwd=repo, check=True, capture_output=True, text=True).stdout.strip()
+
+
+def measure_commits(repo: str, db: str) -> None:
+    """Five commits of the scheme in the git repository ``repo``, each measured into the
+    store ``db`` as its own run: commits 1 and 2 plain RK4, commit 3 its stages repeated 1.2
+    times a step, commits 4 and 5 also a bias of 32 h^5 a step. Prints the commit hashes
+    (JSON) on stdout."""
+    import contextlib
+    import io
+
+    from longtime.commands import cli
+    from longtime.core import registry
+
+    repo_path = Path(repo)
+    versions = [(0.0, 0.0), (0.0, 0.0), (1.2, 0.0), (1.2, 32.0), (1.2, 32.0)]
+    commits = []
+    for k, (repeat, bias) in enumerate(versions, 1):
+        module = repo_path / "slowed_rk4.py"
+        module.write_text(source(repeat, bias) + f"# commit {k}\n")
+        _git(repo_path, "add", "-A")
+        _git(repo_path, "commit", "-q", "-m", f"commit {k}")
+        commits.append(_git(repo_path, "rev-parse", "HEAD"))
+        os.environ["LONGTIME_GIT_COMMIT"] = commits[-1]
+        registry._load()["integrators"]["slowed-rk4"] = load(module, str(k))
+        # the minimum of many repeats, in this process (the plugin is registered here only)
+        argv = ["run", "-p", "harmonic", "-i", "slowed-rk4", "--dt", "0.01", "--t-final", "1000", "--format", "json",
+                "--repeats", "50", "--executor", "serial"]
+        with contextlib.redirect_stdout(io.StringIO()):
+            # the first runs of new code are slower (its kernel loaded, memory touched): unstored
+            assert cli.main([*argv, "--min-time", "1", "--no-store"]) == 0
+            assert cli.main([*argv, "--min-time", "0.5", "--db", db]) == 0
+    print(json.dumps(commits))
