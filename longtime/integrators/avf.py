@@ -23,10 +23,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from longtime.core.drivers import FAILED, NL_ITERS, OK, RHS_EVALS, reached_round_off, state_scale
+from longtime.core.drivers import FAILED, NL_ITERS, OK, RHS_EVALS, state_scale
 from longtime.core.integrator import FixedStepIntegrator
 from longtime.core.params import Param
-from longtime.integrators.implicit_rk import ImplicitRungeKutta, settled
+from longtime.integrators.implicit_rk import ImplicitRungeKutta, iteration_done
 
 
 def gauss_legendre(nodes: int) -> tuple[np.ndarray, np.ndarray]:
@@ -83,7 +83,7 @@ class AVF(FixedStepIntegrator):
                     delta = max(delta, abs(h * (total[m] - g[m])))
                     g[m] = total[m]
                 counters[NL_ITERS] += 1
-                if settled(delta, previous, scale) if brouwer else reached_round_off(delta, previous, scale):
+                if iteration_done(delta, previous, scale, brouwer):
                     converged = True
                     break
                 previous = delta

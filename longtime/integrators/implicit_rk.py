@@ -40,6 +40,13 @@ def settled(delta, previous, scale):
     return delta == 0.0 or (delta >= previous and delta <= 1e-8 * scale)
 
 
+@numba.njit(cache=True, inline="always")
+def iteration_done(delta, previous, scale, brouwer):
+    """The fixed-point iteration's stopping rule of the ``stop`` setting: Brouwer's
+    (``settled``) or round-off's (drivers.reached_round_off)."""
+    return settled(delta, previous, scale) if brouwer else reached_round_off(delta, previous, scale)
+
+
 class ImplicitRungeKutta(FixedStepIntegrator):
     A: np.ndarray
     b: np.ndarray
@@ -93,7 +100,7 @@ class ImplicitRungeKutta(FixedStepIntegrator):
                         work[i, m] = k_new[m]
                 evals += s
                 counters[NL_ITERS] += 1
-                if settled(delta, previous, scale) if brouwer else reached_round_off(delta, previous, scale):
+                if iteration_done(delta, previous, scale, brouwer):
                     converged = True
                     break
                 previous = delta
