@@ -22,11 +22,11 @@ from longtime.core import registry
 from longtime.core.integrator import Integrator, Timing
 from longtime.core.params import InputError
 from longtime.core.problem import Problem
+from longtime.core.roles import ROW_PARAMETERS
 from longtime.execution import calibration
 from longtime.execution.cells import (
     DEFAULT_MAX_SAMPLES,
     DEFAULT_TIME_LIMIT,
-    SWEEP_PARAMETERS,
     Cell,
     check_size,
     expand,
@@ -85,7 +85,7 @@ def cells_for(problems: Sequence, schemes: Sequence, t_final: Any = None, settin
         sets.update(given)
     for key, value in (settings or {}).items():
         values = _values(value)
-        if key in SWEEP_PARAMETERS or len(values) != 1:
+        if key in ROW_PARAMETERS or len(values) != 1:
             sweeps[key] = values
             sets.pop(key, None)  # the keyword overrides an instance's own setting
         else:

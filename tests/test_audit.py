@@ -16,11 +16,12 @@ import numpy as np
 import pytest
 
 from longtime import FixedStepIntegrator
-from longtime.core import registry
-from longtime.execution import cells as cells_module
-from longtime.execution.cells import SWEEP_PARAMETERS, Cell, run_cell
 from longtime.commands.cli import main
+from longtime.core import registry
 from longtime.core.integrator import Timing, same_run
+from longtime.core.roles import ROW_PARAMETERS
+from longtime.execution import cells as cells_module
+from longtime.execution.cells import Cell, run_cell
 
 # tiny problems, first compatible one wins (constraints: the pendulum; a linear part: kdv)
 PROBLEMS = (("harmonic", {}), ("kepler", {}), ("double-pendulum", {}), ("kdv", {"d": 16}))
@@ -89,7 +90,7 @@ def test_every_declared_parameter_reaches_the_run(monkeypatch, scheme, key):
     base_row, base = run(monkeypatch, scheme, {})
     row, traj = run(monkeypatch, scheme, {key: value})
     assert json.loads(row["parameters"])[key] == value
-    if key in SWEEP_PARAMETERS:
+    if key in ROW_PARAMETERS:
         assert row[key] == value
     assert not same_run(base, traj), f"{scheme}: {key}={value!r} gave the run of the default"
 
@@ -131,7 +132,7 @@ def cli_rows(capsys, *argv):
 
 def _flag_cases():
     out = []
-    for flag in SWEEP_PARAMETERS:
+    for flag in ROW_PARAMETERS:
         for s in SCHEMES:
             if flag in registry.integrator_class(s).parameters:
                 out.append((flag, s))

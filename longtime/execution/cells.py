@@ -25,8 +25,6 @@ from longtime.execution import limits
 from longtime.measure import metrics
 from longtime.measure.reference import ReferenceUnavailable, has_reference, trusted_reference
 
-# the parameters with a row field and a flag of their own (longtime.core.roles)
-SWEEP_PARAMETERS = tuple(ROW_PARAMETERS)
 DEFAULT_MAX_SAMPLES = 100_001
 # a cell stops (a 'timeout' row) after this many seconds unless --time-limit says otherwise
 DEFAULT_TIME_LIMIT = 600.0
