@@ -7,6 +7,7 @@ linear momentum P.
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numba
@@ -222,16 +223,20 @@ class FigureEightPerturbed(FigureEight):
         return u
 
 
+@functools.lru_cache(maxsize=16)
 def _figure_eight_at(t: float) -> np.ndarray:
     """The figure-eight's state at time t, by heyoka as the reference integrates it (double,
-    high accuracy, the reference's code mode): the same numbers as its reference states."""
+    high accuracy, the reference's code mode): the same numbers as its reference states.
+    Kept per process (read-only): every cell of the perturbed problem builds it again."""
     from longtime.core import heyoka_build
 
     base = FigureEight()
     ta = heyoka_build.taylor_adaptive(base, base.u0.astype(np.float64), None, high_accuracy=True,
                                       fp_type=np.float64, time=np.float64(base.t0),
                                       compact_mode=heyoka_build.compact_mode(base, np.float64, reference=True))
-    return np.asarray(ta.propagate_grid(np.array([base.t0, t], dtype=np.float64))[-1], dtype=float)[-1]
+    state = np.array(np.asarray(ta.propagate_grid(np.array([base.t0, t], dtype=np.float64))[-1], dtype=float)[-1])
+    state.flags.writeable = False
+    return state
 
 
 # Hairer, Lubich, Wanner, Geometric Numerical Integration, section I.2.4: the Sun (with the
