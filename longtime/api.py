@@ -140,12 +140,17 @@ class Result:
 
 def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_samples: int = DEFAULT_MAX_SAMPLES,
           repeats: int = Timing.repeats, min_time: float = Timing.min_time,
-          time_limit: float | None = DEFAULT_TIME_LIMIT, allow_large: bool = False, **settings: Any) -> Result:
+          time_limit: float | None = DEFAULT_TIME_LIMIT, allow_large: bool = False, cost: str = "time",
+          **settings: Any) -> Result:
     """Run ``scheme`` on ``problem`` once (timed as every row is) and return its Result.
     ``settings`` are the parameters of --dt, --tol, --eps-res, --order and --set (one value
-    each). A pair that cannot run (a capability missing) raises InputError naming it."""
+    each). A pair that cannot run (a capability missing) raises InputError naming it.
+    ``cost="instructions"`` also counts the integration under Valgrind (``--cost
+    instructions``: the row's ``instructions`` and ``instructions_per_step``)."""
+    from longtime.execution.matrix import check_cost
     from longtime.reporting.report import complete
 
+    check_cost(cost)
     cells = cells_for(_as_list(problem), _as_list(scheme), t_final, settings, strict=True)
     if len(cells) != 1:
         raise InputError(f"solve runs one cell; these settings give {len(cells)}: give one value per "
@@ -163,6 +168,10 @@ def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_sample
     if not cells[0].skip_reason:
         here.cell(row, t0, time.time())
         calibration.take_points(row)  # the calibrations themselves belong to a stored run
+    if cost == "instructions":
+        from longtime.execution.valgrind import instruction_fields
+
+        row.update(instruction_fields([(cells[0], row)], max_samples, time_limit or None)[cells[0].key])
     row = complete(row)
     traj = keep.get("trajectory")
     if traj is None:
@@ -176,12 +185,14 @@ def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_sample
 def sweep(problems: Any, schemes: Any, *, t_final: Any = None, executor: str = "process", jobs: int = 0,
           store=None, max_samples: int = DEFAULT_MAX_SAMPLES, repeats: int = Timing.repeats,
           min_time: float = Timing.min_time, time_limit: float | None = DEFAULT_TIME_LIMIT,
-          default_sweep: bool = False, allow_large: bool = False, **sweeps: Any):
+          default_sweep: bool = False, allow_large: bool = False, cost: str = "time", **sweeps: Any):
     """The matrix problems x schemes x every value of each parameter (a value or a list) as
     a pandas DataFrame, one row per cell. ``executor`` is serial, process (default), isolated
     or dask; ``store`` a path (or Store) appends the run to that store as ``longtime run``
-    does, and the rows then come back as stored (with ``run_id``)."""
-    from longtime.execution.matrix import ExecOptions
+    does, and the rows then come back as stored (with ``run_id``). ``cost="instructions"``
+    also counts each ok cell's integration under Valgrind, all cells in one Valgrind process
+    (``--cost instructions``)."""
+    from longtime.execution.matrix import ExecOptions, check_cost
     from longtime.execution.store import Store
     from longtime.reporting.report import frame
 
@@ -189,11 +200,13 @@ def sweep(problems: Any, schemes: Any, *, t_final: Any = None, executor: str = "
         store = Store(store)
     if max_samples < 2:
         raise InputError(f"max_samples={max_samples} is not valid: must be >= 2")
+    check_cost(cost)
     cells = cells_for(_as_list(problems), _as_list(schemes), t_final, sweeps, default_sweep=default_sweep)
     if not allow_large:
         check_size(cells, max_samples)
     options = ExecOptions(jobs=jobs if executor != "serial" else 0, max_samples=max_samples,
-                          timing=Timing(repeats=repeats, min_time=min_time), time_limit=time_limit or None)
+                          timing=Timing(repeats=repeats, min_time=min_time), time_limit=time_limit or None,
+                          cost=cost)
     command = "sweep " + shlex.join([f"{k}={v}" for k, v in
                                      {"problems": problems, "schemes": schemes, "t_final": t_final,
                                       **sweeps}.items() if v is not None])

@@ -23,7 +23,7 @@ from longtime.execution import limits
 from longtime.execution.calibration import drift_text
 from longtime.execution.cells import DEFAULT_TIME_LIMIT, check_size, expand
 from longtime.execution.lifecycle import command_line, recorded_run
-from longtime.execution.matrix import EXECUTORS, ExecOptions, run_matrix
+from longtime.execution.matrix import COSTS, EXECUTORS, ExecOptions, check_cost, run_matrix
 from longtime.execution.store import Store, default_path
 from longtime.measure import stability
 from longtime.measure.reference import budget_seconds
@@ -95,6 +95,10 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
                    help=f"repeat a cell's timed run until the timed total passes this "
                         f"(default {Timing.min_time})")
     p.add_argument("--db", default=None, help=f"SQLite store (default: $LONGTIME_DB or {default_path()})")
+    p.add_argument("--cost", choices=COSTS, default="time",
+                   help="instructions: also count each ok cell's integration under Valgrind (Callgrind; "
+                        "Debian package valgrind), a deterministic cost beside the time (rows gain "
+                        "instructions, instructions_per_step)")
 
 
 def _selection(args) -> dict:
@@ -117,7 +121,9 @@ def _options(args, executor: str) -> ExecOptions:
         raise InputError(f"--max-samples {args.max_samples}: must be >= 2")
     budget_seconds()  # $LONGTIME_REFERENCE_SECONDS: a bad value is bad input, caught up front
     check_cache_root()  # $LONGTIME_CACHE_DIR: one error now, not one per cell
-    return ExecOptions(jobs=args.jobs, max_samples=args.max_samples,
+    cost = getattr(args, "cost", "time")
+    check_cost(cost)  # --cost instructions without Valgrind: one line, before a run is recorded
+    return ExecOptions(cost=cost, jobs=args.jobs, max_samples=args.max_samples,
                        timing=Timing(repeats=args.repeats, min_time=args.min_time),
                        cell_timeout=getattr(args, "cell_timeout", None),
                        time_limit=getattr(args, "time_limit", DEFAULT_TIME_LIMIT) or None,

@@ -48,6 +48,9 @@ class ExecOptions:
     memory_limit: int | None = field(default_factory=default_memory_limit)
     scheduler: str | None = None  # Dask scheduler address
     timing: Timing = field(default_factory=Timing)
+    # what each cell's cost is measured by besides time: "time" (only) or "instructions"
+    # (also counted under Valgrind: longtime.execution.valgrind)
+    cost: str = "time"
     # called with each cell as it starts in this process (the store marks it started)
     on_start: Callable[[Cell], None] | None = None
     # work for a pool worker that has no cell left to run (the results page's figures and
@@ -307,6 +310,18 @@ EXECUTORS: dict[str, Executor] = {"serial": _with_limits(serial), "process": _wi
                                   "isolated": isolated, "dask": dask_cluster}
 
 
+COSTS = ("time", "instructions")
+
+
+def check_cost(cost: str) -> None:
+    """A known cost; "instructions" also needs Valgrind (InputError naming its Debian package)."""
+    check_choice("cost", cost, COSTS)
+    if cost == "instructions":
+        from longtime.measure.instructions import require
+
+        require()
+
+
 def get_executor(name: str) -> Executor:
     check_choice("executor", name, EXECUTORS)
     return EXECUTORS[name]
@@ -320,6 +335,7 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
     options = options or ExecOptions()
     if options.max_samples < 2:
         raise InputError(f"max_samples={options.max_samples} is not valid: must be >= 2")
+    check_cost(options.cost)
     run = get_executor(executor)
     if store is not None and run_id is not None and options.on_start is None:
         options = dataclasses.replace(options, on_start=lambda cell: store.mark_started(run_id, cell))
@@ -351,4 +367,19 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
             bar.close()
     if storing:
         store.add_calibrations(run_id, [here.take("after")])
+    if options.cost == "instructions":  # after every timed run: Valgrind's process times nothing
+        _add_instructions(cells, rows, store if storing else None, run_id, options)
     return [rows[c.key] for c in cells if c.key in rows]
+
+
+def _add_instructions(cells: list[Cell], rows: dict[str, dict], store: Store | None, run_id: int | None,
+                      options: ExecOptions) -> None:
+    """Each row's instruction fields (longtime.execution.valgrind), stored over its row."""
+    from longtime.execution.valgrind import instruction_fields
+
+    measured = [(c, rows[c.key]) for c in cells if c.key in rows]
+    fields = instruction_fields(measured, options.max_samples, options.time_limit)
+    for cell, row in measured:
+        row.update(fields[cell.key])
+        if store is not None:
+            store.add_row(run_id, cell, row)

@@ -21,6 +21,11 @@ RUN_B). Cells are matched by problem, scheme, t_final and every setting. Per com
   ``final_error``, ``NAME.max``, ``NAME.mean``, ``NAME.final``, ``constraint.max``, ``error.*``);
   a loss counts when the ratio exceeds ``--error-factor`` (2) and B's error is above
   ``ROUND_OFF`` (errors at round-off move by such factors with any change of compiler);
+- instructions (``--cost instructions`` in both runs, counted by the same Valgrind): the
+  ratio B / A of the cell's count. The count is deterministic (runs of identical code agree
+  to about a part per million, beside CPU-bound processes too), so a cell whose count grows
+  beyond ``--instruction-factor`` (``INSTRUCTION_FACTOR``) regressed, whatever the time
+  says;
 - growth classes (``NAME.growth_class``) and observed orders (longtime.measure.orders), per
   problem x scheme: every change is listed; a status that was ok and is not any more is a
   regression.
@@ -47,6 +52,9 @@ MIN_BATCHES = 3  # batches a scheme's (a problem's) median needs
 SHORT_CPU_S = 2e-5  # cells below this CPU time (shorter than any measured) get no time verdict
 MACHINE_FACTOR = 1.03  # reference workloads further apart than this: the machine's speed differed
 ROUND_OFF = 1e-13
+# instruction counts of identical code agree to about 1e-6 (docs/performance.md): a change
+# beyond 1 % is the code's
+INSTRUCTION_FACTOR = 1.01
 # a cell is its problem, scheme, final time and every parameter (row fields and settings)
 MATCH_KEYS = ("problem", "integrator", *row_columns(), "t_final", "settings")
 ERROR_SUFFIXES = (".max", ".mean", ".final")
@@ -86,7 +94,7 @@ def _timed(a: dict, b: dict, raw: bool) -> tuple[str, float, float] | None:
 
 def compare_rows(a: dict, b: dict, factor: float = TIME_FACTOR, error_factor: float = 2.0,
                  alpha: float = 0.05, raw: bool = False, cell_factor: float = CELL_FACTOR,
-                 short: float = SHORT_CPU_S) -> dict[str, Any]:
+                 short: float = SHORT_CPU_S, instruction_factor: float = INSTRUCTION_FACTOR) -> dict[str, Any]:
     """One common cell: its time ratios, its error ratios, growth-class changes and the
     list of regressions (text). The time verdict is the cell's own (``--cell-factor``);
     ``compare`` adds the verdicts of its scheme and problem. ``alpha`` is unused: the
@@ -114,6 +122,7 @@ def compare_rows(a: dict, b: dict, factor: float = TIME_FACTOR, error_factor: fl
             _faster(out, f"cell beyond x{cell_factor:g}")
         else:
             out["time_verdict"] = "within"
+    _judge_instructions(out, a, b, instruction_factor)
     errors = {}
     worse = better = False
     for f in sorted(set(error_fields(a)) & set(error_fields(b))):
@@ -134,6 +143,33 @@ def compare_rows(a: dict, b: dict, factor: float = TIME_FACTOR, error_factor: fl
             changes[k] = [a.get(k), b.get(k)]
     out["growth_class_changes"] = changes
     return out
+
+
+def _judge_instructions(out: dict, a: dict, b: dict, factor: float) -> None:
+    """The cell's instruction counts (both ok rows counted by the same tool): their ratio
+    and ``instruction_verdict`` (more / fewer / within; "other tool" when two Valgrind
+    versions counted; None when a run has no count)."""
+    out["instruction_verdict"] = None
+    ia, ib = a.get("instructions"), b.get("instructions")
+    if not (_number(ia) and _number(ib) and ia > 0 and a.get("status") == "ok" and b.get("status") == "ok"):
+        return
+    if a.get("instructions_tool") != b.get("instructions_tool"):
+        out["instruction_verdict"] = "other tool"
+        return
+    ratio = ib / ia
+    out.update(instructions_a=ia, instructions_b=ib, instruction_ratio=ratio)
+    per_step = ""
+    if _number(a.get("instructions_per_step")) and _number(b.get("instructions_per_step")):
+        per_step = f", {a['instructions_per_step']:.4g} -> {b['instructions_per_step']:.4g} a step"
+    text = f"instructions x{ratio:.4g} ({ia:.4g} -> {ib:.4g}{per_step}; beyond x{factor:g})"
+    if ratio > factor:
+        out["instruction_verdict"] = "more"
+        out["regressions"].append(text)
+    elif ratio < 1 / factor:
+        out["instruction_verdict"] = "fewer"
+        out["improvements"].append(text)
+    else:
+        out["instruction_verdict"] = "within"
 
 
 def _slower(cell: dict, why: str) -> None:
@@ -237,7 +273,7 @@ def order_changes(rows_a: list[dict], rows_b: list[dict]) -> list[dict[str, Any]
 def compare(rows_a: list[dict], rows_b: list[dict], factor: float = TIME_FACTOR, error_factor: float = 2.0,
             alpha: float = 0.05, raw: bool = False, cell_factor: float = CELL_FACTOR,
             calibrations: tuple[list[dict] | None, list[dict] | None] = (None, None),
-            short: float = SHORT_CPU_S) -> dict[str, Any]:
+            short: float = SHORT_CPU_S, instruction_factor: float = INSTRUCTION_FACTOR) -> dict[str, Any]:
     """Every common cell compared, the cells only one side has, the verdicts per scheme and
     per problem, the observed orders and growth classes per problem x scheme, the counts
     under each heading (a cell counts once under each it belongs to) and the machine."""
@@ -247,7 +283,10 @@ def compare(rows_a: list[dict], rows_b: list[dict], factor: float = TIME_FACTOR,
     by_a = {cell_key(r): r for r in rows_a}
     by_b = {cell_key(r): r for r in rows_b}
     common = [k for k in by_a if k in by_b]
-    cells = [compare_rows(by_a[k], by_b[k], factor, error_factor, alpha, raw, cell_factor, short) for k in common]
+    if not instruction_factor > 1:
+        raise InputError(f"--instruction-factor {instruction_factor}: expected a number > 1")
+    cells = [compare_rows(by_a[k], by_b[k], factor, error_factor, alpha, raw, cell_factor, short,
+                          instruction_factor) for k in common]
     groups = group_verdicts(cells, factor)
     for c in cells:  # a scheme's or a problem's change of speed: its cells beyond --factor
         if c["time_verdict"] != "within":
@@ -285,13 +324,14 @@ def compare(rows_a: list[dict], rows_b: list[dict], factor: float = TIME_FACTOR,
         "status": {"no longer ok": sum(any(r.startswith("status ") for r in c["regressions"]) for c in cells)},
         "growth class": {"changed": sum(bool(c["growth_class_changes"]) for c in cells)},
         "observed order": {"changed": sum(o["order_changed"] for o in orders), "compared": len(orders)},
+        "instructions": _count(cells, "instruction_verdict", ("more", "fewer", "within", "other tool", None)),
     }
     bases = {c.get("time_basis") for c in cells} - {None}
     return {"cells": cells, "only_a": len(set(by_a) - set(by_b)), "only_b": len(set(by_b) - set(by_a)),
             "regressed": sum(bool(c["regressions"]) for c in cells),
             "improved": sum(bool(c["improvements"]) for c in cells), "counts": heading,
             "time_basis": "/".join(sorted(bases)) or None, "factor": factor, "cell_factor": cell_factor,
-            "error_factor": error_factor,
+            "error_factor": error_factor, "instruction_factor": instruction_factor,
             "short_cpu_s": short, "schemes": groups["schemes"], "problems": groups["problems"], "pairs": pairs,
             "machine": machine(*calibrations), **_left_out(rows_a, rows_b)}
 
@@ -335,11 +375,22 @@ def _counts_text(counts: dict[str, dict[str, int]], result: dict) -> str:
             f"{counts['observed order']['changed']} of {counts['observed order']['compared']} changed")
 
 
+def _instructions_text(result: dict) -> list[str]:
+    """The instruction counts' verdict line (none when no cell was counted in both runs)."""
+    n = result["counts"].get("instructions")
+    if not n or n["not compared"] == len(result["cells"]):
+        return []
+    other = f", {n['other tool']} counted by another Valgrind" if n["other tool"] else ""
+    return [f"instructions (beyond x{result['instruction_factor']:g}): {n['more']} more, {n['fewer']} fewer, "
+            f"{n['within']} within{other}, {n['not compared']} not counted in both runs"]
+
+
 def render(result: dict[str, Any], show_all: bool = False) -> str:
     cells = result["cells"]
     lines = [f"{len(cells)} common cells ({result['only_a']} only in A, {result['only_b']} only in B): "
              f"{result['regressed']} regressed, {result['improved']} improved",
              _counts_text(result["counts"], result), machine_text(result["machine"])]
+    lines += _instructions_text(result)
     for kind, over in (("schemes", "problems"), ("problems", "schemes")):
         judged = [f"{name} x{g['median_ratio']:.3g} ({g['verdict']}, {g['batches']} {over})"
                   for name, g in result[kind].items() if g["verdict"] is not None
@@ -404,11 +455,13 @@ def _rows(db, run: str) -> list[dict]:
 
 
 def run_compare(db_a, run_a, db_b, run_b, factor: float = TIME_FACTOR, error_factor: float = 2.0,
-                alpha: float = 0.05, raw: bool = False, cell_factor: float = CELL_FACTOR) -> dict[str, Any]:
+                alpha: float = 0.05, raw: bool = False, cell_factor: float = CELL_FACTOR,
+                instruction_factor: float = INSTRUCTION_FACTOR) -> dict[str, Any]:
     """``compare`` of two stored runs, with their calibrations."""
     rows_a, rows_b = _rows(db_a, run_a), _rows(db_b, run_b)
     cals = (_store(db_a).calibrations(int(run_a)), _store(db_b).calibrations(int(run_b)))
-    result = compare(rows_a, rows_b, factor, error_factor, alpha, raw, cell_factor, cals)
+    result = compare(rows_a, rows_b, factor, error_factor, alpha, raw, cell_factor, cals,
+                     instruction_factor=instruction_factor)
     if not result["cells"]:
         raise InputError(f"runs {run_a} and {run_b} have no cell in common")
     return result
@@ -419,14 +472,15 @@ def report(result: dict[str, Any], fmt: str = "table", show_all: bool = False) -
     print(json.dumps(result, indent=1) if fmt == "json" else render(result, show_all=show_all))
     if result["regressed"]:
         print(f"{result['regressed']} cell(s) regressed: slower beyond the spread of identical runs "
-              f"(x{result['cell_factor']:g} a cell, x{result['factor']:g} a scheme or problem), less accurate "
+              f"(x{result['cell_factor']:g} a cell, x{result['factor']:g} a scheme or problem), more instructions "
+              f"beyond x{result.get('instruction_factor', INSTRUCTION_FACTOR):g}, less accurate "
               f"beyond the error factor, or no longer ok", file=sys.stderr)
     return 1 if result["regressed"] else 0
 
 
 def cmd_compare(args) -> int:
     result = run_compare(args.db, args.run_a, args.db_b or args.db, args.run_b, args.factor, args.error_factor,
-                         args.alpha, args.raw_time, args.cell_factor)
+                         args.alpha, args.raw_time, args.cell_factor, args.instruction_factor)
     return report(result, args.format, args.all)
 
 
@@ -443,6 +497,12 @@ def add_time_flags(p) -> None:
                    help="compare raw CPU seconds instead of calibrated times")
 
 
+def add_instruction_flag(p) -> None:
+    p.add_argument("--instruction-factor", type=float, default=INSTRUCTION_FACTOR,
+                   help=f"ratio of a cell's instruction count (--cost instructions in both runs) that counts as "
+                        f"more work (default {INSTRUCTION_FACTOR:g}: counts of identical code agree to about 1e-6)")
+
+
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser("compare", help="two runs cell by cell: time and accuracy regressions (exit 1)",
                               description=__doc__.split("\n\n")[0])
@@ -451,6 +511,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--db", default=None, help="the store of RUN_A (and RUN_B unless --db-b)")
     p.add_argument("--db-b", default=None, help="the store of RUN_B")
     add_time_flags(p)
+    add_instruction_flag(p)
     p.add_argument("--alpha", type=float, default=0.05,
                    help="kept for scripts that pass it: the repeats' p-value is reported (p_slower), not judged")
     p.add_argument("--all", action="store_true", help="list every common cell, not only the changed ones")

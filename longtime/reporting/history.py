@@ -17,6 +17,10 @@ its regression reports), then read as a benchmark suite reads them:
   the new level, its ratio to the level before, and whether that is slower / faster or
   less / more accurate. Errors at round-off (below ``compare.ROUND_OFF`` on both sides)
   make no step.
+
+Where runs counted instructions (``--cost instructions``), ``instructions`` is a series
+too: deterministic, so every level counts, and neighbouring levels within
+``compare.INSTRUCTION_FACTOR`` are one level.
 """
 from __future__ import annotations
 
@@ -26,9 +30,17 @@ from typing import Any
 
 from longtime.core.params import InputError
 from longtime.core.roles import ROW_PARAMETERS
-from longtime.reporting.compare import MATCH_KEYS, ROUND_OFF, TIME_FACTOR, cell_key, error_fields
+from longtime.reporting.compare import (
+    INSTRUCTION_FACTOR,
+    MATCH_KEYS,
+    ROUND_OFF,
+    TIME_FACTOR,
+    cell_key,
+    error_fields,
+)
 
 TIME_FIELD = "cpu_s_calibrated"
+INSTRUCTIONS_FIELD = "instructions"
 ERROR_FACTOR = 2.0
 MIN_RUNS = 2
 # the error fields the table shows (every field is in --format json and has its steps found)
@@ -140,19 +152,23 @@ def history(store, problems=None, schemes=None, sets: dict[str, str] | None = No
             r, run = by_run[rid], runs.get(rid, {})
             points.append({"run_id": rid, "commit": run.get("git_commit"), "date": run.get("started"),
                            "status": r.get("status"), "cpu_s": r.get("cpu_s"), TIME_FIELD: r.get(TIME_FIELD),
-                           **{f: r.get(f) for f in errors}})
+                           **{f: r.get(f) for f in errors}, INSTRUCTIONS_FIELD: r.get(INSTRUCTIONS_FIELD)})
+        counted = any(isinstance(p[INSTRUCTIONS_FIELD], int) for p in points)
         found = []
-        for field in (TIME_FIELD, *errors):
+        for field in (TIME_FIELD, *errors, *([INSTRUCTIONS_FIELD] if counted else [])):
             if only is not None and field not in only:
                 continue
             values = [p[field] if p["status"] == "ok" and isinstance(p.get(field), (int, float)) else None
                       for p in points]
-            is_time = field == TIME_FIELD
-            for s in steps(values, factor if is_time else error_factor, MIN_RUNS if is_time else 1,
-                           0.0 if is_time else ROUND_OFF):
+            is_time, is_count = field == TIME_FIELD, field == INSTRUCTIONS_FIELD
+            judged = (factor, MIN_RUNS, 0.0) if is_time else (INSTRUCTION_FACTOR, 1, 0.0) if is_count else \
+                (error_factor, 1, ROUND_OFF)
+            for s in steps(values, *judged):
                 p = points[s["index"]]
                 up = s["ratio"] > 1
-                kind = ("slower" if up else "faster") if is_time else ("less accurate" if up else "more accurate")
+                kind = ("slower" if up else "faster") if is_time else \
+                    ("more instructions" if up else "fewer instructions") if is_count else \
+                    ("less accurate" if up else "more accurate")
                 found.append({"field": field, "run_id": p["run_id"], "commit": p["commit"], "date": p["date"],
                               "before": s["before"], "after": s["after"], "ratio": s["ratio"], "kind": kind})
         out.append({"cell": {k: first.get(k) for k in MATCH_KEYS}, "runs": points, "steps": found})
@@ -174,7 +190,7 @@ def render(found: list[dict[str, Any]]) -> str:
 
     parts = []
     for c in found:
-        shown = [f for f in SHOWN_ERRORS if any(p.get(f) is not None for p in c["runs"])]
+        shown = [f for f in (*SHOWN_ERRORS, INSTRUCTIONS_FIELD) if any(p.get(f) is not None for p in c["runs"])]
         header = ["run", "commit", "date", "status", "time (calibrated)", "cpu_s", *shown]
         body = [[str(p["run_id"]), _short(p["commit"]), (p["date"] or "-")[:19], str(p["status"]),
                  number(p[TIME_FIELD]), number(p["cpu_s"]), *(number(p.get(f)) for f in shown)] for p in c["runs"]]

@@ -18,7 +18,7 @@ CONTRACT_FIELDS = ("problem", "integrator", "status", "message", *ROW_PARAMETERS
 # a row's parameters: its parameter fields by role (step, accuracy, order), then the rest
 PARAMETER_COLUMNS = (*row_columns(), "settings")
 ACCURACY_COLUMNS = ("H.mean", "H.max", "L.max", "I.max", "constraint.max", "l2_error", "final_error")
-COST_COLUMNS = ("cpu_s", "steps", "rhs_evals", "nl_iters", "mean_dt")
+COST_COLUMNS = ("cpu_s", "steps", "rhs_evals", "nl_iters", "mean_dt", "instructions_per_step")
 
 
 def complete(row: dict[str, Any]) -> dict[str, Any]:

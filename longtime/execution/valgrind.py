@@ -1,0 +1,222 @@
+"""``--cost instructions``: each measured cell's integration run once more under Callgrind,
+all cells of a run in one Valgrind process (importing numba under Valgrind costs about a
+minute of CPU; loading a cell's kernels from the cache, a few seconds).
+
+``instruction_fields(pairs, ...)`` is the parent's side: it decides which cells can be
+counted, writes them to a job file, runs ``python -m longtime.execution.valgrind JOB``
+under Valgrind (longtime.measure.instructions.command) and reads the counts back. The
+``main`` of this module is the worker's side: per cell it builds the problem and the
+scheme, loads and warms up the kernel uncounted, then counts only the calls into the
+compiled loop (longtime.measure.instructions.counting), in one chunk.
+
+Fields a row gains (only when instructions are asked for): ``instructions`` (the count of
+the integration, an integer), ``instructions_per_step``, ``instructions_tool`` (the
+Valgrind that counted) and ``instructions_skipped`` (why a cell has no count; null when it
+has one).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any, Iterable
+
+from longtime.core import registry
+from longtime.core.integrator import AdaptiveIntegrator, FixedStepIntegrator
+from longtime.execution.cells import Cell, build
+from longtime.measure import instructions
+
+FIELDS = ("instructions", "instructions_per_step", "instructions_tool", "instructions_skipped")
+# what the worker may spend before its first cell: Python, numpy, numba, longtime and the
+# request function under Valgrind (about a minute of CPU on an idle machine; a loaded one
+# takes longer)
+STARTUP_SECONDS = 600.0
+# per cell besides the integration: building the problem, loading its kernels from the cache
+PER_CELL_SECONDS = 60.0
+# the shared drivers whose loop calls are counted: the first call is the warm-up
+_COUNTED_DRIVERS = (FixedStepIntegrator._integrate, AdaptiveIntegrator._integrate)
+
+
+def skipped(reason: str) -> dict[str, Any]:
+    return {"instructions": None, "instructions_per_step": None, "instructions_tool": None,
+            "instructions_skipped": reason}
+
+
+def not_isolated(scheme: str) -> str | None:
+    """Why the integration of ``scheme`` cannot be counted apart (None when it can)."""
+    try:
+        cls = registry.integrator_class(scheme)
+    except Exception as exc:  # an unknown name: the cell's own row says so
+        return f"scheme not found: {exc}"
+    if cls._integrate not in _COUNTED_DRIVERS:
+        return (f"{scheme} integrates outside longtime's compiled drivers (its own driver, or a library such as "
+                f"scipy, REBOUND or heyoka): its integration cannot be counted apart from the Python around it")
+    return None
+
+
+def _budget(row: dict[str, Any]) -> float:
+    """Seconds the cell's integration may take under Callgrind: its timed run's wall time
+    times instructions.SLOWDOWN."""
+    wall = row.get("wall_s") or row.get("cpu_s") or 0.0
+    return float(wall) * instructions.SLOWDOWN
+
+
+def instruction_fields(pairs: Iterable[tuple[Cell, dict[str, Any]]], max_samples: int,
+                       time_limit: float | None) -> dict[str, dict[str, Any]]:
+    """The instruction fields of each (cell, its timed row), by cell key. A cell is counted
+    when its timed run ended ``ok``, its scheme runs on the shared drivers, and its
+    integration under Callgrind fits ``time_limit`` (estimated from the timed run); any
+    other cell gets a reason in ``instructions_skipped``. Raises InputError without Valgrind."""
+    valgrind = instructions.require()
+    out: dict[str, dict[str, Any]] = {}
+    todo: list[Cell] = []
+    wanted: dict[str, dict[str, Any]] = {}
+    for cell, row in pairs:
+        status = row.get("status")
+        reason = None
+        if status != "ok":
+            reason = f"the timed run's status is {status}: only a complete run is counted"
+        else:
+            reason = not_isolated(cell.integrator)
+        if reason is None and time_limit and _budget(row) > time_limit:
+            reason = (f"too long to count under Valgrind: about {_budget(row):.3g} s (the timed run's "
+                      f"{row.get('wall_s') or row.get('cpu_s'):.3g} s x {instructions.SLOWDOWN:g}), over the cell "
+                      f"time limit of {time_limit:g} s (--time-limit)")
+        if reason is not None:
+            out[cell.key] = skipped(reason)
+        else:
+            todo.append(cell)
+            wanted[cell.key] = row
+    if todo:
+        out.update(_count(valgrind, todo, wanted, max_samples))
+    return out
+
+
+def _count(valgrind: str, cells: list[Cell], rows: dict[str, dict], max_samples: int) -> dict[str, dict]:
+    """Count ``cells`` in one Valgrind process; a cell it did not finish gets a reason."""
+    from longtime.execution import tempdirs
+
+    folder = tempdirs.make("valgrind")
+    try:
+        job = folder / "job.json"
+        session = registry.session_payload()
+        if session is not None:
+            (folder / "session.pickle").write_bytes(session)
+        job.write_text(json.dumps({"cells": [c.to_dict() for c in cells], "max_samples": max_samples,
+                                   "session": str(folder / "session.pickle") if session else None,
+                                   "results": str(folder / "results.jsonl")}))
+        prefix = folder / "callgrind.out"
+        env = {**os.environ, **instructions.numba_target_environment(), "LONGTIME_PROGRESS": "0",
+               "PYTHONHASHSEED": "0"}  # the same dict layouts in every run: the same dispatch path
+        limit = STARTUP_SECONDS + sum(PER_CELL_SECONDS + _budget(rows[c.key]) for c in cells)
+        argv = [*instructions.command(valgrind, prefix), sys.executable, "-m", "longtime.execution.valgrind", str(job)]
+        started = time.monotonic()
+        try:
+            proc = subprocess.run(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                                  timeout=limit)
+            trouble = "" if proc.returncode == 0 else \
+                f"the Valgrind process exited with {proc.returncode}: {_last_line(proc.stderr)}"
+        except subprocess.TimeoutExpired:
+            trouble = f"the Valgrind process was stopped after {time.monotonic() - started:.0f} s (its limit)"
+        counts = instructions.read_dumps(prefix)
+        done: dict[str, dict] = {}
+        results = folder / "results.jsonl"
+        for line in results.read_text().splitlines() if results.exists() else []:
+            item = json.loads(line)
+            done[item["key"]] = item
+        tool = instructions.tool_version()
+        out = {}
+        for i, cell in enumerate(cells):
+            item, count = done.get(cell.key), counts.get(f"cell {i}")
+            steps = rows[cell.key].get("steps")
+            if item is None or (count is None and item.get("reason") is None):
+                out[cell.key] = skipped(f"not counted: {trouble or 'the Valgrind process gave no count for it'}")
+            elif item.get("reason"):
+                out[cell.key] = skipped(item["reason"])
+            elif item["steps"] != steps:
+                out[cell.key] = skipped(f"the run under Valgrind took {item['steps']} steps, the timed run {steps}: "
+                                        f"not the same integration")
+            else:
+                out[cell.key] = {"instructions": count,
+                                 "instructions_per_step": count / steps if steps else None,
+                                 "instructions_tool": tool, "instructions_skipped": None}
+        return out
+    finally:
+        import shutil
+
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def _last_line(text: str) -> str:
+    lines = [ln for ln in (text or "").splitlines() if ln.strip() and not ln.startswith("==")]
+    return lines[-1].strip() if lines else "no message"
+
+
+# ------------------------------------------------------------------ the worker, under Valgrind
+def _counted_loops(integrator) -> None:
+    """Make ``integrator`` count its calls into the compiled loop: the first call of a run
+    (the drivers' warm-up: it loads the kernel) is not counted, every later one is."""
+    build_loop = integrator.compiled_loop
+
+    def compiled_loop(problem):
+        loop = build_loop(problem)
+        calls = [0]
+
+        def call(*args):
+            calls[0] += 1
+            if calls[0] == 1:
+                result = loop(*args)
+                instructions.begin_cell()
+                return result
+            with instructions.counting():
+                return loop(*args)
+
+        return call
+
+    integrator.compiled_loop = compiled_loop
+
+
+def _run_one(cell: Cell, max_samples: int) -> dict[str, Any]:
+    problem, integrator = build(cell)
+    reason = integrator.incompatibility(problem)
+    if reason:
+        return {"reason": reason}
+    _counted_loops(integrator)
+    t_final = problem.default_t_final if cell.t_final is None else cell.t_final
+    traj = integrator.integrate(problem, t_final, max_samples=max_samples)
+    if traj.status != "ok":
+        return {"reason": f"the run under Valgrind ended {traj.status}: {traj.message}"}
+    return {"steps": traj.steps}
+
+
+def main(argv: list[str]) -> int:
+    from longtime.core import integrator as core_integrator
+
+    job = json.loads(Path(argv[0]).read_text())
+    if job.get("session"):
+        registry.restore_session(Path(job["session"]).read_bytes())
+    # one call into the compiled loop per run: the chunks that let a timed run see its
+    # deadline would each add a call's dispatch to the count, and their number follows the
+    # wall clock
+    core_integrator.FIRST_CHUNK = 2**62
+    instructions.running()  # the request function is compiled before any cell
+    with open(job["results"], "a") as results:
+        for i, data in enumerate(job["cells"]):
+            cell = Cell.from_dict(data)
+            try:
+                item = _run_one(cell, job["max_samples"])
+            except Exception as exc:  # a cell that fails here has no count, the others go on
+                item = {"reason": f"the run under Valgrind failed: {type(exc).__name__}: {exc}"}
+            instructions.dump(f"cell {i}")  # the count since the warm-up (zero for a failed cell)
+            results.write(json.dumps({"key": cell.key, **item}) + "\n")
+            results.flush()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

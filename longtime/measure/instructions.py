@@ -1,0 +1,185 @@
+"""A deterministic cost: the instructions an integration executes, counted by Valgrind's
+Callgrind (Debian package ``valgrind``).
+
+What is counted is chosen from inside the process, by Valgrind client requests: the magic
+instruction sequence of ``valgrind.h`` (amd64), compiled once with llvmlite into a tiny
+function that ctypes calls. Callgrind starts with instrumentation and collection off
+(``--instr-atstart=no --collect-atstart=no``), so importing Python, numpy and numba and
+loading the compiled kernels run uninstrumented (fast) and uncounted; ``counting()``
+switches collection on around exactly the calls into a compiled loop, and ``dump(label)``
+writes the count of one cell to a file of its own (and zeroes it for the next cell).
+
+Why client requests and not ``--toggle-collect=<symbol>``: numba's kernels are machine code
+that LLVM emits into anonymous memory, with no symbol table Valgrind can read, so a toggle
+on the kernel's name never fires; ``callgrind_control`` acts asynchronously, between
+Valgrind's scheduling slices, so where it starts and stops counting moves from run to run.
+A client request is an instruction of the program itself: the count starts and stops at the
+same instruction in every run. What lies between the two requests besides the kernel is
+numba's dispatch of the call (unboxing the arguments, boxing the returned tuple) and the
+ctypes return: a constant per call (``CALL_OVERHEAD`` measures it), the same in every run.
+
+This module runs in the process Valgrind executes (``longtime.execution.valgrind``); in a
+process without Valgrind the requests are no-ops (``running()`` is 0).
+"""
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import functools
+import os
+import platform
+import re
+import shutil
+import subprocess
+from pathlib import Path
+from typing import Iterator
+
+from longtime.core.params import InputError
+
+DEBIAN_PACKAGE = "valgrind"
+# Callgrind's client requests (valgrind/callgrind.h: VG_USERREQ_TOOL_BASE('C', 'T') + n)
+_CT = (ord("C") << 24) | (ord("T") << 16)
+DUMP_STATS_AT, ZERO_STATS, TOGGLE_COLLECT = _CT + 3, _CT + 1, _CT + 2
+START_INSTRUMENTATION, STOP_INSTRUMENTATION = _CT + 4, _CT + 5
+RUNNING_ON_VALGRIND = 0x1001  # valgrind.h's core request
+# how much slower than the timed run a kernel may run under Callgrind (measured 5x to 50x;
+# the high end, for an estimate that must not underrate a cell)
+SLOWDOWN = 50.0
+# the arguments every Callgrind process of longtime runs with: nothing instrumented or
+# counted until the client requests say so; no cache or branch simulation (the count of
+# instructions, Ir, is all that is read)
+CALLGRIND_OPTIONS = ("--tool=callgrind", "--instr-atstart=no", "--collect-atstart=no",
+                     "--cache-sim=no", "--branch-sim=no", "--dump-instr=no", "--compress-strings=no")
+
+
+def valgrind_path() -> str | None:
+    """The valgrind executable on PATH, or None."""
+    return shutil.which("valgrind")
+
+
+def require() -> str:
+    """The valgrind executable, or InputError (one line naming the Debian package)."""
+    path = valgrind_path()
+    if path is None:
+        raise InputError(f"counting instructions (--cost instructions) needs Valgrind, which is not on PATH: install the Debian package "
+                         f"'{DEBIAN_PACKAGE}' (apt-get install {DEBIAN_PACKAGE})")
+    if platform.machine() not in ("x86_64", "AMD64"):
+        raise InputError(f"--cost instructions counts with Valgrind client requests written for x86-64; "
+                         f"this machine is {platform.machine()}")
+    return path
+
+
+@functools.lru_cache(maxsize=1)
+def tool_version() -> str:
+    """'callgrind <valgrind version>': counts of different Valgrind versions are not compared
+    blindly (the row stores it)."""
+    path = valgrind_path()
+    if path is None:
+        return "callgrind"
+    try:
+        out = subprocess.run([path, "--version"], capture_output=True, text=True, timeout=30).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        out = ""
+    return f"callgrind {out.removeprefix('valgrind-') or 'unknown'}"
+
+
+@functools.lru_cache(maxsize=1)
+def _request_function():
+    """``request(code, a1..a5) -> result``: valgrind.h's VALGRIND_DO_CLIENT_REQUEST for amd64
+    (the six words in memory, their address in rax, the rotations of rdi that spell the
+    request, ``xchg rbx, rbx``; the result comes back in rdx, which holds the default 0 when
+    no Valgrind runs the process), compiled by LLVM (numba's llvmlite)."""
+    import llvmlite.binding as llvm
+    import llvmlite.ir as ir
+
+    llvm.initialize_native_target()
+    llvm.initialize_native_asmprinter()
+    llvm.initialize_native_asmparser()  # LLVM parses the inline assembly
+    i64, i32 = ir.IntType(64), ir.IntType(32)
+    module = ir.Module(name="longtime_valgrind_request")
+    fn = ir.Function(module, ir.FunctionType(i64, [i64] * 6), name="longtime_valgrind_request")
+    b = ir.IRBuilder(fn.append_basic_block())
+    words = b.alloca(ir.ArrayType(i64, 6))
+    for i, arg in enumerate(fn.args):
+        b.store(arg, b.gep(words, [ir.Constant(i32, 0), ir.Constant(i32, i)]))
+    magic = ir.InlineAsm(ir.FunctionType(i64, [i64, i64]),
+                         "rolq $$3, %rdi ; rolq $$13, %rdi\n\trolq $$61, %rdi ; rolq $$51, %rdi\n\txchgq %rbx,%rbx",
+                         "={dx},{ax},0,~{cc},~{memory},~{dirflag},~{fpsr},~{flags}", side_effect=True)
+    b.ret(b.call(magic, [b.ptrtoint(words, i64), ir.Constant(i64, 0)]))
+    target = llvm.Target.from_default_triple().create_target_machine()
+    parsed = llvm.parse_assembly(str(module))
+    parsed.verify()
+    engine = llvm.create_mcjit_compiler(parsed, target)
+    engine.finalize_object()
+    address = engine.get_function_address("longtime_valgrind_request")
+    request = ctypes.CFUNCTYPE(ctypes.c_uint64, *[ctypes.c_uint64] * 6)(address)
+    request.engine = engine  # the code lives as long as the engine
+    return request
+
+
+def request(code: int, arg: int = 0) -> int:
+    return int(_request_function()(code, arg, 0, 0, 0, 0))
+
+
+def running() -> int:
+    """How many Valgrinds run this process (0: none)."""
+    return request(RUNNING_ON_VALGRIND)
+
+
+def begin_cell() -> None:
+    """Instrument from here on (the kernel is loaded and warmed up) and zero the count."""
+    request(START_INSTRUMENTATION)
+    request(ZERO_STATS)
+
+
+@contextlib.contextmanager
+def counting() -> Iterator[None]:
+    """Collect the instructions executed inside the block (collection is off outside)."""
+    _request_function()  # compiled before the count starts
+    request(TOGGLE_COLLECT)
+    try:
+        yield
+    finally:
+        request(TOGGLE_COLLECT)
+
+
+def dump(label: str) -> None:
+    """Write the count since ``begin_cell`` to a dump file whose description ends in
+    ``label``, zero it, and stop instrumenting (the next cell's loading runs fast)."""
+    text = ctypes.create_string_buffer(label.encode())
+    request(DUMP_STATS_AT, ctypes.addressof(text))
+    request(STOP_INSTRUMENTATION)
+
+
+_TRIGGER = re.compile(r"^desc: Trigger: Client Request: (.*)$", re.M)
+_TOTALS = re.compile(r"^(?:totals|summary):\s+(\d+)", re.M)
+
+
+def read_dumps(prefix: str | os.PathLike) -> dict[str, int]:
+    """Instructions (Ir) by label from the dump files ``<prefix>.<n>`` that ``dump`` wrote."""
+    prefix = Path(prefix)
+    found: dict[str, int] = {}
+    for path in sorted(prefix.parent.glob(prefix.name + ".*")):
+        text = path.read_text(errors="replace")
+        label, total = _TRIGGER.search(text), _TOTALS.search(text)
+        if label and total:
+            found[label.group(1).strip()] = int(total.group(1))
+    return found
+
+
+def command(valgrind: str, out_prefix: str | os.PathLike) -> list[str]:
+    """The Valgrind part of the command line of a counting process."""
+    return [valgrind, *CALLGRIND_OPTIONS, f"--callgrind-out-file={out_prefix}", "-q"]
+
+
+def numba_target_environment() -> dict[str, str]:
+    """NUMBA_CPU_NAME and NUMBA_CPU_FEATURES of this process's machine, for the process
+    Valgrind runs: Valgrind presents a CPU of its own (another name, fewer features), and
+    numba keys its disk cache by the CPU, so without these the kernels would compile anew
+    under Valgrind (minutes each) instead of loading from the cache this process filled.
+    The kernels counted are then the ones that were timed."""
+    import llvmlite.binding as llvm
+
+    name = os.environ.get("NUMBA_CPU_NAME") or llvm.get_host_cpu_name()
+    features = os.environ.get("NUMBA_CPU_FEATURES") or llvm.get_host_cpu_features().flatten()
+    return {"NUMBA_CPU_NAME": name, "NUMBA_CPU_FEATURES": features}
