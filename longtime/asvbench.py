@@ -5,14 +5,25 @@ In the repository's ``benchmarks/`` (``longtime asv-init DIR`` writes one), a mo
     from longtime.asvbench import benchmarks
     globals().update(benchmarks(["kepler"], ["my-scheme"], dt=[0.01, 0.005]))
 
-and asv finds two parametrized classes (problem x scheme x setting, every parameter
+and asv finds three parametrized classes (problem x scheme x setting, every parameter
 a value or a list, as ``longtime.sweep`` takes them):
 
 - ``Integration.time_integrate``: the integration alone (its kernel compiled in setup);
+- ``Cost.track_instructions``: the instructions of the integration alone, counted under
+  Valgrind (``--cost instructions``; all cells in one Valgrind process, in
+  ``setup_cache``). The count is deterministic: a ratio between two commits is the code's,
+  on a loaded machine too, where ``time_integrate`` may move by more than a slowdown.
+  Without Valgrind (Debian package ``valgrind``) the cells are skipped (n/a);
 - ``Accuracy.track_l2_error`` (relative L2 error against the exact solution or the
   trusted reference), ``track_drift`` (the first invariant's maximum relative error,
-  ``NAME.max``) and ``track_growth`` (its growth exponent alpha, e(t) ~ t^alpha), each
-  with its unit, from one untimed run of every cell (``setup_cache``).
+  ``NAME.max``) and ``track_growth_class`` (its growth class as a number, ``GROWTH_RANKS``:
+  1 bounded, 2 sqrt, 3 linear, 4 quadratic, 5 faster, 6 saturated, 7 diverged), each with
+  its unit, from one untimed run of every cell (``setup_cache``).
+
+asv judges a tracked value by the ratio of two commits' values, so each tracked value is
+one a ratio can judge: an error (a digit lost is x10), a count, a class rank (bounded to
+linear is x3). The growth exponent itself is not tracked: two bounded runs have exponents
+near 0 (1e-6 and 8e-5), whose ratio (x80) says nothing.
 
 A pair that cannot run is skipped (asv shows n/a), as a failed or diverged cell's
 accuracy is. Problems and schemes are registered names, or classes (registered for the
@@ -25,6 +36,8 @@ import math
 from typing import Any, Sequence
 
 ALL = "default"  # the label of the setting when no parameter is given
+# a growth class as a number for asv (worse is larger); undetermined is not tracked (n/a)
+GROWTH_RANKS = {"bounded": 1, "sqrt": 2, "linear": 3, "quadratic": 4, "faster": 5, "saturated": 6, "diverged": 7}
 
 
 def _combinations(settings: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
@@ -116,18 +129,61 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
         inv = rows[f"{problem}|{scheme}|{setting}"].get("invariant")
         return field(rows, problem, scheme, setting, inv and f"{inv}.max")
 
-    def track_growth(self, rows, problem, scheme, setting):
-        inv = rows[f"{problem}|{scheme}|{setting}"].get("invariant")
-        return field(rows, problem, scheme, setting, inv and f"{inv}.growth")
+    def track_growth_class(self, rows, problem, scheme, setting):
+        row = rows[f"{problem}|{scheme}|{setting}"]
+        inv = row.get("invariant")
+        if row.get("status") != "ok" or inv is None:
+            return math.nan
+        return float(GROWTH_RANKS.get(row.get(f"{inv}.growth_class"), math.nan))
 
     track_l2_error.unit = "relative error"
     track_drift.unit = "relative error"
-    track_growth.unit = "exponent alpha"
+    track_growth_class.unit = "growth class (1 bounded .. 7 diverged)"
     track_l2_error.__doc__ = "Relative L2 error against the exact solution or the trusted reference."
     track_drift.__doc__ = "max_t |I(t) - I(0)| / |I(0)| of the problem's first invariant (H where there is one)."
-    track_growth.__doc__ = "alpha of e_I(t) ~ C t^alpha, fitted over the last two decades of the run."
+    track_growth_class.__doc__ = ("The growth class of the first invariant's error, e_I(t) ~ C t^alpha, as a number "
+                                  "(1 bounded, 2 sqrt, 3 linear, 4 quadratic, 5 faster, 6 saturated, 7 diverged; "
+                                  "undetermined: n/a).")
     accuracy = type(f"{prefix}Accuracy", (), {
         "params": params, "param_names": names, "setup_cache": setup_cache, "setup": acc_setup,
-        "track_l2_error": track_l2_error, "track_drift": track_drift, "track_growth": track_growth,
+        "track_l2_error": track_l2_error, "track_drift": track_drift, "track_growth_class": track_growth_class,
         "timeout": 900, "__doc__": "Accuracy of each cell, from one untimed run."})
-    return {integration.__name__: integration, accuracy.__name__: accuracy}
+
+    def cost_cache(self):
+        from longtime.core.integrator import Timing
+        from longtime.core.params import InputError
+        from longtime.execution.cells import DEFAULT_MAX_SAMPLES, run_cell
+        from longtime.execution.valgrind import instruction_fields
+
+        pairs, labels = [], {}
+        for p, s, (label, point) in itertools.product(pnames, inames, combos):
+            try:
+                cell = _cell(p, s, point, t_final)
+            except NotImplementedError:
+                continue
+            pairs.append((cell, run_cell(cell, timing=Timing(repeats=1))))  # fills the kernel cache
+            labels[cell.key] = f"{p}|{s}|{label}"
+        try:
+            fields = instruction_fields(pairs, DEFAULT_MAX_SAMPLES, None)
+        except InputError as exc:  # no Valgrind: every cell is skipped, saying why
+            return {labels[c.key]: {"instructions": None, "instructions_skipped": str(exc)} for c, _ in pairs}
+        return {labels[c.key]: fields[c.key] for c, _ in pairs}
+
+    def cost_setup(self, counts, problem, scheme, setting):
+        found = counts.get(f"{problem}|{scheme}|{setting}")
+        if found is None:
+            raise NotImplementedError(f"{scheme} cannot run {problem}")
+        if found.get("instructions") is None:
+            raise NotImplementedError(found.get("instructions_skipped") or "not counted")
+
+    def track_instructions(self, counts, problem, scheme, setting):
+        return counts[f"{problem}|{scheme}|{setting}"]["instructions"]
+
+    track_instructions.unit = "instructions"
+    track_instructions.__doc__ = ("Instructions of the integration alone, counted by Valgrind's Callgrind "
+                                  "(deterministic: the same code gives the same count on a loaded machine).")
+    cost = type(f"{prefix}Cost", (), {
+        "params": params, "param_names": names, "setup_cache": cost_cache, "setup": cost_setup,
+        "track_instructions": track_instructions, "timeout": 3600,
+        "__doc__": "Instructions of each cell's integration, all cells counted in one Valgrind process."})
+    return {integration.__name__: integration, accuracy.__name__: accuracy, cost.__name__: cost}

@@ -187,18 +187,23 @@ def _cell(c: dict) -> str:
 
 
 def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float | None = None,
-                   **settings: Any) -> dict[str, Any]:
+                   cost: str = "time", **settings: Any) -> dict[str, Any]:
     """Time one cell with pytest-benchmark's ``benchmark`` fixture: the cell runs once
     first (compiling its kernel, measuring its accuracy against the reference), then the
     fixture times its integration alone, which must reproduce that run bitwise. The row's
     accuracy fields (``l2_error``, ``final_error``, each invariant's ``.max``/``.mean``/
     ``.final``/``.growth``/``.growth_class``, ``status``, ``steps``, ``rhs_evals``) go into
     ``benchmark.extra_info``, so ``pytest --benchmark-json`` carries them beside the time.
-    Returns the row."""
+    ``cost="instructions"`` also counts the integration under Valgrind (``--cost
+    instructions``) and puts ``instructions``, ``instructions_per_step`` (or
+    ``instructions_skipped``, the reason) there too: a deterministic cost, which a loaded
+    CI machine does not move. Returns the row."""
     from longtime.core.integrator import Timing, same_run
     from longtime.execution.cells import run_cell
+    from longtime.execution.matrix import check_cost
     from longtime.reporting.report import complete
 
+    check_cost(cost)
     cells = cells_for([problem], [scheme], t_final, settings, strict=True)
     if len(cells) != 1:
         raise AssertionError(f"benchmark_cell times one cell; the settings give {len(cells)}")
@@ -212,6 +217,12 @@ def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float 
     if not same_run(first, timed):
         raise AssertionError(f"{integ.name} on {prob.name}: the timed integration did not reproduce the measured one")
     benchmark.extra_info.update(accuracy_fields(row))
+    if cost == "instructions":
+        from longtime.execution.cells import DEFAULT_MAX_SAMPLES
+        from longtime.execution.valgrind import FIELDS, instruction_fields
+
+        row.update(instruction_fields([(cells[0], row)], DEFAULT_MAX_SAMPLES, None)[cells[0].key])
+        benchmark.extra_info.update({k: row[k] for k in FIELDS})
     return row
 
 

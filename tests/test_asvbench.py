@@ -24,7 +24,9 @@ def test_benchmarks_time_and_track_every_cell():
     assert integration.__name__ == "Integration" and accuracy.__name__ == "Accuracy"
     assert integration.params == [["kepler", "linear-test"], ["verlet", "asv-verlet-copy", "rk4"], ["dt=0.02", "dt=0.01"]]
     assert accuracy.track_l2_error.unit == accuracy.track_drift.unit == "relative error"
-    assert accuracy.track_growth.unit == "exponent alpha"
+    assert accuracy.track_growth_class.unit.startswith("growth class")
+    assert not hasattr(accuracy, "track_growth")  # an exponent near 0: its ratio judges nothing
+    assert classes["Cost"].track_instructions.unit == "instructions"
 
     bench = integration()
     bench.setup("kepler", "asv-verlet-copy", "dt=0.01")
@@ -41,7 +43,8 @@ def test_benchmarks_time_and_track_every_cell():
     # the copy is Verlet: the same numbers as the built-in
     assert acc.track_l2_error(rows, *args) == acc.track_l2_error(rows, "kepler", "verlet", "dt=0.01") > 0
     assert acc.track_drift(rows, *args) == rows["kepler|verlet|dt=0.01"]["H.max"] > 0
-    assert abs(acc.track_growth(rows, *args)) < 0.25  # symplectic: bounded energy error
+    growth_class = rows["kepler|asv-verlet-copy|dt=0.01"]["H.growth_class"]  # undetermined over t = 10
+    assert math.isnan(acc.track_growth_class(rows, *args)) == (growth_class == "undetermined")
     halved = acc.track_l2_error(rows, "kepler", "verlet", "dt=0.02") / acc.track_l2_error(rows, *args)
     assert 3 < halved < 5  # order 2
     with pytest.raises(NotImplementedError):
@@ -71,3 +74,28 @@ def test_asv_init_writes_a_loadable_suite(tmp_path):
     res = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "asv-init", str(tmp_path), "--force"],
                          capture_output=True, text=True, timeout=120)
     assert res.returncode == 2 and re.search(r"declares problems none, schemes \['my-scheme'\]", res.stderr)
+
+
+def test_instructions_without_valgrind_are_skipped_saying_why(monkeypatch, tmp_path):
+    monkeypatch.setenv("PATH", str(tmp_path))  # no valgrind on PATH
+    cost = benchmarks(["kepler"], ["verlet"], dt=0.01, t_final=1)["Cost"]
+    bench = cost()
+    counts = bench.setup_cache()
+    with pytest.raises(NotImplementedError, match="Debian package 'valgrind'"):  # asv shows n/a
+        bench.setup(counts, "kepler", "verlet", "dt=0.01")
+
+
+def test_growth_class_ranks_are_ratios_asv_can_judge():
+    from longtime.asvbench import GROWTH_RANKS
+    from longtime.measure.growth import CLASSES
+
+    acc = benchmarks(["kepler"], ["verlet"], dt=0.01, t_final=1000)["Accuracy"]()
+    rows = acc.setup_cache()
+    assert rows["kepler|verlet|dt=0.01"]["H.growth_class"] == "bounded"  # an exponent of about 1e-7
+    assert acc.track_growth_class(rows, "kepler", "verlet", "dt=0.01") == 1.0
+
+    # every class a run can end in has a rank, worse is larger; undetermined has none (n/a)
+    assert set(GROWTH_RANKS) == set(CLASSES) - {"undetermined"}
+    order = ["bounded", "sqrt", "linear", "quadratic", "faster", "saturated", "diverged"]
+    assert [GROWTH_RANKS[c] for c in order] == sorted(GROWTH_RANKS.values())
+    assert GROWTH_RANKS["linear"] / GROWTH_RANKS["bounded"] > 1.05  # a change of class is a step asv marks

@@ -31,6 +31,9 @@ CONF_TEMPLATE = {
     "results_dir": ".asv/results",
     "html_dir": ".asv/html",
     "default_benchmark_timeout": 600,
+    # asv publish marks a change of a tracked value beyond 5 % by default; an instruction
+    # count is deterministic (identical code agrees to about 1e-6), so 1 % is the code's
+    "regressions_thresholds": {r".*Cost\.track_instructions": 0.01},
 }
 
 CONF_HEAD = """\
@@ -45,9 +48,11 @@ CONF_HEAD = """\
 BENCH_TEMPLATE = '''\
 """asv benchmarks of {what}, written by `longtime asv-init`.
 
-Integration.time_integrate times the integration alone; Accuracy.track_l2_error,
-track_drift (the first invariant's maximum relative error) and track_growth (its growth
-exponent) track the accuracy of each cell (see longtime.asvbench)."""
+Integration.time_integrate times the integration alone; Cost.track_instructions counts
+its instructions under Valgrind (deterministic: a slowdown of the scheme shows on a loaded
+machine too; Debian package valgrind, else n/a); Accuracy.track_l2_error, track_drift (the
+first invariant's maximum relative error) and track_growth_class (its growth class as a
+number: 1 bounded, 3 linear, ...) track the accuracy of each cell (see longtime.asvbench)."""
 from longtime.asvbench import benchmarks
 
 PROBLEMS = {problems!r}

@@ -109,6 +109,9 @@ def _count(valgrind: str, cells: list[Cell], rows: dict[str, dict], max_samples:
             (folder / "session.pickle").write_bytes(session)
         job.write_text(json.dumps({"cells": [c.to_dict() for c in cells], "max_samples": max_samples,
                                    "session": str(folder / "session.pickle") if session else None,
+                                   # the modules this process imports (a plugin in development,
+                                   # a scheme defined beside a test) are importable there too
+                                   "sys_path": [p for p in sys.path if p],
                                    "results": str(folder / "results.jsonl")}))
         prefix = folder / "callgrind.out"
         env = {**os.environ, **instructions.numba_target_environment(), "LONGTIME_PROGRESS": "0",
@@ -198,6 +201,7 @@ def main(argv: list[str]) -> int:
     from longtime.core import integrator as core_integrator
 
     job = json.loads(Path(argv[0]).read_text())
+    sys.path.extend(p for p in job.get("sys_path", []) if p not in sys.path)
     if job.get("session"):
         registry.restore_session(Path(job["session"]).read_bytes())
     # one call into the compiled loop per run: the chunks that let a timed run see its

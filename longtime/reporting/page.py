@@ -205,6 +205,12 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
             out.append(f'<h3>Work-precision</h3><figure class="plot">{fig}<figcaption>{escape(figs["field"])} against '
                        f"CPU seconds, one point per setting; colour: scheme family, marker: scheme."
                        f"</figcaption></figure>")
+        fig = figs.get("work_precision_instructions")
+        if fig:
+            out.append(f'<h3>Work-precision in instructions</h3><figure class="plot">{fig}<figcaption>'
+                       f"{escape(figs['field'])} against the instructions of the integration, counted under "
+                       f"Valgrind (--cost instructions): a deterministic cost, blind to cache misses and "
+                       f"memory stalls; cells without a count are left out.</figcaption></figure>")
         if drift:
             fig, notes = figs["drift"], figs["drift_notes"]
             if fig:

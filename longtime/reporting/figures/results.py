@@ -63,15 +63,18 @@ def _order(row: dict) -> int | None:
     return int(n) if isinstance(n, (int, float)) and n == n else None
 
 
-def work_precision_svg(rows: list[dict], field: str, style: dict) -> str | None:
-    ok = [r for r in rows if r.get("status") == "ok" and positive(r.get("cpu_s")) and positive(r.get(field))]
+def work_precision_svg(rows: list[dict], field: str, style: dict, cost: str = "cpu_s") -> str | None:
+    """``field`` against the cost of each ok row: ``cpu_s`` (the minimum of the repeats, a
+    bar to the slowest) or ``instructions`` (the count under Valgrind, --cost instructions)."""
+    ok = [r for r in rows if r.get("status") == "ok" and positive(r.get(cost)) and positive(r.get(field))]
     if not ok:
         return None
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.0, 4.2))
     t_main = main_t_final(ok)
     for (scheme, t_final, settings, order), mine in sweeps(ok).items():
-        pts = sorted((r["cpu_s"], r[field], r.get("cpu_s_max") or r["cpu_s"]) for r in mine)
+        pts = sorted((r[cost], r[field], (r.get("cpu_s_max") or r["cpu_s"]) if cost == "cpu_s" else r[cost])
+                     for r in mine)
         x, y, x_max = (np.array(v) for v in zip(*pts))
         st, other_t = style[scheme], t_final != t_main
         label = f"{scheme} ({family(scheme)})" + (f" t_final={t_final:.4g}" if other_t else "") \
@@ -81,7 +84,8 @@ def work_precision_svg(rows: list[dict], field: str, style: dict) -> str | None:
                     label=label)
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("CPU seconds (minimum of repeats; bar to the slowest)")
+    ax.set_xlabel("CPU seconds (minimum of repeats; bar to the slowest)" if cost == "cpu_s" else
+                  "instructions of the integration (Valgrind's count)")
     ax.set_ylabel(field)
     ax.grid(True, which="both", alpha=0.3)
     legend_outside(ax)
@@ -205,9 +209,11 @@ def problem_figures(rows: list[dict[str, Any]], style: dict, drift: bool = True)
     rows keep them), "diagnostics_notes"}."""
     field = pareto_field(rows)
     out: dict[str, Any] = {"field": field, "work_precision": None, "drift": None, "drift_notes": [],
-                           "diagnostics": None, "diagnostics_notes": []}
+                           "diagnostics": None, "diagnostics_notes": [], "work_precision_instructions": None}
     if field:
         out["work_precision"] = work_precision_svg(rows, field, style)
+        if any(positive(r.get("instructions")) for r in rows):  # a run with --cost instructions
+            out["work_precision_instructions"] = work_precision_svg(rows, field, style, "instructions")
     if drift:
         out["drift"], out["drift_notes"] = drift_svg(rows, style)
         if any(r.get("diag_curves") for r in rows):

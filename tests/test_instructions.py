@@ -1,0 +1,131 @@
+"""``--cost instructions``: the integration's instructions counted under Valgrind.
+
+Each Valgrind process costs about a minute of CPU (numba imported under it), so the cells
+of these tests share one process (the ``counted`` fixture), and one more process counts a
+cell again beside a CPU-bound process. Without Valgrind on the machine they are skipped,
+except the test that the missing Valgrind is one line naming its Debian package."""
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from longtime.core import registry
+from longtime.core.integrator import Timing
+from longtime.execution.cells import expand, run_cell
+from longtime.reporting.compare import INSTRUCTION_FACTOR, compare
+
+import _slowed
+
+needs_valgrind = pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
+
+# kepler rk4 over T and 2T: the count doubles with the steps; harmonic with the plain scheme
+# and with one that repeats its stages every 20th step (5 % more work a step, as an
+# author's commit might add); an adaptive scheme; schemes whose integration is not isolated
+T = 50.0
+
+
+def _schemes(folder: Path) -> tuple[str, str]:
+    """Two plugin schemes in modules of their own: the plain one and the one doing 5 % more."""
+    names = []
+    for name, repeat in (("instr-plain", 0.0), ("instr-heavier", 0.05)):
+        module = name.replace("-", "_")
+        text = _slowed.source(repeat).replace('name = "slowed-rk4"', f'name = "{name}"')
+        (folder / f"{module}.py").write_text(text)
+        names.append(name)
+    sys.path.insert(0, str(folder))
+    import instr_heavier
+    import instr_plain
+
+    registry.register(instr_plain.SlowedRK4, "instr-plain")
+    registry.register(instr_heavier.SlowedRK4, "instr-heavier")
+    return names[0], names[1]
+
+
+def _rows(cells):
+    return [(c, run_cell(c, timing=Timing(repeats=1))) for c in cells]
+
+
+@pytest.fixture(scope="module")
+def counted(tmp_path_factory):
+    from longtime.execution.valgrind import instruction_fields
+
+    plain, heavier = _schemes(tmp_path_factory.mktemp("schemes"))
+    cells = (expand(["kepler"], ["rk4"], t_final=[T, 2 * T]) + expand(["kepler"], ["rk45", "heyoka"], t_final=T)
+             + expand(["harmonic"], [plain, heavier], sweeps={"dt": [0.01]}, t_final=100.0))
+    pairs = _rows(cells)
+    fields = instruction_fields(pairs, 100_001, 600.0)
+    return {(c.integrator, c.t_final): {**row, **fields[c.key]} for c, row in pairs}
+
+
+@needs_valgrind
+def test_count_covers_the_integration_only(counted):
+    short, long = counted[("rk4", T)], counted[("rk4", 2 * T)]
+    assert long["steps"] == 2 * short["steps"]
+    # twice the steps, twice the instructions: imports, compilation and the reference (a
+    # fixed cost of millions of instructions) are not in the count
+    assert long["instructions"] / short["instructions"] == pytest.approx(2.0, rel=0.02)
+    assert short["instructions_per_step"] == pytest.approx(short["instructions"] / short["steps"])
+    assert short["instructions_skipped"] is None and short["instructions_tool"].startswith("callgrind")
+    adaptive = counted[("rk45", T)]
+    assert adaptive["instructions"] > adaptive["steps"] * 100  # counted over its chunks of samples
+    external = counted[("heyoka", T)]
+    assert external["instructions"] is None and "cannot be counted apart" in external["instructions_skipped"]
+
+
+@needs_valgrind
+def test_five_percent_more_work_a_step_is_flagged(counted):
+    plain, heavier = counted[("instr-plain", 100.0)], counted[("instr-heavier", 100.0)]
+    ratio = heavier["instructions"] / plain["instructions"]
+    assert 1.02 < ratio < 1.06
+    # compare of the author's two commits (the same cell: her scheme before and after)
+    before, after = dict(plain), {**heavier, "integrator": plain["integrator"]}
+    result = compare([before], [after])
+    cell = result["cells"][0]
+    assert cell["instruction_verdict"] == "more" and result["regressed"] == 1
+    assert any(r.startswith("instructions x") for r in cell["regressions"])
+    # identical counts: nothing to say
+    same = compare([before], [dict(before)])
+    assert same["cells"][0]["instruction_verdict"] == "within" and same["regressed"] == 0
+    assert INSTRUCTION_FACTOR < ratio
+
+
+@needs_valgrind
+def test_counts_agree_beside_a_cpu_bound_process(counted):
+    from longtime.execution.valgrind import instruction_fields
+
+    hog = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        pairs = _rows(expand(["kepler"], ["rk4"], t_final=T))
+        again = instruction_fields(pairs, 100_001, 600.0)[pairs[0][0].key]
+    finally:
+        hog.kill()
+        hog.wait()
+    first = counted[("rk4", T)]["instructions"]
+    assert abs(again["instructions"] / first - 1) < 1e-3
+
+
+def test_missing_valgrind_is_one_line(tmp_path):
+    env = {**os.environ, "PATH": str(tmp_path)}  # no valgrind (nor anything else) on PATH
+    res = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "run", "-p", "kepler", "-i", "rk4",
+                          "--t-final", "1", "--cost", "instructions", "--no-store"],
+                         capture_output=True, text=True, env=env, timeout=300)
+    assert res.returncode == 2 and res.stdout == ""
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "valgrind" in lines[0] and "Debian package" in lines[0]
+
+
+def test_a_cell_too_long_to_count_is_skipped_with_the_reason(monkeypatch):
+    from longtime.execution import valgrind
+    from longtime.measure import instructions
+
+    monkeypatch.setattr(instructions, "require", lambda: "/no/valgrind/needed")  # nothing is counted here
+    cells = expand(["kepler"], ["rk4"], t_final=T)
+    row = {"status": "ok", "wall_s": 30.0, "cpu_s": 30.0, "steps": 5000}
+    fields = valgrind.instruction_fields([(cells[0], row)], 100_001, 600.0)[cells[0].key]
+    assert fields["instructions"] is None and fields["instructions_per_step"] is None
+    assert "too long to count under Valgrind" in fields["instructions_skipped"]
+    failed = valgrind.instruction_fields([(cells[0], {"status": "diverged"})], 100_001, 600.0)[cells[0].key]
+    assert failed["instructions"] is None and "diverged" in failed["instructions_skipped"]
