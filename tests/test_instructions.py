@@ -19,7 +19,9 @@ from longtime.reporting.compare import INSTRUCTION_FACTOR, compare
 
 import _slowed
 
-needs_valgrind = pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
+# CI installs Valgrind and sets LONGTIME_REQUIRE_VALGRIND: there these tests fail instead of skipping
+needs_valgrind = pytest.mark.skipif(shutil.which("valgrind") is None and not os.environ.get("LONGTIME_REQUIRE_VALGRIND"),
+                                    reason="valgrind is not installed (Debian package valgrind)")
 
 # kepler rk4 over T and 2T: the count doubles with the steps; harmonic with the plain scheme
 # and with one that repeats its stages every 20th step (5 % more work a step, as an
@@ -129,3 +131,24 @@ def test_a_cell_too_long_to_count_is_skipped_with_the_reason(monkeypatch):
     assert "too long to count under Valgrind" in fields["instructions_skipped"]
     failed = valgrind.instruction_fields([(cells[0], {"status": "diverged"})], 100_001, 600.0)[cells[0].key]
     assert failed["instructions"] is None and "diverged" in failed["instructions_skipped"]
+
+
+def test_history_marks_a_step_in_the_count_and_none_in_its_noise(tmp_path):
+    from longtime.execution.store import Store
+    from longtime.reporting.history import history, render
+
+    store = Store(tmp_path / "s.sqlite")
+    cell = expand(["kepler"], ["rk4"], t_final=T)[0]
+    # counts as identical code gives them (a few instructions apart), then 5 % more a step
+    for count in (1_000_000, 1_000_003, 999_998, 1_050_000, 1_050_001):
+        run_id = store.begin_run("run", [cell])
+        store.add_row(run_id, cell, {"problem": "kepler", "integrator": "rk4", "status": "ok", "t_final": T,
+                                     "dt": None, "settings": "", "cpu_s": 1e-3, "cpu_s_calibrated": 0.3,
+                                     "instructions": count, "instructions_per_step": count / 5000,
+                                     "instructions_tool": "callgrind 3.19.0", "instructions_skipped": None})
+        store.finish_run(run_id, "done")
+    found = history(store)
+    steps = [s for s in found[0]["steps"] if s["field"] == "instructions"]
+    assert len(steps) == 1 and steps[0]["kind"] == "more instructions" and steps[0]["run_id"] == 4
+    assert steps[0]["ratio"] == pytest.approx(1.05, rel=1e-3)
+    assert "STEP instructions x1.05" in render(found)
