@@ -17,11 +17,10 @@ has one).
 from __future__ import annotations
 
 import json
-import math
 import os
+import shutil
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 from typing import Any, Iterable
@@ -150,8 +149,6 @@ def _count(valgrind: str, cells: list[Cell], rows: dict[str, dict], max_samples:
                                  "instructions_tool": tool, "instructions_skipped": None}
         return out
     finally:
-        import shutil
-
         shutil.rmtree(folder, ignore_errors=True)
 
 
