@@ -140,11 +140,17 @@ class Result:
 
 def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_samples: int = DEFAULT_MAX_SAMPLES,
           repeats: int = Timing.repeats, min_time: float = Timing.min_time,
-          time_limit: float | None = DEFAULT_TIME_LIMIT, allow_large: bool = False, **settings: Any) -> Result:
+          time_limit: float | None = DEFAULT_TIME_LIMIT, allow_large: bool = False, processes: int | None = None,
+          **settings: Any) -> Result:
     """Run ``scheme`` on ``problem`` once (timed as every row is) and return its Result.
     ``settings`` are the parameters of --dt, --tol, --eps-res, --order and --set (one value
-    each). A pair that cannot run (a capability missing) raises InputError naming it."""
+    each); ``processes`` (default ``$LONGTIME_PROCESSES`` or 3) the processes that time it
+    (longtime.execution.processes: this one and ``processes - 1`` fresh ones). A pair that
+    cannot run (a capability missing) raises InputError naming it."""
+    from longtime.execution.processes import across_processes, check_processes, default_processes
     from longtime.reporting.report import complete
+
+    processes = default_processes() if processes is None else check_processes(processes, "processes")
 
     cells = cells_for(_as_list(problem), _as_list(scheme), t_final, settings, strict=True)
     if len(cells) != 1:
@@ -158,11 +164,12 @@ def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_sample
     here = calibration.here()  # the machine's speed beside the time, as every stored row has it
     here.start()
     t0 = time.time()
-    row = run_cell(cells[0], max_samples, timing=Timing(repeats=repeats, min_time=min_time),
-                   time_limit=time_limit or None, keep=keep)
+    timing = Timing(repeats=repeats, min_time=min_time).per_process(processes)
+    row = run_cell(cells[0], max_samples, timing=timing, time_limit=time_limit or None, keep=keep)
     if not cells[0].skip_reason:
         here.cell(row, t0, time.time())
         calibration.take_points(row)  # the calibrations themselves belong to a stored run
+    across_processes([(cells[0], row)], processes, max_samples, timing, time_limit=time_limit or None)
     row = complete(row)
     traj = keep.get("trajectory")
     if traj is None:
@@ -176,12 +183,14 @@ def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_sample
 def sweep(problems: Any, schemes: Any, *, t_final: Any = None, executor: str = "process", jobs: int = 0,
           store=None, max_samples: int = DEFAULT_MAX_SAMPLES, repeats: int = Timing.repeats,
           min_time: float = Timing.min_time, time_limit: float | None = DEFAULT_TIME_LIMIT,
-          default_sweep: bool = False, allow_large: bool = False, **sweeps: Any):
+          default_sweep: bool = False, allow_large: bool = False, processes: int | None = None, **sweeps: Any):
     """The matrix problems x schemes x every value of each parameter (a value or a list) as
     a pandas DataFrame, one row per cell. ``executor`` is serial, process (default), isolated
     or dask; ``store`` a path (or Store) appends the run to that store as ``longtime run``
-    does, and the rows then come back as stored (with ``run_id``)."""
+    does, and the rows then come back as stored (with ``run_id``). ``processes`` (default
+    ``$LONGTIME_PROCESSES`` or 3): the processes that time each cell, as ``--processes``."""
     from longtime.execution.matrix import ExecOptions
+    from longtime.execution.processes import check_processes, default_processes
     from longtime.execution.store import Store
     from longtime.reporting.report import frame
 
@@ -193,7 +202,8 @@ def sweep(problems: Any, schemes: Any, *, t_final: Any = None, executor: str = "
     if not allow_large:
         check_size(cells, max_samples)
     options = ExecOptions(jobs=jobs if executor != "serial" else 0, max_samples=max_samples,
-                          timing=Timing(repeats=repeats, min_time=min_time), time_limit=time_limit or None)
+                          timing=Timing(repeats=repeats, min_time=min_time), time_limit=time_limit or None,
+                          processes=default_processes() if processes is None else check_processes(processes, "processes"))
     command = "sweep " + shlex.join([f"{k}={v}" for k, v in
                                      {"problems": problems, "schemes": schemes, "t_final": t_final,
                                       **sweeps}.items() if v is not None])

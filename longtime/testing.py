@@ -187,17 +187,27 @@ def _cell(c: dict) -> str:
 
 
 def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float | None = None,
-                   **settings: Any) -> dict[str, Any]:
+                   processes: int | None = None, **settings: Any) -> dict[str, Any]:
     """Time one cell with pytest-benchmark's ``benchmark`` fixture: the cell runs once
     first (compiling its kernel, measuring its accuracy against the reference), then the
     fixture times its integration alone, which must reproduce that run bitwise. The row's
     accuracy fields (``l2_error``, ``final_error``, each invariant's ``.max``/``.mean``/
     ``.final``/``.growth``/``.growth_class``, ``status``, ``steps``, ``rhs_evals``) go into
     ``benchmark.extra_info``, so ``pytest --benchmark-json`` carries them beside the time.
-    Returns the row."""
-    from longtime.core.integrator import Timing, same_run
+    The fixture's times come from this process only; so ``processes`` fresh processes
+    (default ``$LONGTIME_PROCESSES`` or 3; 0: none) also time the integration, each
+    reproducing the run bitwise, and ``extra_info`` gets their minima
+    (``cpu_s_processes``) and spread (``cpu_s_process_spread``, max / min): a verdict
+    on this benchmark judges that spread. Returns the row."""
+    from longtime.core.integrator import Timing, run_digest, same_run
     from longtime.execution.cells import run_cell
+    from longtime.execution.processes import check_processes, default_processes, run_children
     from longtime.reporting.report import complete
+
+    if processes is None:
+        processes = default_processes()
+    elif processes != 0:
+        processes = check_processes(processes, "processes")
 
     cells = cells_for([problem], [scheme], t_final, settings, strict=True)
     if len(cells) != 1:
@@ -212,6 +222,20 @@ def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float 
     if not same_run(first, timed):
         raise AssertionError(f"{integ.name} on {prob.name}: the timed integration did not reproduce the measured one")
     benchmark.extra_info.update(accuracy_fields(row))
+    if processes:
+        digest = run_digest(first)
+        minima = []
+        for results, why in run_children(cells, processes, 100_001, Timing().per_process(processes), 1, 600.0,
+                                         None, None):
+            if results is None:
+                raise AssertionError(f"{integ.name} on {prob.name}: a timing process gave no result: {why}")
+            (res,) = results
+            if res.get("status") != "ok" or res.get("samples_digest") != digest:
+                raise AssertionError(f"{integ.name} on {prob.name}: the run timed in another process did not "
+                                     f"reproduce the measured one ({res.get('status')}: {res.get('message')})")
+            minima.append(res["cpu_s"])
+        benchmark.extra_info.update(cpu_s_processes=minima,
+                                    cpu_s_process_spread=max(minima) / min(minima) if min(minima) > 0 else None)
     return row
 
 

@@ -24,6 +24,7 @@ from longtime.execution.calibration import drift_text
 from longtime.execution.cells import DEFAULT_TIME_LIMIT, check_size, expand
 from longtime.execution.lifecycle import command_line, recorded_run
 from longtime.execution.matrix import EXECUTORS, ExecOptions, run_matrix
+from longtime.execution.processes import DEFAULT_PROCESSES, default_processes
 from longtime.execution.store import Store, default_path
 from longtime.measure import stability
 from longtime.measure.reference import budget_seconds
@@ -90,6 +91,12 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
                    help=f"timed runs of each cell after the warm-up: at least {Timing.MIN_RUNS} "
                         f"(or N if fewer), more while their total is below --min-time, at most N; "
                         f"cpu_s is the minimum (default {Timing.repeats})")
+    p.add_argument("--processes", type=cli_args.integer("--processes", 1), default=None, metavar="N",
+                   help=f"processes that time each cell: the one that measures its row and N - 1 fresh "
+                        f"ones that time its integration alone, the repeats split among them; cpu_s is "
+                        f"the minimum over them, cpu_s_processes each one's and cpu_s_process_spread "
+                        f"their spread, which compare and history judge (default {DEFAULT_PROCESSES}, "
+                        f"or $LONGTIME_PROCESSES)")
     p.add_argument("--min-time", type=cli_args.seconds("--min-time", allow_zero=True), default=Timing.min_time,
                    metavar="SECONDS",
                    help=f"repeat a cell's timed run until the timed total passes this "
@@ -119,6 +126,7 @@ def _options(args, executor: str) -> ExecOptions:
     check_cache_root()  # $LONGTIME_CACHE_DIR: one error now, not one per cell
     return ExecOptions(jobs=args.jobs, max_samples=args.max_samples,
                        timing=Timing(repeats=args.repeats, min_time=args.min_time),
+                       processes=args.processes or default_processes(),
                        cell_timeout=getattr(args, "cell_timeout", None),
                        time_limit=getattr(args, "time_limit", DEFAULT_TIME_LIMIT) or None,
                        memory_limit=getattr(args, "memory_limit", limits.default_memory_limit()),
