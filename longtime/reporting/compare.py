@@ -80,7 +80,8 @@ def slower_p(a: list[float], b: list[float]) -> float | None:
 
 def _timed(a: dict, b: dict, raw: bool) -> tuple[str, float, float] | None:
     """(basis, time of A, time of B) of a cell: calibrated where both rows have it."""
-    if not raw and _number(a.get("cpu_s_calibrated")) and _number(b.get("cpu_s_calibrated")):
+    if not raw and _number(a.get("cpu_s_calibrated")) and _number(b.get("cpu_s_calibrated")) \
+            and (a.get("calibration_workload") or "compute") == (b.get("calibration_workload") or "compute"):
         return "calibrated", a["cpu_s_calibrated"], b["cpu_s_calibrated"]
     if _number(a.get("cpu_s")) and _number(b.get("cpu_s")):
         return "raw", a["cpu_s"], b["cpu_s"]
