@@ -88,9 +88,10 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
     p.add_argument("--max-samples", type=int, default=100_001,
                    help="states kept per run for the metrics (every step below this)")
     p.add_argument("--repeats", type=cli_args.integer("--repeats", 1), default=Timing.repeats, metavar="N",
-                   help=f"timed runs of each cell after the warm-up: at least {Timing.MIN_RUNS} "
-                        f"(or N if fewer), more while their total is below --min-time, at most N; "
-                        f"cpu_s is the minimum (default {Timing.repeats})")
+                   help=f"timed runs of each cell after the warm-up, split among --processes: in each, at "
+                        f"least {Timing.MIN_RUNS} / processes (rounded up), more while its two fastest differ by "
+                        f"more than {100 * Timing.SETTLED:g} %% and their total is below --min-time / processes, "
+                        f"at most N / processes (rounded up); cpu_s is the minimum (default {Timing.repeats})")
     p.add_argument("--processes", type=cli_args.integer("--processes", 1), default=None, metavar="N",
                    help=f"processes that time each cell: the one that measures its row and N - 1 fresh "
                         f"ones that time its integration alone, the repeats split among them; cpu_s is "
