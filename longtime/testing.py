@@ -194,20 +194,18 @@ def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float 
     accuracy fields (``l2_error``, ``final_error``, each invariant's ``.max``/``.mean``/
     ``.final``/``.growth``/``.growth_class``, ``status``, ``steps``, ``rhs_evals``) go into
     ``benchmark.extra_info``, so ``pytest --benchmark-json`` carries them beside the time.
-    The fixture's times come from this process only; so ``processes`` fresh processes
-    (default ``$LONGTIME_PROCESSES`` or 3; 0: none) also time the integration, each
-    reproducing the run bitwise, and ``extra_info`` gets their minima
-    (``cpu_s_processes``) and spread (``cpu_s_process_spread``, max / min): a verdict
-    on this benchmark judges that spread. Returns the row."""
+    The fixture's times come from this process only; so with ``processes`` (default
+    ``$LONGTIME_PROCESSES`` or 3) above 1, ``processes - 1`` fresh processes also time the
+    integration (longtime.execution.processes), each reproducing the run bitwise, and
+    ``extra_info`` gets each process's minimum CPU time (``cpu_s_processes``, this
+    process's measured run first) and their spread (``cpu_s_process_spread``, max / min):
+    a verdict on this benchmark judges that spread. Returns the row."""
     from longtime.core.integrator import Timing, run_digest, same_run
     from longtime.execution.cells import run_cell
     from longtime.execution.processes import check_processes, default_processes, run_children
     from longtime.reporting.report import complete
 
-    if processes is None:
-        processes = default_processes()
-    elif processes != 0:
-        processes = check_processes(processes, "processes")
+    processes = default_processes() if processes is None else check_processes(processes, "processes")
 
     cells = cells_for([problem], [scheme], t_final, settings, strict=True)
     if len(cells) != 1:
@@ -222,10 +220,10 @@ def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float 
     if not same_run(first, timed):
         raise AssertionError(f"{integ.name} on {prob.name}: the timed integration did not reproduce the measured one")
     benchmark.extra_info.update(accuracy_fields(row))
-    if processes:
+    if processes > 1:
         digest = run_digest(first)
-        minima = []
-        for results, why in run_children(cells, processes, 100_001, Timing().per_process(processes), 1, 600.0,
+        minima = [row["cpu_s"]]
+        for results, why in run_children(cells, processes - 1, 100_001, Timing().per_process(processes), 1, 600.0,
                                          None, None):
             if results is None:
                 raise AssertionError(f"{integ.name} on {prob.name}: a timing process gave no result: {why}")

@@ -196,3 +196,24 @@ def test_a_stored_run_records_the_code_under_test(tmp_path, monkeypatch, capsys)
     assert f"code under test: {head[:10]} (" in out
     assert cli.main(["history", "--db", str(db), "-i", "author-rk"]) == 0
     assert head[:10] in capsys.readouterr().out
+
+
+def test_benchmark_cell_times_in_processes_and_asv_runs_in_processes():
+    from longtime.asvbench import benchmarks
+    from longtime.execution.processes import DEFAULT_PROCESSES
+    from longtime.testing import benchmark_cell
+
+    class Fixture:  # pytest-benchmark's fixture, reduced to what benchmark_cell calls
+        def __init__(self):
+            self.extra_info = {}
+
+        def __call__(self, fn, *args):
+            return fn(*args)
+
+    bench = Fixture()
+    row = benchmark_cell(bench, "kepler", "rk4", t_final=5.0, dt=0.01, processes=3)
+    assert row["status"] == "ok"
+    assert len(bench.extra_info["cpu_s_processes"]) == 3 and bench.extra_info["cpu_s_processes"][0] == row["cpu_s"]
+    assert bench.extra_info["cpu_s_process_spread"] >= 1
+    classes = benchmarks(["kepler"], ["rk4"], dt=0.01)
+    assert classes["Integration"].processes == DEFAULT_PROCESSES

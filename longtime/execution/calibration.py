@@ -23,9 +23,9 @@ A cell whose working set leaves the caches (a large state, its work arrays and s
 ``working_set_bytes`` of the row) runs at the speed of the memory, which a neighbour that
 streams memory slows while the compute-bound reference workload does not move
 (docs/performance.md, "Calibration and memory": measured). So each calibration also times a
-*memory workload*, ``MEMORY_REPEATS`` passes of a triad over ``MEMORY_BYTES`` (twice the
-last-level cache of current machines: every pass goes to memory), and keeps its minimum
-(``memory_cpu_s``); a row whose ``working_set_bytes`` passes ``MEMORY_BOUND_BYTES`` is
+*memory workload*, ``MEMORY_PASSES`` passes of a triad over ``MEMORY_BYTES`` (beyond a
+core's own caches, within the shared one) timed ``MEMORY_REPEATS`` times, and keeps its
+minimum (``memory_cpu_s``); a row whose ``working_set_bytes`` passes ``MEMORY_BOUND_BYTES`` is
 calibrated by it (``cpu_s_calibrated`` in units of the memory workload,
 ``calibration_workload`` = ``memory``), every other row by the reference workload
 (``compute``). compare divides calibrated times only where both rows used the same one.
@@ -49,11 +49,12 @@ INTERVAL = 5.0  # seconds between the calibrations of one process while it runs 
 # rows carry the calibrations their process took under this key until run_matrix stores
 # them in the run (it is never part of a stored row)
 POINTS_KEY = "_calibrations"
-MEMORY_BYTES = 64 * 2**20  # the memory workload's two arrays together
-MEMORY_REPEATS = 3
+MEMORY_BYTES = 8 * 2**20  # the memory workload's two arrays together (beyond L2, within L3)
+MEMORY_PASSES = 64  # passes a timed call makes: tens of milliseconds, as a large cell runs
+MEMORY_REPEATS = 2
 # a row whose working set passes this (beyond a core's share of the last-level cache) is
 # calibrated by the memory workload
-MEMORY_BOUND_BYTES = 8 * 2**20
+MEMORY_BOUND_BYTES = 4 * 2**20
 
 
 @numba.njit(cache=True, nogil=True)
@@ -72,10 +73,13 @@ def reference_workload(steps: int, h: float) -> float:
 
 
 @numba.njit(cache=True, nogil=True)
-def memory_workload(a: np.ndarray, b: np.ndarray) -> float:
-    """One pass of b = a + b / 2 over two arrays larger than the caches: the memory's speed."""
-    for i in range(a.size):
-        b[i] = a[i] + 0.5 * b[i]
+def memory_workload(a: np.ndarray, b: np.ndarray, passes: int) -> float:
+    """``passes`` passes of b = a + b / 2 over two arrays beyond the private caches, reused
+    pass after pass as a large cell reuses its state, work and samples: what a neighbour
+    that evicts the shared cache slows."""
+    for _ in range(passes):
+        for i in range(a.size):
+            b[i] = a[i] + 0.5 * b[i]
     return b[0]
 
 
@@ -107,11 +111,11 @@ def measure(phase: str = "batch", repeats: int = REPEATS, steps: int = STEPS,
              "cpu_s_samples": samples}
     if memory_bytes and memory_repeats:
         a, b = _memory_arrays(memory_bytes)
-        memory_workload(a, b)  # loads or compiles it, and touches every page
+        memory_workload(a, b, 1)  # loads or compiles it, and touches every page
         passes = []
         for _ in range(memory_repeats):
             c0 = time.process_time()
-            memory_workload(a, b)
+            memory_workload(a, b, MEMORY_PASSES)
             passes.append(time.process_time() - c0)
         point.update(memory_bytes=memory_bytes, memory_cpu_s=min(passes), memory_cpu_s_samples=passes)
     return point

@@ -338,10 +338,21 @@ def _error_medians(cells: list[dict]) -> dict[str, float]:
     return {f: float(np.median(v)) for f, v in sorted(by.items())}
 
 
-def _label(c: dict) -> str:
-    from longtime.reporting.report import setting
-
-    return f"{c['problem']} {c['integrator']} {setting(c)}".strip()
+def label(cell: dict) -> str:
+    """Every setting that tells two cells apart (``compare.MATCH_KEYS``), t_final included,
+    each value to full precision: two cells never share a header."""
+    parts = [str(cell.get("problem")), str(cell.get("integrator"))]
+    for k in MATCH_KEYS[2:]:
+        v = cell.get(k)
+        if v is None or v == "":
+            continue
+        if k == "settings":
+            parts.append(str(v))
+        elif isinstance(v, float):
+            parts.append(f"{k}={v:.17g}" if float(f"{v:.6g}") != v else f"{k}={v:g}")
+        else:
+            parts.append(f"{k}={v}")
+    return " ".join(parts)
 
 
 def _counts_text(counts: dict[str, dict[str, int]], result: dict) -> str:
@@ -393,7 +404,7 @@ def render(result: dict[str, Any], show_all: bool = False) -> str:
                     cpu += " (too short to time)"
             else:
                 cpu = f"cpu x{c['cpu_ratio']:.3g}" if c.get("cpu_ratio") is not None else "cpu -"
-            text = f"  {'REGRESSED' if c['regressions'] else 'ok':9s} {_label(c)}"
+            text = f"  {'REGRESSED' if c['regressions'] else 'ok':9s} {label(c)}"
             if c["time_verdict"] not in ("slower", "faster"):  # those say it below
                 text += f": {cpu}"
             if c["regressions"]:

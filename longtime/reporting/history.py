@@ -36,7 +36,7 @@ from typing import Any
 
 from longtime.core.params import InputError
 from longtime.core.roles import ROW_PARAMETERS
-from longtime.reporting.compare import MATCH_KEYS, ROUND_OFF, TIME_FACTOR, cell_key, error_fields
+from longtime.reporting.compare import MATCH_KEYS, ROUND_OFF, TIME_FACTOR, cell_key, error_fields, label
 
 TIME_FIELD = "cpu_s_calibrated"
 SPREAD_FIELD = "cpu_s_process_spread"
@@ -201,23 +201,6 @@ def history(store, problems=None, schemes=None, sets: dict[str, str] | None = No
         out.append({"cell": {k: first.get(k) for k in MATCH_KEYS}, "runs": points,
                     "time_factor": specs[0]["factor"], "time_factor_basis": specs[0]["basis"], "steps": found})
     return out
-
-
-def label(cell: dict) -> str:
-    """Every setting that tells two cells apart (``compare.MATCH_KEYS``), t_final included,
-    each value to full precision: two cells never share a header."""
-    parts = [str(cell.get("problem")), str(cell.get("integrator"))]
-    for k in MATCH_KEYS[2:]:
-        v = cell.get(k)
-        if v is None or v == "":
-            continue
-        if k == "settings":
-            parts.append(str(v))
-        elif isinstance(v, float):
-            parts.append(f"{k}={v:.17g}" if float(f"{v:.6g}") != v else f"{k}={v:g}")
-        else:
-            parts.append(f"{k}={v}")
-    return " ".join(parts)
 
 
 def _short(commit: str | None) -> str:
