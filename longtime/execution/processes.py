@@ -224,7 +224,10 @@ def _child_main(folder: str) -> None:
     path = Path(folder)
     job = json.loads((path / "job.json").read_text())
     die_with_parent(job["parent"])
-    restore_session(path)
+    try:
+        restore_session(path)
+    except Exception as exc:  # a registered class that cannot be rebuilt here: its cells fail alone
+        print(f"longtime: the session's registered classes could not be restored: {exc!r}", file=sys.stderr)
     set_memory_limit(job.get("memory_limit"))
     results = time_cells([Cell.from_dict(c) for c in job["cells"]], job["max_samples"], Timing(**job["timing"]),
                          job.get("time_limit"))
