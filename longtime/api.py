@@ -140,17 +140,22 @@ class Result:
 
 def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_samples: int = DEFAULT_MAX_SAMPLES,
           repeats: int = Timing.repeats, min_time: float = Timing.min_time,
-          time_limit: float | None = DEFAULT_TIME_LIMIT, allow_large: bool = False, cost: str = "time",
-          **settings: Any) -> Result:
+          time_limit: float | None = DEFAULT_TIME_LIMIT, allow_large: bool = False, processes: int | None = None,
+          cost: str = "time", **settings: Any) -> Result:
     """Run ``scheme`` on ``problem`` once (timed as every row is) and return its Result.
     ``settings`` are the parameters of --dt, --tol, --eps-res, --order and --set (one value
-    each). A pair that cannot run (a capability missing) raises InputError naming it.
-    ``cost="instructions"`` also counts the integration under Valgrind (``--cost
-    instructions``: the row's ``instructions`` and ``instructions_per_step``)."""
+    each); ``processes`` (default ``$LONGTIME_PROCESSES`` or 3) the processes that time it
+    (longtime.execution.processes: this one and ``processes - 1`` fresh ones). A pair that
+    cannot run (a capability missing) raises InputError naming it. ``cost="instructions"``
+    also counts the integration under Valgrind (``--cost instructions``: the row's
+    ``instructions`` and ``instructions_per_step``)."""
     from longtime.execution.matrix import check_cost
+    from longtime.execution.processes import across_processes, check_processes, default_processes
     from longtime.reporting.report import complete
 
     check_cost(cost)
+    processes = default_processes() if processes is None else check_processes(processes, "processes")
+
     cells = cells_for(_as_list(problem), _as_list(scheme), t_final, settings, strict=True)
     if len(cells) != 1:
         raise InputError(f"solve runs one cell; these settings give {len(cells)}: give one value per "
@@ -163,12 +168,13 @@ def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_sample
     here = calibration.here()  # the machine's speed beside the time, as every stored row has it
     here.start()
     t0 = time.time()
-    row = run_cell(cells[0], max_samples, timing=Timing(repeats=repeats, min_time=min_time),
-                   time_limit=time_limit or None, keep=keep)
+    timing = Timing(repeats=repeats, min_time=min_time).per_process(processes)
+    row = run_cell(cells[0], max_samples, timing=timing, time_limit=time_limit or None, keep=keep)
     if not cells[0].skip_reason:
         here.cell(row, t0, time.time())
         calibration.take_points(row)  # the calibrations themselves belong to a stored run
-    if cost == "instructions":
+    across_processes([(cells[0], row)], processes, max_samples, timing, time_limit=time_limit or None)
+    if cost == "instructions":  # after the timed runs: Valgrind's process times nothing
         from longtime.execution.valgrind import instruction_fields
 
         row.update(instruction_fields([(cells[0], row)], max_samples, time_limit or None)[cells[0].key])
@@ -185,14 +191,17 @@ def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_sample
 def sweep(problems: Any, schemes: Any, *, t_final: Any = None, executor: str = "process", jobs: int = 0,
           store=None, max_samples: int = DEFAULT_MAX_SAMPLES, repeats: int = Timing.repeats,
           min_time: float = Timing.min_time, time_limit: float | None = DEFAULT_TIME_LIMIT,
-          default_sweep: bool = False, allow_large: bool = False, cost: str = "time", **sweeps: Any):
+          default_sweep: bool = False, allow_large: bool = False, processes: int | None = None,
+          cost: str = "time", **sweeps: Any):
     """The matrix problems x schemes x every value of each parameter (a value or a list) as
     a pandas DataFrame, one row per cell. ``executor`` is serial, process (default), isolated
     or dask; ``store`` a path (or Store) appends the run to that store as ``longtime run``
-    does, and the rows then come back as stored (with ``run_id``). ``cost="instructions"``
-    also counts each ok cell's integration under Valgrind, all cells in one Valgrind process
-    (``--cost instructions``)."""
+    does, and the rows then come back as stored (with ``run_id``). ``processes`` (default
+    ``$LONGTIME_PROCESSES`` or 3): the processes that time each cell, as ``--processes``.
+    ``cost="instructions"`` also counts each ok cell's integration under Valgrind, all cells
+    in one Valgrind process (``--cost instructions``)."""
     from longtime.execution.matrix import ExecOptions, check_cost
+    from longtime.execution.processes import check_processes, default_processes
     from longtime.execution.store import Store
     from longtime.reporting.report import frame
 
@@ -206,7 +215,8 @@ def sweep(problems: Any, schemes: Any, *, t_final: Any = None, executor: str = "
         check_size(cells, max_samples)
     options = ExecOptions(jobs=jobs if executor != "serial" else 0, max_samples=max_samples,
                           timing=Timing(repeats=repeats, min_time=min_time), time_limit=time_limit or None,
-                          cost=cost)
+                          cost=cost,
+                          processes=default_processes() if processes is None else check_processes(processes, "processes"))
     command = "sweep " + shlex.join([f"{k}={v}" for k, v in
                                      {"problems": problems, "schemes": schemes, "t_final": t_final,
                                       **sweeps}.items() if v is not None])

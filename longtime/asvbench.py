@@ -8,7 +8,10 @@ In the repository's ``benchmarks/`` (``longtime asv-init DIR`` writes one), a mo
 and asv finds three parametrized classes (problem x scheme x setting, every parameter
 a value or a list, as ``longtime.sweep`` takes them):
 
-- ``Integration.time_integrate``: the integration alone (its kernel compiled in setup);
+- ``Integration.time_integrate``: the integration alone (its kernel compiled in setup),
+  timed by asv in ``processes`` separate processes (``DEFAULT_PROCESSES``, asv's own
+  benchmark attribute: its samples pool every process's, so the spread asv judges a change
+  against is the spread between processes, as longtime's verdicts are);
 - ``Cost.track_instructions``: the instructions of the integration alone, counted under
   Valgrind (``--cost instructions``; all cells in one Valgrind process, in
   ``setup_cache``). The count is deterministic: a ratio between two commits is the code's,
@@ -92,8 +95,11 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
     def time_integrate(self, problem, scheme, setting):
         self.integrator.integrate(self.problem, self.t_final)
 
+    from longtime.execution.processes import DEFAULT_PROCESSES
+
     integration = type(f"{prefix}Integration", (), {
         "params": params, "param_names": names, "setup": setup, "time_integrate": time_integrate,
+        "processes": DEFAULT_PROCESSES,
         "__doc__": "The integration of each cell alone (its kernel compiled in setup)."})
 
     def setup_cache(self):

@@ -187,23 +187,31 @@ def _cell(c: dict) -> str:
 
 
 def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float | None = None,
-                   cost: str = "time", **settings: Any) -> dict[str, Any]:
+                   processes: int | None = None, cost: str = "time", **settings: Any) -> dict[str, Any]:
     """Time one cell with pytest-benchmark's ``benchmark`` fixture: the cell runs once
     first (compiling its kernel, measuring its accuracy against the reference), then the
     fixture times its integration alone, which must reproduce that run bitwise. The row's
     accuracy fields (``l2_error``, ``final_error``, each invariant's ``.max``/``.mean``/
     ``.final``/``.growth``/``.growth_class``, ``status``, ``steps``, ``rhs_evals``) go into
     ``benchmark.extra_info``, so ``pytest --benchmark-json`` carries them beside the time.
-    ``cost="instructions"`` also counts the integration under Valgrind (``--cost
-    instructions``) and puts ``instructions``, ``instructions_per_step`` (or
-    ``instructions_skipped``, the reason) there too: a deterministic cost, which a loaded
-    CI machine does not move. Returns the row."""
-    from longtime.core.integrator import Timing, same_run
+    The fixture's times come from this process only; so with ``processes`` (default
+    ``$LONGTIME_PROCESSES`` or 3) above 1, ``processes - 1`` fresh processes also time the
+    integration (longtime.execution.processes), each reproducing the run bitwise, and
+    ``extra_info`` gets each process's minimum CPU time (``cpu_s_processes``, this
+    process's measured run first) and their spread (``cpu_s_process_spread``, max / min):
+    a verdict on this benchmark judges that spread. ``cost="instructions"`` also counts the
+    integration under Valgrind (``--cost instructions``) and puts ``instructions``,
+    ``instructions_per_step`` (or ``instructions_skipped``, the reason) there too: a
+    deterministic cost, which a loaded CI machine does not move. Returns the row."""
+    from longtime.core.integrator import Timing, run_digest, same_run
     from longtime.execution.cells import run_cell
     from longtime.execution.matrix import check_cost
+    from longtime.execution.processes import check_processes, default_processes, run_children
     from longtime.reporting.report import complete
 
     check_cost(cost)
+    processes = default_processes() if processes is None else check_processes(processes, "processes")
+
     cells = cells_for([problem], [scheme], t_final, settings, strict=True)
     if len(cells) != 1:
         raise AssertionError(f"benchmark_cell times one cell; the settings give {len(cells)}")
@@ -217,6 +225,20 @@ def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float 
     if not same_run(first, timed):
         raise AssertionError(f"{integ.name} on {prob.name}: the timed integration did not reproduce the measured one")
     benchmark.extra_info.update(accuracy_fields(row))
+    if processes > 1:
+        digest = run_digest(first)
+        minima = [row["cpu_s"]]
+        for results, why in run_children(cells, processes - 1, 100_001, Timing().per_process(processes), 1, 600.0,
+                                         None, None):
+            if results is None:
+                raise AssertionError(f"{integ.name} on {prob.name}: a timing process gave no result: {why}")
+            (res,) = results
+            if res.get("status") != "ok" or res.get("samples_digest") != digest:
+                raise AssertionError(f"{integ.name} on {prob.name}: the run timed in another process did not "
+                                     f"reproduce the measured one ({res.get('status')}: {res.get('message')})")
+            minima.append(res["cpu_s"])
+        benchmark.extra_info.update(cpu_s_processes=minima,
+                                    cpu_s_process_spread=max(minima) / min(minima) if min(minima) > 0 else None)
     if cost == "instructions":
         from longtime.execution.cells import DEFAULT_MAX_SAMPLES
         from longtime.execution.valgrind import FIELDS, instruction_fields

@@ -26,12 +26,29 @@ def test_each_row_takes_the_nearest_calibration():
     row = {"cpu_s": 0.02}
     annotate(row, points, 4.0)
     assert row == {"cpu_s": 0.02, "cpu_s_calibrated": pytest.approx(10.0), "calibration_cpu_s": 2e-3,
-                   "calibration_t": 0.0}
+                   "calibration_workload": "compute", "calibration_t": 0.0}
     annotate(row, points, 6.0)
     assert row["cpu_s_calibrated"] == pytest.approx(5.0)
     failed = {"cpu_s": None}
     annotate(failed, points, 1.0)
     assert "cpu_s_calibrated" not in failed
+
+
+def test_a_row_beyond_the_caches_takes_the_memory_workload():
+    """The memory workload calibrates a row whose working set passes MEMORY_BOUND_BYTES, the
+    reference workload every other row (and any row where the point has no memory part)."""
+    points = [{"t": 0.0, "cpu_s": 2e-3, "memory_cpu_s": 8e-3}]
+    big = {"cpu_s": 0.04, "working_set_bytes": calibration.MEMORY_BOUND_BYTES + 1}
+    small = {"cpu_s": 0.04, "working_set_bytes": 1000}
+    annotate(big, points, 0.0)
+    annotate(small, points, 0.0)
+    assert big["calibration_workload"] == "memory" and big["cpu_s_calibrated"] == pytest.approx(5.0)
+    assert small["calibration_workload"] == "compute" and small["cpu_s_calibrated"] == pytest.approx(20.0)
+    old = {"cpu_s": 0.04, "working_set_bytes": calibration.MEMORY_BOUND_BYTES + 1}
+    annotate(old, [{"t": 0.0, "cpu_s": 2e-3}], 0.0)
+    assert old["calibration_workload"] == "compute"
+    p = measure("batch", repeats=2, steps=1000, memory_bytes=2**20, memory_repeats=2)
+    assert p["memory_bytes"] == 2**20 and p["memory_cpu_s"] == min(p["memory_cpu_s_samples"]) > 0
 
 
 def test_calibrator_calibrates_on_its_interval_and_hands_each_calibration_on_once(monkeypatch):

@@ -50,7 +50,13 @@ def test_five_commits_slower_at_3_less_accurate_at_4(tmp_path, capsys):
     capsys.readouterr()
     assert cli.main(["history", "--db", str(db), "-i", "slowed-rk4", "--format", "json"]) == 0
     (cell,) = json.loads(capsys.readouterr().out)
-    assert [p["commit"] for p in cell["runs"]] == commits
+    assert [p["commit"] for p in cell["runs"]] == commits  # found from the module's repository
+    assert all(len(p["cpu_s_processes"]) == 3 and p["cpu_s_process_spread"] >= 1 for p in cell["runs"])
+    assert all(c["commit"] == commit and c["dirty"] is False for p, commit in zip(cell["runs"], commits)
+               for c in p["code"])
+    # a time step must pass the spread between processes (at least --factor's 1.2)
+    spreads = sorted(p["cpu_s_process_spread"] for p in cell["runs"])
+    assert cell["time_factor"] == max(1.2, spreads[2])
     by_field = {}
     for s in cell["steps"]:
         by_field.setdefault(s["field"], []).append(s)

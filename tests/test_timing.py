@@ -26,14 +26,21 @@ class Scripted(Integrator):
                           counters={"steps": 10})
 
 
+UNSETTLED = [0.010 + 0.002 * k for k in range(60)]  # no two runs within Timing.SETTLED of each other
+
+
 @pytest.mark.parametrize("walls, timing, runs", [
-    ([0.01], Timing(), 7),                     # fast: up to --repeats
+    (UNSETTLED, Timing(), 7),                  # fast and never settled: up to --repeats
+    ([0.01], Timing(), 3),                     # settled (the minimum seen twice) after the 3 runs
     ([0.1], Timing(), 3),                      # 0.3 s after the minimum of 3 runs
-    ([0.05], Timing(), 4),                     # 0.15 s after 3, 0.2 s after 4: stop
+    ([0.05, 0.06, 0.07, 0.08], Timing(), 4),   # unsettled: 0.18 s after 3, 0.26 s after 4: stop
     ([1.0], Timing(), 3),                      # slow: the minimum of 3 runs
     ([0.01], Timing(repeats=2), 2),            # fewer than 3 when --repeats says so
     ([0.01], Timing(repeats=1), 1),
-    ([0.001], Timing(repeats=50, min_time=0.02), 20),
+    ([0.001 + 0.0001 * k for k in range(60)], Timing(repeats=50, min_time=0.02), 13),
+    ([0.01], Timing().per_process(3), 2),      # a third of the repeats: settled after 2
+    (UNSETTLED, Timing().per_process(3), 3),   # ceil(7 / 3) repeats at most
+    ([0.1], Timing().per_process(3), 1),       # past a third of --min-time after one run
 ])
 def test_autorange(walls, timing, runs):
     scheme = Scripted(walls)
@@ -62,6 +69,7 @@ def test_a_repeat_that_differs_in_one_bit_fails_the_row():
     (dict(repeats=2.5), "repeats=2.5 is not valid"),
     (dict(min_time=-1.0), "min_time=-1.0 is not valid"),
     (dict(min_time=float("nan")), "min_time=nan is not valid"),
+    (dict(min_runs=0), "min_runs=0 is not valid"),
 ])
 def test_bad_timing_settings(kwargs, message):
     with pytest.raises(InputError, match=message):
@@ -76,6 +84,13 @@ def test_rows_carry_the_spread_and_real_schemes_repeat_bitwise():
         assert row["repeats"] == 3
         assert 0 < row["cpu_s"] <= row["cpu_s_median"] <= row["cpu_s_max"]
         assert 0 < row["wall_s"] <= row["wall_s_median"] <= row["wall_s_max"]
+
+
+def test_per_process_splits_the_repeats():
+    t = Timing(repeats=7, min_time=0.3).per_process(3)
+    assert (t.repeats, t.min_runs) == (3, 1) and t.min_time == pytest.approx(0.1)
+    assert Timing().per_process(1) == Timing()
+    assert Timing.settled([0.0100, 0.0101, 0.5]) and not Timing.settled([0.0100, 0.0105]) and not Timing.settled([1.0])
 
 
 def test_same_run_compares_bits():

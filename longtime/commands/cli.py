@@ -24,6 +24,7 @@ from longtime.execution.calibration import drift_text
 from longtime.execution.cells import DEFAULT_TIME_LIMIT, check_size, expand
 from longtime.execution.lifecycle import command_line, recorded_run
 from longtime.execution.matrix import COSTS, EXECUTORS, ExecOptions, check_cost, run_matrix
+from longtime.execution.processes import DEFAULT_PROCESSES, default_processes
 from longtime.execution.store import Store, default_path
 from longtime.measure import stability
 from longtime.measure.reference import budget_seconds
@@ -87,9 +88,16 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
     p.add_argument("--max-samples", type=int, default=100_001,
                    help="states kept per run for the metrics (every step below this)")
     p.add_argument("--repeats", type=cli_args.integer("--repeats", 1), default=Timing.repeats, metavar="N",
-                   help=f"timed runs of each cell after the warm-up: at least {Timing.MIN_RUNS} "
-                        f"(or N if fewer), more while their total is below --min-time, at most N; "
-                        f"cpu_s is the minimum (default {Timing.repeats})")
+                   help=f"timed runs of each cell after the warm-up, split among --processes: in each, at "
+                        f"least {Timing.MIN_RUNS} / processes (rounded up), more while its two fastest differ by "
+                        f"more than {100 * Timing.SETTLED:g} %% and their total is below --min-time / processes, "
+                        f"at most N / processes (rounded up); cpu_s is the minimum (default {Timing.repeats})")
+    p.add_argument("--processes", type=cli_args.integer("--processes", 1), default=None, metavar="N",
+                   help=f"processes that time each cell: the one that measures its row and N - 1 fresh "
+                        f"ones that time its integration alone, the repeats split among them; cpu_s is "
+                        f"the minimum over them, cpu_s_processes each one's and cpu_s_process_spread "
+                        f"their spread, which compare and history judge (default {DEFAULT_PROCESSES}, "
+                        f"or $LONGTIME_PROCESSES)")
     p.add_argument("--min-time", type=cli_args.seconds("--min-time", allow_zero=True), default=Timing.min_time,
                    metavar="SECONDS",
                    help=f"repeat a cell's timed run until the timed total passes this "
@@ -125,6 +133,7 @@ def _options(args, executor: str) -> ExecOptions:
     check_cost(cost)  # --cost instructions without Valgrind: one line, before a run is recorded
     return ExecOptions(cost=cost, jobs=args.jobs, max_samples=args.max_samples,
                        timing=Timing(repeats=args.repeats, min_time=args.min_time),
+                       processes=args.processes or default_processes(),
                        cell_timeout=getattr(args, "cell_timeout", None),
                        time_limit=getattr(args, "time_limit", DEFAULT_TIME_LIMIT) or None,
                        memory_limit=getattr(args, "memory_limit", limits.default_memory_limit()),

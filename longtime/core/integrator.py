@@ -65,14 +65,22 @@ class _Progress:
 
 @dataclass(frozen=True)
 class Timing:
-    """How a run is timed, timeit-style: after the warm-up the integration runs at least
-    ``MIN_RUNS`` times (or ``repeats`` if fewer), then again while the timed wall total is
-    below ``min_time`` seconds, at most ``repeats`` times. The minimum is the figure (noise
-    only ever adds time); the median and the maximum show the spread."""
+    """How one process times a run, timeit-style: after the warm-up the integration runs at
+    least ``min_runs`` times (default ``MIN_RUNS``, or ``repeats`` if fewer), then again
+    while its timing is not settled and the timed wall total is below ``min_time`` seconds,
+    at most ``repeats`` times. Settled: the two fastest runs agree within ``SETTLED`` (the
+    minimum has been seen twice, so more runs would not move it), which a long run reaches
+    at once and a short one on a quiet core after a few. The minimum is the figure (noise
+    only ever adds time); the median and the maximum show the spread within the process.
+    The spread between processes is measured by running the cell in several
+    (longtime.execution.processes); ``per_process`` splits the repeats among them."""
 
     repeats: int = 7
     min_time: float = 0.2
+    min_runs: int | None = None  # None: MIN_RUNS
     MIN_RUNS: ClassVar[int] = 3
+    # the two fastest runs within this (relative) of each other: the minimum is known
+    SETTLED: ClassVar[float] = 0.02
     # a run longer than this (wall seconds, 5x timeit's whole autorange budget) is timed
     # once: repeating a 10^8-step cell would cost minutes for a spread that is small at that
     # length (the row says so)
@@ -86,18 +94,57 @@ class Timing:
                 and self.min_time >= 0):
             raise InputError(f"min_time={self.min_time!r} is not valid: expected a finite number "
                              f"of seconds >= 0")
+        if self.min_runs is not None and (isinstance(self.min_runs, bool) or not isinstance(
+                self.min_runs, (int, np.integer)) or self.min_runs < 1):
+            raise InputError(f"min_runs={self.min_runs!r} is not valid: expected an integer >= 1")
 
     def wants_another(self, wall_times: list[float]) -> bool:
         n = len(wall_times)
         if n and wall_times[0] > self.ONCE_ABOVE:
             return False
-        return n < self.repeats and (n < self.MIN_RUNS or sum(wall_times) < self.min_time)
+        if n >= self.repeats:
+            return False
+        if n < (self.MIN_RUNS if self.min_runs is None else self.min_runs):
+            return True
+        return not self.settled(wall_times) and sum(wall_times) < self.min_time
+
+    @classmethod
+    def settled(cls, times: list[float]) -> bool:
+        """The two fastest of ``times`` agree within ``SETTLED``."""
+        if len(times) < 2:
+            return False
+        a, b = sorted(times)[:2]
+        return b <= a * (1 + cls.SETTLED)
+
+    def per_process(self, processes: int) -> "Timing":
+        """The timing of each of ``processes`` processes that time one cell: the repeats, the
+        minimum runs and the time budget split among them (rounded up), so that timing a cell
+        in several processes costs about what timing it in one did."""
+        if processes <= 1:
+            return self
+        runs = self.MIN_RUNS if self.min_runs is None else self.min_runs
+        return Timing(repeats=max(1, math.ceil(self.repeats / processes)), min_time=self.min_time / processes,
+                      min_runs=max(1, math.ceil(runs / processes)))
 
 
 def same_run(a: "Trajectory", b: "Trajectory") -> bool:
     """Bitwise equality of two runs of one cell: outcome, counters and every sample."""
     return (a.status == b.status and a.counters == b.counters and _same_bits(a.t, b.t)
             and _same_bits(a.u, b.u))
+
+
+def run_digest(traj: "Trajectory") -> str:
+    """A hash of what ``same_run`` compares (outcome, counters, the bits of every sample):
+    equal digests from two processes mean the same run, without sending the samples."""
+    import hashlib
+    import json
+
+    h = hashlib.sha1(json.dumps([traj.status, sorted(traj.counters.items())]).encode())
+    for x in (traj.t, traj.u):
+        x = np.ascontiguousarray(x)
+        h.update(repr((x.shape, x.dtype.str)).encode())
+        h.update(x.view(np.uint8).reshape(-1) if x.size else b"")
+    return h.hexdigest()
 
 
 def _same_bits(x: np.ndarray, y: np.ndarray) -> bool:
@@ -216,7 +263,8 @@ class Integrator(ABC):
         first.cpu_s, first.wall_s = min(cpu), min(wall)
         first.extra.update(repeats=len(cpu), cpu_s_median=float(np.median(cpu)), cpu_s_max=max(cpu),
                            wall_s_median=float(np.median(wall)), wall_s_max=max(wall),
-                           cpu_s_samples=[float(c) for c in cpu])  # for `longtime compare`'s rank test
+                           cpu_s_samples=[float(c) for c in cpu],  # for `longtime compare`'s rank test
+                           samples_digest=run_digest(first))  # the other timing processes must reproduce it
         return first
 
     @abstractmethod

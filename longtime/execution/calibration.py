@@ -19,7 +19,18 @@ the reference workload: a row of 2.0 took as long as two reference workloads), a
 calibrations of a run are kept in the store (``Store.calibrations``), so its drift can be
 read afterwards (``drift``).
 
-The kernel is compiled once and cached on disk (numba's cache): a process loads it.
+A cell whose working set leaves the caches (a large state, its work arrays and samples:
+``working_set_bytes`` of the row) runs at the speed of the memory, which a neighbour that
+streams memory slows while the compute-bound reference workload does not move
+(docs/performance.md, "Calibration and memory": measured). So each calibration also times a
+*memory workload*, ``MEMORY_PASSES`` passes of a triad over ``MEMORY_BYTES`` (beyond a
+core's own caches, within the shared one) timed ``MEMORY_REPEATS`` times, and keeps its
+minimum (``memory_cpu_s``); a row whose ``working_set_bytes`` passes ``MEMORY_BOUND_BYTES`` is
+calibrated by it (``cpu_s_calibrated`` in units of the memory workload,
+``calibration_workload`` = ``memory``), every other row by the reference workload
+(``compute``). compare divides calibrated times only where both rows used the same one.
+
+The kernels are compiled once and cached on disk (numba's cache): a process loads them.
 """
 from __future__ import annotations
 
@@ -38,6 +49,12 @@ INTERVAL = 5.0  # seconds between the calibrations of one process while it runs 
 # rows carry the calibrations their process took under this key until run_matrix stores
 # them in the run (it is never part of a stored row)
 POINTS_KEY = "_calibrations"
+MEMORY_BYTES = 8 * 2**20  # the memory workload's two arrays together (beyond L2, within L3)
+MEMORY_PASSES = 64  # passes a timed call makes: tens of milliseconds, as a large cell runs
+MEMORY_REPEATS = 2
+# a row whose working set passes this (beyond a core's share of the last-level cache) is
+# calibrated by the memory workload
+MEMORY_BOUND_BYTES = 4 * 2**20
 
 
 @numba.njit(cache=True, nogil=True)
@@ -55,9 +72,33 @@ def reference_workload(steps: int, h: float) -> float:
     return 0.5 * (q * q + p * p) - 0.5
 
 
-def measure(phase: str = "batch", repeats: int = REPEATS, steps: int = STEPS) -> dict[str, Any]:
+@numba.njit(cache=True, nogil=True)
+def memory_workload(a: np.ndarray, b: np.ndarray, passes: int) -> float:
+    """``passes`` passes of b = a + b / 2 over two arrays beyond the private caches, reused
+    pass after pass as a large cell reuses its state, work and samples: what a neighbour
+    that evicts the shared cache slows."""
+    for _ in range(passes):
+        for i in range(a.size):
+            b[i] = a[i] + 0.5 * b[i]
+    return b[0]
+
+
+_ARRAYS: list[np.ndarray] = []
+
+
+def _memory_arrays(nbytes: int) -> tuple[np.ndarray, np.ndarray]:
+    """The memory workload's arrays, allocated once per process and size."""
+    n = nbytes // 16
+    if not _ARRAYS or _ARRAYS[0].size != n:
+        _ARRAYS[:] = [np.ones(n), np.zeros(n)]
+    return _ARRAYS[0], _ARRAYS[1]
+
+
+def measure(phase: str = "batch", repeats: int = REPEATS, steps: int = STEPS,
+            memory_bytes: int = MEMORY_BYTES, memory_repeats: int = MEMORY_REPEATS) -> dict[str, Any]:
     """One calibration: the reference workload timed ``repeats`` times (after a call that
-    loads or compiles it)."""
+    loads or compiles it), then the memory workload ``memory_repeats`` times over
+    ``memory_bytes`` (0: not timed)."""
     reference_workload(10, 0.01)
     samples = []
     t = time.time()
@@ -65,9 +106,19 @@ def measure(phase: str = "batch", repeats: int = REPEATS, steps: int = STEPS) ->
         c0 = time.process_time()
         reference_workload(steps, 0.01)
         samples.append(time.process_time() - c0)
-    return {"t": t, "phase": phase, "pid": os.getpid(), "host": platform.node(), "steps": steps,
-            "cpu_s": min(samples), "cpu_s_median": statistics.median(samples), "cpu_s_max": max(samples),
-            "cpu_s_samples": samples}
+    point = {"t": t, "phase": phase, "pid": os.getpid(), "host": platform.node(), "steps": steps,
+             "cpu_s": min(samples), "cpu_s_median": statistics.median(samples), "cpu_s_max": max(samples),
+             "cpu_s_samples": samples}
+    if memory_bytes and memory_repeats:
+        a, b = _memory_arrays(memory_bytes)
+        memory_workload(a, b, 1)  # loads or compiles it, and touches every page
+        passes = []
+        for _ in range(memory_repeats):
+            c0 = time.process_time()
+            memory_workload(a, b, MEMORY_PASSES)
+            passes.append(time.process_time() - c0)
+        point.update(memory_bytes=memory_bytes, memory_cpu_s=min(passes), memory_cpu_s_samples=passes)
+    return point
 
 
 class Calibrator:
@@ -144,14 +195,29 @@ def nearest(points: list[dict[str, Any]], t: float) -> dict[str, Any] | None:
     return min(points, key=lambda p: abs(p["t"] - t)) if points else None
 
 
+def workload_for(row: dict[str, Any]) -> str:
+    """The workload that calibrates ``row``: ``memory`` where its working set passes
+    ``MEMORY_BOUND_BYTES``, else ``compute`` (the reference workload)."""
+    size = row.get("working_set_bytes")
+    return "memory" if isinstance(size, (int, float)) and size > MEMORY_BOUND_BYTES else "compute"
+
+
 def annotate(row: dict[str, Any], points: list[dict[str, Any]], t: float) -> None:
-    """``cpu_s_calibrated``, ``calibration_cpu_s`` and ``calibration_t`` of ``row`` from the
-    calibration of ``points`` nearest to ``t`` (nothing for a row without a CPU time)."""
+    """``cpu_s_calibrated``, ``calibration_cpu_s``, ``calibration_workload`` and
+    ``calibration_t`` of ``row`` from the calibration of ``points`` nearest to ``t``, by the
+    workload that fits the row (``workload_for``; the reference workload where the point has
+    no memory part) (nothing for a row without a CPU time)."""
     point = nearest(points, t)
     cpu = row.get("cpu_s")
     if point is None or not isinstance(cpu, (int, float)) or isinstance(cpu, bool) or not point["cpu_s"] > 0:
         return
-    row.update(cpu_s_calibrated=cpu / point["cpu_s"], calibration_cpu_s=point["cpu_s"], calibration_t=point["t"])
+    workload = workload_for(row)
+    if workload == "memory" and isinstance(point.get("memory_cpu_s"), (int, float)) and point["memory_cpu_s"] > 0:
+        unit = point["memory_cpu_s"]
+    else:
+        workload, unit = "compute", point["cpu_s"]
+    row.update(cpu_s_calibrated=cpu / unit, calibration_cpu_s=unit, calibration_workload=workload,
+               calibration_t=point["t"])
 
 
 def take_points(row: dict[str, Any]) -> list[dict[str, Any]]:

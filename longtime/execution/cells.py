@@ -281,6 +281,7 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         if keep is not None:
             keep.update(problem=problem, integrator=integrator, trajectory=traj, reference=ref, trust=trust)
         row.update(metrics.evaluate(problem, traj, ref, trust))
+        row["working_set_bytes"] = working_set(integrator, problem, traj)
         row["status"] = traj.status
         worst = max((e for e in (row.get("l2_error"), row.get("final_error")) if e is not None), default=None)
         row["solution_lost"] = None if worst is None else bool(worst >= O1_ERROR)
@@ -296,6 +297,20 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         row["status"] = "failed"
         row["message"] = "".join(traceback.format_exception_only(type(exc), exc)).strip()
     return row
+
+
+def working_set(integrator: Integrator, problem: Problem, traj: Trajectory) -> int:
+    """The bytes a run touches, roughly: its samples, its state and the scratch array its
+    steps use (``work_shape``); the calibration of a row beyond the caches takes the memory
+    workload (longtime.execution.calibration)."""
+    size = traj.t.nbytes + traj.u.nbytes + 2 * 8 * problem.dim
+    shape = getattr(integrator, "work_shape", None)
+    if shape is not None:
+        try:
+            size += 8 * int(math.prod(shape(problem)))
+        except Exception:  # a scheme whose scratch depends on more than the problem: its samples count
+            pass
+    return int(size)
 
 
 def cell_size(cell: Cell, dims: dict[str, int]) -> tuple[int, float, float]:

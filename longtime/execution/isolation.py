@@ -72,10 +72,7 @@ def _start(cell: Cell, max_samples: int, timeout: float | None, timing: Timing,
     job = {"cell": cell.to_dict(), "max_samples": max_samples, "parent": os.getpid(), "time_limit": time_limit,
            "timing": {"repeats": timing.repeats, "min_time": timing.min_time}, "memory_limit": memory_limit}
     (folder / "cell.json").write_text(json.dumps(job))
-    session = registry.session_payload()  # classes registered from Python, pickled by value
-    if session is not None:
-        (folder / "session.pkl").write_bytes(session)
-        (folder / "sys_path.json").write_text(json.dumps(sys.path))  # where their modules import from
+    write_session(folder)
     with open(folder / "stderr.txt", "wb") as err:
         proc = subprocess.Popen(
             [sys.executable, "-m", "longtime.execution.isolation", str(folder)],
@@ -85,7 +82,24 @@ def _start(cell: Cell, max_samples: int, timeout: float | None, timing: Timing,
     return _Child(cell, folder, proc, deadline)
 
 
-def _kill(proc: subprocess.Popen) -> None:
+def write_session(folder: Path) -> None:
+    """The classes registered from Python in this process (pickled by value) and where their
+    modules import from, for a child interpreter started on ``folder`` (``restore_session``)."""
+    session = registry.session_payload()
+    if session is not None:
+        (folder / "session.pkl").write_bytes(session)
+        (folder / "sys_path.json").write_text(json.dumps(sys.path))
+
+
+def restore_session(folder: Path) -> None:
+    """In the child: register what ``write_session`` saved in ``folder``."""
+    if (folder / "session.pkl").exists():
+        sys.path[:0] = [p for p in json.loads((folder / "sys_path.json").read_text()) if p not in sys.path]
+        registry.restore_session((folder / "session.pkl").read_bytes())
+
+
+def kill_group(proc: subprocess.Popen) -> None:
+    """Kill a child started with ``start_new_session`` and its children."""
     try:
         os.killpg(proc.pid, signal.SIGKILL)
     except (ProcessLookupError, PermissionError):
@@ -140,7 +154,7 @@ def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, time
                 if child.proc.poll() is not None:
                     yield child.cell, _finish(child, False, timeout)
                 elif time.perf_counter() > child.deadline:
-                    _kill(child.proc)
+                    kill_group(child.proc)
                     yield child.cell, _finish(child, True, timeout)
                 else:
                     still.append(child)
@@ -150,7 +164,7 @@ def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, time
     finally:  # interrupted: no orphan keeps computing, no folder stays
         for child in running:
             if child.proc.poll() is None:
-                _kill(child.proc)
+                kill_group(child.proc)
             shutil.rmtree(child.folder, ignore_errors=True)
 
 
@@ -166,9 +180,7 @@ def _child_main(folder: str) -> None:
     path = Path(folder)
     job = json.loads((path / "cell.json").read_text())
     die_with_parent(job["parent"])
-    if (path / "session.pkl").exists():
-        sys.path[:0] = [p for p in json.loads((path / "sys_path.json").read_text()) if p not in sys.path]
-        registry.restore_session((path / "session.pkl").read_bytes())
+    restore_session(path)
     set_memory_limit(job.get("memory_limit"))
     row = run_cell(Cell.from_dict(job["cell"]), job["max_samples"], timing=Timing(**job["timing"]),
                    time_limit=job.get("time_limit"))

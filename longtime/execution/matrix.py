@@ -34,6 +34,7 @@ from longtime.execution.cells import (
 from longtime.execution.isolation import run_isolated
 from longtime.execution.limits import Watchdog, default_memory_limit, grace, hard_limit, worker_init
 from longtime.execution.pool import spawn_pool
+from longtime.execution.processes import across_processes, default_processes
 from longtime.execution.pool import workers as pool_workers
 from longtime.execution.store import Store
 
@@ -51,6 +52,9 @@ class ExecOptions:
     # what each cell's cost is measured by besides time: "time" (only) or "instructions"
     # (also counted under Valgrind: longtime.execution.valgrind)
     cost: str = "time"
+    # processes that time each cell (longtime.execution.processes); the repeats of ``timing``
+    # are split among them
+    processes: int = field(default_factory=default_processes)
     # called with each cell as it starts in this process (the store marks it started)
     on_start: Callable[[Cell], None] | None = None
     # work for a pool worker that has no cell left to run (the results page's figures and
@@ -330,9 +334,12 @@ def get_executor(name: str) -> Executor:
 def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, executor: str = "process",
                options: ExecOptions | None = None, progress: bool = False,
                on_row: Callable[[Cell, dict], None] | None = None) -> list[dict]:
-    """Run the cells, storing each row as it completes (then ``on_row(cell, row)``); returns
-    the rows in cell order."""
+    """Run the cells, storing each row as it completes (then ``on_row(cell, row)``), then
+    time them in ``options.processes - 1`` more processes (longtime.execution.processes), each
+    stored row updated with their times; returns the rows in cell order."""
     options = options or ExecOptions()
+    processes = options.processes
+    options = dataclasses.replace(options, timing=options.timing.per_process(processes))
     if options.max_samples < 2:
         raise InputError(f"max_samples={options.max_samples} is not valid: must be >= 2")
     check_cost(options.cost)
@@ -365,7 +372,12 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
     finally:
         if bar is not None:
             bar.close()
+    found = [(cell, rows[cell.key]) for cell in cells if cell.key in rows]
+    changed = across_processes(found, processes, options.max_samples, options.timing, options.workers(),
+                               options.time_limit, options.memory_limit)
     if storing:
+        for cell in changed:
+            store.update_row(run_id, cell, rows[cell.key])
         store.add_calibrations(run_id, [here.take("after")])
     if options.cost == "instructions":  # after every timed run: Valgrind's process times nothing
         _add_instructions(cells, rows, store if storing else None, run_id, options)

@@ -128,10 +128,18 @@ def _now() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
 
-def environment() -> dict[str, Any]:
+def environment(cells: Iterable[Cell] = ()) -> dict[str, Any]:
+    """What a run measured on: package versions, the machine, and the code: ``versions``'
+    ``longtime_git`` (longtime's own commit and dirty flag) and ``code`` (the commit and dirty
+    flag of each repository that holds a problem or scheme of ``cells`` other than
+    longtime's: longtime.execution.provenance). ``git_commit`` is the commit of the code
+    measured: $LONGTIME_GIT_COMMIT where the caller names it, else the one repository of the
+    code under test, else longtime's own."""
     from importlib.metadata import PackageNotFoundError, version
 
-    versions = {"python": sys.version.split()[0]}
+    from longtime.execution import provenance
+
+    versions: dict[str, Any] = {"python": sys.version.split()[0]}
     for pkg in ("longtime", "numpy", "scipy", "numba", "heyoka", "pandas", "rebound"):
         try:
             versions[pkg] = version(pkg)
@@ -139,14 +147,12 @@ def environment() -> dict[str, Any]:
             versions[pkg] = None
     machine = {"platform": platform.platform(), "machine": platform.machine(),
                "processor": platform.processor(), "cpus": os.cpu_count(), "node": platform.node()}
-    # the commit of the code measured: $LONGTIME_GIT_COMMIT where the caller names it (a
-    # plugin's repository, a CI checkout), else longtime's own checkout
-    commit = os.environ.get("LONGTIME_GIT_COMMIT") or None
-    try:
-        commit = commit or subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
-                                          timeout=5, cwd=Path(__file__).parent).stdout.strip() or None
-    except (OSError, subprocess.SubprocessError):
-        commit = None
+    own = provenance.longtime_state()
+    code = provenance.of_cells(cells)
+    versions["longtime_git"] = {"commit": own["commit"], "dirty": own["dirty"]}
+    versions["code"] = code
+    committed = [c["commit"] for c in code if c.get("commit")]
+    commit = os.environ.get("LONGTIME_GIT_COMMIT") or (committed[0] if len(committed) == 1 else None) or own["commit"]
     return {"versions": versions, "machine": machine, "git_commit": commit}
 
 
@@ -284,7 +290,8 @@ class Store:
             raise StoreError(f"store {self.path}: cannot write {what}: {exc}", str(self.path), run_id) from exc
 
     def begin_run(self, command: str, cells: Iterable[Cell]) -> int:
-        env = environment()
+        cells = list(cells)
+        env = environment(cells)
         with self._writing("a new run"), closing(self._connect()) as con, con:
             cur = con.execute(
                 "INSERT INTO runs (started, status, command, git_commit, versions, machine) "
@@ -303,6 +310,14 @@ class Store:
                 "VALUES (?, ?, ?, ?, ?, ?, ?)",
                 (run_id, cell.key, row["problem"], row["integrator"], row["status"],
                  json.dumps(row), _now()))
+
+    def update_row(self, run_id: int, cell: Cell, row: dict[str, Any]) -> None:
+        """Replace the stored row of ``cell`` in ``run_id`` (its place in the run's order kept):
+        the cell's timing from other processes folded in after it was stored."""
+        what = f"the row of {cell.problem} x {cell.integrator} (run {run_id})"
+        with self._writing(what, run_id), self._writer_lock, self._row_writer() as con:
+            con.execute("UPDATE rows SET status = ?, row = ? WHERE run_id = ? AND cell_key = ?",
+                        (row["status"], json.dumps(row), run_id, cell.key))
 
     def mark_started(self, run_id: int, cell: Cell) -> None:
         """Record that this process starts ``cell`` (in-process executors): if the process

@@ -13,7 +13,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
-KINDS = ("pool", "cell", "valgrind")
+KINDS = ("pool", "cell", "valgrind", "timing")
 _NAME = re.compile(rf"longtime-(?:{'|'.join(KINDS)})-(\d+)-[^/]+")
 _swept = False
 

@@ -5,16 +5,19 @@ RUN_B). Cells are matched by problem, scheme, t_final and every setting. Per com
 
 - time: the ratio B / A of ``cpu_s_calibrated`` (the cell's CPU time in units of the
   machine's reference workload measured beside it, longtime.execution.calibration; ``--raw-time``:
-  of ``cpu_s``). Runs of identical code move by more than one run's repeats show: a batch
-  of cells (a problem x scheme pair, timed in one worker process) keeps one speed in its
-  process and may take another in the next (README, "compare": measured), so a time change is judged
-  against that spread, not by a test on the repeats. A cell is slower when its ratio
-  exceeds ``--cell-factor`` (``CELL_FACTOR``); a scheme (or a problem) is slower when the
-  median ratio of its batches over at least ``MIN_BATCHES`` problems (schemes) exceeds
-  ``--factor`` (``TIME_FACTOR``), and then each of its cells beyond ``--factor`` is
-  slower. Cells whose CPU time is below ``SHORT_CPU_S`` are too short to time: they say
-  so instead of a verdict. The Mann-Whitney p-value of the repeats (``p_slower``) is
-  still given, for reading only;
+  of ``cpu_s``). Runs of identical code move by more than one process's repeats show: a
+  cell keeps one speed in a process and may take another in the next (docs/performance.md,
+  "Two speeds"), so a time change is judged against the spread between processes, never
+  by a test on the repeats within one. Where both rows were timed in several processes
+  (``cpu_s_process_spread``, longtime.execution.processes), a cell is slower when its ratio
+  exceeds both ``--factor`` and the larger of the two rows' spreads between processes
+  (``time_threshold``); a row timed in one process only (a store from before, or
+  ``--processes 1``) is judged against ``--cell-factor`` (``CELL_FACTOR``). A scheme (or a
+  problem) is slower when the median ratio of its batches over at least ``MIN_BATCHES``
+  problems (schemes) exceeds ``--factor`` (``TIME_FACTOR``), and then each of its cells
+  beyond ``--factor`` is slower. Cells whose CPU time is below ``SHORT_CPU_S`` are too short
+  to time: they say so instead of a verdict. The Mann-Whitney p-value of the repeats
+  (``p_slower``) is still given, for reading only;
 - the machine: the reference workload's CPU time in each run (the median of its
   calibrations), and whether it differed;
 - accuracy: the ratio B / A of every error and drift field both rows have (``l2_error``,
@@ -85,11 +88,21 @@ def slower_p(a: list[float], b: list[float]) -> float | None:
 
 def _timed(a: dict, b: dict, raw: bool) -> tuple[str, float, float] | None:
     """(basis, time of A, time of B) of a cell: calibrated where both rows have it."""
-    if not raw and _number(a.get("cpu_s_calibrated")) and _number(b.get("cpu_s_calibrated")):
+    if not raw and _number(a.get("cpu_s_calibrated")) and _number(b.get("cpu_s_calibrated")) \
+            and (a.get("calibration_workload") or "compute") == (b.get("calibration_workload") or "compute"):
         return "calibrated", a["cpu_s_calibrated"], b["cpu_s_calibrated"]
     if _number(a.get("cpu_s")) and _number(b.get("cpu_s")):
         return "raw", a["cpu_s"], b["cpu_s"]
     return None
+
+
+def process_spread(a: dict, b: dict) -> float | None:
+    """The larger spread between processes (max / min of their minima) of two rows, where
+    both were timed in several processes (None otherwise)."""
+    spreads = [r.get("cpu_s_process_spread") for r in (a, b)]
+    if not all(_number(x) and x >= 1 for x in spreads):
+        return None
+    return max(spreads)
 
 
 def compare_rows(a: dict, b: dict, factor: float = TIME_FACTOR, error_factor: float = 2.0,
@@ -114,12 +127,19 @@ def compare_rows(a: dict, b: dict, factor: float = TIME_FACTOR, error_factor: fl
         basis, ta, tb = timed
         ratio = tb / ta
         out.update(time_basis=basis, time_a=ta, time_b=tb, time_ratio=ratio)
+        spread = process_spread(a, b)
+        if spread is not None:  # the spread between processes, measured in both runs
+            threshold = max(factor, spread)
+            why = f"beyond x{threshold:.3g}: the spread between processes x{spread:.3g} and --factor x{factor:g}"
+        else:
+            threshold, why = cell_factor, f"cell beyond x{cell_factor:g}"
+        out.update(process_spread=spread, time_threshold=threshold)
         if min(a["cpu_s"], b["cpu_s"]) < short:
             out["time_verdict"] = "too short"
-        elif ratio > cell_factor:
-            _slower(out, f"cell beyond x{cell_factor:g}")
-        elif ratio < 1 / cell_factor:
-            _faster(out, f"cell beyond x{cell_factor:g}")
+        elif ratio > threshold:
+            _slower(out, why)
+        elif ratio < 1 / threshold:
+            _faster(out, why)
         else:
             out["time_verdict"] = "within"
     _judge_instructions(out, a, b, instruction_factor)
@@ -358,10 +378,21 @@ def _error_medians(cells: list[dict]) -> dict[str, float]:
     return {f: float(np.median(v)) for f, v in sorted(by.items())}
 
 
-def _label(c: dict) -> str:
-    from longtime.reporting.report import setting
-
-    return f"{c['problem']} {c['integrator']} {setting(c)}".strip()
+def label(cell: dict) -> str:
+    """Every setting that tells two cells apart (``compare.MATCH_KEYS``), t_final included,
+    each value to full precision: two cells never share a header."""
+    parts = [str(cell.get("problem")), str(cell.get("integrator"))]
+    for k in MATCH_KEYS[2:]:
+        v = cell.get(k)
+        if v is None or v == "":
+            continue
+        if k == "settings":
+            parts.append(str(v))
+        elif isinstance(v, float):
+            parts.append(f"{k}={v:.17g}" if float(f"{v:.6g}") != v else f"{k}={v:g}")
+        else:
+            parts.append(f"{k}={v}")
+    return " ".join(parts)
 
 
 def _counts_text(counts: dict[str, dict[str, int]], result: dict) -> str:
@@ -391,6 +422,8 @@ def render(result: dict[str, Any], show_all: bool = False) -> str:
              f"{result['regressed']} regressed, {result['improved']} improved",
              _counts_text(result["counts"], result), machine_text(result["machine"])]
     lines += _instructions_text(result)
+    if result.get("provenance"):
+        lines += provenance_lines(result["provenance"])
     for kind, over in (("schemes", "problems"), ("problems", "schemes")):
         judged = [f"{name} x{g['median_ratio']:.3g} ({g['verdict']}, {g['batches']} {over})"
                   for name, g in result[kind].items() if g["verdict"] is not None
@@ -422,7 +455,7 @@ def render(result: dict[str, Any], show_all: bool = False) -> str:
                     cpu += " (too short to time)"
             else:
                 cpu = f"cpu x{c['cpu_ratio']:.3g}" if c.get("cpu_ratio") is not None else "cpu -"
-            text = f"  {'REGRESSED' if c['regressions'] else 'ok':9s} {_label(c)}"
+            text = f"  {'REGRESSED' if c['regressions'] else 'ok':9s} {label(c)}"
             if c["time_verdict"] not in ("slower", "faster"):  # those say it below
                 text += f": {cpu}"
             if c["regressions"]:
@@ -464,16 +497,45 @@ def run_compare(db_a, run_a, db_b, run_b, factor: float = TIME_FACTOR, error_fac
                      instruction_factor=instruction_factor)
     if not result["cells"]:
         raise InputError(f"runs {run_a} and {run_b} have no cell in common")
+    result["provenance"] = {"a": provenance(_store(db_a).run(int(run_a))), "b": provenance(_store(db_b).run(int(run_b)))}
     return result
+
+
+def provenance(run: dict[str, Any]) -> dict[str, Any]:
+    """What a stored run measured: its commit, longtime's commit and dirty flag, and the code
+    under test (longtime.execution.provenance)."""
+    from longtime.execution.provenance import run_code
+
+    try:
+        versions = json.loads(run.get("versions") or "{}")
+    except ValueError:
+        versions = {}
+    own = versions.get("longtime_git") if isinstance(versions, dict) else None
+    return {"git_commit": run.get("git_commit"), "longtime": versions.get("longtime") if isinstance(versions, dict)
+            else None, "longtime_git": own if isinstance(own, dict) else None, "code": run_code(run)}
+
+
+def provenance_lines(prov: dict[str, Any]) -> list[str]:
+    from longtime.execution.provenance import text
+
+    lines = []
+    for side in ("a", "b"):
+        p = prov[side]
+        own = p.get("longtime_git") or {}
+        mine = f"{(own.get('commit') or '-')[:10]}{'+dirty' if own.get('dirty') else ''}"
+        lines.append(f"run {side.upper()}: commit {(p.get('git_commit') or '-')[:10]}; longtime {p.get('longtime') or '-'} "
+                     f"({mine}); code under test: {text(p.get('code') or [])}")
+    return lines
 
 
 def report(result: dict[str, Any], fmt: str = "table", show_all: bool = False) -> int:
     """Print ``result`` (stdout) and the verdict (stderr); the exit code: 1 if anything regressed."""
     print(json.dumps(result, indent=1) if fmt == "json" else render(result, show_all=show_all))
     if result["regressed"]:
-        print(f"{result['regressed']} cell(s) regressed: slower beyond the spread of identical runs "
-              f"(x{result['cell_factor']:g} a cell, x{result['factor']:g} a scheme or problem), more instructions "
-              f"beyond x{result.get('instruction_factor', INSTRUCTION_FACTOR):g}, less accurate "
+        print(f"{result['regressed']} cell(s) regressed: slower beyond the spread between processes and "
+              f"x{result['factor']:g} (x{result['cell_factor']:g} a cell timed in one process, x{result['factor']:g} "
+              f"a scheme or problem), more instructions beyond "
+              f"x{result.get('instruction_factor', INSTRUCTION_FACTOR):g}, less accurate "
               f"beyond the error factor, or no longer ok", file=sys.stderr)
     return 1 if result["regressed"] else 0
 
@@ -490,7 +552,9 @@ def add_time_flags(p) -> None:
                    help=f"time ratio of a scheme or a problem (median over its batches) that counts as slower "
                         f"(default {TIME_FACTOR:g}: beyond the measured spread of identical runs)")
     p.add_argument("--cell-factor", type=float, default=CELL_FACTOR,
-                   help=f"time ratio of a single cell that counts as slower (default {CELL_FACTOR:g})")
+                   help=f"time ratio of a single cell timed in one process that counts as slower (default "
+                        f"{CELL_FACTOR:g}); a cell timed in several processes is judged against the spread "
+                        f"between them and --factor")
     p.add_argument("--error-factor", type=float, default=2.0,
                    help="error ratio that counts as less accurate (default 2)")
     p.add_argument("--raw-time", action="store_true",

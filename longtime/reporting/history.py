@@ -8,8 +8,12 @@ reference workload, longtime.execution.calibration) and every error and drift fi
 (``asv.step_detect.detect_steps``: a piecewise-constant fit, the Potts model asv uses for
 its regression reports), then read as a benchmark suite reads them:
 
-- neighbouring pieces closer than the factor (time: ``compare.TIME_FACTOR``; errors:
-  ``ERROR_FACTOR``) are one level;
+- neighbouring pieces closer than the factor are one level. For time the factor is the
+  series' spread between processes (the median over its runs of ``cpu_s_process_spread``:
+  how far one cell's time moves from one process to the next, longtime.execution.processes)
+  and at least ``compare.TIME_FACTOR``; runs timed in one process only leave it at
+  ``compare.TIME_FACTOR``; the repeats within one process never set it. Errors:
+  ``ERROR_FACTOR``;
 - for time, a level held by fewer than ``MIN_RUNS`` runs between two levels that agree is a
   run's chance (one batch of cells keeps one speed in its process: README, "compare"),
   not a step, unless it is the latest run; errors are deterministic, so every level counts;
@@ -18,9 +22,13 @@ its regression reports), then read as a benchmark suite reads them:
   less / more accurate. Errors at round-off (below ``compare.ROUND_OFF`` on both sides)
   make no step.
 
-Where runs counted instructions (``--cost instructions``), ``instructions`` is a series
-too: deterministic, so every level counts, and neighbouring levels within
-``compare.INSTRUCTION_FACTOR`` are one level.
+Each series is one entry of ``series_specs``: its field, how its factor is found and how
+its steps are named. Where runs counted instructions (``--cost instructions``),
+``instructions`` is a series too: deterministic, so every level counts, and neighbouring
+levels within ``compare.INSTRUCTION_FACTOR`` are one level.
+The header of a cell names every setting that tells two cells apart (``label``), t_final
+included; each run shows the commit of longtime and of the code under test
+(longtime.execution.provenance).
 """
 from __future__ import annotations
 
@@ -37,9 +45,11 @@ from longtime.reporting.compare import (
     TIME_FACTOR,
     cell_key,
     error_fields,
+    label,
 )
 
 TIME_FIELD = "cpu_s_calibrated"
+SPREAD_FIELD = "cpu_s_process_spread"
 INSTRUCTIONS_FIELD = "instructions"
 ERROR_FACTOR = 2.0
 MIN_RUNS = 2
@@ -129,13 +139,47 @@ def _same(have, text: str) -> bool:
         return str(have).lower() == text.lower()
 
 
+def process_factor(points: list[dict[str, Any]], factor: float) -> float:
+    """The factor a time step must pass in a cell's series: the median over its runs of the
+    spread between processes (``cpu_s_process_spread``), at least ``factor``."""
+    spreads = sorted(p[SPREAD_FIELD] for p in points
+                     if p.get("status") == "ok" and isinstance(p.get(SPREAD_FIELD), (int, float)))
+    if not spreads:
+        return factor
+    n = len(spreads)
+    median = spreads[n // 2] if n % 2 else math.sqrt(spreads[n // 2 - 1] * spreads[n // 2])
+    return max(factor, median)
+
+
+def series_specs(points: list[dict[str, Any]], errors: list[str], factor: float,
+                 error_factor: float) -> list[dict[str, Any]]:
+    """The series of one cell whose steps are found: per series its ``field``, the
+    ``factor`` a step must pass, ``min_runs`` (a shorter level between two that agree is
+    chance), ``floor`` (both levels at or below it: no step), ``kinds`` (the names of a
+    rise and of a fall) and, for time, the ``basis`` of its factor."""
+    time_factor = process_factor(points, factor)
+    specs = [{"field": TIME_FIELD, "factor": time_factor, "min_runs": MIN_RUNS, "floor": 0.0,
+              "kinds": ("slower", "faster"),
+              "basis": "spread between processes" if time_factor > factor else f"x{factor:g}"}]
+    specs += [{"field": f, "factor": error_factor, "min_runs": 1, "floor": ROUND_OFF,
+               "kinds": ("less accurate", "more accurate")} for f in errors]
+    if any(isinstance(p.get(INSTRUCTIONS_FIELD), int) for p in points):  # deterministic: every level counts
+        specs.append({"field": INSTRUCTIONS_FIELD, "factor": INSTRUCTION_FACTOR, "min_runs": 1, "floor": 0.0,
+                      "kinds": ("more instructions", "fewer instructions")})
+    return specs
+
+
 def history(store, problems=None, schemes=None, sets: dict[str, str] | None = None,
             factor: float = TIME_FACTOR, error_factor: float = ERROR_FACTOR,
             fields: tuple[str, ...] | None = None) -> list[dict[str, Any]]:
     """Per cell identity (in the store's order of first appearance): ``cell`` (the matched
-    keys), ``runs`` (per run holding the cell, by run id: run_id, commit, date, status,
-    cpu_s, cpu_s_calibrated and every error field) and ``steps`` (field, run_id, commit,
-    date, before, after, ratio, kind) of every series, or of ``fields`` only."""
+    keys), ``runs`` (per run holding the cell, by run id: run_id, commit, code (the commit and
+    dirty flag of the code under test), date, status, cpu_s, cpu_s_calibrated, each process's
+    minimum and their spread, and every error field), ``time_factor`` (the factor a time step
+    had to pass) and ``steps`` (field, run_id, commit, date, before, after, ratio, factor,
+    kind) of every series, or of ``fields`` only."""
+    from longtime.execution.provenance import run_code
+
     runs = {r["id"]: r for r in store.runs()}
     only = fields
     cells: dict[tuple, dict[int, dict]] = {}
@@ -150,39 +194,37 @@ def history(store, problems=None, schemes=None, sets: dict[str, str] | None = No
         points = []
         for rid in ids:
             r, run = by_run[rid], runs.get(rid, {})
-            points.append({"run_id": rid, "commit": run.get("git_commit"), "date": run.get("started"),
-                           "status": r.get("status"), "cpu_s": r.get("cpu_s"), TIME_FIELD: r.get(TIME_FIELD),
-                           **{f: r.get(f) for f in errors}, INSTRUCTIONS_FIELD: r.get(INSTRUCTIONS_FIELD)})
-        counted = any(isinstance(p[INSTRUCTIONS_FIELD], int) for p in points)
+            points.append({"run_id": rid, "commit": run.get("git_commit"), "code": run_code(run),
+                           "date": run.get("started"), "status": r.get("status"), "cpu_s": r.get("cpu_s"),
+                           TIME_FIELD: r.get(TIME_FIELD), "cpu_s_processes": r.get("cpu_s_processes"),
+                           SPREAD_FIELD: r.get(SPREAD_FIELD), **{f: r.get(f) for f in errors},
+                           INSTRUCTIONS_FIELD: r.get(INSTRUCTIONS_FIELD)})
         found = []
-        for field in (TIME_FIELD, *errors, *([INSTRUCTIONS_FIELD] if counted else [])):
+        specs = series_specs(points, errors, factor, error_factor)
+        for spec in specs:
+            field = spec["field"]
             if only is not None and field not in only:
                 continue
             values = [p[field] if p["status"] == "ok" and isinstance(p.get(field), (int, float)) else None
                       for p in points]
-            is_time, is_count = field == TIME_FIELD, field == INSTRUCTIONS_FIELD
-            judged = (factor, MIN_RUNS, 0.0) if is_time else (INSTRUCTION_FACTOR, 1, 0.0) if is_count else \
-                (error_factor, 1, ROUND_OFF)
-            for s in steps(values, *judged):
+            for s in steps(values, spec["factor"], spec["min_runs"], spec["floor"]):
                 p = points[s["index"]]
-                up = s["ratio"] > 1
-                kind = ("slower" if up else "faster") if is_time else \
-                    ("more instructions" if up else "fewer instructions") if is_count else \
-                    ("less accurate" if up else "more accurate")
-                found.append({"field": field, "run_id": p["run_id"], "commit": p["commit"], "date": p["date"],
-                              "before": s["before"], "after": s["after"], "ratio": s["ratio"], "kind": kind})
-        out.append({"cell": {k: first.get(k) for k in MATCH_KEYS}, "runs": points, "steps": found})
+                kind = spec["kinds"][0] if s["ratio"] > 1 else spec["kinds"][1]
+                found.append({"field": field, "run_id": p["run_id"], "commit": p["commit"], "code": p["code"],
+                              "date": p["date"], "before": s["before"], "after": s["after"], "ratio": s["ratio"],
+                              "factor": spec["factor"], "kind": kind})
+        out.append({"cell": {k: first.get(k) for k in MATCH_KEYS}, "runs": points,
+                    "time_factor": specs[0]["factor"], "time_factor_basis": specs[0]["basis"], "steps": found})
     return out
-
-
-def _label(cell: dict) -> str:
-    from longtime.reporting.report import setting
-
-    return f"{cell['problem']} {cell['integrator']} {setting(cell)}".strip()
 
 
 def _short(commit: str | None) -> str:
     return (commit or "-")[:10]
+
+
+def _code(code: list[dict] | None) -> str:
+    """The commits of the code under test outside longtime ('-' for longtime's own), dirty marked."""
+    return ",".join(f"{_short(c.get('commit'))}{'+dirty' if c.get('dirty') else ''}" for c in code or []) or "-"
 
 
 def render(found: list[dict[str, Any]]) -> str:
@@ -191,11 +233,15 @@ def render(found: list[dict[str, Any]]) -> str:
     parts = []
     for c in found:
         shown = [f for f in (*SHOWN_ERRORS, INSTRUCTIONS_FIELD) if any(p.get(f) is not None for p in c["runs"])]
-        header = ["run", "commit", "date", "status", "time (calibrated)", "cpu_s", *shown]
-        body = [[str(p["run_id"]), _short(p["commit"]), (p["date"] or "-")[:19], str(p["status"]),
-                 number(p[TIME_FIELD]), number(p["cpu_s"]), *(number(p.get(f)) for f in shown)] for p in c["runs"]]
+        header = ["run", "commit", "code", "date", "status", "time (calibrated)", "cpu_s", "processes",
+                  "spread", *shown]
+        body = [[str(p["run_id"]), _short(p["commit"]), _code(p.get("code")), (p["date"] or "-")[:19], str(p["status"]),
+                 number(p[TIME_FIELD]), number(p["cpu_s"]), str(len(p.get("cpu_s_processes") or []) or "-"),
+                 f"x{p[SPREAD_FIELD]:.3g}" if isinstance(p.get(SPREAD_FIELD), (int, float)) else "-",
+                 *(number(p.get(f)) for f in shown)] for p in c["runs"]]
         widths = [max(len(h), *(len(r[i]) for r in body)) for i, h in enumerate(header)]
-        lines = [f"== {_label(c['cell'])}: {len(c['runs'])} run{'s' if len(c['runs']) != 1 else ''} =="]
+        lines = [f"== {label(c['cell'])}: {len(c['runs'])} run{'s' if len(c['runs']) != 1 else ''}; a time "
+                 f"step passes x{c['time_factor']:.3g} ({c['time_factor_basis']}) =="]
         lines += ["  " + "  ".join(x.ljust(w) for x, w in zip(row, widths)) for row in [header, *body]]
         for s in c["steps"]:
             name = "time" if s["field"] == TIME_FIELD else s["field"]

@@ -43,6 +43,18 @@ from longtime.reporting.report import (
 PAGE_NAME = "index.html"
 
 
+def provenance_text(run: dict) -> str:
+    """longtime's commit (dirty marked) and the code under test of a stored run."""
+    from longtime.execution import provenance
+
+    versions = json.loads(run["versions"]) if run.get("versions") else {}
+    own = versions.get("longtime_git") if isinstance(versions, dict) else None
+    mine = ""
+    if isinstance(own, dict) and own.get("commit"):
+        mine = f"longtime {own['commit'][:10]}{'+dirty' if own.get('dirty') else ''}; "
+    return mine + provenance.text(provenance.run_code(run))
+
+
 def _meta(runs: list[dict]) -> str:
     body = []
     for r in runs:
@@ -52,7 +64,8 @@ def _meta(runs: list[dict]) -> str:
                  ["command", f"longtime {r.get('command') or ''}"],
                  ["started / finished", f"{r.get('started')} / {r.get('finished') or '-'}"],
                  ["commit", r.get("git_commit") or "-"],
-                 ["versions", ", ".join(f"{k} {v}" for k, v in versions.items() if v)],
+                 ["code under test", provenance_text(r)],
+                 ["versions", ", ".join(f"{k} {v}" for k, v in versions.items() if v and isinstance(v, str))],
                  ["machine", ", ".join(f"{k} {v}" for k, v in machine.items() if v)]]
         if "calibrations" in r:
             from longtime.execution.calibration import drift_text

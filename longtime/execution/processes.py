@@ -1,0 +1,242 @@
+"""A cell's time from several processes.
+
+Where a process's code and data land in memory (address randomisation, the heap's state,
+which core and which neighbour it shares) and what else the machine runs while it lives
+can hold a cell at one speed for the whole process and at another in the next
+(docs/performance.md, "Two speeds"): the minimum of the repeats within one process cannot
+see that. So a timed cell runs in ``processes`` processes (``DEFAULT_PROCESSES``,
+``--processes``): the process that measures its row (metrics, reference, samples), then
+``processes - 1`` fresh interpreters started here that only time its integration
+(``time_cells``), loading its kernel from the kernel cache, with the determinism check
+alone: each must reproduce the row's run bit for bit (``samples_digest``), else the row is
+``failed`` (non-deterministic). The repeats are split among the processes
+(``Timing.per_process``), so the timed runs cost about what one process's did.
+
+The row then keeps each process's minimum (``cpu_s_processes``, the row's own process
+first) and their spread (``cpu_s_process_spread`` = max / min, a factor >= 1); ``cpu_s`` is
+the minimum over the processes, as within a process: noise and an unlucky placement only
+ever add time, so the fastest process is the one least disturbed, and the minimum of
+several processes holds across invocations where one process's does not. ``repeats`` and
+``cpu_s_samples`` count every timed run of every process. Verdicts (compare, history,
+``--baseline``) judge a change against the spread between processes.
+
+A cell whose single run takes longer than ``Timing.ONCE_ABOVE`` is timed once, in its own
+process only (its cost dwarfs the spread; the row says so); a cell that did not end ``ok``
+is not timed again.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any, Iterable
+
+from longtime.core.integrator import Timing
+from longtime.core.params import InputError
+from longtime.execution import tempdirs
+from longtime.execution.cells import Cell, build
+
+DEFAULT_PROCESSES = 3
+# $LONGTIME_PROCESSES sets the default of --processes (a test session sets 1)
+ENV = "LONGTIME_PROCESSES"
+# a child that times cells may take this long beyond the timed runs it repeats (an
+# interpreter start, imports, kernels loaded from the cache)
+START_S = 120.0
+POLL_S = 0.05
+
+
+def check_processes(value: Any, name: str = "--processes") -> int:
+    """A process count: an integer >= 1 (one line naming ``name`` otherwise)."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        try:
+            value = int(str(value), 10)
+        except ValueError:
+            raise InputError(f"{name} {value!r}: expected an integer >= 1 (processes that time each cell)") from None
+    if value < 1:
+        raise InputError(f"{name} {value}: expected an integer >= 1 (processes that time each cell)")
+    return value
+
+
+def default_processes() -> int:
+    """``$LONGTIME_PROCESSES`` or ``DEFAULT_PROCESSES``."""
+    value = os.environ.get(ENV)
+    return DEFAULT_PROCESSES if not value else check_processes(value, f"${ENV}")
+
+
+def timed_elsewhere(row: dict[str, Any]) -> bool:
+    """Whether other processes time this row's cell: an ``ok`` run with a time and a digest,
+    short enough to have been repeated (``Timing.ONCE_ABOVE``)."""
+    wall = row.get("wall_s")
+    return (row.get("status") == "ok" and isinstance(row.get("cpu_s"), (int, float))
+            and bool(row.get("samples_digest")) and isinstance(wall, (int, float)) and wall <= Timing.ONCE_ABOVE)
+
+
+def time_cells(cells: list[Cell], max_samples: int, timing: Timing,
+               time_limit: float | None = None) -> list[dict[str, Any]]:
+    """In this process, each cell's integration alone, timed by ``timing``: per cell its
+    ``cpu_s`` (the minimum), ``wall_s``, ``cpu_s_samples``, ``samples_digest``, ``status``
+    and ``pid``; a cell that raises gives ``status`` failed and its ``message``."""
+    out = []
+    for cell in cells:
+        try:
+            problem, integrator = build(cell)
+            t_final = problem.default_t_final if cell.t_final is None else cell.t_final
+            deadline = time.monotonic() + time_limit if time_limit else None
+            traj = integrator.integrate(problem, t_final, max_samples=max_samples, timing=timing, deadline=deadline)
+            out.append({"status": traj.status, "message": traj.message, "cpu_s": traj.cpu_s, "wall_s": traj.wall_s,
+                        "cpu_s_samples": traj.extra.get("cpu_s_samples", []),
+                        "samples_digest": traj.extra.get("samples_digest"), "pid": os.getpid()})
+        except (Exception, SystemExit) as exc:
+            out.append({"status": "failed", "message": f"{type(exc).__name__}: {exc}", "pid": os.getpid()})
+    return out
+
+
+def merge(row: dict[str, Any], others: list[dict[str, Any]], processes: int) -> None:
+    """Fold the timings of other processes (``time_cells``' results for this row's cell) into
+    ``row``: each process's minimum, their spread, ``cpu_s`` the minimum, every sample; a
+    process whose run differs from the row's makes the row ``failed``."""
+    if not isinstance(row.get("cpu_s"), (int, float)):
+        return
+    mins, walls, samples = [row["cpu_s"]], [row.get("wall_s")], list(row.get("cpu_s_samples") or [row["cpu_s"]])
+    missing = []
+    for o in others:
+        if o.get("status") == "ok" and o.get("samples_digest") == row.get("samples_digest"):
+            mins.append(o["cpu_s"])
+            walls.append(o["wall_s"])
+            samples += o["cpu_s_samples"]
+        elif o.get("status") == "ok" or o.get("samples_digest"):
+            row["status"] = "failed"
+            row["message"] = "; ".join(m for m in (
+                row.get("message"), f"non-deterministic: the run timed in another process (pid {o.get('pid')}) did "
+                                    f"not reproduce this row's run bitwise ({o.get('status')})") if m)
+            break
+        else:
+            missing.append(o.get("message") or o.get("status") or "no result")
+    row["cpu_s_processes"] = mins
+    row["cpu_s_process_spread"] = max(mins) / min(mins) if len(mins) > 1 and min(mins) > 0 else None
+    if len(mins) > 1:
+        row["cpu_s"] = min(mins)
+        row["wall_s"] = min(w for w in walls if isinstance(w, (int, float)))
+        samples.sort()
+        n = len(samples)
+        row.update(cpu_s_samples=samples, repeats=n, cpu_s_max=samples[-1],
+                   cpu_s_median=samples[n // 2] if n % 2 else 0.5 * (samples[n // 2 - 1] + samples[n // 2]))
+        if isinstance(row.get("calibration_cpu_s"), (int, float)) and row["calibration_cpu_s"] > 0:
+            row["cpu_s_calibrated"] = row["cpu_s"] / row["calibration_cpu_s"]
+    if len(mins) < processes and row.get("status") == "ok":
+        why = f": {missing[0]}" if missing else ""
+        note = f"timed in {len(mins)} of {processes} processes{why}"
+        row["message"] = f"{row['message']}; {note}" if row.get("message") else note
+
+
+def one_process(row: dict[str, Any]) -> None:
+    """The process fields of a row timed in its own process only."""
+    if isinstance(row.get("cpu_s"), (int, float)):
+        row.setdefault("cpu_s_processes", [row["cpu_s"]])
+        row.setdefault("cpu_s_process_spread", None)
+
+
+def across_processes(pairs: Iterable[tuple[Cell, dict[str, Any]]], processes: int, max_samples: int,
+                     timing: Timing, jobs: int = 1, time_limit: float | None = None,
+                     memory_limit: int | None = None) -> list[Cell]:
+    """Time the cells of ``pairs`` (cell, its row as measured) in ``processes - 1`` fresh
+    processes, ``jobs`` at a time, and fold their times into the rows (``merge``); rows not
+    timed elsewhere get their own process's fields. Returns the cells whose rows changed."""
+    pairs = list(pairs)
+    todo = [(c, r) for c, r in pairs if processes > 1 and timed_elsewhere(r)]
+    chosen = {id(r) for _, r in todo}
+    for _, row in pairs:
+        if id(row) not in chosen:
+            one_process(row)
+    if not todo:
+        return []
+    cells = [c for c, _ in todo]
+    budget = START_S + 10 * sum(float(r["wall_s"]) * len(r.get("cpu_s_samples") or [1]) for _, r in todo)
+    results = run_children(cells, processes - 1, max_samples, timing, jobs, budget, time_limit, memory_limit)
+    for k, (cell, row) in enumerate(todo):
+        merge(row, [res[k] if res is not None else {"status": "failed", "message": err}
+                    for res, err in results], processes)
+    return cells
+
+
+def run_children(cells: list[Cell], count: int, max_samples: int, timing: Timing, jobs: int, timeout: float,
+                 time_limit: float | None, memory_limit: int | None) -> list[tuple[list[dict] | None, str]]:
+    """``count`` fresh interpreters, ``jobs`` at a time, each timing every cell of ``cells``
+    (``time_cells``): per child (its results, "") or (None, why it gave none)."""
+    from longtime.execution.isolation import kill_group, write_session
+
+    job = {"cells": [c.to_dict() for c in cells], "max_samples": max_samples, "parent": os.getpid(),
+           "timing": {"repeats": timing.repeats, "min_time": timing.min_time, "min_runs": timing.min_runs},
+           "time_limit": time_limit, "memory_limit": memory_limit}
+    waiting, running, done = list(range(count)), [], {}
+    folders = []
+    try:
+        while waiting or running:
+            while waiting and len(running) < max(1, jobs):
+                index = waiting.pop(0)
+                folder = tempdirs.make("timing")
+                folders.append(folder)
+                (folder / "job.json").write_text(json.dumps(job))
+                write_session(folder)
+                with open(folder / "stderr.txt", "wb") as err:
+                    proc = subprocess.Popen([sys.executable, "-m", "longtime.execution.processes", str(folder)],
+                                            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err,
+                                            start_new_session=True)
+                running.append((index, folder, proc, time.monotonic() + timeout))
+            still = []
+            for index, folder, proc, deadline in running:
+                if proc.poll() is not None:
+                    done[index] = _result(folder, proc)
+                elif time.monotonic() > deadline:
+                    kill_group(proc)
+                    done[index] = (None, f"the timing process passed {timeout:.0f} s and was stopped")
+                else:
+                    still.append((index, folder, proc, deadline))
+            if len(still) == len(running):
+                time.sleep(POLL_S)
+            running = still
+    finally:
+        for _, _, proc, _ in running:
+            if proc.poll() is None:
+                kill_group(proc)
+        for folder in folders:
+            for p in folder.iterdir():
+                p.unlink()
+            folder.rmdir()
+    return [done[i] for i in range(count)]
+
+
+def _result(folder: Path, proc: subprocess.Popen) -> tuple[list[dict] | None, str]:
+    out = folder / "result.json"
+    if out.exists():
+        return json.loads(out.read_text()), ""
+    tail = (folder / "stderr.txt").read_text(errors="replace").strip()[-300:]
+    return None, f"the timing process exited with code {proc.returncode}" + (f" ({tail})" if tail else "")
+
+
+def _child_main(folder: str) -> None:
+    from longtime.execution.isolation import restore_session
+    from longtime.execution.limits import die_with_parent, set_memory_limit
+
+    path = Path(folder)
+    job = json.loads((path / "job.json").read_text())
+    die_with_parent(job["parent"])
+    try:
+        restore_session(path)
+    except Exception as exc:  # a registered class that cannot be rebuilt here: its cells fail alone
+        print(f"longtime: the session's registered classes could not be restored: {exc!r}", file=sys.stderr)
+    set_memory_limit(job.get("memory_limit"))
+    results = time_cells([Cell.from_dict(c) for c in job["cells"]], job["max_samples"], Timing(**job["timing"]),
+                         job.get("time_limit"))
+    tmp = path / "result.json.part"
+    tmp.write_text(json.dumps(results))
+    tmp.replace(path / "result.json")  # atomic: the parent never reads half a result
+    sys.stderr.flush()
+    os._exit(0)  # skip interpreter teardown (numba's and LLVM's)
+
+
+if __name__ == "__main__":
+    _child_main(sys.argv[1])
