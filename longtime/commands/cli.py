@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from longtime.commands import guard
-from longtime.core import cli_args, registry
+from longtime.core import cli_args, phases, registry
 from longtime.core.cache import check_cache_root
 from longtime.core.integrator import Timing
 from longtime.core.params import InputError
@@ -186,6 +186,7 @@ def cmd_run(args) -> int:
 
 
 def cmd_matrix(args) -> int:
+    phases.since_process_start("startup")  # the interpreter, the imports, the plugins
     _warn_broken()
     executor = args.executor or "process"
     options = _options(args, executor)
@@ -207,9 +208,10 @@ def cmd_matrix(args) -> int:
     else:
         problems = args.problem or registry.default_problems()
         schemes = args.integrator or sorted(registry.integrators())
-        cells = expand(problems, schemes, **_selection(args), default_sweep=True)
-        if not args.allow_large:
-            check_size(cells, args.max_samples, args.memory_limit)
+        with phases.phase("plan"):
+            cells = expand(problems, schemes, **_selection(args), default_sweep=True)
+            if not args.allow_large:
+                check_size(cells, args.max_samples, args.memory_limit)
         store, run_id, died = Store(args.db), None, []
     if args.baseline is not None:
         store.run(args.baseline)  # an unknown baseline is bad input, caught up front
@@ -234,11 +236,14 @@ def cmd_matrix(args) -> int:
         page = None
         if not args.no_html:  # the results page first, so that a long report ends with its path
             try:
-                page = write_html(args.html or store.path.parent / "longtime-report" / f"run-{run_id}", rows,
-                                  store, [run_id], ahead=ahead)  # default: beside the store
+                with phases.phase("page"):
+                    page = write_html(args.html or store.path.parent / "longtime-report" / f"run-{run_id}", rows,
+                                      store, [run_id], ahead=ahead)  # default: beside the store
             except Exception as exc:  # the rows are stored; `longtime report --html DIR` can retry
                 print(f"warning: results page not written: {type(exc).__name__}: {exc}", file=sys.stderr)
-        print(report_text(rows, "table", full=args.full))
+        with phases.phase("report"):
+            text = report_text(rows, "table", full=args.full)
+        print(text)
         print(f"\ncalibration: {drift_text(store.calibrations(run_id))}")
         if page is not None:
             print(f"\nresults page: {page}")

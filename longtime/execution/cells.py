@@ -15,7 +15,7 @@ import traceback
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping
 
-from longtime.core import registry, roles
+from longtime.core import phases, registry, roles
 from longtime.core.integrator import FixedStepIntegrator, Integrator, Timing, Trajectory
 from longtime.core.outputs import to_stderr
 from longtime.core.params import InputError, check_time_span
@@ -267,20 +267,23 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         if isinstance(integrator, FixedStepIntegrator):
             used["dt"] = row["dt"]  # the step taken, also where it is the problem's default
         row["parameters"] = json.dumps(used, sort_keys=True, default=str)
-        traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
-                                    timing=timing or Timing(), deadline=deadline)
+        with phases.phase("integration"):
+            traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
+                                        timing=timing or Timing(), deadline=deadline)
         if traj.status == "timeout":
             traj.message = f"{traj.message} (cell time limit {time_limit:g} s: --time-limit)"
         ref, trust, note = None, None, ""
         if reference and has_reference(problem):
             try:
-                ref, trust = trusted_reference(problem, traj.t, cell.t_final)
+                with phases.phase("reference"):
+                    ref, trust = trusted_reference(problem, traj.t, cell.t_final)
                 note = trust.message(float(traj.t[-1]))
             except ReferenceUnavailable as exc:
                 note = f"no reference: {exc}"
         if keep is not None:
             keep.update(problem=problem, integrator=integrator, trajectory=traj, reference=ref, trust=trust)
-        row.update(metrics.evaluate(problem, traj, ref, trust))
+        with phases.phase("metrics"):
+            row.update(metrics.evaluate(problem, traj, ref, trust))
         row["status"] = traj.status
         worst = max((e for e in (row.get("l2_error"), row.get("final_error")) if e is not None), default=None)
         row["solution_lost"] = None if worst is None else bool(worst >= O1_ERROR)
