@@ -43,9 +43,12 @@ class Cell:
     integrator_settings: dict[str, Any] = field(default_factory=dict)
     t_final: float | None = None
     skip_reason: str | None = None
+    # why the cell's settings differ from the default sweep's (the default matrix's budget,
+    # longtime.execution.budget): its row's message ends with it; not part of the key
+    note: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        d = {
             "problem": self.problem,
             "integrator": self.integrator,
             "problem_settings": dict(sorted(self.problem_settings.items())),
@@ -53,17 +56,21 @@ class Cell:
             "t_final": self.t_final,
             "skip_reason": self.skip_reason,
         }
+        if self.note:
+            d["note"] = self.note
+        return d
 
     @property
     def key(self) -> str:
         d = self.to_dict()
         d.pop("skip_reason")
+        d.pop("note", None)
         return json.dumps(d, sort_keys=True)
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "Cell":
         return cls(d["problem"], d["integrator"], dict(d["problem_settings"]),
-                   dict(d["integrator_settings"]), d["t_final"], d.get("skip_reason"))
+                   dict(d["integrator_settings"]), d["t_final"], d.get("skip_reason"), d.get("note"))
 
 
 def check_set_keys(sets: Mapping[str, Any], problem_names: Iterable[str],
@@ -298,6 +305,8 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         # (a plugin's sys.exit too; os.abort or a segfault need a process per cell)
         row["status"] = "failed"
         row["message"] = "".join(traceback.format_exception_only(type(exc), exc)).strip()
+    if cell.note:  # the settings the default matrix's budget moved, said where the row is read
+        row["message"] = "; ".join(m for m in (row["message"], cell.note) if m)
     return row
 
 
