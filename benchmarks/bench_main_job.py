@@ -53,6 +53,7 @@ from pathlib import Path
 COLD_GOAL_S = 120.0
 WARM_GOAL_S = 45.0
 RATIO_GOAL = 1.2  # a warm run's wall / (integration / cores)
+TOP_COMPILES = 15  # the costliest compiles listed
 # the breakdown's lines: (label, the phases it sums); "idle workers" is computed
 BREAKDOWN = (
     ("start-up (main process)", ("startup",)),
@@ -138,8 +139,20 @@ def run_job(folder: Path, env: dict[str, str], matrix_args: list[str], workers: 
         wall = time.perf_counter() - start
     store = folder / "longtime.sqlite"
     integration, rows = integration_core_s(store) if store.exists() else (0.0, 0)
+    events = read(str(folder / "phases"))
     return {"wall": wall, "status": status, "integration": integration, "rows": rows,
-            "phases": breakdown(read(str(folder / "phases")), workers)}
+            "phases": breakdown(events, workers), "compiles": compiles(events)}
+
+
+def compiles(events: list[dict]) -> dict[str, float]:
+    """Compile seconds by what they compiled for (a cell's "problem x scheme", a reference's
+    problem, else the compiled function), summed over the processes."""
+    out: dict[str, float] = {}
+    for e in events:
+        if e["phase"].startswith("compile:"):
+            what = f"{e['phase'][len('compile:'):]}: {e.get('detail') or '?'}"
+            out[what] = out.get(what, 0.0) + e["s"]
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -196,6 +209,14 @@ def main(argv: list[str] | None = None) -> int:
     for label in labels:
         print(f"{label:36s}" + "".join(f"{r['phases'].get(label, 0.0):10.1f}" for _, r in runs))
     print(f"{'timed integration (rows cpu_s_samples)':36s}" + "".join(f"{r['integration']:10.1f}" for _, r in runs))
+    for name, r in runs[:1]:  # the costliest compiles of the first run (the cold one, unless --no-cold)
+        top = sorted(r["compiles"].items(), key=lambda kv: -kv[1])[:TOP_COMPILES]
+        if top:
+            total = sum(r["compiles"].values())
+            print(f"\n{name}: the {len(top)} costliest compiles of {len(r['compiles'])} "
+                  f"({sum(s for _, s in top):.1f} of {total:.1f} s; phase: what it compiled for)")
+            for what, s in top:
+                print(f"  {s:7.1f} s  {what}")
     if any(r["status"] != 0 for _, r in runs):
         print("a run failed: see its stderr.txt (--keep)")
         return 1

@@ -20,7 +20,8 @@ from typing import Iterator
 
 ENV = "LONGTIME_PHASES"
 _FOLDER = os.environ.get(ENV) or None
-# the open phases of this process, innermost last: [name, start (time.time()), seconds of the nested]
+# the open phases of this process, innermost last: [name, start (time.time()), seconds of the
+# nested, detail (what it worked on: a cell's "problem x scheme")]
 _STACK: list[list] = []
 _OUT = None
 
@@ -30,12 +31,13 @@ def enabled() -> bool:
 
 
 @contextlib.contextmanager
-def phase(name: str) -> Iterator[None]:
-    """Count the wall time of the ``with`` block as ``name`` (nothing when not enabled)."""
+def phase(name: str, detail: str | None = None) -> Iterator[None]:
+    """Count the wall time of the ``with`` block as ``name`` (nothing when not enabled);
+    ``detail`` says what it works on, and the compilations inside it inherit it."""
     if _FOLDER is None:
         yield
         return
-    _enter(name)
+    _enter(name, detail)
     try:
         yield
     finally:
@@ -48,7 +50,7 @@ def compiling() -> Iterator[None]:
     if _FOLDER is None:
         yield
         return
-    _enter(f"compile:{_STACK[-1][0] if _STACK else 'other'}")
+    _enter_compile(None)
     try:
         yield
     finally:
@@ -72,24 +74,34 @@ def since_process_start(name: str) -> None:
     _write(name, start, now, now - start)
 
 
-def _enter(name: str) -> None:
-    _STACK.append([name, time.time(), 0.0])
+def _enter(name: str, detail: str | None = None) -> None:
+    _STACK.append([name, time.time(), 0.0, detail])
+
+
+def _enter_compile(function: str | None) -> None:
+    """A compile's phase: named after the enclosing phase, its detail the enclosing one's
+    (the cell it compiles for) or else the compiled function's name."""
+    outer = _STACK[-1] if _STACK else None
+    _enter(f"compile:{outer[0] if outer else 'other'}", (outer[3] if outer else None) or function)
 
 
 def _exit() -> None:
-    name, start, nested = _STACK.pop()
+    name, start, nested, detail = _STACK.pop()
     end = time.time()
     if _STACK:
         _STACK[-1][2] += end - start
-    _write(name, start, end, max(0.0, end - start - nested))
+    _write(name, start, end, max(0.0, end - start - nested), detail)
 
 
-def _write(name: str, start: float, end: float, own: float) -> None:
+def _write(name: str, start: float, end: float, own: float, detail: str | None = None) -> None:
     global _OUT
     if _OUT is None:
         os.makedirs(_FOLDER, exist_ok=True)
         _OUT = open(os.path.join(_FOLDER, f"phases-{os.getpid()}.jsonl"), "a", buffering=1)  # a line each
-    _OUT.write(json.dumps({"pid": os.getpid(), "phase": name, "start": start, "end": end, "s": own}) + "\n")
+    record = {"pid": os.getpid(), "phase": name, "start": start, "end": end, "s": own}
+    if detail:
+        record["detail"] = detail
+    _OUT.write(json.dumps(record) + "\n")
 
 
 def _listen_to_numba() -> None:
@@ -101,7 +113,8 @@ def _listen_to_numba() -> None:
 
         def on_start(self, ev) -> None:
             if self.depth == 0:
-                _enter(f"compile:{_STACK[-1][0] if _STACK else 'other'}")
+                dispatcher = (ev.data or {}).get("dispatcher")
+                _enter_compile(getattr(getattr(dispatcher, "py_func", None), "__qualname__", None))
             self.depth += 1
 
         def on_end(self, ev) -> None:

@@ -274,7 +274,7 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         if isinstance(integrator, FixedStepIntegrator):
             used["dt"] = row["dt"]  # the step taken, also where it is the problem's default
         row["parameters"] = json.dumps(used, sort_keys=True, default=str)
-        with phases.phase("integration"):
+        with phases.phase("integration", f"{cell.problem} x {cell.integrator}"):
             traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
                                         timing=timing or Timing(), deadline=deadline)
         if traj.status == "timeout":
@@ -282,7 +282,7 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         ref, trust, note = None, None, ""
         if reference and has_reference(problem):
             try:
-                with phases.phase("reference"):
+                with phases.phase("reference", cell.problem):
                     ref, trust = trusted_reference(problem, traj.t, cell.t_final)
                 note = trust.message(float(traj.t[-1]))
             except ReferenceUnavailable as exc:
