@@ -14,12 +14,12 @@ import sys
 from pathlib import Path
 
 from longtime.commands import guard
-from longtime.core import cli_args, registry
+from longtime.core import cli_args, phases, registry
 from longtime.core.cache import check_cache_root
 from longtime.core.integrator import Timing
 from longtime.core.params import InputError
 from longtime.core.roles import ROW_PARAMETERS, flag
-from longtime.execution import limits
+from longtime.execution import budget, limits
 from longtime.execution.calibration import drift_text
 from longtime.execution.cells import DEFAULT_TIME_LIMIT, check_size, expand
 from longtime.execution.lifecycle import command_line, recorded_run
@@ -201,6 +201,7 @@ def cmd_run(args) -> int:
 
 
 def cmd_matrix(args) -> int:
+    phases.since_process_start("startup")  # the interpreter, the imports, the plugins
     _warn_broken()
     executor = args.executor or "process"
     options = _options(args, executor)
@@ -220,11 +221,9 @@ def cmd_matrix(args) -> int:
             keys = {c.key for c in died}
             cells = [c for c in cells if c.key not in keys]
     else:
-        problems = args.problem or registry.default_problems()
-        schemes = args.integrator or sorted(registry.integrators())
-        cells = expand(problems, schemes, **_selection(args), default_sweep=True)
-        if not args.allow_large:
-            check_size(cells, args.max_samples, args.memory_limit)
+        with phases.phase("plan"):
+            cells, moves = matrix_cells(args)
+        _say_moves(moves)
         store, run_id, died = Store(args.db), None, []
     if args.baseline is not None:
         store.run(args.baseline)  # an unknown baseline is bad input, caught up front
@@ -249,11 +248,14 @@ def cmd_matrix(args) -> int:
         page = None
         if not args.no_html:  # the results page first, so that a long report ends with its path
             try:
-                page = write_html(args.html or store.path.parent / "longtime-report" / f"run-{run_id}", rows,
-                                  store, [run_id], ahead=ahead)  # default: beside the store
+                with phases.phase("page"):
+                    page = write_html(args.html or store.path.parent / "longtime-report" / f"run-{run_id}", rows,
+                                      store, [run_id], ahead=ahead)  # default: beside the store
             except Exception as exc:  # the rows are stored; `longtime report --html DIR` can retry
                 print(f"warning: results page not written: {type(exc).__name__}: {exc}", file=sys.stderr)
-        print(report_text(rows, "table", full=args.full))
+        with phases.phase("report"):
+            text = report_text(rows, "table", full=args.full)
+        print(text)
         print(f"\ncalibration: {drift_text(store.calibrations(run_id))}")
         if page is not None:
             print(f"\nresults page: {page}")
@@ -263,6 +265,31 @@ def cmd_matrix(args) -> int:
         print(f"\n== compared with run {args.baseline} (longtime compare {args.baseline} {run_id}) ==")
         return compare.report(compare.run_compare(store.path, str(args.baseline), store.path, str(run_id)))
     return 0
+
+
+def matrix_cells(args) -> tuple[list, list]:
+    """The cells of ``longtime matrix``'s selection (default: every default problem x every
+    scheme) over the default sweep, within the budget unless --full-sweep (longtime.execution.budget),
+    sized (--allow-large aside), and what the budget moved."""
+    problems = args.problem or registry.default_problems()
+    schemes = args.integrator or sorted(registry.integrators())
+    cells = expand(problems, schemes, **_selection(args), default_sweep=True)
+    moves = []
+    if not args.full_sweep:
+        cells, moves = budget.fit(cells, given_t_final=args.t_final is not None)
+    if not args.allow_large:
+        check_size(cells, args.max_samples, args.memory_limit)
+    return cells, moves
+
+
+def _say_moves(moves: list) -> None:
+    """What the default matrix's budget moved, on stderr as the run starts (each moved row's
+    message and the report's summary say it too)."""
+    if moves:
+        print(f"the default matrix's budget moved {len(moves)} setting(s) (--full-sweep runs the "
+              f"default sweep as it is):", file=sys.stderr)
+        for m in moves:
+            print(f"  {m.text()}", file=sys.stderr)
 
 
 def cmd_report(args) -> int:
@@ -333,6 +360,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--html", default=None, type=cli_args.out_folder("--html"), metavar="DIR",
                    help="folder of the results page (default: longtime-report/run-RUN_ID beside the store)")
     p.add_argument("--no-html", action="store_true", help="do not write the results page")
+    p.add_argument("--full-sweep", action="store_true",
+                   help=f"run the default sweep as it is: without it, a pair whose default cells are "
+                        f"estimated above {budget.CELL_BUDGET_S:g} s a run runs them over a shorter horizon, "
+                        f"and a long-time cell above {budget.LONG_CELL_BUDGET_S:g} s is left out (the "
+                        f"report names each move)")
     p.add_argument("--baseline", type=cli_args.integer("--baseline", 1), default=None, metavar="RUN",
                    help="end with `longtime compare RUN` against this run (same store) and exit 1 on a regression")
     p.set_defaults(func=cmd_matrix)

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from longtime.core import phases
 from longtime.core.problem import Problem
 
 COMPACT_ABOVE = 40  # state variables (toda d = 20)
@@ -63,12 +64,13 @@ def taylor_adaptive(problem: Problem, state: np.ndarray, timeout_s: float | None
 
     worker = threading.Thread(target=build, name=f"heyoka-compile-{problem.name}", daemon=True)
     start = time.perf_counter()
-    worker.start()
-    while worker.is_alive():
-        worker.join(_WAIT_SLICE_S)
-        if worker.is_alive() and timeout_s is not None and time.perf_counter() - start > timeout_s:
-            raise CompileTimeout(f"heyoka's compile of {problem.name} (dimension {problem.dim}) took "
-                                 f"more than {timeout_s:.3g} s")
+    with phases.compiling():
+        worker.start()
+        while worker.is_alive():
+            worker.join(_WAIT_SLICE_S)
+            if worker.is_alive() and timeout_s is not None and time.perf_counter() - start > timeout_s:
+                raise CompileTimeout(f"heyoka's compile of {problem.name} (dimension {problem.dim}) took "
+                                     f"more than {timeout_s:.3g} s")
     if "error" in built:
         raise built["error"]
     return built["ta"]

@@ -200,6 +200,12 @@ class Integrator(ABC):
     # ``long_t_final``): one more cell at the problem's default step; a set of problem names
     # limits those cells to these problems
     long_runs: ClassVar[bool | frozenset[str]] = False
+    # what a step costs, roughly, for the default matrix's budget (longtime.execution.budget):
+    # ``step_cost`` per state component, relative to a compiled RK4 step (an implicit scheme's
+    # Newton iterations make it about ten), and ``python_step_s``, the seconds each step
+    # spends in Python whatever the problem (a peer stepped by a Python loop)
+    step_cost: ClassVar[float] = 1.0
+    python_step_s: ClassVar[float] = 0.0
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)

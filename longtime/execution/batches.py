@@ -11,6 +11,7 @@ import os
 import time
 from pathlib import Path
 
+from longtime.core import phases
 from longtime.core.integrator import Timing
 from longtime.execution import calibration
 from longtime.execution.cells import DEFAULT_TIME_LIMIT, Cell, cell_size, run_cell
@@ -40,7 +41,8 @@ def _calibrated(here: calibration.Calibrator, cell: Cell, max_samples: int, timi
                 time_limit: float | None) -> dict:
     """run_cell's row with the machine's speed beside it (longtime.execution.calibration)."""
     t0 = time.time()
-    row = run_cell(cell, max_samples, timing=timing, time_limit=time_limit)
+    with phases.phase("cell"):  # building the cell, the row: what its nested phases leave
+        row = run_cell(cell, max_samples, timing=timing, time_limit=time_limit)
     return row if cell.skip_reason else here.cell(row, t0, time.time())
 
 

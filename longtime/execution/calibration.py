@@ -43,6 +43,8 @@ from typing import Any
 import numba
 import numpy as np
 
+from longtime.core import phases
+
 STEPS = 400_000  # a few milliseconds on a current core
 REPEATS = 5
 INTERVAL = 5.0  # seconds between the calibrations of one process while it runs cells
@@ -139,7 +141,8 @@ class Calibrator:
         self._new: list[dict[str, Any]] = []  # calibrations not yet handed to a row
 
     def take(self, phase: str) -> dict[str, Any]:
-        point = measure(phase)
+        with phases.phase("calibration"):
+            point = measure(phase)
         self.points.append(point)
         self._new.append(point)
         return point

@@ -15,7 +15,7 @@ import traceback
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping
 
-from longtime.core import registry, roles
+from longtime.core import phases, registry, roles
 from longtime.core.integrator import FixedStepIntegrator, Integrator, Timing, Trajectory
 from longtime.core.outputs import to_stderr
 from longtime.core.params import InputError, check_time_span
@@ -43,9 +43,12 @@ class Cell:
     integrator_settings: dict[str, Any] = field(default_factory=dict)
     t_final: float | None = None
     skip_reason: str | None = None
+    # why the cell's settings differ from the default sweep's (the default matrix's budget,
+    # longtime.execution.budget): its row's message ends with it; not part of the key
+    note: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        d = {
             "problem": self.problem,
             "integrator": self.integrator,
             "problem_settings": dict(sorted(self.problem_settings.items())),
@@ -53,17 +56,21 @@ class Cell:
             "t_final": self.t_final,
             "skip_reason": self.skip_reason,
         }
+        if self.note:
+            d["note"] = self.note
+        return d
 
     @property
     def key(self) -> str:
         d = self.to_dict()
         d.pop("skip_reason")
+        d.pop("note", None)
         return json.dumps(d, sort_keys=True)
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "Cell":
         return cls(d["problem"], d["integrator"], dict(d["problem_settings"]),
-                   dict(d["integrator_settings"]), d["t_final"], d.get("skip_reason"))
+                   dict(d["integrator_settings"]), d["t_final"], d.get("skip_reason"), d.get("note"))
 
 
 def check_set_keys(sets: Mapping[str, Any], problem_names: Iterable[str],
@@ -267,20 +274,23 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         if isinstance(integrator, FixedStepIntegrator):
             used["dt"] = row["dt"]  # the step taken, also where it is the problem's default
         row["parameters"] = json.dumps(used, sort_keys=True, default=str)
-        traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
-                                    timing=timing or Timing(), deadline=deadline)
+        with phases.phase("integration", f"{cell.problem} x {cell.integrator}"):
+            traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
+                                        timing=timing or Timing(), deadline=deadline)
         if traj.status == "timeout":
             traj.message = f"{traj.message} (cell time limit {time_limit:g} s: --time-limit)"
         ref, trust, note = None, None, ""
         if reference and has_reference(problem):
             try:
-                ref, trust = trusted_reference(problem, traj.t, cell.t_final)
+                with phases.phase("reference", cell.problem):
+                    ref, trust = trusted_reference(problem, traj.t, cell.t_final)
                 note = trust.message(float(traj.t[-1]))
             except ReferenceUnavailable as exc:
                 note = f"no reference: {exc}"
         if keep is not None:
             keep.update(problem=problem, integrator=integrator, trajectory=traj, reference=ref, trust=trust)
-        row.update(metrics.evaluate(problem, traj, ref, trust))
+        with phases.phase("metrics"):
+            row.update(metrics.evaluate(problem, traj, ref, trust))
         row["working_set_bytes"] = working_set(integrator, problem, traj)
         row["status"] = traj.status
         worst = max((e for e in (row.get("l2_error"), row.get("final_error")) if e is not None), default=None)
@@ -296,6 +306,8 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         # (a plugin's sys.exit too; os.abort or a segfault need a process per cell)
         row["status"] = "failed"
         row["message"] = "".join(traceback.format_exception_only(type(exc), exc)).strip()
+    if cell.note:  # the settings the default matrix's budget moved, said where the row is read
+        row["message"] = "; ".join(m for m in (row["message"], cell.note) if m)
     return row
 
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
-from longtime.core import registry
+from longtime.core import phases, registry
 from longtime.core.integrator import Timing
 from longtime.core.params import InputError, check_choice
 from longtime.execution import calibration, tempdirs
@@ -171,6 +171,7 @@ def scheduled(pool, workers: int, batches: list[list[Cell]], fn: Callable, *args
 
 
 def _worker_init(parent: int, memory_limit: int | None, session: bytes | None = None) -> None:
+    phases.since_process_start("worker start")  # a spawned interpreter and its imports
     worker_init(parent, memory_limit)  # dies with its parent, under the memory limit
     if session is not None:  # classes registered from Python in the parent (registry.register)
         registry.restore_session(session)
@@ -227,55 +228,56 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
     folder = str(tempdirs.make("pool"))  # removed below, or by a later run if this one is killed
     done: set[str] = set()
     remaining = runnable
-    try:
-        while remaining:
-            broken = False
-            pool = spawn_pool(min(workers, len(remaining)), _worker_init,
-                              (os.getpid(), options.memory_limit, registry.session_payload()))
-            watchdog = Watchdog(folder, limit, _record_timeout(folder, options.time_limit)).start() if limit else None
-            try:
-                for batch, fut in scheduled(pool, workers, batches_by_pair(remaining), run_batch,
-                                            options.max_samples, options.timing, folder, options.time_limit,
-                                            idle_work=options.idle_work):
-                    try:
-                        rows = fut.result()
-                    except BrokenProcessPool:  # some worker died: sorted out below
-                        broken = True
-                        continue
-                    except Exception as exc:  # the batch could not be sent or returned
-                        rows = [{**base_row(c), "status": "failed",
-                                 "message": f"worker process failed: {exc!r}"} for c in batch]
-                    for c, row in zip(batch, rows):
-                        if c.key not in done:
-                            done.add(c.key)
-                            yield c, row
-            finally:
-                if watchdog is not None:
-                    watchdog.stop()
-                _stop(pool)
-            if not broken:
-                break
-            # rows the broken pool's workers finished but could not return
-            for path in sorted(Path(folder).glob("row-*.json")):
-                data = json.loads(path.read_text())
-                cell = Cell.from_dict(data["cell"])
-                if cell.key not in done:
+    with phases.phase("pool"):  # this process while the pool runs: storing rows, waiting
+        try:
+            while remaining:
+                broken = False
+                pool = spawn_pool(min(workers, len(remaining)), _worker_init,
+                                  (os.getpid(), options.memory_limit, registry.session_payload()))
+                watchdog = Watchdog(folder, limit, _record_timeout(folder, options.time_limit)).start() if limit else None
+                try:
+                    for batch, fut in scheduled(pool, workers, batches_by_pair(remaining), run_batch,
+                                                options.max_samples, options.timing, folder, options.time_limit,
+                                                idle_work=options.idle_work):
+                        try:
+                            rows = fut.result()
+                        except BrokenProcessPool:  # some worker died: sorted out below
+                            broken = True
+                            continue
+                        except Exception as exc:  # the batch could not be sent or returned
+                            rows = [{**base_row(c), "status": "failed",
+                                     "message": f"worker process failed: {exc!r}"} for c in batch]
+                        for c, row in zip(batch, rows):
+                            if c.key not in done:
+                                done.add(c.key)
+                                yield c, row
+                finally:
+                    if watchdog is not None:
+                        watchdog.stop()
+                    _stop(pool)
+                if not broken:
+                    break
+                # rows the broken pool's workers finished but could not return
+                for path in sorted(Path(folder).glob("row-*.json")):
+                    data = json.loads(path.read_text())
+                    cell = Cell.from_dict(data["cell"])
+                    if cell.key not in done:
+                        done.add(cell.key)
+                        yield cell, data["row"]
+                suspects = [Cell.from_dict(json.loads(p.read_text())) for p in Path(folder).glob("running-*")
+                            if not p.name.endswith(".part")]
+                suspects = [c for c in suspects if c.key not in done]
+                for path in Path(folder).iterdir():
+                    path.unlink()
+                if not suspects:  # broken outside any cell: one process per cell, no endless retries
+                    suspects = [c for c in remaining if c.key not in done]
+                for cell, row in run_isolated(suspects, options.max_samples, limit, workers, timing=options.timing,
+                                              time_limit=options.time_limit, memory_limit=options.memory_limit):
                     done.add(cell.key)
-                    yield cell, data["row"]
-            suspects = [Cell.from_dict(json.loads(p.read_text())) for p in Path(folder).glob("running-*")
-                        if not p.name.endswith(".part")]
-            suspects = [c for c in suspects if c.key not in done]
-            for path in Path(folder).iterdir():
-                path.unlink()
-            if not suspects:  # broken outside any cell: one process per cell, no endless retries
-                suspects = [c for c in remaining if c.key not in done]
-            for cell, row in run_isolated(suspects, options.max_samples, limit, workers, timing=options.timing,
-                                          time_limit=options.time_limit, memory_limit=options.memory_limit):
-                done.add(cell.key)
-                yield cell, row
-            remaining = [c for c in remaining if c.key not in done]
-    finally:
-        shutil.rmtree(folder, ignore_errors=True)
+                    yield cell, row
+                remaining = [c for c in remaining if c.key not in done]
+        finally:
+            shutil.rmtree(folder, ignore_errors=True)
 
 
 def isolated(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:

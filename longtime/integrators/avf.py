@@ -41,6 +41,7 @@ class AVF(FixedStepIntegrator):
                "(order 2, implicit)")
     order = 2
     symplectic = False
+    step_cost = 10.0  # the fixed-point sweeps over the quadrature nodes (the budget's estimate)
     parameters = {
         **FixedStepIntegrator.parameters,
         "nodes": Param(2, "Gauss-Legendre nodes of the integral over the segment (exact for "

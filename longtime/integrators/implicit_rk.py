@@ -51,6 +51,7 @@ class ImplicitRungeKutta(FixedStepIntegrator):
     A: np.ndarray
     b: np.ndarray
     c: np.ndarray
+    step_cost = 10.0  # the stages' fixed-point sweeps: about ten RK4 steps' work (the budget's estimate)
     parameters = {
         **FixedStepIntegrator.parameters,
         "max_iter": Param(100, "fixed-point sweeps allowed per step", int, positive=True, maximum=10**6),

@@ -29,6 +29,7 @@ class DOP853(Integrator):
         "atol": Param(None, "absolute tolerance (default: tol)", float, positive=True),
     }
     sweep = {"tol": (1e-6, 1e-9, 1e-12)}
+    python_step_s = 1e-4  # solve_ivp's step in Python and its twelve Python calls of the rhs
 
     def _integrate(self, problem, t_final, max_samples):
         from scipy.integrate import DOP853 as Solver

@@ -31,6 +31,7 @@ from typing import Any, Callable, Iterable, Sequence
 import numpy as np
 
 from longtime.core import roles
+from longtime.core.phases import phase as breakdown_phase
 from longtime.core.cache import discard, write_atomic
 from longtime.core.params import InputError
 from longtime.problems.linear_test import LinearTest
@@ -322,10 +323,11 @@ def interval_texts(schemes: dict[str, Iterable[int] | None], compute: bool = Fal
     """scheme -> its interval text ('N=10 [0, 0.32] ...' for a series scheme at the given N),
     from the cache, measured where missing when ``compute``."""
     out = {}
-    for s, orders in schemes.items():
-        found = _found(s, orders, compute)
-        if found:
-            out[s] = _text(found)
+    with breakdown_phase("stability"):
+        for s, orders in schemes.items():
+            found = _found(s, orders, compute)
+            if found:
+                out[s] = _text(found)
     return out
 
 

@@ -244,7 +244,9 @@ def _order_text(f: dict[str, Any]) -> str:
 def summary(rows: list[dict[str, Any]], orders: bool = True) -> str:
     """The terminal report read first: status counts, then per problem its Pareto front
     (one line per accuracy decade), fitted orders that miss their declared order, growth
-    classes and why pairs were skipped (one line per reason)."""
+    classes, why pairs were skipped (one line per reason) and the settings the default
+    matrix's budget moved (one line per pair)."""
+    from longtime.execution.budget import notes
     from longtime.measure.orders import left_out, left_out_text, observed_orders
 
     if not rows:
@@ -252,6 +254,7 @@ def summary(rows: list[dict[str, Any]], orders: bool = True) -> str:
     parts = [f"{len(rows)} cells: {format_counts(status_counts(rows))}"]
     fits = observed_orders(rows) if orders else []
     missing = left_out(rows) if orders else []
+    moved = notes(rows)
     for problem in sorted({r["problem"] for r in rows}):
         mine = [r for r in rows if r["problem"] == problem]
         lines = [f"== {problem}: {format_counts(status_counts(mine))} =="]
@@ -276,6 +279,9 @@ def summary(rows: list[dict[str, Any]], orders: bool = True) -> str:
         lines += [f"  {g}" for g in _growth_summary(mine)]
         for why, schemes in sorted(_not_ok(mine).items()):
             lines.append(f"  {why}: {', '.join(schemes)}")
+        for (p, scheme), note in sorted(moved.items()):
+            if p == problem:
+                lines.append(f"  moved by the default matrix's budget: {scheme} {note}")
         parts.append("\n".join(lines))
     return "\n\n".join(parts)
 

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from longtime.core.fmt import positive
+from longtime.core.phases import phase
 from longtime.core.roles import ROW_PARAMETERS
 from longtime.reporting.figures import pyplot
 from longtime.reporting.figures.style import LINE_STYLES, family, legend_outside, svg
@@ -207,17 +208,18 @@ def problem_figures(rows: list[dict[str, Any]], style: dict, drift: bool = True)
     """One problem's figures: {"field", "work_precision" (SVG or None), "drift" (SVG or
     None), "drift_notes", "diagnostics" (SVG or None: the problem's diagnostics, where its
     rows keep them), "diagnostics_notes"}."""
-    field = pareto_field(rows)
-    out: dict[str, Any] = {"field": field, "work_precision": None, "drift": None, "drift_notes": [],
-                           "diagnostics": None, "diagnostics_notes": [], "work_precision_instructions": None}
-    if field:
-        out["work_precision"] = work_precision_svg(rows, field, style)
-        if any(positive(r.get("instructions")) for r in rows):  # a run with --cost instructions
-            out["work_precision_instructions"] = work_precision_svg(rows, field, style, "instructions")
-    if drift:
-        out["drift"], out["drift_notes"] = drift_svg(rows, style)
-        if any(r.get("diag_curves") for r in rows):
-            out["diagnostics"], out["diagnostics_notes"] = drift_svg(rows, style, "diagnostic")
+    with phase("figures"):
+        field = pareto_field(rows)
+        out: dict[str, Any] = {"field": field, "work_precision": None, "drift": None, "drift_notes": [],
+                               "diagnostics": None, "diagnostics_notes": [], "work_precision_instructions": None}
+        if field:
+            out["work_precision"] = work_precision_svg(rows, field, style)
+            if any(positive(r.get("instructions")) for r in rows):  # a run with --cost instructions
+                out["work_precision_instructions"] = work_precision_svg(rows, field, style, "instructions")
+        if drift:
+            out["drift"], out["drift_notes"] = drift_svg(rows, style)
+            if any(r.get("diag_curves") for r in rows):
+                out["diagnostics"], out["diagnostics_notes"] = drift_svg(rows, style, "diagnostic")
     return out
 
 

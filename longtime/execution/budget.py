@@ -1,0 +1,139 @@
+"""The default matrix's budget: each default cell's integration is estimated before it runs,
+and a pair whose default sweep would pass the budget runs it over a shorter horizon.
+
+The estimate is the size ``check_size`` refuses oversized runs by (steps of the cell's dt, or
+of the problem's default step for a scheme that chooses its own), times a cost per step:
+``step_cost`` x the state dimension x COMPONENT_STEP_S in compiled code, plus the seconds
+``python_step_s`` a step spends in Python (a peer stepped by a Python loop, scipy's
+DOP853: about a tenth of a millisecond a step whatever the problem). It is rough, a factor
+of a few either way, and only decides which pairs move.
+
+What moves: the sweep of a pair whose costliest cell is estimated above CELL_BUDGET_S runs
+at the longest of the shorter horizons HORIZON_FRACTIONS of its problem's sweep horizon at
+which every cell of the sweep fits (never shorter than its largest step); the long-time cell
+of such a pair (a problem's ``long_t_final``) is left out when it is estimated above
+LONG_CELL_BUDGET_S. Every pair keeps its sweep's rows; nothing else changes. Each moved
+cell carries a note (``Cell.note``, kept in its row's message) naming the setting it had,
+and the report lists them; ``longtime matrix --full-sweep`` runs the default sweep as it is.
+Horizons and sweeps given on the command line (--t-final, --dt, ...) are never moved.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, Iterable
+
+from longtime.core import registry
+from longtime.core.fmt import number
+from longtime.core.integrator import FixedStepIntegrator
+from longtime.execution.cells import Cell, cell_size
+
+# seconds a compiled RK4 step costs per state component (measured: 20 to 30 ns on the main
+# job's problems, docs/performance.md)
+COMPONENT_STEP_S = 3e-8
+# the estimated seconds of one run of a default cell (its timed repeats come on top)
+CELL_BUDGET_S = 5.0
+# the estimated seconds of one run of a long-time cell (a problem's paper-scale final time)
+LONG_CELL_BUDGET_S = 30.0
+# the shorter horizons a moved sweep may take, as fractions of the problem's sweep horizon
+HORIZON_FRACTIONS = (0.5, 0.2, 0.1, 0.05, 0.02, 0.01)
+# the start of every note the budget leaves in a row's message (the report finds them by it)
+NOTE = "budget:"
+
+
+@dataclasses.dataclass(frozen=True)
+class Move:
+    """One pair's setting that the budget moved: ``setting`` what it was and is now,
+    ``reason`` the estimate that moved it."""
+    problem: str
+    integrator: str
+    setting: str
+    reason: str
+
+    def text(self) -> str:
+        return f"{self.problem} x {self.integrator}: {self.setting} ({self.reason})"
+
+
+def run_seconds(cell: Cell, dims: dict[str, int] | None = None) -> float:
+    """The estimated seconds of one run of ``cell``'s integration (see the module's text)."""
+    dim, steps, _ = cell_size(cell, {} if dims is None else dims)
+    icls = registry.integrator_class(cell.integrator)
+    return steps * (icls.python_step_s + dim * icls.step_cost * COMPONENT_STEP_S)
+
+
+def fit(cells: list[Cell], given_t_final: bool = False) -> tuple[list[Cell], list[Move]]:
+    """The default matrix's ``cells`` (``cells.expand`` with ``default_sweep``) within the
+    budget, and what it moved. ``given_t_final``: the final times were given (nothing moves
+    then but the long-time cells, which such a matrix does not have)."""
+    dims: dict[str, int] = {}
+    groups: dict[tuple, list[int]] = {}
+    for i, c in enumerate(cells):
+        if not c.skip_reason:
+            key = (c.problem, repr(sorted(c.problem_settings.items())), c.integrator)
+            groups.setdefault(key, []).append(i)
+    out: list[Cell | None] = list(cells)
+    moves: list[Move] = []
+    for (problem, _, scheme), members in groups.items():
+        pcls = registry.problem_class(problem)
+        main = pcls.sweep_t_final or pcls.default_t_final
+        long_tf = pcls.long_t_final if pcls.long_t_final and pcls.long_t_final != main else None
+        sweep = [i for i in members if long_tf is None or cells[i].t_final != long_tf]
+        long_ = [i for i in members if i not in sweep]
+        worst = max((run_seconds(cells[i], dims) for i in sweep), default=0.0)
+        if not given_t_final and worst > CELL_BUDGET_S and all(cells[i].t_final == main for i in sweep):
+            horizon = _shorter_horizon([cells[i] for i in sweep], main, dims)
+            if horizon is not None:
+                setting = f"t_final {number(main)} -> {number(horizon)}"
+                reason = (f"about {worst:.3g} s a run at t_final {number(main)}, over the default "
+                          f"matrix's {CELL_BUDGET_S:g} s a cell")
+                moves.append(Move(problem, scheme, setting, reason))
+                note = f"{NOTE} {setting} ({reason}; --full-sweep runs {number(main)})"
+                for i in sweep:
+                    out[i] = dataclasses.replace(cells[i], t_final=horizon, note=note)
+        for i in long_:
+            cost = run_seconds(cells[i], dims)
+            if cost > LONG_CELL_BUDGET_S:
+                setting = f"long-time cell at t_final {number(cells[i].t_final)} left out"
+                reason = f"about {cost:.3g} s a run, over the {LONG_CELL_BUDGET_S:g} s of a long-time cell"
+                moves.append(Move(problem, scheme, setting, reason))
+                out[i] = None
+                note = f"{NOTE} {setting} ({reason}; --full-sweep runs it)"
+                for j in sweep:  # the pair's rows say it
+                    mine = out[j]
+                    out[j] = dataclasses.replace(mine, note="; ".join(n for n in (mine.note, note) if n))
+    return [c for c in out if c is not None], moves
+
+
+def _shorter_horizon(sweep: list[Cell], main: float, dims: dict[str, int]) -> float | None:
+    """The longest horizon of HORIZON_FRACTIONS x ``main`` at which every cell of ``sweep``
+    fits the budget (else the shortest one allowed), none shorter than a fixed step of the
+    sweep; None when no shorter horizon is allowed."""
+    pcls = registry.problem_class(sweep[0].problem)
+    fixed = issubclass(registry.integrator_class(sweep[0].integrator), FixedStepIntegrator)
+    largest_step = max((float(c.integrator_settings.get("dt") or pcls.default_dt) for c in sweep), default=0.0)
+    allowed = []
+    for f in HORIZON_FRACTIONS:
+        horizon = pcls.t0 + f * (main - pcls.t0)
+        if fixed and horizon - pcls.t0 < largest_step * (1 + 1e-9):
+            break
+        allowed.append(_round(horizon))
+    for horizon in allowed:
+        if all(run_seconds(dataclasses.replace(c, t_final=horizon), dims) <= CELL_BUDGET_S for c in sweep):
+            return horizon
+    return allowed[-1] if allowed else None
+
+
+def _round(t: float) -> float:
+    """``t`` to 12 significant digits: 0.2 x 1000 is 200, not 200.00000000000003."""
+    return float(f"{t:.12g}") if math.isfinite(t) else t
+
+
+def notes(rows: Iterable[dict[str, Any]]) -> dict[tuple[str, str], str]:
+    """(problem, scheme) -> the budget's note in its rows' messages, for the report."""
+    out: dict[tuple[str, str], str] = {}
+    for r in rows:
+        message = r.get("message") or ""
+        at = message.find(NOTE)
+        if at >= 0:
+            out.setdefault((r["problem"], r["integrator"]), message[at + len(NOTE):].strip())
+    return out

@@ -1,0 +1,89 @@
+"""The default matrix's budget (longtime.execution.budget): what it moves, that every pair
+keeps its rows, that --full-sweep runs the sweep as it is, and that the report says it.
+Only cells are planned here: nothing is integrated."""
+from longtime.commands.cli import build_parser, matrix_cells
+from longtime.core import registry
+from longtime.execution import budget
+from longtime.execution.cells import Cell, base_row, expand
+from longtime.reporting.report import summary
+
+
+def plan(*argv: str):
+    return matrix_cells(build_parser().parse_args(["matrix", *argv]))
+
+
+def pairs(cells):
+    return {(c.problem, c.integrator) for c in cells}
+
+
+def test_a_python_stepped_peer_costs_more_per_step_than_a_compiled_loop():
+    dop, verlet = (Cell("fpu", s, {}, {}, 1000.0) for s in ("dop853", "verlet"))
+    assert budget.run_seconds(dop) > 100 * budget.run_seconds(verlet)
+    assert budget.run_seconds(dop) > budget.CELL_BUDGET_S  # fpu's sweep horizon is over the budget
+
+
+def test_fpu_dop853_runs_a_shorter_horizon_the_rest_of_fpu_does_not_move():
+    full = expand(["fpu"], ["dop853", "verlet", "gauss6"], default_sweep=True)
+    cells, moves = budget.fit(full)
+    assert [(m.problem, m.integrator) for m in moves] == [("fpu", "dop853")]
+    assert "t_final 1000 -> 200" in moves[0].setting
+    dop = [c for c in cells if c.integrator == "dop853"]
+    assert len(dop) == 3 and {c.t_final for c in dop} == {200.0}
+    assert all(c.note.startswith(budget.NOTE) and "--full-sweep" in c.note for c in dop)
+    assert all(budget.run_seconds(c) <= budget.CELL_BUDGET_S for c in dop)
+    others = [c for c in cells if c.integrator != "dop853"]
+    assert others == [c for c in full if c.integrator != "dop853"]  # settings and keys unchanged
+    assert all(c.note is None for c in others)
+
+
+def test_every_pair_of_the_default_matrix_keeps_a_row():
+    budgeted, moves = plan()
+    full, none = plan("--full-sweep")
+    assert none == [] and moves
+    assert pairs(budgeted) == pairs(full)
+    ran = {(c.problem, c.integrator) for c in budgeted if not c.skip_reason}
+    assert ran == {(c.problem, c.integrator) for c in full if not c.skip_reason}
+    assert ("fpu", "dop853") in ran
+    moved = {(m.problem, m.integrator) for m in moves}
+    # cells of unmoved pairs are exactly the full sweep's
+    keep = [c.key for c in budgeted if (c.problem, c.integrator) not in moved]
+    assert keep == [c.key for c in full if (c.problem, c.integrator) not in moved]
+
+
+def test_full_sweep_restores_the_default_sweep():
+    full, moves = plan("-p", "fpu", "-i", "dop853", "--full-sweep")
+    assert moves == [] and {c.t_final for c in full} == {1000.0} and len(full) == 3
+    assert all(c.note is None for c in full)
+    budgeted, moves = plan("-p", "fpu", "-i", "dop853")
+    assert {c.t_final for c in budgeted} == {200.0} and len(moves) == 1
+
+
+def test_a_given_final_time_is_never_moved():
+    cells, moves = plan("-p", "fpu", "-i", "dop853", "--t-final", "1000")
+    assert moves == [] and {c.t_final for c in cells} == {1000.0}
+
+
+def test_a_long_time_cell_over_its_budget_is_left_out_and_said(monkeypatch):
+    full = expand(["toda"], ["rk4"], default_sweep=True)
+    long_tf = registry.problem_class("toda").long_t_final
+    assert any(c.t_final == long_tf for c in full)
+    monkeypatch.setattr(budget, "LONG_CELL_BUDGET_S", 1e-6)
+    cells, moves = budget.fit(full)
+    assert not any(c.t_final == long_tf for c in cells) and cells  # the sweep stays
+    assert len(moves) == 1 and "long-time cell" in moves[0].setting
+    assert all("long-time cell" in c.note for c in cells)
+
+
+def test_the_note_is_not_part_of_the_key_and_survives_the_store():
+    cell = Cell("fpu", "dop853", {}, {"tol": 1e-6}, 200.0, note="budget: t_final 1000 -> 200")
+    assert cell.key == Cell("fpu", "dop853", {}, {"tol": 1e-6}, 200.0).key
+    assert Cell.from_dict(cell.to_dict()) == cell
+    assert "note" not in Cell("fpu", "dop853", {}, {"tol": 1e-6}, 200.0).to_dict()
+
+
+def test_the_report_names_what_the_budget_moved():
+    cells, _ = budget.fit(expand(["fpu"], ["dop853"], default_sweep=True))
+    rows = [{**base_row(c), "status": "ok", "message": c.note} for c in cells]
+    text = summary(rows, orders=False)
+    assert "moved by the default matrix's budget: dop853 t_final 1000 -> 200" in text
+    assert "--full-sweep runs 1000" in text
