@@ -198,6 +198,10 @@ def cmd_matrix(args) -> int:
             raise InputError(f"--resume: no incomplete run in {store.path} (give a run id to pick one)")
         store.run(run_id)  # an unknown id is an error, not "0 cells left"
         cells = store.pending(run_id)
+        if not cells:  # every planned row is stored (only its end mark was lost): nothing to run
+            store.finish_run(run_id, "done")
+            print(f"run {run_id}: every planned cell is stored; marked done", file=sys.stderr)
+            return 0
         print(f"resuming run {run_id}: {len(cells)} cells left", file=sys.stderr)
         died = store.died_in(run_id)
         if died:  # perhaps killed, perhaps the cell's crash: each runs again in a process of its own

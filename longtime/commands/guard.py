@@ -6,7 +6,8 @@ at most one line on stderr, ``longtime CMD: error: ...`` (the traceback too with
 
 - 0: done; 1: a failure that changing the command does not fix (a cell failed in ``run``,
   a store that cannot be written during a run, a lost Dask scheduler, an unexpected error);
-  2: bad input (an ``InputError``);
+  2: bad input (an ``InputError``); a full disk (``DiskFull``: a temp file, a row file)
+  is 1 with the run marked ``interrupted`` and no row stored for the cells it stopped;
 - 130, 143, 129: stopped by SIGINT (Ctrl-C), SIGTERM, SIGHUP. SIGTERM and SIGHUP raise
   ``Stopped``, a KeyboardInterrupt, wherever the command is, so they run every cleanup that
   Ctrl-C runs: the pool's workers killed, the run marked ``interrupted``, temp folders
@@ -28,6 +29,7 @@ from typing import Iterator
 from longtime.core.outputs import contract_stdout
 from longtime.core.params import InputError
 from longtime.execution.dask_executor import ExecutorLost
+from longtime.execution.tempdirs import DiskFull
 
 STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
 
@@ -129,6 +131,8 @@ def run_command(args: argparse.Namespace) -> int:
         return 128 + signum
     except ExecutorLost as exc:
         return fail(f"error: {exc}{_resume_hint('runs them (on any executor)')}", 1)
+    except DiskFull as exc:  # no row stored for the cell that met it: the run is interrupted
+        return fail(f"error: {exc}{_resume_hint('runs the rest once there is space')}", 1)
     except StoreError as exc:
         hint = _resume_hint("completes it")
         if not hint and exc.run_id is not None:  # not even its end could be written: it reads as incomplete

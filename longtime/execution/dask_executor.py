@@ -97,6 +97,11 @@ def dask_cluster(cells: list[Cell], options) -> Iterator[tuple[Cell, dict]]:
                     where = f"the Dask scheduler {options.scheduler}" if options.scheduler else "the local Dask cluster"
                     raise ExecutorLost(f"{where} was lost ({type(exc).__name__}): {left} of {len(runnable)} "
                                        f"cells not run, none of them stored") from None
+                from longtime.core.cache import no_space
+                from longtime.execution.tempdirs import DiskFull, disk_full
+
+                if isinstance(exc, DiskFull) or no_space(exc):  # the worker's disk, not the cells
+                    raise disk_full(exc, "a Dask worker ran its cells") from None
                 # the batch raised, or killed allowed-failures workers (KilledWorker)
                 rows = [{**base_row(c), "status": "failed", "message": f"dask task failed: {exc!r}"}
                         for c in batch]

@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Iterator
 
 from longtime.core import registry
+from longtime.core.cache import no_space
 from longtime.core.integrator import Timing
 from longtime.execution import tempdirs
 from longtime.execution.cells import (
@@ -68,6 +69,16 @@ class _Child:
 
 def _start(cell: Cell, max_samples: int, timeout: float | None, timing: Timing,
            time_limit: float | None = DEFAULT_TIME_LIMIT, memory_limit: int | None = None) -> _Child:
+    try:
+        return _spawn(cell, max_samples, timeout, timing, time_limit, memory_limit)
+    except OSError as exc:
+        if no_space(exc):
+            raise tempdirs.disk_full(exc, f"writing the files of {cell.problem} x {cell.integrator}") from None
+        raise
+
+
+def _spawn(cell: Cell, max_samples: int, timeout: float | None, timing: Timing,
+           time_limit: float | None, memory_limit: int | None) -> _Child:
     folder = tempdirs.make("cell")
     job = {"cell": cell.to_dict(), "max_samples": max_samples, "parent": os.getpid(), "time_limit": time_limit,
            "timing": {"repeats": timing.repeats, "min_time": timing.min_time}, "memory_limit": memory_limit}
@@ -106,6 +117,10 @@ def _finish(child: _Child, timed_out: bool, timeout: float | None) -> dict:
                                f"{elapsed:.1f} s)")
             return row
         code = child.proc.returncode
+        if code == tempdirs.NO_SPACE_EXIT:  # the child found no space for its row: not the cell's fault
+            tail = child.err_path.read_text(errors="replace").strip().splitlines() if child.err_path.exists() else []
+            raise tempdirs.DiskFull(tail[-1] if tail else f"no space left on the disk for the row of "
+                                    f"{child.cell.problem} x {child.cell.integrator}")
         how = f"killed by {_signal_name(-code)}" if code < 0 else f"exited with code {code}"
         tail = child.err_path.read_text(errors="replace").strip()[-STDERR_TAIL:] if child.err_path.exists() else ""
         row.update(status="failed",
@@ -170,11 +185,19 @@ def _child_main(folder: str) -> None:
         sys.path[:0] = [p for p in json.loads((path / "sys_path.json").read_text()) if p not in sys.path]
         registry.restore_session((path / "session.pkl").read_bytes())
     set_memory_limit(job.get("memory_limit"))
-    row = run_cell(Cell.from_dict(job["cell"]), job["max_samples"], timing=Timing(**job["timing"]),
-                   time_limit=job.get("time_limit"))
-    tmp = path / "row.json.part"
-    tmp.write_text(json.dumps(row))
-    tmp.replace(path / "row.json")  # atomic: the parent never reads half a row
+    try:
+        row = run_cell(Cell.from_dict(job["cell"]), job["max_samples"], timing=Timing(**job["timing"]),
+                       time_limit=job.get("time_limit"))
+        tmp = path / "row.json.part"
+        tmp.write_text(json.dumps(row))
+        tmp.replace(path / "row.json")  # atomic: the parent never reads half a row
+    except (OSError, tempdirs.DiskFull) as exc:
+        if not (no_space(exc) or isinstance(exc, tempdirs.DiskFull)):
+            raise
+        (path / "row.json.part").unlink(missing_ok=True)
+        print(tempdirs.disk_full(exc, "writing the row"), file=sys.stderr)
+        sys.stderr.flush()
+        os._exit(tempdirs.NO_SPACE_EXIT)
     sys.stderr.flush()
     os._exit(0)  # skip interpreter teardown: a thread a plugin left running cannot hang us
 

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterator
 
 from longtime.core import registry
+from longtime.core.cache import no_space
 from longtime.core.integrator import Timing
 from longtime.core.params import InputError, check_choice
 from longtime.execution import calibration, tempdirs
@@ -36,6 +37,7 @@ from longtime.execution.limits import Watchdog, default_memory_limit, grace, har
 from longtime.execution.pool import spawn_pool
 from longtime.execution.pool import workers as pool_workers
 from longtime.execution.store import Store
+from longtime.execution.tempdirs import DiskFull, disk_full
 
 
 @dataclass
@@ -217,7 +219,12 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
     if workers == 1 and limit is None:  # no limit to enforce: this process is the worker
         yield from serial(runnable, options)
         return
-    folder = str(tempdirs.make("pool"))  # removed below, or by a later run if this one is killed
+    try:
+        folder = str(tempdirs.make("pool"))  # removed below, or by a later run if this one is killed
+    except OSError as exc:
+        if no_space(exc):
+            raise disk_full(exc, "making the pool's temp folder") from None
+        raise
     done: set[str] = set()
     remaining = runnable
     try:
@@ -236,6 +243,8 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
                         broken = True
                         continue
                     except Exception as exc:  # the batch could not be sent or returned
+                        if no_space(exc) or isinstance(exc, DiskFull):  # a full temp folder: not the cells'
+                            raise disk_full(exc, "a worker wrote its cell's files") from None
                         rows = [{**base_row(c), "status": "failed",
                                  "message": f"worker process failed: {exc!r}"} for c in batch]
                     for c, row in zip(batch, rows):
