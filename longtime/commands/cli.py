@@ -217,6 +217,9 @@ def cmd_matrix(args) -> int:
         store, run_id, died = Store(args.db), None, []
     if args.baseline is not None:
         store.run(args.baseline)  # an unknown baseline is bad input, caught up front
+        _check_baseline(store, args.baseline, cells)
+    if args.html and not args.no_report and not args.no_html:
+        cli_args.writable_folder("--html", args.html)  # refused before the first cell
     ahead = None
     with recorded_run(store, command_line(args), cells, run_id) as run_id:
         if args.resume is None:
@@ -254,8 +257,24 @@ def cmd_matrix(args) -> int:
     return 0
 
 
+def _check_baseline(store: Store, baseline: int, cells) -> None:
+    """Refuse, before the first cell, a --baseline run that cannot be compared with the matrix:
+    one with no stored row, or none of whose problem x scheme pairs the matrix runs (then no
+    cell can be in common; the comparison of the cells themselves comes after the run)."""
+    rows = store.rows(baseline)
+    if not rows:
+        raise InputError(f"--baseline {baseline}: run {baseline} has no stored row: nothing to compare with")
+    pairs = {(r["problem"], r["integrator"]) for r in rows}
+    if cells and not any((c.problem, c.integrator) in pairs for c in cells):
+        have = ", ".join(f"{p} x {i}" for p, i in sorted(pairs)[:4]) + (", ..." if len(pairs) > 4 else "")
+        raise InputError(f"--baseline {baseline}: run {baseline} has no cell in common with this matrix "
+                         f"(it holds {have})")
+
+
 def cmd_report(args) -> int:
     store = Store(args.db, readonly=True)  # a report writes nothing, not even an empty store
+    if args.html:
+        cli_args.writable_folder("--html", args.html)  # refused before the rows are read and drawn
     if args.run == "all":
         rows = store.rows()
     else:

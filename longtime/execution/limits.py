@@ -30,6 +30,11 @@ GRACE_S = 10.0
 GRACE_SHARE = 0.1
 # a cell may use this share of the machine's memory unless --memory-limit says otherwise
 MEMORY_SHARE = 0.5
+# the smallest --memory-limit taken: no worker process (Python, numpy, numba) starts in less,
+# so a smaller limit (1e-12 GiB, 1e-300 %, which round to 0 bytes: no limit) is a mistake
+MIN_MEMORY_LIMIT = 2**20
+# the largest: beyond any machine's address space (a larger number is a typo, not a limit)
+MAX_MEMORY_LIMIT = 2**60
 POLL_S = 0.1
 
 
@@ -74,8 +79,16 @@ def memory_argument(text: str) -> int | None:
         total = machine_memory()
         if not total:
             raise argparse.ArgumentTypeError(f"--memory-limit {text}: the machine's memory is unknown here; give GiB")
-        return int(total * value / 100)
-    return int(value * 2**30)
+        nbytes = total * value / 100
+    else:
+        nbytes = value * 2**30
+    if not nbytes >= MIN_MEMORY_LIMIT:
+        raise argparse.ArgumentTypeError(f"--memory-limit {text} is {nbytes:.3g} bytes, below the smallest limit "
+                                         f"taken, 1 MiB (no worker process starts in it); give GiB (e.g. 8), or 0 for no limit")
+    if not nbytes <= MAX_MEMORY_LIMIT:
+        raise argparse.ArgumentTypeError(f"--memory-limit {text} is beyond any machine's memory "
+                                         f"({gib(MAX_MEMORY_LIMIT)}); give GiB (e.g. 8), or 0 for no limit")
+    return int(nbytes)
 
 
 def gib(nbytes: float) -> str:
