@@ -117,6 +117,10 @@ def _options(args, executor: str) -> ExecOptions:
         raise InputError(f"--max-samples {args.max_samples}: must be >= 2")
     budget_seconds()  # $LONGTIME_REFERENCE_SECONDS: a bad value is bad input, caught up front
     check_cache_root()  # $LONGTIME_CACHE_DIR: one error now, not one per cell
+    if executor == "dask" and getattr(args, "scheduler", None):  # no run is recorded for an address that is not Dask
+        from longtime.execution.dask_executor import check_scheduler
+
+        check_scheduler(args.scheduler)
     return ExecOptions(jobs=args.jobs, max_samples=args.max_samples,
                        timing=Timing(repeats=args.repeats, min_time=args.min_time),
                        cell_timeout=getattr(args, "cell_timeout", None),

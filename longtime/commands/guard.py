@@ -46,7 +46,9 @@ class Stopped(KeyboardInterrupt):
 def stop_signals() -> Iterator[None]:
     """SIGTERM and SIGHUP raise ``Stopped`` while the block runs (in the main thread; a signal
     the parent set to be ignored, as ``nohup`` does for SIGHUP, stays ignored). A second
-    signal does not cut the cleanup the first one started."""
+    signal does not cut the cleanup the first one started; where cells run in this process,
+    a process stuck in compiled code is ended by limits.signal_relay (the first signal after
+    its grace, a second at once)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -57,13 +59,18 @@ def stop_signals() -> Iterator[None]:
             fired.append(signum)
             raise Stopped(signum)
 
+    from longtime.execution.limits import RELAY_SIGNALS
+
     previous = {}
     for sig in STOP_SIGNALS:
         if signal.getsignal(sig) == signal.SIG_DFL:
             previous[sig] = signal.signal(sig, handler)
+    relayed = RELAY_SIGNALS["enabled"]
+    RELAY_SIGNALS["enabled"] = True  # cells run in this process: a stop signal ends it (limits.signal_relay)
     try:
         yield
     finally:
+        RELAY_SIGNALS["enabled"] = relayed
         for sig, old in previous.items():
             signal.signal(sig, old)
 

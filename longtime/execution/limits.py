@@ -196,3 +196,78 @@ class Watchdog:
             os.kill(pid, signal.SIGKILL)
         self.killed += 1
         self.record(cell, elapsed)
+
+
+# how long a process running cells in itself (--executor serial, --time-limit 0) has, after a
+# first SIGINT / SIGTERM / SIGHUP, to end on its own (a compiled step never returns to Python,
+# where the signal is handled) before it is killed; a second signal kills it at once
+SIGNAL_GRACE_S = GRACE_S
+# set by the command line (longtime.commands.guard): a command's process ends on a stop signal;
+# a Python session (the API, a notebook) that catches KeyboardInterrupt is never killed
+RELAY_SIGNALS = {"enabled": False}
+
+_RELAY = r"""
+import os, select, signal, sys, time
+fd, pid, grace = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3])
+stops = {int(s) for s in sys.argv[4].split(",")}
+seen, deadline = 0, None
+while True:
+    wait = None if deadline is None else max(0.0, deadline - time.monotonic())
+    ready, _, _ = select.select([fd], [], [], wait)
+    if not ready:
+        os.kill(pid, signal.SIGKILL)
+        break
+    data = os.read(fd, 64)
+    if not data:
+        break
+    seen += sum(1 for b in data if b in stops)
+    if seen >= 2:
+        os.kill(pid, signal.SIGKILL)
+        break
+    if seen and deadline is None:
+        deadline = time.monotonic() + grace
+"""
+
+
+@contextlib.contextmanager
+def signal_relay(grace: float = SIGNAL_GRACE_S):
+    """While cells run in this process: a first SIGINT, SIGTERM or SIGHUP ends it within
+    ``grace`` seconds, a second at once, even where a compiled step never returns to Python
+    (where Python runs its signal handlers). Python's C-level handler writes each signal's
+    number to a wakeup pipe (``signal.set_wakeup_fd``) whatever the main thread is doing; a
+    small relay process reads it and, past the grace or at the second signal, kills this
+    process (SIGKILL: the store keeps what it committed and knows the cell it was in, as after
+    a crash). The relay ends with this process (end of file on the pipe). Only in a command's
+    main thread (``RELAY_SIGNALS``); elsewhere a no-op."""
+    import subprocess
+    import sys
+
+    if not RELAY_SIGNALS["enabled"] or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    read_end, write_end = os.pipe()
+    os.set_blocking(write_end, False)
+    try:
+        previous = signal.set_wakeup_fd(write_end, warn_on_full_buffer=False)
+    except (ValueError, OSError):
+        os.close(read_end)
+        os.close(write_end)
+        yield
+        return
+    stops = ",".join(str(int(s)) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP))
+    try:
+        relay = subprocess.Popen([sys.executable, "-S", "-c", _RELAY, str(read_end), str(os.getpid()), str(grace),
+                                  stops], pass_fds=(read_end,), stdin=subprocess.DEVNULL,
+                                 stdout=subprocess.DEVNULL, start_new_session=True)
+    except OSError:
+        relay = None
+    os.close(read_end)
+    try:
+        yield
+    finally:
+        with contextlib.suppress(ValueError, OSError):
+            signal.set_wakeup_fd(previous)
+        os.close(write_end)  # end of file: the relay exits
+        if relay is not None:
+            with contextlib.suppress(Exception):
+                relay.wait(timeout=2)

@@ -33,7 +33,7 @@ from longtime.execution.cells import (
     run_cell,
 )
 from longtime.execution.isolation import run_isolated
-from longtime.execution.limits import Watchdog, default_memory_limit, grace, hard_limit, worker_init
+from longtime.execution.limits import Watchdog, default_memory_limit, grace, hard_limit, signal_relay, worker_init
 from longtime.execution.pool import spawn_pool
 from longtime.execution.pool import workers as pool_workers
 from longtime.execution.store import Store
@@ -67,12 +67,16 @@ IdleTask = tuple[Callable, tuple, Callable[[Any], None]]
 
 
 def serial(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
+    """The cells in this process, one after the other, without the hard limit; a first stop
+    signal ends the process within limits.SIGNAL_GRACE_S even in a compiled step that never
+    returns, a second at once (limits.signal_relay)."""
     here = calibration.here()
     here.start()
-    for cell in cells:
-        if options.on_start is not None and not cell.skip_reason:
-            options.on_start(cell)
-        yield cell, _calibrated(here, cell, options.max_samples, options.timing, options.time_limit)
+    with signal_relay():
+        for cell in cells:
+            if options.on_start is not None and not cell.skip_reason:
+                options.on_start(cell)
+            yield cell, _calibrated(here, cell, options.max_samples, options.timing, options.time_limit)
 
 
 _FAMILY_PACKAGES = ("longtime.integrators.", "longtime.problems.")
