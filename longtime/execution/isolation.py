@@ -40,6 +40,9 @@ from longtime.execution.cells import (
 from longtime.execution.limits import die_with_parent, set_memory_limit
 
 POLL_S = 0.05
+# a child's start-up (Python, numpy, numba, the plugins) before its cell begins: its time limit
+# counts from the cell's start, as the pool's watchdog counts it, and this bounds the start-up
+STARTUP_S = 120.0
 STDERR_TAIL = 600  # characters of a dead child's stderr kept in its row's message
 
 
@@ -57,6 +60,7 @@ class _Child:
     proc: subprocess.Popen
     deadline: float
     started: float = field(default_factory=time.perf_counter)
+    begun: bool = False  # the child has begun its cell (running_since)
 
     @property
     def out_path(self) -> Path:
@@ -65,6 +69,13 @@ class _Child:
     @property
     def err_path(self) -> Path:
         return self.folder / "stderr.txt"
+
+    def running_since(self, timeout: float | None) -> None:
+        """Once the child has begun its cell (its ``started`` file), the time limit counts from
+        then; before, from its start plus STARTUP_S."""
+        if timeout and not self.begun and (self.folder / "started").exists():
+            self.begun = True
+            self.deadline = time.perf_counter() + timeout
 
 
 def _start(cell: Cell, max_samples: int, timeout: float | None, timing: Timing,
@@ -92,7 +103,7 @@ def _spawn(cell: Cell, max_samples: int, timeout: float | None, timing: Timing,
             [sys.executable, "-m", "longtime.execution.isolation", str(folder)],
             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err,
             start_new_session=True)  # its own process group: a kill reaches its children too
-    deadline = time.perf_counter() + timeout if timeout else float("inf")
+    deadline = time.perf_counter() + timeout + STARTUP_S if timeout else float("inf")
     return _Child(cell, folder, proc, deadline)
 
 
@@ -114,7 +125,7 @@ def _finish(child: _Child, timed_out: bool, timeout: float | None) -> dict:
         if timed_out:
             row.update(status="timeout",
                        message=f"cell exceeded its time limit of {timeout:g} s (process killed after "
-                               f"{elapsed:.1f} s)")
+                               f"{elapsed:.1f} s, its start-up included)")
             return row
         code = child.proc.returncode
         if code == tempdirs.NO_SPACE_EXIT:  # the child found no space for its row: not the cell's fault
@@ -152,6 +163,7 @@ def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, time
                                       None if limit == float("inf") else limit, memory_limit))
             still = []
             for child in running:
+                child.running_since(timeout)
                 if child.proc.poll() is not None:
                     yield child.cell, _finish(child, False, timeout)
                 elif time.perf_counter() > child.deadline:
@@ -186,6 +198,7 @@ def _child_main(folder: str) -> None:
         registry.restore_session((path / "session.pkl").read_bytes())
     set_memory_limit(job.get("memory_limit"))
     try:
+        (path / "started").touch()  # the parent's time limit counts from here
         row = run_cell(Cell.from_dict(job["cell"]), job["max_samples"], timing=Timing(**job["timing"]),
                        time_limit=job.get("time_limit"))
         tmp = path / "row.json.part"
