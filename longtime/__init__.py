@@ -2,9 +2,6 @@
 
 Importing the package compiles nothing: numba kernels compile on first use.
 """
-from longtime.core.integrator import AdaptiveIntegrator, FixedStepIntegrator, Integrator, Trajectory
-from longtime.core.params import InputError, Param
-from longtime.core.problem import Problem
 from longtime.core.version import __version__
 
 __all__ = ["AdaptiveIntegrator", "FixedStepIntegrator", "InputError", "Integrator", "Order", "Param",
@@ -12,6 +9,10 @@ __all__ = ["AdaptiveIntegrator", "FixedStepIntegrator", "InputError", "Integrato
 
 # the Python API (docs/api.md), imported on first use: `import longtime` stays light
 _API = ("Order", "Result", "convergence", "solve", "sweep", "work_precision")
+# the base classes, imported on first use too (numpy and numba load with them): the command's
+# entry point (longtime.commands.entry) is running, and catches Ctrl-C, before they load
+_CORE = {"AdaptiveIntegrator": "integrator", "FixedStepIntegrator": "integrator", "Integrator": "integrator",
+         "Trajectory": "integrator", "InputError": "params", "Param": "params", "Problem": "problem"}
 
 
 def __getattr__(name: str):
@@ -19,4 +20,8 @@ def __getattr__(name: str):
         from longtime import api
 
         return getattr(api, name)
+    if name in _CORE:
+        import importlib
+
+        return getattr(importlib.import_module(f"longtime.core.{_CORE[name]}"), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -76,9 +76,16 @@ def declared(folder: Path) -> tuple[str, list[str], list[str]]:
         project = tomllib.loads(path.read_text()).get("project", {})
     except Exception as exc:
         raise InputError(f"{path}: not readable as TOML ({exc})") from None
-    points = project.get("entry-points", {})
-    return (project.get("name") or folder.resolve().name, sorted(points.get("longtime.problems", {})),
-            sorted(points.get("longtime.integrators", {})))
+    points = project.get("entry-points", {}) if isinstance(project, dict) else project
+    for key, value in (("project", project), ("project.entry-points", points),
+                       *((f"project.entry-points.\"{g}\"", points.get(g, {}) if isinstance(points, dict) else {})
+                         for g in ("longtime.problems", "longtime.integrators"))):
+        if not isinstance(value, dict):  # as pip and setuptools read it: each of these is a table
+            raise InputError(f"{path}: {key} is {type(value).__name__}, not a table: "
+                             f"expected [{key.replace(chr(34), '')}] with name = \"module:Class\" lines")
+    name = project.get("name")
+    return (name if isinstance(name, str) and name else folder.resolve().name,
+            sorted(points.get("longtime.problems", {})), sorted(points.get("longtime.integrators", {})))
 
 
 def repo_path(folder: Path) -> str:
@@ -108,21 +115,61 @@ def write(folder: Path, problems: list[str], schemes: list[str], settings: dict,
              folder / "benchmarks" / "bench_longtime.py": BENCH_TEMPLATE.format(
                  what=", ".join(schemes) + " on " + ", ".join(problems), problems=problems, schemes=schemes,
                  settings=settings, t_final=t_final)}
+    _check_targets(folder, list(files))  # every refusal before the first file is written
     written = []
     for path, text in files.items():
         if path.exists() and not force:
             print(f"kept {path} (exists; --force replaces it)", file=sys.stderr)
             continue
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(text)
+        tmp = path.with_name(f".{path.name}.asv-init.tmp")
+        tmp.write_text(text)
+        tmp.replace(path)  # replaces a link itself, never the file it points to
         written.append(path)
     return written
+
+
+def _check_targets(folder: Path, paths: list[Path]) -> None:
+    """Refuse, before anything is written, a target that cannot be written whole: a folder
+    where a file goes or a file where a folder goes, or a path whose folder leads out of
+    DIR through a symbolic link (a link as the file itself is replaced, not written through)."""
+    root = folder.resolve()
+    for path in paths:
+        parent = path.parent
+        if parent.exists() and not parent.is_dir():
+            raise InputError(f"{parent} is a file, not a folder: asv-init writes {path.name} there "
+                             f"(move the file away); nothing was written")
+        if parent.exists() and root not in (parent.resolve(), *parent.resolve().parents):
+            raise InputError(f"{parent} leads out of {folder} (to {parent.resolve()}): asv-init writes only "
+                             f"inside DIR; nothing was written")
+        if path.is_dir():
+            raise InputError(f"{path} is a folder, not a file; nothing was written")
+
+
+def _check_names(folder: Path, problems: list[str], schemes: list[str]) -> None:
+    """-p and -i name problems and schemes that are installed, or that DIR's pyproject.toml
+    declares (the plugin's own, perhaps not installed yet): one error for the unknown ones."""
+    from longtime.core import registry
+
+    _, own_p, own_s = declared(folder)
+    registry.check_names("problem", [n for n in problems if n not in own_p])
+    registry.check_names("integrator", [n for n in schemes if n not in own_s])
+
+
+def _check_numbers(flag: str, values) -> None:
+    for v in values or ():
+        if not (0 < v < float("inf")):
+            raise InputError(f"{flag} {v:g}: expected finite numbers > 0")
 
 
 def cmd_asv_init(args) -> int:
     folder = Path(args.dir)
     if not folder.is_dir():
         raise InputError(f"{folder}: not a folder (the plugin's repository)")
+    _check_numbers("--dt", args.dt)
+    _check_numbers("--tol", args.tol)
+    _check_numbers("--t-final", [args.t_final] if args.t_final is not None else [])
+    _check_names(folder, args.problem or [], args.integrator or [])
     settings = {k: v for k, v in (("dt", args.dt), ("tol", args.tol)) if v}
     for key, value in args.set:
         settings[key] = value

@@ -131,6 +131,10 @@ def _options(args, executor: str) -> ExecOptions:
     check_cache_root()  # $LONGTIME_CACHE_DIR: one error now, not one per cell
     cost = getattr(args, "cost", "time")
     check_cost(cost)  # --cost instructions without Valgrind: one line, before a run is recorded
+    if executor == "dask" and getattr(args, "scheduler", None):  # no run is recorded for an address that is not Dask
+        from longtime.execution.dask_executor import check_scheduler
+
+        check_scheduler(args.scheduler)
     return ExecOptions(cost=cost, jobs=args.jobs, max_samples=args.max_samples,
                        timing=Timing(repeats=args.repeats, min_time=args.min_time),
                        processes=args.processes or default_processes(),
@@ -214,6 +218,10 @@ def cmd_matrix(args) -> int:
             raise InputError(f"--resume: no incomplete run in {store.path} (give a run id to pick one)")
         store.run(run_id)  # an unknown id is an error, not "0 cells left"
         cells = store.pending(run_id)
+        if not cells:  # every planned row is stored (only its end mark was lost): nothing to run
+            store.finish_run(run_id, "done")
+            print(f"run {run_id}: every planned cell is stored; marked done", file=sys.stderr)
+            return 0
         print(f"resuming run {run_id}: {len(cells)} cells left", file=sys.stderr)
         died = store.died_in(run_id)
         if died:  # perhaps killed, perhaps the cell's crash: each runs again in a process of its own
@@ -227,6 +235,9 @@ def cmd_matrix(args) -> int:
         store, run_id, died = Store(args.db), None, []
     if args.baseline is not None:
         store.run(args.baseline)  # an unknown baseline is bad input, caught up front
+        _check_baseline(store, args.baseline, cells)
+    if args.html and not args.no_report and not args.no_html:
+        cli_args.writable_folder("--html", args.html)  # refused before the first cell
     ahead = None
     with recorded_run(store, command_line(args), cells, run_id) as run_id:
         if args.resume is None:
@@ -291,9 +302,24 @@ def _say_moves(moves: list) -> None:
         for m in moves:
             print(f"  {m.text()}", file=sys.stderr)
 
+def _check_baseline(store: Store, baseline: int, cells) -> None:
+    """Refuse, before the first cell, a --baseline run that cannot be compared with the matrix:
+    one with no stored row, or none of whose problem x scheme pairs the matrix runs (then no
+    cell can be in common; the comparison of the cells themselves comes after the run)."""
+    rows = store.rows(baseline)
+    if not rows:
+        raise InputError(f"--baseline {baseline}: run {baseline} has no stored row: nothing to compare with")
+    pairs = {(r["problem"], r["integrator"]) for r in rows}
+    if cells and not any((c.problem, c.integrator) in pairs for c in cells):
+        have = ", ".join(f"{p} x {i}" for p, i in sorted(pairs)[:4]) + (", ..." if len(pairs) > 4 else "")
+        raise InputError(f"--baseline {baseline}: run {baseline} has no cell in common with this matrix "
+                         f"(it holds {have})")
+
 
 def cmd_report(args) -> int:
     store = Store(args.db, readonly=True)  # a report writes nothing, not even an empty store
+    if args.html:
+        cli_args.writable_folder("--html", args.html)  # refused before the rows are read and drawn
     if args.run == "all":
         rows = store.rows()
     else:

@@ -6,7 +6,8 @@ at most one line on stderr, ``longtime CMD: error: ...`` (the traceback too with
 
 - 0: done; 1: a failure that changing the command does not fix (a cell failed in ``run``,
   a store that cannot be written during a run, a lost Dask scheduler, an unexpected error);
-  2: bad input (an ``InputError``);
+  2: bad input (an ``InputError``); a full disk (``DiskFull``: a temp file, a row file)
+  is 1 with the run marked ``interrupted`` and no row stored for the cells it stopped;
 - 130, 143, 129: stopped by SIGINT (Ctrl-C), SIGTERM, SIGHUP. SIGTERM and SIGHUP raise
   ``Stopped``, a KeyboardInterrupt, wherever the command is, so they run every cleanup that
   Ctrl-C runs: the pool's workers killed, the run marked ``interrupted``, temp folders
@@ -28,6 +29,7 @@ from typing import Iterator
 from longtime.core.outputs import contract_stdout
 from longtime.core.params import InputError
 from longtime.execution.dask_executor import ExecutorLost
+from longtime.execution.tempdirs import DiskFull
 
 STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
 
@@ -44,7 +46,9 @@ class Stopped(KeyboardInterrupt):
 def stop_signals() -> Iterator[None]:
     """SIGTERM and SIGHUP raise ``Stopped`` while the block runs (in the main thread; a signal
     the parent set to be ignored, as ``nohup`` does for SIGHUP, stays ignored). A second
-    signal does not cut the cleanup the first one started."""
+    signal does not cut the cleanup the first one started; where cells run in this process,
+    a process stuck in compiled code is ended by limits.signal_relay (the first signal after
+    its grace, a second at once)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -55,13 +59,18 @@ def stop_signals() -> Iterator[None]:
             fired.append(signum)
             raise Stopped(signum)
 
+    from longtime.execution.limits import RELAY_SIGNALS
+
     previous = {}
     for sig in STOP_SIGNALS:
         if signal.getsignal(sig) == signal.SIG_DFL:
             previous[sig] = signal.signal(sig, handler)
+    relayed = RELAY_SIGNALS["enabled"]
+    RELAY_SIGNALS["enabled"] = True  # cells run in this process: a stop signal ends it (limits.signal_relay)
     try:
         yield
     finally:
+        RELAY_SIGNALS["enabled"] = relayed
         for sig, old in previous.items():
             signal.signal(sig, old)
 
@@ -129,6 +138,8 @@ def run_command(args: argparse.Namespace) -> int:
         return 128 + signum
     except ExecutorLost as exc:
         return fail(f"error: {exc}{_resume_hint('runs them (on any executor)')}", 1)
+    except DiskFull as exc:  # no row stored for the cell that met it: the run is interrupted
+        return fail(f"error: {exc}{_resume_hint('runs the rest once there is space')}", 1)
     except StoreError as exc:
         hint = _resume_hint("completes it")
         if not hint and exc.run_id is not None:  # not even its end could be written: it reads as incomplete

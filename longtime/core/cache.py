@@ -9,9 +9,36 @@ kernels from the closures; nothing is written to ``kernels``).
 """
 from __future__ import annotations
 
+import errno
 import hashlib
 import os
+import warnings
 from pathlib import Path
+
+# a write that failed for want of space (a full disk, a quota): the place, not the data, is at fault
+NO_SPACE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT})
+_warned: set[str] = set()
+
+
+def no_space(exc: BaseException | None) -> bool:
+    """Whether ``exc`` (or an exception it was raised from) is a write that found no space."""
+    seen = 0
+    while exc is not None and seen < 8:
+        if isinstance(exc, OSError) and exc.errno in NO_SPACE_ERRNOS:
+            return True
+        exc, seen = exc.__cause__ or exc.__context__, seen + 1
+    return False
+
+
+def skip_cache(where: Path | str, exc: OSError, variable: str = "LONGTIME_CACHE_DIR") -> None:
+    """A cache write into the folder ``where`` that found no space: a warning (once per
+    folder and process), and the run goes on without caching it, as numba does with a cache
+    folder it cannot write."""
+    folder = str(where)
+    if folder not in _warned:
+        _warned.add(folder)
+        warnings.warn(f"cannot cache in {folder}: {exc.strerror or exc}; running without caching "
+                      f"(free space there, or set {variable} elsewhere)", stacklevel=3)
 
 
 def cache_root() -> Path:
@@ -20,8 +47,15 @@ def cache_root() -> Path:
 
 
 def cache_dir(*parts: str) -> Path:
+    """The cache folder ``parts``, created; on a full disk it is only named (reads find
+    nothing there, writes are skipped with a warning)."""
     path = cache_root().joinpath(*parts)
-    path.mkdir(parents=True, exist_ok=True)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        if not no_space(exc):
+            raise
+        skip_cache(path, exc)
     return path
 
 
@@ -55,15 +89,22 @@ def digest(*chunks: bytes | str) -> str:
     return h.hexdigest()[:32]
 
 
-def write_atomic(path: Path, data: bytes) -> None:
-    """Write ``path`` whole or not at all (a temporary file renamed over it): a reader never
-    sees a half-written file, and processes writing the same file at once each write whole."""
+def write_atomic(path: Path, data: bytes) -> bool:
+    """Write the cache file ``path`` whole or not at all (a temporary file renamed over it):
+    a reader never sees a half-written file, and processes writing the same file at once each
+    write whole. On a full disk nothing is written (``skip_cache``): returns False."""
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
         tmp.write_bytes(data)
         os.replace(tmp, path)
+    except OSError as exc:
+        if not no_space(exc):
+            raise
+        skip_cache(path.parent, exc)
+        return False
     finally:
         tmp.unlink(missing_ok=True)
+    return True
 
 
 def discard(path: Path | str, what: str, exc: BaseException | str) -> None:

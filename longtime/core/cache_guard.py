@@ -16,7 +16,7 @@ from typing import Any, Callable
 
 from numba.core import caching
 
-from longtime.core.cache import discard
+from longtime.core.cache import discard, no_space, skip_cache
 
 _FILE = caching.IndexDataCacheFile
 
@@ -49,6 +49,24 @@ def install(extra_key: Callable[[Any], tuple]) -> None:
 
     _FILE._load_index, _FILE._load_data = _load_index, _load_data
     _FILE._longtime_guarded = True
+
+    # numba raises when its cache folder has no space left for a compiled function; the
+    # function is compiled and runs all the same: a warning, and it stays uncached
+    save_overload = caching.Cache.save_overload
+
+    def _save_overload(self, sig, data):
+        try:
+            save_overload(self, sig, data)
+        except OSError as exc:
+            if not no_space(exc):
+                raise
+            from numba.core import config
+
+            numba_dir = bool(config.CACHE_DIR)  # one warning for numba's whole cache folder
+            skip_cache(config.CACHE_DIR or self._cache_path, exc,
+                       "NUMBA_CACHE_DIR" if numba_dir else "LONGTIME_CACHE_DIR")
+
+    caching.Cache.save_overload = _save_overload
 
     # numba keys an entry by the function's own bytecode, and drops the index only when the
     # function's own file changes: a callee in another module (or a constant imported from

@@ -189,6 +189,28 @@ def writing(flag: str, path) -> Iterator[None]:
         raise InputError(f"{flag} {path}: cannot write it: {exc.strerror or exc}") from None
 
 
+def writable_folder(flag: str, path) -> None:
+    """Refuse, before any work, a folder ``flag`` is to write into that cannot be written (read
+    only, under a file, on a full disk): tried by creating it and a file in it, so that it
+    holds for root too. A folder it creates is left (empty) for the write that follows."""
+    import os
+    import tempfile
+    from pathlib import Path
+
+    from longtime.core.params import InputError
+
+    folder = Path(path)
+    try:
+        if folder.exists() and not folder.is_dir():
+            raise NotADirectoryError(0, "it is not a folder")
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=folder, prefix=".probe-")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise InputError(f"{flag} {path}: cannot write there: {exc.strerror or exc}") from None
+
+
 def scheduler(text: str) -> str:
     """--scheduler: a Dask scheduler address, ``[PROTOCOL://]HOST:PORT`` (checked by Dask's
     own parser when dask.distributed is installed; without it the executor says so)."""

@@ -47,6 +47,8 @@ class Param:
     sweeps: bool | None = None  # None: as its role (SWEEPING_ROLES sweep)
     # the range `longtime match` searches an accuracy parameter over (None: 1e-14 to 0.1)
     search: tuple[float, float] | None = None
+    # why a value below ``minimum`` is refused, where that is not plain from the number
+    minimum_reason: str | None = None
 
     def __post_init__(self):
         if self.role not in ROLES:
@@ -96,6 +98,8 @@ class Param:
         if isinstance(v, (int, float)) and not isinstance(v, bool):
             if isinstance(v, float) and not math.isfinite(v):
                 raise InputError(f"{name}={value!r} is not valid: must be finite ({self.allowed()})")
+            if self.minimum_reason and self.minimum is not None and 0 < v < self.minimum:
+                raise InputError(f"{name}={value!r} is not valid: {self.minimum_reason} ({self.allowed()})")
             bad = (
                 (self.positive and not v > 0)
                 or (self.minimum is not None and v < self.minimum)

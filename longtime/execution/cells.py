@@ -16,12 +16,14 @@ from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping
 
 from longtime.core import phases, registry, roles
+from longtime.core.cache import no_space
 from longtime.core.integrator import FixedStepIntegrator, Integrator, Timing, Trajectory
 from longtime.core.outputs import to_stderr
 from longtime.core.params import InputError, check_time_span
 from longtime.core.problem import Problem
 from longtime.core.roles import ROW_PARAMETERS
 from longtime.execution import limits
+from longtime.execution.tempdirs import disk_full
 from longtime.measure import metrics
 from longtime.measure.reference import ReferenceUnavailable, has_reference, trusted_reference
 
@@ -302,6 +304,11 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
     except MemoryError as exc:  # past the worker's memory limit (longtime.execution.limits), or the machine's
         row["status"] = "failed"
         row["message"] = limits.memory_message(exc)
+    except OSError as exc:
+        if no_space(exc):  # the machine's fault, not the cell's: never stored as its row
+            raise disk_full(exc, f"running {cell.problem} x {cell.integrator}") from None
+        row["status"] = "failed"
+        row["message"] = "".join(traceback.format_exception_only(type(exc), exc)).strip()
     except (Exception, SystemExit) as exc:  # a failing cell never takes the matrix down
         # (a plugin's sys.exit too; os.abort or a segfault need a process per cell)
         row["status"] = "failed"

@@ -22,6 +22,7 @@ from typing import Iterator
 
 from longtime.core.params import InputError
 from longtime.execution.cells import Cell, base_row, run_cell
+from longtime.execution.limits import hard_limit
 
 
 class ExecutorLost(RuntimeError):
@@ -41,6 +42,43 @@ def batches(cells: list[Cell], workers: int) -> list[list[Cell]]:
     # floor: then sum over pairs of ceil(n / size) >= len(cells) / size >= the tasks wanted
     size = max(1, min(BATCH_CELLS, len(cells) // (BATCHES_PER_WORKER * max(1, workers))))
     return [pair[i:i + size] for pair in batches_by_pair(cells) for i in range(0, len(pair), size)]
+
+
+# how long a scheduler has to answer, connection and handshake included
+CONNECT_S = 10.0
+
+
+def check_scheduler(address: str, seconds: float = CONNECT_S) -> None:
+    """Refuse, before a run is recorded, an address where no Dask scheduler answers within
+    ``seconds``: nothing listening, or a server of another kind (an HTTP server accepts the
+    connection and never completes Dask's handshake, which Dask's connect timeout does not
+    cover). Connects with Dask's own comm layer and asks the peer's identity."""
+    import asyncio
+
+    try:
+        from distributed.comm import connect
+    except ImportError:
+        raise InputError("executor 'dask' needs dask.distributed: pip install 'longtime[dask]'") from None
+
+    async def identity():
+        comm = await connect(address, timeout=seconds)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    try:
+        info = asyncio.run(asyncio.wait_for(identity(), seconds))
+    except (asyncio.TimeoutError, TimeoutError):
+        raise InputError(f"--scheduler {address}: no Dask scheduler answered there within {seconds:g} s "
+                         f"(something listens, but does not speak Dask's protocol)") from None
+    except Exception as exc:  # refused, closed mid-handshake, garbage
+        raise InputError(f"--scheduler {address}: cannot connect to a Dask scheduler there "
+                         f"({type(exc).__name__}: {str(exc)[:200]})") from None
+    if not isinstance(info, dict) or info.get("type") != "Scheduler":
+        kind = info.get("type") if isinstance(info, dict) else type(info).__name__
+        raise InputError(f"--scheduler {address}: the server there is not a Dask scheduler (it says {kind!r})")
 
 
 def _connect(options, n_cells: int):
@@ -83,8 +121,11 @@ def dask_cluster(cells: list[Cell], options) -> Iterator[tuple[Cell, dict]]:
                        for c in runnable}
         else:
             workers = max(1, len(client.scheduler_info().get("workers", {})))
-            futures = {client.submit(run_batch, batch, options.max_samples, options.timing,
-                                     time_limit=options.time_limit, pure=False): batch
+            limited = hard_limit(options.time_limit) is not None or options.memory_limit
+            task = run_batch_limited if limited else run_batch
+            extra = {"memory_limit": options.memory_limit} if limited else {}
+            futures = {client.submit(task, batch, options.max_samples, options.timing,
+                                     time_limit=options.time_limit, pure=False, **extra): batch
                        for batch in batches(runnable, workers)}
         left = len(runnable)
         for fut in as_completed(futures):
@@ -97,6 +138,11 @@ def dask_cluster(cells: list[Cell], options) -> Iterator[tuple[Cell, dict]]:
                     where = f"the Dask scheduler {options.scheduler}" if options.scheduler else "the local Dask cluster"
                     raise ExecutorLost(f"{where} was lost ({type(exc).__name__}): {left} of {len(runnable)} "
                                        f"cells not run, none of them stored") from None
+                from longtime.core.cache import no_space
+                from longtime.execution.tempdirs import DiskFull, disk_full
+
+                if isinstance(exc, DiskFull) or no_space(exc):  # the worker's disk, not the cells
+                    raise disk_full(exc, "a Dask worker ran its cells") from None
                 # the batch raised, or killed allowed-failures workers (KilledWorker)
                 rows = [{**base_row(c), "status": "failed", "message": f"dask task failed: {exc!r}"}
                         for c in batch]
@@ -104,6 +150,21 @@ def dask_cluster(cells: list[Cell], options) -> Iterator[tuple[Cell, dict]]:
             yield from zip(batch, rows)
     finally:
         _close(client, cluster)
+
+
+def run_batch_limited(cells: list[Cell], max_samples: int, timing, time_limit: float | None = None,
+                      memory_limit: int | None = None) -> list[dict]:
+    """A batch's rows on a Dask worker under the process pool's limits: each cell in a child
+    process of the worker (longtime.execution.isolation), killed past the hard limit of
+    ``time_limit`` (a ``timeout`` row), under ``memory_limit`` (``failed: memory limit``),
+    and dying with the worker (PR_SET_PDEATHSIG), so no process of the task outlives it. The
+    children load the kernels the first one compiled from the disk cache."""
+    from longtime.execution.isolation import run_isolated
+
+    rows = dict((c.key, row) for c, row in run_isolated(cells, max_samples, hard_limit(time_limit), jobs=1,
+                                                         timing=timing, time_limit=time_limit,
+                                                         memory_limit=memory_limit))
+    return [rows[c.key] for c in cells]
 
 
 def _close(client, cluster) -> None:

@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Iterator
 
 from longtime.core import registry
+from longtime.core.cache import no_space
 from longtime.core.integrator import Timing
 from longtime.execution import tempdirs
 from longtime.execution.cells import (
@@ -39,6 +40,9 @@ from longtime.execution.cells import (
 from longtime.execution.limits import die_with_parent, set_memory_limit
 
 POLL_S = 0.05
+# a child's start-up (Python, numpy, numba, the plugins) before its cell begins: its time limit
+# counts from the cell's start, as the pool's watchdog counts it, and this bounds the start-up
+STARTUP_S = 120.0
 STDERR_TAIL = 600  # characters of a dead child's stderr kept in its row's message
 
 
@@ -56,6 +60,7 @@ class _Child:
     proc: subprocess.Popen
     deadline: float
     started: float = field(default_factory=time.perf_counter)
+    begun: bool = False  # the child has begun its cell (running_since)
 
     @property
     def out_path(self) -> Path:
@@ -65,9 +70,26 @@ class _Child:
     def err_path(self) -> Path:
         return self.folder / "stderr.txt"
 
+    def running_since(self, timeout: float | None) -> None:
+        """Once the child has begun its cell (its ``started`` file), the time limit counts from
+        then; before, from its start plus STARTUP_S."""
+        if timeout and not self.begun and (self.folder / "started").exists():
+            self.begun = True
+            self.deadline = time.perf_counter() + timeout
+
 
 def _start(cell: Cell, max_samples: int, timeout: float | None, timing: Timing,
            time_limit: float | None = DEFAULT_TIME_LIMIT, memory_limit: int | None = None) -> _Child:
+    try:
+        return _spawn(cell, max_samples, timeout, timing, time_limit, memory_limit)
+    except OSError as exc:
+        if no_space(exc):
+            raise tempdirs.disk_full(exc, f"writing the files of {cell.problem} x {cell.integrator}") from None
+        raise
+
+
+def _spawn(cell: Cell, max_samples: int, timeout: float | None, timing: Timing,
+           time_limit: float | None, memory_limit: int | None) -> _Child:
     folder = tempdirs.make("cell")
     job = {"cell": cell.to_dict(), "max_samples": max_samples, "parent": os.getpid(), "time_limit": time_limit,
            "timing": {"repeats": timing.repeats, "min_time": timing.min_time}, "memory_limit": memory_limit}
@@ -78,7 +100,7 @@ def _start(cell: Cell, max_samples: int, timeout: float | None, timing: Timing,
             [sys.executable, "-m", "longtime.execution.isolation", str(folder)],
             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err,
             start_new_session=True)  # its own process group: a kill reaches its children too
-    deadline = time.perf_counter() + timeout if timeout else float("inf")
+    deadline = time.perf_counter() + timeout + STARTUP_S if timeout else float("inf")
     return _Child(cell, folder, proc, deadline)
 
 
@@ -117,9 +139,13 @@ def _finish(child: _Child, timed_out: bool, timeout: float | None) -> dict:
         if timed_out:
             row.update(status="timeout",
                        message=f"cell exceeded its time limit of {timeout:g} s (process killed after "
-                               f"{elapsed:.1f} s)")
+                               f"{elapsed:.1f} s, its start-up included)")
             return row
         code = child.proc.returncode
+        if code == tempdirs.NO_SPACE_EXIT:  # the child found no space for its row: not the cell's fault
+            tail = child.err_path.read_text(errors="replace").strip().splitlines() if child.err_path.exists() else []
+            raise tempdirs.DiskFull(tail[-1] if tail else f"no space left on the disk for the row of "
+                                    f"{child.cell.problem} x {child.cell.integrator}")
         how = f"killed by {_signal_name(-code)}" if code < 0 else f"exited with code {code}"
         tail = child.err_path.read_text(errors="replace").strip()[-STDERR_TAIL:] if child.err_path.exists() else ""
         row.update(status="failed",
@@ -151,6 +177,7 @@ def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, time
                                       None if limit == float("inf") else limit, memory_limit))
             still = []
             for child in running:
+                child.running_since(timeout)
                 if child.proc.poll() is not None:
                     yield child.cell, _finish(child, False, timeout)
                 elif time.perf_counter() > child.deadline:
@@ -182,11 +209,20 @@ def _child_main(folder: str) -> None:
     die_with_parent(job["parent"])
     restore_session(path)
     set_memory_limit(job.get("memory_limit"))
-    row = run_cell(Cell.from_dict(job["cell"]), job["max_samples"], timing=Timing(**job["timing"]),
-                   time_limit=job.get("time_limit"))
-    tmp = path / "row.json.part"
-    tmp.write_text(json.dumps(row))
-    tmp.replace(path / "row.json")  # atomic: the parent never reads half a row
+    try:
+        (path / "started").touch()  # the parent's time limit counts from here
+        row = run_cell(Cell.from_dict(job["cell"]), job["max_samples"], timing=Timing(**job["timing"]),
+                       time_limit=job.get("time_limit"))
+        tmp = path / "row.json.part"
+        tmp.write_text(json.dumps(row))
+        tmp.replace(path / "row.json")  # atomic: the parent never reads half a row
+    except (OSError, tempdirs.DiskFull) as exc:
+        if not (no_space(exc) or isinstance(exc, tempdirs.DiskFull)):
+            raise
+        (path / "row.json.part").unlink(missing_ok=True)
+        print(tempdirs.disk_full(exc, "writing the row"), file=sys.stderr)
+        sys.stderr.flush()
+        os._exit(tempdirs.NO_SPACE_EXIT)
     sys.stderr.flush()
     os._exit(0)  # skip interpreter teardown: a thread a plugin left running cannot hang us
 

@@ -30,6 +30,11 @@ GRACE_S = 10.0
 GRACE_SHARE = 0.1
 # a cell may use this share of the machine's memory unless --memory-limit says otherwise
 MEMORY_SHARE = 0.5
+# the smallest --memory-limit taken: no worker process (Python, numpy, numba) starts in less,
+# so a smaller limit (1e-12 GiB, 1e-300 %, which round to 0 bytes: no limit) is a mistake
+MIN_MEMORY_LIMIT = 2**20
+# the largest: beyond any machine's address space (a larger number is a typo, not a limit)
+MAX_MEMORY_LIMIT = 2**60
 POLL_S = 0.1
 
 
@@ -74,8 +79,16 @@ def memory_argument(text: str) -> int | None:
         total = machine_memory()
         if not total:
             raise argparse.ArgumentTypeError(f"--memory-limit {text}: the machine's memory is unknown here; give GiB")
-        return int(total * value / 100)
-    return int(value * 2**30)
+        nbytes = total * value / 100
+    else:
+        nbytes = value * 2**30
+    if not nbytes >= MIN_MEMORY_LIMIT:
+        raise argparse.ArgumentTypeError(f"--memory-limit {text} is {nbytes:.3g} bytes, below the smallest limit "
+                                         f"taken, 1 MiB (no worker process starts in it); give GiB (e.g. 8), or 0 for no limit")
+    if not nbytes <= MAX_MEMORY_LIMIT:
+        raise argparse.ArgumentTypeError(f"--memory-limit {text} is beyond any machine's memory "
+                                         f"({gib(MAX_MEMORY_LIMIT)}); give GiB (e.g. 8), or 0 for no limit")
+    return int(nbytes)
 
 
 def gib(nbytes: float) -> str:
@@ -183,3 +196,78 @@ class Watchdog:
             os.kill(pid, signal.SIGKILL)
         self.killed += 1
         self.record(cell, elapsed)
+
+
+# how long a process running cells in itself (--executor serial, --time-limit 0) has, after a
+# first SIGINT / SIGTERM / SIGHUP, to end on its own (a compiled step never returns to Python,
+# where the signal is handled) before it is killed; a second signal kills it at once
+SIGNAL_GRACE_S = GRACE_S
+# set by the command line (longtime.commands.guard): a command's process ends on a stop signal;
+# a Python session (the API, a notebook) that catches KeyboardInterrupt is never killed
+RELAY_SIGNALS = {"enabled": False}
+
+_RELAY = r"""
+import os, select, signal, sys, time
+fd, pid, grace = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3])
+stops = {int(s) for s in sys.argv[4].split(",")}
+seen, deadline = 0, None
+while True:
+    wait = None if deadline is None else max(0.0, deadline - time.monotonic())
+    ready, _, _ = select.select([fd], [], [], wait)
+    if not ready:
+        os.kill(pid, signal.SIGKILL)
+        break
+    data = os.read(fd, 64)
+    if not data:
+        break
+    seen += sum(1 for b in data if b in stops)
+    if seen >= 2:
+        os.kill(pid, signal.SIGKILL)
+        break
+    if seen and deadline is None:
+        deadline = time.monotonic() + grace
+"""
+
+
+@contextlib.contextmanager
+def signal_relay(grace: float = SIGNAL_GRACE_S):
+    """While cells run in this process: a first SIGINT, SIGTERM or SIGHUP ends it within
+    ``grace`` seconds, a second at once, even where a compiled step never returns to Python
+    (where Python runs its signal handlers). Python's C-level handler writes each signal's
+    number to a wakeup pipe (``signal.set_wakeup_fd``) whatever the main thread is doing; a
+    small relay process reads it and, past the grace or at the second signal, kills this
+    process (SIGKILL: the store keeps what it committed and knows the cell it was in, as after
+    a crash). The relay ends with this process (end of file on the pipe). Only in a command's
+    main thread (``RELAY_SIGNALS``); elsewhere a no-op."""
+    import subprocess
+    import sys
+
+    if not RELAY_SIGNALS["enabled"] or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    read_end, write_end = os.pipe()
+    os.set_blocking(write_end, False)
+    try:
+        previous = signal.set_wakeup_fd(write_end, warn_on_full_buffer=False)
+    except (ValueError, OSError):
+        os.close(read_end)
+        os.close(write_end)
+        yield
+        return
+    stops = ",".join(str(int(s)) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP))
+    try:
+        relay = subprocess.Popen([sys.executable, "-S", "-c", _RELAY, str(read_end), str(os.getpid()), str(grace),
+                                  stops], pass_fds=(read_end,), stdin=subprocess.DEVNULL,
+                                 stdout=subprocess.DEVNULL, start_new_session=True)
+    except OSError:
+        relay = None
+    os.close(read_end)
+    try:
+        yield
+    finally:
+        with contextlib.suppress(ValueError, OSError):
+            signal.set_wakeup_fd(previous)
+        os.close(write_end)  # end of file: the relay exits
+        if relay is not None:
+            with contextlib.suppress(Exception):
+                relay.wait(timeout=2)

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterator
 
 from longtime.core import phases, registry
+from longtime.core.cache import no_space
 from longtime.core.integrator import Timing
 from longtime.core.params import InputError, check_choice
 from longtime.execution import calibration, tempdirs
@@ -32,11 +33,12 @@ from longtime.execution.cells import (
     run_cell,
 )
 from longtime.execution.isolation import run_isolated
-from longtime.execution.limits import Watchdog, default_memory_limit, grace, hard_limit, worker_init
+from longtime.execution.limits import Watchdog, default_memory_limit, grace, hard_limit, signal_relay, worker_init
 from longtime.execution.pool import spawn_pool
 from longtime.execution.processes import across_processes, default_processes
 from longtime.execution.pool import workers as pool_workers
 from longtime.execution.store import Store
+from longtime.execution.tempdirs import DiskFull, disk_full
 
 
 @dataclass
@@ -72,12 +74,16 @@ IdleTask = tuple[Callable, tuple, Callable[[Any], None]]
 
 
 def serial(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
+    """The cells in this process, one after the other, without the hard limit; a first stop
+    signal ends the process within limits.SIGNAL_GRACE_S even in a compiled step that never
+    returns, a second at once (limits.signal_relay)."""
     here = calibration.here()
     here.start()
-    for cell in cells:
-        if options.on_start is not None and not cell.skip_reason:
-            options.on_start(cell)
-        yield cell, _calibrated(here, cell, options.max_samples, options.timing, options.time_limit)
+    with signal_relay():
+        for cell in cells:
+            if options.on_start is not None and not cell.skip_reason:
+                options.on_start(cell)
+            yield cell, _calibrated(here, cell, options.max_samples, options.timing, options.time_limit)
 
 
 _FAMILY_PACKAGES = ("longtime.integrators.", "longtime.problems.")
@@ -225,7 +231,12 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
     if workers == 1 and limit is None:  # no limit to enforce: this process is the worker
         yield from serial(runnable, options)
         return
-    folder = str(tempdirs.make("pool"))  # removed below, or by a later run if this one is killed
+    try:
+        folder = str(tempdirs.make("pool"))  # removed below, or by a later run if this one is killed
+    except OSError as exc:
+        if no_space(exc):
+            raise disk_full(exc, "making the pool's temp folder") from None
+        raise
     done: set[str] = set()
     remaining = runnable
     with phases.phase("pool"):  # this process while the pool runs: storing rows, waiting
@@ -245,6 +256,8 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
                             broken = True
                             continue
                         except Exception as exc:  # the batch could not be sent or returned
+                            if no_space(exc) or isinstance(exc, DiskFull):  # a full temp folder: not the cells'
+                                raise disk_full(exc, "a worker wrote its cell's files") from None
                             rows = [{**base_row(c), "status": "failed",
                                      "message": f"worker process failed: {exc!r}"} for c in batch]
                         for c, row in zip(batch, rows):

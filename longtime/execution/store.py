@@ -22,6 +22,7 @@ from typing import Any, Iterable, Iterator
 from urllib.parse import quote
 
 from longtime.core.params import InputError
+from longtime.core.roles import ROW_PARAMETERS
 from longtime.execution.cells import Cell
 
 DEFAULT_PATH = "longtime.sqlite"
@@ -171,6 +172,7 @@ class Store:
         self.readonly = readonly
         self._writer: sqlite3.Connection | None = None  # see _row_writer
         self._writer_lock = threading.Lock()
+        self.skipped: set[int] = set()  # ids of the stored rows ``rows`` skipped (bad_row)
         exists = _check_path(self.path, must_exist=readonly or not create)
         if exists:
             self._check_identity()
@@ -415,9 +417,48 @@ class Store:
         return runs[-1]["id"] if runs else None
 
     def rows(self, run_id: int | None = None) -> list[dict[str, Any]]:
-        query, args = "SELECT run_id, row FROM rows", ()
+        """The stored rows (of ``run_id``, or all), each with its ``run_id``. A row that is not
+        structurally a row (``bad_row``: not JSON, not an object, no names, a parameter that
+        is not a number) is skipped with one warning line naming its id and the reason: one
+        bad row never costs the store its report, comparison or history."""
+        query, args = "SELECT id, run_id, row FROM rows", ()
         if run_id is not None:
             query, args = query + " WHERE run_id = ?", (run_id,)
         with closing(self._connect()) as con:
             fetched = con.execute(query + " ORDER BY id", args).fetchall()
-        return [{"run_id": rid, **json.loads(text)} for rid, text in fetched]
+        out = []
+        for row_id, rid, text in fetched:
+            try:
+                row = json.loads(text)
+                reason = bad_row(row)
+            except (TypeError, ValueError) as exc:  # not JSON (or not text)
+                row, reason = None, f"not JSON ({type(exc).__name__}: {str(exc)[:80]})"
+            if reason is None:
+                out.append({"run_id": rid, **row})
+            elif row_id not in self.skipped:  # one warning per row and Store
+                self.skipped.add(row_id)
+                print(f"warning: store {self.path}: row {row_id} (run {rid}) skipped: {reason}", file=sys.stderr)
+        return out
+
+
+_NAMES = ("problem", "integrator", "status")
+_NUMBERS = (*ROW_PARAMETERS, "t_final")
+
+
+def bad_row(row: Any) -> str | None:
+    """Why a stored row cannot be read as one (None: it can): it must be a JSON object whose
+    problem, integrator and status are non-empty texts and whose row parameters (dt, tol,
+    eps_res, order, t_final) are numbers or null."""
+    if not isinstance(row, dict):
+        return f"not a JSON object but {type(row).__name__ if row is not None else 'null'}"
+    for key in _NAMES:
+        if not isinstance(row.get(key), str) or not row[key]:
+            return f"{key} is {row.get(key)!r}, not a name" if key in row else f"no {key}"
+    for key in _NUMBERS:
+        value = row.get(key)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))):
+            return f"{key} is {value!r}, not a number"
+    for key in ("settings", "parameters", "message"):
+        if row.get(key) is not None and not isinstance(row[key], str):
+            return f"{key} is {type(row[key]).__name__}, not a text"
+    return None

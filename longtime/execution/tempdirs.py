@@ -14,6 +14,26 @@ import tempfile
 from pathlib import Path
 
 KINDS = ("pool", "cell", "valgrind", "timing")
+# a cell process's exit code when a write found no space (sysexits' EX_TEMPFAIL: try again later)
+NO_SPACE_EXIT = 75
+
+
+class DiskFull(RuntimeError):
+    """A write that the run needs (a temp file, a row file, the store) found no space left:
+    a fault of the machine, not a property of the cell, so no row is stored for it; the run
+    is marked ``interrupted`` and ``longtime matrix --resume`` completes it once there is
+    space again (as a lost Dask scheduler is)."""
+
+
+def disk_full(exc: BaseException, what: str) -> DiskFull:
+    """The DiskFull of ``exc`` (a write that found no space) while doing ``what``."""
+    if isinstance(exc, DiskFull):
+        return exc
+    where = f" ({exc.filename})" if isinstance(exc, OSError) and exc.filename else ""
+    return DiskFull(f"no space left on the disk while {what}{where}: "
+                    f"{getattr(exc, 'strerror', None) or exc}")
+
+
 _NAME = re.compile(rf"longtime-(?:{'|'.join(KINDS)})-(\d+)-[^/]+")
 _swept = False
 

@@ -29,6 +29,12 @@ SAFETY, FAC_MIN, FAC_MAX, PI_BETA = 0.9, 0.2, 10.0, 0.04
 # meta row of the work array
 M_RTOL, M_ATOL, M_K1_VALID, M_ERR_PREV, M_REJECTED, M_PI = range(6)
 META_SIZE = 6
+# the smallest relative tolerance taken: 10 x the unit round-off of double precision (2**-53),
+# below which no step's error estimate can be met; Hairer and Wanner's RADAU5 refuses an
+# rtol at or below the same floor ("tolerances are too small")
+TOL_FLOOR = 10 * 2.0**-53
+TOL_FLOOR_REASON = (f"below what double precision can meet (10 x its unit round-off, {TOL_FLOOR:.2g}; "
+                    f"a smaller relative tolerance only ends in a step-size underflow)")
 
 
 def embedded_try_step(rhs, A, b, e, c, q, fsal):
@@ -112,7 +118,8 @@ class EmbeddedRungeKutta(AdaptiveIntegrator):
     @classmethod
     def _parameters(cls, controller):
         return {
-            "tol": Param(1e-6, "relative tolerance rtol", float, positive=True, role="accuracy"),
+            "tol": Param(1e-6, "relative tolerance rtol", float, positive=True, role="accuracy",
+                         minimum=TOL_FLOOR, minimum_reason=TOL_FLOOR_REASON),
             "atol": Param(None, "absolute tolerance (default: tol)", float, positive=True),
             "controller": Param(controller, "step-size control", str, choices=("pi", "standard")),
         }

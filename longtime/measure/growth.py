@@ -125,7 +125,8 @@ def _verdict(alpha: float, windows: list[tuple[float, float]], level: float,
              steps: int | None) -> tuple[str, str]:
     """(class, reason): the class of ``alpha`` where the windows and the error ``level``
     support it, else ``undetermined`` and why; for a class, the reason says what it rests on."""
-    slopes = ", ".join(f"{a:.2f}" for a, _ in windows)
+    # round(a, 2) + 0.0 turns a slope that rounds to -0.00 (round-off about zero) into 0.00
+    slopes = ", ".join(f"{round(a, 2) + 0.0:.2f}" for a, _ in windows)
     if len(windows) < 2:
         return "undetermined", f"too short: the samples span under {WINDOW_DECADES + WINDOW_SHIFT:g} decades of t"
     bound = ROUNDOFF_FACTOR * EPS * math.sqrt(steps) if steps else None

@@ -1,0 +1,80 @@
+"""Issue 37, items 14 to 17: asv-init checks its input before it writes anything; --force
+never writes through a symbolic link out of DIR."""
+import math
+
+import pytest
+
+from longtime.commands.cli import main
+
+
+def _asv_init(capsys, *args):
+    capsys.readouterr()
+    try:
+        code = main(["asv-init", *map(str, args)])
+    except SystemExit as exc:
+        code = exc.code
+    return code, capsys.readouterr().err
+
+
+def test_item14_benchmarks_a_file_is_refused_before_writing_anything(tmp_path, capsys):
+    (tmp_path / "benchmarks").write_text("not a folder")
+    code, err = _asv_init(capsys, tmp_path, "-p", "harmonic", "-i", "rk4")
+    assert code == 2 and "benchmarks" in err and "nothing was written" in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["benchmarks"]
+
+
+def test_item15_force_never_writes_through_a_symlink_out_of_dir(tmp_path, capsys):
+    repo, outside = tmp_path / "repo", tmp_path / "outside"
+    repo.mkdir()
+    outside.mkdir()
+    victim = outside / "precious.json"
+    victim.write_text("keep me")
+    (repo / "asv.conf.json").symlink_to(victim)
+    code, err = _asv_init(capsys, repo, "-p", "harmonic", "-i", "rk4", "--force")
+    assert code == 0, err
+    assert victim.read_text() == "keep me"
+    assert not (repo / "asv.conf.json").is_symlink() and '"benchmark_dir"' in (repo / "asv.conf.json").read_text()
+    # a benchmarks folder that is a link out of DIR: refused, nothing written through it
+    repo2 = tmp_path / "repo2"
+    repo2.mkdir()
+    (repo2 / "benchmarks").symlink_to(outside, target_is_directory=True)
+    code, err = _asv_init(capsys, repo2, "-p", "harmonic", "-i", "rk4", "--force")
+    assert code == 2 and "leads out of" in err, err
+    assert sorted(p.name for p in outside.iterdir()) == ["precious.json"]
+    assert sorted(p.name for p in repo2.iterdir()) == ["benchmarks"]
+
+
+@pytest.mark.parametrize("args, text", [
+    (["-p", "harmonc", "-i", "rk4"], "harmonc"),
+    (["-p", "harmonic", "-i", "rk5"], "rk5"),
+    (["-p", "harmonic", "-i", "rk4", "--t-final", "-5"], "--t-final"),
+    (["-p", "harmonic", "-i", "rk4", "--t-final", "nan"], "--t-final"),
+    (["-p", "harmonic", "-i", "rk4", "--dt", "0"], "--dt"),
+    (["-p", "harmonic", "-i", "rk45", "--tol", "-1e-6"], "--tol"),
+])
+def test_item16_unknown_names_and_bad_numbers_are_refused(tmp_path, capsys, args, text):
+    code, err = _asv_init(capsys, tmp_path, *args)
+    assert code == 2 and text in err and "Traceback" not in err, err
+    assert not list(tmp_path.iterdir())
+
+
+def test_item16_a_plugin_s_own_declared_names_are_taken(tmp_path, capsys):
+    (tmp_path / "pyproject.toml").write_text(
+        '[project]\nname = "myplug"\n[project.entry-points."longtime.integrators"]\nmy-scheme = "myplug:Scheme"\n')
+    code, err = _asv_init(capsys, tmp_path, "-p", "harmonic", "-i", "my-scheme", "--t-final", "2")
+    assert code == 0, err
+    text = (tmp_path / "benchmarks" / "bench_longtime.py").read_text()
+    assert "'my-scheme'" in text and "t_final=2.0" in text and not math.isnan(2.0)
+
+
+@pytest.mark.parametrize("toml", [
+    '[project]\nname = "p"\nentry-points = "longtime.problems"\n',
+    '[project]\nname = "p"\nentry-points = ["a"]\n',
+    '[project]\nname = "p"\n[project.entry-points]\n"longtime.problems" = "x:Y"\n',
+    'project = 3\n',
+])
+def test_item17_entry_points_not_a_table_is_a_refusal(tmp_path, capsys, toml):
+    (tmp_path / "pyproject.toml").write_text(toml)
+    code, err = _asv_init(capsys, tmp_path)
+    assert code == 2 and "not a table" in err and "Traceback" not in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["pyproject.toml"]
