@@ -8,10 +8,13 @@ from longtime.core.problem import Problem
 from longtime.core.version import __version__
 
 __all__ = ["AdaptiveIntegrator", "FixedStepIntegrator", "InputError", "Integrator", "Order", "Param",
-           "Problem", "Result", "Trajectory", "__version__", "convergence", "solve", "sweep", "work_precision"]
+           "Problem", "Result", "Trajectory", "__version__", "convergence", "plot", "solve", "sweep", "testing",
+           "work_precision"]
 
 # the Python API (docs/api.md), imported on first use: `import longtime` stays light
 _API = ("Order", "Result", "convergence", "solve", "sweep", "work_precision")
+# submodules on top of the API, imported on first use as longtime.plot, longtime.testing
+_SUBMODULES = ("plot", "testing", "api", "asvbench")
 
 
 def __getattr__(name: str):
@@ -19,4 +22,8 @@ def __getattr__(name: str):
         from longtime import api
 
         return getattr(api, name)
+    if name in _SUBMODULES:
+        import importlib
+
+        return importlib.import_module(f"longtime.{name}")
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
