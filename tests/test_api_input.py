@@ -280,3 +280,27 @@ def test_a_script_without_main_guard_runs_its_sweep(tmp_path):
                          env=env)
     assert res.returncode == 0, res.stderr[-3000:]
     assert res.stdout.strip() == "rows 4 ['ok']" and "serially" not in res.stderr
+
+
+class OobAdaptive(longtime.AdaptiveIntegrator):
+    name = "input-oob-adaptive"
+    summary = "Euler at a fixed h, as an adaptive scheme, that writes past its output"
+    order = 1
+
+    def make_try_step(self, problem):
+        rhs = problem.rhs
+
+        @numba.njit
+        def try_step(t, u, h, params, work, counters, u_new):
+            rhs(t, u, params, work[0])
+            for m in range(u.size + 1):
+                u_new[m] = u[m] + h * work[0, m]
+            return 0, h, h
+
+        return try_step
+
+
+def test_an_adaptive_try_step_that_writes_past_its_array_is_a_failed_row_naming_the_scheme():
+    r = longtime.solve("harmonic", OobAdaptive, t_final=1)
+    assert r.status == "failed"
+    assert r.row["message"].startswith("scheme input-oob-adaptive: its try_step indexes outside its arrays")

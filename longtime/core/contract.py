@@ -292,25 +292,27 @@ def probe_problem_kernels(problem: Any) -> None:
 
 
 def probe_step_kernel(integrator: Any, problem: Any) -> str | None:
-    """One step of a plugin's own compiled step (``make_step`` not longtime's) with bounds
-    checked, from the initial state: why it cannot run (an index outside its arrays), naming
-    the scheme, or None."""
+    """One step of a plugin's own compiled step (a ``make_step``, or an adaptive scheme's
+    ``make_try_step``, that is not longtime's) with bounds checked, from the initial state:
+    why it cannot run (an index outside its arrays), naming the scheme, or None."""
     import numpy as np
 
     from longtime.core import drivers
 
-    make = getattr(type(integrator), "make_step", None)
+    fixed = hasattr(type(integrator), "make_step")
+    make = getattr(type(integrator), "make_step" if fixed else "make_try_step", None)
     if make is None or built_in(make):
         return None
-    step = integrator.make_step(problem)
+    kernel = integrator.make_step(problem) if fixed else integrator.make_try_step(problem)
     work = np.zeros(integrator.work_shape(problem))
     integrator.prepare_work(problem, work)
+    h = integrator.dt_for(problem) if fixed else integrator.initial_step(problem, problem.default_t_final or 1.0)
+    last = (True,) if fixed else (np.empty(problem.dim),)
     try:
-        boundschecked(step)(problem.t0, problem.u0.copy(), integrator.dt_for(problem), problem.params, work,
-                            drivers.new_counters(), True)
+        boundschecked(kernel)(problem.t0, problem.u0.copy(), h, problem.params, work, drivers.new_counters(), *last)
     except IndexError as exc:
-        return (f"scheme {integrator.name}: its step indexes outside its arrays ({exc}; numba boundscheck, one "
-                f"step of {problem.name} from its initial state, {problem.dim} components)")
+        return (f"scheme {integrator.name}: its {'step' if fixed else 'try_step'} indexes outside its arrays ({exc}; "
+                f"numba boundscheck, one step of {problem.name} from its initial state, {problem.dim} components)")
     return None
 
 

@@ -322,9 +322,10 @@ _PROBED: dict[tuple, str | None] = {}
 
 
 def _probe_step(integrator: Integrator, problem: Problem) -> str | None:
-    """A plugin's own step kernel, run once per process and problem with bounds checked
+    """A plugin's own step kernel (fixed or adaptive), run once per process and problem with bounds checked
     (contract.probe_step_kernel) the first time it is built."""
-    if not isinstance(integrator, FixedStepIntegrator) or contract.built_in(type(integrator).make_step):
+    make = getattr(type(integrator), "make_step", None) or getattr(type(integrator), "make_try_step", None)
+    if make is None or contract.built_in(make):
         return None
     key = (type(integrator), type(problem), problem.dim)
     if key not in _PROBED:

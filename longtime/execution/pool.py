@@ -52,7 +52,8 @@ def unguarded_main() -> str | None:
     stmt = next((s for s in tree.body if s.lineno <= line <= (s.end_lineno or s.lineno)), None)
     if stmt is None or _is_main_guard(stmt):
         return None
-    return f"{path} calls it outside `if __name__ == \"__main__\":` (line {line}), and each worker process would run the script again"
+    return (f"{path} calls it outside `if __name__ == \"__main__\":` (line {line}), and each worker "
+            f"process would run the script again")
 
 
 def _is_main_guard(stmt) -> bool:
