@@ -5,7 +5,8 @@ Importing the package compiles nothing: numba kernels compile on first use.
 from longtime.core.version import __version__
 
 __all__ = ["AdaptiveIntegrator", "FixedStepIntegrator", "InputError", "Integrator", "Order", "Param",
-           "Problem", "Result", "Trajectory", "__version__", "convergence", "solve", "sweep", "work_precision"]
+           "Problem", "Result", "Trajectory", "__version__", "convergence", "plot", "solve", "sweep", "testing",
+           "work_precision"]
 
 # the Python API (docs/api.md), imported on first use: `import longtime` stays light
 _API = ("Order", "Result", "convergence", "solve", "sweep", "work_precision")
@@ -13,6 +14,8 @@ _API = ("Order", "Result", "convergence", "solve", "sweep", "work_precision")
 # entry point (longtime.commands.entry) is running, and catches Ctrl-C, before they load
 _CORE = {"AdaptiveIntegrator": "integrator", "FixedStepIntegrator": "integrator", "Integrator": "integrator",
          "Trajectory": "integrator", "InputError": "params", "Param": "params", "Problem": "problem"}
+# submodules on top of the API, imported on first use as longtime.plot, longtime.testing
+_SUBMODULES = ("plot", "testing", "api", "asvbench")
 
 
 def __getattr__(name: str):
@@ -24,4 +27,8 @@ def __getattr__(name: str):
         import importlib
 
         return getattr(importlib.import_module(f"longtime.core.{_CORE[name]}"), name)
+    if name in _SUBMODULES:
+        import importlib
+
+        return importlib.import_module(f"longtime.{name}")
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

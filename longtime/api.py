@@ -20,18 +20,42 @@ import numpy as np
 
 from longtime.core import registry
 from longtime.core.integrator import Integrator, Timing
-from longtime.core.params import InputError
+from longtime.core.params import InputError, check_number, check_values
 from longtime.core.problem import Problem
 from longtime.core.roles import ROW_PARAMETERS
-from longtime.execution import calibration
+from longtime.execution import calibration, limits
 from longtime.execution.cells import (
     DEFAULT_MAX_SAMPLES,
     DEFAULT_TIME_LIMIT,
     Cell,
+    check_set_keys,
     check_size,
     expand,
     run_cell,
 )
+
+# the memory a cell may use unless memory_limit= says otherwise: longtime run's default
+DEFAULT_MEMORY_LIMIT = f"{limits.MEMORY_SHARE:.0%}"
+
+
+def check_options(*, max_samples: Any, repeats: Any, min_time: Any, time_limit: Any, memory_limit: Any,
+                  allow_large: Any, jobs: Any = 0, executor: str | None = None, default_sweep: Any = False
+                  ) -> int | None:
+    """The options of ``solve`` and ``sweep``, checked as the command line checks its flags;
+    returns the memory limit in bytes (None: none)."""
+    check_number("max_samples", max_samples, integer=True, minimum=2)
+    check_number("repeats", repeats, integer=True, minimum=1)
+    check_number("min_time", min_time, minimum=0)
+    check_number("time_limit", time_limit, minimum=0, none=True)  # 0 or None: no limit
+    check_number("jobs", jobs, integer=True, minimum=0)
+    for name, value in (("allow_large", allow_large), ("default_sweep", default_sweep)):
+        if not isinstance(value, (bool, np.bool_)):
+            raise InputError(f"{name}={value!r} is not valid: expected True or False")
+    if executor is not None:
+        from longtime.execution.matrix import get_executor
+
+        get_executor(executor)
+    return limits.memory_argument_api(memory_limit)
 
 
 # ------------------------------------------------------------------ names, classes, instances
@@ -61,30 +85,40 @@ def resolve(thing: Any, kind: str) -> tuple[str, dict[str, Any]]:
                      f"or an instance of one")
 
 
-def _as_list(x: Any) -> list:
-    return list(x) if isinstance(x, (list, tuple)) else [x]
-
-
-def _values(v: Any) -> list:
-    return list(v) if isinstance(v, (list, tuple, np.ndarray, range)) else [v]
-
-
-def cells_for(problems: Sequence, schemes: Sequence, t_final: Any = None, settings: dict[str, Any] | None = None,
-              *, strict: bool = False, default_sweep: bool = False) -> list[Cell]:
+def cells_for(problems: Any, schemes: Any, t_final: Any = None, settings: dict[str, Any] | None = None,
+              *, strict: bool = False, default_sweep: bool = False, caller: str = "sweep") -> list[Cell]:
     """The cells of problems x schemes x settings, through ``cells.expand`` as the command
     line builds them: a parameter with a flag of its own (dt, tol, eps_res, order) or given
-    as several values is swept (``sweeps``); any other single value is a ``--set``."""
+    as several values is swept (``sweeps``); any other single value is a ``--set``.
+
+    Every argument is checked here, before any cell runs, by the rules of
+    longtime.core.params (the command line's): a list is not empty; a keyword is a
+    parameter of a selected problem or scheme (else the closest names and the full list);
+    a value has its parameter's type (a number is not a string, nor a bool) and range; a
+    final time is a finite number. ``caller`` names the function in the messages."""
     pnames, inames, sets, sweeps = [], [], {}, {}
-    for p in problems:
+    for p in check_values("problems", problems):
         name, given = resolve(p, "problem")
         pnames.append(name)
         sets.update(given)
-    for s in schemes:
+    for s in check_values("schemes", schemes):
         name, given = resolve(s, "scheme")
         inames.append(name)
         sets.update(given)
-    for key, value in (settings or {}).items():
-        values = _values(value)
+    registry.check_names("problem", pnames)
+    registry.check_names("integrator", inames)
+    if t_final is not None:
+        t_final = [check_number("t_final", v) for v in check_values("t_final", t_final)]
+        t_final = t_final[0] if len(t_final) == 1 else t_final
+    settings = dict(settings or {})
+    check_set_keys(settings, pnames, inames, spelling=caller + ": keyword {key}")
+    classes = [registry.problem_class(n) for n in pnames] + [registry.integrator_class(n) for n in inames]
+    for key, value in settings.items():
+        values = check_values(key, value)
+        for cls in classes:
+            if key in cls.parameters:
+                for v in values:
+                    cls.parameters[key].parse(key, v, strict=True)
         if key in ROW_PARAMETERS or len(values) != 1:
             sweeps[key] = values
             sets.pop(key, None)  # the keyword overrides an instance's own setting
@@ -140,36 +174,39 @@ class Result:
 
 def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_samples: int = DEFAULT_MAX_SAMPLES,
           repeats: int = Timing.repeats, min_time: float = Timing.min_time,
-          time_limit: float | None = DEFAULT_TIME_LIMIT, allow_large: bool = False, processes: int | None = None,
+          time_limit: float | None = DEFAULT_TIME_LIMIT, allow_large: bool = False,
+          memory_limit: float | str | None = DEFAULT_MEMORY_LIMIT, processes: int | None = None,
           cost: str = "time", **settings: Any) -> Result:
     """Run ``scheme`` on ``problem`` once (timed as every row is) and return its Result.
     ``settings`` are the parameters of --dt, --tol, --eps-res, --order and --set (one value
-    each); ``processes`` (default ``$LONGTIME_PROCESSES`` or 3) the processes that time it
-    (longtime.execution.processes: this one and ``processes - 1`` fresh ones). A pair that
-    cannot run (a capability missing) raises InputError naming it. ``cost="instructions"``
-    also counts the integration under Valgrind (``--cost instructions``: the row's
-    ``instructions`` and ``instructions_per_step``)."""
+    each). A pair that cannot run (a capability missing) raises InputError naming it.
+    ``memory_limit`` is longtime run's --memory-limit: GiB, a share of the machine's memory
+    ("25%"), 0 or None for none; this process is held to it while the cell runs.
+    ``processes`` (default ``$LONGTIME_PROCESSES`` or 3): the processes that time it
+    (longtime.execution.processes: this one and ``processes - 1`` fresh ones).
+    ``cost="instructions"`` also counts the integration under Valgrind (``--cost
+    instructions``: the row's ``instructions`` and ``instructions_per_step``)."""
     from longtime.execution.matrix import check_cost
     from longtime.execution.processes import across_processes, check_processes, default_processes
     from longtime.reporting.report import complete
 
+    memory = check_options(max_samples=max_samples, repeats=repeats, min_time=min_time, time_limit=time_limit,
+                           memory_limit=memory_limit, allow_large=allow_large)
     check_cost(cost)
     processes = default_processes() if processes is None else check_processes(processes, "processes")
-
-    cells = cells_for(_as_list(problem), _as_list(scheme), t_final, settings, strict=True)
+    cells = cells_for(problem, scheme, t_final, settings, strict=True, caller="solve")
     if len(cells) != 1:
         raise InputError(f"solve runs one cell; these settings give {len(cells)}: give one value per "
                          f"parameter (longtime.sweep takes lists)")
-    if max_samples < 2:
-        raise InputError(f"max_samples={max_samples} is not valid: must be >= 2")
     if not allow_large:
-        check_size(cells, max_samples)
+        check_size(cells, max_samples, memory)
     keep: dict[str, Any] = {}
     here = calibration.here()  # the machine's speed beside the time, as every stored row has it
     here.start()
     t0 = time.time()
     timing = Timing(repeats=repeats, min_time=min_time).per_process(processes)
-    row = run_cell(cells[0], max_samples, timing=timing, time_limit=time_limit or None, keep=keep)
+    with limits.memory_limited(memory):
+        row = run_cell(cells[0], max_samples, timing=timing, time_limit=time_limit or None, keep=keep)
     if not cells[0].skip_reason:
         here.cell(row, t0, time.time())
         calibration.take_points(row)  # the calibrations themselves belong to a stored run
@@ -191,32 +228,48 @@ def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_sample
 def sweep(problems: Any, schemes: Any, *, t_final: Any = None, executor: str = "process", jobs: int = 0,
           store=None, max_samples: int = DEFAULT_MAX_SAMPLES, repeats: int = Timing.repeats,
           min_time: float = Timing.min_time, time_limit: float | None = DEFAULT_TIME_LIMIT,
-          default_sweep: bool = False, allow_large: bool = False, processes: int | None = None,
+          default_sweep: bool = False, allow_large: bool = False,
+          memory_limit: float | str | None = DEFAULT_MEMORY_LIMIT, processes: int | None = None,
           cost: str = "time", **sweeps: Any):
     """The matrix problems x schemes x every value of each parameter (a value or a list) as
     a pandas DataFrame, one row per cell. ``executor`` is serial, process (default), isolated
     or dask; ``store`` a path (or Store) appends the run to that store as ``longtime run``
-    does, and the rows then come back as stored (with ``run_id``). ``processes`` (default
+    does, and the rows then come back as stored (with ``run_id``). ``memory_limit`` is
+    longtime run's --memory-limit (GiB, "25%", 0 or None for none). ``processes`` (default
     ``$LONGTIME_PROCESSES`` or 3): the processes that time each cell, as ``--processes``.
     ``cost="instructions"`` also counts each ok cell's integration under Valgrind, all cells
-    in one Valgrind process (``--cost instructions``)."""
+    in one Valgrind process (``--cost instructions``).
+
+    A script that calls ``sweep`` outside ``if __name__ == "__main__":`` would be run again
+    by each worker of the process pool: there the cells run serially, and one line on
+    stderr says why (``pool.unguarded_main``); a notebook keeps the pool."""
+    import sys
+
     from longtime.execution.matrix import ExecOptions, check_cost
+    from longtime.execution.pool import unguarded_main
     from longtime.execution.processes import check_processes, default_processes
     from longtime.execution.store import Store
     from longtime.reporting.report import frame
 
+    memory = check_options(max_samples=max_samples, repeats=repeats, min_time=min_time, time_limit=time_limit,
+                           memory_limit=memory_limit, allow_large=allow_large, jobs=jobs, executor=executor,
+                           default_sweep=default_sweep)
+    check_cost(cost)
+    processes = default_processes() if processes is None else check_processes(processes, "processes")
+    cells = cells_for(problems, schemes, t_final, sweeps, default_sweep=default_sweep, caller="sweep")
+    if not allow_large:
+        check_size(cells, max_samples, memory)
     if store is not None and not isinstance(store, Store):
         store = Store(store)
-    if max_samples < 2:
-        raise InputError(f"max_samples={max_samples} is not valid: must be >= 2")
-    check_cost(cost)
-    cells = cells_for(_as_list(problems), _as_list(schemes), t_final, sweeps, default_sweep=default_sweep)
-    if not allow_large:
-        check_size(cells, max_samples)
+    if executor in ("process", "dask"):
+        why = unguarded_main()
+        if why:
+            print(f"longtime.sweep: running the cells serially: {why} (put the call under that guard for "
+                  f"the process pool)", file=sys.stderr)
+            executor = "serial"
     options = ExecOptions(jobs=jobs if executor != "serial" else 0, max_samples=max_samples,
                           timing=Timing(repeats=repeats, min_time=min_time), time_limit=time_limit or None,
-                          cost=cost,
-                          processes=default_processes() if processes is None else check_processes(processes, "processes"))
+                          memory_limit=memory, cost=cost, processes=processes)
     command = "sweep " + shlex.join([f"{k}={v}" for k, v in
                                      {"problems": problems, "schemes": schemes, "t_final": t_final,
                                       **sweeps}.items() if v is not None])
@@ -225,13 +278,31 @@ def sweep(problems: Any, schemes: Any, *, t_final: Any = None, executor: str = "
 
 
 # ------------------------------------------------------------------ orders and the Pareto table
-def records(rows: Any) -> list[dict[str, Any]]:
-    """Rows as a list of dicts from a DataFrame (missing values as None), a Result, or dicts."""
+# the fields every row of longtime.sweep has, which the order fit and the tables read
+ROW_KEYS = ("problem", "integrator", "status")
+
+
+def records(rows: Any, caller: str = "rows") -> list[dict[str, Any]]:
+    """Rows as a list of dicts from a DataFrame (missing values as None), a Result, or dicts;
+    each must be a row of ``sweep`` (``ROW_KEYS``), else an InputError naming ``caller``."""
     if isinstance(rows, Result):
         return [rows.row]
     if hasattr(rows, "to_dict") and hasattr(rows, "columns"):
-        return [{k: (None if _missing(v) else v) for k, v in r.items()} for r in rows.to_dict("records")]
-    return [dict(r) for r in rows]
+        out = [{k: (None if _missing(v) else v) for k, v in r.items()} for r in rows.to_dict("records")]
+    elif not isinstance(rows, (str, bytes, dict)) and hasattr(rows, "__iter__"):
+        out = list(rows)
+    else:
+        out = None
+    if out is None or not all(isinstance(r, dict) for r in out):
+        raise InputError(f"{caller}: rows={type(rows).__name__} is not valid: expected the DataFrame of "
+                         f"longtime.sweep, a Result or a list of row dicts")
+    out = [dict(r) for r in out]
+    for i, r in enumerate(out):
+        lacking = [k for k in ROW_KEYS if k not in r]
+        if lacking:
+            raise InputError(f"{caller}: rows[{i}] is not a row of longtime.sweep: it lacks {', '.join(lacking)} "
+                             f"(it has {', '.join(map(str, r)) or 'no field'})")
+    return out
 
 
 def _missing(v: Any) -> bool:
@@ -286,7 +357,7 @@ def orders(rows: Any) -> list[Order]:
     problem x scheme that has no fit."""
     from longtime.measure.orders import left_out, observed_orders
 
-    rows = records(rows)
+    rows = records(rows, "convergence")
     out = [Order(f["problem"], f["integrator"], f["observed_order"], f["observed_order_ci"],
                  [tuple(p) for p in f["order_points"]], [tuple(p) for p in f["order_dropped"]],
                  f["declared_order"], f["order_flag"], f["order_error_field"], f["order_variable"],
@@ -314,7 +385,7 @@ def work_precision(rows: Any):
 
     from longtime.reporting.report import pareto, pareto_field, setting
 
-    rows = records(rows)
+    rows = records(rows, "work_precision")
     out = []
     for problem in sorted({r["problem"] for r in rows}):
         mine = [r for r in rows if r["problem"] == problem]

@@ -74,10 +74,11 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
     """{class name: asv benchmark class} for problems x schemes x settings; put them into
     the benchmark module's namespace (``globals().update(...)``): asv looks a class up by
     its name there."""
-    from longtime.api import _as_list, resolve
+    from longtime.api import resolve
+    from longtime.core.params import check_values
 
-    pnames = [resolve(p, "problem")[0] for p in _as_list(problems)]
-    inames = [resolve(s, "scheme")[0] for s in _as_list(schemes)]
+    pnames = [resolve(p, "problem")[0] for p in check_values("problems", problems)]
+    inames = [resolve(s, "scheme")[0] for s in check_values("schemes", schemes)]
     combos = _combinations(settings)
     points = dict(combos)
     params = [pnames, inames, [label for label, _ in combos]]

@@ -59,22 +59,81 @@ def draw(kind: str, out_dir: str | Path = "figures", **options: Any) -> list[Pat
 
 
 # ------------------------------------------------------------------ from Python: Axes
+# The API's figures live in the user's session (a script, a notebook): they change no global
+# matplotlib state (no backend switch, no rcParams; their own style only inside rc_context),
+# draw the user's text (scheme names, settings) as typed (each Text with parse_math off,
+# not the process-wide switch), and label log axes in plain Unicode (10⁻²), which renders
+# whatever the session's text.parse_math.
+RC = {"legend.fontsize": 8, "legend.frameon": False, "axes.grid": True, "grid.alpha": 0.3}
+# a legend column holds this many entries; more make another column
+LEGEND_ROWS = 20
+# colours of schemes that are not built in (a plugin's, a class defined in memory): each its
+# own, none a family's colour (matplotlib's tab20b, then tab20c)
+OWN_COLOURS = ("#393b79", "#637939", "#8c6d31", "#843c39", "#7b4173", "#5254a3", "#8ca252", "#bd9e39",
+               "#ad494a", "#a55194", "#6b6ecf", "#b5cf6b", "#e7ba52", "#d6616b", "#ce6dbd", "#3182bd",
+               "#e6550d", "#31a354", "#756bb1", "#636363")
+
+
 def _axes(ax):
     if ax is not None:
         return ax
-    from longtime.reporting.figures import pyplot
+    import matplotlib.pyplot as plt
 
-    return pyplot().subplots(figsize=(7, 4.6))[1]
+    return plt.subplots(figsize=(9, 4.6), layout="constrained")[1]
+
+
+def built_in(scheme: str) -> bool:
+    """Whether ``scheme`` is one of longtime's own (defined in longtime.integrators)."""
+    from longtime.core import registry
+
+    try:
+        return registry.integrator_class(scheme).__module__.startswith("longtime.integrators.")
+    except Exception:  # a scheme of an old run that is no longer installed
+        return True
+
+
+def scheme_styles(schemes) -> dict[str, dict[str, str]]:
+    """The results page's style (a colour per built-in family, a marker per scheme), except
+    that a scheme that is not built in gets a colour of its own: a plugin's splitting is
+    told from the built-in ones and from another plugin's."""
+    from longtime.reporting.figures.style import styles
+
+    out = styles(schemes)
+    own = [s for s in sorted(schemes) if not built_in(s)]
+    for k, s in enumerate(own):
+        out[s] = {**out[s], "color": OWN_COLOURS[k % len(OWN_COLOURS)]}
+    return out
+
+
+def _literal(*texts) -> None:
+    for t in texts:
+        t.set_parse_math(False)
+
+
+def _finish(ax, xlabel: str, ylabel: str, title: str) -> None:
+    """Labels and title as typed, plain log tick labels, the legend outside the axes (right
+    of them, in columns of LEGEND_ROWS entries)."""
+    from longtime.reporting.figures import plain_log_ticks
+
+    _literal(ax.set_xlabel(xlabel), ax.set_ylabel(ylabel), ax.set_title(title))
+    plain_log_ticks(ax)
+    handles, labels = ax.get_legend_handles_labels()
+    if handles:
+        legend = ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
+                           ncols=1 + (len(handles) - 1) // LEGEND_ROWS)
+        _literal(*legend.get_texts())
 
 
 def work_precision(rows: Any, ax=None, *, field: str | None = None, problem: str | None = None):
     """Error (``field``, default the Pareto table's: l2_error, else H.max, ...) against CPU
     seconds of the ok rows of one problem (a DataFrame from ``longtime.sweep``, or row
-    dicts), log-log, one curve per scheme, a colour per family; a bar reaches each point's
-    slowest repeat. Returns the matplotlib Axes (a new figure's unless ``ax``)."""
+    dicts), log-log, one curve per scheme, a colour per family (a scheme that is not built
+    in: a colour of its own); a bar reaches each point's slowest repeat. Returns the
+    matplotlib Axes (a new figure's unless ``ax``)."""
+    import matplotlib
+
     from longtime.api import records
     from longtime.core.fmt import positive
-    from longtime.reporting.figures.style import styles
     from longtime.reporting.figures.work_precision import curves
     from longtime.reporting.report import pareto_field
 
@@ -87,13 +146,11 @@ def work_precision(rows: Any, ax=None, *, field: str | None = None, problem: str
     field = field or pareto_field(rows)
     if field is None:
         raise InputError("work_precision: no ok row has an error to draw")
-    ax = _axes(ax)
-    curves(ax, rows, field, styles(sorted({r["integrator"] for r in rows})))
-    ax.set_xlabel("CPU seconds (minimum of repeats, bar to the maximum)")
-    ax.set_ylabel(field)
-    ax.set_title(f"{problems[0]}: error against cost")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    with matplotlib.rc_context(RC):
+        ax = _axes(ax)
+        curves(ax, rows, field, scheme_styles(sorted({r["integrator"] for r in rows})))
+        _finish(ax, "CPU seconds (minimum of repeats, bar to the maximum)", field,
+                f"{problems[0]}: error against cost")
     return ax
 
 
@@ -101,44 +158,45 @@ def drift(result_or_rows: Any, invariant: str = "H", ax=None):
     """The relative error of ``invariant`` against t - t0, log-log: every sample of a
     ``longtime.solve`` Result, or for rows (a DataFrame or dicts) the upper envelope each ok
     row keeps (``drift_curves``, ``diag_curves``; a row without them is run again, untimed). Returns the Axes."""
+    import matplotlib
+
     from longtime.api import Result, records
     from longtime.measure.metrics import relative_error
     from longtime.reporting.figures.results import row_curves
-    from longtime.reporting.figures.style import styles
     from longtime.reporting.report import setting
 
-    ax = _axes(ax)
-    if isinstance(result_or_rows, Result):
-        res = result_or_rows
-        if invariant not in res.invariants:
-            raise InputError(f"drift: no invariant {invariant!r}; this result has {', '.join(res.invariants) or 'none'}")
-        err = relative_error(res.invariants[invariant])
-        t = res.t - res.t[0]
-        shown = (t > 0) & (err > 0)
-        ax.loglog(t[shown], err[shown], lw=0.8, label=f"{res.row['integrator']} {setting(res.row)}".strip())
-        title = res.row["problem"]
-    else:
-        rows = [r for r in records(result_or_rows) if r.get("status") == "ok"]
-        style = styles(sorted({r["integrator"] for r in rows}))
-        drawn = 0
-        for r in rows:
-            curves = row_curves(r)
-            found = [(t, e) for name, t, e in curves["invariant"] + curves["diagnostic"] if name == invariant]
-            if not found:
-                continue
-            t, err = found[0]
+    with matplotlib.rc_context(RC):
+        ax = _axes(ax)
+        if isinstance(result_or_rows, Result):
+            res = result_or_rows
+            if invariant not in res.invariants:
+                raise InputError(f"drift: no invariant {invariant!r}; this result has "
+                                 f"{', '.join(res.invariants) or 'none'}")
+            err = relative_error(res.invariants[invariant])
+            t = res.t - res.t[0]
             shown = (t > 0) & (err > 0)
-            ax.loglog(t[shown], err[shown], lw=0.8, color=style[r["integrator"]]["color"],
-                      label=f"{r['problem']} {r['integrator']} {setting(r)}".strip())
-            drawn += 1
-        if not drawn:
-            raise InputError(f"drift: no ok row keeps a drift curve of {invariant!r}")
-        title = ", ".join(sorted({r["problem"] for r in rows}))
-    ax.set_xlabel("t - t0")
-    ax.set_ylabel(f"relative error of {invariant}")
-    ax.set_title(f"{title}: drift of {invariant}")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+            scheme = res.row["integrator"]
+            ax.loglog(t[shown], err[shown], lw=0.8, color=scheme_styles([scheme])[scheme]["color"],
+                      label=f"{scheme} {setting(res.row)}".strip())
+            title = res.row["problem"]
+        else:
+            rows = [r for r in records(result_or_rows) if r.get("status") == "ok"]
+            style = scheme_styles(sorted({r["integrator"] for r in rows}))
+            drawn = 0
+            for r in rows:
+                curves = row_curves(r)
+                found = [(t, e) for name, t, e in curves["invariant"] + curves["diagnostic"] if name == invariant]
+                if not found:
+                    continue
+                t, err = found[0]
+                shown = (t > 0) & (err > 0)
+                ax.loglog(t[shown], err[shown], lw=0.8, color=style[r["integrator"]]["color"],
+                          label=f"{r['problem']} {r['integrator']} {setting(r)}".strip())
+                drawn += 1
+            if not drawn:
+                raise InputError(f"drift: no ok row keeps a drift curve of {invariant!r}")
+            title = ", ".join(sorted({r["problem"] for r in rows}))
+        _finish(ax, "t - t0", f"relative error of {invariant}", f"{title}: drift of {invariant}")
     return ax
 
 

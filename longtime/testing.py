@@ -17,6 +17,7 @@ from typing import Any, Iterable, Sequence
 
 from longtime.api import Order, Result, cells_for, convergence, resolve, solve, sweep
 from longtime.core import registry
+from longtime.core.params import check_number
 from longtime.core.roles import row_columns, row_fields
 
 # a fit needs points in the asymptotic range: the problem's sweep and this many halvings below it
@@ -49,6 +50,8 @@ def assert_order(scheme: Any, problem: Any, order: float, *, dts: Sequence[float
                  **settings: Any) -> Order:
     """The observed order of ``scheme`` on ``problem`` over the steps ``dts`` (default
     ``default_dts``) is within ``slack`` of ``order``. Returns the Order."""
+    check_number("order", order, positive=True)
+    check_number("slack", slack, minimum=0.0)
     dts = list(dts) if dts is not None else default_dts(problem)
     rows = sweep(problem, scheme, t_final=t_final, executor=executor, repeats=1, min_time=0.0, dt=dts, **settings)
     found = convergence(rows)
@@ -58,12 +61,22 @@ def assert_order(scheme: Any, problem: Any, order: float, *, dts: Sequence[float
     expected = f"expected order {order:g} +- {slack:g}"
     if found.value is None:
         raise AssertionError(f"{_label(scheme, problem)}: no observed order ({found.reason}); {expected}; "
-                             + _points(found) + _not_ok(rows))
+                             + _points(found) + _not_ok(rows) + _conditions(scheme, order))
     if abs(found.value - order) > slack:
         ci = f" +- {found.ci:.3f} (95 %)" if found.ci is not None else " (2 points: no interval)"
         raise AssertionError(f"{_label(scheme, problem)}: observed order {found.value:.3f}{ci}, {expected}; "
-                             + _points(found))
+                             + _points(found) + _conditions(scheme, order))
     return found
+
+
+def _conditions(scheme: Any, order: float) -> str:
+    """The residuals of the order conditions up to ``order`` of a scheme with coefficients
+    (a splitting or composition, a Runge-Kutta tableau), and the first that fails."""
+    from longtime.numerics.order_conditions import describe, scheme_conditions
+
+    cls = registry.integrator_class(resolve(scheme, "scheme")[0])
+    found = scheme_conditions(cls, int(order))
+    return "" if found is None else "; " + describe(*found)
 
 
 def _not_ok(rows) -> str:

@@ -40,7 +40,7 @@ BAD = [
     (["-p", "toda", "-i", "rk4", "--t-final", "0"], ["t_final=0.0", "> t0"]),
     (["-p", "toda", "-i", "rk4", "--t-final", "inf"], ["t_final=inf"]),
     (["-p", "harmonic", "-i", "rk4", "--set", "q0=nan"], ["q0", "finite"]),
-    (["-p", "toda", "-i", "rk4", "--set", "bogus=1"], ["--set bogus", "valid keys: compensated, d"]),
+    (["-p", "toda", "-i", "rk4", "--set", "bogus=1"], ["--set bogus", "their parameters: compensated, d, dt"]),
     (["-p", "toda", "-i", "rk4", "--set", "d=2"], ["d=", ">= 3"]),
     (["-p", "toda", "-i", "rk4", "--eps-res", "1e-6"], ["--eps-res", "not a parameter"]),
     (["-p", "toda", "-i", "midpoint", "--set", "max_iter=0"], ["max_iter", "> 0"]),

@@ -176,3 +176,168 @@ def pairs_incompatibility(scheme: str, problem: Any) -> str | None:
         return (f"{scheme} needs a state of (Re, Im) pairs (even dimension); "
                 f"{problem.name} has dimension {problem.dim}")
     return None
+
+
+def check_samples(scheme: str, problem: Any, traj: Any, t_final: float) -> str | None:
+    """Why the samples a scheme returned cannot be believed (None when they can): every
+    scheme's, the external ones' (which no compiled driver checks) included. The times are
+    finite, start at t0 and increase; the states are (n, dim); a run that says ``ok`` ends
+    at t_final and is finite throughout; the CPU and wall times are finite and >= 0."""
+    import numpy as np
+
+    t, u = np.asarray(traj.t), np.asarray(traj.u)
+    if t.ndim != 1 or t.size == 0 or u.shape != (t.size, problem.dim):
+        return (f"{scheme} returned samples of shapes t {t.shape}, u {u.shape}; expected t (n,) and u (n, "
+                f"{problem.dim}) for {problem.name}'s state of dimension {problem.dim}")
+    if not np.all(np.isfinite(t)):
+        return f"{scheme} returned non-finite sample times"
+    scale = max(1.0, abs(problem.t0), abs(t_final))
+    if abs(t[0] - problem.t0) > 1e-12 * scale:
+        return f"{scheme} returned samples starting at t={t[0]:.17g}, not at t0={problem.t0:g}"
+    back = np.flatnonzero(np.diff(t) <= 0)
+    if back.size:
+        i = int(back[0])
+        return f"{scheme} returned sample times that do not increase: t[{i}]={t[i]:.17g}, t[{i + 1}]={t[i + 1]:.17g}"
+    for name in ("cpu_s", "wall_s"):
+        value = getattr(traj, name)
+        if not (isinstance(value, (int, float, np.floating)) and np.isfinite(value) and value >= 0):
+            return f"{scheme} returned {name}={value!r}: a time must be finite and >= 0"
+    if traj.status == "ok":
+        if abs(t[-1] - t_final) > 1e-9 * scale:
+            return (f"{scheme} says ok but its samples end at t={t[-1]:.17g}, before t_final={t_final:g} "
+                    f"(a run that stops early is a timeout or failed)")
+        bad = np.flatnonzero(~np.all(np.isfinite(u), axis=1))
+        if bad.size:
+            return f"{scheme} says ok but its state is not finite from t={t[int(bad[0])]:.6g} on"
+    return None
+
+
+# ------------------------------------------------------------------ a plugin's outputs, probed once
+def built_in(cls_or_func: Any) -> bool:
+    """Whether a class or function is longtime's own (tested by the suite, not probed)."""
+    module = getattr(cls_or_func, "__module__", "") or ""
+    return module.startswith("longtime.")
+
+
+def _shape_check(owner: str, what: str, value: Any, expected: tuple, meaning: str) -> None:
+    import numpy as np
+
+    shape = np.shape(value)
+    if shape[:len(expected)] != expected or len(shape) > len(expected) + (1 if len(expected) == 1 else 0):
+        raise InputError(f"{owner}: {what} returned shape {shape}; expected {meaning}")
+
+
+def check_problem_outputs(problem: Any, t_final: float) -> None:
+    """The Python-level outputs of a plugin's problem, on the initial state twice: ``exact``
+    at [t0, t_final] is (2, dim) and starts at the initial state; each invariant, violation
+    and diagnostic is (2,) or (2, k). An InputError names the problem and the output."""
+    import numpy as np
+
+    owner, dim = f"problem {problem.name}", problem.dim
+    t = np.array([problem.t0, t_final], dtype=float)
+    U = np.vstack([problem.u0, problem.u0])
+    if problem.exact is not None:
+        E = problem.exact(t)
+        _shape_check(owner, "exact(t) for 2 times", E, (2, dim),
+                     f"(2, {dim}): a row per time, a column per component of the state (dimension {dim})")
+        E = np.asarray(E, dtype=float)
+        tol = max(float(problem.exact_rtol or 0.0), 1e-8) * max(1.0, float(np.max(np.abs(problem.u0))))
+        if not np.all(np.abs(E[0] - problem.u0) <= tol):
+            raise InputError(f"{owner}: exact(t0) = {E[0].tolist()} is not the initial state {problem.u0.tolist()}")
+    for kind in ("invariants", "violations", "diagnostics"):
+        for name, values in (getattr(problem, kind)(t, U) or {}).items():
+            _shape_check(owner, f"{kind}(t, U)[{name!r}] for 2 samples", values, (2,),
+                         "(2,) or (2, k): a value (or k values) per sample")
+
+
+_BOUNDSCHECKED: dict[Any, Any] = {}
+
+
+def boundschecked(func: Any) -> Any:
+    """A twin of the compiled ``func`` that checks every index (numba's boundscheck), built
+    once per function: an out-of-range read or write raises IndexError instead of
+    corrupting memory. The functions it calls keep their own compilation."""
+    import numba
+
+    key = getattr(func, "py_func", func)
+    if key not in _BOUNDSCHECKED:
+        _BOUNDSCHECKED[key] = numba.njit(boundscheck=True)(key)
+    return _BOUNDSCHECKED[key]
+
+
+def probe_problem_kernels(problem: Any) -> None:
+    """A plugin's compiled rhs (and grad_T, grad_V of a separable one) run once with bounds
+    checked at the initial state, the output filled with NaN first: an index outside the
+    arrays, or an output component left unwritten or NaN, is an InputError naming the problem."""
+    import numpy as np
+
+    owner, dim, n = f"problem {problem.name}", problem.dim, problem.dim // 2
+    calls = [("rhs", problem.rhs, (problem.t0, problem.u0.copy()), dim)]
+    if getattr(problem, "grad_T", None) is not None and getattr(problem, "grad_V", None) is not None:
+        calls += [("grad_V", problem.grad_V, (problem.u0[:n].copy(),), n),
+                  ("grad_T", problem.grad_T, (problem.u0[n:].copy(),), n)]
+    for name, func, args, size in calls:
+        if func is None or built_in(getattr(func, "py_func", func)):
+            continue
+        out = np.full(size, np.nan)
+        try:
+            boundschecked(func)(*args, problem.params, out)
+        except IndexError as exc:
+            raise InputError(f"{owner}: its {name} indexes outside its arrays at the initial state ({exc}; numba "
+                             f"boundscheck): the state has {dim} components, the output {size}") from None
+        bad = np.flatnonzero(~np.isfinite(out))
+        if bad.size:
+            raise InputError(f"{owner}: its {name} returns NaN (or leaves unwritten) components {bad.tolist()} of "
+                             f"{size} at the initial state")
+
+
+def probe_step_kernel(integrator: Any, problem: Any) -> str | None:
+    """One step of a plugin's own compiled step (a ``make_step``, or an adaptive scheme's
+    ``make_try_step``, that is not longtime's) with bounds checked, from the initial state:
+    why it cannot run (an index outside its arrays), naming the scheme, or None."""
+    import numpy as np
+
+    from longtime.core import drivers
+
+    fixed = hasattr(type(integrator), "make_step")
+    make = getattr(type(integrator), "make_step" if fixed else "make_try_step", None)
+    if make is None or built_in(make):
+        return None
+    kernel = integrator.make_step(problem) if fixed else integrator.make_try_step(problem)
+    work = np.zeros(integrator.work_shape(problem))
+    integrator.prepare_work(problem, work)
+    h = integrator.dt_for(problem) if fixed else integrator.initial_step(problem, problem.default_t_final or 1.0)
+    last = (True,) if fixed else (np.empty(problem.dim),)
+    try:
+        boundschecked(kernel)(problem.t0, problem.u0.copy(), h, problem.params, work, drivers.new_counters(), *last)
+    except IndexError as exc:
+        return (f"scheme {integrator.name}: its {'step' if fixed else 'try_step'} indexes outside its arrays ({exc}; "
+                f"numba boundscheck, one step of {problem.name} from its initial state, {problem.dim} components)")
+    return None
+
+
+def nan_note(problem: Any, t: Any, u: Any) -> str:
+    """Where a state turned NaN (not a growth to infinity): whether the rhs returns NaN at a
+    finite state at the end of the run (the last finite sample, and on along the last
+    sampled displacement, where the failing step's stages lie); '' when the last sample is
+    not NaN."""
+    import numpy as np
+
+    if len(t) < 2 or not np.isnan(u[-1]).any() or not np.all(np.isfinite(u[-2])):
+        return ""
+    last = np.array(u[-2], dtype=float)
+    move = last - np.asarray(u[-3], dtype=float) if len(t) >= 3 and np.all(np.isfinite(u[-3])) else 0.0 * last
+    for s in (0.0, 0.5, 1.0, 1.5, 2.0):
+        y = last + s * move
+        out = np.full(problem.dim, np.nan)
+        try:
+            problem.rhs(float(t[-2]), y, problem.params, out)
+        except Exception:  # the note is a help, not a verdict
+            return ""
+        bad = np.flatnonzero(np.isnan(out))
+        if bad.size:
+            where = "the last finite sample" if s == 0.0 else "a finite state just past it"
+            return (f"the rhs of {problem.name} returns NaN near t={t[-2]:.6g} ({where}, u = "
+                    f"{np.array2string(y, precision=4, threshold=6)}), in components {bad.tolist()[:8]}")
+    return (f"the state turned NaN after t={t[-2]:.6g} (an invalid operation such as 0/0 or the root of a negative "
+            f"number), not a growth to infinity")

@@ -56,6 +56,13 @@ class Param:
         if self.sweeps is None:
             object.__setattr__(self, "sweeps", self.role in SWEEPING_ROLES)
 
+    def _typed(self, value: Any) -> bool:
+        if self.kind in (int, float):
+            return _is_real(value)
+        if self.kind is bool:
+            return isinstance(value, (bool, np.bool_))
+        return not (isinstance(value, bool) or value is None)
+
     def allowed(self) -> str:
         if self.choices is not None:
             return "one of " + ", ".join(map(str, self.choices))
@@ -68,8 +75,12 @@ class Param:
             parts.append(f"<= {self.maximum}")
         return " ".join(parts)
 
-    def parse(self, name: str, value: Any) -> Any:
-        """Convert (from a string too) and check one value; raise InputError naming `name`."""
+    def parse(self, name: str, value: Any, strict: bool = False) -> Any:
+        """Convert (from a string too) and check one value; raise InputError naming `name`.
+        ``strict`` (a Python value from the API, not command-line text): a number must be a
+        number (not a string, not a bool), a bool a bool."""
+        if strict and not self._typed(value):
+            raise InputError(f"{name}={value!r} is not valid: expected {self.allowed()}")
         try:
             if self.kind is bool and isinstance(value, str):
                 if value.lower() not in ("true", "false", "1", "0", "yes", "no"):
@@ -142,8 +153,11 @@ def check_choices(argument: str, values, allowed) -> None:
     raise InputError(f"unknown {argument}{plural} {', '.join(parts)}; valid {argument}s: {', '.join(allowed)}")
 
 
-def check_time_span(t0: float, t_final: float) -> None:
-    if not math.isfinite(t_final) or not t_final > t0:
+def check_time_span(t0: float, t_final: float, owner: str = "") -> None:
+    if t_final is None:
+        raise InputError(f"t_final=None is not valid: {owner or 'the problem'} has no default_t_final; "
+                         f"give t_final (a finite number > t0={t0})")
+    if not _is_real(t_final) or not math.isfinite(t_final) or not t_final > t0:
         raise InputError(f"t_final={t_final!r} is not valid: must be finite and > t0={t0}")
 
 
@@ -154,3 +168,50 @@ def check_state(name: str, u) -> None:
     if not np.all(np.isfinite(u)):
         bad = np.flatnonzero(~np.isfinite(u))
         raise InputError(f"{name} is not finite at components {bad.tolist()}")
+
+
+# ------------------------------------------------------------------ arguments of the API
+# One rule and one wording for every front end: "NAME=VALUE is not valid: expected WHAT".
+def _is_real(value: Any) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
+def check_number(name: str, value: Any, *, positive: bool = False, minimum: float | None = None,
+                 integer: bool = False, none: bool = False) -> Any:
+    """``value`` as a finite real number (an integer with ``integer``), > 0 with ``positive``,
+    >= ``minimum``; None passes with ``none``. A bool or a string is not a number here: the
+    API takes Python values, the command line converts its text before it gets here."""
+    if value is None and none:
+        return None
+    allowed = "an integer" if integer else "a finite number"
+    allowed += " > 0" if positive else (f" >= {minimum:g}" if minimum is not None else "")
+    allowed += " or None" if none else ""
+    ok = _is_real(value) and math.isfinite(float(value))
+    if ok and integer:
+        ok = float(value).is_integer() and not isinstance(value, (float, np.floating))
+    if ok:
+        ok = not ((positive and not value > 0) or (minimum is not None and value < minimum))
+    if not ok:
+        raise InputError(f"{name}={value!r} is not valid: expected {allowed}")
+    return int(value) if integer else value
+
+
+def check_values(name: str, value: Any) -> list:
+    """The values of a keyword that takes a value or a list of them: a list must not be
+    empty (an empty sweep would quietly run the default, or nothing)."""
+    if isinstance(value, (list, tuple, np.ndarray, range, set, frozenset)):
+        values = list(value)
+        if not values:
+            raise InputError(f"{name}={value!r} is not valid: expected a value or a non-empty list of values")
+        return values
+    return [value]
+
+
+def unknown_parameter(argument: str, key: str, valid, owners: str) -> InputError:
+    """The error for a parameter no selected problem or scheme declares: the argument as the
+    front end spells it (``--set dtt``, ``keyword dtt``), the closest names and the full list."""
+    valid = sorted(valid)
+    close = difflib.get_close_matches(key, valid, n=3, cutoff=0.6)
+    hint = f" (did you mean {' or '.join(close)}?)" if close else ""
+    return InputError(f"{argument}: unknown parameter{hint} for {owners}; their parameters: "
+                      f"{', '.join(valid) or 'none'}")

@@ -15,11 +15,12 @@ import traceback
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping
 
-from longtime.core import phases, registry, roles
+from longtime.core import contract, phases, registry, roles
 from longtime.core.cache import no_space
+from longtime.core.contract import check_samples
 from longtime.core.integrator import FixedStepIntegrator, Integrator, Timing, Trajectory
 from longtime.core.outputs import to_stderr
-from longtime.core.params import InputError, check_time_span
+from longtime.core.params import InputError, check_time_span, unknown_parameter
 from longtime.core.problem import Problem
 from longtime.core.roles import ROW_PARAMETERS
 from longtime.execution import limits
@@ -76,15 +77,16 @@ class Cell:
 
 
 def check_set_keys(sets: Mapping[str, Any], problem_names: Iterable[str],
-                   integrator_names: Iterable[str]) -> None:
-    """Every --set key must be a parameter of a selected problem or scheme."""
+                   integrator_names: Iterable[str], spelling: str = "--set {key}") -> None:
+    """Every --set key (``spelling``: how the front end names the argument) must be a
+    parameter of a selected problem or scheme: else the closest names and the full list."""
+    problem_names, integrator_names = list(problem_names), list(integrator_names)
     pclasses = [registry.problem_class(n) for n in problem_names]
     iclasses = [registry.integrator_class(n) for n in integrator_names]
     for key in sets:
         if not any(key in c.parameters for c in pclasses + iclasses):
-            valid = sorted({k for c in pclasses + iclasses for k in c.parameters} - set(ROW_PARAMETERS))
-            raise InputError(f"--set {key}: unknown parameter for the selected problems and "
-                             f"integrators; valid keys: {', '.join(valid) or 'none'}")
+            valid = {k for c in pclasses + iclasses for k in c.parameters}
+            raise unknown_parameter(spelling.format(key=key), key, valid, ", ".join(problem_names + integrator_names))
 
 
 def _horizons(t_final: float | Iterable[float] | None) -> list[float | None]:
@@ -158,10 +160,15 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
             except MemoryError:
                 raise InputError(f"problem {pname} with {psets}: out of memory while building it") from None
             psets = {k: problem.settings[k] for k in psets}  # typed: "0.5" from the command line is 0.5
+            plugin = not contract.built_in(pcls)
+            if plugin:  # a plugin's compiled functions, once with bounds checked, before any cell runs
+                contract.probe_problem_kernels(problem)
             for horizon in horizons:
                 tf = horizon if horizon is not None else (
                     pcls.sweep_t_final if default_sweep and pcls.sweep_t_final else pcls.default_t_final)
-                check_time_span(pcls.t0, tf)
+                check_time_span(pcls.t0, tf, f"problem {pname}")
+                if plugin:  # the shapes of what its Python functions return
+                    contract.check_problem_outputs(problem, tf)
                 for iname in integrator_names:
                     cells += _scheme_cells(pname, pcls, problem, psets, iname, tf, sets, sweeps, default_sweep,
                                            strict, given_t_final=horizons != [None])
@@ -276,11 +283,22 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         if isinstance(integrator, FixedStepIntegrator):
             used["dt"] = row["dt"]  # the step taken, also where it is the problem's default
         row["parameters"] = json.dumps(used, sort_keys=True, default=str)
+        unsafe = _probe_step(integrator, problem)
+        if unsafe:
+            row.update(status="failed", message=unsafe)
+            return row
         with phases.phase("integration", f"{cell.problem} x {cell.integrator}"):
             traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
                                         timing=timing or Timing(), deadline=deadline)
         if traj.status == "timeout":
             traj.message = f"{traj.message} (cell time limit {time_limit:g} s: --time-limit)"
+        if traj.status == "diverged":
+            traj.message = "; ".join(m for m in (traj.message, contract.nan_note(problem, traj.t, traj.u)) if m)
+        t_end = problem.default_t_final if cell.t_final is None else cell.t_final
+        wrong = check_samples(cell.integrator, problem, traj, t_end)
+        if wrong:  # samples that cannot be measured are a fault, never a row that reads ok
+            row.update(status="failed", message=wrong)
+            return row
         ref, trust, note = None, None, ""
         if reference and has_reference(problem):
             try:
@@ -330,6 +348,22 @@ def working_set(integrator: Integrator, problem: Problem, traj: Trajectory) -> i
         except Exception:  # a scheme whose scratch depends on more than the problem: its samples count
             pass
     return int(size)
+
+
+# (scheme class, problem class, dimension) -> why the plugin's step cannot run, or None
+_PROBED: dict[tuple, str | None] = {}
+
+
+def _probe_step(integrator: Integrator, problem: Problem) -> str | None:
+    """A plugin's own step kernel (fixed or adaptive), run once per process and problem with bounds checked
+    (contract.probe_step_kernel) the first time it is built."""
+    make = getattr(type(integrator), "make_step", None) or getattr(type(integrator), "make_try_step", None)
+    if make is None or contract.built_in(make):
+        return None
+    key = (type(integrator), type(problem), problem.dim)
+    if key not in _PROBED:
+        _PROBED[key] = contract.probe_step_kernel(integrator, problem)
+    return _PROBED[key]
 
 
 def cell_size(cell: Cell, dims: dict[str, int]) -> tuple[int, float, float]:

@@ -109,6 +109,48 @@ def set_memory_limit(nbytes: int | None) -> None:
         pass
 
 
+@contextlib.contextmanager
+def memory_limited(nbytes: int | None):
+    """This process under ``nbytes`` of data (RLIMIT_DATA) while the block runs, then its
+    earlier limit again: the serial executor and ``longtime.solve`` run cells in the user's
+    own process (a notebook's, a script's), which keeps its limit afterwards."""
+    if not nbytes:
+        yield
+        return
+    try:
+        import resource
+
+        before = resource.getrlimit(resource.RLIMIT_DATA)
+    except (ImportError, ValueError, OSError):
+        yield
+        return
+    set_memory_limit(nbytes)
+    try:
+        yield
+    finally:
+        try:
+            resource.setrlimit(resource.RLIMIT_DATA, before)
+        except (ValueError, OSError):
+            pass
+
+
+def memory_argument_api(value) -> int | None:
+    """``memory_limit=`` of the API as ``--memory-limit`` takes it: GiB (a number), a share of
+    the machine's memory ("25%"), 0 or None for none. Returns bytes (None: no limit)."""
+    from longtime.core.params import InputError, check_number
+
+    if value is None:
+        return None
+    if isinstance(value, str) and value.strip().endswith("%"):
+        try:
+            return memory_argument(value)
+        except argparse.ArgumentTypeError:
+            raise InputError(f"memory_limit={value!r} is not valid: expected GiB (a number >= 0), a share of the "
+                             f"machine's memory (e.g. '25%') or None") from None
+    check_number("memory_limit", value, minimum=0)
+    return int(value * 2**30) or None
+
+
 def memory_message(exc: BaseException) -> str:
     """The message of a cell that ran out of memory: the limit it ran into, when there is one."""
     limit = None

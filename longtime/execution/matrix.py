@@ -33,7 +33,15 @@ from longtime.execution.cells import (
     run_cell,
 )
 from longtime.execution.isolation import run_isolated
-from longtime.execution.limits import Watchdog, default_memory_limit, grace, hard_limit, signal_relay, worker_init
+from longtime.execution.limits import (
+    Watchdog,
+    default_memory_limit,
+    grace,
+    hard_limit,
+    memory_limited,
+    signal_relay,
+    worker_init,
+)
 from longtime.execution.pool import spawn_pool
 from longtime.execution.processes import across_processes, default_processes
 from longtime.execution.pool import workers as pool_workers
@@ -83,7 +91,11 @@ def serial(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict
         for cell in cells:
             if options.on_start is not None and not cell.skip_reason:
                 options.on_start(cell)
-            yield cell, _calibrated(here, cell, options.max_samples, options.timing, options.time_limit)
+            # the cell runs in this process (a script's, a notebook's): under the memory limit a
+            # worker has, lifted again before the row is handed on
+            with memory_limited(options.memory_limit):
+                row = _calibrated(here, cell, options.max_samples, options.timing, options.time_limit)
+            yield cell, row
 
 
 _FAMILY_PACKAGES = ("longtime.integrators.", "longtime.problems.")

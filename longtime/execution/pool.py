@@ -20,3 +20,48 @@ def spawn_pool(workers: int, initializer: Callable | None = None, initargs: tupl
     Dask client's) have started can deadlock, so no pool forks."""
     return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                                initializer=initializer, initargs=initargs)
+
+
+def unguarded_main() -> str | None:
+    """Why the process pool cannot start here, or None when it can: a spawned worker runs the
+    main module again, and a script that calls longtime outside ``if __name__ ==
+    "__main__":`` would then call it again in every worker (multiprocessing's "bootstrapping
+    phase" RuntimeError). Found from the stack: the main module's top level is running, at a
+    statement that is not that guard. A notebook, ``python -c`` and the REPL have no file to
+    run again; a worker bootstrapping a script says so."""
+    import ast
+    import sys
+
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    if getattr(main, "__name__", None) == "__mp_main__":
+        return f"{path} is being run again by a worker process as it starts"
+    if not path or not str(path).endswith(".py"):
+        return None
+    frame = sys._getframe(1)
+    while frame is not None and not (frame.f_globals is vars(main) and frame.f_code.co_name == "<module>"):
+        frame = frame.f_back
+    if frame is None:  # the script's top level has finished (a callback, a thread)
+        return None
+    try:
+        with open(path, encoding="utf-8") as f:
+            tree = ast.parse(f.read())
+    except (OSError, SyntaxError, ValueError):
+        return None
+    line = frame.f_lineno
+    stmt = next((s for s in tree.body if s.lineno <= line <= (s.end_lineno or s.lineno)), None)
+    if stmt is None or _is_main_guard(stmt):
+        return None
+    return (f"{path} calls it outside `if __name__ == \"__main__\":` (line {line}), and each worker "
+            f"process would run the script again")
+
+
+def _is_main_guard(stmt) -> bool:
+    import ast
+
+    if not isinstance(stmt, ast.If) or not isinstance(stmt.test, ast.Compare) or len(stmt.test.ops) != 1:
+        return False
+    sides = [stmt.test.left, stmt.test.comparators[0]]
+    names = [s.id for s in sides if isinstance(s, ast.Name)]
+    consts = [s.value for s in sides if isinstance(s, ast.Constant)]
+    return isinstance(stmt.test.ops[0], ast.Eq) and names == ["__name__"] and consts == ["__main__"]
