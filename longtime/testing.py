@@ -57,7 +57,8 @@ def assert_order(scheme: Any, problem: Any, order: float, *, dts: Sequence[float
                              f"parameter other than dts")
     expected = f"expected order {order:g} +- {slack:g}"
     if found.value is None:
-        raise AssertionError(f"{_label(scheme, problem)}: no observed order ({found.reason}); {expected}; "
+        # an undetermined order confirms nothing: the sweep does not reach the asymptotic range
+        raise AssertionError(f"{_label(scheme, problem)}: order undetermined ({found.reason}); {expected}; "
                              + _points(found) + _not_ok(rows))
     if abs(found.value - order) > slack:
         ci = f" +- {found.ci:.3f} (95 %)" if found.ci is not None else " (2 points: no interval)"
