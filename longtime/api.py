@@ -318,3 +318,27 @@ def work_precision(rows: Any):
     columns = ["problem", "target", "field", "scheme", "setting", "cpu_s", "error", "t_final", "next",
                "next_setting", "slower"]
     return pd.DataFrame(out, columns=columns)
+
+
+# ------------------------------------------------------------------ a scheme's card
+def card(scheme: Any, rows: Any = None, *, structure: bool = True, stability: bool = True) -> dict[str, Any]:
+    """The card of ``scheme`` (a registered name, a class or an instance: an in-memory
+    class is registered for the session) as a dict, the JSON of ``longtime card``: declared
+    and observed order per problem, growth classes, cost per step, place on each Pareto
+    front, stability interval and structure (longtime.reporting.card). ``rows``: a
+    DataFrame from ``sweep``, row dicts, a Store or a store's path (its latest run), or None
+    (the scheme alone). ``longtime.reporting.card.card_text(card)`` renders it."""
+    from pathlib import Path
+
+    from longtime.execution.store import Store
+    from longtime.reporting.card import card as build
+
+    name, _ = resolve(scheme, "scheme")  # an in-memory class is registered for the session
+    if isinstance(rows, (str, Path)):
+        rows = Store(rows, readonly=True)
+    if isinstance(rows, Store):
+        run = rows.latest_run()
+        rows = rows.rows(run) if run is not None else []
+    # an instance keeps its settings (the structure is measured with them); otherwise the name
+    return build(scheme if isinstance(scheme, Integrator) else name,
+                 records(rows) if rows is not None else None, structure=structure, stability=stability)
