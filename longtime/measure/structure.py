@@ -25,11 +25,13 @@ state u0 of the first ``CANONICAL`` problem the scheme can step, with the step `
 """
 from __future__ import annotations
 
-import math
+import json
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
+
+from longtime.core.cache import discard, write_atomic
 
 EPS = float(np.finfo(float).eps)
 CANONICAL = ("kepler", "henon-heiles", "harmonic")
@@ -72,6 +74,8 @@ class Structure:
 
     @property
     def reversible(self) -> bool | None:
+        """The defect within its round-off (None: not measured; an adaptive scheme's loop
+        steps forward only)."""
         if self.reversibility_defect is None:
             return None
         return bool(self.reversibility_defect <= self.reversibility_bound)
@@ -84,10 +88,18 @@ class Structure:
             return f"{self.scheme}: structure not measured ({self.reason})"
         return (f"{self.scheme} on {self.problem}, one step h = {self.h:g}: symplecticity defect "
                 f"{self.symplecticity_defect:.2e} (error <= {self.symplecticity_error:.1e}: "
-                f"{'symplectic' if self.symplectic else 'not symplectic'}); reversibility defect "
-                f"{self.reversibility_defect:.2e} (round-off {self.reversibility_bound:.1e}: "
-                f"{'reversible' if self.reversible else 'not reversible'}); kept to round-off: "
-                f"{', '.join(self.kept) or 'none'}")
+                f"{'symplectic' if self.symplectic else 'not symplectic'}); {reversibility_text(self)}; "
+                f"kept to round-off: {', '.join(self.kept) or 'none'}")
+
+
+def reversibility_text(s: Any) -> str:
+    """The reversibility part of a Structure (or its dict)."""
+    get = s.get if isinstance(s, dict) else lambda k: getattr(s, k)
+    if get("reversibility_defect") is None:
+        return "reversibility not measured (an adaptive scheme's loop steps forward only)"
+    ok = get("reversibility_defect") <= get("reversibility_bound")
+    return (f"reversibility defect {get('reversibility_defect'):.2e} (round-off {get('reversibility_bound'):.1e}: "
+            f"{'reversible' if ok else 'not reversible'})")
 
 
 def _instance(scheme: Any):
@@ -103,6 +115,10 @@ def _instance(scheme: Any):
         cls, given = scheme, {}
     else:
         cls, given = type(scheme), {k: v for k, v in scheme.settings.items() if v is not None}
+    # a series order chosen from the tolerance (taylor-adaptive) is kept at the default
+    # tolerance's: error control off must not change the map's order
+    chosen = cls(**given).settings
+    given.update({k: chosen[k] for k in roles.with_role([cls], "order") if chosen.get(k) is not None})
     settings = {**given, **{k: OFF for k in roles.with_role([cls], "accuracy")}}
     for key, value in TIGHT.items():
         param = cls.parameters.get(key)
@@ -166,10 +182,51 @@ def measure(scheme: Any, *, h: float = STEP, problem: Any = None) -> Structure:
             return Structure(name, reason=why)
     if problem.dim % 2 or problem.capabilities() & {"constraints"}:
         return Structure(name, problem.name, reason=f"{problem.name} is not a canonical Hamiltonian system")
+    path = _cache_file(instance, problem, h)
+    cached = _read(path) if path is not None else None
+    if cached is not None:
+        return cached
     try:
         step = one_step(instance, problem)
     except Unmeasurable as exc:
         return Structure(name, problem.name, reason=str(exc))
+    found = _measure(name, instance, problem, step, h)
+    if path is not None:
+        write_atomic(path, json.dumps(asdict(found)).encode())
+    return found
+
+
+def _cache_file(instance, problem, h: float):
+    """$LONGTIME_CACHE_DIR/structure/NAME-KEY.json, KEY a digest of the compiled step (its
+    code and everything it closes over), the settings, the problem's state and the
+    constants; None where the step has no fingerprint (it is then measured every time)."""
+    from longtime.core.cache import cache_dir, digest
+    from longtime.core.jitcache import fingerprint
+
+    try:
+        build = instance.make_step if hasattr(instance, "make_step") else instance.make_try_step
+        code = fingerprint(build(problem))
+    except Exception:
+        return None
+    key = digest(instance.name, repr(sorted(instance.settings.items())), code, problem.name,
+                 repr(np.asarray(problem.u0).tolist()), repr(problem.params.tolist()),
+                 repr((h, FD_STEP, PHI_ULPS, REVERSIBLE_ULPS, INVARIANT_STEPS, KEPT, 1)))
+    return cache_dir("structure") / f"{instance.name}-{key}.json"
+
+
+def _read(path) -> Structure | None:
+    try:
+        return Structure(**json.loads(path.read_bytes()))
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError, TypeError) as exc:  # a truncated or foreign file: measured again
+        discard(path, "structure", exc)
+        return None
+
+
+def _measure(name: str, instance, problem, step, h: float) -> Structure:
+    from longtime.core.integrator import FixedStepIntegrator
+
     params, u0 = problem.params, np.array(problem.u0, dtype=float)
     n = u0.size // 2
     J = np.block([[np.zeros((n, n)), np.eye(n)], [-np.eye(n), np.zeros((n, n))]])
@@ -183,10 +240,12 @@ def measure(scheme: Any, *, h: float = STEP, problem: Any = None) -> Structure:
     defect = float(np.linalg.norm(M.T @ J @ M - J, 2))
     error = 2 * float(np.linalg.norm(M, 2)) * E + E * E
 
-    back = u1.copy()
-    step(back, params, -h)
-    scale = max(1.0, float(np.max(np.abs(u0))), float(np.max(np.abs(u1))))
-    reversibility = float(np.max(np.abs(back - u0))) / scale
+    reversibility, bound = None, None
+    if isinstance(instance, FixedStepIntegrator):  # an adaptive loop steps forward only
+        back = u1.copy()
+        step(back, params, -h)
+        scale = max(1.0, float(np.max(np.abs(u0))), float(np.max(np.abs(u1))))
+        reversibility, bound = float(np.max(np.abs(back - u0))) / scale, REVERSIBLE_ULPS * EPS
 
     u, states = u0.copy(), [u0.copy()]
     for _ in range(INVARIANT_STEPS):
@@ -200,4 +259,4 @@ def measure(scheme: Any, *, h: float = STEP, problem: Any = None) -> Structure:
         values = np.asarray(values, float)
         changes[key] = max(_change(values[0], values[k]) for k in range(1, len(values)))
     kept = [k for k, c in changes.items() if c <= KEPT]
-    return Structure(name, problem.name, h, defect, error, reversibility, REVERSIBLE_ULPS * EPS, changes, kept)
+    return Structure(name, problem.name, h, defect, error, reversibility, bound, changes, kept)

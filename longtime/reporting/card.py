@@ -171,6 +171,8 @@ def _per_step_text(p: dict) -> str:
 
 
 def _structure_text(s: dict | None) -> str:
+    from longtime.measure.structure import reversibility_text
+
     if s is None:
         return NOT_MEASURED
     if s["reason"]:
@@ -178,9 +180,8 @@ def _structure_text(s: dict | None) -> str:
     kept = ", ".join(s["kept"]) or "none"
     return (f"on {s['problem']}, one step h = {s['h']:g}: symplecticity defect ||M^T J M - J|| "
             f"{s['symplecticity_defect']:.2e} (finite-difference error <= {s['symplecticity_error']:.1e}: "
-            f"{'symplectic' if s['symplectic'] else 'NOT symplectic'}); reversibility defect "
-            f"{s['reversibility_defect']:.2e} (round-off {s['reversibility_bound']:.1e}: "
-            f"{'reversible' if s['reversible'] else 'not reversible'}); invariants kept to round-off: {kept}")
+            f"{'symplectic' if s['symplectic'] else 'NOT symplectic'}); {reversibility_text(s)}; "
+            f"invariants kept to round-off: {kept}")
 
 
 def _lines(c: dict) -> list[tuple[str, str]]:
@@ -231,8 +232,8 @@ def card_html(c: dict) -> str:
     fastest = [p["problem"] for p in c["problems"] if any(e["is_fastest"] for e in p["pareto"])]
     s = c["structure"]
     struct = "" if not s or s["reason"] else (
-        f"; measured {'symplectic' if s['symplectic'] else 'not symplectic'}, "
-        f"{'reversible' if s['reversible'] else 'not reversible'}")
+        f"; measured {'symplectic' if s['symplectic'] else 'not symplectic'}"
+        + ("" if s["reversible"] is None else f", {'reversible' if s['reversible'] else 'not reversible'}"))
     flagged = [p["problem"] for p in c["problems"] if any(o["flag"] for o in p["orders"])]
     head = (f"<b>{escape(c['scheme'])}</b> order {escape(c['declared_order'] if c['declared_order'] is not None else '-')}"
             + escape(struct)
