@@ -151,7 +151,8 @@ def _pareto_text(entries: list[dict]) -> str:
     for e in entries:
         kind = "fastest" if e["is_fastest"] else ("not met" if e["ratio"] is None else "ratio")
         last = groups[-1] if groups else None
-        if last and last[0] == kind and (kind != "ratio" or (last[3] == e["ratio"] and last[4] == e["fastest"])):
+        same = kind != "ratio" or (f"{last[3]:.3g}" == f"{e['ratio']:.3g}" and last[4] == e["fastest"]) if last else False
+        if last and last[0] == kind and same:
             last[2] = e["target"]
         else:
             groups.append([kind, e["target"], e["target"], e["ratio"], e["fastest"]])
