@@ -184,3 +184,18 @@ def test_perturbed_composition_is_undetermined_then_order_two():
     small = convergence(sweep("kepler", OrdersPerturbedForestRuth, dt=[0.00125, 0.000625, 0.0003125],
                               executor="serial", repeats=1, min_time=0.0))
     assert abs(small.value - 2) < 0.1 and small.flag, str(small)  # 2.03 +- 0.11, flagged against 4
+
+
+def test_report_and_compare_name_an_undetermined_order_with_its_slopes_and_flag_nothing():
+    from longtime.reporting.compare import compare, render
+    from longtime.reporting.report import summary
+
+    dts = [0.1, 0.05, 0.025, 0.0125]
+    trending = rows("rk4", dts, [1.2288e-06, 1.3336e-07, 1.0636e-08, 7.3962e-10])
+    for r in trending:
+        r.update(steps=round(10 / r["dt"]), cpu_s=1e-3 / r["dt"], rhs_evals=4 * round(10 / r["dt"]))
+    text = summary(trending)
+    assert "left out of the order table: rk4 (pre-asymptotic: local slopes 3.20, 3.65, 3.85" in text
+    assert "MISSES" not in text
+    assert "left out of A's order table: harmonic rk4 (pre-asymptotic: local slopes 3.20" in render(
+        compare(trending, trending))
