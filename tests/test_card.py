@@ -61,7 +61,7 @@ def test_cards_html_folds_one_card_per_scheme(rows):
     assert page.startswith('<section id="scheme-cards">') and "<summary>" in page
 
 
-def _cli(*args, env_db=None):
+def _cli(*args):
     return subprocess.run([sys.executable, "-m", "longtime", "card", *args], capture_output=True, text=True)
 
 

@@ -253,8 +253,8 @@ def left_out(rows: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
     """Every problem x scheme with rows but no observed order, and why (from its sweep with
     the most rows): 'every point above 0.1', 'no ok row (3 diverged)', 'one step size: no
     sweep to fit', 'pre-asymptotic: local slopes 3.20, 3.65, 3.85 (...) still rise toward
-    small steps' (an undetermined order, ``slopes`` beside it), ... A pair whose rows are all ``skipped`` is left to the skip line that
-    names its missing capability."""
+    small steps' (an undetermined order, ``slopes`` beside it), ... A pair whose rows are
+    all ``skipped`` is left to the skip line that names its missing capability."""
     rows = list(rows)
     fitted, why = set(), {}
     for members in _groups(rows):

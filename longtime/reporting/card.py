@@ -21,6 +21,10 @@ from longtime.core.fmt import positive
 from longtime.reporting.markup import escape, slug
 
 NOT_MEASURED = "not measured"
+# the cards' own style, carried by the fragment wherever it is placed
+CARD_CSS = ("<style>details.card{border:1px solid #ddd;border-radius:4px;margin:.3em 0;padding:.2em .6em}"
+            "details.card>summary{cursor:pointer}details.card[open]{background:#fafafa}"
+            "details.card table{width:100%}details.card th{width:10em;white-space:nowrap}</style>")
 
 
 def _declared(name: str, scheme: Any = None) -> dict[str, Any]:
@@ -227,9 +231,10 @@ def card_markdown(c: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def card_html(c: dict) -> str:
+def card_html(c: dict, notes: Iterable[tuple[str, str]] = ()) -> str:
     """One card: a folded <details> whose summary line says the declared and the measured
-    structure and the problems where the scheme is fastest."""
+    structure and the problems where the scheme is fastest; ``notes`` are (label, text)
+    lines added after the card's own (the verdicts that name the scheme, say)."""
     fastest = [p["problem"] for p in c["problems"] if any(e["is_fastest"] for e in p["pareto"])]
     s = c["structure"]
     struct = "" if not s or s["reason"] else (
@@ -240,7 +245,8 @@ def card_html(c: dict) -> str:
             + escape(struct)
             + (f"; fastest somewhere on {escape(', '.join(fastest))}" if fastest else "")
             + (f' <span class="flag">misses its order on {escape(", ".join(flagged))}</span>' if flagged else ""))
-    body = "".join(f"<tr><th>{escape(label)}</th><td>{escape(text)}</td></tr>" for label, text in _lines(c))
+    body = "".join(f"<tr><th>{escape(label)}</th><td>{escape(text)}</td></tr>"
+                   for label, text in [*_lines(c), *notes])
     rows = []
     for p in c["problems"]:
         rows.append("<tr>" + f"<td>{escape(p['problem'])}</td>"
@@ -253,10 +259,11 @@ def card_html(c: dict) -> str:
 
 
 def cards_html(rows: list[dict], schemes: Iterable[str] | None = None, *, structure: bool = True,
-               stability: bool = False) -> str:
+               stability: bool = False, notes: dict[str, list[tuple[str, str]]] | None = None) -> str:
     """The results page's scheme cards: an HTML fragment, one folded card per scheme of
     ``rows`` (or ``schemes``), by name. ``stability``: measure intervals not in the cache
-    (cached ones are shown either way)."""
+    (cached ones are shown either way). ``notes``: scheme -> (label, text) lines each card
+    adds (plain text, escaped here)."""
     names = sorted(set(schemes) if schemes is not None else {r["integrator"] for r in rows})
     parts = []
     for name in names:
@@ -267,12 +274,12 @@ def cards_html(rows: list[dict], schemes: Iterable[str] | None = None, *, struct
             parts.append(f'<p class="note">{escape(name)}: no card ({escape(type(exc).__name__)}: '
                          f'{escape(exc)})</p>')
             continue
-        parts.append(card_html(c))
+        parts.append(card_html(c, (notes or {}).get(name, ())))
     note = ('<p class="note">One card per scheme (click to unfold): declared and observed order per problem '
             '(undetermined where the local slopes still move), growth class of each invariant and of the '
             'solution error on its longest run, cost per step, its place on each Pareto front, its stability '
             'interval and the structure measured from one step on a canonical problem (docs/metrics.md).</p>')
-    return '<section id="scheme-cards">' + note + "".join(parts) + "</section>"
+    return '<section id="scheme-cards">' + CARD_CSS + note + "".join(parts) + "</section>"
 
 
 def _cached_card(name: str, rows: list[dict], structure: bool) -> dict[str, Any]:
