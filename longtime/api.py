@@ -316,7 +316,10 @@ class Order:
     could be fitted, ``reason`` says why), ``ci`` its 95 % half-width (None from two
     points), ``points`` the (step, error) pairs used, ``dropped`` the (step, error, why)
     pairs left out (floors, above 0.1, pre-asymptotic), ``declared`` the scheme's declared
-    order and ``flag`` (the fit misses it beyond its interval and 0.1)."""
+    order and ``flag`` (a determined order misses it beyond its interval and 0.1; an
+    undetermined one is never flagged), ``slopes`` the local slopes between successive
+    points above the floors (by increasing step). An undetermined order (the local slopes
+    still trend: pre-asymptotic) has ``value`` None and its ``reason`` lists the slopes."""
 
     problem: str
     scheme: str
@@ -331,6 +334,11 @@ class Order:
     t_final: float | None = None
     settings: str | None = None
     reason: str | None = None
+    slopes: list[float] = field(default_factory=list)
+
+    @property
+    def determined(self) -> bool:
+        return self.value is not None
 
     @property
     def interval(self) -> tuple[float, float] | None:
@@ -341,10 +349,13 @@ class Order:
     def __str__(self) -> str:
         head = f"{self.scheme} on {self.problem}: "
         if self.value is None:
-            return head + f"no observed order ({self.reason})"
+            return head + f"order undetermined ({self.reason})" + (
+                f", declared {self.declared}" if self.declared is not None else "")
         text = head + f"observed order {self.value:.3f}"
         text += f" +- {self.ci:.3f} (95 %)" if self.ci is not None else " (2 points: no interval)"
         text += f", declared {self.declared}" if self.declared is not None else ""
+        if self.flag:
+            text += " (MISSES the declared order beyond its interval and 0.1)"
         text += f"; {len(self.points)} points used ({self.error_field} against {self.variable} "
         text += ", ".join(f"{x:.3g}" for x, _ in self.points) + ")"
         if self.dropped:
@@ -361,9 +372,10 @@ def orders(rows: Any) -> list[Order]:
     out = [Order(f["problem"], f["integrator"], f["observed_order"], f["observed_order_ci"],
                  [tuple(p) for p in f["order_points"]], [tuple(p) for p in f["order_dropped"]],
                  f["declared_order"], f["order_flag"], f["order_error_field"], f["order_variable"],
-                 f["t_final"], f["settings"]) for f in observed_orders(rows)]
+                 f["t_final"], f["settings"], slopes=f["order_slopes"]) for f in observed_orders(rows)]
     out += [Order(m["problem"], m["integrator"], None, None, [], [tuple(p) for p in m["dropped"]],
-                  m["declared_order"], reason=m["reason"]) for m in left_out(rows)]
+                  m["declared_order"], error_field=m["error_field"], variable=m["variable"], reason=m["reason"],
+                  slopes=m["slopes"]) for m in left_out(rows)]
     return sorted(out, key=lambda o: (o.problem, o.scheme, str(o.t_final)))
 
 
@@ -400,3 +412,27 @@ def work_precision(rows: Any):
     columns = ["problem", "target", "field", "scheme", "setting", "cpu_s", "error", "t_final", "next",
                "next_setting", "slower"]
     return pd.DataFrame(out, columns=columns)
+
+
+# ------------------------------------------------------------------ a scheme's card
+def card(scheme: Any, rows: Any = None, *, structure: bool = True, stability: bool = True) -> dict[str, Any]:
+    """The card of ``scheme`` (a registered name, a class or an instance: an in-memory
+    class is registered for the session) as a dict, the JSON of ``longtime card``: declared
+    and observed order per problem, growth classes, cost per step, place on each Pareto
+    front, stability interval and structure (longtime.reporting.card). ``rows``: a
+    DataFrame from ``sweep``, row dicts, a Store or a store's path (its latest run), or None
+    (the scheme alone). ``longtime.reporting.card.card_text(card)`` renders it."""
+    from pathlib import Path
+
+    from longtime.execution.store import Store
+    from longtime.reporting.card import card as build
+
+    name, _ = resolve(scheme, "scheme")  # an in-memory class is registered for the session
+    if isinstance(rows, (str, Path)):
+        rows = Store(rows, readonly=True)
+    if isinstance(rows, Store):
+        run = rows.latest_run()
+        rows = rows.rows(run) if run is not None else []
+    # an instance keeps its settings (the structure is measured with them); otherwise the name
+    return build(scheme if isinstance(scheme, Integrator) else name,
+                 records(rows) if rows is not None else None, structure=structure, stability=stability)

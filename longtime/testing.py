@@ -6,6 +6,8 @@ measured, what was expected and the points used. See docs/api.md.
     assert_bounded(scheme, problem, invariant, bound, t_final=..., **settings)
     assert_growth(scheme, problem, invariant, allowed_classes, t_final=..., **settings)
     assert_no_regression(store, baseline_run, run, ...)
+    assert_symplectic(scheme, h=0.05, problem=None)    # ||M^T J M - J|| within its error
+    assert_reversible(scheme, h=0.05, problem=None)    # a step of h then -h returns to u0
     benchmark_cell(benchmark, problem, scheme, **settings)   # pytest-benchmark's fixture
 
 A scheme or a problem is a registered name, a class (registered for the session, no
@@ -60,7 +62,8 @@ def assert_order(scheme: Any, problem: Any, order: float, *, dts: Sequence[float
                              f"parameter other than dts")
     expected = f"expected order {order:g} +- {slack:g}"
     if found.value is None:
-        raise AssertionError(f"{_label(scheme, problem)}: no observed order ({found.reason}); {expected}; "
+        # an undetermined order confirms nothing: the sweep does not reach the asymptotic range
+        raise AssertionError(f"{_label(scheme, problem)}: order undetermined ({found.reason}); {expected}; "
                              + _points(found) + _not_ok(rows) + _conditions(scheme, order))
     if abs(found.value - order) > slack:
         ci = f" +- {found.ci:.3f} (95 %)" if found.ci is not None else " (2 points: no interval)"
@@ -77,6 +80,47 @@ def _conditions(scheme: Any, order: float) -> str:
     cls = registry.integrator_class(resolve(scheme, "scheme")[0])
     found = scheme_conditions(cls, int(order))
     return "" if found is None else "; " + describe(*found)
+
+
+def _structure(scheme: Any, h: float | None, problem: Any):
+    from longtime.measure import structure
+
+    if problem is not None and not hasattr(problem, "u0"):  # a name or a class: an instance of it
+        problem = registry.problem_class(resolve(problem, "problem")[0])()
+    found = structure.measure(scheme, h=structure.STEP if h is None else h, problem=problem)
+    if found.reason is not None:
+        raise AssertionError(str(found))
+    return found
+
+
+def assert_symplectic(scheme: Any, *, h: float | None = None, problem: Any = None) -> Any:
+    """One step of ``scheme`` (default h: 0.05, on the first canonical problem it can step:
+    kepler, henon-heiles, harmonic) is a symplectic map: its symplecticity defect
+    ||M^T J M - J||_2 (M by extrapolated central differences) is at most
+    ``structure.SAFETY`` times the stated error of that measurement. Returns the
+    ``Structure`` (longtime.measure.structure)."""
+    from longtime.measure.structure import SAFETY
+
+    found = _structure(scheme, h, problem)
+    if not found.symplectic:
+        raise AssertionError(
+            f"{found.scheme} on {found.problem}, one step h = {found.h:g}: symplecticity defect ||M^T J M - J|| = "
+            f"{found.symplecticity_defect:.3e}, expected at most {SAFETY:g} x its finite-difference error "
+            f"{found.symplecticity_error:.2e} = {SAFETY * found.symplecticity_error:.2e}")
+    return found
+
+
+def assert_reversible(scheme: Any, *, h: float | None = None, problem: Any = None) -> Any:
+    """A step of h then one of -h returns ``scheme`` to its start within round-off
+    (``structure.REVERSIBLE_ULPS`` eps of the state's largest component). Returns the
+    ``Structure``."""
+    found = _structure(scheme, h, problem)
+    if not found.reversible:
+        raise AssertionError(
+            f"{found.scheme} on {found.problem}: a step of h = {found.h:g} then one of -h misses the start by "
+            f"{found.reversibility_defect:.3e} (relative to the state's largest component), expected at most "
+            f"round-off {found.reversibility_bound:.2e}")
+    return found
 
 
 def _not_ok(rows) -> str:

@@ -1,7 +1,13 @@
 """Observed order: a least-squares slope over the automatically chosen asymptotic range."""
+import numba
+import numpy as np
 import pytest
 
-from longtime.measure.orders import asymptotic_points, fit_slope, observed_orders
+from longtime.core.params import Param
+from longtime.core.problem import Problem
+from longtime.integrators import Splitting, compose
+from longtime.integrators.explicit_rk import ExplicitRungeKutta
+from longtime.measure.orders import asymptotic_points, fit_slope, left_out, observed_orders
 
 
 def rows(scheme, dts, errors, **extra):
@@ -46,3 +52,150 @@ def test_reference_floor_and_a_missed_order_is_flagged():
     assert [p[0] for p in fit["order_points"]] == [0.025, 0.05, 0.1]
     assert fit["observed_order"] == pytest.approx(3.0, abs=1e-9)
     assert fit["order_flag"]  # rk4 declares 4: 3 misses by more than the interval
+
+
+def test_trending_slopes_are_undetermined_and_never_flagged():
+    # rk4's local slopes on the pendulum (below): 3.20, 3.65, 3.85 from the largest step down
+    dts = [0.1, 0.05, 0.025, 0.0125]
+    errors = [1.2288e-06, 1.3336e-07, 1.0636e-08, 7.3962e-10]
+    assert observed_orders(rows("rk4", dts, errors)) == []
+    (why,) = left_out(rows("rk4", dts, errors))
+    assert why["reason"].startswith("pre-asymptotic: local slopes 3.20, 3.65, 3.85 (dt 0.1 to 0.0125) still rise")
+    assert [round(s, 2) for s in why["slopes"]] == [3.85, 3.65, 3.20]
+
+
+def test_a_crossover_is_never_a_determined_order_between_its_two_orders():
+    # e = h^4 + c h^2: order 4 at large steps, 2 at small ones; every sweep of five halvings
+    # across the crossover is either undetermined or determined near 2 or 4, never in between
+    for c in (1e-4, 1e-3, 1e-2):
+        for top in np.geomspace(0.5, 1e-3, 25):
+            dts = [top / 2 ** k for k in range(5)]
+            fits = observed_orders(rows("rk4", dts, [h ** 4 + c * h ** 2 for h in dts]))
+            for f in fits:
+                assert min(abs(f["observed_order"] - 2), abs(f["observed_order"] - 4)) < 0.1, (c, dts, f)
+                assert f["order_flag"] == (abs(f["observed_order"] - 4) > 0.1)
+
+
+def test_the_round_off_floor_flattening_the_smallest_step_is_dropped():
+    dts = [0.1, 0.05, 0.025, 0.0125, 0.00625]
+    errors = [1e-6, 1e-6 / 16, 1e-6 / 256, 1e-6 / 4096, 5e-11]  # the last within 1e3 x round-off: slope 2.3
+    fit = observed_orders(rows("rk4", dts, errors))[0]
+    assert fit["observed_order"] == pytest.approx(4.0, abs=1e-9) and not fit["order_flag"]
+    assert [d[0] for d in fit["order_dropped"]] == [0.00625] and "floor flattens" in fit["order_dropped"][0][2]
+
+
+def test_str_of_an_order_shows_its_flag():
+    from longtime.api import orders
+
+    dts = [0.1, 0.05, 0.025]
+    (flagged,) = orders(rows("rk4", dts, [1e-3, 1e-3 / 8, 1e-3 / 64]))
+    assert flagged.flag and "MISSES the declared order" in str(flagged) and "observed order 3.000" in str(flagged)
+    (fine,) = orders(rows("rk4", dts, [1e-3, 1e-3 / 16, 1e-3 / 256]))
+    assert not fine.flag and "MISSES" not in str(fine)
+
+
+# ------------------------------------------------------------------ the cases of docs/metrics.md, measured
+@numba.njit
+def _pendulum_rhs(t, u, params, out):
+    out[0] = u[1]
+    out[1] = -np.sin(u[0])
+
+
+@numba.njit
+def _pendulum_grad_T(p, params, out):
+    out[0] = p[0]
+
+
+@numba.njit
+def _pendulum_grad_V(q, params, out):
+    out[0] = np.sin(q[0])
+
+
+class OrdersPendulum(Problem):
+    """The nonlinear pendulum H = p^2/2 - cos q, q(0) = q0, p(0) = 0."""
+    name = "orders-pendulum"
+    summary = "nonlinear pendulum"
+    parameters = {"q0": Param(2.0, "initial angle", float, role="physical")}
+    default_t_final = 20.0
+    default_dt = 0.1
+    sweep_dt = (0.1, 0.05, 0.025, 0.0125)
+    rhs = staticmethod(_pendulum_rhs)
+    grad_T = staticmethod(_pendulum_grad_T)
+    grad_V = staticmethod(_pendulum_grad_V)
+
+    def initial_state(self):
+        return [self.settings["q0"], 0.0]
+
+    def inverse_masses(self):
+        return np.ones(1)
+
+    def invariants(self, t, U):
+        return {"H": 0.5 * U[:, 1] ** 2 - np.cos(U[:, 0])}
+
+    def heyoka_system(self):
+        import heyoka as hy
+
+        q, p = hy.make_vars("q", "p")
+        return [q, p], [p, -hy.sin(q)]
+
+
+class OrdersKutta38(ExplicitRungeKutta):
+    """Kutta's 3/8 rule (1901)."""
+    name = "orders-kutta-38"
+    summary = "Kutta's 3/8 rule"
+    order = 4
+    A = np.array([[0, 0, 0, 0], [1 / 3, 0, 0, 0], [-1 / 3, 1, 0, 0], [1, -1, 1, 0]], dtype=float)
+    b = np.array([1, 3, 3, 1], dtype=float) / 8
+    c = np.array([0, 1 / 3, 2 / 3, 1.0])
+
+
+G = 1 / (2 - 2 ** (1 / 3))
+
+
+class OrdersPerturbedForestRuth(Splitting):
+    """Forest-Ruth with its coefficient perturbed by 1e-4: order 2 with a small h^2 term."""
+    name = "orders-perturbed-forest-ruth"
+    order = 4
+    kicks, drifts = compose([G + 1e-4, 1 - 2 * (G + 1e-4), G + 1e-4])
+
+
+def test_pendulum_rk4_and_the_3_8_rule_are_pre_asymptotic_not_flagged():
+    from longtime import sweep
+    from longtime.api import orders
+
+    found = orders(sweep(OrdersPendulum, ["rk4", OrdersKutta38], dt=[0.1, 0.05, 0.025, 0.0125], t_final=20,
+                         executor="serial", repeats=1, min_time=0.0))
+    assert len(found) == 2
+    for o in found:
+        assert not o.flag and o.value is None and o.reason.startswith("pre-asymptotic: local slopes"), str(o)
+        assert len(o.slopes) == 3 and o.slopes[0] > o.slopes[-1] and 3.1 < min(o.slopes) and max(o.slopes) < 4.0
+        assert "order undetermined (pre-asymptotic" in str(o)
+    rk4 = next(o for o in found if o.scheme == "rk4")
+    assert [round(s, 1) for s in reversed(rk4.slopes)] == [3.2, 3.6, 3.8]
+
+
+def test_perturbed_composition_is_undetermined_then_order_two():
+    from longtime import sweep
+    from longtime.api import convergence
+
+    crossing = convergence(sweep("kepler", OrdersPerturbedForestRuth, dt=[0.02, 0.01, 0.005, 0.0025],
+                                 executor="serial", repeats=1, min_time=0.0))
+    assert crossing.value is None and not crossing.flag and "still fall toward small steps" in crossing.reason
+    small = convergence(sweep("kepler", OrdersPerturbedForestRuth, dt=[0.00125, 0.000625, 0.0003125],
+                              executor="serial", repeats=1, min_time=0.0))
+    assert abs(small.value - 2) < 0.1 and small.flag, str(small)  # 2.03 +- 0.11, flagged against 4
+
+
+def test_report_and_compare_name_an_undetermined_order_with_its_slopes_and_flag_nothing():
+    from longtime.reporting.compare import compare, render
+    from longtime.reporting.report import summary
+
+    dts = [0.1, 0.05, 0.025, 0.0125]
+    trending = rows("rk4", dts, [1.2288e-06, 1.3336e-07, 1.0636e-08, 7.3962e-10])
+    for r in trending:
+        r.update(steps=round(10 / r["dt"]), cpu_s=1e-3 / r["dt"], rhs_evals=4 * round(10 / r["dt"]))
+    text = summary(trending)
+    assert "left out of the order table: rk4 (pre-asymptotic: local slopes 3.20, 3.65, 3.85" in text
+    assert "MISSES" not in text
+    assert "left out of A's order table: harmonic rk4 (pre-asymptotic: local slopes 3.20" in render(
+        compare(trending, trending))

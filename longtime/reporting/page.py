@@ -246,7 +246,9 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
         if orders:
             out.append("<h3>Observed order</h3><p class=\"note\">Least-squares slope of log error against "
                        "log step over the asymptotic range (floors and pre-asymptotic points dropped), "
-                       "with its 95 % interval.</p>" + orders)
+                       "with its 95 % interval; only where at least two local slopes agree within 0.1 "
+                       "(otherwise the order is undetermined, listed below with its slopes, and never "
+                       "flagged).</p>" + orders)
         mine_missing = [m for m in missing if m["problem"] == p]
         if mine_missing:
             out.append(("" if orders else "<h3>Observed order</h3>") + "<p>Left out of the order table:</p><ul>"

@@ -38,7 +38,8 @@ def test_second_order_schemes(scheme):
 
 
 def test_each_assertion_fails_when_a_coefficient_is_perturbed():
-    with pytest.raises(AssertionError, match=r"observed order [0-3]\.\d+ .*expected order 4 \+- 0\.1"):
-        assert_order(PerturbedForestRuth, "kepler", 4, dts=DTS)  # measured 2.80
+    # the h^2 term overtakes h^4 within the sweep: local slopes 3.65, 3.11, 2.49, no order determined
+    with pytest.raises(AssertionError, match=r"order undetermined \(pre-asymptotic: .*expected order 4 \+- 0\.1"):
+        assert_order(PerturbedForestRuth, "kepler", 4, dts=DTS)
     with pytest.raises(AssertionError, match=r"max relative error of H .*expected at most 1\.000e-08"):
         assert_bounded(PerturbedForestRuth, "kepler", "H", H_BOUND, t_final=60, dt=0.0025)

@@ -1,0 +1,61 @@
+"""``longtime card SCHEME``: the scheme's card (longtime.reporting.card) from a stored run."""
+from __future__ import annotations
+
+import json
+import sys
+
+from longtime.core.params import InputError
+
+
+def add_parser(subparsers) -> None:
+    from longtime.execution.store import default_path
+
+    p = subparsers.add_parser("card", help="one scheme's card: orders, growth, cost, Pareto place, stability, "
+                                           "structure")
+    p.add_argument("scheme", metavar="SCHEME", help="a scheme name (see `longtime list`)")
+    p.add_argument("--run", default=None, help="run id, or 'all' (default: the latest run)")
+    p.add_argument("--db", default=None, help=f"SQLite store (default: $LONGTIME_DB or {default_path()})")
+    p.add_argument("--format", choices=["table", "json", "markdown"], default="table")
+    p.set_defaults(func=cmd_card)
+
+
+def stored_rows(db, run: str | None) -> tuple[list[dict], str]:
+    """(rows of ``run`` in the store ``db`` (the latest run by default, every run for
+    'all'), what they are); no rows when the store has none."""
+    from pathlib import Path
+
+    from longtime.execution.store import Store, default_path
+
+    path = Path(db) if db else Path(default_path())
+    if run is not None and run != "all" and not (run.isascii() and run.isdigit()):
+        raise InputError(f"--run {run!r}: expected a run id (a positive integer) or 'all'")
+    if not path.exists():
+        if run is not None:
+            raise InputError(f"--db {path}: no such store, so no run {run}")
+        return [], f"no store at {path}"
+    store = Store(path, readonly=True)
+    if run == "all":
+        return store.rows(), f"every run of {path}"
+    run_id = int(run) if run else store.latest_run()
+    if run_id is None:
+        return [], f"no runs in {path}"
+    store.run(run_id)  # InputError naming the runs there are
+    return store.rows(run_id), f"run {run_id} of {path}"
+
+
+def cmd_card(args) -> int:
+    from longtime.core import registry
+    from longtime.reporting.card import card, card_markdown, card_text
+
+    registry.integrator_class(args.scheme)  # an unknown name: one line naming the known ones
+    rows, source = stored_rows(args.db, args.run)
+    found = card(args.scheme, rows)
+    found["rows_from"] = source
+    if args.format == "json":
+        print(json.dumps(found, indent=1, default=str))
+    elif args.format == "markdown":
+        print(card_markdown(found))
+    else:
+        print(card_text(found))
+    print(f"card of {args.scheme} from {source}", file=sys.stderr)
+    return 0

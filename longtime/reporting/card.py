@@ -1,0 +1,291 @@
+"""A card for every scheme: where it stands, from the stored rows and from its step map.
+
+A card gathers, for one scheme: what it declares (order, symplectic, requirements); per
+problem of the rows, its observed order (determined with its interval, flagged where it
+misses the declared one, or undetermined with the local slopes: longtime.measure.orders),
+the growth class of each invariant and of the solution error (its longest run), its rhs
+evaluations and instructions per step, and where it sits on the problem's Pareto front
+(per accuracy decade: fastest, or its CPU time over the fastest's); beside them its
+stability interval on the imaginary axis (longtime.measure.stability) and its structure
+measured from one step on a canonical problem (longtime.measure.structure). ``card``
+builds it as a dict (the JSON of ``longtime card --format json``), ``card_text`` and
+``card_markdown`` render it, ``cards_html`` gives the results page one folded card per
+scheme.
+"""
+from __future__ import annotations
+
+import statistics
+from typing import Any, Iterable
+
+from longtime.core.fmt import positive
+from longtime.reporting.markup import escape, slug
+
+NOT_MEASURED = "not measured"
+# the cards' own style, carried by the fragment wherever it is placed
+CARD_CSS = ("<style>details.card{border:1px solid #ddd;border-radius:4px;margin:.3em 0;padding:.2em .6em}"
+            "details.card>summary{cursor:pointer}details.card[open]{background:#fafafa}"
+            "details.card table{width:100%}details.card th{width:10em;white-space:nowrap}</style>")
+
+
+def _declared(name: str, scheme: Any = None) -> dict[str, Any]:
+    from longtime.core import registry
+
+    cls = scheme if isinstance(scheme, type) else (type(scheme) if scheme is not None and not isinstance(scheme, str)
+                                                    else None)
+    if cls is None:
+        cls = registry.integrator_class(name)
+    return {"summary": cls.summary, "kind": cls.kind, "declared_order": cls.order,
+            "declared_symplectic": bool(cls.symplectic), "requires": sorted(cls.requires),
+            "family": next((b.__name__ for b in cls.__mro__[1:] if b.__module__.startswith("longtime.")),
+                           cls.__mro__[1].__name__)}
+
+
+def _orders(rows: list[dict], name: str) -> dict[str, list[dict[str, Any]]]:
+    from longtime.measure.orders import left_out, observed_orders
+
+    mine = [r for r in rows if r.get("integrator") == name]
+    out: dict[str, list[dict[str, Any]]] = {}
+    for f in observed_orders(mine):
+        out.setdefault(f["problem"], []).append(
+            {"observed": f["observed_order"], "ci": f["observed_order_ci"], "flag": f["order_flag"],
+             "points": len(f["order_points"]), "slopes": f["order_slopes"], "t_final": f["t_final"],
+             "setting": _fixed(f), "reason": None})
+    for m in left_out(mine):
+        out.setdefault(m["problem"], []).append(
+            {"observed": None, "ci": None, "flag": False, "points": 0, "slopes": m["slopes"], "t_final": None,
+             "setting": "", "reason": m["reason"]})
+    return out
+
+
+def _fixed(f: dict) -> str:
+    parts = [f"N={f['order']}"] if f.get("order") is not None else []
+    if f.get("settings"):
+        parts.append(str(f["settings"]))
+    return " ".join(parts)
+
+
+def _growth(rows: list[dict]) -> dict[str, dict[str, Any]]:
+    """name -> {"class", "reason", "setting", "t_final"} of the longest ok run with a class
+    (the smallest step among equals)."""
+    from longtime.reporting.report import growth_names, setting
+
+    out = {}
+    ok = [r for r in rows if r.get("status") == "ok"]
+    for name in growth_names(ok):
+        have = [r for r in ok if r.get(f"{name}.growth_class")]
+        if not have:
+            continue
+        r = max(have, key=lambda r: (r.get("t_final") or 0, -(r.get("mean_dt") or 0)))
+        out[name] = {"class": r[f"{name}.growth_class"], "reason": r.get(f"{name}.growth_reason"),
+                     "setting": setting(r), "t_final": r.get("t_final")}
+    return out
+
+
+def _per_step(rows: list[dict]) -> dict[str, Any]:
+    ok = [r for r in rows if r.get("status") == "ok" and isinstance(r.get("steps"), int) and r["steps"] > 0]
+    rhs = [r["rhs_evals"] / r["steps"] for r in ok if isinstance(r.get("rhs_evals"), (int, float))]
+    ins = [r["instructions_per_step"] for r in ok if positive(r.get("instructions_per_step"))]
+    return {"rhs_evals_per_step": statistics.median(rhs) if rhs else None,
+            "instructions_per_step": statistics.median(ins) if ins else None}
+
+
+def _pareto(rows: list[dict], name: str) -> list[dict[str, Any]]:
+    """Per accuracy decade of the problem's front: the fastest scheme and this scheme's best
+    CPU time over the fastest's (None where no row of it meets the target)."""
+    from longtime.reporting.report import main_t_final, pareto, pareto_field
+
+    field = pareto_field(rows)
+    if not field:
+        return []
+    t_main = main_t_final(rows)
+    mine = [r for r in rows if r.get("integrator") == name and r.get("status") == "ok" and positive(r.get("cpu_s"))
+            and positive(r.get(field)) and r.get("t_final") == t_main]
+    out = []
+    for p in pareto(rows, field):
+        meets = [r["cpu_s"] for r in mine if r[field] <= p["target"]]
+        out.append({"target": p["target"], "field": field, "fastest": p["best"]["integrator"],
+                    "is_fastest": p["best"]["integrator"] == name,
+                    "ratio": min(meets) / p["best"]["cpu_s"] if meets else None})
+    return out
+
+
+def card(scheme: Any, rows: Iterable[dict] | None = None, *, structure: bool = True,
+         stability: bool = True) -> dict[str, Any]:
+    """The card of ``scheme`` (a registered name, a class or an instance) from ``rows``
+    (row dicts; None: the scheme alone). ``structure``/``stability``: measure the step map
+    and the stability interval (each takes a few compiled steps; the interval is cached)."""
+    from longtime.measure import structure as structure_mod
+    from longtime.measure.stability import interval_texts
+
+    name = scheme if isinstance(scheme, str) else scheme.name
+    rows = [r for r in (rows or [])]
+    out: dict[str, Any] = {"scheme": name, **_declared(name, scheme)}
+    out["stability_interval"] = (interval_texts({name: None}, compute=True).get(name, NOT_MEASURED)
+                                 if stability else NOT_MEASURED)
+    out["structure"] = structure_mod.measure(scheme).as_dict() if structure else None
+    orders = _orders(rows, name)
+    problems = []
+    for problem in sorted({r["problem"] for r in rows if r.get("integrator") == name}):
+        all_rows = [r for r in rows if r["problem"] == problem]
+        mine = [r for r in all_rows if r.get("integrator") == name]
+        problems.append({"problem": problem, "cells": len(mine),
+                         "ok": sum(r.get("status") == "ok" for r in mine),
+                         "statuses": sorted({str(r.get("status")) for r in mine}),
+                         "orders": orders.get(problem, []), "growth": _growth(mine), **_per_step(mine),
+                         "pareto": _pareto(all_rows, name)})
+    out["problems"] = problems
+    return out
+
+
+# ------------------------------------------------------------------ rendering
+def _order_text(o: dict) -> str:
+    if o["observed"] is None:
+        return f"undetermined ({o['reason']})"
+    ci = f" +- {o['ci']:.2f}" if o["ci"] is not None else " (2 points)"
+    flag = " MISSES the declared order" if o["flag"] else ""
+    at = f" [{o['setting']}]" if o["setting"] else ""
+    return f"{o['observed']:.2f}{ci}{at}{flag}"
+
+
+def _pareto_text(entries: list[dict]) -> str:
+    """'(l2_error) fastest at 1e-01..1e-03; x1.86 at 1e-04 (rk4 fastest); not met at 1e-05..1e-10'."""
+    if not entries:
+        return "no front (no ok row with an error and a CPU time)"
+    groups: list[list] = []  # [kind, first target, last target, ratio, fastest scheme]
+    for e in entries:
+        kind = "fastest" if e["is_fastest"] else ("not met" if e["ratio"] is None else "ratio")
+        last = groups[-1] if groups else None
+        same = kind != "ratio" or (f"{last[3]:.3g}" == f"{e['ratio']:.3g}" and last[4] == e["fastest"]) if last else False
+        if last and last[0] == kind and same:
+            last[2] = e["target"]
+        else:
+            groups.append([kind, e["target"], e["target"], e["ratio"], e["fastest"]])
+    parts = []
+    for kind, first, last, ratio, fastest in groups:
+        at = f"{first:.0e}" if first == last else f"{first:.0e}..{last:.0e}"
+        parts.append(f"fastest at {at}" if kind == "fastest" else f"not met at {at}" if kind == "not met"
+                     else f"x{ratio:.3g} at {at} ({fastest} fastest)")
+    return f"({entries[0]['field']}) " + "; ".join(parts)
+
+
+def _per_step_text(p: dict) -> str:
+    rhs = p["rhs_evals_per_step"]
+    ins = p["instructions_per_step"]
+    return (f"rhs evaluations per step {rhs:.3g}" if rhs is not None else f"rhs evaluations per step {NOT_MEASURED}") + \
+        (f", instructions per step {ins:.4g}" if ins is not None else f", instructions per step {NOT_MEASURED}")
+
+
+def _structure_text(s: dict | None) -> str:
+    from longtime.measure.structure import reversibility_text
+
+    if s is None:
+        return NOT_MEASURED
+    if s["reason"]:
+        return f"{NOT_MEASURED} ({s['reason']})"
+    kept = ", ".join(s["kept"]) or "none"
+    return (f"on {s['problem']}, one step h = {s['h']:g}: symplecticity defect ||M^T J M - J|| "
+            f"{s['symplecticity_defect']:.2e} (finite-difference error <= {s['symplecticity_error']:.1e}: "
+            f"{'symplectic' if s['symplectic'] else 'NOT symplectic'}); {reversibility_text(s)}; "
+            f"invariants kept to round-off: {kept}")
+
+
+def _lines(c: dict) -> list[tuple[str, str]]:
+    """(label, text) lines of a card, in order."""
+    out = [("declared", f"order {c['declared_order'] if c['declared_order'] is not None else '-'}, "
+                        f"{'symplectic' if c['declared_symplectic'] else 'not declared symplectic'}, {c['kind']}"
+                        + (f", needs {', '.join(c['requires'])}" if c["requires"] else "")),
+           ("stability", f"imaginary-axis interval {c['stability_interval']}"),
+           ("structure", _structure_text(c["structure"]))]
+    return out
+
+
+def _problem_lines(p: dict) -> list[tuple[str, str]]:
+    orders = "; ".join(_order_text(o) for o in p["orders"]) or "no sweep"
+    growth = ", ".join(f"{'solution error' if n == 'error' else n} {g['class']}" for n, g in p["growth"].items()) \
+        or "no growth law"
+    return [("observed order", orders), ("growth (longest run)", growth), ("cost", _per_step_text(p)),
+            ("Pareto front", _pareto_text(p["pareto"]))]
+
+
+def card_text(c: dict) -> str:
+    """The plain-text card (``longtime card``)."""
+    lines = [f"{c['scheme']}: {c['summary']}".rstrip(": ")]
+    lines += [f"  {label}: {text}" for label, text in _lines(c)]
+    if not c["problems"]:
+        lines.append(f"  no stored rows of {c['scheme']}: `longtime run -i {c['scheme']} -p PROBLEM --dt A,B,C` "
+                     f"measures some")
+    for p in c["problems"]:
+        lines.append(f"  == {p['problem']}: {p['ok']} of {p['cells']} cells ok ==")
+        lines += [f"    {label}: {text}" for label, text in _problem_lines(p)]
+    return "\n".join(lines)
+
+
+def card_markdown(c: dict) -> str:
+    lines = [f"### {c['scheme']}", "", c["summary"] or "", ""]
+    lines += [f"- **{label}**: {text}" for label, text in _lines(c)]
+    if c["problems"]:
+        lines += ["", "| problem | " + " | ".join(label for label, _ in _problem_lines(c["problems"][0])) + " |",
+                  "|---" * 5 + "|"]
+        for p in c["problems"]:
+            lines.append(f"| {p['problem']} | " + " | ".join(t.replace("|", "/") for _, t in _problem_lines(p)) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def card_html(c: dict, notes: Iterable[tuple[str, str]] = ()) -> str:
+    """One card: a folded <details> whose summary line says the declared and the measured
+    structure and the problems where the scheme is fastest; ``notes`` are (label, text)
+    lines added after the card's own (the verdicts that name the scheme, say)."""
+    fastest = [p["problem"] for p in c["problems"] if any(e["is_fastest"] for e in p["pareto"])]
+    s = c["structure"]
+    struct = "" if not s or s["reason"] else (
+        f"; measured {'symplectic' if s['symplectic'] else 'not symplectic'}"
+        + ("" if s["reversible"] is None else f", {'reversible' if s['reversible'] else 'not reversible'}"))
+    flagged = [p["problem"] for p in c["problems"] if any(o["flag"] for o in p["orders"])]
+    head = (f"<b>{escape(c['scheme'])}</b> order {escape(c['declared_order'] if c['declared_order'] is not None else '-')}"
+            + escape(struct)
+            + (f"; fastest somewhere on {escape(', '.join(fastest))}" if fastest else "")
+            + (f' <span class="flag">misses its order on {escape(", ".join(flagged))}</span>' if flagged else ""))
+    body = "".join(f"<tr><th>{escape(label)}</th><td>{escape(text)}</td></tr>"
+                   for label, text in [*_lines(c), *notes])
+    rows = []
+    for p in c["problems"]:
+        rows.append("<tr>" + f"<td>{escape(p['problem'])}</td>"
+                    + "".join(f"<td>{escape(t)}</td>" for _, t in _problem_lines(p)) + "</tr>")
+    table = ("<table><tr><th>problem</th>" + "".join(f"<th>{escape(label)}</th>" for label, _ in
+                                                      _problem_lines(c["problems"][0])) + "</tr>" + "".join(rows)
+             + "</table>") if c["problems"] else '<p class="note">no stored rows</p>'
+    return (f'<details class="card" id="card-{slug(c["scheme"])}"><summary>{head}</summary>'
+            f"<p>{escape(c['summary'])}</p><table>{body}</table>{table}</details>")
+
+
+def cards_html(rows: list[dict], schemes: Iterable[str] | None = None, *, structure: bool = True,
+               stability: bool = False, notes: dict[str, list[tuple[str, str]]] | None = None) -> str:
+    """The results page's scheme cards: an HTML fragment, one folded card per scheme of
+    ``rows`` (or ``schemes``), by name. ``stability``: measure intervals not in the cache
+    (cached ones are shown either way). ``notes``: scheme -> (label, text) lines each card
+    adds (plain text, escaped here)."""
+    names = sorted(set(schemes) if schemes is not None else {r["integrator"] for r in rows})
+    parts = []
+    for name in names:
+        try:
+            c = card(name, rows, structure=structure, stability=True) if stability else _cached_card(name, rows,
+                                                                                                   structure)
+        except Exception as exc:  # a scheme no longer installed: its rows still say what they say
+            parts.append(f'<p class="note">{escape(name)}: no card ({escape(type(exc).__name__)}: '
+                         f'{escape(exc)})</p>')
+            continue
+        parts.append(card_html(c, (notes or {}).get(name, ())))
+    note = ('<p class="note">One card per scheme (click to unfold): declared and observed order per problem '
+            '(undetermined where the local slopes still move), growth class of each invariant and of the '
+            'solution error on its longest run, cost per step, its place on each Pareto front, its stability '
+            'interval and the structure measured from one step on a canonical problem (docs/metrics.md).</p>')
+    return '<section id="scheme-cards">' + CARD_CSS + note + "".join(parts) + "</section>"
+
+
+def _cached_card(name: str, rows: list[dict], structure: bool) -> dict[str, Any]:
+    from longtime.measure.stability import cached_texts
+
+    c = card(name, rows, structure=structure, stability=False)
+    texts, _ = cached_texts({name: None})
+    c["stability_interval"] = texts.get(name, NOT_MEASURED)
+    return c
