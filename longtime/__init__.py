@@ -8,10 +8,11 @@ from longtime.core.problem import Problem
 from longtime.core.version import __version__
 
 __all__ = ["AdaptiveIntegrator", "FixedStepIntegrator", "InputError", "Integrator", "Order", "Param",
-           "Problem", "Result", "Trajectory", "__version__", "convergence", "solve", "sweep", "work_precision"]
+           "Problem", "Result", "Trajectory", "__version__", "convergence", "recommend", "solve", "sweep",
+           "work_precision"]
 
 # the Python API (docs/api.md), imported on first use: `import longtime` stays light
-_API = ("Order", "Result", "convergence", "solve", "sweep", "work_precision")
+_API = ("Order", "Result", "convergence", "recommend", "solve", "sweep", "work_precision")
 
 
 def __getattr__(name: str):

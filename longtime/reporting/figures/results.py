@@ -13,13 +13,11 @@ rows kept any is run again, untimed, skipped when its stored CPU time exceeds
 """
 from __future__ import annotations
 
-import json
 from typing import Any
 
 import numpy as np
 
 from longtime.core.fmt import positive
-from longtime.core.roles import ROW_PARAMETERS
 from longtime.reporting.figures import pyplot
 from longtime.reporting.figures.style import LINE_STYLES, family, legend_outside, svg
 from longtime.reporting.report import (
@@ -113,21 +111,10 @@ def row_curves(row: dict) -> dict[str, list[tuple[str, np.ndarray, np.ndarray]]]
         first = [row["drift_curve"]] if row.get("drift_curve") else []
         return {"invariant": kept(row["drift_curves"] if "drift_curves" in row else first, "invariant"),
                 "diagnostic": kept(row.get("diag_curves"), "diagnostic")}
-    from longtime.core import registry
-    from longtime.execution.cells import Cell, integrate_cell
+    from longtime.execution.cells import cell_of_row, integrate_cell
     from longtime.measure.metrics import relative_error
 
-    # the row's settings are the problem's and the scheme's merged (cells.base_row): split them
-    settings = json.loads(row["settings"]) if row.get("settings") else {}
-    pcls, icls = registry.problem_class(row["problem"]), registry.integrator_class(row["integrator"])
-    psets = {k: v for k, v in settings.items() if k in pcls.parameters}
-    isets = {k: v for k, v in settings.items() if k in icls.parameters}
-    for k in ROW_PARAMETERS:  # the parameters with a row field of their own
-        value = row.get(k)
-        if k in icls.parameters and positive(value):
-            isets[k] = int(value) if icls.parameters[k].kind is int else value
-    problem, traj = integrate_cell(Cell(row["problem"], row["integrator"], psets, isets, row["t_final"]),
-                                   max_samples=DRIFT_SAMPLES)
+    problem, traj = integrate_cell(cell_of_row(row), max_samples=DRIFT_SAMPLES)
     with np.errstate(all="ignore"):
         return {kind: [(name, traj.t, relative_error(values)) for name, values in found.items()]
                 for kind, found in (("invariant", problem.invariants(traj.t, traj.u)),
