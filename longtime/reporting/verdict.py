@@ -5,17 +5,22 @@ Each ok setting of a problem gives its cost per unit of simulated time, ``cpu_s 
 - t0)``, and its error at its final time with the growth law fitted to it
 (longtime.measure.growth). Its predicted error at a horizon T beyond its run is
 
-    e(T) = e(t_final) (T / t_final)^alpha     (class sqrt, linear or quadratic)
-    e(T) = e(t_final)                         (class bounded: flat)
+    e(T) = e(t_final) (T / t_final)^k     (class sqrt, linear or quadratic: k = 1/2, 1, 2)
+    e(T) = e(t_final)                     (class bounded: flat)
 
-and its predicted cost ``T * cpu_s / t_final``. Up to its own t_final a setting predicts its
+with k the exponent of the class, not the fitted alpha: the law is the class, whose windows
+agree on it, not the digits of a fit that still carries the run's transient (alpha 1.32 of a
+linear error overpredicts it by 4 at a hundred times the run). Its predicted cost is ``T * cpu_s / t_final``. Up to its own t_final a setting predicts its
 measured error. A setting whose law is undetermined (or faster than quadratic, which no
 power law of the run's span extrapolates) predicts nothing past its t_final; where such a
 setting could have won, the verdict says so and names the run that would decide it.
 
-The error read is the solution error ``final_error`` (law ``error.growth``) where the
-problem's rows have a reference, else the energy error ``H.max`` (law ``H.growth``), else
-the first invariant's: ``measure`` says which. Predictions are checked: the main job re-runs
+The error read is the solution error ``l2_error`` (the relative RMS error over [0, T]; law
+``error.growth_class``) where the problem's rows have a reference, else the energy error
+``H.max`` (the largest relative error of H up to T; law ``H.growth_class``), else the first
+invariant's: ``measure`` says which. An error averaged over the run follows the law of the
+pointwise one (the RMS of C t^k over [0, T] is C T^k / sqrt(2k + 1)), and does not depend on
+where in an oscillation the run stops, as the error at the last sample (``final_error``) does. Predictions are checked: the main job re-runs
 a few of them at the longest horizon its budget affords (``plan_checks``, ``run_checks``)
 and stores the predicted beside the measured error and cost (``Store.add_check``).
 """
@@ -33,6 +38,7 @@ from longtime.reporting.report import main_t_final, setting
 
 # classes whose exponent extrapolates past the run (a power law), and the flat one
 POWER_LAWS = ("sqrt", "linear", "quadratic")
+EXPONENTS = {"bounded": 0.0, "sqrt": 0.5, "linear": 1.0, "quadratic": 2.0}
 FLAT = ("bounded",)
 # targets of the winner map: the decades 1e-1 .. 1e-14
 TARGETS = tuple(10.0 ** -k for k in range(1, 15))
@@ -60,10 +66,10 @@ def measure(rows: Iterable[dict[str, Any]]) -> Measure | None:
     """The solution error where ok rows have one and its growth class, else H's drift, else
     the first invariant's with a growth class; None when no ok row has any."""
     ok = [r for r in rows if r.get("status") == "ok"]
-    if any(positive(r.get("final_error")) and r.get("error.growth_class") for r in ok):
+    if any(positive(r.get("l2_error")) and r.get("error.growth_class") for r in ok):
         ref = next((r.get("reference") for r in ok if r.get("reference")), None)
-        return Measure("final_error", "error", f"the solution error at T against the "
-                                               f"{'exact solution' if ref == 'exact' else 'reference'}")
+        return Measure("l2_error", "error", f"the relative RMS error of the solution over [0, T] against the "
+                                            f"{'exact solution' if ref == 'exact' else 'reference'}")
     names = [k[: -len(".growth_class")] for r in ok for k in r if k.endswith(".growth_class")
              and r.get(k) and k != "error.growth_class" and positive(r.get(k[: -len(".growth_class")] + ".max"))]
     if not names:
@@ -81,7 +87,7 @@ class Setting:
     span: float  # t_final - t0 of its run (the rows' t_final: t0 is 0 for every problem)
     cpu_per_t: float
     law: str  # the growth class
-    alpha: float | None
+    alpha: float | None  # the fitted exponent (evidence; a prediction uses the class's)
     ci: tuple[float, float] | None
     reason: str
 
@@ -95,7 +101,7 @@ class Setting:
 
     @property
     def extrapolates(self) -> bool:
-        return self.law in POWER_LAWS + FLAT and (self.law in FLAT or self.alpha is not None)
+        return self.law in EXPONENTS
 
     def error_at(self, horizon: float) -> float | None:
         """The predicted error at ``horizon`` (None: the law does not reach it)."""
@@ -103,15 +109,7 @@ class Setting:
             return self.error
         if not self.extrapolates:
             return None
-        if self.law in FLAT:
-            return self.error
-        return self.error * (horizon / self.span) ** self.alpha
-
-    def error_band(self, horizon: float) -> tuple[float, float] | None:
-        """The predicted error at ``horizon`` at the ends of the exponent's interval."""
-        if horizon <= self.span or self.law not in POWER_LAWS or self.ci is None:
-            return None
-        return tuple(self.error * (horizon / self.span) ** a for a in self.ci)  # type: ignore[return-value]
+        return self.error * (horizon / self.span) ** EXPONENTS[self.law]
 
     def cpu_at(self, horizon: float) -> float:
         return self.cpu_per_t * horizon
@@ -120,8 +118,9 @@ class Setting:
         if self.law in FLAT:
             return "bounded: flat"
         if self.law in POWER_LAWS:
-            ci = f" [{self.ci[0]:.2f}, {self.ci[1]:.2f}]" if self.ci else ""
-            return f"{self.law}: t^{self.alpha:.2f}{ci}"
+            fit = f", alpha {self.alpha:.2f}" if self.alpha is not None else ""
+            ci = f" [{self.ci[0]:.2f}, {self.ci[1]:.2f}]" if self.ci and fit else ""
+            return f"{self.law}: t^{EXPONENTS[self.law]:g}{fit}{ci} fitted"
         return f"{self.law}: {self.reason}" if self.reason else self.law
 
 
@@ -291,10 +290,8 @@ class Recommendation:
 
 def _pick(s: Setting, horizon: float) -> str:
     e = s.error_at(horizon)
-    band = s.error_band(horizon)
-    band_text = f" [{band[0]:.2g}, {band[1]:.2g}]" if band else ""
     how = "measured" if horizon <= s.span * (1 + 1e-9) else s.law_text()
-    return (f"{s.text}: error {e:.2g}{band_text} at T ({how}; {s.error:.2g} measured at t = {s.span:.4g}), "
+    return (f"{s.text}: error {e:.2g} at T ({how}; {s.error:.2g} measured at t = {s.span:.4g}), "
             f"CPU {s.cpu_at(horizon):.3g} s ({s.cpu_per_t:.3g} s per unit time, measured)")
 
 
@@ -368,27 +365,26 @@ def check_holds(c: dict[str, Any]) -> bool | None:
 
 def plan_checks(rows: list[dict[str, Any]], limit: int = CHECKS, budget_s: float = CHECK_BUDGET_S
                 ) -> list[tuple[Setting, float, Measure]]:
-    """The predictions to re-run: per problem, the winners of its map at horizons past their
-    runs, each at the longest map horizon whose predicted CPU is within ``budget_s``; one
-    problem at a time in turn (each problem's cheapest first, distinct schemes first), at
-    most ``limit`` in all."""
+    """The predictions to re-run: per problem, each setting the map names as the winner
+    somewhere past its run, at the longest horizon where it wins within ``budget_s`` of
+    predicted CPU (so the check tests a prediction the verdict makes); one problem at a time
+    in turn (each problem's distinct schemes first, the farthest horizon first), at most
+    ``limit`` in all."""
     per_problem: list[list[tuple[Setting, float, Measure]]] = []
     for v in verdicts(rows).values():
         picks: dict[int, tuple[Setting, float, Measure]] = {}
         for d in v.grid.values():
             s = d.best
-            if s is None or d.horizon <= s.span * (1 + 1e-9):
+            if s is None or d.horizon <= s.span * (1 + 1e-9) or s.cpu_at(d.horizon) > budget_s:
                 continue
-            affordable = [h for h in v.horizons if h > s.span * (1 + 1e-9) and s.cpu_at(h) <= budget_s]
-            if affordable and id(s) not in picks:
-                picks[id(s)] = (s, max(affordable), v.measure)
-        mine = sorted(picks.values(), key=lambda p: (p[0].cpu_at(p[1]), p[0].text))
+            if id(s) not in picks or d.horizon > picks[id(s)][1]:
+                picks[id(s)] = (s, d.horizon, v.measure)
+        mine = sorted(picks.values(), key=lambda p: (-p[1] / p[0].span, p[0].cpu_at(p[1]), p[0].text))
         schemes, first, rest = set(), [], []
         for p in mine:
             (rest if p[0].scheme in schemes else first).append(p)
             schemes.add(p[0].scheme)
-        # the longest horizon first among the same scheme's: the check that reaches farthest
-        per_problem.append(sorted(first, key=lambda p: -p[1]) + rest)
+        per_problem.append(first + rest)
     out: list[tuple[Setting, float, Measure]] = []
     while len(out) < limit and any(per_problem):
         for picks in per_problem:
