@@ -18,8 +18,15 @@ from typing import Any
 import numpy as np
 
 from longtime.core.fmt import positive
-from longtime.reporting.figures import pyplot
-from longtime.reporting.figures.style import LINE_STYLES, family, legend_outside, svg
+from longtime.reporting.figures import plain_log_ticks, pyplot
+from longtime.reporting.figures.style import (
+    LEGEND_BESIDE,
+    LINE_STYLES,
+    family,
+    legend_columns,
+    legend_outside,
+    svg,
+)
 from longtime.reporting.report import (
     main_t_final,
     pareto_field,
@@ -147,9 +154,11 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
         notes.append(f"{', '.join(names[MAX_PANELS:])}: not drawn here (longtime plot drift --invariant NAME)")
         names = names[:MAX_PANELS]
     plt = pyplot()
+    # small multiples sized to their number: panels of a legible size (3.4 x 2.7 in), at most
+    # three across, the figure growing with their rows
     cols = min(len(names), 3)
     rows_ = -(-len(names) // cols)
-    size = (7.0, 4.2) if len(names) == 1 else (3.2 * cols, 2.6 * rows_ + 0.2)
+    size = (7.0, 4.2) if len(names) == 1 else (3.4 * cols, 2.7 * rows_ + 0.2)
     fig, axes = plt.subplots(rows_, cols, figsize=size, squeeze=False, sharex=True)
     what = "relative error" if kind == "invariant" else "relative change"
     handles: dict[str, Any] = {}
@@ -179,10 +188,15 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
             ax.tick_params(labelsize=8)
         if k >= len(names) - cols:
             ax.set_xlabel("t - t0")
-    axes[0, -1 if len(names) >= cols else len(names) - 1].legend(
-        list(handles.values()), list(handles), fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0),
-        borderaxespad=0.0, frameon=False)
-    fig.tight_layout()
+    for ax in axes.flat:  # plain tick labels before the layout: it measures the labels it is given
+        plain_log_ticks(ax)
+    fig.tight_layout()  # the panels laid out first: the legend below them takes no room from them
+    labels = list(handles)
+    if len(names) == 1 and len(labels) <= LEGEND_BESIDE:
+        legend_outside(axes[0, 0], list(handles.values()), labels)
+    else:  # below every panel, in as many columns as the figure's width holds
+        fig.legend(list(handles.values()), labels, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, 0.0),
+                   frameon=False, ncol=legend_columns(fig.get_figwidth(), labels))
     return svg(fig), notes
 
 

@@ -54,8 +54,7 @@ def winner_map_svg(v: Verdict) -> str | None:
         for j, h in enumerate(horizons):
             d = v.grid[(t, h)]
             colour = colours[d.best.scheme] if d.best is not None else (UNDETERMINED if d.open else NONE)
-            ax.fill_between([xe[j], xe[j + 1]], ye[i], ye[i + 1], color=colour, lw=0,
-                            hatch="///" if d.state == "undetermined" else None, edgecolor="#9e9e9e")
+            ax.fill_between([xe[j], xe[j + 1]], ye[i], ye[i + 1], color=colour, lw=0)
             if d.best is not None:
                 text = setting(d.best.row) or d.best.scheme
                 ax.text(math.sqrt(xe[j] * xe[j + 1]), math.sqrt(ye[i] * ye[i + 1]), text, ha="center",
@@ -75,13 +74,13 @@ def winner_map_svg(v: Verdict) -> str | None:
     ax.set_xlabel(f"horizon T (dashed: the runs' t_final {v.t_main:.4g})")
     ax.set_ylabel(f"target: {v.measure.field} <=")
     handles = [Patch(facecolor=colours[s], label=s) for s in winners]
-    handles += [Patch(facecolor=UNDETERMINED, hatch="///", edgecolor="#9e9e9e",
-                      label="undetermined: a cheaper law not known"),
+    handles += [Patch(facecolor=UNDETERMINED, edgecolor="#9e9e9e", label="undetermined: a cheaper law not known"),
                 Patch(facecolor=NONE, edgecolor="#9e9e9e", label="no setting predicted to reach it")]
     checks = [c for c in v.checks if positive(c.get("t_final"))]
     for c in checks:
         held = check_holds(c)
         y = c.get("measured_error") if positive(c.get("measured_error")) else c.get("predicted_error")
+        y = min(max(y, ye[0] * 1.05), ye[-1] / 1.05)  # a measured error off the map sits on its edge
         ax.plot([c["t_final"]], [y], marker="o" if held else "X", ms=8, mfc="none" if held else "#b71c1c",
                 mec="#111" if held else "#b71c1c", mew=1.6, ls="none")
     if checks:
@@ -89,7 +88,7 @@ def winner_map_svg(v: Verdict) -> str | None:
 
         handles += [Line2D([], [], marker="o", mfc="none", mec="#111", mew=1.6, ls="none",
                            label="checked: held (at the measured error)"),
-                    Line2D([], [], marker="X", mfc="#b71c1c", mec="#b71c1c", ls="none", label="checked: missed")]
+                    Line2D([], [], marker="X", mfc="#b71c1c", mec="#b71c1c", ls="none", label="checked: missed (on the edge: off the map)")]
     ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
               frameon=False, ncol=1 if len(handles) <= 18 else 2)
     return svg(fig)
