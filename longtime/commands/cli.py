@@ -234,7 +234,11 @@ def cmd_matrix(args) -> int:
             from longtime.reporting.verdict import check_budget, check_summary, run_checks
 
             rows = store.rows(run_id)
-            checks = run_checks(store, run_id, rows, options, limit=args.checks, budget_s=check_budget(rows))
+            try:
+                checks = run_checks(store, run_id, rows, options, limit=args.checks, budget_s=check_budget(rows))
+            except (InputError, OSError, ValueError) as exc:  # the rows are stored; the checks are extra
+                print(f"warning: predictions not checked: {type(exc).__name__}: {exc}", file=sys.stderr)
+                checks = []
             if checks:
                 print(f"checks: {check_summary(checks)}", file=sys.stderr)
     if not args.no_report:

@@ -10,7 +10,9 @@ from typing import Any, Iterable
 import pandas as pd
 
 from longtime.core.fmt import number, positive
-from longtime.core.roles import ROW_PARAMETERS, row_columns, row_fields
+from longtime.core.roles import ROW_PARAMETERS, row_columns
+from longtime.reporting.rowtext import main_t_final, setting  # noqa: F401 (their home; read from here too)
+from longtime.reporting.verdict import verdict_lines, verdicts
 
 # the JSON contract (README.md, `--format json`): every row carries these keys (null where not applicable)
 CONTRACT_FIELDS = ("problem", "integrator", "status", "message", *ROW_PARAMETERS,
@@ -106,35 +108,9 @@ def format_counts(counts: dict[str, int]) -> str:
     return ", ".join(shown) or "no rows"
 
 
-def setting(row: dict[str, Any]) -> str:
-    """The swept parameters of a row as text: 'dt=0.01', 'tol=1e-08', 'eps_res=1e-06 N=10'
-    (the step only where no accuracy parameter is set), then its other settings."""
-    accuracy = any(row.get(k) for k in row_fields("accuracy"))
-    parts = [f"{k}={row[k]:.3g}" for k in (*row_fields("step"), *row_fields("accuracy"))
-             if positive(row.get(k)) and not (k in row_fields("step") and accuracy)]
-    for k in row_fields("order"):
-        order = row.get(k)
-        if positive(order):
-            parts.append(f"N={int(order)}")
-        elif order is not None and order == order:  # a stored value that is not a number: shown as it is
-            parts.append(f"N={order}")
-    if row.get("settings"):
-        parts.append(str(row["settings"]))
-    return " ".join(parts)
-
-
 def pareto_field(rows: list[dict[str, Any]]) -> str | None:
     ok = [r for r in rows if r.get("status") == "ok"]
     return next((f for f in PARETO_FIELDS if any(positive(r.get(f)) for r in ok)), None)
-
-
-def main_t_final(rows: list[dict[str, Any]]) -> float | None:
-    """The final time most of a problem's ok rows ran to (a sweep may add a few long runs)."""
-    counts: dict[float, int] = {}
-    for r in rows:
-        if r.get("status") == "ok" and positive(r.get("t_final")):
-            counts[r["t_final"]] = counts.get(r["t_final"], 0) + 1
-    return max(sorted(counts), key=lambda t: counts[t]) if counts else None
 
 
 def pareto(rows: list[dict[str, Any]], field: str | None = None) -> list[dict[str, Any]]:
@@ -271,7 +247,6 @@ def summary(rows: list[dict[str, Any]], orders: bool = True, full: bool = False,
     reasons) and what did not run to the end, at most MAX_PROBLEM_LINES lines a problem
     unless ``full``."""
     from longtime.measure.orders import left_out, left_out_text, observed_orders
-    from longtime.reporting.verdict import verdict_lines, verdicts
 
     if not rows:
         return "no rows"

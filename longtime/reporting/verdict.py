@@ -34,7 +34,7 @@ from typing import Any, Iterable
 from longtime.core.fmt import positive
 from longtime.core.params import InputError
 from longtime.core.roles import ROW_PARAMETERS, flag
-from longtime.reporting.report import main_t_final, setting
+from longtime.reporting.rowtext import main_t_final, setting
 
 # classes whose exponent extrapolates past the run (a power law), and the flat one
 POWER_LAWS = ("sqrt", "linear", "quadratic")

@@ -12,7 +12,7 @@ import numpy as np
 from longtime.core.fmt import positive
 from longtime.reporting.figures import pyplot
 from longtime.reporting.figures.style import svg
-from longtime.reporting.report import setting
+from longtime.reporting.rowtext import setting
 from longtime.reporting.verdict import CHECK_COST_FACTOR, CHECK_ERROR_FACTOR, Verdict, check_holds
 
 UNDETERMINED = "#d9d9d9"
