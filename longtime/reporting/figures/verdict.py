@@ -48,7 +48,7 @@ def winner_map_svg(v: Verdict) -> str | None:
     winners = list(dict.fromkeys(d.best.scheme for d in v.grid.values() if d.best is not None))
     colours = scheme_colours(winners)
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(1.0 + 0.95 * len(horizons), 0.8 + 0.3 * len(targets)))
+    fig, ax = plt.subplots(figsize=(1.0 + 1.1 * len(horizons), 0.8 + 0.3 * len(targets)))
     xe, ye = _edges(horizons), _edges(targets)
     for i, t in enumerate(targets):
         for j, h in enumerate(horizons):
@@ -58,7 +58,7 @@ def winner_map_svg(v: Verdict) -> str | None:
             if d.best is not None:
                 text = setting(d.best.row) or d.best.scheme
                 ax.text(math.sqrt(xe[j] * xe[j + 1]), math.sqrt(ye[i] * ye[i + 1]), text, ha="center",
-                        va="center", fontsize=5.5, color="#111")
+                        va="center", fontsize=6.5, color="#111")
     for x in xe:
         ax.axvline(x, color="white", lw=0.6)
     for y in ye:
@@ -82,7 +82,7 @@ def winner_map_svg(v: Verdict) -> str | None:
         y = c.get("measured_error") if positive(c.get("measured_error")) else c.get("predicted_error")
         y = min(max(y, ye[0] * 1.05), ye[-1] / 1.05)  # a measured error off the map sits on its edge
         ax.plot([c["t_final"]], [y], marker="o" if held else "X", ms=8, mfc="none" if held else "#b71c1c",
-                mec="#111" if held else "#b71c1c", mew=1.6, ls="none")
+                mec="#111" if held else "#b71c1c", mew=1.6, ls="none", zorder=5, clip_on=False)
     if checks:
         from matplotlib.lines import Line2D
 
