@@ -171,3 +171,30 @@ def test_checks_are_stored_apart_from_the_rows(store):
     assert [c["predicted_error"] for c in s.checks(1)] == [1e-4] and s.checks(2) == []
     assert len(s.rows(1)) == 3  # no row of the run is added
     assert json.loads(json.dumps(s.checks()))[0]["run_id"] == 1
+
+
+def test_checks_of_a_real_run_hold_and_are_stored(tmp_path):
+    """rk4 on the harmonic oscillator: its solution error grows linearly (the phase), so the
+    RMS error predicted at 100 and 1000 times the run holds within x3 when run there; the
+    checks are stored beside the run, the report and the page show them."""
+    from longtime.reporting.page import build_page
+    from longtime.reporting.report import summary
+
+    db = str(tmp_path / "c.sqlite")
+    assert cli.main(["matrix", "-p", "harmonic", "-i", "rk4", "--dt", "0.1,0.05", "--t-final", "50", "--repeats", "3",
+                     "--min-time", "0", "--db", db, "--executor", "serial", "--no-progress", "--no-report",
+                     "--checks", "0"]) == 0
+    store = Store(db)
+    rows = store.rows(1)
+    assert store.checks(1) == [] and all(r["error.growth_class"] == "linear" for r in rows)
+    checks = V.run_checks(store, 1, rows, budget_s=0.05)
+    assert {(c["dt"], c["t_final"]) for c in checks} == {(0.1, 5e4), (0.05, 5e3)}  # the longest within budget
+    for c in checks:
+        assert V.check_holds(c) is not None
+        assert c["measured_error"] == pytest.approx(c["predicted_error"], rel=0.5)  # the law holds that far
+        assert c["check_field"] == "l2_error" and c["from_t_final"] == 50.0
+    assert store.checks(1) == [{"run_id": 1, **c} for c in checks] and len(store.rows(1)) == 2
+    text = summary(rows, checks=store.checks(1))
+    assert "  checks: " in text and "2 checked predictions held" in text
+    page = build_page(rows, [], drift=False, stability=False, checks=store.checks(1))
+    assert '<h2 id="checks">' in page and "checked: held" in page
