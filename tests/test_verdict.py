@@ -159,6 +159,13 @@ def test_recommend_bad_input_is_one_line_exit_2(store, capsys, args, message):
         assert "`longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 10000" in err
 
 
+def test_recommend_without_a_store_names_the_command(tmp_path, capsys):
+    missing = str(tmp_path / "none.sqlite")
+    assert cli.main(["recommend", "-p", "kepler", "--error", "1e-6", "--horizon", "1e5", "--db", missing]) == 2
+    err = capsys.readouterr().err
+    assert f"no such file; `longtime matrix -p kepler --db {missing}`" in err and not (tmp_path / "none.sqlite").exists()
+
+
 def test_recommend_on_a_store_of_no_verdict_names_the_command(tmp_path):
     with pytest.raises(InputError, match=r"no ok row of harmonic with an error.*`longtime matrix -p harmonic`"):
         V.recommend([{**LINEAR, "status": "diverged"}], "harmonic", 1e-3, 1e3)

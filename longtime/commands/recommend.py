@@ -2,6 +2,8 @@
 horizon on a problem, with the runner-up and the evidence (longtime.reporting.verdict)."""
 from __future__ import annotations
 
+from pathlib import Path
+
 from longtime.core import cli_args, registry
 from longtime.core.params import InputError
 from longtime.execution.store import Store, default_path
@@ -14,7 +16,11 @@ def answer(problem: str, error: float, horizon: float, db: str | None = None, ru
 
     if problem not in registry.problems():
         raise InputError(f"-p {problem}: unknown problem; known: {', '.join(sorted(registry.problems()))}")
-    store = Store(db, readonly=True)
+    path = Path(db or default_path())
+    if not path.exists():
+        raise InputError(f"store {path}: no such file; `longtime matrix -p {problem} --db {path}` measures the cells "
+                         f"to decide")
+    store = Store(path, readonly=True)
     if run in (None, "all"):
         rows, checks = store.rows(), store.checks()
     else:
