@@ -213,3 +213,29 @@ def test_a_tol_sweep_whose_order_follows_tol_is_one_curve_and_set_orders_split()
     # the same tol at two set N: N does not follow tol, so the curves split
     both = [row("taylor-adaptive", t, n) for n in (8, 12) for t in (1e-6, 1e-9)]
     assert sorted(k[3] for k in sweeps(both)) == [8, 12]
+
+
+def test_drift_figure_stays_legible_with_thirty_schemes(monkeypatch):
+    """Thirty schemes on a problem of three invariants: three panels of a legible size (the
+    legend below them, not beside), without matplotlib's 'tight layout not applied'."""
+    import warnings
+
+    import numpy as np
+
+    from longtime.reporting.figures import results
+
+    t = np.logspace(-2, 3, 40)
+    curves = [{"invariant": n, "t": t.tolist(), "error": (1e-12 * t**k).tolist()} for k, n in enumerate("HLA")]
+    rows = [{"problem": "kepler", "integrator": f"scheme-{i:02d}", "status": "ok", "cpu_s": 1e-3 * (i + 1),
+             "dt": 0.01, "t_final": 1e3, "settings": "", "drift_curve": curves[0], "drift_curves": curves}
+            for i in range(30)]
+    drawn = {}
+    monkeypatch.setattr(results, "svg", lambda fig: drawn.setdefault("fig", fig) and "<svg/>")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        figure, notes = results.drift_svg(rows, {r["integrator"]: {"color": "#000", "marker": "o"} for r in rows})
+    fig = drawn["fig"]
+    panels = [ax for ax in fig.axes if ax.get_visible()]
+    widths = [ax.get_position().width * fig.get_figwidth() for ax in panels]
+    assert len(panels) == 3 and min(widths) > 2.0, widths  # inches
+    assert len(fig.legends) == 1 and len(fig.legends[0].get_texts()) == 30
