@@ -5,11 +5,11 @@ Importing the package compiles nothing: numba kernels compile on first use.
 from longtime.core.version import __version__
 
 __all__ = ["AdaptiveIntegrator", "FixedStepIntegrator", "InputError", "Integrator", "Order", "Param",
-           "Problem", "Result", "Trajectory", "__version__", "card", "convergence", "plot", "solve", "sweep", "testing",
+           "Problem", "Result", "Trajectory", "__version__", "card", "convergence", "plot", "recommend", "solve", "sweep", "testing",
            "work_precision"]
 
 # the Python API (docs/api.md), imported on first use: `import longtime` stays light
-_API = ("Order", "Result", "card", "convergence", "solve", "sweep", "work_precision")
+_API = ("Order", "Result", "card", "convergence", "recommend", "solve", "sweep", "work_precision")
 # the base classes, imported on first use too (numpy and numba load with them): the command's
 # entry point (longtime.commands.entry) is running, and catches Ctrl-C, before they load
 _CORE = {"AdaptiveIntegrator": "integrator", "FixedStepIntegrator": "integrator", "Integrator": "integrator",

@@ -436,3 +436,22 @@ def card(scheme: Any, rows: Any = None, *, structure: bool = True, stability: bo
     # an instance keeps its settings (the structure is measured with them); otherwise the name
     return build(scheme if isinstance(scheme, Integrator) else name,
                  records(rows) if rows is not None else None, structure=structure, stability=stability)
+
+# ------------------------------------------------------------------ the verdict
+def recommend(problem: Any, error: float, horizon: float, rows: Any = None, *, db: str | None = None,
+              run: Any = None):
+    """The cheapest stored setting predicted to keep ``error`` up to ``horizon`` on
+    ``problem``, as ``longtime recommend`` answers it (a
+    longtime.reporting.verdict.Recommendation: ``scheme``, ``setting``, ``predicted_error``,
+    ``predicted_cpu_s``, ``runner_up``, ``evidence``; ``str()`` gives the command's lines).
+    From ``rows`` (a DataFrame from ``sweep``, or row dicts) where given, else from the store
+    ``db`` (default: $LONGTIME_DB or longtime.sqlite), its run ``run`` (default: every run).
+    What cannot be decided raises InputError naming the run that would decide it."""
+    from longtime.reporting.verdict import recommend as decide
+
+    name, _ = resolve(problem, "problem")
+    if rows is not None:
+        return decide(records(rows), name, error, horizon, known=registry.problems())
+    from longtime.commands.recommend import answer
+
+    return answer(name, error, horizon, db, None if run is None else str(run))

@@ -44,7 +44,8 @@ def test_diagnostics_are_recorded_drawn_and_never_classed(watched_harmonic, caps
     assert not [k for k in row if "growth" in k and ("q2" in k or "K." in k)]
     assert row["H.growth_class"] == "bounded" and [c["invariant"] for c in row["drift_curves"]] == ["H"]
     page = build_page([row], [], stability=False)
-    assert "<h3>Diagnostics against time</h3>" in page and page.count('<figure class="plot">') == 3
+    # the winner map, work-precision, drift and diagnostics
+    assert "<summary>Diagnostics against time</summary>" in page and page.count('<figure class="plot">') == 4
     diag = page[page.index("Diagnostics against time"):]
     assert ">q2<" in diag and ">K<" in diag  # one panel each, titled by name (SVG text)
 

@@ -33,10 +33,10 @@ def test_page_content(page):
     text = path.read_text()
     # self-contained: nothing loaded from anywhere (SVG namespaces are names, not loads)
     assert not re.search(r"""(src|href)=["']?(https?:|//)|url\(\s*["']?https?:|@import""", text)
-    # work-precision and drift per problem, and the run's calibrations
-    assert text.count('<figure class="plot">') == 5
-    assert "14 cells:</b> 12 ok, 2 skipped" in text
-    assert 'title="skipped: needs constraints, which harmonic does not provide">skipped: needs constraints<' in text
+    # the winner map, work-precision and drift per problem, and the run's calibrations
+    assert text.count('<figure class="plot">') == 7
+    assert "14 cells</b> (12 ok, 2 skipped)" in text
+    assert 'title="skipped: needs constraints, which harmonic does not provide">-<' in text
     # measured from the schemes' own steps: RK4's 2 sqrt 2 and Verlet's 2 on the imaginary axis
     assert "<td>rk4</td><td>[0, 2.82]" in text and "<td>verlet</td><td>[0, 2]" in text
     assert re.search(r"<td>commit</td><td>[0-9a-f]{7,}|<td>commit</td><td>-", text)
@@ -59,7 +59,26 @@ def test_summary_starts_with_counts_and_pareto(page):
     for p in front:
         meets = [r for r in harmonic if r["status"] == "ok" and r["l2_error"] <= p["target"]]
         assert p["best"]["cpu_s"] == min(r["cpu_s"] for r in meets)
-    assert len(text.splitlines()) < 40  # one screen
+    # a screen per problem: the verdict first, then what failed, the Pareto front
+    for part in text.split("\n\n")[1:]:
+        lines = part.splitlines()
+        assert len(lines) <= 60 and lines[1].startswith("  verdict:"), part
+
+
+def test_page_leads_with_the_verdict(page):
+    """The page's order: the verdict per problem (an answer, the winner map), the checks, the
+    evidence (folded), the capability matrix, the run and machine last; the footer names the
+    command that wrote it."""
+    path, _ = page
+    text = path.read_text()
+    order = ['<h2 id="verdict">', '<h3 id="verdict-harmonic">', 'class="answer"', "Winner map:",
+             '<h3 id="verdict-kepler">', '<h2 id="checks">', '<h2 id="evidence">', '<h3 id="harmonic">',
+             "<details><summary>Fastest scheme per accuracy", '<h2 id="capabilities">', '<h2 id="about">',
+             'class="meta"', "by <code>longtime report --html</code>"]
+    at = [text.find(x) for x in order]
+    assert -1 not in at and at == sorted(at), dict(zip(order, at))
+    # the calibration and the metadata come after everything else
+    assert text.find("<figcaption>Run 1: the reference workload") > text.find('<h2 id="about">')
 
 
 def _browser():
@@ -80,7 +99,8 @@ def test_page_in_headless_chromium(page):
     body = re.search(r"<body[^>]*>", res.stdout)
     assert body, res.stderr[-2000:]
     attrs = dict(re.findall(r'data-(\w+)="([^"]*)"', body.group(0)))
-    assert attrs.get("figures") == "5" and attrs.get("rendered") == "5", attrs
+    # every figure drawn, the folded ones too
+    assert attrs.get("figures") == "7" and attrs.get("rendered") == "7", attrs
     assert attrs.get("errors") == "", attrs
     console = [line for line in res.stderr.splitlines() if ":CONSOLE" in line]
     assert console == [], console
@@ -148,7 +168,11 @@ def test_main_job_page_takes_the_figures_its_workers_drew(tmp_path, monkeypatch)
                      "--no-progress", "--html", str(tmp_path / "page")]) == 0
     assert sorted(taken) == [("harmonic", True), ("kepler", True)]
     text = (tmp_path / "page" / "index.html").read_text()
-    assert text.count('<figure class="plot">') == 5  # and the run's calibrations
+    # a winner map, work-precision and drift per problem, the run's calibrations, and the
+    # figure of the checked predictions where the matrix checked one
+    checked = Store(tmp_path / "r.sqlite").checks(1)
+    assert text.count('<figure class="plot">') == 7 + bool([c for c in checked if c.get("measured_error")])
+    assert "by <code>longtime matrix</code>" in text
     assert "<td>rk4</td><td>[0, 2.82]" in text and "<td>verlet</td><td>[0, 2]" in text
 
 
@@ -189,3 +213,29 @@ def test_a_tol_sweep_whose_order_follows_tol_is_one_curve_and_set_orders_split()
     # the same tol at two set N: N does not follow tol, so the curves split
     both = [row("taylor-adaptive", t, n) for n in (8, 12) for t in (1e-6, 1e-9)]
     assert sorted(k[3] for k in sweeps(both)) == [8, 12]
+
+
+def test_drift_figure_stays_legible_with_thirty_schemes(monkeypatch):
+    """Thirty schemes on a problem of three invariants: three panels of a legible size (the
+    legend below them, not beside), without matplotlib's 'tight layout not applied'."""
+    import warnings
+
+    import numpy as np
+
+    from longtime.reporting.figures import results
+
+    t = np.logspace(-2, 3, 40)
+    curves = [{"invariant": n, "t": t.tolist(), "error": (1e-12 * t**k).tolist()} for k, n in enumerate("HLA")]
+    rows = [{"problem": "kepler", "integrator": f"scheme-{i:02d}", "status": "ok", "cpu_s": 1e-3 * (i + 1),
+             "dt": 0.01, "t_final": 1e3, "settings": "", "drift_curve": curves[0], "drift_curves": curves}
+            for i in range(30)]
+    drawn = {}
+    monkeypatch.setattr(results, "svg", lambda fig: drawn.setdefault("fig", fig) and "<svg/>")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        figure, notes = results.drift_svg(rows, {r["integrator"]: {"color": "#000", "marker": "o"} for r in rows})
+    fig = drawn["fig"]
+    panels = [ax for ax in fig.axes if ax.get_visible()]
+    widths = [ax.get_position().width * fig.get_figwidth() for ax in panels]
+    assert len(panels) == 3 and min(widths) > 2.0, widths  # inches
+    assert len(fig.legends) == 1 and len(fig.legends[0].get_texts()) == 30

@@ -32,7 +32,7 @@ from longtime.reporting.report import render
 
 # modules that add subcommands: each defines add_parser(subparsers) and sets func
 COMMAND_MODULES: tuple[str, ...] = ("longtime.commands.asv_init", "longtime.commands.cache_cmd", "longtime.commands.card", "longtime.reporting.compare", "longtime.reporting.history",
-                                   "longtime.commands.matched", "longtime.plot", "longtime.commands.reproduce", "longtime.commands.roundoff",
+                                   "longtime.commands.matched", "longtime.plot", "longtime.commands.recommend", "longtime.commands.reproduce", "longtime.commands.roundoff",
                                    "longtime.commands.warmup")
 
 
@@ -251,6 +251,21 @@ def cmd_matrix(args) -> int:
             options = dataclasses.replace(options, idle_work=ahead.task)
         run_matrix(cells, store, run_id, executor, options,
                    progress=not args.no_progress, on_row=ahead.add if ahead is not None else None)
+        if args.checks is None:
+            from longtime.reporting.verdict import CHECKS
+
+            args.checks = CHECKS
+        if args.checks:  # a few of the verdicts' predictions re-run past the rows' final times
+            from longtime.reporting.verdict import check_budget, check_summary, run_checks
+
+            rows = store.rows(run_id)
+            try:
+                checks = run_checks(store, run_id, rows, options, limit=args.checks, budget_s=check_budget(rows))
+            except (InputError, OSError, ValueError) as exc:  # the rows are stored; the checks are extra
+                print(f"warning: predictions not checked: {type(exc).__name__}: {exc}", file=sys.stderr)
+                checks = []
+            if checks:
+                print(f"checks: {check_summary(checks)}", file=sys.stderr)
     if not args.no_report:
         from longtime.reporting.page import write_html
         from longtime.reporting.report import report_text
@@ -261,11 +276,11 @@ def cmd_matrix(args) -> int:
             try:
                 with phases.phase("page"):
                     page = write_html(args.html or store.path.parent / "longtime-report" / f"run-{run_id}", rows,
-                                      store, [run_id], ahead=ahead)  # default: beside the store
+                                      store, [run_id], ahead=ahead, writer="matrix")  # default: beside the store
             except Exception as exc:  # the rows are stored; `longtime report --html DIR` can retry
                 print(f"warning: results page not written: {type(exc).__name__}: {exc}", file=sys.stderr)
         with phases.phase("report"):
-            text = report_text(rows, "table", full=args.full)
+            text = report_text(rows, "table", full=args.full, checks=store.checks(run_id))
         print(text)
         print(f"\ncalibration: {drift_text(store.calibrations(run_id))}")
         if page is not None:
@@ -335,23 +350,24 @@ def cmd_report(args) -> int:
                   f"cells stored)" + (f"; its process ended inside {died}" if died else "")
                   + f"; `longtime matrix --resume {run_id}` completes it", file=sys.stderr)
         rows = store.rows(run_id)
+    checks = store.checks() if args.run == "all" else store.checks(run_id)
     if args.problem:
         rows = [r for r in rows if r["problem"] in args.problem]
     from longtime.reporting.page import write_html
     from longtime.reporting.report import report_text, to_parquet
 
     if args.html:
-        print(f"results page: {write_html(args.html, rows, store)}", file=sys.stderr)
+        print(f"results page: {write_html(args.html, rows, store, writer='report --html')}", file=sys.stderr)
     if args.format == "parquet":
         with cli_args.writing("--out", args.out or "longtime.parquet"):
             to_parquet(rows, args.out or "longtime.parquet")
         print(f"wrote {len(rows)} rows to {args.out or 'longtime.parquet'}", file=sys.stderr)
     elif args.out:
-        text = report_text(rows, args.format, full=args.full)
+        text = report_text(rows, args.format, full=args.full, checks=checks)
         with cli_args.writing("--out", args.out):
             Path(args.out).write_text(text)
     else:
-        print(report_text(rows, args.format, full=args.full))
+        print(report_text(rows, args.format, full=args.full, checks=checks))
         if args.format == "table" and args.run != "all":
             print(f"\ncalibration: {drift_text(store.calibrations(run_id))}")
     return 0
@@ -391,6 +407,10 @@ def build_parser() -> argparse.ArgumentParser:
                         f"estimated above {budget.CELL_BUDGET_S:g} s a run runs them over a shorter horizon, "
                         f"and a long-time cell above {budget.LONG_CELL_BUDGET_S:g} s is left out (the "
                         f"report names each move)")
+
+    p.add_argument("--checks", type=cli_args.integer("--checks", 0), default=None, metavar="N",
+                   help="re-run N of the verdicts' predictions past the rows' final times and store predicted "
+                        "against measured error and cost (default 6; 0: none)")
     p.add_argument("--baseline", type=cli_args.integer("--baseline", 1), default=None, metavar="RUN",
                    help="end with `longtime compare RUN` against this run (same store) and exit 1 on a regression")
     p.set_defaults(func=cmd_matrix)

@@ -138,6 +138,21 @@ def seconds(flag: str, allow_zero: bool = False) -> Callable[[str], float]:
     return parse
 
 
+def positive_number(flag: str) -> Callable[[str], float]:
+    """A finite number > 0 (a target error, a horizon)."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if not 0 < value < float("inf"):
+            raise argparse.ArgumentTypeError(f"{flag} takes a finite number > 0, got {text!r}")
+        return value
+
+    return parse
+
+
 def out_folder(flag: str) -> Callable[[str], str]:
     """A folder to write into: an existing regular file (or one on its path) is an error
     before anything runs, not a traceback after."""

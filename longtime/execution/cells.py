@@ -239,6 +239,21 @@ def base_row(cell: Cell) -> dict[str, Any]:
     return row
 
 
+def cell_of_row(row: dict[str, Any], t_final: float | None = None) -> Cell:
+    """The cell a stored row measured (its settings split back into the problem's and the
+    scheme's, base_row's inverse), at ``t_final`` where given (else the row's)."""
+    settings = json.loads(row["settings"]) if row.get("settings") else {}
+    pcls, icls = registry.problem_class(row["problem"]), registry.integrator_class(row["integrator"])
+    psets = {k: v for k, v in settings.items() if k in pcls.parameters}
+    isets = {k: v for k, v in settings.items() if k in icls.parameters}
+    for k in ROW_PARAMETERS:  # the parameters with a row field of their own
+        value = row.get(k)
+        if k in icls.parameters and isinstance(value, (int, float)) and not isinstance(value, bool) \
+                and math.isfinite(value) and value > 0:
+            isets[k] = int(value) if icls.parameters[k].kind is int else value
+    return Cell(row["problem"], row["integrator"], psets, isets, row["t_final"] if t_final is None else t_final)
+
+
 def build(cell: Cell) -> tuple[Problem, Integrator]:
     """The problem and the scheme a cell names, with its settings (validated): the one
     place they are made from names, for the matrix, the searches and the figures."""

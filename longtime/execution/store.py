@@ -31,9 +31,10 @@ DEFAULT_PATH = "longtime.sqlite"
 # without the stamp is refused untouched unless it is a store of the first layout (no version)
 # existed (the same three tables, with the same columns, and nothing else).
 APPLICATION_ID = 0x4C54696D
-# 2: the calibrations table (a store of version 1 gains it when opened for writing)
-SCHEMA_VERSION = 2
-ADDED_IN = {"calibrations": 2}  # the schema version that added a table (1: every other)
+# 2: the calibrations table; 3: the checks table (a store of an older version gains them when
+# opened for writing)
+SCHEMA_VERSION = 3
+ADDED_IN = {"calibrations": 2, "checks": 3}  # the schema version that added a table (1: every other)
 _TABLES = {"runs", "planned", "rows"}  # a store of the first layout, without a schema version or 'started'
 
 SCHEMA = """
@@ -60,6 +61,11 @@ CREATE TABLE IF NOT EXISTS started (
 CREATE TABLE IF NOT EXISTS calibrations (
     run_id INTEGER NOT NULL REFERENCES runs(id), t REAL NOT NULL, pid INTEGER, phase TEXT,
     cpu_s REAL NOT NULL, point TEXT NOT NULL, PRIMARY KEY (run_id, pid, t)
+);
+CREATE TABLE IF NOT EXISTS checks (
+    run_id INTEGER NOT NULL REFERENCES runs(id), cell_key TEXT NOT NULL,
+    problem TEXT NOT NULL, integrator TEXT NOT NULL, row TEXT NOT NULL, created TEXT NOT NULL,
+    PRIMARY KEY (run_id, cell_key)
 );
 PRAGMA application_id = %d;
 PRAGMA user_version = %d;
@@ -346,7 +352,7 @@ class Store:
         with closing(self._connect()) as con, con:
             if con.execute("SELECT COUNT(*) FROM rows WHERE run_id = ?", (run_id,)).fetchone()[0]:
                 return
-            for table in ("started", "planned", "calibrations"):
+            for table in ("started", "planned", "calibrations", "checks"):
                 con.execute(f"DELETE FROM {table} WHERE run_id = ?", (run_id,))
             con.execute("DELETE FROM runs WHERE id = ?", (run_id,))
 
@@ -371,6 +377,30 @@ class Store:
             except sqlite3.OperationalError:  # a store of schema version 1, opened read-only
                 return []
         return [json.loads(text) for (text,) in fetched]
+
+    def add_check(self, run_id: int, cell: Cell, check: dict[str, Any]) -> None:
+        """Store a checked prediction (longtime.reporting.verdict.check_row): the row of a
+        re-run at a horizon past the stored rows, with the predicted error and CPU time beside
+        the measured. Checks are kept apart from the run's rows: they are no cell of its
+        matrix (a report, an order fit or a resume never sees them as one)."""
+        with self._writing(f"a check of {cell.problem} x {cell.integrator} (run {run_id})", run_id), \
+                self._writer_lock, self._row_writer() as con:
+            con.execute("INSERT OR REPLACE INTO checks (run_id, cell_key, problem, integrator, row, created) "
+                        "VALUES (?, ?, ?, ?, ?, ?)",
+                        (run_id, cell.key, check["problem"], check["integrator"], json.dumps(check), _now()))
+
+    def checks(self, run_id: int | None = None) -> list[dict[str, Any]]:
+        """The checked predictions of ``run_id`` (default: every run's), in the order stored;
+        none in a store older than the checks table."""
+        query, args = "SELECT run_id, row FROM checks", ()
+        if run_id is not None:
+            query, args = query + " WHERE run_id = ?", (run_id,)
+        with closing(self._connect()) as con:
+            try:
+                fetched = con.execute(query + " ORDER BY rowid", args).fetchall()
+            except sqlite3.OperationalError:  # a store of schema version 1 or 2, opened read-only
+                return []
+        return [{"run_id": rid, **json.loads(text)} for rid, text in fetched]
 
     def finish_run(self, run_id: int, status: str) -> None:
         self.close()

@@ -17,17 +17,26 @@ th{background:#f3f3f3}td.num{text-align:right;font-variant-numeric:tabular-nums}
 .failed,.timeout{background:#ffebee}.undetermined{background:#fff8e1}.flag{color:#b71c1c;font-weight:bold}
 figure{margin:.5em 0}figure svg{max-width:100%;height:auto}figcaption{font-size:.85em;color:#555}
 .meta td:first-child{font-weight:bold}.note{font-size:.85em;color:#555}
-nav a{margin-right:.8em}
+nav a{margin-right:.8em}nav{line-height:1.7}
+.lead{font-size:1em}.answer{font-size:1.05em;background:#f1f8e9;border-left:4px solid #7cb342;padding:.3em .6em}
+details{margin:.3em 0}details>summary{cursor:pointer;color:#1a4f8b}details[open]>summary{font-weight:bold}
+td.undetermined details{margin:0}td.undetermined summary{color:#6d4c00}td.law{cursor:help}
+table.capabilities{font-size:.75em}table.capabilities td.cap{text-align:center;padding:1px 3px}
+th.rot{vertical-align:bottom;padding:4px 2px}th.rot span{writing-mode:vertical-rl;transform:rotate(180deg);
+white-space:nowrap}
+h3{margin-top:1.4em}.footer{margin-top:2em}
 """
 
-# records errors and checks that every figure has a drawn size; a browser test reads the
-# result from <body data-figures="..." data-errors="..."> (no network, no external script)
+# records errors and checks that every figure has a drawn size (folded ones opened for the
+# measurement, then folded again); a browser test reads the result from <body data-figures="..." data-errors="..."> (no network, no external script)
 SCRIPT = """
 (function(){var errs=[];
 window.addEventListener('error',function(e){errs.push(String(e.message));document.body.dataset.errors=errs.join('|');});
 window.addEventListener('load',function(){var figs=document.querySelectorAll('figure.plot');var drawn=0;
+var closed=[];document.querySelectorAll('details:not([open])').forEach(function(d){d.open=true;closed.push(d);});
 figs.forEach(function(f){var s=f.querySelector('svg');if(s){var b=s.getBoundingClientRect();
 if(b.width>50&&b.height>50&&s.querySelectorAll('path').length>0){drawn++;f.dataset.rendered='yes';}}});
+closed.forEach(function(d){d.open=false;});
 document.body.dataset.figures=figs.length;document.body.dataset.rendered=drawn;
 document.body.dataset.errors=errs.join('|');});})();
 """

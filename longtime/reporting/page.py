@@ -90,21 +90,23 @@ def _pareto_table(rows: list[dict]) -> str:
 
 
 def _growth_cell(row: dict, name: str) -> str:
-    """One growth law as a table cell: the class, alpha and its interval; an undetermined
-    class with its reason beside it, a class with what it rests on as its title."""
+    """One growth law as a table cell: the class; alpha, its interval and what the class
+    rests on as its title (a tooltip); an undetermined class opens on a click to its reason."""
     cls = row.get(f"{name}.growth_class")
     if not cls:
         return "<td>-</td>"
     alpha, ci = row.get(f"{name}.growth"), row.get(f"{name}.growth_ci")
-    text = f"{cls} {alpha:.2f}" if isinstance(alpha, (int, float)) else cls  # exponents: two decimals
-    if isinstance(ci, list) and len(ci) == 2 and all(isinstance(c, (int, float)) for c in ci):
-        text += f" [{ci[0]:.2f}, {ci[1]:.2f}]"
+    fit = f"alpha {alpha:.2f}" if isinstance(alpha, (int, float)) else ""  # exponents: two decimals
+    if fit and isinstance(ci, list) and len(ci) == 2 and all(isinstance(c, (int, float)) for c in ci):
+        fit += f" [{ci[0]:.2f}, {ci[1]:.2f}]"
     if cls == "saturated" and row.get(f"{name}.saturated_t") is not None:
-        text += f" (at t = {num(row[f'{name}.saturated_t'])}; alpha before)"
+        fit += f" (before t = {num(row[f'{name}.saturated_t'])})"
     reason = row.get(f"{name}.growth_reason") or ""
+    title = "; ".join(x for x in (fit, reason) if x)
     if cls == "undetermined":
-        return f'<td class="undetermined">{escape(text)}<br><span class="note">{escape(reason)}</span></td>'
-    return f'<td title="{escape(reason)}">{escape(text)}</td>'
+        return (f'<td class="undetermined"><details><summary title="{escape(title)}">undetermined</summary>'
+                f'<span class="note">{escape(title)}</span></details></td>')
+    return f'<td class="law" title="{escape(title)}">{escape(cls)}</td>'
 
 
 def _growth_table(rows: list[dict]) -> str | None:
@@ -125,8 +127,8 @@ def _growth_table(rows: list[dict]) -> str | None:
     return ('<p class="note">Growth law of each drift (and of the solution error) fitted over time, per setting: '
             'the class, the exponent alpha of e ~ t^alpha on the last two decades and its interval (it spans the '
             'slopes on three windows of a decade). A class stands only where the windows agree on it (or the '
-            'error is at round-off); otherwise it is undetermined, with the reason (docs/metrics.md). Hover a '
-            'class for the window slopes.</p>'
+            'error is at round-off); otherwise it is undetermined (docs/metrics.md). Hover a class for its '
+            'exponent, interval and window slopes; click an undetermined one for its reason.</p>'
             + table(["scheme", "setting", *[f"{'solution error' if n == 'error' else n}" for n in names]], body,
                      raw=True))
 
@@ -150,7 +152,12 @@ def _orders_table(fits: list[dict]) -> str | None:
                   body, raw=True)
 
 
+ABBREVIATIONS = {"ok": "ok", "skipped": "-", "diverged": "div", "failed": "fail", "timeout": "t/o"}
+
+
 def _capability_matrix(rows: list[dict]) -> str:
+    """Schemes x problems, each cell its worst status, abbreviated (the counts and the reason
+    of a skip in its title); the problems' names set vertically so that the matrix fits."""
     problems = sorted({r["problem"] for r in rows})
     schemes = sorted({r["integrator"] for r in rows})
     body = []
@@ -159,17 +166,24 @@ def _capability_matrix(rows: list[dict]) -> str:
         for p in problems:
             mine = [r for r in rows if r["problem"] == p and r["integrator"] == s]
             if not mine:
-                cells.append('<td class="skipped">not in run</td>')
+                cells.append('<td class="skipped" title="not in this run"></td>')
                 continue
             counts = status_counts(mine)
             worst = next(st for st in ("failed", "timeout", "diverged", "skipped", "ok") if counts.get(st))
-            title = text = format_counts(counts)
+            title = format_counts(counts)
+            text = ABBREVIATIONS[worst]
             if worst == "skipped":
                 title = "skipped: " + str(mine[0].get("message") or "").removeprefix(s + " ")
-                text = title.split(", which")[0]  # the column names the problem
-            cells.append(f'<td class="{worst}" title="{escape(title)}">{escape(text)}</td>')
+            elif worst != "ok":
+                text += f" {counts[worst]}/{len(mine)}"
+            cells.append(f'<td class="{worst} cap" title="{escape(title)}">{escape(text)}</td>')
         body.append(cells)
-    return table(["scheme \\ problem", *problems], body, raw=True)
+    head = "".join(f'<th class="rot"><span>{escape(p)}</span></th>' for p in problems)
+    rows_html = "".join("<tr>" + "".join(c) + "</tr>" for c in body)
+    return ('<p class="note">Each cell: the worst outcome of the scheme on the problem (ok; - skipped; div '
+            'diverged; fail failed; t/o timeout; blank: not in this run), with the counts and the reason of a skip '
+            'in its title.</p>'
+            f'<table class="capabilities"><tr><th>scheme \\ problem</th>{head}</tr>{rows_html}</table>')
 
 
 def _stability_table(found: dict[str, str]) -> str | None:
@@ -183,13 +197,176 @@ def _stability_table(found: dict[str, str]) -> str | None:
             'omega h is in it.</p>' + table(["scheme", "interval of y"], body))
 
 
+def _fold(summary: str, body: str, open_: bool = False) -> str:
+    """``body`` folded under ``summary`` (a <details>, closed unless ``open_``)."""
+    return f'<details{" open" if open_ else ""}><summary>{summary}</summary>{body}</details>'
+
+
+def _verdict_section(p: str, v, mine: list[dict]) -> str:
+    """One problem's verdict: an example answer, the winner map, the winners as a table
+    (folded) and the settings whose law does not extrapolate, each with its deciding run."""
+    from longtime.reporting.figures.verdict import winner_map_svg
+    from longtime.reporting.verdict import check_summary, check_text, deciding_run, decision_text, horizon_groups
+
+    head = f'<h3 id="verdict-{slug(p)}">{escape(p)}</h3>'
+    if v.measure is None or not v.candidates:
+        return head + (f'<p class="note">No verdict: no ok row with an error, a growth class and a CPU time '
+                       f'(<code>longtime matrix -p {escape(p)}</code> measures them).</p>')
+    out = [head]
+    # an example answer: at a hundred times the runs' final time, 1e-6 where predicted (else
+    # the middle of the targets predicted there)
+    h = v.horizons[min(2, len(v.horizons) - 1)]
+    met = [t for t in v.targets if v.grid[(t, h)].best is not None]
+    if met:
+        t = 1e-6 if 1e-6 in met else met[len(met) // 2]
+        d = v.grid[(t, h)]
+        b, r = d.best, d.runner_up
+        runner = (f"; runner-up {escape(r.text)}, x{r.cpu_at(h) / b.cpu_at(h):.3g} the CPU" if r else
+                  "; no other scheme is predicted to keep it")
+        out.append(f'<p class="answer">To keep {escape(v.measure.field)} &le; {t:.0e} up to T = {h:.3g} '
+                   f'({h / v.t_main:.0f} times the runs\' t_final): <b>{escape(b.text)}</b>, predicted error '
+                   f'{b.error_at(h):.2g} ({escape(b.law_text())}), CPU {b.cpu_at(h):.3g} s{runner}. '
+                   f'<span class="note">Any other target and horizon: the map below, or <code>longtime recommend -p '
+                   f'{escape(p)} --error E --horizon T</code>.</span></p>')
+    else:
+        out.append(f'<p class="answer">No setting is predicted to keep any target up to T = {h:.3g}.</p>')
+    fig = winner_map_svg(v)
+    if fig:
+        out.append(f'<figure class="plot">{fig}<figcaption>Winner map: for each target ({escape(v.measure.text)}) '
+                   f"and horizon T, the scheme of the cheapest setting predicted to keep it (its setting written "
+                   f"in the cell), from each setting's measured CPU time per unit of simulated time and its growth "
+                   f"class; grey: undetermined (a cheaper setting's law does not extrapolate); "
+                   f"circles and crosses: predictions re-run and checked.</figcaption></figure>")
+    body = []
+    for h in v.horizons:
+        for lo, hi, d in horizon_groups(v, h):
+            if d.best is None:
+                if d.state == "undetermined":
+                    body.append([f"{h:.3g}", f"{lo:.0e}" + (f" .. {hi:.0e}" if hi != lo else ""),
+                                 decision_text(d), "-", "-", "-", "-"])
+                continue
+            b, r = d.best, d.runner_up
+            body.append([f"{h:.3g}", f"{lo:.0e}" + (f" .. {hi:.0e}" if hi != lo else ""), b.text,
+                         num(b.error_at(h)), num(b.cpu_at(h)), b.law_text(),
+                         f"{r.text} (x{r.cpu_at(h) / b.cpu_at(h):.3g})" if r else "none"])
+    out.append(_fold(f"The winners as a table ({len(body)} rows: horizon, targets, predicted error and CPU, law, "
+                     f"runner-up)", table(["T", f"{v.measure.field} <=", "cheapest setting", "predicted error at T",
+                                           "predicted CPU s", "growth law", "runner-up (its CPU)"], body)))
+    stuck = sorted((s_ for s_ in v.candidates if not s_.extrapolates), key=lambda s_: s_.cpu_per_t)
+    if stuck:
+        items = "".join(f"<li>{escape(s_.text)}: {escape(s_.law_text())}; <code>{escape(deciding_run(s_, 10 * s_.span))}"
+                        f"</code></li>" for s_ in stuck[:12])
+        more = f"<li>and {len(stuck) - 12} more</li>" if len(stuck) > 12 else ""
+        out.append(_fold(f"Not extrapolated: {len(stuck)} of {len(v.candidates)} settings (growth undetermined or "
+                         f"faster), with the run that would decide each", f"<ul>{items}{more}</ul>"))
+    if v.checks:
+        out.append(_fold(f"Checks: {escape(check_summary(v.checks))}",
+                         "<ul>" + "".join(f"<li>{escape(check_text(c))}</li>" for c in v.checks) + "</ul>"))
+    return "".join(out)
+
+
+def _checks_section(checks: list[dict]) -> str:
+    from longtime.reporting.figures.verdict import checks_svg
+    from longtime.reporting.verdict import check_summary
+
+    out = ['<h2 id="checks">Checked predictions</h2>']
+    if not checks:
+        out.append('<p class="note">No prediction of these rows was re-run: <code>longtime matrix</code> checks a few '
+                   'at the longest horizon its budget affords (<code>--checks N</code>).</p>')
+        return "".join(out)
+    out.append(f"<p>{escape(check_summary(checks))}.</p>")
+    fig = checks_svg(checks)
+    if fig:
+        out.append(f'<figure class="plot">{fig}<figcaption>Each check: a winner of a map re-run at a horizon past its '
+                   f"run, its predicted error against the measured one (filled: its CPU time within the predicted "
+                   f"x1.5; the band: within a factor 3).</figcaption></figure>")
+    return "".join(out)
+
+
+def _cards_section(rows: list[dict]) -> str | None:
+    """The scheme cards (longtime.reporting.card), where that module is installed."""
+    import importlib.util
+
+    if importlib.util.find_spec("longtime.reporting.card") is None:
+        return None
+    from longtime.reporting.card import cards_html
+
+    return '<h2 id="cards">Scheme cards</h2>' + cards_html(rows)
+
+
+def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: list[dict], drift: bool) -> str:
+    """One problem's evidence, each piece folded: the Pareto front, work-precision, orders,
+    growth classes, drift and diagnostics; what did not run to the end stays open."""
+    out = [f'<h3 id="{slug(p)}">{escape(p)}</h3><p>{escape(format_counts(status_counts(mine)))}</p>']
+    folded = _not_ok(mine)
+    if folded:  # open where something failed, diverged or lost the solution; skips alone stay folded
+        failed = sorted(k for k in folded if not k.startswith("skipped"))
+        skipped = sum(len(v) for k, v in folded.items() if k.startswith("skipped"))
+        what = "; ".join([f"{k.split(' (')[0].split(',')[0]}: {len(folded[k])} schemes" for k in failed]
+                         + ([f"skipped: {skipped} schemes"] if skipped else []))
+        out.append(_fold(f"Not run to the end, or the solution lost ({escape(what)})", "<ul>" + "".join(
+            f"<li>{escape(why)}: {escape(', '.join(s))}</li>" for why, s in sorted(folded.items(),
+                                                                                  key=lambda kv: kv[0].startswith("skipped")))
+            + "</ul>", bool(failed)))
+    out.append(_fold("Fastest scheme per accuracy at the runs' t_final (Pareto front)", _pareto_table(mine)))
+    fig = figs["work_precision"]
+    if fig:
+        out.append(_fold("Work-precision figure", f'<figure class="plot">{fig}<figcaption>{escape(figs["field"])} '
+                                                  f"against CPU seconds, one point per setting; colour: scheme family, "
+                                                  f"marker: scheme.</figcaption></figure>"))
+    fig = figs.get("work_precision_instructions")
+    if fig:
+        out.append(_fold("Work-precision in instructions", f'<figure class="plot">{fig}<figcaption>'
+                         f"{escape(figs['field'])} against the instructions of the integration, counted under "
+                         f"Valgrind (--cost instructions): a deterministic cost, blind to cache misses and "
+                         f"memory stalls; cells without a count are left out.</figcaption></figure>"))
+    orders = _orders_table([f for f in fits if f["problem"] == p])
+    mine_missing = [m for m in missing if m["problem"] == p]
+    if orders or mine_missing:
+        body = ('<p class="note">Least-squares slope of log error against log step over the asymptotic range '
+                '(floors and pre-asymptotic points dropped), with its 95 % interval; only where at least two '
+                'local slopes agree within 0.1 (otherwise the order is undetermined, listed below with its '
+                'slopes, and never flagged).</p>' + orders if orders else "")
+        if mine_missing:
+            body += "<p>Left out of the order table:</p><ul>" + "".join(
+                f"<li>{escape(m['integrator'])}: {escape(m['reason'])}</li>" for m in mine_missing) + "</ul>"
+        out.append(_fold("Observed order", body))
+    growth = _growth_table(mine)
+    if growth:
+        out.append(_fold("Growth classes", growth))
+    if drift:
+        fig, notes = figs["drift"], figs["drift_notes"]
+        if fig:
+            out.append(_fold("Invariant drift against time", f'<figure class="plot">{fig}<figcaption>'
+                             f"Relative error of each invariant (absolute where it starts at 0), log-log (a "
+                             f"slope is a growth law), for each scheme's setting of median CPU time (the upper "
+                             f"envelope each row keeps); one panel per invariant."
+                             f"{escape(' ' + '; '.join(notes)) if notes else ''}</figcaption></figure>"))
+        fig, notes = figs.get("diagnostics"), figs.get("diagnostics_notes") or []
+        if fig:
+            out.append(_fold("Diagnostics against time", f'<figure class="plot">{fig}<figcaption>'
+                             f"Change of each diagnostic from its initial value, relative (absolute where it "
+                             f"starts at 0), log-log: quantities the problem watches but the flow does not "
+                             f"conserve, so never a drift and never classed."
+                             f"{escape(' ' + '; '.join(notes)) if notes else ''}</figcaption></figure>"))
+    return "".join(out)
+
+
 def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bool = True,
                stability: bool = True, jobs: int = 1, ahead: FiguresAhead | None = None,
-               history: str | None = None) -> str:
-    """The page's HTML for ``rows`` (of the ``runs`` whose metadata heads it); the figures are
-    drawn on ``jobs`` processes, but for those ``ahead`` drew from the same rows. ``history``:
-    the history section (longtime.reporting.history.page_section), placed before the capability matrix."""
+               history: str | None = None, checks: Iterable[dict[str, Any]] = (),
+               writer: str = "report --html") -> str:
+    """The page's HTML for ``rows`` (of the ``runs`` whose metadata closes it), led by the
+    verdict of each problem (``checks``: the stored checks of its predictions), then the
+    scheme cards, then the evidence (folded), the history, the capability matrix, the
+    stability intervals and the run and machine; the figures are drawn on ``jobs``
+    processes, but for those ``ahead`` drew from the same rows. ``history``: the history
+    section (longtime.reporting.history.page_section). ``writer``: the command that wrote
+    the page, named in its footer."""
+    from longtime.reporting.verdict import verdicts
+
     problems = sorted({r["problem"] for r in rows})
+    checks = list(checks)
     style = styles(sorted({r["integrator"] for r in rows}))
     # the heaviest problems first, so the processes finish together
     by_problem = dict(sorted(((p, [r for r in rows if r["problem"] == p]) for p in problems),
@@ -201,71 +378,44 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
     fits = observed_orders(rows)
     missing = left_out(rows)
     counts = status_counts(rows)
+    found = verdicts(rows, checks)
+    cards = _cards_section(rows)
+    ids = ", ".join(str(r["id"]) for r in runs) or "-"
     out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
            '<meta name="viewport" content="width=device-width, initial-scale=1">',
            "<title>longtime results</title>", f"<style>{CSS}</style>", "</head><body>",
-           "<h1>longtime: results</h1>", _meta(runs), *_calibration_figures(runs),
-           f"<p><b>{len(rows)} cells:</b> " + escape(format_counts(counts)) + "</p>",
-           "<nav>" + "".join(f'<a href="#{slug(p)}">{escape(p)}</a>' for p in problems)
-           + ('<a href="#history">history</a>' if history else "")
-           + '<a href="#capabilities">capability matrix</a></nav>']
+           "<h1>longtime: which scheme for this problem, horizon and accuracy</h1>",
+           f'<p class="lead"><b>{len(rows)} cells</b> ({escape(format_counts(counts))}) of run{"s" if len(runs) != 1 else ""} '
+           f'{escape(ids)}. <a href="#about">The run, the machine and its calibration</a> are at the end.</p>',
+           "<nav><b>Verdict:</b> " + "".join(f'<a href="#verdict-{slug(p)}">{escape(p)}</a>' for p in problems)
+           + '<br><a href="#checks">checked predictions</a>' + ('<a href="#cards">scheme cards</a>' if cards else "")
+           + '<a href="#evidence">evidence</a>' + ('<a href="#history">history</a>' if history else "")
+           + '<a href="#capabilities">capability matrix</a><a href="#about">run and machine</a></nav>',
+           '<h2 id="verdict">Verdict</h2>'
+           '<p class="note">Per problem, the cheapest stored setting predicted to keep a target error up to a horizon T: '
+           "its error at T from its measured error and growth class (bounded: flat; sqrt, linear, quadratic: "
+           "t^(1/2, 1, 2) from its run's final time), its CPU time from its measured CPU time per unit of simulated "
+           "time. A setting whose growth is undetermined predicts nothing past its own run. docs/metrics.md says how "
+           "a prediction is made and checked.</p>"]
     for p in problems:
-        mine, figs = by_problem[p], figures[p]
-        out.append(f'<h2 id="{slug(p)}">{escape(p)}</h2><p>{escape(format_counts(status_counts(mine)))}</p>')
-        out.append("<h3>Fastest scheme per accuracy (Pareto front)</h3>" + _pareto_table(mine))
-        fig = figs["work_precision"]
-        if fig:
-            out.append(f'<h3>Work-precision</h3><figure class="plot">{fig}<figcaption>{escape(figs["field"])} against '
-                       f"CPU seconds, one point per setting; colour: scheme family, marker: scheme."
-                       f"</figcaption></figure>")
-        fig = figs.get("work_precision_instructions")
-        if fig:
-            out.append(f'<h3>Work-precision in instructions</h3><figure class="plot">{fig}<figcaption>'
-                       f"{escape(figs['field'])} against the instructions of the integration, counted under "
-                       f"Valgrind (--cost instructions): a deterministic cost, blind to cache misses and "
-                       f"memory stalls; cells without a count are left out.</figcaption></figure>")
-        if drift:
-            fig, notes = figs["drift"], figs["drift_notes"]
-            if fig:
-                out.append(f'<h3>Invariant drift against time</h3><figure class="plot">{fig}<figcaption>'
-                           f"Relative error of each invariant (absolute where it starts at 0), log-log (a "
-                           f"slope is a growth law), for each scheme's setting of median CPU time (the upper "
-                           f"envelope each row keeps); one panel per invariant."
-                           f"{escape(' ' + '; '.join(notes)) if notes else ''}</figcaption></figure>")
-            fig, notes = figs.get("diagnostics"), figs.get("diagnostics_notes") or []
-            if fig:
-                out.append(f'<h3>Diagnostics against time</h3><figure class="plot">{fig}<figcaption>'
-                           f"Change of each diagnostic from its initial value, relative (absolute where it "
-                           f"starts at 0), log-log: quantities the problem watches but the flow does not "
-                           f"conserve, so never a drift and never classed."
-                           f"{escape(' ' + '; '.join(notes)) if notes else ''}</figcaption></figure>")
-        growth = _growth_table(mine)
-        if growth:
-            out.append("<h3>Growth classes</h3>" + growth)
-        orders = _orders_table([f for f in fits if f["problem"] == p])
-        if orders:
-            out.append("<h3>Observed order</h3><p class=\"note\">Least-squares slope of log error against "
-                       "log step over the asymptotic range (floors and pre-asymptotic points dropped), "
-                       "with its 95 % interval; only where at least two local slopes agree within 0.1 "
-                       "(otherwise the order is undetermined, listed below with its slopes, and never "
-                       "flagged).</p>" + orders)
-        mine_missing = [m for m in missing if m["problem"] == p]
-        if mine_missing:
-            out.append(("" if orders else "<h3>Observed order</h3>") + "<p>Left out of the order table:</p><ul>"
-                       + "".join(f"<li>{escape(m['integrator'])}: {escape(m['reason'])}</li>" for m in mine_missing)
-                       + "</ul>")
-        folded = _not_ok(mine)
-        if folded:
-            out.append("<h3>Not run to the end, or the solution lost</h3><ul>" + "".join(
-                f"<li>{escape(why)}: {escape(', '.join(s))}</li>" for why, s in sorted(folded.items())) + "</ul>")
+        out.append(_verdict_section(p, found[p], by_problem[p]))
+    out.append(_checks_section(checks))
+    if cards:
+        out.append(cards)
+    out.append('<h2 id="evidence">Evidence</h2><p class="note">What the verdicts rest on, per problem, folded: '
+               "click a line to open it.</p>")
+    for p in problems:
+        out.append(_evidence(p, by_problem[p], figures[p], fits, missing, drift))
     if history:
         out.append(history)
     out.append('<h2 id="capabilities">Capability matrix</h2>' + _capability_matrix(rows))
     stab = _stability_table({**interval_texts(plugins), **intervals}) if stability else None
     if stab:
         out.append('<h2 id="stability">Linear stability</h2>' + stab)
-    out.append(f'<p class="note">Written {datetime.now(timezone.utc).isoformat(timespec="seconds")} by '
-               f"<code>longtime report --html</code>.</p>")
+    out.append('<h2 id="about">The run and the machine</h2>' + _meta(runs))
+    out += _calibration_figures(runs)
+    out.append(f'<p class="note footer">Written {datetime.now(timezone.utc).isoformat(timespec="seconds")} by '
+               f"<code>longtime {escape(writer)}</code>.</p>")
     out.append(f"<script>{SCRIPT}</script></body></html>")
     return "\n".join(out)
 
@@ -287,27 +437,32 @@ def _calibration_figures(runs: list[dict[str, Any]]) -> list[str]:
 
 def write_page(out_dir: str | Path, rows: list[dict[str, Any]], runs: list[dict[str, Any]],
                drift: bool = True, jobs: int = 1, ahead: FiguresAhead | None = None,
-               history: str | None = None) -> Path:
+               history: str | None = None, checks: Iterable[dict[str, Any]] = (),
+               writer: str = "report --html") -> Path:
     """Write ``out_dir``/index.html (figures drawn on ``jobs`` processes, or ``ahead``);
     return its path."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     path = out / PAGE_NAME
-    path.write_text(build_page(rows, runs, drift=drift, jobs=jobs, ahead=ahead, history=history), encoding="utf-8")
+    path.write_text(build_page(rows, runs, drift=drift, jobs=jobs, ahead=ahead, history=history, checks=checks,
+                               writer=writer), encoding="utf-8")
     return path
 
 
 def write_html(out_dir, rows: list[dict[str, Any]], store, run_ids: Iterable[int] | None = None,
-               jobs: int | None = None, ahead=None):
-    """The results page of ``rows`` into ``out_dir``/index.html, headed by the metadata of
-    ``run_ids`` (default: every run the rows come from), its figures drawn on ``jobs``
-    processes (default: one per core) but for those drawn ``ahead`` (an
-    figures_ahead.FiguresAhead); returns its path."""
+               jobs: int | None = None, ahead=None, writer: str = "report --html"):
+    """The results page of ``rows`` into ``out_dir``/index.html, with the checks the store
+    keeps of ``run_ids``' predictions, its metadata at the end (default: every run the rows
+    come from), its figures drawn on ``jobs`` processes (default: one per core) but for those
+    drawn ``ahead`` (an figures_ahead.FiguresAhead); ``writer``: the command that writes it
+    (the footer names it); returns its path."""
     from longtime.reporting.history import page_section
 
     ids = sorted(set(run_ids) if run_ids is not None else {r.get("run_id") for r in rows if r.get("run_id")})
     runs = [{**r, "calibrations": store.calibrations(r["id"])} for r in store.runs() if r["id"] in ids]
+    checks = [c for i in ids for c in store.checks(i)]
     history = page_section(store, rows, styles(sorted({r["integrator"] for r in rows})))
     from longtime.execution.pool import workers
 
-    return write_page(out_dir, rows, runs, jobs=workers(jobs or 0), ahead=ahead, history=history)
+    return write_page(out_dir, rows, runs, jobs=workers(jobs or 0), ahead=ahead, history=history, checks=checks,
+                      writer=writer)

@@ -10,7 +10,9 @@ from typing import Any, Iterable
 import pandas as pd
 
 from longtime.core.fmt import number, positive
-from longtime.core.roles import ROW_PARAMETERS, row_columns, row_fields
+from longtime.core.roles import ROW_PARAMETERS, row_columns
+from longtime.reporting.rowtext import main_t_final, setting  # noqa: F401 (their home; read from here too)
+from longtime.reporting.verdict import verdict_lines, verdicts
 
 # the JSON contract (README.md, `--format json`): every row carries these keys (null where not applicable)
 CONTRACT_FIELDS = ("problem", "integrator", "status", "message", *ROW_PARAMETERS,
@@ -106,35 +108,9 @@ def format_counts(counts: dict[str, int]) -> str:
     return ", ".join(shown) or "no rows"
 
 
-def setting(row: dict[str, Any]) -> str:
-    """The swept parameters of a row as text: 'dt=0.01', 'tol=1e-08', 'eps_res=1e-06 N=10'
-    (the step only where no accuracy parameter is set), then its other settings."""
-    accuracy = any(row.get(k) for k in row_fields("accuracy"))
-    parts = [f"{k}={row[k]:.3g}" for k in (*row_fields("step"), *row_fields("accuracy"))
-             if positive(row.get(k)) and not (k in row_fields("step") and accuracy)]
-    for k in row_fields("order"):
-        order = row.get(k)
-        if positive(order):
-            parts.append(f"N={int(order)}")
-        elif order is not None and order == order:  # a stored value that is not a number: shown as it is
-            parts.append(f"N={order}")
-    if row.get("settings"):
-        parts.append(str(row["settings"]))
-    return " ".join(parts)
-
-
 def pareto_field(rows: list[dict[str, Any]]) -> str | None:
     ok = [r for r in rows if r.get("status") == "ok"]
     return next((f for f in PARETO_FIELDS if any(positive(r.get(f)) for r in ok)), None)
-
-
-def main_t_final(rows: list[dict[str, Any]]) -> float | None:
-    """The final time most of a problem's ok rows ran to (a sweep may add a few long runs)."""
-    counts: dict[float, int] = {}
-    for r in rows:
-        if r.get("status") == "ok" and positive(r.get("t_final")):
-            counts[r["t_final"]] = counts.get(r["t_final"], 0) + 1
-    return max(sorted(counts), key=lambda t: counts[t]) if counts else None
 
 
 def pareto(rows: list[dict[str, Any]], field: str | None = None) -> list[dict[str, Any]]:
@@ -241,11 +217,35 @@ def _order_text(f: dict[str, Any]) -> str:
     return text + (" MISSES" if f["order_flag"] else "")
 
 
-def summary(rows: list[dict[str, Any]], orders: bool = True) -> str:
-    """The terminal report read first: status counts, then per problem its Pareto front
-    (one line per accuracy decade), fitted orders that miss their declared order, growth
-    classes, why pairs were skipped (one line per reason) and the settings the default
-    matrix's budget moved (one line per pair)."""
+# the default report's lines per problem at most (``--full`` prints every line)
+MAX_PROBLEM_LINES = 60
+
+
+def _growth_counts(rows: list[dict[str, Any]]) -> list[str]:
+    """'growth classes of error: 7 linear, 7 quadratic, 39 undetermined (--full: per setting)'
+    for the solution error and the energy H (else the first invariant)."""
+    names = growth_names(rows)
+    drift = "H" if "H" in names else next((n for n in names if n != "error"), None)
+    out = []
+    for n in (x for x in ("error", drift) if x in names):
+        counts: dict[str, int] = {}
+        for r in rows:
+            c = r.get(f"{n}.growth_class")
+            if r.get("status") == "ok" and c:
+                counts[c] = counts.get(c, 0) + 1
+        text = ", ".join(f"{k} {counts[k]}" for k in sorted(counts, key=lambda k: -counts[k]))
+        out.append(f"growth of {'the solution error' if n == 'error' else n} per setting: {text}")
+    return out + (["(`--full`: each setting's class and each undetermined one's reason)"] if out else [])
+
+
+def summary(rows: list[dict[str, Any]], orders: bool = True, full: bool = False,
+            checks: Iterable[dict[str, Any]] = ()) -> str:
+    """The terminal report read first: status counts, then per problem the verdict (the
+    cheapest setting predicted per target and horizon, longtime.reporting.verdict), its
+    Pareto front at the run's final time (one line per accuracy decade), fitted orders that
+    miss their declared order, growth classes (counted; ``full``: per setting, with the
+    reasons), what did not run to the end and the settings the default matrix's budget moved
+    (one line per pair), at most MAX_PROBLEM_LINES lines a problem unless ``full``."""
     from longtime.execution.budget import notes
     from longtime.measure.orders import left_out, left_out_text, observed_orders
 
@@ -255,9 +255,15 @@ def summary(rows: list[dict[str, Any]], orders: bool = True) -> str:
     fits = observed_orders(rows) if orders else []
     missing = left_out(rows) if orders else []
     moved = notes(rows)
+    found = verdicts(rows, checks)
     for problem in sorted({r["problem"] for r in rows}):
         mine = [r for r in rows if r["problem"] == problem]
         lines = [f"== {problem}: {format_counts(status_counts(mine))} =="]
+        lines += verdict_lines(found[problem], full)
+        failed = [f"  {why}: {', '.join(schemes)}" for why, schemes in sorted(_not_ok(mine).items())]
+        lines += failed  # what failed comes right after the verdict: it never falls to the cut below
+        lines += [f"  moved by the default matrix's budget: {scheme} {note}"
+                  for (p, scheme), note in sorted(moved.items()) if p == problem]
         field = pareto_field(mine)
         front = pareto(mine, field) if field else []
         if front:
@@ -276,12 +282,10 @@ def summary(rows: list[dict[str, Any]], orders: bool = True) -> str:
         mine_missing = [m for m in missing if m["problem"] == problem]
         if mine_missing:
             lines.append("  left out of the order table: " + left_out_text(mine_missing))
-        lines += [f"  {g}" for g in _growth_summary(mine)]
-        for why, schemes in sorted(_not_ok(mine).items()):
-            lines.append(f"  {why}: {', '.join(schemes)}")
-        for (p, scheme), note in sorted(moved.items()):
-            if p == problem:
-                lines.append(f"  moved by the default matrix's budget: {scheme} {note}")
+        lines += [f"  {g}" for g in (_growth_summary(mine) if full else _growth_counts(mine))]
+        if not full and len(lines) > MAX_PROBLEM_LINES:
+            cut = len(lines) - MAX_PROBLEM_LINES + 1
+            lines = lines[:MAX_PROBLEM_LINES - 1] + [f"  ... {cut} more lines: `--full` prints them"]
         parts.append("\n".join(lines))
     return "\n\n".join(parts)
 
@@ -321,10 +325,12 @@ def to_parquet(rows: list[dict[str, Any]], path) -> None:
                          f"(the extra longtime[parquet]); {str(exc).splitlines()[0]}") from None
 
 
-def report_text(rows: list[dict[str, Any]], fmt: str = "table", full: bool = False) -> str:
-    """What ``longtime report`` prints: the summary first (format table), the full
-    per-cell tables after it with ``full``; csv, json and markdown are the full tables."""
+def report_text(rows: list[dict[str, Any]], fmt: str = "table", full: bool = False,
+                checks: Iterable[dict[str, Any]] = ()) -> str:
+    """What ``longtime report`` prints: the summary first (format table; ``checks``: the
+    stored checks of the verdicts' predictions), every line of it and the full per-cell
+    tables after it with ``full``; csv, json and markdown are the full tables."""
     if fmt != "table":
         return render(rows, fmt)
-    text = summary(rows)
+    text = summary(rows, full=full, checks=checks)
     return text + "\n\n" + render(rows, "table") if full else text

@@ -13,16 +13,21 @@ rows kept any is run again, untimed, skipped when its stored CPU time exceeds
 """
 from __future__ import annotations
 
-import json
 from typing import Any
 
 import numpy as np
 
 from longtime.core.fmt import positive
 from longtime.core.phases import phase
-from longtime.core.roles import ROW_PARAMETERS
-from longtime.reporting.figures import pyplot
-from longtime.reporting.figures.style import LINE_STYLES, family, legend_outside, svg
+from longtime.reporting.figures import plain_log_ticks, pyplot
+from longtime.reporting.figures.style import (
+    LEGEND_BESIDE,
+    LINE_STYLES,
+    family,
+    legend_columns,
+    legend_outside,
+    svg,
+)
 from longtime.reporting.report import (
     main_t_final,
     pareto_field,
@@ -118,21 +123,10 @@ def row_curves(row: dict) -> dict[str, list[tuple[str, np.ndarray, np.ndarray]]]
         first = [row["drift_curve"]] if row.get("drift_curve") else []
         return {"invariant": kept(row["drift_curves"] if "drift_curves" in row else first, "invariant"),
                 "diagnostic": kept(row.get("diag_curves"), "diagnostic")}
-    from longtime.core import registry
-    from longtime.execution.cells import Cell, integrate_cell
+    from longtime.execution.cells import cell_of_row, integrate_cell
     from longtime.measure.metrics import relative_error
 
-    # the row's settings are the problem's and the scheme's merged (cells.base_row): split them
-    settings = json.loads(row["settings"]) if row.get("settings") else {}
-    pcls, icls = registry.problem_class(row["problem"]), registry.integrator_class(row["integrator"])
-    psets = {k: v for k, v in settings.items() if k in pcls.parameters}
-    isets = {k: v for k, v in settings.items() if k in icls.parameters}
-    for k in ROW_PARAMETERS:  # the parameters with a row field of their own
-        value = row.get(k)
-        if k in icls.parameters and positive(value):
-            isets[k] = int(value) if icls.parameters[k].kind is int else value
-    problem, traj = integrate_cell(Cell(row["problem"], row["integrator"], psets, isets, row["t_final"]),
-                                   max_samples=DRIFT_SAMPLES)
+    problem, traj = integrate_cell(cell_of_row(row), max_samples=DRIFT_SAMPLES)
     with np.errstate(all="ignore"):
         return {kind: [(name, traj.t, relative_error(values)) for name, values in found.items()]
                 for kind, found in (("invariant", problem.invariants(traj.t, traj.u)),
@@ -165,9 +159,11 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
         notes.append(f"{', '.join(names[MAX_PANELS:])}: not drawn here (longtime plot drift --invariant NAME)")
         names = names[:MAX_PANELS]
     plt = pyplot()
+    # small multiples sized to their number: panels of a legible size (3.4 x 2.7 in), at most
+    # three across, the figure growing with their rows
     cols = min(len(names), 3)
     rows_ = -(-len(names) // cols)
-    size = (7.0, 4.2) if len(names) == 1 else (3.2 * cols, 2.6 * rows_ + 0.2)
+    size = (7.0, 4.2) if len(names) == 1 else (3.4 * cols, 2.7 * rows_ + 0.2)
     fig, axes = plt.subplots(rows_, cols, figsize=size, squeeze=False, sharex=True)
     what = "relative error" if kind == "invariant" else "relative change"
     handles: dict[str, Any] = {}
@@ -197,10 +193,15 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
             ax.tick_params(labelsize=8)
         if k >= len(names) - cols:
             ax.set_xlabel("t - t0")
-    axes[0, -1 if len(names) >= cols else len(names) - 1].legend(
-        list(handles.values()), list(handles), fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0),
-        borderaxespad=0.0, frameon=False)
-    fig.tight_layout()
+    for ax in axes.flat:  # plain tick labels before the layout: it measures the labels it is given
+        plain_log_ticks(ax)
+    fig.tight_layout()  # the panels laid out first: the legend below them takes no room from them
+    labels = list(handles)
+    if len(names) == 1 and len(labels) <= LEGEND_BESIDE:
+        legend_outside(axes[0, 0], list(handles.values()), labels)
+    else:  # below every panel, in as many columns as the figure's width holds
+        fig.legend(list(handles.values()), labels, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, 0.0),
+                   frameon=False, ncol=legend_columns(fig.get_figwidth(), labels))
     return svg(fig), notes
 
 

@@ -66,5 +66,26 @@ def svg(fig) -> str:
     return text[text.index("<svg"):]
 
 
-def legend_outside(ax) -> None:
-    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, frameon=False)
+# a legend of more entries than this goes below the axes, in columns, rather than beside them
+# (beside, 30 entries stand taller than the axes and squeeze them)
+LEGEND_BESIDE = 14
+
+
+def legend_columns(width_in: float, labels) -> int:
+    """How many columns of ``labels`` fit across ``width_in`` inches at font size 7."""
+    longest = max((len(str(x)) for x in labels), default=10)
+    return max(1, int(width_in / (0.3 + 0.065 * longest)))
+
+
+def legend_outside(ax, handles=None, labels=None) -> None:
+    """The legend outside the axes: beside them up to LEGEND_BESIDE entries, else below them in
+    as many columns as the figure's width holds."""
+    if handles is None:
+        handles, labels = ax.get_legend_handles_labels()
+    if len(handles) <= LEGEND_BESIDE:
+        ax.legend(handles, labels, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
+                  frameon=False)
+        return
+    width = ax.figure.get_figwidth()
+    ax.legend(handles, labels, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), borderaxespad=0.0,
+              frameon=False, ncol=legend_columns(width, labels))

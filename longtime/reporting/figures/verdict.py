@@ -1,0 +1,130 @@
+"""The verdict's figures on the results page: a problem's winner map (target error against
+horizon, each cell coloured by the scheme of the cheapest setting predicted to keep the
+target up to the horizon, its setting written in it, the checked predictions marked), and
+the checks of every problem (predicted against measured error)."""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from longtime.core.fmt import positive
+from longtime.reporting.figures import pyplot
+from longtime.reporting.figures.style import svg
+from longtime.reporting.rowtext import setting
+from longtime.reporting.verdict import CHECK_COST_FACTOR, CHECK_ERROR_FACTOR, Verdict, check_holds
+
+UNDETERMINED = "#d9d9d9"
+NONE = "#ffffff"
+
+
+def scheme_colours(schemes: list[str]) -> dict[str, Any]:
+    """One distinct colour per winning scheme of a map (tab20, then tab20b: a map has fewer
+    winners than schemes, and neighbours must differ even within a family)."""
+    import matplotlib
+
+    palette = [*matplotlib.colormaps["tab20"].colors[::2], *matplotlib.colormaps["tab20"].colors[1::2],
+               *matplotlib.colormaps["tab20b"].colors]
+    return {s: palette[i % len(palette)] for i, s in enumerate(schemes)}
+
+
+def _edges(values: list[float]) -> np.ndarray:
+    """Cell edges on a log axis around ``values`` (ascending): the geometric midpoints."""
+    v = np.log10(np.asarray(values, dtype=float))
+    step = np.diff(v).mean() if v.size > 1 else 1.0
+    mids = (v[:-1] + v[1:]) / 2
+    return 10 ** np.r_[v[0] - step / 2, mids, v[-1] + step / 2]
+
+
+def winner_map_svg(v: Verdict) -> str | None:
+    """The winner map of one problem's verdict, as inline SVG (None without a map)."""
+    if not v.grid or not v.targets:
+        return None
+    from matplotlib.patches import Patch
+
+    targets = sorted(v.targets)  # ascending: the finest at the bottom
+    horizons = list(v.horizons)
+    winners = list(dict.fromkeys(d.best.scheme for d in v.grid.values() if d.best is not None))
+    colours = scheme_colours(winners)
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(1.0 + 1.1 * len(horizons), 0.8 + 0.3 * len(targets)))
+    xe, ye = _edges(horizons), _edges(targets)
+    for i, t in enumerate(targets):
+        for j, h in enumerate(horizons):
+            d = v.grid[(t, h)]
+            colour = colours[d.best.scheme] if d.best is not None else (UNDETERMINED if d.open else NONE)
+            ax.fill_between([xe[j], xe[j + 1]], ye[i], ye[i + 1], color=colour, lw=0)
+            if d.best is not None:
+                text = setting(d.best.row) or d.best.scheme
+                ax.text(math.sqrt(xe[j] * xe[j + 1]), math.sqrt(ye[i] * ye[i + 1]), text, ha="center",
+                        va="center", fontsize=6.5, color="#111")
+    for x in xe:
+        ax.axvline(x, color="white", lw=0.6)
+    for y in ye:
+        ax.axhline(y, color="white", lw=0.6)
+    ax.axvline(v.t_main, color="#333", lw=1.0, ls="--")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlim(xe[0], xe[-1])
+    ax.set_ylim(ye[0], ye[-1])
+    ax.set_xticks(horizons)
+    ax.set_yticks(targets)
+    ax.minorticks_off()
+    ax.set_xlabel(f"horizon T (dashed: the runs' t_final {v.t_main:.4g})")
+    ax.set_ylabel(f"target: {v.measure.field} <=")
+    handles = [Patch(facecolor=colours[s], label=s) for s in winners]
+    handles += [Patch(facecolor=UNDETERMINED, edgecolor="#9e9e9e", label="undetermined: a cheaper law not known"),
+                Patch(facecolor=NONE, edgecolor="#9e9e9e", label="no setting predicted to reach it")]
+    checks = [c for c in v.checks if positive(c.get("t_final"))]
+    for c in checks:
+        held = check_holds(c)
+        y = c.get("measured_error") if positive(c.get("measured_error")) else c.get("predicted_error")
+        y = min(max(y, ye[0] * 1.05), ye[-1] / 1.05)  # a measured error off the map sits on its edge
+        ax.plot([c["t_final"]], [y], marker="o" if held else "X", ms=8, mfc="none" if held else "#b71c1c",
+                mec="#111" if held else "#b71c1c", mew=1.6, ls="none", zorder=5, clip_on=False)
+    if checks:
+        from matplotlib.lines import Line2D
+
+        handles += [Line2D([], [], marker="o", mfc="none", mec="#111", mew=1.6, ls="none",
+                           label="checked: held (at the measured error)"),
+                    Line2D([], [], marker="X", mfc="#b71c1c", mec="#b71c1c", ls="none", label="checked: missed (on the edge: off the map)")]
+    ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
+              frameon=False, ncol=1 if len(handles) <= 18 else 2)
+    return svg(fig)
+
+
+def checks_svg(checks: list[dict[str, Any]]) -> str | None:
+    """Predicted against measured error of every stored check (one marker per problem;
+    filled: the CPU time within CHECK_COST_FACTOR of the predicted), with the diagonal and
+    the band of CHECK_ERROR_FACTOR; None without a check that measured an error."""
+    judged = [c for c in checks if positive(c.get("measured_error")) and positive(c.get("predicted_error"))]
+    if not judged:
+        return None
+    from longtime.reporting.figures.style import MARKERS
+
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(4.6, 4.0))
+    problems = sorted({c["problem"] for c in judged})
+    for k, p in enumerate(problems):
+        mine = [c for c in judged if c["problem"] == p]
+        for c in mine:
+            cheap = positive(c.get("cpu_s")) and c["cpu_s"] <= CHECK_COST_FACTOR * c["predicted_cpu_s"]
+            ax.loglog([c["predicted_error"]], [c["measured_error"]], marker=MARKERS[k % len(MARKERS)], ms=7,
+                      color=f"C{k % 10}", mfc=f"C{k % 10}" if cheap else "none", ls="none")
+        ax.plot([], [], marker=MARKERS[k % len(MARKERS)], color=f"C{k % 10}", ls="none", label=p)
+    lo = min(min(c["predicted_error"], c["measured_error"]) for c in judged) / 10
+    hi = max(max(c["predicted_error"], c["measured_error"]) for c in judged) * 10
+    x = np.array([lo, hi])
+    ax.plot(x, x, color="#333", lw=0.8)
+    ax.fill_between(x, x / CHECK_ERROR_FACTOR, x * CHECK_ERROR_FACTOR, color="#4caf50", alpha=0.15,
+                    label=f"within x{CHECK_ERROR_FACTOR:g}")
+    ax.plot([], [], marker="o", mfc="none", color="#555", ls="none",
+            label=f"open: CPU above x{CHECK_COST_FACTOR:g} the predicted")
+    ax.set_xlim(lo, hi)
+    ax.set_ylim(lo, hi)
+    ax.set_xlabel("predicted error at the check's horizon")
+    ax.set_ylabel("measured error")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, frameon=False)
+    return svg(fig)

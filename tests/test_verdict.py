@@ -1,0 +1,207 @@
+"""The verdict (longtime.reporting.verdict) on synthetic rows whose laws are known, and
+`longtime recommend` on a store of them: who wins where, what is left undetermined and the
+run that would decide it, and bad input as one line with exit 2."""
+import json
+
+import pytest
+
+from longtime.commands import cli
+from longtime.core.params import InputError
+from longtime.execution.cells import Cell
+from longtime.execution.store import Store
+from longtime.reporting import verdict as V
+
+
+def _row(scheme, dt, error, cpu_s, law, alpha, t_final=100.0, problem="harmonic", reason="slopes ..."):
+    return {"problem": problem, "integrator": scheme, "status": "ok", "dt": dt, "order": None, "tol": None,
+            "eps_res": None, "t_final": t_final, "settings": "", "cpu_s": cpu_s, "repeats": 3,
+            "l2_error": error, "final_error": error, "reference": "exact", "solution_lost": False,
+            "error.growth": alpha, "error.growth_ci": [alpha - 0.05, alpha + 0.05], "error.growth_class": law,
+            "error.growth_reason": reason, "H.max": 1e-6, "H.growth_class": "bounded", "H.growth": 0.0}
+
+
+# verlet: bounded at 1e-4, 1e-4 s per unit time; rk4: linear from 1e-6, half verlet's cost;
+# gauss4: the most accurate and the cheapest, but its growth is undetermined
+BOUNDED = _row("verlet", 0.1, 1e-4, 0.01, "bounded", 0.02)
+LINEAR = _row("rk4", 0.1, 1e-6, 0.005, "linear", 1.3)  # a fitted alpha of 1.3: the class says 1
+OPEN = _row("gauss4", 0.1, 1e-8, 0.001, "undetermined", 0.6, reason="pre-asymptotic: slopes 0.2, 0.6, 1.1")
+ROWS = [BOUNDED, LINEAR, OPEN]
+
+
+def test_the_linear_scheme_wins_short_the_bounded_one_long():
+    cands = V.settings(ROWS, V.measure(ROWS))
+    short = V.decide(cands, 1e-3, 1e3)
+    assert short.best.scheme == "rk4" and short.runner_up.scheme == "verlet"
+    # rk4's error at T is its error at its t_final times (T / t_final)^1, the class's exponent
+    assert short.best.error_at(1e3) == pytest.approx(1e-5) and short.best.cpu_at(1e3) == pytest.approx(0.05)
+    assert short.best.error_at(1e5) == pytest.approx(1e-3)
+    long = V.decide(cands, 1e-3, 1e6)  # rk4 predicts 1e-2 there: the bounded scheme is the only one
+    assert long.best.scheme == "verlet" and long.runner_up is None
+    assert long.best.error_at(1e6) == pytest.approx(1e-4) and long.best.cpu_at(1e6) == pytest.approx(100.0)
+
+
+def test_undetermined_predicts_nothing_past_its_run_and_names_the_run_that_decides():
+    cands = V.settings(ROWS, V.measure(ROWS))
+    gauss = next(s for s in cands if s.scheme == "gauss4")
+    assert gauss.error_at(100.0) == 1e-8 and gauss.error_at(50.0) == 1e-8  # its own run: measured
+    assert gauss.error_at(101.0) is None and not gauss.extrapolates
+    d = V.decide(cands, 1e-3, 1e6)
+    assert [s.scheme for s in d.open] == ["gauss4"]  # cheaper than verlet, law unknown
+    assert V.decide(cands, 1e-3, 100.0).best.scheme == "gauss4"  # within its run it is measured
+    # a target only gauss4 keeps over its run: undetermined, not a winner
+    d = V.decide(cands, 1e-7, 1e4)
+    assert d.best is None and d.state == "undetermined"
+    assert V.deciding_run(gauss, 1e4) == "longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 10000"
+    assert V.deciding_run(gauss, 10.0).endswith("--t-final 1000")  # at least a decade past its run
+    assert V.decide(cands, 1e-12, 1e4).state == "none"
+
+
+def test_winner_map_spans_the_horizons_past_the_runs():
+    v = V.problem_verdict("harmonic", ROWS)
+    assert v.horizons[0] == 100.0 and v.horizons[-1] == 1e8
+    assert v.grid[(1e-3, 1e3)].best.scheme == "rk4" and v.grid[(1e-3, 1e6)].best.scheme == "verlet"
+    # the targets some setting reaches, and one decade finer
+    assert v.targets[0] == 1e-1 and v.targets[-1] == 1e-9
+    text = "\n".join(V.verdict_lines(v))
+    assert "verlet dt=0.1" in text and "rk4 dt=0.1" in text
+    assert "`longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 1000`" in text
+
+
+def test_rows_without_a_reference_are_judged_by_the_energy_error():
+    rows = [{**r, "l2_error": None, "final_error": None, "error.growth_class": None,
+             "H.max": r["l2_error"], "H.growth_class": r["error.growth_class"], "H.growth": r["error.growth"]}
+            for r in ROWS]
+    m = V.measure(rows)
+    assert (m.field, m.law) == ("H.max", "H") and "no reference" in m.text
+    assert V.decide(V.settings(rows, m), 1e-3, 1e6).best.scheme == "verlet"
+
+
+def test_a_lost_or_saturated_row_is_no_candidate():
+    lost = {**LINEAR, "integrator": "euler", "solution_lost": True}
+    saturated = {**LINEAR, "integrator": "midpoint", "error.growth_class": "saturated"}
+    assert {s.scheme for s in V.settings([lost, saturated, *ROWS], V.measure(ROWS))} == {"verlet", "rk4", "gauss4"}
+
+
+def test_checks_are_planned_within_budget_and_judged():
+    # rk4 wins past its run (up to T = 1e5 at 1e-3), at 5e-5 s per unit time: 1e4 is within
+    # 1 s; verlet wins only where rk4 does not hold (1e-4 from T = 1e5: 10 s)
+    plan = V.plan_checks(ROWS, limit=6, budget_s=1.0)
+    assert {(s.scheme, h) for s, h, _ in plan} == {("rk4", 1e4)}
+    wide = V.plan_checks(ROWS, limit=6, budget_s=20.0)
+    assert {(s.scheme, h) for s, h, _ in wide} == {("rk4", 1e5), ("verlet", 1e5)}
+    assert len(V.plan_checks(ROWS, limit=1, budget_s=20.0)) == 1
+    assert V.plan_checks(ROWS, budget_s=1e-4) == []
+    s = next(s for s, _, _ in plan if s.scheme == "rk4")
+    row = {**LINEAR, "t_final": 1e4, "l2_error": 2.5e-4, "cpu_s": 0.6}
+    c = V.check_row(s, 1e4, V.measure(ROWS), row)
+    assert c["predicted_error"] == pytest.approx(1e-4) and c["predicted_cpu_s"] == pytest.approx(0.5)
+    assert V.check_holds(c) is True  # within x3 and x1.5
+    assert V.check_holds({**c, "measured_error": 4e-4}) is False
+    assert V.check_holds({**c, "cpu_s": 0.8}) is False
+    assert V.check_holds({**c, "measured_error": None}) is None
+    assert V.check_summary([c, {**c, "measured_error": 4e-4}]).startswith("1 of 2 checked predictions held")
+
+
+@pytest.fixture
+def store(tmp_path):
+    db = tmp_path / "v.sqlite"
+    s = Store(db)
+    cells = [Cell(r["problem"], r["integrator"], {}, {"dt": r["dt"]}, r["t_final"]) for r in ROWS]
+    run = s.begin_run("matrix -p harmonic", cells)
+    for c, r in zip(cells, ROWS):
+        s.add_row(run, c, r)
+    s.finish_run(run, "done")
+    return str(db)
+
+
+def test_recommend_answers_in_a_few_lines(store, capsys):
+    assert cli.main(["recommend", "-p", "harmonic", "--error", "1e-3", "--horizon", "1e3", "--db", store]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) <= 6
+    assert lines[0].startswith("harmonic: keep l2_error <= 0.001 up to T = 1000")
+    assert lines[1].startswith("  use      rk4 dt=0.1: error 1e-05 at T") and "CPU 0.05 s" in lines[1]
+    assert lines[2].startswith("  runner-up verlet dt=0.1") and "x2 the CPU" in lines[2]
+    assert lines[-1].startswith("  evidence: 3 settings (2 with a growth law that extrapolates)")
+    assert cli.main(["recommend", "-p", "harmonic", "--error", "1e-3", "--horizon", "1e6", "--db", store]) == 0
+    out = capsys.readouterr().out
+    assert "use      verlet dt=0.1" in out and "runner-up: none" in out
+    assert f"open     gauss4 dt=0.1" in out and "--t-final 1e+06 --db" in out
+
+
+def test_recommend_from_python_is_the_same_answer(store):
+    import longtime
+
+    rec = longtime.recommend("harmonic", 1e-3, 1e3, db=store)
+    assert (rec.scheme, rec.setting, rec.runner_up) == ("rk4", "dt=0.1", "verlet dt=0.1")
+    assert rec.predicted_error == pytest.approx(1e-5) and rec.predicted_cpu_s == pytest.approx(0.05)
+    # from rows in memory: the same answer (the deciding runs name no store)
+    assert longtime.recommend("harmonic", 1e-3, 1e3, rows=ROWS).lines[:3] == rec.lines[:3]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["-p", "nope", "--error", "1e-3", "--horizon", "1e3"], "-p nope: unknown problem; known:"),
+    (["-p", "harmonic", "--error", "0", "--horizon", "1e3"], "--error takes a finite number > 0, got '0'"),
+    (["-p", "harmonic", "--error", "1e-3", "--horizon", "-5"], "--horizon takes a finite number > 0, got '-5'"),
+    (["-p", "kepler", "--error", "1e-3", "--horizon", "1e3"], "no rows of kepler in the store: `longtime matrix -p kepler"),
+    (["-p", "harmonic", "--error", "1e-7", "--horizon", "1e4"],
+     "would decide it"),
+    (["-p", "harmonic", "--error", "1e-12", "--horizon", "1e4"], "no stored setting keeps l2_error <= 1e-12"),
+])
+def test_recommend_bad_input_is_one_line_exit_2(store, capsys, args, message):
+    try:
+        code = cli.main(["recommend", *args, "--db", store])
+    except SystemExit as exc:  # argparse's errors (the guard's parser: one line)
+        code = exc.code
+    assert code == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1, err
+    if "would decide" in message:
+        assert "`longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 10000" in err
+
+
+def test_recommend_without_a_store_names_the_command(tmp_path, capsys):
+    missing = str(tmp_path / "none.sqlite")
+    assert cli.main(["recommend", "-p", "kepler", "--error", "1e-6", "--horizon", "1e5", "--db", missing]) == 2
+    err = capsys.readouterr().err
+    assert f"no such file; `longtime matrix -p kepler --db {missing}`" in err and not (tmp_path / "none.sqlite").exists()
+
+
+def test_recommend_on_a_store_of_no_verdict_names_the_command(tmp_path):
+    with pytest.raises(InputError, match=r"no ok row of harmonic with an error.*`longtime matrix -p harmonic`"):
+        V.recommend([{**LINEAR, "status": "diverged"}], "harmonic", 1e-3, 1e3)
+
+
+def test_checks_are_stored_apart_from_the_rows(store):
+    s = Store(store)
+    cell = Cell("harmonic", "rk4", {}, {"dt": 0.1}, 1e4)
+    s.add_check(1, cell, {"problem": "harmonic", "integrator": "rk4", "predicted_error": 1e-4})
+    assert [c["predicted_error"] for c in s.checks(1)] == [1e-4] and s.checks(2) == []
+    assert len(s.rows(1)) == 3  # no row of the run is added
+    assert json.loads(json.dumps(s.checks()))[0]["run_id"] == 1
+
+
+def test_checks_of_a_real_run_hold_and_are_stored(tmp_path):
+    """rk4 on the harmonic oscillator: its solution error grows linearly (the phase), so the
+    RMS error predicted at 100 and 1000 times the run holds within x3 when run there; the
+    checks are stored beside the run, the report and the page show them."""
+    from longtime.reporting.page import build_page
+    from longtime.reporting.report import summary
+
+    db = str(tmp_path / "c.sqlite")
+    assert cli.main(["matrix", "-p", "harmonic", "-i", "rk4", "--dt", "0.1,0.05", "--t-final", "50", "--repeats", "3",
+                     "--min-time", "0", "--db", db, "--executor", "serial", "--no-progress", "--no-report",
+                     "--checks", "0"]) == 0
+    store = Store(db)
+    rows = store.rows(1)
+    assert store.checks(1) == [] and all(r["error.growth_class"] == "linear" for r in rows)
+    checks = V.run_checks(store, 1, rows, budget_s=0.05)
+    assert {(c["dt"], c["t_final"]) for c in checks} == {(0.1, 5e4), (0.05, 5e3)}  # the longest within budget
+    for c in checks:
+        assert V.check_holds(c) is not None
+        assert c["measured_error"] == pytest.approx(c["predicted_error"], rel=0.5)  # the law holds that far
+        assert c["check_field"] == "l2_error" and c["from_t_final"] == 50.0
+    assert store.checks(1) == [{"run_id": 1, **c} for c in checks] and len(store.rows(1)) == 2
+    text = summary(rows, checks=store.checks(1))
+    assert "  checks: " in text and "2 checked predictions held" in text
+    page = build_page(rows, [], drift=False, stability=False, checks=store.checks(1))
+    assert '<h2 id="checks">' in page and "checked: held" in page
