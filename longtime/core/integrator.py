@@ -153,6 +153,9 @@ class Integrator(ABC):
     # ``long_t_final``): one more cell at the problem's default step; a set of problem names
     # limits those cells to these problems
     long_runs: ClassVar[bool | frozenset[str]] = False
+    # what a reader of stored rows must know about the name (rows it meant before a
+    # correction): `longtime list` shows it, and `run` and `report` say it on stderr
+    notice: ClassVar[str] = ""
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
