@@ -169,3 +169,21 @@ def test_arenstorf_orbit_closes_after_one_period():
     x, v = 0.994, -2.00158510637908252240537862224
     J0 = x * x + 2 * (1 - mu) / (x + mu) + 2 * mu / abs(x - 1 + mu) - v * v
     assert J[0] == pytest.approx(J0, rel=1e-15) and np.abs(J - J0).max() < 1e-12
+
+
+def test_the_new_problems_and_schemes_are_in_the_default_matrix():
+    from longtime.execution.cells import expand
+
+    new = ["pythagorean-three-body", "charged-particle", "lotka-volterra", "restricted-three-body"]
+    assert set(new) <= set(registry.default_problems())
+    cells = expand(new, ["boris", "rk4", "kahan-li-8", "mclachlan-8", "rebound-janus", "rebound-mercurius",
+                         "rebound-saba1064"], default_sweep=True)
+    runnable = {(c.problem, c.integrator) for c in cells
+                if I(c.integrator)().incompatibility(P(c.problem)()) is None}
+    assert ("charged-particle", "boris") in runnable and ("lotka-volterra", "rk4") in runnable
+    assert {("pythagorean-three-body", s) for s in ("kahan-li-8", "mclachlan-8")} <= runnable
+    if _rebound() is not None:
+        assert {("pythagorean-three-body", s) for s in ("rebound-janus", "rebound-mercurius",
+                                                         "rebound-saba1064")} <= runnable
+    # boris's paper-scale cell: 1e5 on the charged particle, where rk4's drift shows
+    assert {c.t_final for c in cells if (c.problem, c.integrator) == ("charged-particle", "boris")} == {1000.0, 1e5}

@@ -21,10 +21,12 @@ class PythagoreanThreeBody(NBody):
     name = "pythagorean-three-body"
     summary = "Burrau's three bodies (masses 3, 4, 5 at rest on a 3-4-5 triangle): close encounters, escape"
     default_t_final = 70.0
-    # no fixed step resolves the closest encounters: the sweep shows what the fixed-step
-    # schemes make of them at a cost the default matrix affords
+    # no fixed step resolves the closest encounters (r = 4e-4 passed at speed ~ 300), so no
+    # fixed step is in the asymptotic range and a sweep of steps would fit no order: one
+    # step shows what each fixed-step scheme makes of them (MERCURIUS, which hands every
+    # encounter to IAS15, is the costly cell)
     default_dt = 1e-3
-    sweep_dt = (1e-3, 5e-4)
+    sweep_dt = (1e-3,)
     sweep_t_final = 70.0
 
     def masses(self):
