@@ -79,24 +79,22 @@ class Boris(FixedStepIntegrator):
         field_B, field_E = problem.field_B, problem.field_E
 
         @numba.njit
-        def fields(u, params, work, particles):
-            for k in range(particles):
-                field_B(u[3 * k:3 * k + 3], params, work[B_ROW, 3 * k:3 * k + 3])
-                field_E(u[3 * k:3 * k + 3], params, work[E_ROW, 3 * k:3 * k + 3])
-
-        @numba.njit
         def step(t, u, h, params, work, counters, first):
             n3 = u.size // 2
             particles = n3 // 3
             evals = 0
             if first:  # otherwise work holds the fields at x^n from the last step's end
-                fields(u, params, work, particles)
+                for k in range(particles):
+                    field_B(u[3 * k:3 * k + 3], params, work[B_ROW, 3 * k:3 * k + 3])
+                    field_E(u[3 * k:3 * k + 3], params, work[E_ROW, 3 * k:3 * k + 3])
                 evals += 1
             for k in range(particles):
                 half_kick(u, n3, k, h, work)
             for i in range(n3):
                 u[i] += h * u[n3 + i]
-            fields(u, params, work, particles)
+            for k in range(particles):
+                field_B(u[3 * k:3 * k + 3], params, work[B_ROW, 3 * k:3 * k + 3])
+                field_E(u[3 * k:3 * k + 3], params, work[E_ROW, 3 * k:3 * k + 3])
             evals += 1
             for k in range(particles):
                 implicit_half_kick(u, n3, k, h, work)
