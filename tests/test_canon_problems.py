@@ -124,7 +124,7 @@ def boris_step_jacobian(problem, u, h):
 def test_boris_preserves_phase_space_volume():
     # in (x^n, v^(n-1/2)) the Boris step preserves volume; in the state (x^n, v^n) its
     # determinant is (1 + h^2 |B(x^n)|^2/4) / (1 + h^2 |B(x^(n+1))|^2/4): it telescopes over a
-    # run and never accumulates. rk4's determinant is neither.
+    # run and never accumulates.
     problem = P("charged-particle")()
     h = 0.3
     u = problem.u0.copy()
