@@ -115,3 +115,16 @@ def test_list_shows_the_notice(capsys):
     lines = capsys.readouterr().out.splitlines()
     at = next(i for i, line in enumerate(lines) if line.split()[:1] == ["kahan-li-8"])
     assert lines[at + 2].split()[:1] == ["notice:"] and "mclachlan-8" in lines[at + 2]
+
+
+def test_run_says_the_notice_on_stderr_only(capsys):
+    import json
+
+    from longtime.commands.cli import main
+
+    code = main(["run", "--no-store", "--format", "json", "--repeats", "1", "-p", "kepler", "-i", "kahan-li-8,verlet",
+                 "--t-final", "0.5"])
+    out = capsys.readouterr()
+    assert code == 0
+    assert [r["integrator"] for r in json.loads(out.out)] == ["kahan-li-8", "verlet"]  # stdout: the rows only
+    assert out.err.count("notice: kahan-li-8:") == 1 and "mclachlan-8" in out.err
