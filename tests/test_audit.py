@@ -23,9 +23,11 @@ from longtime.core.roles import ROW_PARAMETERS
 from longtime.execution import cells as cells_module
 from longtime.execution.cells import Cell, run_cell
 
-# tiny problems, first compatible one wins (constraints: the pendulum; a linear part: kdv)
-PROBLEMS = (("harmonic", {}), ("kepler", {}), ("double-pendulum", {}), ("kdv", {"d": 16}))
-T_FINAL = {"harmonic": 2.3, "kepler": 2.3, "double-pendulum": 0.3, "kdv": 0.3}
+# tiny problems, first compatible one wins (constraints: the pendulum; a linear part: kdv;
+# the Lorentz force: the charged particle)
+PROBLEMS = (("harmonic", {}), ("kepler", {}), ("double-pendulum", {}), ("kdv", {"d": 16}),
+            ("charged-particle", {}))
+T_FINAL = {"harmonic": 2.3, "kepler": 2.3, "double-pendulum": 0.3, "kdv": 0.3, "charged-particle": 2.3}
 SCHEMES = sorted(registry.integrators())
 # a value of each built-in parameter that must change a short run; a parameter of a new
 # scheme not listed here gets a generic probe (_probe)

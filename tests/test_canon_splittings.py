@@ -1,4 +1,5 @@
-"""The published splittings: Blanes-Moan S6, Suzuki's fractal composition, Kahan-Li s15odr8.
+"""The published splittings: Blanes-Moan S6, Suzuki's fractal composition, McLachlan's p8s15,
+Kahan-Li p8s17.
 
 Their coefficients are checked against the order conditions through the flows they compose
 (on non-commuting matrices), their orders observed on kepler through longtime.measure.orders, and
@@ -19,7 +20,8 @@ from longtime.measure.orders import observed_orders
 CANON = [
     ("blanes-moan-s6", 4, 6, (25, 50, 100, 200)),
     ("suzuki4", 4, 5, (25, 50, 100, 200)),
-    ("kahan-li-8", 8, 15, (20, 28, 40, 56)),
+    ("mclachlan-8", 8, 15, (20, 28, 40, 56)),
+    ("kahan-li-8", 8, 17, (20, 28, 40, 56)),
 ]
 IDS = [c[0] for c in CANON]
 
@@ -47,9 +49,11 @@ def test_coefficients_meet_the_order_conditions(scheme, order, forces, _):
 
 
 def test_symmetric_compositions_are_palindromes_summing_to_one():
-    from longtime.integrators.splitting import KAHAN_LI_8, SUZUKI_P
+    from longtime.integrators.splitting import KAHAN_LI_8, MCLACHLAN_8, SUZUKI_P
 
-    assert 2 * sum(KAHAN_LI_8[:7]) + KAHAN_LI_8[7] == pytest.approx(1.0, abs=1e-15)
+    assert 2 * sum(MCLACHLAN_8[:7]) + MCLACHLAN_8[7] == pytest.approx(1.0, abs=1e-15)
+    assert 2 * sum(KAHAN_LI_8[:8]) + KAHAN_LI_8[8] == pytest.approx(1.0, abs=1e-15)
+    assert KAHAN_LI_8[0] == 0.13020248308889008087881763  # HLW's gamma_1 of p8s17
     assert SUZUKI_P == pytest.approx(0.41449077179437573714, abs=1e-15)
     for scheme in IDS:
         cls = registry.integrator_class(scheme)
@@ -94,3 +98,33 @@ def test_stability_interval_is_measured_and_plausible(scheme, order, forces, _, 
     assert found["y"] == pytest.approx(rotation_interval(registry.integrator_class(scheme)), abs=1e-9)
     # beyond Verlet's 2, below the 2 s that s force evaluations allow at most
     assert 2.0 < found["y"] < 2 * forces
+
+
+def test_kahan_li_8_is_p8s17_and_its_old_rows_are_named():
+    # 17 Verlet steps: 17 drifts, 18 kicks merged to 17 + the last; the notice names mclachlan-8
+    cls = registry.integrator_class("kahan-li-8")
+    assert np.count_nonzero(cls.drifts) == 17
+    assert np.count_nonzero(registry.integrator_class("mclachlan-8").drifts) == 15
+    assert "mclachlan-8" in cls.notice and "p8s15" in cls.notice
+
+
+def test_list_shows_the_notice(capsys):
+    from longtime.commands.cli import main
+
+    assert main(["list"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    at = next(i for i, line in enumerate(lines) if line.split()[:1] == ["kahan-li-8"])
+    assert lines[at + 2].split()[:1] == ["notice:"] and "mclachlan-8" in lines[at + 2]
+
+
+def test_run_says_the_notice_on_stderr_only(capsys):
+    import json
+
+    from longtime.commands.cli import main
+
+    code = main(["run", "--no-store", "--format", "json", "--repeats", "1", "-p", "kepler", "-i", "kahan-li-8,verlet",
+                 "--t-final", "0.5"])
+    out = capsys.readouterr()
+    assert code == 0
+    assert [r["integrator"] for r in json.loads(out.out)] == ["kahan-li-8", "verlet"]  # stdout: the rows only
+    assert out.err.count("notice: kahan-li-8:") == 1 and "mclachlan-8" in out.err

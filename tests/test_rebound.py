@@ -1,4 +1,5 @@
-"""REBOUND's leapfrog, WHFast and IAS15 on the n-body family, beside the built-in schemes.
+"""REBOUND's leapfrog, WHFast, MERCURIUS, JANUS, SABA(10,6,4) and IAS15 on the n-body family, beside the
+built-in schemes.
 
 The outer solar system's figures are asserted at 1e5 days here (a test stays short); the
 1e6-day figures and their command are in docs/schemes.md.
@@ -153,3 +154,44 @@ def test_rebounds_warnings_reach_the_row():
     traj = registry.integrator_class("rebound-whfast")(dt=0.0253).integrate(problem, 1.0)
     assert traj.status == "diverged" and traj.t[-1] == pytest.approx(0.0253)
     assert "REBOUND: Possible convergence issue" in traj.message
+
+
+@needs_rebound
+def test_saba_and_mercurius_energy_at_ten_days(oss):
+    # 1e4 steps of 10 days: SABA(10,6,4)'s error is of order eps h^10 + eps^3 h^4 (measured
+    # 4.1e-14), MERCURIUS is WHFast's order 2 in democratic heliocentric coordinates (8.7e-9)
+    saba, traj = energy_error("rebound-saba1064", oss, DAYS, dt=10.0)
+    assert saba.max() < 1e-12 and traj.steps == 10_000
+    mercurius, _ = energy_error("rebound-mercurius", oss, DAYS, dt=10.0)
+    assert 1e-10 < mercurius.max() < 1e-7
+
+
+@needs_rebound
+def test_janus_returns_bit_for_bit():
+    # JANUS runs on integers (positions and velocities in units of 1e-16): forward 1000 steps,
+    # then back 1000 with -dt, it returns to the start bit for bit. The start is the initial
+    # state as JANUS holds it: its first conversion to integers rounds the velocities (their
+    # doubles carry bits below 1e-16), so a first forward-and-back run sets it.
+    oss = registry.problem_class("outer-solar-system")()
+    sim = registry.integrator_class("rebound-janus")(dt=10.0).simulation(oss)
+
+    def state():
+        x, v = np.zeros((sim.N, 3)), np.zeros((sim.N, 3))
+        sim.serialize_particle_data(xyz=x, vxvyvz=v)
+        return np.concatenate([x, v]).view(np.int64)
+
+    u0 = oss.u0.copy()
+    sim.steps(1000)
+    sim.dt = -sim.dt
+    sim.steps(1000)
+    start = state()
+    x0, v0 = oss._split(u0[None, :])[1][0], oss._split(u0[None, :])[2][0] / oss.masses()[:, None]
+    x, v = start.view(float)[:sim.N], start.view(float)[sim.N:]
+    assert np.array_equal(x, x0) and np.max(np.abs(v - v0)) <= 1e-16  # rounded to JANUS's scale only
+    sim.dt = -sim.dt
+    sim.steps(1000)
+    ahead = state()
+    assert np.abs(ahead.view(float) - start.view(float)).max() > 1  # it moved (Jupiter: 1e4 days)
+    sim.dt = -sim.dt
+    sim.steps(1000)
+    assert np.array_equal(state(), start)

@@ -149,6 +149,15 @@ def _warn_broken() -> None:
         print(f"warning: plugin {b.group} '{b.name}' ({b.target}) failed to load: {b.error}", file=sys.stderr)
 
 
+def _notices(schemes) -> None:
+    """The notice of each named scheme that has one (``Integrator.notice``), on stderr."""
+    known = registry.integrators()
+    for name in sorted(set(schemes)):
+        notice = getattr(known.get(name), "notice", "")
+        if notice:
+            print(f"notice: {name}: {notice}", file=sys.stderr)
+
+
 def cmd_list(args) -> int:
     problems, schemes = registry.problems(), registry.integrators()
     data = {
@@ -158,7 +167,8 @@ def cmd_list(args) -> int:
         "integrators": [{"name": n, "summary": c.summary, "kind": c.kind, "order": c.order,
                          "symplectic": c.symplectic, "requires": sorted(c.requires),
                          "parameters": {k: p.default for k, p in c.parameters.items()},
-                         "imaginary_interval": stability.intervals(n, compute=args.stability)}
+                         "imaginary_interval": stability.intervals(n, compute=args.stability),
+                         "notice": c.notice}
                         for n, c in schemes.items()],
         "broken": [vars(b) for b in registry.broken()],
     }
@@ -174,6 +184,8 @@ def cmd_list(args) -> int:
         sym = " symplectic" if i["symplectic"] else ""
         print(f"  {i['name']:24s} {i['kind']:8s} order {i['order']}{sym}; needs {needs}\n"
               f"  {'':24s} {i['summary']}; parameters: {', '.join(i['parameters']) or '-'}")
+        if i["notice"]:
+            print(f"  {'':24s} notice: {i['notice']}")
         if i["imaginary_interval"]:
             print(f"  {'':24s} stable on the imaginary axis (|R(iy)| <= 1), y in: " + "; ".join(
                 f"{label} {stability.format_interval(r)}".strip() for label, r in i["imaginary_interval"].items()))
@@ -189,6 +201,7 @@ def cmd_run(args) -> int:
 
     _warn_broken()
     cells = expand(args.problem, args.integrator, **_selection(args), strict=True)
+    _notices(c.integrator for c in cells)
     if not args.allow_large:
         check_size(cells, args.max_samples, args.memory_limit)
     # by default one cell at a time in one worker process, under the hard limits (longtime.execution.limits);
@@ -353,6 +366,7 @@ def cmd_report(args) -> int:
     checks = store.checks() if args.run == "all" else store.checks(run_id)
     if args.problem:
         rows = [r for r in rows if r["problem"] in args.problem]
+    _notices(r["integrator"] for r in rows)
     from longtime.reporting.page import write_html
     from longtime.reporting.report import report_text, to_parquet
 

@@ -31,11 +31,14 @@ CAPABILITIES: dict[str, tuple[str, ...]] = {
     "linear_part": ("linear_part", "nonlinear"),
     # a fast linear oscillation with unit masses: q'' = -Omega^2 q - grad U(q), Omega diagonal
     "oscillatory": ("frequencies", "grad_U"),
+    # a velocity-dependent (Lorentz) force on unit charges and masses in space:
+    # u = (x, v), x and v in R^(3N), x_k'' = v_k x B(x_k) + E(x_k) for each particle k
+    "lorentz": ("field_B", "field_E"),
 }
 
 # compiled functions a problem may provide (see docs/plugins.md)
 COMPILED_ATTRIBUTES = ("rhs", "grad_T", "grad_V", "jac", "taylor", "linear_part", "nonlinear",
-                       "frequencies", "grad_U")
+                       "frequencies", "grad_U", "field_B", "field_E")
 CONSTRAINT_FUNCTIONS = ("phi", "grad_phi", "mass", "grad_U")
 KINDS = ("fixed", "adaptive", "external")
 # every name a plugin gives (problem, scheme, parameter, invariant): it becomes part of file

@@ -207,6 +207,10 @@ class Integrator(ABC):
     step_cost: ClassVar[float] = 1.0
     python_step_s: ClassVar[float] = 0.0
 
+    # what a reader of stored rows must know about the name (rows it meant before a
+    # correction): `longtime list` shows it, and `run` and `report` say it on stderr
+    notice: ClassVar[str] = ""
+
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
         from longtime.core.contract import check_integrator_definition

@@ -20,6 +20,10 @@ schemes can close compiled loops over them.
     frequencies(params, out)            ("oscillatory", with grad_U) H = |p|^2/2 +
     grad_U(q, params, out)              |Omega q|^2/2 + U(q): out = diag(Omega), shape (n,),
                                         and dU/dq (the slow force's negative), shape (n,)
+    field_B(x, params, out)             ("lorentz", with field_E) a charged particle (unit
+    field_E(x, params, out)             charge and mass) in space: u = (x, v), x, v in
+                                        R^(3N), x_k'' = v_k x B(x_k) + E(x_k); out = B(x_k),
+                                        E(x_k) at one position x_k, shape (3,) each
 
 Python-level capabilities (vectorised over samples; ``U`` has shape (n, dim)):
 
@@ -121,6 +125,8 @@ class Problem(ABC):
     nonlinear: ClassVar[Any] = None
     frequencies: ClassVar[Callable | None] = None
     grad_U: ClassVar[Callable | None] = None
+    field_B: ClassVar[Callable | None] = None
+    field_E: ClassVar[Callable | None] = None
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)

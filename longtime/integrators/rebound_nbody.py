@@ -1,9 +1,12 @@
 """REBOUND's integrators (Rein and Liu 2012; pip package ``rebound``) as external schemes on
 the n-body family: ``rebound-leapfrog`` (drift-kick-drift, order 2), ``rebound-whfast``
-(Wisdom-Holman in Jacobi coordinates, Rein and Tamayo 2015) and ``rebound-ias15`` (the
-adaptive 15th-order Gauss-Radau integrator, Rein and Spiegel 2015, with its tolerance
-epsilon as ``tol``). REBOUND's defaults otherwise (WHFast: safe mode, no symplectic
-correctors; IAS15: its default step-size criterion).
+(Wisdom-Holman in Jacobi coordinates, Rein and Tamayo 2015), ``rebound-mercurius`` (hybrid
+Wisdom-Holman and IAS15 at close encounters, Rein et al. 2019), ``rebound-janus`` (the
+bit-reversible integer composition, Rein and Tamayo 2018), ``rebound-saba1064`` (SABA(10,6,4),
+Rein, Tamayo and Brown 2019) and ``rebound-ias15`` (the adaptive 15th-order Gauss-Radau
+integrator, Rein and Spiegel 2015, with its tolerance epsilon as ``tol``). REBOUND's
+defaults otherwise (WHFast and SABA: safe mode, no symplectic correctors; MERCURIUS: its
+switching radius; JANUS: order 6, scales 1e-16; IAS15: its default step-size criterion).
 
 The n-body family is every problem that subclasses ``longtime.problems.nbody.NBody``,
 plugins included: its ``masses()``, ``G`` and ``space_dim`` and the state u = (q, p) with
@@ -230,6 +233,46 @@ class ReboundWHFast(ReboundFixed):
     summary = ("REBOUND's WHFast (Wisdom-Holman, Jacobi coordinates, order 2) on n-body problems; external, "
                "needs rebound")
     integrator = "whfast"
+
+
+class ReboundMercurius(ReboundFixed):
+    """MERCURIUS (Rein et al. 2019): Wisdom-Holman in democratic heliocentric coordinates,
+    switching smoothly to IAS15 for the close encounters of any pair (within REBOUND's default
+    switching radius, 3 Hill radii). The central body is the problem's first."""
+
+    name = "rebound-mercurius"
+    summary = ("REBOUND's MERCURIUS (hybrid Wisdom-Holman / IAS15 at close encounters, order 2) on n-body "
+               "problems; external, needs rebound")
+    integrator = "mercurius"
+
+
+class ReboundJanus(ReboundFixed):
+    """JANUS (Rein and Tamayo 2018): a symplectic composition run on integers (positions and
+    velocities in units of ``scale_pos`` and ``scale_vel``, REBOUND's 1e-16), so that each
+    step is bit-reversible: a run forward, then back with -dt, returns to its start bit for
+    bit. REBOUND's default order, 6."""
+
+    name = "rebound-janus"
+    summary = ("REBOUND's JANUS (bit-reversible symplectic composition on integers, order 6) on n-body "
+               "problems; external, needs rebound")
+    integrator = "janus"
+    order = 6
+
+
+class ReboundSABA1064(ReboundFixed):
+    """SABA(10,6,4) (Blanes et al. 2013; Rein, Tamayo and Brown 2019): a Wisdom-Holman
+    splitting in Jacobi coordinates with error O(eps h^10 + eps^2 h^6 + eps^3 h^4) for a
+    perturbation of size eps; its ``order`` is 4, what it keeps without a dominant mass."""
+
+    name = "rebound-saba1064"
+    summary = ("REBOUND's SABA(10,6,4) (Wisdom-Holman splitting, Jacobi coordinates, order 4 in h, 10 in "
+               "eps h) on n-body problems; external, needs rebound")
+    integrator = "saba"
+    order = 4
+
+    def configure(self, sim, problem):
+        super().configure(sim, problem)
+        sim.integrator.type = "10_6_4"
 
 
 class ReboundIAS15(Rebound):

@@ -7,7 +7,8 @@ potential
 with the book's data: eps / k_B = 119.8 K, sigma = 0.341 nm, m = 66.34e-27 kg, positions in
 nm and velocities in nm/ns. The state is in the book's length and time units, nm and ns, with
 the atom's mass as the unit of mass: p_k = v_k (nm/ns), energies in m nm^2/ns^2
-(1 m nm^2/ns^2 = 66.34e-27 J), eps = 119.8 k_B / m = 24,932.8 nm^2/ns^2.
+(1 m nm^2/ns^2 = 66.34e-27 J), eps = 119.8 k_B / m = 119.8 x 1.380658e-23 / 66.34e-27
+= 24,932.59 nm^2/ns^2.
 State u = (x_1, y_1, ..., x_7, y_7, p_1, ..., p_7). Invariants: H, the angular momentum L
 and the linear momentum P (0 initially: an absolute error).
 """
