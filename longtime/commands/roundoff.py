@@ -78,36 +78,8 @@ def run_member(config: Config, steps: int, member: int, seed: int) -> dict[str, 
             "nl_iters": traj.counters.get("nl_iters", 0)}
 
 
-def _tasks_run(tasks: list[tuple], jobs: int, scheduler: str | None):
-    """Yield (task, result) as the members finish: a Dask cluster at ``scheduler``, else a
-    pool of ``jobs`` local processes (spawned: heyoka's and numba's threads do not fork)."""
-    if scheduler:
-        try:
-            from distributed import Client, as_completed
-        except ImportError:
-            raise InputError("--scheduler needs dask.distributed: pip install 'longtime[dask]'") from None
-        client = Client(scheduler)
-        try:
-            futures = {client.submit(run_member, *task[1:], pure=False): task for task in tasks}
-            for fut in as_completed(futures):
-                yield futures[fut], fut.result()
-        finally:
-            client.close()
-        return
-    from concurrent.futures import as_completed
-
-    from longtime.execution.pool import spawn_pool
-    from longtime.execution.pool import workers as pool_workers
-
-    workers = pool_workers(jobs)
-    if workers == 1:
-        for task in tasks:
-            yield task, run_member(*task[1:])
-        return
-    with spawn_pool(workers) as pool:
-        futures = {pool.submit(run_member, *task[1:]): task for task in tasks}
-        for fut in as_completed(futures):
-            yield futures[fut], fut.result()
+def _run_task(index: int, config: Config, steps: int, member: int, seed: int) -> dict[str, Any]:
+    return run_member(config, steps, member, seed)
 
 
 def study(steps: int = 10**7, ensemble: int = 8, seed: int = 1, jobs: int = 0, scheduler: str | None = None,
@@ -122,7 +94,9 @@ def study(steps: int = 10**7, ensemble: int = 8, seed: int = 1, jobs: int = 0, s
     # a task: (config index, config, steps, member, seed); member -1 is the unperturbed run
     tasks = [(i, c, steps, m, seed) for i, c in enumerate(configs) for m in range(-1, ensemble)]
     results: list[dict[int, dict]] = [{} for _ in configs]
-    for n, ((i, _, _, member, _), result) in enumerate(_tasks_run(tasks, jobs, scheduler), 1):
+    from longtime.execution.pool import run_tasks
+
+    for n, ((i, _, _, member, _), result) in enumerate(run_tasks(_run_task, tasks, jobs, scheduler), 1):
         results[i][member] = result
         if progress:
             print(f"roundoff: {n}/{len(tasks)} runs done", file=sys.stderr, end="\r", flush=True)

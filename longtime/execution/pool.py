@@ -5,7 +5,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
-from typing import Callable
+from typing import Any, Callable, Iterator
 
 
 def workers(jobs: int, tasks: int | None = None) -> int:
@@ -20,3 +20,35 @@ def spawn_pool(workers: int, initializer: Callable | None = None, initargs: tupl
     Dask client's) have started can deadlock, so no pool forks."""
     return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                                initializer=initializer, initargs=initargs)
+
+
+def run_tasks(fn: Callable, tasks: list[tuple], jobs: int, scheduler: str | None = None) -> Iterator[tuple[tuple, Any]]:
+    """Yield (task, fn(*task)) as the tasks finish: on the Dask cluster at ``scheduler``, else
+    on a pool of ``workers(jobs)`` spawned processes (in this process when that is one).
+    The studies that fan out independent runs (round-off, the breakdown horizon) use it."""
+    if scheduler:
+        try:
+            from distributed import Client, as_completed
+        except ImportError:
+            from longtime.core.params import InputError
+
+            raise InputError("--scheduler needs dask.distributed: pip install 'longtime[dask]'") from None
+        client = Client(scheduler)
+        try:
+            futures = {client.submit(fn, *task, pure=False): task for task in tasks}
+            for fut in as_completed(futures):
+                yield futures[fut], fut.result()
+        finally:
+            client.close()
+        return
+    from concurrent.futures import as_completed as finished
+
+    n = workers(jobs, len(tasks))
+    if n == 1:
+        for task in tasks:
+            yield task, fn(*task)
+        return
+    with spawn_pool(n) as pool:
+        futures = {pool.submit(fn, *task): task for task in tasks}
+        for fut in finished(futures):
+            yield futures[fut], fut.result()
