@@ -79,3 +79,29 @@ def test_lost_chaotic_rows_enter_no_order_fit_and_no_pareto_front():
     fit = next(f for f in fits if f.get("integrator") == "rk4")
     assert fit["observed_order"] == pytest.approx(4.0, abs=1e-9), fit
     assert [p[0] for p in fit["order_points"]] == [0.005, 0.01]
+
+
+def test_ensemble_tells_euler_from_rk4_on_the_double_pendulum_past_its_horizon():
+    """Past 100 Lyapunov times pointwise errors are O(1) for every scheme, but the distribution
+    of the first coordinate over the last half of the run is heyoka's for rk4 (within twice
+    the spread between two reference ensembles) and not for explicit Euler."""
+    from longtime.commands.ensemble import study
+
+    rows = study(["double-pendulum"], ["rk4", "euler"], dt=0.001, t_final=100.0, members=8)
+    by = {r["integrator"]: r for r in rows}
+    assert by["rk4"]["span_lyapunov"] > 50
+    floor = by["rk4"]["ensemble.floor"]
+    assert 0 < floor < 0.2
+    assert by["rk4"]["ensemble.distance"] <= 2 * floor, by["rk4"]
+    assert by["euler"]["ensemble.distance"] > 5 * floor, by["euler"]
+    assert by["euler"]["verdict"].startswith("told apart")
+
+
+def test_ensemble_refuses_a_regular_problem_and_bad_sizes():
+    from longtime.commands.ensemble import study
+    from longtime.core.params import InputError
+
+    with pytest.raises(InputError, match="not a chaotic problem"):
+        study(["kepler"], ["rk4"])
+    with pytest.raises(InputError, match="--size"):
+        study(["double-pendulum"], ["rk4"], size=0.0)

@@ -30,7 +30,7 @@ from longtime.measure.reference import budget_seconds
 from longtime.reporting.report import render
 
 # modules that add subcommands: each defines add_parser(subparsers) and sets func
-COMMAND_MODULES: tuple[str, ...] = ("longtime.commands.asv_init", "longtime.commands.cache_cmd", "longtime.reporting.compare", "longtime.reporting.history", "longtime.commands.horizon",
+COMMAND_MODULES: tuple[str, ...] = ("longtime.commands.asv_init", "longtime.commands.cache_cmd", "longtime.reporting.compare", "longtime.reporting.history", "longtime.commands.horizon", "longtime.commands.ensemble",
                                    "longtime.commands.matched", "longtime.plot", "longtime.commands.reproduce", "longtime.commands.roundoff",
                                    "longtime.commands.warmup")
 

@@ -213,8 +213,35 @@ def explain(rows: list[dict], steps: int, ensemble: int, seed: int) -> str:
     ])
 
 
+def spread(args) -> int:
+    """``--spread FIELD``: the round-off spread of one figure of a chaotic run."""
+    import json
+
+    from longtime.execution.cells import Cell, build
+    from longtime.measure.ensemble import field_spread
+
+    if not (args.problem and args.integrator and args.t_final):
+        raise InputError("--spread needs -p PROBLEM, -i SCHEME and --t-final T (and --dt for a fixed step)")
+    settings = {"dt": args.dt} if args.dt is not None else {}
+    problem, scheme = build(Cell(args.problem, args.integrator, {}, settings))
+    if args.ensemble < 2:
+        raise InputError(f"--ensemble {args.ensemble}: --spread needs an integer >= 2")
+    out = field_spread(problem, scheme, args.t_final, args.spread, args.ensemble, args.size, args.seed)
+    out.update(problem=args.problem, scheme=args.integrator, dt=args.dt, t_final=args.t_final)
+    if args.format == "json":
+        print(json.dumps(out, indent=1))
+    else:
+        print(f"{args.problem} x {args.integrator} (dt {args.dt}, t_final {args.t_final:g}): {args.spread} = "
+              f"{out['value']:.6g} from the initial state; {out['min']:.6g} .. {out['max']:.6g} over "
+              f"{args.ensemble} initial states perturbed by a relative {args.size:g} (seed {args.seed})")
+    return 0
+
+
 def cmd_roundoff(args) -> int:
     import json
+
+    if args.spread:
+        return spread(args)
 
     if args.ensemble < 0:
         raise InputError(f"--ensemble {args.ensemble}: expected an integer >= 0")
@@ -239,6 +266,15 @@ def add_parser(subparsers) -> None:
     p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="run the members on this Dask cluster")
     p.add_argument("--no-heyoka", action="store_true", help="leave out heyoka's row")
     p.add_argument("--format", choices=["markdown", "json"], default="markdown")
+    g = p.add_argument_group("the round-off spread of one figure of a chaotic run (--spread)")
+    g.add_argument("--spread", metavar="FIELD", default=None,
+                   help="a row field measured without a reference (I.max, H.max): its value over --ensemble "
+                        "initial states perturbed by --size")
+    g.add_argument("-p", "--problem", default=None, metavar="PROBLEM")
+    g.add_argument("-i", "--integrator", default=None, metavar="SCHEME")
+    g.add_argument("--dt", type=float, default=None)
+    g.add_argument("--t-final", type=float, default=None, metavar="T")
+    g.add_argument("--size", type=float, default=1e-14, help="relative perturbation (default 1e-14)")
     p.set_defaults(func=cmd_roundoff)
 
 
