@@ -105,3 +105,19 @@ def test_ensemble_refuses_a_regular_problem_and_bad_sizes():
         study(["kepler"], ["rk4"])
     with pytest.raises(InputError, match="--size"):
         study(["double-pendulum"], ["rk4"], size=0.0)
+
+
+def test_a_chaotic_figure_is_given_with_its_round_off_spread(capsys):
+    """Past its predictability horizon the double pendulum's H.max under rk4 depends on
+    round-off: perturbing u0 by a relative 1e-14 moves it, and the spread brackets a range."""
+    from longtime.commands.cli import main
+
+    code = main(["roundoff", "--spread", "H.max", "-p", "double-pendulum", "-i", "rk4", "--dt", "0.002",
+                 "--t-final", "60", "--ensemble", "4", "--format", "json"])
+    assert code == 0
+    import json
+
+    out = json.loads(capsys.readouterr().out)
+    assert out["field"] == "H.max" and len(out["values"]) == 4
+    assert out["min"] < out["max"]  # chaos: round-off moves the figure
+    assert main(["roundoff", "--spread", "H.max", "-p", "double-pendulum", "-i", "rk4", "--dt", "0.002"]) == 2
