@@ -101,3 +101,25 @@ def add_parser(subparsers) -> None:
                    help="the last share of the span the distributions are taken over")
     p.add_argument("--format", choices=["markdown", "json"], default="markdown")
     p.set_defaults(func=cmd_ensemble)
+
+
+def section(quick: bool) -> str:
+    """The reproduction report's section on chaos: Lyapunov times and ensembles past the
+    predictability horizon, on the chaotic problems of the paper and the canon."""
+    cases = [("double-pendulum", ["rk4", "euler"], 0.001, 100.0),
+             ("henon-heiles", ["verlet", "rk4"], 0.05, 1000.0),
+             ("figure-eight-perturbed", ["verlet", "rk4"], None, None)]
+    members = 6 if quick else 16
+    parts = []
+    for problem, schemes, dt, t_final in cases:
+        rows = study([problem], schemes, dt=dt, t_final=t_final, members=members)
+        parts += [f"`longtime ensemble -p {problem} -i {','.join(schemes)}"
+                  + (f" --dt {dt:g}" if dt else "") + (f" --t-final {t_final:g}" if t_final else "")
+                  + f" --members {members}`", "", markdown(rows), ""]
+    return "\n".join([
+        "Past a few Lyapunov times a pointwise error is O(1) for every scheme; what can still be right is the "
+        "distribution the orbit visits. W1 / std: the Wasserstein distance between the scheme's and heyoka's "
+        "ensembles (last half of the run), in units of heyoka's standard deviation; beside it, the same distance "
+        "between two heyoka ensembles of other seeds (docs/metrics.md, \"Chaos\"). \"Lyapunov times\" is the "
+        "span in Lyapunov times where a Lyapunov time is determined (\"-\": no sign of chaos on the measured span)."
+        + (" (**quick**: 6 members a scheme.)" if quick else ""), "", *parts])
