@@ -404,6 +404,18 @@ def section_roundoff(ctx: Context) -> str:
     return section(ctx.quick, jobs=ctx.options.jobs)
 
 
+def section_chaos(ctx: Context) -> str:
+    from longtime.commands.ensemble import section  # Lyapunov times, ensembles past the horizon
+
+    return section(ctx.quick)
+
+
+def section_horizon(ctx: Context) -> str:
+    from longtime.commands.horizon import section  # the breakdown time T*(dt)
+
+    return section(ctx.quick, jobs=ctx.options.jobs)
+
+
 SECTIONS: list[tuple[str, Callable[[Context], str]]] = [
     ("Toda lattice: E_mean at t_f = 5000 (docs/problems.md 1)", section_toda),
     ("Three-body figure-eight (docs/problems.md 2)", section_figure_eight),
@@ -411,6 +423,8 @@ SECTIONS: list[tuple[str, Callable[[Context], str]]] = [
     ("Duffing oscillator (docs/problems.md 4)", section_duffing),
     ("Korteweg-de Vries soliton (docs/problems.md 5)", section_kdv),
     ("Round-off: Brouwer's law against linear drift", section_roundoff),
+    ("Exponentially long times: the energy's breakdown T*(dt)", section_horizon),
+    ("Chaos measured as chaos: Lyapunov times and distributions", section_chaos),
 ]
 
 

@@ -78,36 +78,8 @@ def run_member(config: Config, steps: int, member: int, seed: int) -> dict[str, 
             "nl_iters": traj.counters.get("nl_iters", 0)}
 
 
-def _tasks_run(tasks: list[tuple], jobs: int, scheduler: str | None):
-    """Yield (task, result) as the members finish: a Dask cluster at ``scheduler``, else a
-    pool of ``jobs`` local processes (spawned: heyoka's and numba's threads do not fork)."""
-    if scheduler:
-        try:
-            from distributed import Client, as_completed
-        except ImportError:
-            raise InputError("--scheduler needs dask.distributed: pip install 'longtime[dask]'") from None
-        client = Client(scheduler)
-        try:
-            futures = {client.submit(run_member, *task[1:], pure=False): task for task in tasks}
-            for fut in as_completed(futures):
-                yield futures[fut], fut.result()
-        finally:
-            client.close()
-        return
-    from concurrent.futures import as_completed
-
-    from longtime.execution.pool import spawn_pool
-    from longtime.execution.pool import workers as pool_workers
-
-    workers = pool_workers(jobs)
-    if workers == 1:
-        for task in tasks:
-            yield task, run_member(*task[1:])
-        return
-    with spawn_pool(workers) as pool:
-        futures = {pool.submit(run_member, *task[1:]): task for task in tasks}
-        for fut in as_completed(futures):
-            yield futures[fut], fut.result()
+def _run_task(index: int, config: Config, steps: int, member: int, seed: int) -> dict[str, Any]:
+    return run_member(config, steps, member, seed)
 
 
 def study(steps: int = 10**7, ensemble: int = 8, seed: int = 1, jobs: int = 0, scheduler: str | None = None,
@@ -122,7 +94,9 @@ def study(steps: int = 10**7, ensemble: int = 8, seed: int = 1, jobs: int = 0, s
     # a task: (config index, config, steps, member, seed); member -1 is the unperturbed run
     tasks = [(i, c, steps, m, seed) for i, c in enumerate(configs) for m in range(-1, ensemble)]
     results: list[dict[int, dict]] = [{} for _ in configs]
-    for n, ((i, _, _, member, _), result) in enumerate(_tasks_run(tasks, jobs, scheduler), 1):
+    from longtime.execution.pool import run_tasks
+
+    for n, ((i, _, _, member, _), result) in enumerate(run_tasks(_run_task, tasks, jobs, scheduler), 1):
         results[i][member] = result
         if progress:
             print(f"roundoff: {n}/{len(tasks)} runs done", file=sys.stderr, end="\r", flush=True)
@@ -239,8 +213,35 @@ def explain(rows: list[dict], steps: int, ensemble: int, seed: int) -> str:
     ])
 
 
+def spread(args) -> int:
+    """``--spread FIELD``: the round-off spread of one figure of a chaotic run."""
+    import json
+
+    from longtime.execution.cells import Cell, build
+    from longtime.measure.ensemble import field_spread
+
+    if not (args.problem and args.integrator and args.t_final):
+        raise InputError("--spread needs -p PROBLEM, -i SCHEME and --t-final T (and --dt for a fixed step)")
+    settings = {"dt": args.dt} if args.dt is not None else {}
+    problem, scheme = build(Cell(args.problem, args.integrator, {}, settings))
+    if args.ensemble < 2:
+        raise InputError(f"--ensemble {args.ensemble}: --spread needs an integer >= 2")
+    out = field_spread(problem, scheme, args.t_final, args.spread, args.ensemble, args.size, args.seed)
+    out.update(problem=args.problem, scheme=args.integrator, dt=args.dt, t_final=args.t_final)
+    if args.format == "json":
+        print(json.dumps(out, indent=1))
+    else:
+        print(f"{args.problem} x {args.integrator} (dt {args.dt}, t_final {args.t_final:g}): {args.spread} = "
+              f"{out['value']:.6g} from the initial state; {out['min']:.6g} .. {out['max']:.6g} over "
+              f"{args.ensemble} initial states perturbed by a relative {args.size:g} (seed {args.seed})")
+    return 0
+
+
 def cmd_roundoff(args) -> int:
     import json
+
+    if args.spread:
+        return spread(args)
 
     if args.ensemble < 0:
         raise InputError(f"--ensemble {args.ensemble}: expected an integer >= 0")
@@ -265,6 +266,15 @@ def add_parser(subparsers) -> None:
     p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="run the members on this Dask cluster")
     p.add_argument("--no-heyoka", action="store_true", help="leave out heyoka's row")
     p.add_argument("--format", choices=["markdown", "json"], default="markdown")
+    g = p.add_argument_group("the round-off spread of one figure of a chaotic run (--spread)")
+    g.add_argument("--spread", metavar="FIELD", default=None,
+                   help="a row field measured without a reference (I.max, H.max): its value over --ensemble "
+                        "initial states perturbed by --size")
+    g.add_argument("-p", "--problem", default=None, metavar="PROBLEM")
+    g.add_argument("-i", "--integrator", default=None, metavar="SCHEME")
+    g.add_argument("--dt", type=float, default=None)
+    g.add_argument("--t-final", type=float, default=None, metavar="T")
+    g.add_argument("--size", type=float, default=1e-14, help="relative perturbation (default 1e-14)")
     p.set_defaults(func=cmd_roundoff)
 
 

@@ -102,6 +102,11 @@ class Problem(ABC):
     # False for a diagnostic problem (the linear test equation): `longtime matrix` and
     # `longtime warmup` run it only when it is named with -p
     in_default_matrix: ClassVar[bool] = True
+    # a problem whose motion can be chaotic: its rows carry the Lyapunov time measured from
+    # the reference (longtime.measure.lyapunov, over ``lyapunov_span``, default the default
+    # final time) and each row's predictability horizon in Lyapunov times
+    chaotic: ClassVar[bool] = False
+    lyapunov_span: ClassVar[float | None] = None
     autonomous: ClassVar[bool] = True
     # |u|_1 above blowup_factor * max(1, |u0|_inf), or a non-finite component, is a
     # divergence (the 1-norm: a branch-free sum in the compiled drivers, which every

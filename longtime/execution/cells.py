@@ -25,7 +25,8 @@ from longtime.core.problem import Problem
 from longtime.core.roles import ROW_PARAMETERS
 from longtime.execution import limits
 from longtime.execution.tempdirs import disk_full
-from longtime.measure import metrics
+from longtime.measure import lyapunov, metrics
+from longtime.measure.metrics import O1_ERROR
 from longtime.measure.reference import ReferenceUnavailable, has_reference, trusted_reference
 
 DEFAULT_MAX_SAMPLES = 100_001
@@ -34,8 +35,6 @@ DEFAULT_TIME_LIMIT = 600.0
 # a cell beyond these is refused up front, unless --allow-large
 MAX_STEPS = 10**9
 MAX_SAMPLE_BYTES = 4 * 2**30
-# a relative error (l2 or final) from this on is O(1): the row's message says so
-O1_ERROR = 0.5
 
 
 @dataclass(frozen=True)
@@ -326,6 +325,8 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
             keep.update(problem=problem, integrator=integrator, trajectory=traj, reference=ref, trust=trust)
         with phases.phase("metrics"):
             row.update(metrics.evaluate(problem, traj, ref, trust))
+            if problem.chaotic and reference:
+                row.update(lyapunov.row_fields(problem, row))
         row["working_set_bytes"] = working_set(integrator, problem, traj)
         row["status"] = traj.status
         worst = max((e for e in (row.get("l2_error"), row.get("final_error")) if e is not None), default=None)

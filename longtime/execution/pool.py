@@ -5,7 +5,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
-from typing import Callable
+from typing import Any, Callable, Iterator
 
 
 def workers(jobs: int, tasks: int | None = None) -> int:
@@ -65,3 +65,34 @@ def _is_main_guard(stmt) -> bool:
     names = [s.id for s in sides if isinstance(s, ast.Name)]
     consts = [s.value for s in sides if isinstance(s, ast.Constant)]
     return isinstance(stmt.test.ops[0], ast.Eq) and names == ["__name__"] and consts == ["__main__"]
+
+def run_tasks(fn: Callable, tasks: list[tuple], jobs: int, scheduler: str | None = None) -> Iterator[tuple[tuple, Any]]:
+    """Yield (task, fn(*task)) as the tasks finish: on the Dask cluster at ``scheduler``, else
+    on a pool of ``workers(jobs)`` spawned processes (in this process when that is one).
+    The studies that fan out independent runs (round-off, the breakdown horizon) use it."""
+    if scheduler:
+        try:
+            from distributed import Client, as_completed
+        except ImportError:
+            from longtime.core.params import InputError
+
+            raise InputError("--scheduler needs dask.distributed: pip install 'longtime[dask]'") from None
+        client = Client(scheduler)
+        try:
+            futures = {client.submit(fn, *task, pure=False): task for task in tasks}
+            for fut in as_completed(futures):
+                yield futures[fut], fut.result()
+        finally:
+            client.close()
+        return
+    from concurrent.futures import as_completed as finished
+
+    n = workers(jobs, len(tasks))
+    if n == 1:
+        for task in tasks:
+            yield task, fn(*task)
+        return
+    with spawn_pool(n) as pool:
+        futures = {pool.submit(fn, *task): task for task in tasks}
+        for fut in finished(futures):
+            yield futures[fut], fut.result()

@@ -15,6 +15,9 @@ first one's alone).
 Diagnostics (``Problem.diagnostics``: quantities watched, not conserved): diag.NAME.max and
 diag.NAME.final of |D(t) - D(0)| / |D(0)| (absolute where D(0) = 0) and their curves in
 ``diag_curves``; never a growth class.
+A problem that declares itself ``chaotic`` adds ``predictability_t``: the first sample time
+at which the relative solution error reaches O1_ERROR (null where it stays below, or
+without a reference).
 Non-finite values become null: a diverged run is a status, never a NaN in a table.
 """
 from __future__ import annotations
@@ -28,9 +31,13 @@ from longtime.core.contract import check_name
 from longtime.core.integrator import Trajectory
 from longtime.core.problem import Problem
 from longtime.measure.growth import growth_fields
+from longtime.measure.lyapunov import predictability
 from longtime.measure.reference import Trust, trust_fields
 
 DRIFT_POINTS = 80  # points of the drift curve each row keeps (drift_envelope)
+# a relative error (l2, final, or the solution error at a sample) from this on is O(1): the
+# solution is not followed (a row's ``solution_lost``, a chaotic row's predictability horizon)
+O1_ERROR = 0.5
 
 
 def finite_or_none(x) -> float | None:
@@ -147,6 +154,8 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
         **growth_fields("error", np.empty(0), np.empty(0), problem.t0),  # null without a reference
         **trust_fields(trust),
     }
+    if problem.chaotic:  # the first time the solution error reaches O(1) (null: it never does)
+        row["predictability_t"] = None
     # a diverged run ends on a non-finite state: measure the finite part (until the blow-up)
     finite = int(np.argmin(np.isfinite(U).all(axis=1))) if not np.isfinite(U).all() else t.size
     t, U = t[:finite], U[:finite]
@@ -190,6 +199,8 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
             rel = diff / np.where(ref > 0, ref, 1.0)
             row.update(growth_fields("error", t[:k], rel, problem.t0, diverged, steps=steps))
             row["error_horizon"] = float(t[k - 1])
+            if problem.chaotic:
+                row["predictability_t"] = predictability(t[:k], rel, O1_ERROR)
             if k == finite:
                 row["final_error"] = finite_or_none(diff[-1] / ref[-1] if ref[-1] > 0 else diff[-1])
     row.update(traj.extra)

@@ -36,6 +36,7 @@ from typing import Any, Iterable
 
 from longtime.core.fmt import positive
 from longtime.core.roles import row_fields
+from longtime.measure.lyapunov import past_predictability
 from longtime.numerics.loglog import fit_slope
 
 ROUND_OFF_FLOOR = 1e-13
@@ -206,7 +207,8 @@ def _fit(members: list[dict]) -> tuple[dict | None, dict]:
                f"fewer than two rows with {' or '.join(ERROR_FIELDS)}")
         return None, {"reason": why, "dropped": [], "slopes": []}
     points = [(_x(r), float(r[field]), r.get("reference_error") if field == "l2_error" else None)
-              for r in distinct_runs(ok, field) if positive(r.get(field)) and _x(r) is not None]
+              for r in distinct_runs(ok, field) if positive(r.get(field)) and _x(r) is not None
+              and not (field == "l2_error" and past_predictability(r))]  # a lost chaotic solution
     variable = "dt" if all(_fixed_step(r) for r in members) else "mean_dt"
     found = asymptotic_range(points, variable)
     used, dropped, slopes = found["used"], sorted(found["dropped"]), [float(x) for x in found["slopes"]]

@@ -136,6 +136,8 @@ class PendulumConstraints:
 class DoublePendulum(Problem):
     name = "double-pendulum"
     summary = "Cartesian double pendulum, two rod constraints (index-1 ODE for unconstrained schemes)"
+    chaotic = True
+    lyapunov_span = 100.0
     parameters = {
         "m1": Param(1.0, "mass of the first bob", float, positive=True, role="physical"),
         "m2": Param(1.0, "mass of the second bob", float, positive=True, role="physical"),

@@ -173,6 +173,7 @@ class Duffing2(_Duffing):
 class DuffingForced(_Duffing):
     name = "duffing-forced"
     summary = "forced damped Duffing (a=-1, b=1, r=0.3, w=1.2), forcing amplitude c (0.5: chaotic)"
+    chaotic = True
     parameters = {"c": Param(0.5, "forcing amplitude (paper: 0.20, 0.28, 0.29, 0.37, 0.50, 0.65)", float, role="physical")}
     autonomous = False
     default_t_final = 1000.0

@@ -73,6 +73,8 @@ def _frequencies(params, out):
 class FPU(Problem):
     name = "fpu"
     summary = "Fermi-Pasta-Ulam-Tsingou with stiff springs (HLW I.5): oscillatory energy I near-conserved"
+    chaotic = True
+    lyapunov_span = 2000.0
     parameters = {
         "m": Param(3, "number of stiff springs (2m masses)", int, minimum=1, maximum=10**4, role="physical"),
         "omega": Param(50.0, "frequency of the stiff springs", float, positive=True, role="physical"),

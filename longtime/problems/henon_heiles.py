@@ -33,6 +33,8 @@ def potential(x, y):
 class HenonHeiles(Problem):
     name = "henon-heiles"
     summary = "Henon-Heiles potential, chaotic at energies near 1/6"
+    chaotic = True
+    lyapunov_span = 10_000.0
     parameters = {
         "energy": Param(1 / 6 - 1e-3, "energy E, 0 < E < 1/6 (bounded motion)", float, positive=True,
                         maximum=1 / 6, role="physical"),

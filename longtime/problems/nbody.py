@@ -211,6 +211,7 @@ class FigureEightPerturbed(FigureEight):
 
     name = "figure-eight-perturbed"
     summary = "figure-eight with the middle body shifted along its orbit (chaotic, hard)"
+    chaotic = True
     parameters = {"shift": Param(80.0, "body 3 moved to t = T/shift on the orbit", float, positive=True, role="physical")}
     default_t_final = 200 * FIGURE_EIGHT_PERIOD
     sweep_t_final = 20 * FIGURE_EIGHT_PERIOD

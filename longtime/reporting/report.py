@@ -11,6 +11,7 @@ import pandas as pd
 
 from longtime.core.fmt import number, positive
 from longtime.core.roles import ROW_PARAMETERS, row_columns
+from longtime.measure.lyapunov import past_predictability
 from longtime.reporting.rowtext import main_t_final, setting  # noqa: F401 (their home; read from here too)
 from longtime.reporting.verdict import verdict_lines, verdicts
 
@@ -118,11 +119,12 @@ def pareto(rows: list[dict[str, Any]], field: str | None = None) -> list[dict[st
     compare): per accuracy decade 10^-k, the fastest ok row whose ``field`` is at most 10^-k
     (minimum CPU of its repeats), and the fastest row of another scheme meeting the same
     target (``next``, with ``slower`` = its time / the fastest's). Only decades some row
-    meets, from the coarsest to the finest."""
+    meets, from the coarsest to the finest. A chaotic problem's row whose solution error
+    reached O(1) has no L2 accuracy to offer (``lyapunov.past_predictability``)."""
     field = field or pareto_field(rows)
     t_main = main_t_final(rows)
     ok = [r for r in rows if r.get("status") == "ok" and positive(r.get("cpu_s")) and positive(r.get(field))
-          and r.get("t_final") == t_main]
+          and r.get("t_final") == t_main and not (field == "l2_error" and past_predictability(r))]
     out = []
     for target in DECADES:
         meets = sorted((r for r in ok if r[field] <= target), key=lambda r: r["cpu_s"])
@@ -290,7 +292,7 @@ def summary(rows: list[dict[str, Any]], orders: bool = True, full: bool = False,
     return "\n\n".join(parts)
 
 
-# an ok row whose error reached O(1) (cells.O1_ERROR): it ran to the end, but lost the solution
+# an ok row whose error reached O(1) (metrics.O1_ERROR): it ran to the end, but lost the solution
 LOST = "ok but error O(1), the solution not followed"
 
 

@@ -1,0 +1,153 @@
+"""Statistical accuracy past the predictability horizon: on a chaotic problem a pointwise
+error means nothing after a few Lyapunov times, but the distribution the orbit visits does.
+
+An ensemble of K initial states, the problem's own perturbed by a seeded relative ``size``
+(u0_k = u0 (1 + size z), z ~ N(0, 1) from rng([seed, k])), is integrated by the scheme and
+by heyoka (double, the reference integrator at tolerance 1e-15). The observable (the
+problem's ``chaos_observable`` where it declares one, else the first state component) is
+pooled over the members and over the late window of the run (its last ``window`` share of
+the span), and the two pools are compared by the 1-Wasserstein distance (scipy), divided by
+the reference pool's standard deviation: 0 means the same distribution, 1 a shift by a
+standard deviation.
+
+How small a distance can be told from zero: the ensemble is finite, so two reference
+ensembles of other seeds differ too. ``floor`` is the distance between the reference pool
+and a second reference ensemble (seed + 1): a scheme's distance at or below it is as good
+as the reference can show.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from longtime.core.integrator import Integrator
+from longtime.core.problem import Problem
+
+DEFAULT_MEMBERS = 16
+DEFAULT_SIZE = 1e-6
+DEFAULT_WINDOW = 0.5
+GRID = 2001  # reference samples per member over the span
+MAX_SAMPLES = 20_001
+
+
+def initial_states(problem: Problem, members: int, size: float, seed: int) -> list[np.ndarray]:
+    return [problem.u0 * (1.0 + size * np.random.default_rng([seed, k]).standard_normal(problem.dim))
+            for k in range(members)]
+
+
+def observable(problem: Problem, t: np.ndarray, U: np.ndarray) -> tuple[str, np.ndarray]:
+    """(name, values at the samples) of the problem's chaos observable."""
+    declared = getattr(problem, "chaos_observable", None)
+    if declared is not None:
+        return declared(t, U)
+    return "u[0]", U[:, 0]
+
+
+def _late(t: np.ndarray, values: np.ndarray, t0: float, t_final: float, window: float) -> np.ndarray:
+    keep = (t >= t_final - window * (t_final - t0)) & np.isfinite(values)
+    return values[keep]
+
+
+def _reference_pool(problem: Problem, states: list[np.ndarray], t_final: float, window: float) -> np.ndarray:
+    from longtime.measure.reference import _propagate
+
+    grid = np.linspace(problem.t0, t_final, GRID)
+    pool = []
+    u0 = problem.u0
+    try:
+        for state in states:
+            problem.u0 = state
+            U, stopped = _propagate(problem, grid, "double")
+            if stopped is not None:
+                raise RuntimeError(f"heyoka's ensemble run stopped at t = {stopped:.6g} (its time budget)")
+            pool.append(_late(grid, observable(problem, grid, U)[1], problem.t0, t_final, window))
+    finally:
+        problem.u0 = u0
+    return np.concatenate(pool)
+
+
+def measure(problem: Problem, scheme: Integrator, t_final: float, members: int = DEFAULT_MEMBERS,
+            size: float = DEFAULT_SIZE, seed: int = 1, window: float = DEFAULT_WINDOW) -> dict[str, Any]:
+    """The ensemble's fields: ``ensemble.distance`` (W1 / std of the reference pool),
+    ``ensemble.floor`` (the same between two reference ensembles), ``ensemble.observable``,
+    ``ensemble.members`` (those that ran to t_final), ``ensemble.size``, ``ensemble.window``
+    and ``ensemble.note``."""
+    from scipy.stats import wasserstein_distance
+
+    states = initial_states(problem, members, size, seed)
+    name = observable(problem, np.array([problem.t0]), problem.u0[None, :])[0]
+    out: dict[str, Any] = {"ensemble.observable": name, "ensemble.size": size, "ensemble.window": window,
+                           "ensemble.distance": None, "ensemble.floor": None, "ensemble.members": 0,
+                           "ensemble.note": ""}
+    pool, lost = [], 0
+    u0 = problem.u0
+    try:
+        for state in states:
+            problem.u0 = state
+            traj = scheme.integrate(problem, t_final, max_samples=MAX_SAMPLES)
+            if traj.status != "ok":
+                lost += 1
+                continue
+            pool.append(_late(traj.t, observable(problem, traj.t, traj.u)[1], problem.t0, t_final, window))
+    finally:
+        problem.u0 = u0
+    out["ensemble.members"] = len(pool)
+    if not pool:
+        out["ensemble.note"] = f"no member ran to t = {t_final:g} ({lost} diverged or failed)"
+        return out
+    reference = _reference_pool(problem, states, t_final, window)
+    second = _reference_pool(problem, initial_states(problem, members, size, seed + 1), t_final, window)
+    scale = float(np.std(reference))
+    if not scale > 0:
+        out["ensemble.note"] = "the reference's observable does not vary over the window"
+        return out
+    out["ensemble.distance"] = float(wasserstein_distance(np.concatenate(pool), reference)) / scale
+    out["ensemble.floor"] = float(wasserstein_distance(second, reference)) / scale
+    note = (f"{len(pool)} of {members} members; W1 of {name} over the last {window:.0%} of the span, in units of "
+            f"the reference's standard deviation")
+    if lost:
+        note += f"; {lost} diverged or failed and are left out"
+    out["ensemble.note"] = note
+    return out
+
+
+def verdict(fields: dict[str, Any]) -> str:
+    """Whether the scheme's distribution is told apart from the reference's."""
+    d, floor = fields.get("ensemble.distance"), fields.get("ensemble.floor")
+    if d is None or floor is None or not math.isfinite(d):
+        return "not measured"
+    if d <= 2 * floor:
+        return "as the reference (within twice the ensembles' own spread)"
+    return f"told apart from the reference ({d / floor:.3g} x the ensembles' own spread)" if floor > 0 else "differs"
+
+
+def field_spread(problem: Problem, scheme: Integrator, t_final: float, field: str, members: int = 8,
+                 size: float = 1e-14, seed: int = 1) -> dict[str, Any]:
+    """The round-off spread of one row field (``I.max``, ``H.max``: a figure measured without a
+    reference) of a chaotic run: its value from the problem's own initial state and over
+    ``members`` initial states perturbed by a relative ``size`` (round-off's own scale). A
+    documented figure of a chaotic run is worth the digits this spread leaves it."""
+    from longtime.measure.metrics import evaluate
+
+    def value(state: np.ndarray) -> float | None:
+        u0 = problem.u0
+        problem.u0 = state
+        try:
+            traj = scheme.integrate(problem, t_final, max_samples=MAX_SAMPLES * 5)
+            row = evaluate(problem, traj, None, None)
+        finally:
+            problem.u0 = u0
+        if field not in row:
+            from longtime.core.params import InputError
+
+            raise InputError(f"--field {field}: not a field of {problem.name}'s rows without a reference "
+                             f"(for example {', '.join(k for k in row if k.endswith('.max'))})")
+        return row[field]
+
+    own = value(problem.u0)
+    values = [value(s) for s in initial_states(problem, members, size, seed)]
+    finite = [v for v in values if v is not None]
+    return {"field": field, "value": own, "members": members, "size": size, "values": values,
+            "min": min(finite) if finite else None, "max": max(finite) if finite else None}
