@@ -133,6 +133,29 @@ def _growth_table(rows: list[dict]) -> str | None:
                      raw=True))
 
 
+def _chaos_table(rows: list[dict]) -> str | None:
+    """A chaotic problem's rows read in Lyapunov times: the Lyapunov time of its initial
+    state, and per scheme and setting the time its solution error reached O(1) (its
+    predictability horizon), in time and in Lyapunov times."""
+    from longtime.reporting.rowtext import setting
+
+    chaotic = [r for r in rows if "predictability_t" in r and r.get("status") == "ok"]
+    if not chaotic:
+        return None
+    first = next((r for r in chaotic if r.get("lyapunov_note")), chaotic[0])
+    t_lyap = first.get("lyapunov_time")
+    head = (f"Lyapunov time {num(t_lyap)} ({escape(first.get('lyapunov_note') or '')})" if t_lyap else
+            f"No Lyapunov time: {escape(first.get('lyapunov_note') or 'not measured')}")
+    body = [[r["integrator"], setting(r) or "-", num(r.get("t_final")), num(r.get("predictability_t")),
+             num(r.get("predictability_lyapunov")), r.get("predictability_note") or ""]
+            for r in sorted(chaotic, key=lambda r: (r["integrator"], r.get("t_final") or 0, str(setting(r))))]
+    return (f'<p class="note">{head}. Past its predictability horizon (the first time its solution error '
+            "reaches 0.5) a row's L2 error measures a lost solution: it enters no order fit and no Pareto front; "
+            "what can still be right is a distribution (<code>longtime ensemble</code>, docs/metrics.md, "
+            '"Chaos").</p>' + table(["scheme", "setting", "t_final", "error O(1) at t", "in Lyapunov times", "note"],
+                                     body))
+
+
 def _orders_table(fits: list[dict]) -> str | None:
     if not fits:
         return None
@@ -334,6 +357,9 @@ def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: l
     growth = _growth_table(mine)
     if growth:
         out.append(_fold("Growth classes", growth))
+    chaos = _chaos_table(mine)
+    if chaos:
+        out.append(_fold("Chaos: Lyapunov time and predictability horizons", chaos))
     if drift:
         fig, notes = figs["drift"], figs["drift_notes"]
         if fig:
