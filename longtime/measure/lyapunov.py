@@ -1,7 +1,8 @@
 """The maximal Lyapunov exponent of a problem's trajectory, measured from the reference
 integrator, and the Lyapunov time 1/lambda that a chaotic problem's errors are read in.
 
-Benettin's method with two nearby runs: heyoka (double, tol 1e-15) integrates the state u
+Benettin's method with two nearby runs: heyoka (the reference's integrator in double:
+tolerance eps, high accuracy) integrates the state u
 and a companion v = u + d0 w (|w| = 1) over intervals of length tau; after each interval
 the separation d = |v - u| gives ln(d / d0), and v is set back to u + d0 (v - u) / d. The
 exponent is the mean of ln(d / d0) / tau over the intervals. Its 95 % interval comes from
@@ -14,7 +15,7 @@ like t^3 accumulates over the intervals. A regular orbit's separation grows like
 so its finite-time exponent falls like ln t / t and never passes; ``lyapunov_time`` is then
 null with the reason.
 
-d0 = 1e-8 relative to |u0|: large beside the integrator's error (tol 1e-15 per step), small
+d0 = 1e-8 relative to |u0|: large beside the integrator's error (eps per step), small
 enough that the separation stays linear over tau (the renormalisation keeps it so). The
 result is cached beside the references (same key: problem, settings, state, ODE, heyoka).
 """
@@ -31,7 +32,6 @@ from longtime.core.problem import Problem
 SEPARATION = 1e-8
 INTERVALS = 400
 BLOCKS = 8
-TOLERANCE = 1e-15
 POWER_FOLDINGS = 3 * math.log(INTERVALS)
 
 
@@ -47,7 +47,7 @@ def measure(problem: Problem, t_span: float | None = None, budget_s: float = 60.
     from longtime.measure import reference
 
     t_span = span(problem) if t_span is None else float(t_span)
-    path = reference._cache_path(problem, "lyapunov", repr(t_span), repr((SEPARATION, INTERVALS, BLOCKS, TOLERANCE)),
+    path = reference._cache_path(problem, "lyapunov", repr(t_span), repr((SEPARATION, INTERVALS, BLOCKS)),
                                  suffix=".npy")
     logs = reference._load(path, lambda: np.load(path))
     if logs is None:
@@ -60,7 +60,7 @@ def _separations(problem: Problem, t_span: float, budget_s: float) -> np.ndarray
     """ln(d / d0) of each interval (NaN from where the budget ran out)."""
     import time
 
-    from longtime.core import heyoka_build
+    from longtime.measure import reference
 
     if problem.heyoka_system is None:
         raise ValueError(f"problem {problem.name} has no heyoka system: its Lyapunov exponent is not measured")
@@ -68,9 +68,11 @@ def _separations(problem: Problem, t_span: float, budget_s: float) -> np.ndarray
     d0 = SEPARATION * max(1.0, float(np.linalg.norm(u0)))
     w = np.random.default_rng(0).standard_normal(u0.size)
     deadline = time.perf_counter() + budget_s
-    ta_u = heyoka_build.taylor_adaptive(problem, u0, budget_s, tol=TOLERANCE, time=float(problem.t0),
-                                        compact_mode=heyoka_build.compact_mode(problem, np.float64, reference=True))
-    ta_v = copy.deepcopy(ta_u)  # the compiled code is copied, not compiled again
+    # the reference's own integrator (double, tolerance eps), compiled once per process for the
+    # reference and copied here: measuring the exponent compiles nothing more
+    base = reference._start(problem, "double", deadline)
+    ta_u, ta_v = copy.deepcopy(base), copy.deepcopy(base)
+    ta_u.state[:] = u0
     ta_v.state[:] = u0 + d0 * w / np.linalg.norm(w)
     tau = t_span / INTERVALS
     logs = np.full(INTERVALS, np.nan)
