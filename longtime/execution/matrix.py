@@ -365,7 +365,9 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
     time them in ``options.processes - 1`` more processes (longtime.execution.processes), each
     stored row updated with their times; returns the rows in cell order."""
     options = options or ExecOptions()
-    processes = options.processes
+    # the timing processes start on this machine: a Dask cluster's rows are timed where they
+    # ran, in one process
+    processes = 1 if executor == "dask" else options.processes
     options = dataclasses.replace(options, timing=options.timing.per_process(processes))
     if options.max_samples < 2:
         raise InputError(f"max_samples={options.max_samples} is not valid: must be >= 2")

@@ -17,9 +17,11 @@ import sys
 from pathlib import Path
 from typing import Any, Iterable
 
-import longtime
+from longtime.core.version import __version__
 
 GIT_TIMEOUT_S = 5.0
+# longtime's own package folder: its problems and schemes are not the code under test
+PACKAGE = Path(__file__).resolve().parents[1]
 
 
 def repository(path: str | Path) -> Path | None:
@@ -58,8 +60,8 @@ def source_file(cls: type) -> str | None:
 
 def longtime_state() -> dict[str, Any]:
     """longtime's own version, and its commit and dirty flag where it runs from a checkout."""
-    state: dict[str, Any] = {"version": getattr(longtime, "__version__", None), "commit": None, "dirty": None}
-    repo = repository(Path(longtime.__file__).parent)
+    state: dict[str, Any] = {"version": __version__, "commit": None, "dirty": None}
+    repo = repository(PACKAGE)
     if repo is not None:
         state.update({k: v for k, v in git_state(repo).items() if k != "repository"})
     return state
@@ -69,13 +71,12 @@ def code_under_test(classes: Iterable[type]) -> list[dict[str, Any]]:
     """Per repository holding some of ``classes`` (problems and schemes): ``repository``,
     ``commit``, ``dirty`` and ``modules`` (the classes' modules in it); a class without a
     file or outside any repository gives an entry with ``repository`` None and why."""
-    own = repository(Path(longtime.__file__).parent)
     by_repo: dict[str | None, dict[str, Any]] = {}
     for cls in classes:
         path = source_file(cls)
+        if path and Path(path).resolve().is_relative_to(PACKAGE):
+            continue  # longtime's own problems and schemes: longtime's version and commit say it
         repo = repository(path) if path else None
-        if repo is not None and own is not None and repo == own:
-            continue  # longtime's own problems and schemes: longtime's commit says it
         key = str(repo) if repo else None
         if key not in by_repo:
             by_repo[key] = git_state(repo) if repo else {
