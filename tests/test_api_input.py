@@ -271,10 +271,11 @@ def test_a_script_without_main_guard_runs_its_sweep(tmp_path):
     assert res.stdout.strip() == "rows 4 ['ok']"  # once: no worker ran the script again
     assert "Traceback" not in res.stderr and "bootstrapping" not in res.stderr
     said = [line for line in res.stderr.splitlines() if line.startswith("longtime.sweep: running the cells serially")]
-    assert len(said) == 1 and "outside `if __name__ == \"__main__\":` (line 9)" in said[0]  # the dedented script opens with a blank line
+    # line 9: the dedented script opens with a blank line
+    assert len(said) == 1 and "outside `if __name__ == \"__main__\":` (line 9)" in said[0]
     # under the guard the pool is used, and nothing is said
-    guarded = script.read_text().replace("rows = longtime", "if __name__ == \"__main__\":\n    rows = longtime").replace(
-        "\nprint(", "\n    print(")
+    guarded = script.read_text().replace("rows = longtime", "if __name__ == \"__main__\":\n    rows = longtime")
+    guarded = guarded.replace("\nprint(", "\n    print(")
     script.write_text(guarded)
     res = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=600, cwd=tmp_path,
                          env=env)

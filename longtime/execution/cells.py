@@ -17,7 +17,6 @@ from typing import Any, Iterable, Mapping
 
 from longtime.core import contract, phases, registry, roles
 from longtime.core.cache import no_space
-from longtime.core.contract import check_samples
 from longtime.core.integrator import FixedStepIntegrator, Integrator, Timing, Trajectory
 from longtime.core.outputs import to_stderr
 from longtime.core.params import InputError, check_time_span, unknown_parameter
@@ -309,7 +308,7 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         if traj.status == "diverged":
             traj.message = "; ".join(m for m in (traj.message, contract.nan_note(problem, traj.t, traj.u)) if m)
         t_end = problem.default_t_final if cell.t_final is None else cell.t_final
-        wrong = check_samples(cell.integrator, problem, traj, t_end)
+        wrong = contract.check_samples(cell.integrator, problem, traj, t_end)
         if wrong:  # samples that cannot be measured are a fault, never a row that reads ok
             row.update(status="failed", message=wrong)
             return row
@@ -371,8 +370,8 @@ _PROBED: dict[tuple, str | None] = {}
 
 
 def _probe_step(integrator: Integrator, problem: Problem) -> str | None:
-    """A plugin's own step kernel (fixed or adaptive), run once per process and problem with bounds checked
-    (contract.probe_step_kernel) the first time it is built."""
+    """A plugin's own step kernel (fixed or adaptive), run once per process and problem
+    with bounds checked (contract.probe_step_kernel) the first time it is built."""
     make = getattr(type(integrator), "make_step", None) or getattr(type(integrator), "make_try_step", None)
     if make is None or contract.built_in(make):
         return None
