@@ -152,3 +152,33 @@ def test_history_marks_a_step_in_the_count_and_none_in_its_noise(tmp_path):
     assert len(steps) == 1 and steps[0]["kind"] == "more instructions" and steps[0]["run_id"] == 4
     assert steps[0]["ratio"] == pytest.approx(1.05, rel=1e-3)
     assert "STEP instructions x1.05" in render(found)
+
+
+def test_benchmark_cell_puts_the_count_in_extra_info(monkeypatch):
+    from longtime.execution import valgrind
+    from longtime.testing import benchmark_cell
+
+    seen = []
+
+    def fields(pairs, max_samples, time_limit):  # the count itself is the tests' above
+        pairs = list(pairs)
+        seen.extend(row["steps"] for _, row in pairs)
+        return {c.key: {"instructions": 1234, "instructions_per_step": 1234 / row["steps"],
+                        "instructions_tool": "callgrind", "instructions_skipped": None} for c, row in pairs}
+
+    monkeypatch.setattr(valgrind, "instruction_fields", fields)
+
+    class Benchmark:  # pytest-benchmark's fixture, as benchmark_cell uses it
+        extra_info: dict = {}
+
+        def __call__(self, fn, *args):
+            return fn(*args)
+
+    bench = Benchmark()
+    row = benchmark_cell(bench, "kepler", "verlet", t_final=1, dt=0.01, cost="instructions")
+    assert seen == [100] and bench.extra_info["instructions"] == 1234 == row["instructions"]
+    assert bench.extra_info["instructions_per_step"] == pytest.approx(12.34)
+    plain = Benchmark()
+    plain.extra_info = {}
+    benchmark_cell(plain, "kepler", "verlet", t_final=1, dt=0.01)
+    assert "instructions" not in plain.extra_info  # time only by default
