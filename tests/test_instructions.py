@@ -182,3 +182,17 @@ def test_benchmark_cell_puts_the_count_in_extra_info(monkeypatch):
     plain.extra_info = {}
     benchmark_cell(plain, "kepler", "verlet", t_final=1, dt=0.01)
     assert "instructions" not in plain.extra_info  # time only by default
+
+
+def test_the_page_draws_work_precision_against_instructions():
+    from longtime.reporting.figures.results import problem_figures
+    from longtime.reporting.figures.style import styles
+
+    rows = [{"problem": "kepler", "integrator": "rk4", "status": "ok", "dt": dt, "t_final": T, "settings": "",
+             "cpu_s": 1e-3 * 0.01 / dt, "l2_error": dt ** 4, "steps": round(T / dt)} for dt in (0.01, 0.005)]
+    figs = problem_figures(rows, styles(["rk4"]), drift=False)
+    assert figs["work_precision"] is not None and figs["work_precision_instructions"] is None  # time only
+    for r in rows:
+        r.update(instructions=1300 * r["steps"], instructions_per_step=1300.0)
+    figs = problem_figures(rows, styles(["rk4"]), drift=False)
+    assert "instructions of the integration" in figs["work_precision_instructions"]
