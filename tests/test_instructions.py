@@ -196,3 +196,16 @@ def test_the_page_draws_work_precision_against_instructions():
         r.update(instructions=1300 * r["steps"], instructions_per_step=1300.0)
     figs = problem_figures(rows, styles(["rk4"]), drift=False)
     assert "instructions of the integration" in figs["work_precision_instructions"]
+
+
+def test_compare_judges_counts_of_one_tool_only():
+    row = {"problem": "kepler", "integrator": "rk4", "status": "ok", "t_final": T, "dt": 0.01, "settings": "",
+           "cpu_s": 1e-3, "instructions": 1_000_000, "instructions_per_step": 200.0,
+           "instructions_tool": "callgrind 3.19.0 (znver3 kernels)"}
+    other = {**row, "instructions": 1_100_000, "instructions_tool": "callgrind 3.19.0 (haswell kernels)"}
+    result = compare([row], [other])
+    assert result["cells"][0]["instruction_verdict"] == "other tool" and result["regressed"] == 0
+    fewer = compare([row], [{**row, "instructions": 900_000}])
+    assert fewer["cells"][0]["instruction_verdict"] == "fewer" and fewer["improved"] == 1
+    timed_only = compare([row], [{k: v for k, v in row.items() if not k.startswith("instructions")}])
+    assert timed_only["cells"][0]["instruction_verdict"] is None
