@@ -380,7 +380,7 @@ def _instructions_text(result: dict) -> list[str]:
     n = result["counts"].get("instructions")
     if not n or n["not compared"] == len(result["cells"]):
         return []
-    other = f", {n['other tool']} counted by another Valgrind" if n["other tool"] else ""
+    other = f", {n['other tool']} counted by another tool (Valgrind or CPU)" if n["other tool"] else ""
     return [f"instructions (beyond x{result['instruction_factor']:g}): {n['more']} more, {n['fewer']} fewer, "
             f"{n['within']} within{other}, {n['not compared']} not counted in both runs"]
 
