@@ -152,3 +152,60 @@ def test_history_marks_a_step_in_the_count_and_none_in_its_noise(tmp_path):
     assert len(steps) == 1 and steps[0]["kind"] == "more instructions" and steps[0]["run_id"] == 4
     assert steps[0]["ratio"] == pytest.approx(1.05, rel=1e-3)
     assert "STEP instructions x1.05" in render(found)
+
+
+def test_benchmark_cell_puts_the_count_in_extra_info(monkeypatch):
+    from longtime.execution import valgrind
+    from longtime.testing import benchmark_cell
+
+    seen = []
+
+    def fields(pairs, max_samples, time_limit):  # the count itself is the tests' above
+        pairs = list(pairs)
+        seen.extend(row["steps"] for _, row in pairs)
+        return {c.key: {"instructions": 1234, "instructions_per_step": 1234 / row["steps"],
+                        "instructions_tool": "callgrind", "instructions_skipped": None} for c, row in pairs}
+
+    monkeypatch.setattr(valgrind, "instruction_fields", fields)
+
+    class Benchmark:  # pytest-benchmark's fixture, as benchmark_cell uses it
+        extra_info: dict = {}
+
+        def __call__(self, fn, *args):
+            return fn(*args)
+
+    bench = Benchmark()
+    row = benchmark_cell(bench, "kepler", "verlet", t_final=1, dt=0.01, cost="instructions")
+    assert seen == [100] and bench.extra_info["instructions"] == 1234 == row["instructions"]
+    assert bench.extra_info["instructions_per_step"] == pytest.approx(12.34)
+    plain = Benchmark()
+    plain.extra_info = {}
+    benchmark_cell(plain, "kepler", "verlet", t_final=1, dt=0.01)
+    assert "instructions" not in plain.extra_info  # time only by default
+
+
+def test_the_page_draws_work_precision_against_instructions():
+    from longtime.reporting.figures.results import problem_figures
+    from longtime.reporting.figures.style import styles
+
+    rows = [{"problem": "kepler", "integrator": "rk4", "status": "ok", "dt": dt, "t_final": T, "settings": "",
+             "cpu_s": 1e-3 * 0.01 / dt, "l2_error": dt ** 4, "steps": round(T / dt)} for dt in (0.01, 0.005)]
+    figs = problem_figures(rows, styles(["rk4"]), drift=False)
+    assert figs["work_precision"] is not None and figs["work_precision_instructions"] is None  # time only
+    for r in rows:
+        r.update(instructions=1300 * r["steps"], instructions_per_step=1300.0)
+    figs = problem_figures(rows, styles(["rk4"]), drift=False)
+    assert "instructions of the integration" in figs["work_precision_instructions"]
+
+
+def test_compare_judges_counts_of_one_tool_only():
+    row = {"problem": "kepler", "integrator": "rk4", "status": "ok", "t_final": T, "dt": 0.01, "settings": "",
+           "cpu_s": 1e-3, "instructions": 1_000_000, "instructions_per_step": 200.0,
+           "instructions_tool": "callgrind 3.19.0 (znver3 kernels)"}
+    other = {**row, "instructions": 1_100_000, "instructions_tool": "callgrind 3.19.0 (haswell kernels)"}
+    result = compare([row], [other])
+    assert result["cells"][0]["instruction_verdict"] == "other tool" and result["regressed"] == 0
+    fewer = compare([row], [{**row, "instructions": 900_000}])
+    assert fewer["cells"][0]["instruction_verdict"] == "fewer" and fewer["improved"] == 1
+    timed_only = compare([row], [{k: v for k, v in row.items() if not k.startswith("instructions")}])
+    assert timed_only["cells"][0]["instruction_verdict"] is None

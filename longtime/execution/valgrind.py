@@ -11,7 +11,7 @@ compiled loop (longtime.measure.instructions.counting), in one chunk.
 
 Fields a row gains (only when instructions are asked for): ``instructions`` (the count of
 the integration, an integer), ``instructions_per_step``, ``instructions_tool`` (the
-Valgrind that counted) and ``instructions_skipped`` (why a cell has no count; null when it
+Valgrind that counted and the CPU the kernels were compiled for) and ``instructions_skipped`` (why a cell has no count; null when it
 has one).
 """
 from __future__ import annotations
@@ -113,7 +113,8 @@ def _count(valgrind: str, cells: list[Cell], rows: dict[str, dict], max_samples:
                                    "sys_path": [p for p in sys.path if p],
                                    "results": str(folder / "results.jsonl")}))
         prefix = folder / "callgrind.out"
-        env = {**os.environ, **instructions.numba_target_environment(), "LONGTIME_PROGRESS": "0",
+        target = instructions.numba_target_environment()
+        env = {**os.environ, **target, "LONGTIME_PROGRESS": "0",
                "PYTHONHASHSEED": "0"}  # the same dict layouts in every run: the same dispatch path
         limit = STARTUP_SECONDS + sum(PER_CELL_SECONDS + _budget(rows[c.key]) for c in cells)
         argv = [*instructions.command(valgrind, prefix), sys.executable, "-m", "longtime.execution.valgrind", str(job)]
@@ -131,7 +132,8 @@ def _count(valgrind: str, cells: list[Cell], rows: dict[str, dict], max_samples:
         for line in results.read_text().splitlines() if results.exists() else []:
             item = json.loads(line)
             done[item["key"]] = item
-        tool = instructions.tool_version()
+        # the kernels counted are compiled for this CPU: another CPU's count is another tool's
+        tool = f"{instructions.tool_version()} ({target['NUMBA_CPU_NAME']} kernels)"
         out = {}
         for i, cell in enumerate(cells):
             item, count = done.get(cell.key), counts.get(f"cell {i}")

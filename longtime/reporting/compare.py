@@ -26,7 +26,7 @@ RUN_B). Cells are matched by problem, scheme, t_final and every setting. Per com
   ``ROUND_OFF`` (errors at round-off move by such factors with any change of compiler);
 - instructions (``--cost instructions`` in both runs, counted by the same Valgrind): the
   ratio B / A of the cell's count. The count is deterministic (runs of identical code agree
-  to about a part per million, beside CPU-bound processes too), so a cell whose count grows
+  within 1e-4, beside CPU-bound processes too), so a cell whose count grows
   beyond ``--instruction-factor`` (``INSTRUCTION_FACTOR``) regressed, whatever the time
   says;
 - growth classes (``NAME.growth_class``) and observed orders (longtime.measure.orders), per
@@ -55,7 +55,7 @@ MIN_BATCHES = 3  # batches a scheme's (a problem's) median needs
 SHORT_CPU_S = 2e-5  # cells below this CPU time (shorter than any measured) get no time verdict
 MACHINE_FACTOR = 1.03  # reference workloads further apart than this: the machine's speed differed
 ROUND_OFF = 1e-13
-# instruction counts of identical code agree to about 1e-6 (docs/performance.md): a change
+# instruction counts of identical code agree within 1e-4 (docs/performance.md): a change
 # beyond 1 % is the code's
 INSTRUCTION_FACTOR = 1.01
 # a cell is its problem, scheme, final time and every parameter (row fields and settings)
@@ -411,7 +411,7 @@ def _instructions_text(result: dict) -> list[str]:
     n = result["counts"].get("instructions")
     if not n or n["not compared"] == len(result["cells"]):
         return []
-    other = f", {n['other tool']} counted by another Valgrind" if n["other tool"] else ""
+    other = f", {n['other tool']} counted by another tool (Valgrind or CPU)" if n["other tool"] else ""
     return [f"instructions (beyond x{result['instruction_factor']:g}): {n['more']} more, {n['fewer']} fewer, "
             f"{n['within']} within{other}, {n['not compared']} not counted in both runs"]
 
@@ -564,7 +564,7 @@ def add_time_flags(p) -> None:
 def add_instruction_flag(p) -> None:
     p.add_argument("--instruction-factor", type=float, default=INSTRUCTION_FACTOR,
                    help=f"ratio of a cell's instruction count (--cost instructions in both runs) that counts as "
-                        f"more work (default {INSTRUCTION_FACTOR:g}: counts of identical code agree to about 1e-6)")
+                        f"more work (default {INSTRUCTION_FACTOR:g}: counts of identical code agree within 1e-4)")
 
 
 def add_parser(subparsers) -> None:
