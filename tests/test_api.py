@@ -25,7 +25,7 @@ class ApiForestRuth(Splitting):
 
 # timing fields differ from run to run; everything else is the same computation
 TIMING = ("cpu_s", "wall_s", "cpu_s_median", "cpu_s_max", "wall_s_median", "wall_s_max", "cpu_s_samples", "repeats",
-          "cpu_s_calibrated", "calibration_cpu_s", "calibration_t")
+          "cpu_s_calibrated", "calibration_cpu_s", "calibration_t", "cpu_s_processes", "cpu_s_process_spread")
 
 
 def test_solve_row_is_the_cli_json_row():
