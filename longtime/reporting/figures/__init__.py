@@ -69,6 +69,14 @@ def plain_log_ticks(ax) -> None:
             axis.set_minor_formatter(FuncFormatter(_minor_labels(axis)))
 
 
+def plain_ticks(fig) -> None:
+    """``plain_log_ticks`` on every axes of ``fig``: with mathtext off (``pyplot``), matplotlib's
+    own log labels would print as their source ($\\mathdefault{10^{-2}}$). Called before the
+    layout, so that the layout measures the labels that are drawn."""
+    for ax in fig.axes:
+        plain_log_ticks(ax)
+
+
 def check_formats(formats: Sequence[str]) -> None:
     bad = [f for f in formats if f not in FORMATS]
     if bad:

@@ -8,7 +8,7 @@ from typing import Sequence
 import numpy as np
 
 from longtime.core.params import InputError
-from longtime.reporting.figures import pyplot, run, save
+from longtime.reporting.figures import plain_ticks, pyplot, run, save
 
 
 def drift(out: Path, formats: Sequence[str] = ("png", "svg"), problems: list[str] | None = None,
@@ -53,6 +53,7 @@ def drift(out: Path, formats: Sequence[str] = ("png", "svg"), problems: list[str
         ax.set_title(f"{problem.describe()}: {'drift' if drawn not in watched else 'change'} of {drawn}")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
+    plain_ticks(fig)
     fig.tight_layout()
     return save(fig, out, formats)
 
@@ -78,5 +79,6 @@ def toda_eigenvalues(out: Path, formats: Sequence[str] = ("png", "svg"), schemes
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8, loc="upper right")
     axes[-1, 0].set_xlabel("t")
+    plain_ticks(fig)
     fig.tight_layout()
     return save(fig, out, formats)

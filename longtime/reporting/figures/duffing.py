@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Iterable, Sequence
 
 from longtime.core.params import InputError
-from longtime.reporting.figures import pyplot, run, save
+from longtime.reporting.figures import plain_ticks, pyplot, run, save
 from longtime.reporting.paper import DUFFING_C
 
 
@@ -40,5 +40,6 @@ def duffing_phase(out: Path, formats: Sequence[str] = ("png", "svg"), schemes: l
         ax.set_ylabel("u'")
     step = dt if dt is not None else registry.problem_class("duffing-forced").default_dt
     fig.suptitle(f"forced Duffing: phase portraits over t in [{t_start:g}, {tf:g}] ({scheme}, dt={step:g})")
+    plain_ticks(fig)
     fig.tight_layout()
     return save(fig, out, formats)

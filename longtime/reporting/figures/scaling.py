@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from longtime.reporting.figures import pyplot, save
+from longtime.reporting.figures import plain_ticks, pyplot, save
 
 
 def scaling_figure(scaling, orders, problem: str, out_dir: Path, metric: str = "final_error") -> list[Path]:
@@ -42,5 +42,6 @@ def scaling_figure(scaling, orders, problem: str, out_dir: Path, metric: str = "
         ax.set_ylabel("CPU s", color="C0")
         ax.set_title("bpl at the matched eps_res: cost (and error) against N")
         ax.grid(True, which="both", alpha=0.3)
+    plain_ticks(fig)
     fig.tight_layout()
     return save(fig, Path(out_dir) / f"{problem}-scaling")

@@ -50,7 +50,7 @@ def stability_regions(out: str | Path = "stability", formats: Sequence[str] = ("
         imaginary_interval,
         region,
     )
-    from longtime.reporting.figures import pyplot, save
+    from longtime.reporting.figures import plain_ticks, pyplot, save
 
     plt = pyplot()
 
@@ -101,5 +101,6 @@ def stability_regions(out: str | Path = "stability", formats: Sequence[str] = ("
     right.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
     if notes:
         fig.text(0.01, -0.02, "\n".join(notes), fontsize=7, va="top")
+    plain_ticks(fig)
     fig.tight_layout()
     return save(fig, out, formats)
