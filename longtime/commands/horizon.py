@@ -96,22 +96,6 @@ def study(schemes=DEFAULT_SCHEMES, dts=DEFAULT_DTS, members: int = DEFAULT_MEMBE
     return out
 
 
-def _positive(flag: str):
-    """A finite number > 0."""
-    import argparse
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            value = float("nan")
-        if not 0 < value < float("inf"):
-            raise argparse.ArgumentTypeError(f"{flag} takes a finite number > 0, got {text!r}")
-        return value
-
-    return parse
-
-
 def _g(x: float | None) -> str:
     return "-" if x is None else f"{x:.3g}"
 
@@ -151,11 +135,11 @@ def add_parser(subparsers) -> None:
     p.add_argument("--dt", type=cli_args.floats("--dt"), default=None, metavar="X[,..]",
                    help=f"steps (default: {','.join(f'{d:g}' for d in DEFAULT_DTS)})")
     p.add_argument("--members", type=cli_args.integer("--members", 2), default=DEFAULT_MEMBERS, metavar="K", help="runs per scheme and step")
-    p.add_argument("--t-final", type=_positive("--t-final"), default=DEFAULT_T_FINAL, metavar="T",
+    p.add_argument("--t-final", type=cli_args.positive_number("--t-final"), default=DEFAULT_T_FINAL, metavar="T",
                    help=f"how long each member runs (default {DEFAULT_T_FINAL:g})")
-    p.add_argument("--gap", type=_positive("--gap"), default=DEFAULT_GAP, help="the energy's distance below the escape "
+    p.add_argument("--gap", type=cli_args.positive_number("--gap"), default=DEFAULT_GAP, help="the energy's distance below the escape "
                                                                    f"energy 1/6 (default {DEFAULT_GAP:g})")
-    p.add_argument("--threshold", type=_positive("--threshold"), default=None,
+    p.add_argument("--threshold", type=cli_args.positive_number("--threshold"), default=None,
                    help="a relative energy error that also counts as a breakdown (default: escapes only)")
     p.add_argument("--jobs", type=cli_args.jobs, default=0, help="worker processes (default: one per core)")
     p.add_argument("--format", choices=["markdown", "json"], default="markdown")

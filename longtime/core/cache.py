@@ -59,22 +59,28 @@ def cache_dir(*parts: str) -> Path:
     return path
 
 
-def check_cache_root() -> None:
-    """Refuse, before anything runs, a cache folder that cannot be used (a file, a read-only
-    folder, a path under a file): every cell would fail on its own otherwise. Tried by
-    creating the folder and a file in it, so that it holds for root too."""
+def probe_folder(folder: Path) -> None:
+    """Create ``folder`` (and its parents) and a file in it, then remove the file: raises the
+    OSError of a folder that cannot be written (a file, read only, under a file, a full disk).
+    Trying, rather than reading permission bits, holds for root too."""
     import tempfile
 
+    if folder.exists() and not folder.is_dir():
+        raise NotADirectoryError(0, "it is not a folder")
+    folder.mkdir(parents=True, exist_ok=True)
+    fd, probe = tempfile.mkstemp(dir=folder, prefix=".probe-")
+    os.close(fd)
+    os.unlink(probe)
+
+
+def check_cache_root() -> None:
+    """Refuse, before anything runs, a cache folder that cannot be used (a file, a read-only
+    folder, a path under a file): every cell would fail on its own otherwise."""
     from longtime.core.params import InputError
 
     root = cache_root()
     try:
-        if root.exists() and not root.is_dir():
-            raise NotADirectoryError(0, "it is not a folder")
-        root.mkdir(parents=True, exist_ok=True)
-        fd, probe = tempfile.mkstemp(dir=root, prefix=".probe-")
-        os.close(fd)
-        os.unlink(probe)
+        probe_folder(root)
     except OSError as exc:
         source = "$LONGTIME_CACHE_DIR" if os.environ.get("LONGTIME_CACHE_DIR") else "the default cache folder"
         raise InputError(f"cache folder {root} ({source}) cannot be used: {exc.strerror or exc}; "

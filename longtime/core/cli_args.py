@@ -206,22 +206,14 @@ def writing(flag: str, path) -> Iterator[None]:
 
 def writable_folder(flag: str, path) -> None:
     """Refuse, before any work, a folder ``flag`` is to write into that cannot be written (read
-    only, under a file, on a full disk): tried by creating it and a file in it, so that it
-    holds for root too. A folder it creates is left (empty) for the write that follows."""
-    import os
-    import tempfile
+    only, under a file, on a full disk): tried by creating it and a file in it
+    (cache.probe_folder). A folder it creates is left (empty) for the write that follows."""
     from pathlib import Path
 
-    from longtime.core.params import InputError
+    from longtime.core.cache import probe_folder
 
-    folder = Path(path)
     try:
-        if folder.exists() and not folder.is_dir():
-            raise NotADirectoryError(0, "it is not a folder")
-        folder.mkdir(parents=True, exist_ok=True)
-        fd, probe = tempfile.mkstemp(dir=folder, prefix=".probe-")
-        os.close(fd)
-        os.unlink(probe)
+        probe_folder(Path(path))
     except OSError as exc:
         raise InputError(f"{flag} {path}: cannot write there: {exc.strerror or exc}") from None
 
