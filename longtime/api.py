@@ -452,6 +452,30 @@ def recommend(problem: Any, error: float, horizon: float, rows: Any = None, *, d
     name, _ = resolve(problem, "problem")
     if rows is not None:
         return decide(records(rows), name, error, horizon, known=registry.problems())
-    from longtime.commands.recommend import answer
+    return _stored_recommendation(name, error, horizon, db, None if run is None else str(run))
 
-    return answer(name, error, horizon, db, None if run is None else str(run))
+
+def _stored_recommendation(problem: str, error: float, horizon: float, db: str | None, run: str | None):
+    """The Recommendation from the store ``db`` (its rows of ``run``: an id, 'all', or by
+    default every run), and the checks stored beside them."""
+    from pathlib import Path
+
+    from longtime.execution.store import Store, default_path
+    from longtime.reporting.verdict import recommend as decide
+
+    if problem not in registry.problems():
+        raise InputError(f"-p {problem}: unknown problem; known: {', '.join(sorted(registry.problems()))}")
+    path = Path(db or default_path())
+    if not path.exists():
+        raise InputError(f"store {path}: no such file; `longtime matrix -p {problem} --db {path}` measures the cells "
+                         f"to decide")
+    store = Store(path, readonly=True)
+    if run in (None, "all"):
+        rows, checks = store.rows(), store.checks()
+    else:
+        if not (str(run).isascii() and str(run).isdigit()):
+            raise InputError(f"--run {run!r}: expected a run id (a positive integer) or 'all'")
+        store.run(int(run))
+        rows, checks = store.rows(int(run)), store.checks(int(run))
+    return decide(rows, problem, error, horizon, db=str(store.path) if db else None,
+                  known=registry.problems(), checks=checks)

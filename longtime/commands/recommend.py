@@ -2,38 +2,14 @@
 horizon on a problem, with the runner-up and the evidence (longtime.reporting.verdict)."""
 from __future__ import annotations
 
-from pathlib import Path
-
-from longtime.core import cli_args, registry
-from longtime.core.params import InputError
-from longtime.execution.store import Store, default_path
-
-
-def answer(problem: str, error: float, horizon: float, db: str | None = None, run: str | None = None):
-    """The Recommendation from the store ``db`` (its rows of ``run``: an id, 'all', or by
-    default every run), and the checks stored beside them."""
-    from longtime.reporting.verdict import recommend
-
-    if problem not in registry.problems():
-        raise InputError(f"-p {problem}: unknown problem; known: {', '.join(sorted(registry.problems()))}")
-    path = Path(db or default_path())
-    if not path.exists():
-        raise InputError(f"store {path}: no such file; `longtime matrix -p {problem} --db {path}` measures the cells "
-                         f"to decide")
-    store = Store(path, readonly=True)
-    if run in (None, "all"):
-        rows, checks = store.rows(), store.checks()
-    else:
-        if not (str(run).isascii() and str(run).isdigit()):
-            raise InputError(f"--run {run!r}: expected a run id (a positive integer) or 'all'")
-        store.run(int(run))
-        rows, checks = store.rows(int(run)), store.checks(int(run))
-    return recommend(rows, problem, error, horizon, db=str(store.path) if db else None,
-                     known=registry.problems(), checks=checks)
+from longtime.core import cli_args
+from longtime.execution.store import default_path
 
 
 def cmd_recommend(args) -> int:
-    print(answer(args.problem, args.error, args.horizon, args.db, args.run))
+    from longtime.api import recommend
+
+    print(recommend(args.problem, args.error, args.horizon, db=args.db, run=args.run))
     return 0
 
 
