@@ -43,6 +43,13 @@ def _renders(label) -> bool:
 
 
 def test_api_figure_then_own_figure_render_and_leave_rcparams_unchanged():
+    """In a session with matplotlib's defaults (the results page's figures, drawn by other tests
+    of this process, turn mathtext off process-wide)."""
+    with matplotlib.rc_context({"text.parse_math": True}):
+        _api_figure_then_own_figure()
+
+
+def _api_figure_then_own_figure():
     import longtime
 
     before = dict(matplotlib.rcParams)

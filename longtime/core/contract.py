@@ -306,7 +306,10 @@ def probe_step_kernel(integrator: Any, problem: Any) -> str | None:
     make = getattr(type(integrator), "make_step" if fixed else "make_try_step", None)
     if make is None or built_in(make):
         return None
-    kernel = integrator.make_step(problem) if fixed else integrator.make_try_step(problem)
+    try:
+        kernel = integrator.make_step(problem) if fixed else integrator.make_try_step(problem)
+    except NotImplementedError:  # a scheme that runs its own loop (its _integrate) builds no step
+        return None
     work = np.zeros(integrator.work_shape(problem))
     integrator.prepare_work(problem, work)
     h = integrator.dt_for(problem) if fixed else integrator.initial_step(problem, problem.default_t_final or 1.0)
