@@ -92,7 +92,9 @@ def test_checks_are_planned_within_budget_and_judged():
     assert len(V.plan_checks(ROWS, limit=1, budget_s=20.0)) == 1
     assert V.plan_checks(ROWS, budget_s=1e-4) == []
     s = next(s for s, _, _ in plan if s.scheme == "rk4")
-    row = {**LINEAR, "t_final": 1e4, "l2_error": 2.5e-4, "cpu_s": 0.6}
+    row = {**LINEAR, "t_final": 1e4, "l2_error": 2.5e-4, "cpu_s": 0.6, "error_horizon": 1e4}
+    short = V.check_row(s, 1e4, V.measure(ROWS), {**row, "error_horizon": 5e3})
+    assert short["measured_error"] is None  # the reference stopped at 5e3: not judged
     c = V.check_row(s, 1e4, V.measure(ROWS), row)
     assert c["predicted_error"] == pytest.approx(1e-4) and c["predicted_cpu_s"] == pytest.approx(0.5)
     assert V.check_holds(c) is True  # within x3 and x1.5

@@ -26,6 +26,7 @@ and stores the predicted beside the measured error and cost (``Store.add_check``
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import shlex
 from dataclasses import dataclass, field
@@ -48,6 +49,10 @@ HORIZON_FACTORS = tuple(10**k for k in range(0, 7))
 # the predictions the main job re-runs, and each one's predicted CPU budget (seconds)
 CHECKS = 6
 CHECK_BUDGET_S = 3.0
+# a check's heyoka reference (to a horizon past the runs', so not cached) gets this many
+# seconds of wall time: it is trusted as far as it got, and a check whose reference stops
+# short of the horizon is not judged
+CHECK_REFERENCE_S = 10.0
 # what a check must meet to count as confirmed: error within this factor, cost within that
 CHECK_ERROR_FACTOR = 3.0
 CHECK_COST_FACTOR = 1.5
@@ -403,6 +408,8 @@ def check_budget(rows: list[dict[str, Any]], limit: int = CHECKS) -> float:
 def check_row(s: Setting, horizon: float, m: Measure, row: dict[str, Any]) -> dict[str, Any]:
     """A check's stored record: the re-run's row with the prediction beside it."""
     measured = row.get(m.field) if row.get("status") == "ok" else None
+    if m.field == "l2_error" and measured is not None and not (row.get("error_horizon") or 0) >= horizon * (1 - 1e-9):
+        measured = None  # the reference stopped short of the horizon: an error over less than the prediction's span
     from longtime.execution.cells import cell_of_row
 
     return {**row, "check_of": cell_of_row(s.row).key, "check_of_run": s.row.get("run_id"), "check_field": m.field, "check_law": s.law_text(),
@@ -429,12 +436,32 @@ def run_checks(store, run_id: int, rows: list[dict[str, Any]], options=None,
 
     opts = dataclasses.replace(options, jobs=1, on_start=None, idle_work=None)
     out = []
-    for (s, h, m), cell, row in zip(plan, cells, run_matrix(cells, None, None, "serial", opts)):
-        record = check_row(s, h, m, row)
-        if store is not None:
-            store.add_check(run_id, cell, record)
-        out.append(record)
+    with _reference_budget(CHECK_REFERENCE_S):
+        for (s, h, m), cell, row in zip(plan, cells, run_matrix(cells, None, None, "serial", opts)):
+            record = check_row(s, h, m, row)
+            if store is not None:
+                store.add_check(run_id, cell, record)
+            out.append(record)
     return out
+
+
+@contextlib.contextmanager
+def _reference_budget(seconds: float):
+    """$LONGTIME_REFERENCE_SECONDS at most ``seconds`` while the checks run in this process
+    (a smaller one set by the user stays)."""
+    import os
+
+    from longtime.measure.reference import BUDGET_VARIABLE, budget_seconds
+
+    before = os.environ.get(BUDGET_VARIABLE)
+    os.environ[BUDGET_VARIABLE] = repr(min(seconds, budget_seconds()))
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop(BUDGET_VARIABLE, None)
+        else:
+            os.environ[BUDGET_VARIABLE] = before
 
 
 def check_summary(checks: list[dict[str, Any]]) -> str:
