@@ -1,11 +1,20 @@
 """The default matrix's budget (longtime.execution.budget): what it moves, that every pair
 keeps its rows, that --full-sweep runs the sweep as it is, and that the report says it.
 Only cells are planned here: nothing is integrated."""
+import pytest
+
 from longtime.commands.cli import build_parser, matrix_cells
 from longtime.core import registry
 from longtime.execution import budget
 from longtime.execution.cells import Cell, base_row, expand
 from longtime.reporting.report import summary
+
+
+@pytest.fixture(autouse=True)
+def _installed_only(monkeypatch):
+    """The default matrix of what is installed: classes other tests registered from Python
+    (some break the contract on purpose) are not in it."""
+    monkeypatch.setattr(registry, "_session", {"problems": {}, "integrators": {}})
 
 
 def plan(*argv: str):
