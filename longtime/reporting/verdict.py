@@ -370,13 +370,15 @@ def check_holds(c: dict[str, Any]) -> bool | None:
 
 def plan_checks(rows: list[dict[str, Any]], limit: int = CHECKS, budget_s: float = CHECK_BUDGET_S
                 ) -> list[tuple[Setting, float, Measure]]:
-    """The predictions to re-run: per problem, each setting the map names as the winner
-    somewhere past its run, at the longest horizon where it wins within ``budget_s`` of
-    predicted CPU (so the check tests a prediction the verdict makes); one problem at a time
-    in turn (each problem's distinct schemes first, the farthest horizon first), at most
-    ``limit`` in all."""
+    """The predictions to re-run: per problem whose checks can be measured (``_checkable``),
+    each setting the map names as the winner somewhere past its run, at the longest horizon
+    where it wins within ``budget_s`` of predicted CPU (so the check tests a prediction the
+    verdict makes); one problem at a time in turn (each problem's distinct schemes first, the
+    farthest horizon first), at most ``limit`` in all."""
     per_problem: list[list[tuple[Setting, float, Measure]]] = []
     for v in verdicts(rows).values():
+        if not _checkable(v, rows):
+            continue
         picks: dict[int, tuple[Setting, float, Measure]] = {}
         for d in v.grid.values():
             s = d.best
@@ -396,6 +398,21 @@ def plan_checks(rows: list[dict[str, Any]], limit: int = CHECKS, budget_s: float
             if picks and len(out) < limit:
                 out.append(picks.pop(0))
     return out
+
+
+def _checkable(v: Verdict, rows: list[dict[str, Any]]) -> bool:
+    """Whether a check of ``v``'s predictions can be measured past the runs: its error needs
+    no heyoka reference there (an invariant's drift, or an exact solution), and the problem
+    is not chaotic (a solution error predicted past the predictability horizon is not a
+    prediction a check can judge)."""
+    if v.measure is None:
+        return False
+    mine = [r for r in rows if r.get("problem") == v.problem]
+    if any("lyapunov_time" in r for r in mine):
+        return False
+    if v.measure.field != "l2_error":
+        return True
+    return any(r.get("reference") == "exact" for r in mine if r.get("status") == "ok")
 
 
 def check_budget(rows: list[dict[str, Any]], limit: int = CHECKS) -> float:
