@@ -68,6 +68,9 @@ def check_scheduler(address: str, seconds: float = CONNECT_S) -> None:
         finally:
             comm.abort()
 
+    refused = _unreachable(address, seconds)
+    if refused:  # Dask's connect retries a refused connection until its timeout: say it at once
+        raise InputError(f"--scheduler {address}: cannot connect to a Dask scheduler there ({refused})")
     try:
         info = asyncio.run(asyncio.wait_for(identity(), seconds))
     except (asyncio.TimeoutError, TimeoutError):
@@ -79,6 +82,24 @@ def check_scheduler(address: str, seconds: float = CONNECT_S) -> None:
     if not isinstance(info, dict) or info.get("type") != "Scheduler":
         kind = info.get("type") if isinstance(info, dict) else type(info).__name__
         raise InputError(f"--scheduler {address}: the server there is not a Dask scheduler (it says {kind!r})")
+
+
+def _unreachable(address: str, seconds: float) -> str | None:
+    """Why nothing accepts a TCP connection at ``address`` (refused, no route), or None when
+    something does or the address is not TCP."""
+    import socket
+
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    scheme, location = parse_address(address)
+    if scheme not in ("tcp", "tls"):
+        return None
+    host, port = parse_host_port(location)
+    try:
+        with socket.create_connection((host, port), timeout=seconds):
+            return None
+    except OSError as exc:
+        return exc.strerror or str(exc)
 
 
 def _connect(options, n_cells: int):
