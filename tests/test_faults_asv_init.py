@@ -1,4 +1,4 @@
-"""Issue 37, items 14 to 17: asv-init checks its input before it writes anything; --force
+"""asv-init checks its input before it writes anything; --force
 never writes through a symbolic link out of DIR."""
 import math
 

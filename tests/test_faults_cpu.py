@@ -1,4 +1,4 @@
-"""Issue 37, item 0: the golden rows hold on any x86-64 machine, not only the one that wrote
+"""The golden rows hold on any x86-64 machine, not only the one that wrote
 them. Counts, statuses and texts exact; floats within the round-off tolerances stated in
 tests/test_golden_rows.py; rows rebuilt with numpy, OpenBLAS and glibc limited to their
 baseline kernels pass."""

@@ -1,4 +1,4 @@
-"""Issue 37, items 3 to 6: Dask cells under the process pool's hard time and memory limits,
+"""Dask cells under the process pool's hard time and memory limits,
 no process of a Dask task outliving its worker, a scheduler address that is not Dask ending
 in bounded time before a run is recorded, and stop signals honoured by a process stuck in a
 compiled step (--executor serial). Bounded: one worker, limits of a second."""

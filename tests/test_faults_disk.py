@@ -1,4 +1,4 @@
-"""Issue 37, items 1, 2 and 13: a full disk is an interruption, never a result. A full temp
+"""A full disk is an interruption, never a result. A full temp
 folder stores no ``failed`` row (the run is ``interrupted``, exit 1, and ``--resume``
 completes it once there is space); a full cache folder is skipped with a warning, as numba
 skips a cache it cannot write; a complete run whose end mark was lost is marked done by

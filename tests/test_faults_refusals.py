@@ -1,4 +1,4 @@
-"""Issue 37, items 8 to 12: bad input refused up front, in one line (exit 2), before any cell
+"""Bad input refused up front, in one line (exit 2), before any cell
 runs; Ctrl-C while the command is still importing ends it without a traceback."""
 import json
 import os

@@ -1,4 +1,4 @@
-"""Issue 37, item 7: one structurally bad stored row (garbage JSON, {}, a list, null, status
+"""One structurally bad stored row (garbage JSON, {}, a list, null, status
 null, order "four") is skipped, with its id and the reason, by report, compare, report --html
 and history; it never costs the store."""
 import json
