@@ -17,6 +17,7 @@ as the reference can show.
 """
 from __future__ import annotations
 
+import contextlib
 import math
 from typing import Any
 
@@ -45,6 +46,17 @@ def observable(problem: Problem, t: np.ndarray, U: np.ndarray) -> tuple[str, np.
     return "u[0]", U[:, 0]
 
 
+@contextlib.contextmanager
+def _started_at(problem: Problem, state: np.ndarray):
+    """``problem`` starting from ``state`` inside the block, from its own initial state after."""
+    u0 = problem.u0
+    problem.u0 = state
+    try:
+        yield problem
+    finally:
+        problem.u0 = u0
+
+
 def _late(t: np.ndarray, values: np.ndarray, t0: float, t_final: float, window: float) -> np.ndarray:
     keep = (t >= t_final - window * (t_final - t0)) & np.isfinite(values)
     return values[keep]
@@ -55,16 +67,12 @@ def _reference_pool(problem: Problem, states: list[np.ndarray], t_final: float, 
 
     grid = np.linspace(problem.t0, t_final, GRID)
     pool = []
-    u0 = problem.u0
-    try:
-        for state in states:
-            problem.u0 = state
+    for state in states:
+        with _started_at(problem, state):
             U, stopped = _propagate(problem, grid, "double")
-            if stopped is not None:
-                raise RuntimeError(f"heyoka's ensemble run stopped at t = {stopped:.6g} (its time budget)")
-            pool.append(_late(grid, observable(problem, grid, U)[1], problem.t0, t_final, window))
-    finally:
-        problem.u0 = u0
+        if stopped is not None:
+            raise RuntimeError(f"heyoka's ensemble run stopped at t = {stopped:.6g} (its time budget)")
+        pool.append(_late(grid, observable(problem, grid, U)[1], problem.t0, t_final, window))
     return np.concatenate(pool)
 
 
@@ -82,17 +90,13 @@ def measure(problem: Problem, scheme: Integrator, t_final: float, members: int =
                            "ensemble.distance": None, "ensemble.floor": None, "ensemble.members": 0,
                            "ensemble.note": ""}
     pool, lost = [], 0
-    u0 = problem.u0
-    try:
-        for state in states:
-            problem.u0 = state
+    for state in states:
+        with _started_at(problem, state):
             traj = scheme.integrate(problem, t_final, max_samples=MAX_SAMPLES)
-            if traj.status != "ok":
-                lost += 1
-                continue
-            pool.append(_late(traj.t, observable(problem, traj.t, traj.u)[1], problem.t0, t_final, window))
-    finally:
-        problem.u0 = u0
+        if traj.status != "ok":
+            lost += 1
+            continue
+        pool.append(_late(traj.t, observable(problem, traj.t, traj.u)[1], problem.t0, t_final, window))
     out["ensemble.members"] = len(pool)
     if not pool:
         out["ensemble.note"] = f"no member ran to t = {t_final:g} ({lost} diverged or failed)"
@@ -132,13 +136,9 @@ def field_spread(problem: Problem, scheme: Integrator, t_final: float, field: st
     from longtime.measure.metrics import evaluate
 
     def value(state: np.ndarray) -> float | None:
-        u0 = problem.u0
-        problem.u0 = state
-        try:
+        with _started_at(problem, state):
             traj = scheme.integrate(problem, t_final, max_samples=MAX_SAMPLES * 5)
             row = evaluate(problem, traj, None, None)
-        finally:
-            problem.u0 = u0
         if field not in row:
             from longtime.core.params import InputError
 
