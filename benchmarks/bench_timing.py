@@ -31,13 +31,14 @@ COMMANDS = [["run", "-p", "kepler", "-i", "rk4,rk45,gauss4", "--t-final", "500",
             ["run", "-p", "toda", "-i", "rk4,rk4sym,gauss4", "--t-final", "500", "--format", "json", "--no-store"]]
 
 
-def invocations(runs: int = 6, processes: int | None = None) -> tuple[dict[str, list[float]], dict[str, float]]:
+def invocations(runs: int = 6, processes: int | None = None,
+                jobs: int | None = None) -> tuple[dict[str, list[float]], dict[str, float]]:
     """cpu_s per cell over ``runs`` separate invocations, and each cell's largest spread
     between the processes of one invocation."""
     times: dict[str, list[float]] = {}
     spread: dict[str, float] = {}
     env = {**os.environ, "PYTHONWARNINGS": "ignore"}
-    extra = ["--processes", str(processes)] if processes else []
+    extra = (["--processes", str(processes)] if processes else []) + (["--jobs", str(jobs)] if jobs else [])
     for _ in range(runs):
         for command in COMMANDS:
             out = subprocess.run([sys.executable, "-m", "longtime.commands.cli", *command, *extra],
@@ -78,10 +79,12 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=6, help="separate invocations (default 6)")
     parser.add_argument("--processes", type=int, default=None, help="--processes of each invocation (default: its own)")
+    parser.add_argument("--jobs", type=int, default=None, help="--jobs of each invocation (default: its own)")
     args = parser.parse_args()
-    times, spread = invocations(args.runs, args.processes)
+    times, spread = invocations(args.runs, args.processes, args.jobs)
     for command in COMMANDS:
-        print(f"longtime {' '.join(command)}{f' --processes {args.processes}' if args.processes else ''}")
+        print(f"longtime {' '.join(command)}{f' --processes {args.processes}' if args.processes else ''}"
+              f"{f' --jobs {args.jobs}' if args.jobs else ''}")
     print(f"x {args.runs} invocations")
     print(f"{'cell':40s} {'min cpu_s':>10s} {'max cpu_s':>10s} {'max/min':>8s} {'process spread':>15s}")
     for key, r in sorted(ratios(times).items()):

@@ -9,7 +9,8 @@ from longtime.commands import cli
 from longtime.execution import provenance
 from longtime.execution.cells import Cell, run_cell
 from longtime.execution.matrix import ExecOptions, run_matrix
-from longtime.execution.processes import check_processes, merge
+from longtime.execution import processes
+from longtime.execution.processes import MAX_ROUNDS, check_processes, merge, time_cells
 from longtime.core.integrator import Timing
 from longtime.core.params import InputError
 from longtime.reporting.compare import compare_rows
@@ -24,11 +25,26 @@ def test_n_processes_give_n_minima_and_cpu_s_is_their_minimum():
         mins = row["cpu_s_processes"]
         assert len(mins) == 3 and all(m > 0 for m in mins)
         assert row["cpu_s"] == min(mins)
-        assert row["cpu_s_process_spread"] == pytest.approx(max(mins) / min(mins))
+        # the spread between the fresh processes, which spread their runs over seconds
+        assert row["cpu_s_process_spread"] == pytest.approx(max(mins[1:]) / min(mins[1:]))
         assert row["repeats"] == len(row["cpu_s_samples"]) and min(row["cpu_s_samples"]) == row["cpu_s"]
-        # the repeats are split: ceil(6 / 3) at most in each process
-        assert row["repeats"] <= 3 * 2
+        # the row's own process repeats ceil(6 / 3) times at most; each fresh one at least that
+        assert 3 * 2 <= row["repeats"] <= 2 + 2 * MAX_ROUNDS
         assert row["cpu_s_calibrated"] == pytest.approx(row["cpu_s"] / row["calibration_cpu_s"])
+
+
+def test_a_timing_process_runs_its_cells_in_rounds_until_their_runs_span_seconds(monkeypatch):
+    cells = [Cell("harmonic", "verlet", {}, {"dt": 0.05}, 20.0), Cell("kepler", "rk4", {}, {"dt": 0.01}, 5.0)]
+    monkeypatch.setattr(processes, "SPREAD_S", 0.0)
+    quick = time_cells(cells, 1000, Timing(repeats=2, min_time=0))
+    assert [len(r["cpu_s_samples"]) for r in quick] == [2, 2]  # no span asked: the repeats alone
+    monkeypatch.setattr(processes, "SPREAD_S", 600.0)
+    monkeypatch.setattr(processes, "MAX_ROUNDS", 5)
+    spread = time_cells(cells, 1000, Timing(repeats=2, min_time=0))
+    assert [len(r["cpu_s_samples"]) for r in spread] == [5, 5]  # rounds until the span, at most MAX_ROUNDS
+    for r, q in zip(spread, quick):
+        assert r["status"] == "ok" and r["cpu_s"] == min(r["cpu_s_samples"])
+        assert r["samples_digest"] == q["samples_digest"]
 
 
 def test_one_process_keeps_its_own_minimum():
@@ -45,6 +61,7 @@ def test_a_process_that_does_not_reproduce_the_run_fails_the_row():
     ok = {"status": "ok", "message": "", "cpu_s": 1.0, "wall_s": 1.0, "cpu_s_samples": [1.0], "samples_digest": "a"}
     merge(ok, [{"status": "ok", "cpu_s": 1.5, "wall_s": 1.5, "cpu_s_samples": [1.5, 1.6], "samples_digest": "a"},
                {"status": "failed", "message": "the timing process exited with code 1"}], 3)
+    # with one other process, the spread is the row's own against it
     assert ok["status"] == "ok" and ok["cpu_s_processes"] == [1.0, 1.5] and ok["cpu_s_process_spread"] == 1.5
     assert "timed in 2 of 3 processes: the timing process exited with code 1" in ok["message"]
     assert ok["repeats"] == 3
