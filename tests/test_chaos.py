@@ -178,7 +178,6 @@ def test_a_regular_default_state_says_where_the_problem_is_chaotic():
     problem = registry.problem_class("henon-heiles")()
     fields = lyapunov.row_fields(problem, {"error_horizon": 100.0, "predictability_t": None})
     assert fields["lyapunov_time"] is None
-    assert fields["lyapunov_note"].endswith("this state is regular, the motion is chaotic with --set y0=0 "
-                                            "(docs/problems.md)")
+    assert fields["lyapunov_note"].endswith("; the motion is measured chaotic with --set y0=0 (docs/problems.md)")
     chaotic = registry.problem_class("henon-heiles")(y0=0.0)
-    assert "this state is regular" not in lyapunov.row_fields(chaotic, {"error_horizon": 100.0})["lyapunov_note"]
+    assert "--set" not in lyapunov.row_fields(chaotic, {"error_horizon": 100.0})["lyapunov_note"]

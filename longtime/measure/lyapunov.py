@@ -151,9 +151,9 @@ def row_fields(problem: Problem, row: dict[str, Any]) -> dict[str, Any]:
     chaotic_from = getattr(problem, "chaotic_settings", None)
     if found["lyapunov_time"] is None and chaotic_from and any(
             problem.settings.get(k) != v for k, v in chaotic_from.items()):
-        # a regular state of a problem that is chaotic elsewhere: the row says where
+        # no chaos from this state of a problem measured chaotic elsewhere: the row says where
         where = ",".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in chaotic_from.items())
-        out["lyapunov_note"] += f"; this state is regular, the motion is chaotic with --set {where} (docs/problems.md)"
+        out["lyapunov_note"] += f"; the motion is measured chaotic with --set {where} (docs/problems.md)"
     t_lyap, t_lost, horizon = found["lyapunov_time"], row.get("predictability_t"), row.get("error_horizon")
     out["predictability_lyapunov"] = t_lost / t_lyap if t_lyap and t_lost is not None else None
     if horizon is None:
