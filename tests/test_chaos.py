@@ -121,3 +121,63 @@ def test_a_chaotic_figure_is_given_with_its_round_off_spread(capsys):
     assert out["field"] == "H.max" and len(out["values"]) == 4
     assert out["min"] < out["max"]  # chaos: round-off moves the figure
     assert main(["roundoff", "--spread", "H.max", "-p", "double-pendulum", "-i", "rk4", "--dt", "0.002"]) == 2
+
+
+# the chaotic problems measured from their default state (docs/problems.md, "Chaos from the
+# default states"): the exponent's 95 % interval, or None where no Lyapunov time is determined
+FROM_THE_DEFAULT_STATE = {
+    "double-pendulum": (0.82, 1.19),  # over t = 100
+    "duffing-forced": (0.076, 0.141),  # over t = 1000
+    "fpu": (0.087, 0.117),  # over t = 2000
+    "lennard-jones": (390.0, 466.0),  # per ns, over 0.2 ns
+    "henon-heiles": None,  # y0 = 0.1 at E = 1/6 - 1e-3: a regular orbit over t = 1e4
+    "figure-eight-perturbed": None,  # shift 80: regular over 200 periods (and over t = 1e4)
+}
+
+
+def _chaotic_problems():
+    return sorted(name for name, cls in registry.problems().items()
+                  if cls.chaotic and cls.__module__.startswith("longtime.problems."))
+
+
+def test_every_chaotic_problem_is_measured_from_its_default_state():
+    assert _chaotic_problems() == sorted(FROM_THE_DEFAULT_STATE)
+
+
+@pytest.mark.parametrize("name", sorted(FROM_THE_DEFAULT_STATE))
+def test_which_chaotic_problems_are_chaotic_from_their_default_state(name):
+    cls = registry.problem_class(name)
+    found = lyapunov.measure(cls())
+    expected = FROM_THE_DEFAULT_STATE[name]
+    if expected is None:
+        # regular: no Lyapunov time, and the problem names the settings where it is chaotic
+        assert found["lyapunov_time"] is None and found["lyapunov_note"].startswith("undetermined"), found
+        assert cls.chaotic_settings, name
+    else:
+        lo, hi = found["lyapunov_exponent_ci"]
+        assert found["lyapunov_time"] is not None, found
+        # the measured interval, each end to 10 %
+        assert lo == pytest.approx(expected[0], rel=0.1) and hi == pytest.approx(expected[1], rel=0.1), found
+        assert cls.chaotic_settings is None, name
+
+
+@pytest.mark.parametrize("name, lam", [("henon-heiles", (0.101, 0.136)), ("figure-eight-perturbed", (0.0443, 0.109))])
+def test_the_chaotic_settings_are_chaotic(name, lam):
+    """Henon-Heiles from y0 = 0 (the chaotic sea at E = 1/6 - 1e-3; measured lambda 0.118
+    [0.101, 0.136] over t = 1e4) and the figure-eight broken up by shift = 10 (0.0766
+    [0.0443, 0.109] over 200 periods): a Lyapunov time, each end of the interval to 10 %."""
+    cls = registry.problem_class(name)
+    problem = cls(**cls.chaotic_settings)
+    found = lyapunov.measure(problem)
+    assert found["lyapunov_time"] is not None, found
+    lo, hi = found["lyapunov_exponent_ci"]
+    assert lo == pytest.approx(lam[0], rel=0.1) and hi == pytest.approx(lam[1], rel=0.1), found
+
+
+def test_a_regular_default_state_says_where_the_problem_is_chaotic():
+    problem = registry.problem_class("henon-heiles")()
+    fields = lyapunov.row_fields(problem, {"error_horizon": 100.0, "predictability_t": None})
+    assert fields["lyapunov_time"] is None
+    assert fields["lyapunov_note"].endswith("; the motion is measured chaotic with --set y0=0 (docs/problems.md)")
+    chaotic = registry.problem_class("henon-heiles")(y0=0.0)
+    assert "--set" not in lyapunov.row_fields(chaotic, {"error_horizon": 100.0})["lyapunov_note"]

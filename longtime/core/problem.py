@@ -107,6 +107,11 @@ class Problem(ABC):
     # final time) and each row's predictability horizon in Lyapunov times
     chaotic: ClassVar[bool] = False
     lyapunov_span: ClassVar[float | None] = None
+    # for a ``chaotic`` problem whose default state is measured regular (no exponential
+    # separation over ``lyapunov_span``): settings (``--set`` names to values) from which its
+    # motion is measured chaotic; docs/problems.md gives the exponent, its interval and the
+    # command. None: the default state itself is measured chaotic
+    chaotic_settings: ClassVar[dict[str, Any] | None] = None
     autonomous: ClassVar[bool] = True
     # |u|_1 above blowup_factor * max(1, |u0|_inf), or a non-finite component, is a
     # divergence (the 1-norm: a branch-free sum in the compiled drivers, which every

@@ -39,6 +39,11 @@ class Heyoka(Integrator):
         "tol": Param(float(np.finfo(float).eps), "heyoka's tolerance (order p = ceil(-ln(tol)/2 + 1))",
                      float, positive=True, role="accuracy"),
         "high_accuracy": Param(False, "compensated summation and more careful step (long runs)", bool),
+        # the same method and tolerance with the state carried in x86's 80-bit long double:
+        # what a run through close encounters needs where a double state's rounding is the
+        # floor (docs/problems.md, pythagorean-three-body)
+        "precision": Param("double", "the floating type heyoka integrates in", str,
+                           choices=("double", "long-double")),
     }
     sweep = {"tol": (1e-9, 1e-12, float(np.finfo(float).eps))}
 
@@ -46,14 +51,22 @@ class Heyoka(Integrator):
         super().__init__(**settings)
         self.order = max(1, math.ceil(-math.log(self.settings["tol"]) / 2 + 1))
 
+    @property
+    def fp(self):
+        """The floating type of the integration: numpy's float64 or longdouble."""
+        return np.longdouble if self.settings["precision"] == "long-double" else np.float64
+
     def compiled(self, problem, timeout_s: float | None = None):
         """The taylor_adaptive object for this problem and these settings (built once);
         heyoka_build.CompileTimeout past ``timeout_s``."""
-        key = (problem.identity(), self.settings["tol"], self.settings["high_accuracy"])
+        key = (problem.identity(), self.settings["tol"], self.settings["high_accuracy"], self.settings["precision"])
         ta = _COMPILED.get(key)
         if ta is None:
-            ta = heyoka_build.taylor_adaptive(problem, problem.u0.copy(), timeout_s, tol=self.settings["tol"],
-                                              time=problem.t0, high_accuracy=self.settings["high_accuracy"])
+            fp = self.fp
+            extra = {} if fp is np.float64 else {"fp_type": fp}
+            ta = heyoka_build.taylor_adaptive(problem, problem.u0.astype(fp), timeout_s, tol=fp(self.settings["tol"]),
+                                              time=fp(problem.t0), high_accuracy=self.settings["high_accuracy"],
+                                              **extra)
             _COMPILED[key] = ta
         return ta
 
@@ -75,16 +88,16 @@ class Heyoka(Integrator):
             return Trajectory(status="timeout", message=f"time limit reached before the first step: {exc}",
                               t=grid[:1], u=problem.u0[None, :].copy(), cpu_s=0.0, wall_s=0.0)
         if deadline is not None:
-            stopped = self._guard(ta, problem, grid, deadline)
+            stopped = self._guard(ta, problem, grid, deadline, self.fp)
             if stopped is not None:
                 return stopped
             # the timed runs of this cell repeat the guard's steps: no second guard
             self._deadline = None
-        ta.time = problem.t0
-        ta.state[:] = problem.u0
+        ta.time = self.fp(problem.t0)
+        ta.state[:] = problem.u0.astype(self.fp)
         try:
             c0, w0 = time.process_time(), time.perf_counter()
-            outcome, min_h, max_h, nsteps, _, states = ta.propagate_grid(grid)
+            outcome, min_h, max_h, nsteps, _, states = ta.propagate_grid(grid.astype(self.fp))
             cpu, wall = time.process_time() - c0, time.perf_counter() - w0
         except Exception as exc:  # heyoka raises on invalid grids or states
             return Trajectory(status="failed", message=f"heyoka: {exc}", t=grid[:1],
@@ -99,8 +112,8 @@ class Heyoka(Integrator):
             status = "diverged"
             message = BLOWUP_MESSAGE.format(t=grid[n - 1])
         if outcome != hy.taylor_outcome.time_limit and status == "ok":
-            status, message = "failed", f"heyoka stopped with outcome {outcome} at t={ta.time:.6g}"
-            n = max(1, min(n, int(np.searchsorted(grid, ta.time, side="right"))))
+            status, message = "failed", f"heyoka stopped with outcome {outcome} at t={float(ta.time):.6g}"
+            n = max(1, min(n, int(np.searchsorted(grid, float(ta.time), side="right"))))
         steps = int(nsteps)
         return Trajectory(
             status=status, message=message, t=grid[:n], u=states[:n], cpu_s=cpu, wall_s=wall,
@@ -108,17 +121,17 @@ class Heyoka(Integrator):
             max_dt=float(max_h) if steps else None, extra={"order": ta.order, "tol": self.settings["tol"]})
 
     @staticmethod
-    def _guard(ta, problem, grid, deadline: float) -> Trajectory | None:
+    def _guard(ta, problem, grid, deadline: float, fp=np.float64) -> Trajectory | None:
         """The untimed guard run (see the module): None when it finished by ``deadline`` (a
         time.monotonic() value), else the ``timeout`` trajectory up to where it got."""
         import heyoka as hy
 
-        ta.time = problem.t0
-        ta.state[:] = problem.u0
+        ta.time = fp(problem.t0)
+        ta.state[:] = problem.u0.astype(fp)
         try:
             c0, w0 = time.process_time(), time.perf_counter()
             outcome, min_h, max_h, nsteps, _, states = ta.propagate_grid(
-                grid, callback=lambda _: time.monotonic() < deadline)
+                grid.astype(fp), callback=lambda _: time.monotonic() < deadline)
             cpu, wall = time.process_time() - c0, time.perf_counter() - w0
         except Exception:  # the timed run meets the same error and reports it
             return None

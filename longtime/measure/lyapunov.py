@@ -148,6 +148,12 @@ def row_fields(problem: Problem, row: dict[str, Any]) -> dict[str, Any]:
         found = {"lyapunov_exponent": None, "lyapunov_exponent_ci": None, "lyapunov_time": None,
                  "lyapunov_span": span(problem), "lyapunov_note": f"not measured: {exc}"}
     out = {k: found[k] for k in ("lyapunov_time", "lyapunov_exponent", "lyapunov_note")}
+    chaotic_from = getattr(problem, "chaotic_settings", None)
+    if found["lyapunov_time"] is None and chaotic_from and any(
+            problem.settings.get(k) != v for k, v in chaotic_from.items()):
+        # no chaos from this state of a problem measured chaotic elsewhere: the row says where
+        where = ",".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in chaotic_from.items())
+        out["lyapunov_note"] += f"; the motion is measured chaotic with --set {where} (docs/problems.md)"
     t_lyap, t_lost, horizon = found["lyapunov_time"], row.get("predictability_t"), row.get("error_horizon")
     out["predictability_lyapunov"] = t_lost / t_lyap if t_lyap and t_lost is not None else None
     if horizon is None:

@@ -207,11 +207,17 @@ class FigureEight(NBody):
 
 
 class FigureEightPerturbed(FigureEight):
-    """Body 3 takes the state it has at t = T/shift on the exact figure-eight; chaotic."""
+    """Body 3 takes the state it has at t = T/shift on the exact figure-eight. Measured from
+    the reference (docs/problems.md): for shift >= 33 (the default 80 among them) the three
+    bodies stay bound and separate like a regular orbit (no exponential separation over
+    t = 1e4); for shift <= 32 the choreography breaks up, and the bound pair's encounters
+    with the third body are chaotic (``chaotic_settings``: shift = 10)."""
 
     name = "figure-eight-perturbed"
-    summary = "figure-eight with the middle body shifted along its orbit (chaotic, hard)"
+    summary = ("figure-eight with the middle body shifted along its orbit (hard; regular at the default "
+               "shift, chaotic break-up for shift <= 32)")
     chaotic = True
+    chaotic_settings = {"shift": 10.0}
     parameters = {"shift": Param(80.0, "body 3 moved to t = T/shift on the orbit", float, positive=True, role="physical")}
     default_t_final = 200 * FIGURE_EIGHT_PERIOD
     sweep_t_final = 20 * FIGURE_EIGHT_PERIOD
