@@ -14,12 +14,17 @@ otherwise; ties to the cheaper), integrated from the chaotic state over the span
 final time, or SPAN_LYAPUNOV Lyapunov times where that is longer (the members must
 decorrelate before the late window), at most the problem's default final time.
 
-What it costs: MEMBERS members of the scheme (heyoka's two ensembles are computed once per
+The floor: the largest distance between heyoka's pool and FLOOR_ENSEMBLES heyoka ensembles
+of other seeds (the spread a finite ensemble shows by itself, taken at its largest of a few
+draws: one draw alone is a noisy threshold).
+
+What it costs: MEMBERS members of the scheme (heyoka's ensembles are computed once per
 problem and cached beside the references); a scheme whose members are estimated (its row's
 CPU time x the span over the row's x MEMBERS) above SCHEME_S is not run (``skipped``, with
-the estimate), and every member runs under a deadline of DEADLINE_S for the scheme's
-members together (past it: ``timeout``). A member that diverged, failed or timed out makes
-the scheme's record that status, with the members' counts, and no distance.
+the estimate); the schemes run cheapest first, their members together under a deadline of
+DEADLINE_S (past it: ``timeout``), and none starts PROBLEM_S after the problem's first
+(``skipped``, saying so). A member that diverged, failed or timed out makes the scheme's
+record that status, with the members' counts, and no distance.
 """
 from __future__ import annotations
 
@@ -40,7 +45,10 @@ WINDOW = ensemble.DEFAULT_WINDOW
 SEED = 1
 SPAN_LYAPUNOV = 20.0
 SCHEME_S = 0.25
-DEADLINE_S = 0.5
+DEADLINE_S = 1.0
+PROBLEM_S = 8.0
+# heyoka ensembles beside the reference pool: the floor is the largest of their distances to it
+FLOOR_ENSEMBLES = 3
 REFERENCE_S = 60.0  # heyoka's ensembles of a problem (once: cached), their compile included
 # a chaotic state of the problems whose default state shows no chaos (docs/metrics.md,
 # "Chaos"): Henon-Heiles at its default energy from y0 = 0 (lambda about 0.12), and the
@@ -143,21 +151,29 @@ def measure_problem(name: str, rows: list[dict[str, Any]], members: int = MEMBER
     base.update(t_final=t_final, span_lyapunov=span / t_lyap,
                 observable=ensemble.observable(problem, np.array([problem.t0]), problem.u0[None, :])[0])
     try:
-        reference, second = ensemble.reference_pools(problem, t_final, members, SIZE, SEED, WINDOW, REFERENCE_S)
+        reference, others = ensemble.reference_pools(problem, t_final, members, SIZE, SEED, WINDOW, REFERENCE_S,
+                                                     others=FLOOR_ENSEMBLES)
     except Exception as exc:  # no heyoka ensemble within its budget: said, not fatal
         return [record(r, status="failed", note=f"heyoka's ensemble: {type(exc).__name__}: {exc}")
                 for r in picks.values()]
-    floor = ensemble.distance(second, reference)
-    if floor is None:
+    floors = [ensemble.distance(other, reference) for other in others]
+    if any(f is None for f in floors):
         return [record(r, status="failed", note="the reference's observable does not vary over the window")
                 for r in picks.values()]
-    base["floor"] = floor
+    floor = max(floors)
+    base.update(floor=floor, floors=floors)
     out = []
-    for scheme, row in picks.items():
+    # the cheapest first: what the problem's budget leaves out is the costliest
+    order = sorted(picks.items(), key=lambda kv: (kv[1]["cpu_s"] / kv[1]["t_final"], kv[0]))
+    stop = time.monotonic() + PROBLEM_S
+    for scheme, row in order:
         estimate = row["cpu_s"] * span / row["t_final"] * members
         if estimate > SCHEME_S:
             out.append(record(row, status="skipped", note=f"its members are estimated at {estimate:.2g} s of CPU "
                                                          f"(its row's), above the step's {SCHEME_S:g} s a scheme"))
+            continue
+        if time.monotonic() > stop:
+            out.append(record(row, status="skipped", note=f"the step's {PROBLEM_S:g} s for the problem were spent"))
             continue
         cell = cell_of_row(row)
         _, integrator = build(Cell(name, scheme, settings, cell.integrator_settings))
@@ -167,7 +183,7 @@ def measure_problem(name: str, rows: list[dict[str, Any]], members: int = MEMBER
         start = time.process_time()
         try:
             pool, counts = ensemble.scheme_pool(problem, integrator, t_final, members, SIZE, SEED, WINDOW,
-                                                deadline=time.monotonic() + DEADLINE_S)
+                                                deadline=min(time.monotonic() + DEADLINE_S, stop))
         except Exception as exc:  # a scheme's fault is its record's status, never a number
             pool, counts = None, {"failed": 1}
             note = f"{type(exc).__name__}: {exc}"
@@ -177,15 +193,14 @@ def measure_problem(name: str, rows: list[dict[str, Any]], members: int = MEMBER
         if pool is None:
             status = next((s for s in ("failed", "timeout", "diverged") if counts.get(s)), "failed")
             ran = sum(counts.values())
-            note = note or (f"member {ran} of {members} {status}" + (" (past the step's deadline of "
-                                                                     f"{DEADLINE_S:g} s a scheme)" if status == "timeout"
-                                                                     else "") + "; no distance")
+            note = note or (f"member {ran} of {members} {status}" + (" (past the step's deadline)"
+                                                                     if status == "timeout" else "") + "; no distance")
             out.append(record(row, status=status, member_status=counts, cpu_s=cpu, note=note))
             continue
         d = ensemble.distance(pool, reference)
         out.append(record(row, status="ok", distance=d, member_status=counts, cpu_s=cpu,
                           distinguishable=ensemble.distinguishable(d, floor)))
-    return out
+    return sorted(out, key=lambda r: r["integrator"])
 
 
 def run(store, run_id: int | None, rows: list[dict[str, Any]], members: int = MEMBERS) -> list[dict[str, Any]]:

@@ -80,26 +80,28 @@ def _reference_pool(problem: Problem, states: list[np.ndarray], t_final: float, 
 
 
 def reference_pools(problem: Problem, t_final: float, members: int, size: float, seed: int, window: float,
-                    budget_s: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The reference pool (heyoka's ensemble of ``seed``) and the second one (seed + 1) that
-    the floor is measured against, cached beside the references (their key: the problem, its
-    settings, state and ODE, heyoka's version; here also the ensemble's own parameters):
-    every scheme of a problem is compared with the same pools, computed once."""
+                    budget_s: float | None = None, others: int = 1) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The reference pool (heyoka's ensemble of ``seed``) and ``others`` more (seeds + 1,
+    + 2, ...) that the floor is measured against, cached beside the references (their key:
+    the problem, its settings, state and ODE, heyoka's version; here also the ensemble's own
+    parameters): every scheme of a problem is compared with the same pools, computed once."""
     from longtime.measure import reference
 
-    path = reference._cache_path(problem, "ensemble", repr((float(t_final), members, size, seed, window, GRID)))
+    key = repr((float(t_final), members, size, seed, window, GRID, others))
+    path = reference._cache_path(problem, "ensemble", key)
     found = reference._load(path, lambda: _read_pools(path))
     if found is not None:
         return found
-    first = _reference_pool(problem, initial_states(problem, members, size, seed), t_final, window, budget_s)
-    second = _reference_pool(problem, initial_states(problem, members, size, seed + 1), t_final, window, budget_s)
-    reference._save(path, first=first, second=second)
-    return first, second
+    pools = [_reference_pool(problem, initial_states(problem, members, size, seed + k), t_final, window, budget_s)
+             for k in range(others + 1)]
+    reference._save(path, **{f"pool{k}": pool for k, pool in enumerate(pools)})
+    return pools[0], pools[1:]
 
 
-def _read_pools(path) -> tuple[np.ndarray, np.ndarray]:
+def _read_pools(path) -> tuple[np.ndarray, list[np.ndarray]]:
     with np.load(path) as data:
-        return np.array(data["first"]), np.array(data["second"])
+        pools = [np.array(data[f"pool{k}"]) for k in range(len(data.files))]
+    return pools[0], pools[1:]
 
 
 def scheme_pool(problem: Problem, scheme: Integrator, t_final: float, members: int, size: float, seed: int,
@@ -150,7 +152,7 @@ def measure(problem: Problem, scheme: Integrator, t_final: float, members: int =
     if not pool:
         out["ensemble.note"] = f"no member ran to t = {t_final:g} ({lost} diverged or failed)"
         return out
-    reference, second = reference_pools(problem, t_final, members, size, seed, window)
+    reference, (second,) = reference_pools(problem, t_final, members, size, seed, window)
     if distance(second, reference) is None:
         out["ensemble.note"] = "the reference's observable does not vary over the window"
         return out
