@@ -74,7 +74,7 @@ def test_the_page_and_the_report_show_the_distances(henon_heiles):
 
     _, _, by = henon_heiles
     html = _ensemble_table(list(by.values()))
-    for text in ("verlet", "rk4", "as heyoka", "told apart", "diverged", "initial state", "floor", "--no-ensemble"):
+    for text in ("verlet", "rk4", "as heyoka", "told apart", "diverged", "chaotic state", "floor", "--no-ensemble"):
         assert text in html, text
     line = ensembles.summary(list(by.values()))["henon-heiles"]
     assert line.startswith("1 of 2 schemes as heyoka"), line

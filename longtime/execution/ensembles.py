@@ -2,11 +2,13 @@
 between the distributions the scheme's and heyoka's ensembles visit late in the run
 (longtime.measure.ensemble), stored apart from the rows (``Store.add_ensemble``).
 
-Which problems: the chaotic problems of the rows that have a state whose Lyapunov time is
-determined (longtime.measure.lyapunov): their default state where it is chaotic, else the
-setting a problem declares as ``chaotic_settings``, else the one CHAOTIC_SETTINGS gives it.
-A problem whose state shows no chaos gets one record per scheme saying so (status
-``skipped``), never a distance.
+Which problems: the chaotic problems of the rows with a declared chaotic state, the settings
+a problem class gives as ``chaotic_settings`` (a dict; {} for its default state), else the
+ones CHAOTIC_SETTINGS gives it: henon-heiles and figure-eight-perturbed, whose default states
+show no chaos (docs/metrics.md, "Chaos"). The other chaotic problems are left to ``longtime
+ensemble``: their heyoka ensembles (lennard-jones' above all) do not fit the main job's
+budget. The state's Lyapunov time is measured (longtime.measure.lyapunov); where none is
+determined, each scheme's record says so (status ``skipped``), never a distance.
 
 Which setting of each scheme: one of its ok rows, the one nearest the default (the
 problem's default step for a fixed-step scheme, the scheme's default tolerance and order
@@ -56,37 +58,29 @@ REFERENCE_S = 60.0  # heyoka's ensembles of a problem (once: cached), their comp
 CHAOTIC_SETTINGS: dict[str, dict[str, Any]] = {"henon-heiles": {"y0": 0.0}, "figure-eight-perturbed": {"shift": 10.0}}
 
 
+def _declared(pcls) -> dict[str, Any] | None:
+    """The chaotic state a problem declares (``chaotic_settings``), else CHAOTIC_SETTINGS'."""
+    declared = getattr(pcls, "chaotic_settings", None)
+    return dict(declared) if declared is not None else CHAOTIC_SETTINGS.get(pcls.name)
+
+
 def chaotic_problems(rows: Iterable[dict[str, Any]]) -> list[str]:
-    """The problems of ``rows`` that the step covers: chaotic, with an ok row."""
-    names = sorted({r["problem"] for r in rows if r.get("status") == "ok"})
+    """The problems of ``rows`` that the step covers: chaotic, with a heyoka system, a
+    declared chaotic state and an ok row."""
     out = []
-    for name in names:
+    for name in sorted({r["problem"] for r in rows if r.get("status") == "ok"}):
         try:
             pcls = registry.problem_class(name)
         except Exception:  # a plugin's problem no longer installed: nothing to run
             continue
-        if getattr(pcls, "chaotic", False) and pcls.heyoka_system is not None and (
-                getattr(pcls, "chaotic_settings", None) or name in CHAOTIC_SETTINGS or _default_is_chaotic(pcls)):
+        if getattr(pcls, "chaotic", False) and pcls.heyoka_system is not None and _declared(pcls) is not None:
             out.append(name)
     return out
 
 
-def _default_is_chaotic(pcls) -> bool:
-    try:
-        return lyapunov.measure(pcls())["lyapunov_time"] is not None
-    except Exception:
-        return False
-
-
 def state_settings(name: str) -> dict[str, Any]:
-    """The problem settings the ensemble starts from: {} where the default state is chaotic."""
-    pcls = registry.problem_class(name)
-    declared = getattr(pcls, "chaotic_settings", None)
-    if declared:
-        return dict(declared)
-    if name in CHAOTIC_SETTINGS and not _default_is_chaotic(pcls):
-        return dict(CHAOTIC_SETTINGS[name])
-    return {}
+    """The problem settings the ensemble starts from (its declared chaotic state)."""
+    return _declared(registry.problem_class(name)) or {}
 
 
 def _distance_from_default(row: dict[str, Any], problem, scheme_cls) -> float:

@@ -169,7 +169,8 @@ def _ensemble_table(records: list[dict]) -> str | None:
     first = next((r for r in records if r.get("floor") is not None), records[0])
     state = ", ".join(f"{k} = {v:g}" if isinstance(v, (int, float)) else f"{k} = {v}"
                       for k, v in (first.get("problem_settings") or {}).items())
-    state = f"the initial state of {state} (the rows' default state shows no chaos)" if state else "its initial state"
+    state = (f"the problem's chaotic state {state} (not the rows' state: their Lyapunov time above is that of the "
+             f"default state)" if state else "the problem's initial state")
     if first.get("floor") is None:
         return f'<p class="note">No ensemble distance from {escape(state)}: {escape(first.get("note") or "")}.</p>'
     floor = first["floor"]
