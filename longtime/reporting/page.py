@@ -200,7 +200,7 @@ def _ensemble_table(records: list[dict]) -> str | None:
                      f'<td class="{escape(r.get("status") or "")}" colspan="4">{escape(r.get("status") or "")}: '
                      f'{escape(r.get("note") or "")}</td>'])
     return (f'<p class="note">{head}</p>'
-            + table(["scheme", "setting", "distance", "floor", "x floor", "vs the floor"], body, raw=True))
+            + table(["scheme", "setting", "distance", "floor", "distance / floor", "vs the floor"], body, raw=True))
 
 
 def _orders_table(fits: list[dict]) -> str | None:
