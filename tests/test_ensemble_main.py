@@ -26,7 +26,8 @@ def henon_heiles(tmp_path_factory):
     db = tmp_path_factory.mktemp("ens") / "ens.sqlite"
     store = Store(db)
     rows = [_row("verlet", 0.01), _row("rk4", 0.4), _row("euler", 0.01)]
-    run_id = store.begin_run("test ensembles", [Cell("henon-heiles", r["integrator"], {}, {"dt": r["dt"]}) for r in rows])
+    cells = [Cell("henon-heiles", r["integrator"], {}, {"dt": r["dt"]}) for r in rows]
+    run_id = store.begin_run("test ensembles", cells)
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(ensembles, "DEADLINE_S", 120.0)  # a loaded machine is no timeout here
         mp.setattr(ensembles, "PROBLEM_S", 600.0)
