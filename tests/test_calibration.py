@@ -135,7 +135,7 @@ def test_a_store_of_schema_1_keeps_working(tmp_path):
     assert old.calibrations(1) == [] and old.checks(1) == [] and len(old.rows(1)) == 1
     assert sqlite3.connect(db).execute("PRAGMA user_version").fetchone()[0] == 1
     store = Store(db)  # opened for writing: gains the tables
-    assert sqlite3.connect(db).execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 3
+    assert sqlite3.connect(db).execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 4
     assert store.checks(1) == []
     store.add_calibrations(1, [{"t": 1.0, "pid": 7, "phase": "after", "cpu_s": 2e-3}])
     assert store.calibrations(1) == [{"t": 1.0, "pid": 7, "phase": "after", "cpu_s": 2e-3}]

@@ -280,6 +280,14 @@ def cmd_matrix(args) -> int:
                 checks = []
             if checks:
                 print(f"checks: {check_summary(checks)}", file=sys.stderr)
+        if not args.no_ensemble:  # chaotic problems: each scheme's ensemble distance to heyoka's
+            from longtime.execution import ensembles
+
+            try:
+                with phases.phase("ensembles"):
+                    ensembles.run(store, run_id, store.rows(run_id))
+            except (InputError, OSError, ValueError, RuntimeError) as exc:  # the rows are stored; this is extra
+                print(f"warning: ensembles not measured: {type(exc).__name__}: {exc}", file=sys.stderr)
     if not args.no_report:
         from longtime.reporting.page import write_html
         from longtime.reporting.report import report_text
@@ -294,7 +302,8 @@ def cmd_matrix(args) -> int:
             except Exception as exc:  # the rows are stored; `longtime report --html DIR` can retry
                 print(f"warning: results page not written: {type(exc).__name__}: {exc}", file=sys.stderr)
         with phases.phase("report"):
-            text = report_text(rows, "table", full=args.full, checks=store.checks(run_id))
+            text = report_text(rows, "table", full=args.full, checks=store.checks(run_id),
+                               ensembles=store.ensembles(run_id))
         print(text)
         print(f"\ncalibration: {drift_text(store.calibrations(run_id))}")
         if page is not None:
@@ -365,8 +374,10 @@ def cmd_report(args) -> int:
                   + f"; `longtime matrix --resume {run_id}` completes it", file=sys.stderr)
         rows = store.rows(run_id)
     checks = store.checks() if args.run == "all" else store.checks(run_id)
+    ensembles = store.ensembles() if args.run == "all" else store.ensembles(run_id)
     if args.problem:
         rows = [r for r in rows if r["problem"] in args.problem]
+        ensembles = [e for e in ensembles if e["problem"] in args.problem]
     _notices(r["integrator"] for r in rows)
     from longtime.reporting.page import write_html
     from longtime.reporting.report import report_text, to_parquet
@@ -378,11 +389,11 @@ def cmd_report(args) -> int:
             to_parquet(rows, args.out or "longtime.parquet")
         print(f"wrote {len(rows)} rows to {args.out or 'longtime.parquet'}", file=sys.stderr)
     elif args.out:
-        text = report_text(rows, args.format, full=args.full, checks=checks)
+        text = report_text(rows, args.format, full=args.full, checks=checks, ensembles=ensembles)
         with cli_args.writing("--out", args.out):
             Path(args.out).write_text(text)
     else:
-        print(report_text(rows, args.format, full=args.full, checks=checks))
+        print(report_text(rows, args.format, full=args.full, checks=checks, ensembles=ensembles))
         if args.format == "table" and args.run != "all":
             print(f"\ncalibration: {drift_text(store.calibrations(run_id))}")
     return 0
@@ -426,6 +437,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--checks", type=cli_args.integer("--checks", 0), default=None, metavar="N",
                    help="re-run N of the verdicts' predictions past the rows' final times and store predicted "
                         "against measured error and cost (default 6; 0: none)")
+    p.add_argument("--no-ensemble", action="store_true",
+                   help="do not measure the chaotic problems' ensemble distances (each scheme's late-time "
+                        "distribution against heyoka's: henon-heiles, figure-eight-perturbed; docs/metrics.md)")
     p.add_argument("--baseline", type=cli_args.integer("--baseline", 1), default=None, metavar="RUN",
                    help="end with `longtime compare RUN` against this run (same store) and exit 1 on a regression")
     p.set_defaults(func=cmd_matrix)

@@ -31,10 +31,10 @@ DEFAULT_PATH = "longtime.sqlite"
 # without the stamp is refused untouched unless it is a store of the first layout (no version)
 # existed (the same three tables, with the same columns, and nothing else).
 APPLICATION_ID = 0x4C54696D
-# 2: the calibrations table; 3: the checks table (a store of an older version gains them when
-# opened for writing)
-SCHEMA_VERSION = 3
-ADDED_IN = {"calibrations": 2, "checks": 3}  # the schema version that added a table (1: every other)
+# 2: the calibrations table; 3: the checks table; 4: the ensembles table (a store of an older
+# version gains them when opened for writing)
+SCHEMA_VERSION = 4
+ADDED_IN = {"calibrations": 2, "checks": 3, "ensembles": 4}  # the schema version that added a table (1: every other)
 _TABLES = {"runs", "planned", "rows"}  # a store of the first layout, without a schema version or 'started'
 
 SCHEMA = """
@@ -66,6 +66,11 @@ CREATE TABLE IF NOT EXISTS checks (
     run_id INTEGER NOT NULL REFERENCES runs(id), cell_key TEXT NOT NULL,
     problem TEXT NOT NULL, integrator TEXT NOT NULL, row TEXT NOT NULL, created TEXT NOT NULL,
     PRIMARY KEY (run_id, cell_key)
+);
+CREATE TABLE IF NOT EXISTS ensembles (
+    run_id INTEGER NOT NULL REFERENCES runs(id), problem TEXT NOT NULL, integrator TEXT NOT NULL,
+    status TEXT NOT NULL, record TEXT NOT NULL, created TEXT NOT NULL,
+    PRIMARY KEY (run_id, problem, integrator)
 );
 PRAGMA application_id = %d;
 PRAGMA user_version = %d;
@@ -352,7 +357,7 @@ class Store:
         with closing(self._connect()) as con, con:
             if con.execute("SELECT COUNT(*) FROM rows WHERE run_id = ?", (run_id,)).fetchone()[0]:
                 return
-            for table in ("started", "planned", "calibrations", "checks"):
+            for table in ("started", "planned", "calibrations", "checks", "ensembles"):
                 con.execute(f"DELETE FROM {table} WHERE run_id = ?", (run_id,))
             con.execute("DELETE FROM runs WHERE id = ?", (run_id,))
 
@@ -399,6 +404,32 @@ class Store:
             try:
                 fetched = con.execute(query + " ORDER BY rowid", args).fetchall()
             except sqlite3.OperationalError:  # a store of schema version 1 or 2, opened read-only
+                return []
+        return [{"run_id": rid, **json.loads(text)} for rid, text in fetched]
+
+    def add_ensemble(self, run_id: int, record: dict[str, Any]) -> None:
+        """Store one scheme's ensemble distance on a chaotic problem
+        (longtime.execution.ensembles): its record, whose ``status`` says whether it holds a
+        distance (ok) or why not; kept apart from the rows (no cell of the matrix)."""
+        if record.get("status") != "ok" and record.get("distance") is not None:
+            raise ValueError(f"an ensemble record of status {record.get('status')!r} carries a distance")
+        with self._writing(f"the ensemble of {record['problem']} x {record['integrator']} (run {run_id})", run_id), \
+                self._writer_lock, self._row_writer() as con:
+            con.execute("INSERT OR REPLACE INTO ensembles (run_id, problem, integrator, status, record, created) "
+                        "VALUES (?, ?, ?, ?, ?, ?)",
+                        (run_id, record["problem"], record["integrator"], record["status"], json.dumps(record),
+                         _now()))
+
+    def ensembles(self, run_id: int | None = None) -> list[dict[str, Any]]:
+        """The ensemble records of ``run_id`` (default: every run's), in the order stored;
+        none in a store older than the ensembles table."""
+        query, args = "SELECT run_id, record FROM ensembles", ()
+        if run_id is not None:
+            query, args = query + " WHERE run_id = ?", (run_id,)
+        with closing(self._connect()) as con:
+            try:
+                fetched = con.execute(query + " ORDER BY rowid", args).fetchall()
+            except sqlite3.OperationalError:  # a store of schema version 1 to 3, opened read-only
                 return []
         return [{"run_id": rid, **json.loads(text)} for rid, text in fetched]
 

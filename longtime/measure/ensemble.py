@@ -31,6 +31,8 @@ DEFAULT_SIZE = 1e-6
 DEFAULT_WINDOW = 0.5
 GRID = 2001  # reference samples per member over the span
 MAX_SAMPLES = 20_001
+# a distance above this many floors is told apart from the reference
+FLOOR_FACTOR = 2.0
 
 
 def initial_states(problem: Problem, members: int, size: float, seed: int) -> list[np.ndarray]:
@@ -62,18 +64,69 @@ def _late(t: np.ndarray, values: np.ndarray, t0: float, t_final: float, window: 
     return values[keep]
 
 
-def _reference_pool(problem: Problem, states: list[np.ndarray], t_final: float, window: float) -> np.ndarray:
+def _reference_pool(problem: Problem, states: list[np.ndarray], t_final: float, window: float,
+                    budget_s: float | None = None) -> np.ndarray:
     from longtime.measure.reference import _propagate
 
     grid = np.linspace(problem.t0, t_final, GRID)
     pool = []
     for state in states:
         with _started_at(problem, state):
-            U, stopped = _propagate(problem, grid, "double")
+            U, stopped = _propagate(problem, grid, "double", budget_s)
         if stopped is not None:
             raise RuntimeError(f"heyoka's ensemble run stopped at t = {stopped:.6g} (its time budget)")
         pool.append(_late(grid, observable(problem, grid, U)[1], problem.t0, t_final, window))
     return np.concatenate(pool)
+
+
+def reference_pools(problem: Problem, t_final: float, members: int, size: float, seed: int, window: float,
+                    budget_s: float | None = None, others: int = 1) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The reference pool (heyoka's ensemble of ``seed``) and ``others`` more (seeds + 1,
+    + 2, ...) that the floor is measured against, cached beside the references (their key:
+    the problem, its settings, state and ODE, heyoka's version; here also the ensemble's own
+    parameters): every scheme of a problem is compared with the same pools, computed once."""
+    from longtime.measure import reference
+
+    key = repr((float(t_final), members, size, seed, window, GRID, others))
+    path = reference._cache_path(problem, "ensemble", key)
+    found = reference._load(path, lambda: _read_pools(path))
+    if found is not None:
+        return found
+    pools = [_reference_pool(problem, initial_states(problem, members, size, seed + k), t_final, window, budget_s)
+             for k in range(others + 1)]
+    reference._save(path, **{f"pool{k}": pool for k, pool in enumerate(pools)})
+    return pools[0], pools[1:]
+
+
+def _read_pools(path) -> tuple[np.ndarray, list[np.ndarray]]:
+    with np.load(path) as data:
+        pools = [np.array(data[f"pool{k}"]) for k in range(len(data.files))]
+    return pools[0], pools[1:]
+
+
+def scheme_pool(problem: Problem, scheme: Integrator, t_final: float, members: int, size: float, seed: int,
+                window: float, deadline: float | None = None) -> tuple[np.ndarray | None, dict[str, int]]:
+    """The scheme's pool over the ensemble of ``seed``, and the count of each member's status.
+    The pool is None unless every member ran to ``t_final`` (a member that diverged, failed
+    or passed ``deadline``, a time.monotonic() value, is a status, never part of a number);
+    the members after one that did not are not run."""
+    pool, counts = [], {}
+    for state in initial_states(problem, members, size, seed):
+        with _started_at(problem, state):
+            traj = scheme.integrate(problem, t_final, max_samples=MAX_SAMPLES, deadline=deadline)
+        counts[traj.status] = counts.get(traj.status, 0) + 1
+        if traj.status != "ok":
+            return None, counts
+        pool.append(_late(traj.t, observable(problem, traj.t, traj.u)[1], problem.t0, t_final, window))
+    return np.concatenate(pool), counts
+
+
+def distance(pool: np.ndarray, reference: np.ndarray) -> float | None:
+    """W1(pool, reference) / std(reference) (None where the reference does not vary)."""
+    from scipy.stats import wasserstein_distance
+
+    scale = float(np.std(reference))
+    return float(wasserstein_distance(pool, reference)) / scale if scale > 0 else None
 
 
 def measure(problem: Problem, scheme: Integrator, t_final: float, members: int = DEFAULT_MEMBERS,
@@ -82,8 +135,6 @@ def measure(problem: Problem, scheme: Integrator, t_final: float, members: int =
     ``ensemble.floor`` (the same between two reference ensembles), ``ensemble.observable``,
     ``ensemble.members`` (those that ran to t_final), ``ensemble.size``, ``ensemble.window``
     and ``ensemble.note``."""
-    from scipy.stats import wasserstein_distance
-
     states = initial_states(problem, members, size, seed)
     name = observable(problem, np.array([problem.t0]), problem.u0[None, :])[0]
     out: dict[str, Any] = {"ensemble.observable": name, "ensemble.size": size, "ensemble.window": window,
@@ -101,14 +152,12 @@ def measure(problem: Problem, scheme: Integrator, t_final: float, members: int =
     if not pool:
         out["ensemble.note"] = f"no member ran to t = {t_final:g} ({lost} diverged or failed)"
         return out
-    reference = _reference_pool(problem, states, t_final, window)
-    second = _reference_pool(problem, initial_states(problem, members, size, seed + 1), t_final, window)
-    scale = float(np.std(reference))
-    if not scale > 0:
+    reference, (second,) = reference_pools(problem, t_final, members, size, seed, window)
+    if distance(second, reference) is None:
         out["ensemble.note"] = "the reference's observable does not vary over the window"
         return out
-    out["ensemble.distance"] = float(wasserstein_distance(np.concatenate(pool), reference)) / scale
-    out["ensemble.floor"] = float(wasserstein_distance(second, reference)) / scale
+    out["ensemble.distance"] = distance(np.concatenate(pool), reference)
+    out["ensemble.floor"] = distance(second, reference)
     note = (f"{len(pool)} of {members} members; W1 of {name} over the last {window:.0%} of the span, in units of "
             f"the reference's standard deviation")
     if lost:
@@ -117,12 +166,21 @@ def measure(problem: Problem, scheme: Integrator, t_final: float, members: int =
     return out
 
 
+def distinguishable(d: float | None, floor: float | None) -> bool | None:
+    """Whether a distance is told apart from the floor: above FLOOR_FACTOR x the floor (None:
+    not measured)."""
+    if d is None or floor is None or not math.isfinite(d):
+        return None
+    return d > FLOOR_FACTOR * floor
+
+
 def verdict(fields: dict[str, Any]) -> str:
     """Whether the scheme's distribution is told apart from the reference's."""
     d, floor = fields.get("ensemble.distance"), fields.get("ensemble.floor")
-    if d is None or floor is None or not math.isfinite(d):
+    told = distinguishable(d, floor)
+    if told is None:
         return "not measured"
-    if d <= 2 * floor:
+    if not told:
         return "as the reference (within twice the ensembles' own spread)"
     return f"told apart from the reference ({d / floor:.3g} x the ensembles' own spread)" if floor > 0 else "differs"
 

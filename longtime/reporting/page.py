@@ -156,6 +156,53 @@ def _chaos_table(rows: list[dict]) -> str | None:
                                      body))
 
 
+def _ensemble_table(records: list[dict]) -> str | None:
+    """A chaotic problem's stored ensemble distances (longtime.execution.ensembles): what was
+    measured (members, size, state, span, observable, floor), then per scheme its setting, its
+    distance, the floor and whether the two are told apart, or the status that left it
+    without a distance."""
+    from longtime.measure.ensemble import FLOOR_FACTOR
+    from longtime.reporting.rowtext import setting
+
+    if not records:
+        return None
+    first = next((r for r in records if r.get("floor") is not None), records[0])
+    state = ", ".join(f"{k} = {v:g}" if isinstance(v, (int, float)) else f"{k} = {v}"
+                      for k, v in (first.get("problem_settings") or {}).items())
+    state = (f"the problem's chaotic state {state} (not the rows' state: their Lyapunov time above is that of the "
+             f"default state)" if state else "the problem's initial state")
+    if first.get("floor") is None:
+        return f'<p class="note">No ensemble distance from {escape(state)}: {escape(first.get("note") or "")}.</p>'
+    floor = first["floor"]
+    head = (f"{first['members']} members from {escape(state)}, perturbed by a seeded relative {first['size']:g}, "
+            f"integrated to t = {num(first.get('t_final'), 4)} ({num(first.get('span_lyapunov'))} Lyapunov times "
+            f"of that state, one is {num(first.get('lyapunov_time'))}) by each scheme at the setting shown (its "
+            f"row's nearest the default) and by heyoka. Observable: <code>{escape(first.get('observable') or '')}"
+            f"</code>, pooled over the members and the last {first['window']:.0%} of the span. Distance: the "
+            f"1-Wasserstein distance between the scheme's and heyoka's pools over the standard deviation of "
+            f"heyoka's (0: the same distribution, 1: a shift by a standard deviation). Floor: the same between "
+            f"two heyoka ensembles of other seeds ({num(floor)}), what a finite ensemble shows by itself. Told "
+            f"apart: a distance above {FLOOR_FACTOR:g} x the floor. A scheme one of whose members diverged, "
+            f"failed or passed the step's deadline has that status and no distance "
+            f"(<code>longtime matrix --no-ensemble</code> skips the step; docs/metrics.md, \"Chaos\").")
+    ok = sorted((r for r in records if r.get("status") == "ok" and r.get("distance") is not None),
+                key=lambda r: r["distance"])
+    rest = sorted((r for r in records if r not in ok), key=lambda r: (r.get("status") or "", r["integrator"]))
+    body = []
+    for r in ok:
+        apart = r["distance"] > FLOOR_FACTOR * floor
+        body.append([f"<td>{escape(r['integrator'])}</td>", f"<td>{escape(setting(r) or '-')}</td>",
+                     f'<td class="num">{num(r["distance"])}</td>', f'<td class="num">{num(floor)}</td>',
+                     f'<td class="num">{num(r["distance"] / floor) if floor > 0 else "-"}</td>',
+                     f'<td class="{"flag" if apart else "ok"}">{"told apart" if apart else "as heyoka"}</td>'])
+    for r in rest:
+        body.append([f"<td>{escape(r['integrator'])}</td>", f"<td>{escape(setting(r) or '-')}</td>",
+                     f'<td class="{escape(r.get("status") or "")}" colspan="4">{escape(r.get("status") or "")}: '
+                     f'{escape(r.get("note") or "")}</td>'])
+    return (f'<p class="note">{head}</p>'
+            + table(["scheme", "setting", "distance", "floor", "distance / floor", "vs the floor"], body, raw=True))
+
+
 def _orders_table(fits: list[dict]) -> str | None:
     if not fits:
         return None
@@ -317,7 +364,8 @@ def _cards_section(rows: list[dict]) -> str | None:
     return '<h2 id="cards">Scheme cards</h2>' + cards_html(rows)
 
 
-def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: list[dict], drift: bool) -> str:
+def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: list[dict], drift: bool,
+              ensembles: list[dict] = ()) -> str:
     """One problem's evidence, each piece folded: the Pareto front, work-precision, orders,
     growth classes, drift and diagnostics; what did not run to the end stays open."""
     out = [f'<h3 id="{slug(p)}">{escape(p)}</h3><p>{escape(format_counts(status_counts(mine)))}</p>']
@@ -360,6 +408,12 @@ def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: l
     chaos = _chaos_table(mine)
     if chaos:
         out.append(_fold("Chaos: Lyapunov time and predictability horizons", chaos))
+    spread = _ensemble_table([e for e in ensembles if e.get("problem") == p])
+    if spread:
+        ok = [e for e in ensembles if e.get("problem") == p and e.get("status") == "ok"]
+        told = sum(1 for e in ok if e.get("distinguishable"))
+        out.append(_fold(f"Chaos: ensemble distance to heyoka's distribution ({len(ok) - told} of {len(ok)} "
+                         f"measured schemes as heyoka)", spread, open_=True))
     if drift:
         fig, notes = figs["drift"], figs["drift_notes"]
         if fig:
@@ -381,16 +435,18 @@ def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: l
 def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bool = True,
                stability: bool = True, jobs: int = 1, ahead: FiguresAhead | None = None,
                history: str | None = None, checks: Iterable[dict[str, Any]] = (),
-               writer: str = "report --html") -> str:
+               writer: str = "report --html", ensembles: Iterable[dict[str, Any]] = ()) -> str:
     """The page's HTML for ``rows`` (of the ``runs`` whose metadata closes it), led by the
     verdict of each problem (``checks``: the stored checks of its predictions), then the
     scheme cards, then the evidence (folded), the history, the capability matrix, the
     stability intervals and the run and machine; the figures are drawn on ``jobs``
     processes, but for those ``ahead`` drew from the same rows. ``history``: the history
     section (longtime.reporting.history.page_section). ``writer``: the command that wrote
-    the page, named in its footer."""
+    the page, named in its footer. ``ensembles``: the stored ensemble distances of the
+    chaotic problems (each in its problem's evidence)."""
     from longtime.reporting.verdict import verdicts
 
+    ensembles = list(ensembles)
     problems = sorted({r["problem"] for r in rows})
     checks = list(checks)
     style = styles(sorted({r["integrator"] for r in rows}))
@@ -431,7 +487,7 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
     out.append('<h2 id="evidence">Evidence</h2><p class="note">What the verdicts rest on, per problem, folded: '
                "click a line to open it.</p>")
     for p in problems:
-        out.append(_evidence(p, by_problem[p], figures[p], fits, missing, drift))
+        out.append(_evidence(p, by_problem[p], figures[p], fits, missing, drift, ensembles))
     if history:
         out.append(history)
     out.append('<h2 id="capabilities">Capability matrix</h2>' + _capability_matrix(rows))
@@ -464,14 +520,14 @@ def _calibration_figures(runs: list[dict[str, Any]]) -> list[str]:
 def write_page(out_dir: str | Path, rows: list[dict[str, Any]], runs: list[dict[str, Any]],
                drift: bool = True, jobs: int = 1, ahead: FiguresAhead | None = None,
                history: str | None = None, checks: Iterable[dict[str, Any]] = (),
-               writer: str = "report --html") -> Path:
+               writer: str = "report --html", ensembles: Iterable[dict[str, Any]] = ()) -> Path:
     """Write ``out_dir``/index.html (figures drawn on ``jobs`` processes, or ``ahead``);
     return its path."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     path = out / PAGE_NAME
     path.write_text(build_page(rows, runs, drift=drift, jobs=jobs, ahead=ahead, history=history, checks=checks,
-                               writer=writer), encoding="utf-8")
+                               writer=writer, ensembles=ensembles), encoding="utf-8")
     return path
 
 
@@ -487,8 +543,10 @@ def write_html(out_dir, rows: list[dict[str, Any]], store, run_ids: Iterable[int
     ids = sorted(set(run_ids) if run_ids is not None else {r.get("run_id") for r in rows if r.get("run_id")})
     runs = [{**r, "calibrations": store.calibrations(r["id"])} for r in store.runs() if r["id"] in ids]
     checks = [c for i in ids for c in store.checks(i)]
+    problems = {r["problem"] for r in rows}
+    ensembles = [e for i in ids for e in store.ensembles(i) if e["problem"] in problems]
     history = page_section(store, rows, styles(sorted({r["integrator"] for r in rows})))
     from longtime.execution.pool import workers
 
     return write_page(out_dir, rows, runs, jobs=workers(jobs or 0), ahead=ahead, history=history, checks=checks,
-                      writer=writer)
+                      writer=writer, ensembles=ensembles)

@@ -241,14 +241,16 @@ def _growth_counts(rows: list[dict[str, Any]]) -> list[str]:
 
 
 def summary(rows: list[dict[str, Any]], orders: bool = True, full: bool = False,
-            checks: Iterable[dict[str, Any]] = ()) -> str:
+            checks: Iterable[dict[str, Any]] = (), ensembles: Iterable[dict[str, Any]] = ()) -> str:
     """The terminal report read first: status counts, then per problem the verdict (the
     cheapest setting predicted per target and horizon, longtime.reporting.verdict), its
     Pareto front at the run's final time (one line per accuracy decade), fitted orders that
     miss their declared order, growth classes (counted; ``full``: per setting, with the
     reasons), what did not run to the end and the settings the default matrix's budget moved
-    (one line per pair), at most MAX_PROBLEM_LINES lines a problem unless ``full``."""
+    (one line per pair), a chaotic problem's ensemble distances (one line, from the stored
+    ``ensembles``), at most MAX_PROBLEM_LINES lines a problem unless ``full``."""
     from longtime.execution.budget import notes
+    from longtime.execution.ensembles import summary as ensemble_summary
     from longtime.measure.orders import left_out, left_out_text, observed_orders
 
     if not rows:
@@ -258,12 +260,15 @@ def summary(rows: list[dict[str, Any]], orders: bool = True, full: bool = False,
     missing = left_out(rows) if orders else []
     moved = notes(rows)
     found = verdicts(rows, checks)
+    chaos = ensemble_summary(list(ensembles))
     for problem in sorted({r["problem"] for r in rows}):
         mine = [r for r in rows if r["problem"] == problem]
         lines = [f"== {problem}: {format_counts(status_counts(mine))} =="]
         lines += verdict_lines(found[problem], full)
         failed = [f"  {why}: {', '.join(schemes)}" for why, schemes in sorted(_not_ok(mine).items())]
         lines += failed  # what failed comes right after the verdict: it never falls to the cut below
+        if problem in chaos:
+            lines.append(f"  ensemble distance to heyoka's (W1 / std, late window): {chaos[problem]}")
         lines += [f"  moved by the default matrix's budget: {scheme} {note}"
                   for (p, scheme), note in sorted(moved.items()) if p == problem]
         field = pareto_field(mine)
@@ -328,11 +333,11 @@ def to_parquet(rows: list[dict[str, Any]], path) -> None:
 
 
 def report_text(rows: list[dict[str, Any]], fmt: str = "table", full: bool = False,
-                checks: Iterable[dict[str, Any]] = ()) -> str:
+                checks: Iterable[dict[str, Any]] = (), ensembles: Iterable[dict[str, Any]] = ()) -> str:
     """What ``longtime report`` prints: the summary first (format table; ``checks``: the
     stored checks of the verdicts' predictions), every line of it and the full per-cell
     tables after it with ``full``; csv, json and markdown are the full tables."""
     if fmt != "table":
         return render(rows, fmt)
-    text = summary(rows, full=full, checks=checks)
+    text = summary(rows, full=full, checks=checks, ensembles=ensembles)
     return text + "\n\n" + render(rows, "table") if full else text
