@@ -3,9 +3,9 @@ between the distributions the scheme's and heyoka's ensembles visit late in the 
 (longtime.measure.ensemble), stored apart from the rows (``Store.add_ensemble``).
 
 Which problems: the chaotic problems of the rows with a declared chaotic state, the settings
-a problem class gives as ``chaotic_settings`` (a dict; {} for its default state), else the
-ones CHAOTIC_SETTINGS gives it: henon-heiles and figure-eight-perturbed, whose default states
-show no chaos (docs/metrics.md, "Chaos"). The other chaotic problems are left to ``longtime
+a problem class gives as ``chaotic_settings`` (a dict; {} for its default state):
+henon-heiles and figure-eight-perturbed, whose default states show no chaos (docs/problems.md,
+"Chaos from the default states"). The other chaotic problems are left to ``longtime
 ensemble``: their heyoka ensembles (lennard-jones' above all) do not fit the main job's
 budget. The state's Lyapunov time is measured (longtime.measure.lyapunov); where none is
 determined, each scheme's record says so (status ``skipped``), never a distance.
@@ -53,16 +53,10 @@ PROBLEM_S = 4.0  # CPU seconds of the schemes' members a problem (process time: 
 # heyoka ensembles beside the reference pool: the floor is the largest of their distances to it
 FLOOR_ENSEMBLES = 3
 REFERENCE_S = 60.0  # heyoka's ensembles of a problem (once: cached), their compile included
-# a chaotic state of the problems whose default state shows no chaos (docs/metrics.md,
-# "Chaos"): Henon-Heiles at its default energy from y0 = 0 (lambda about 0.12), and the
-# perturbed figure-eight with body 3 moved to T/10 (lambda about 0.08; the triple breaks up)
-CHAOTIC_SETTINGS: dict[str, dict[str, Any]] = {"henon-heiles": {"y0": 0.0}, "figure-eight-perturbed": {"shift": 10.0}}
-
-
 def _declared(pcls) -> dict[str, Any] | None:
-    """The chaotic state a problem declares (``chaotic_settings``), else CHAOTIC_SETTINGS'."""
+    """The chaotic state a problem declares (``chaotic_settings``), or None."""
     declared = getattr(pcls, "chaotic_settings", None)
-    return dict(declared) if declared is not None else CHAOTIC_SETTINGS.get(pcls.name)
+    return dict(declared) if declared is not None else None
 
 
 def chaotic_problems(rows: Iterable[dict[str, Any]]) -> list[str]:
