@@ -114,6 +114,9 @@ def test_winner_map_spans_the_horizons_past_the_runs():
     assert "rk4 dt=0.1" in text
     assert "`longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 1000`" in text
     assert "trusted (solution error): bounded x1, sqrt x1, linear x1000, quadratic x1000" in text
+    assert ("not determined past t = 1e+05 (the farthest reach; the most accurate there, rk4 dt=0.1): "
+            "`longtime run -p harmonic -i rk4 "
+            "--dt 0.1 --t-final 1e+08` would decide it") in text
 
 
 def test_rows_without_a_reference_are_judged_by_the_energy_error():

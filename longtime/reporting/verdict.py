@@ -668,6 +668,13 @@ def verdict_lines(v: Verdict, full: bool = False) -> list[str]:
     lines.append(f"  trusted ({kind} error): " + ", ".join(
         f"{k} x{f:g}" for k, f in TRUST_FACTORS[kind].items()) + " its run's span; past it, and at a "
         f"predicted error >= {LOST:g} (lost), nothing is predicted")
+    far = max((s.reach for s in v.candidates), default=0.0)
+    if v.horizons and v.horizons[-1] > far * (1 + 1e-9):
+        # of the settings reaching farthest, the most accurate there
+        s = min((s for s in v.candidates if s.reach == far),
+                key=lambda s: (s._law_at(far) if s.extrapolates else s.error, s.cpu_per_t, s.text))
+        lines.append(f"  not determined past t = {far:.4g} (the farthest reach; the most accurate there, {s.text}): "
+                     f"`{deciding_run(s, v.horizons[-1])}` would decide it")
     stuck = [s for s in v.candidates if not s.extrapolates]
     if stuck:
         first = sorted(stuck, key=lambda s: s.cpu_per_t)[0]
