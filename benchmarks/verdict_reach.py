@@ -2,7 +2,7 @@
 their run's span, the error measured there against the class's prediction.
 
     python benchmarks/verdict_reach.py --db STORE [--run ID] [--factors 10,100,1000]
-        [--per-class 3] [--budget 4] [-p PROBLEM,..]
+        [--per-class 3] [--budget 4] [-p PROBLEM,..] [--kind solution|drifting|invariant]
 
 For every problem whose checks can be measured (longtime.reporting.verdict: an invariant's
 error, or a solution error against an exact solution), and every growth class that
@@ -30,6 +30,7 @@ def main(argv=None) -> int:
     ap.add_argument("--per-class", type=int, default=3, help="settings per problem and class")
     ap.add_argument("--budget", type=float, default=4.0, help="predicted CPU seconds of the longest re-run")
     ap.add_argument("-p", "--problems", default="", help="only these problems (comma-separated)")
+    ap.add_argument("--kind", default="", help="only settings of this kind (solution, drifting, invariant)")
     args = ap.parse_args(argv)
     os.environ.setdefault("LONGTIME_REFERENCE_SECONDS", "60")
 
@@ -44,7 +45,7 @@ def main(argv=None) -> int:
     rows = store.rows(run)
     factors = [float(f) for f in args.factors.split(",")]
     opts = ExecOptions(jobs=1, timing=Timing(repeats=1, min_time=0.0), processes=1)
-    print("| problem | measure | setting | class | t_f | e(t_f) | " + " | ".join(f"x{f:g}" for f in factors) + " |")
+    print("| problem | kind | setting | class | t_f | e(t_f) | " + " | ".join(f"x{f:g}" for f in factors) + " |")
     print("|" + "---|" * (6 + len(factors)))
     for v in V.verdicts(rows).values():
         if not V._checkable(v, rows) or (args.problems and v.problem not in args.problems.split(",")):
@@ -52,7 +53,7 @@ def main(argv=None) -> int:
         for law in V.EXPONENTS:
             seen, picks = set(), []
             for s in v.candidates:  # cheapest first
-                if s.law != law or s.scheme in seen or s.cpu_at(max(factors) * s.span) > args.budget:
+                if s.law != law or s.scheme in seen or (args.kind and s.kind != args.kind) or s.cpu_at(max(factors) * s.span) > args.budget:
                     continue
                 seen.add(s.scheme)
                 picks.append(s)
@@ -68,7 +69,7 @@ def main(argv=None) -> int:
                         measured = None  # the reference stopped short
                     predicted = s.error * f ** V.EXPONENTS[law]
                     out.append("-" if not measured else f"{measured / predicted:.2g} ({measured:.1e})")
-                print(f"| {v.problem} | {v.measure.field} | {s.text} | {law} | {s.span:.4g} | {s.error:.2g} | "
+                print(f"| {v.problem} | {s.kind} | {s.text} | {law} | {s.span:.4g} | {s.error:.2g} | "
                       + " | ".join(out) + " |", flush=True)
     return 0
 

@@ -75,6 +75,27 @@ def test_a_class_is_trusted_only_to_its_reach():
     assert all(v.grid[(t, h)].best is None for t in v.targets for h in v.horizons if h > 1e5)
 
 
+def test_a_solution_error_is_trusted_less_where_an_invariant_drifts_or_its_slopes_steepen():
+    # rk4's energy drifts linearly: its linear solution error is trusted ten times its run
+    drifting = {**LINEAR, "H.growth_class": "linear", "H.growth": 1.0}
+    s = V.settings([drifting], V.measure([drifting]))[0]
+    assert s.kind == "drifting" and s.reach == 100.0 * V.TRUST_FACTORS["drifting"]["linear"] == 1e3
+    assert s.error_at(1e3) == pytest.approx(1e-5) and s.error_at(1.01e3) is None
+    assert "trusted to t = 1000, an invariant drifts" in s.law_text()
+    # window slopes rising past the class's exponent: not extrapolated
+    steep = {**LINEAR, "error.growth_windows": [1.16, 1.28, 1.46]}
+    s = V.settings([steep], V.measure([steep]))[0]
+    assert s.steepening and not s.extrapolates and s.error_at(101.0) is None
+    assert "window slopes 1.16, 1.28, 1.46 rise past t^1" in s.law_text()
+    # slopes that fall toward the class: trusted, at most as far as the latest slope (1.2)
+    # would move the prediction by 3: 3^(1 / 0.2) = 243 times the run
+    falling = {**LINEAR, "error.growth_windows": [1.43, 1.40, 1.2]}
+    s = V.settings([falling], V.measure([falling]))[0]
+    assert not s.steepening and s.factor == pytest.approx(3 ** 5)
+    near = {**LINEAR, "error.growth_windows": [1.43, 1.40, 1.06]}
+    assert V.settings([near], V.measure([near]))[0].factor == 1000.0
+
+
 def test_a_predicted_error_of_o1_is_lost():
     coarse = _row("euler", 0.1, 1e-3, 1e-4, "linear", 1.0)  # 1 at 1000 times its run
     s = V.settings([coarse], V.measure([coarse]))[0]
@@ -113,7 +134,8 @@ def test_winner_map_spans_the_horizons_past_the_runs():
     text = "\n".join(V.verdict_lines(v))
     assert "rk4 dt=0.1" in text
     assert "`longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 1000`" in text
-    assert "trusted (solution error): bounded x1, sqrt x1, linear x1000, quadratic x1000" in text
+    assert ("trusted: solution error: bounded x1, sqrt x1, linear x1000, quadratic x1000; an invariant drifting: "
+            "bounded x1, sqrt x1, linear x10, quadratic x10") in text
     assert ("not determined past t = 1e+05 (the farthest reach; the most accurate there, rk4 dt=0.1): "
             "`longtime run -p harmonic -i rk4 "
             "--dt 0.1 --t-final 1e+08` would decide it") in text

@@ -57,10 +57,18 @@ FLAT = ("bounded",)
 # before a phase error grows (at least linearly; round-off's phase walks like t^1.5): some
 # held to 100 times the run, others were off by 3 to 40 at 10 times, so neither class of a
 # solution error is extrapolated. An invariant's bounded or sqrt error held to 1000 times.
+# A solution error whose setting lets an invariant drift (its error class linear or worse,
+# or undetermined) is trusted ten times its run only: a drifting energy moves the
+# frequencies, and the phase error then turns from t^k to t^(k+1) (the quadratic growth of a
+# non-symplectic method's error on an integrable system) at a time its run need not show
+# (rk4 on the rigid body: linear to t = 1e3, off by 2.5 at 1e4 and by 14 at 1e5).
 TRUST_FACTORS = {
     "solution": {"bounded": 1.0, "sqrt": 1.0, "linear": 1000.0, "quadratic": 1000.0},
+    "drifting": {"bounded": 1.0, "sqrt": 1.0, "linear": 10.0, "quadratic": 10.0},
     "invariant": {"bounded": 1000.0, "sqrt": 1000.0, "linear": 1000.0, "quadratic": 1000.0},
 }
+# the invariant error classes that count as drifting
+DRIFTS = ("linear", "quadratic", "faster", "saturated", "diverged", "undetermined")
 # a class is trusted past its run only where its last decades agree with it: windows' slopes
 # (longtime.measure.growth) that rise from each to the next and end more than this above the
 # class's exponent are steepening (an energy drift feeding a phase error, a bounded error
@@ -124,7 +132,9 @@ class Setting:
     alpha: float | None  # the fitted exponent (evidence; a prediction uses the class's)
     ci: tuple[float, float] | None
     reason: str
-    kind: str = "solution"  # the error's kind: "solution" (l2_error) or "invariant" (NAME.max)
+    # the error's kind: "solution" (l2_error), "drifting" (l2_error of a setting whose
+    # invariants drift) or "invariant" (NAME.max)
+    kind: str = "solution"
     windows: tuple[float, ...] = ()  # the slopes of the growth fit's windows, earliest first
 
     @property
@@ -194,12 +204,12 @@ class Setting:
 
     def law_text(self) -> str:
         if self.extrapolates:
-            reach = f", trusted to t = {self.reach:.4g}"
+            reach = f", trusted to t = {self.reach:.4g}" + (", an invariant drifts" if self.kind == "drifting" else "")
         elif self.steepening:
             reach = (f", not trusted past its run (window slopes {', '.join(f'{w:.2f}' for w in self.windows)} "
                      f"rise past t^{EXPONENTS[self.law]:g})")
         else:
-            reach = f", not trusted past its run (a {self.kind} error's {self.law} class)"
+            reach = f", not trusted past its run (a solution error's {self.law} class)"
         if self.law in FLAT:
             return "bounded: flat" + reach
         if self.law in POWER_LAWS:
@@ -237,10 +247,19 @@ def settings(rows: Iterable[dict[str, Any]], m: Measure) -> list[Setting]:
                            float(alpha) if isinstance(alpha, (int, float)) else None,
                            (float(ci[0]), float(ci[1])) if isinstance(ci, list) and len(ci) == 2
                            and all(isinstance(c, (int, float)) for c in ci) else None, reason,
-                           "solution" if m.field == "l2_error" else "invariant",
+                           _kind(r, m),
                            tuple(float(w) for w in windows) if isinstance(windows, list)
                            and all(isinstance(w, (int, float)) for w in windows) else ()))
     return sorted(out, key=lambda s: (s.cpu_per_t, s.text))
+
+
+def _kind(row: dict[str, Any], m: Measure) -> str:
+    """"invariant" for an invariant's error; for the solution error "drifting" where an
+    invariant's error of the row grows (a class in DRIFTS), else "solution"."""
+    if m.field != "l2_error":
+        return "invariant"
+    drifts = any(row.get(k) in DRIFTS for k in row if k.endswith(".growth_class") and k != "error.growth_class")
+    return "drifting" if drifts else "solution"
 
 
 @dataclass
@@ -666,10 +685,11 @@ def verdict_lines(v: Verdict, full: bool = False) -> list[str]:
         mark = "(run)" if h == v.t_main else ""
         text = "; ".join(f"{_range(lo, hi)} {decision_text(d)}" for lo, hi, d in groups) or "none predicted"
         lines.append(f"    T = {h:<9.3g}{mark:<6s}{text}")
-    kind = v.candidates[0].kind
-    lines.append(f"  trusted ({kind} error): " + ", ".join(
-        f"{k} x{f:g}" for k, f in TRUST_FACTORS[kind].items()) + " its run's span; past it, and at a "
-        f"predicted error >= {LOST:g} (lost), nothing is predicted")
+    kinds = ("invariant",) if v.candidates[0].kind == "invariant" else ("solution", "drifting")
+    lines.append("  trusted: " + "; ".join(
+        ("an invariant drifting: " if kind == "drifting" else f"{kind} error: ")
+        + ", ".join(f"{k} x{f:g}" for k, f in TRUST_FACTORS[kind].items()) for kind in kinds)
+        + f" its run's span; past it, and at a predicted error >= {LOST:g} (lost), nothing is predicted")
     far = max((s.reach for s in v.candidates), default=0.0)
     if v.horizons and v.horizons[-1] > far * (1 + 1e-9):
         # of the settings reaching farthest, the most accurate there
