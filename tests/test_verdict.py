@@ -76,12 +76,18 @@ def test_a_class_is_trusted_only_to_its_reach():
 
 
 def test_a_solution_error_is_trusted_less_where_an_invariant_drifts_or_its_slopes_steepen():
-    # rk4's energy drifts linearly: its linear solution error is trusted ten times its run
+    # rk4's energy drifts linearly: its linear solution error (t^1, 1 < 1 + 1) is trusted
+    # ten times its run
     drifting = {**LINEAR, "H.growth_class": "linear", "H.growth": 1.0}
     s = V.settings([drifting], V.measure([drifting]))[0]
     assert s.kind == "drifting" and s.reach == 100.0 * V.TRUST_FACTORS["drifting"]["linear"] == 1e3
     assert s.error_at(1e3) == pytest.approx(1e-5) and s.error_at(1.01e3) is None
-    assert "trusted to t = 1000, an invariant drifts" in s.law_text()
+    assert "trusted to t = 1000, the energy drifts" in s.law_text()
+    # a quadratic solution error of a linear energy drift already grows like t^(1 + 1)
+    quad = {**drifting, "error.growth_class": "quadratic"}
+    assert V.settings([quad], V.measure([quad]))[0].kind == "solution"
+    other = {**LINEAR, "L.growth_class": "linear"}  # another invariant's drift (a precession) does not count
+    assert V.settings([other], V.measure([other]))[0].kind == "solution"
     # window slopes rising past the class's exponent: not extrapolated
     steep = {**LINEAR, "error.growth_windows": [1.16, 1.28, 1.46]}
     s = V.settings([steep], V.measure([steep]))[0]
@@ -134,7 +140,7 @@ def test_winner_map_spans_the_horizons_past_the_runs():
     text = "\n".join(V.verdict_lines(v))
     assert "rk4 dt=0.1" in text
     assert "`longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 1000`" in text
-    assert ("trusted: solution error: bounded x1, sqrt x1, linear x1000, quadratic x1000; an invariant drifting: "
+    assert ("trusted: solution error: bounded x1, sqrt x1, linear x1000, quadratic x1000; the energy drifting: "
             "bounded x1, sqrt x1, linear x10, quadratic x10") in text
     assert ("not determined past t = 1e+05 (the farthest reach; the most accurate there, rk4 dt=0.1): "
             "`longtime run -p harmonic -i rk4 "

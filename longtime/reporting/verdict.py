@@ -57,18 +57,18 @@ FLAT = ("bounded",)
 # before a phase error grows (at least linearly; round-off's phase walks like t^1.5): some
 # held to 100 times the run, others were off by 3 to 40 at 10 times, so neither class of a
 # solution error is extrapolated. An invariant's bounded or sqrt error held to 1000 times.
-# A solution error whose setting lets an invariant drift (its error class linear or worse,
-# or undetermined) is trusted ten times its run only: a drifting energy moves the
-# frequencies, and the phase error then turns from t^k to t^(k+1) (the quadratic growth of a
-# non-symplectic method's error on an integrable system) at a time its run need not show
-# (rk4 on the rigid body: linear to t = 1e3, off by 2.5 at 1e4 and by 14 at 1e5).
+# A solution error growing like t^k whose setting lets the energy drift like t^a with
+# k < 1 + a is trusted ten times its run only: a drifting energy moves the frequencies, and
+# the phase error then turns to t^(1 + a) (the quadratic growth of a non-symplectic method's
+# error on an integrable system) at a time its run need not show (rk4 on the rigid body:
+# linear to t = 1e3, off by 2.5 at 1e4 and by 14 at 1e5).
 TRUST_FACTORS = {
     "solution": {"bounded": 1.0, "sqrt": 1.0, "linear": 1000.0, "quadratic": 1000.0},
     "drifting": {"bounded": 1.0, "sqrt": 1.0, "linear": 10.0, "quadratic": 10.0},
     "invariant": {"bounded": 1000.0, "sqrt": 1000.0, "linear": 1000.0, "quadratic": 1000.0},
 }
-# the invariant error classes that count as drifting
-DRIFTS = ("linear", "quadratic", "faster", "saturated", "diverged", "undetermined")
+# the energy error classes that drift, and their exponents a
+DRIFTS = {"linear": 1.0, "quadratic": 2.0, "faster": math.inf, "saturated": math.inf, "diverged": math.inf}
 # a class is trusted past its run only where its last decades agree with it: windows' slopes
 # (longtime.measure.growth) that rise from each to the next and end more than this above the
 # class's exponent are steepening (an energy drift feeding a phase error, a bounded error
@@ -133,7 +133,7 @@ class Setting:
     ci: tuple[float, float] | None
     reason: str
     # the error's kind: "solution" (l2_error), "drifting" (l2_error of a setting whose
-    # invariants drift) or "invariant" (NAME.max)
+    # energy drift will steepen it, see TRUST_FACTORS) or "invariant" (NAME.max)
     kind: str = "solution"
     windows: tuple[float, ...] = ()  # the slopes of the growth fit's windows, earliest first
 
@@ -204,7 +204,7 @@ class Setting:
 
     def law_text(self) -> str:
         if self.extrapolates:
-            reach = f", trusted to t = {self.reach:.4g}" + (", an invariant drifts" if self.kind == "drifting" else "")
+            reach = f", trusted to t = {self.reach:.4g}" + (", the energy drifts" if self.kind == "drifting" else "")
         elif self.steepening:
             reach = (f", not trusted past its run (window slopes {', '.join(f'{w:.2f}' for w in self.windows)} "
                      f"rise past t^{EXPONENTS[self.law]:g})")
@@ -247,19 +247,20 @@ def settings(rows: Iterable[dict[str, Any]], m: Measure) -> list[Setting]:
                            float(alpha) if isinstance(alpha, (int, float)) else None,
                            (float(ci[0]), float(ci[1])) if isinstance(ci, list) and len(ci) == 2
                            and all(isinstance(c, (int, float)) for c in ci) else None, reason,
-                           _kind(r, m),
+                           _kind(r, m, str(law)),
                            tuple(float(w) for w in windows) if isinstance(windows, list)
                            and all(isinstance(w, (int, float)) for w in windows) else ()))
     return sorted(out, key=lambda s: (s.cpu_per_t, s.text))
 
 
-def _kind(row: dict[str, Any], m: Measure) -> str:
-    """"invariant" for an invariant's error; for the solution error "drifting" where an
-    invariant's error of the row grows (a class in DRIFTS), else "solution"."""
+def _kind(row: dict[str, Any], m: Measure, law: str) -> str:
+    """"invariant" for an invariant's error; for the solution error of class ``law`` (t^k)
+    "drifting" where the row's energy error drifts like t^a (DRIFTS) with k < 1 + a, else
+    "solution"."""
     if m.field != "l2_error":
         return "invariant"
-    drifts = any(row.get(k) in DRIFTS for k in row if k.endswith(".growth_class") and k != "error.growth_class")
-    return "drifting" if drifts else "solution"
+    a = DRIFTS.get(row.get("H.growth_class"))
+    return "drifting" if a is not None and law in EXPONENTS and EXPONENTS[law] < 1 + a else "solution"
 
 
 @dataclass
@@ -687,7 +688,7 @@ def verdict_lines(v: Verdict, full: bool = False) -> list[str]:
         lines.append(f"    T = {h:<9.3g}{mark:<6s}{text}")
     kinds = ("invariant",) if v.candidates[0].kind == "invariant" else ("solution", "drifting")
     lines.append("  trusted: " + "; ".join(
-        ("an invariant drifting: " if kind == "drifting" else f"{kind} error: ")
+        ("the energy drifting: " if kind == "drifting" else f"{kind} error: ")
         + ", ".join(f"{k} x{f:g}" for k, f in TRUST_FACTORS[kind].items()) for kind in kinds)
         + f" its run's span; past it, and at a predicted error >= {LOST:g} (lost), nothing is predicted")
     far = max((s.reach for s in v.candidates), default=0.0)
