@@ -86,6 +86,10 @@ def test_a_solution_error_is_trusted_less_where_an_invariant_drifts_or_its_slope
     # a quadratic solution error of a linear energy drift already grows like t^(1 + 1)
     quad = {**drifting, "error.growth_class": "quadratic"}
     assert V.settings([quad], V.measure([quad]))[0].kind == "solution"
+    rising = {**LINEAR, "H.growth_class": "undetermined", "H.growth_windows": [0.45, 0.69, 0.88]}
+    assert V.settings([rising], V.measure([rising]))[0].kind == "drifting"  # the energy still steepening
+    level = {**LINEAR, "H.growth_class": "undetermined", "H.growth_windows": [0.3, 0.1, 0.2]}
+    assert V.settings([level], V.measure([level]))[0].kind == "solution"
     other = {**LINEAR, "L.growth_class": "linear"}  # another invariant's drift (a precession) does not count
     assert V.settings([other], V.measure([other]))[0].kind == "solution"
     # window slopes rising past the class's exponent: not extrapolated

@@ -255,11 +255,17 @@ def settings(rows: Iterable[dict[str, Any]], m: Measure) -> list[Setting]:
 
 def _kind(row: dict[str, Any], m: Measure, law: str) -> str:
     """"invariant" for an invariant's error; for the solution error of class ``law`` (t^k)
-    "drifting" where the row's energy error drifts like t^a (DRIFTS) with k < 1 + a, else
+    "drifting" where the row's energy error drifts like t^a (DRIFTS; an undetermined one
+    whose window slopes rise past 0.25: a its latest slope) with k < 1 + a, else
     "solution"."""
     if m.field != "l2_error":
         return "invariant"
     a = DRIFTS.get(row.get("H.growth_class"))
+    w = row.get("H.growth_windows")
+    if a is None and row.get("H.growth_class") == "undetermined" and isinstance(w, list) and len(w) >= 2 \
+            and all(isinstance(x, (int, float)) for x in w) and all(y > x for x, y in zip(w, w[1:])) \
+            and w[-1] > 0.25:
+        a = float(w[-1])  # an energy error still steepening grows at least like its latest slope
     return "drifting" if a is not None and law in EXPONENTS and EXPONENTS[law] < 1 + a else "solution"
 
 
