@@ -12,8 +12,8 @@ with k the exponent of the class, not the fitted alpha: the law is the class, wh
 agree on it, not the digits of a fit that still carries the run's transient (alpha 1.32 of a
 linear error overpredicts it by 4 at a hundred times the run). Its predicted cost is ``T * cpu_s / t_final``. Up to its own t_final a setting predicts its
 measured error. A class is fitted on the last decades of its run, and is trusted only up to
-``TRUST_FACTORS[kind][class]`` times that run's span (its ``reach``; kind: a solution or an
-invariant's error), not past the run where its windows' slopes are steepening, and at most
+``TRUST_FACTORS[kind][class]`` times that run's span (its ``reach``; kind: a solution
+error, one whose energy drift will steepen it, or an invariant's error), not past the run where its windows' slopes are steepening, and at most
 as far as its latest window's slope would move the prediction by CHECK_ERROR_FACTOR: a
 bounded solution error can be the transient before a phase error's growth, and a power
 law's exponent can still be changing. Past its reach, and past t_final for a setting whose law is
