@@ -20,24 +20,102 @@ def _row(scheme, dt, error, cpu_s, law, alpha, t_final=100.0, problem="harmonic"
             "error.growth_reason": reason, "H.max": 1e-6, "H.growth_class": "bounded", "H.growth": 0.0}
 
 
-# verlet: bounded at 1e-4, 1e-4 s per unit time; rk4: linear from 1e-6, half verlet's cost;
+# verlet: linear from 1e-4, 1e-4 s per unit time; rk4: linear from 1e-6, half verlet's cost;
 # gauss4: the most accurate and the cheapest, but its growth is undetermined
-BOUNDED = _row("verlet", 0.1, 1e-4, 0.01, "bounded", 0.02)
+SLOW = _row("verlet", 0.1, 1e-4, 0.01, "linear", 1.0)
 LINEAR = _row("rk4", 0.1, 1e-6, 0.005, "linear", 1.3)  # a fitted alpha of 1.3: the class says 1
 OPEN = _row("gauss4", 0.1, 1e-8, 0.001, "undetermined", 0.6, reason="pre-asymptotic: slopes 0.2, 0.6, 1.1")
-ROWS = [BOUNDED, LINEAR, OPEN]
+ROWS = [SLOW, LINEAR, OPEN]
+# the same settings judged by an invariant's error (no reference), verlet's bounded
+BOUNDED = _row("verlet", 0.1, 1e-4, 0.01, "bounded", 0.02)
+
+
+def _invariant(rows):
+    return [{**r, "l2_error": None, "final_error": None, "error.growth_class": None, "H.max": r["l2_error"],
+             "H.growth_class": r["error.growth_class"], "H.growth": r["error.growth"]} for r in rows]
 
 
 def test_the_linear_scheme_wins_short_the_bounded_one_long():
-    cands = V.settings(ROWS, V.measure(ROWS))
+    rows = _invariant([BOUNDED, LINEAR, OPEN])
+    cands = V.settings(rows, V.measure(rows))
     short = V.decide(cands, 1e-3, 1e3)
     assert short.best.scheme == "rk4" and short.runner_up.scheme == "verlet"
     # rk4's error at T is its error at its t_final times (T / t_final)^1, the class's exponent
     assert short.best.error_at(1e3) == pytest.approx(1e-5) and short.best.cpu_at(1e3) == pytest.approx(0.05)
     assert short.best.error_at(1e5) == pytest.approx(1e-3)
-    long = V.decide(cands, 1e-3, 1e6)  # rk4 predicts 1e-2 there: the bounded scheme is the only one
+    long = V.decide(cands, 5e-4, 1e5)  # rk4 predicts 1e-3 there: the bounded scheme is the only one
     assert long.best.scheme == "verlet" and long.runner_up is None
-    assert long.best.error_at(1e6) == pytest.approx(1e-4) and long.best.cpu_at(1e6) == pytest.approx(100.0)
+    assert long.best.error_at(1e5) == pytest.approx(1e-4) and long.best.cpu_at(1e5) == pytest.approx(10.0)
+
+
+def test_a_class_is_trusted_only_to_its_reach():
+    # an invariant's classes: 1000 times the run; past it, undetermined with the deciding run
+    inv = _invariant([BOUNDED, LINEAR, OPEN])
+    verlet, rk4 = (next(s for s in V.settings(inv, V.measure(inv)) if s.scheme == k) for k in ("verlet", "rk4"))
+    assert verlet.reach == 100.0 * V.TRUST_FACTORS["invariant"]["bounded"] == 1e5
+    assert verlet.error_at(1e5) == 1e-4 and verlet.state_at(1e5) == "predicted"
+    assert verlet.error_at(1.01e5) is None and verlet.state_at(1.01e5) == "undetermined"
+    d = V.decide(V.settings(inv, V.measure(inv)), 1e-3, 1e6)
+    assert d.best is None and {s.scheme for s in d.open} == {"verlet", "rk4", "gauss4"}
+    assert "not determined past t = 1e+05 (1000 times its run)" in verlet.undetermined_text(1e6)
+    # a solution error classed bounded is not extrapolated past its run at all
+    sol = [{**BOUNDED}, LINEAR]
+    bounded = next(s for s in V.settings(sol, V.measure(sol)) if s.scheme == "verlet")
+    assert V.TRUST_FACTORS["solution"]["bounded"] == 1.0 and not bounded.extrapolates
+    assert bounded.error_at(100.0) == 1e-4 and bounded.error_at(101.0) is None
+    assert "not trusted past its run" in bounded.law_text()
+    d = V.decide(V.settings(sol, V.measure(sol)), 1e-3, 1e4)  # verlet would have predicted 1e-4 flat
+    assert d.best.scheme == "rk4" and d.runner_up is None
+    with pytest.raises(InputError, match=r"verlet dt=0.1 keeps it to t = 100 but its growth is bounded: flat, not "
+                                         r"trusted past its run.*`longtime run -p harmonic -i verlet --dt 0.1 "
+                                         r"--t-final 100000`"):
+        V.recommend(sol, "harmonic", 2e-4, 1e5)  # rk4 predicts 1e-3 there
+    # every horizon of the map past 1000 times the runs is undetermined
+    v = V.problem_verdict("harmonic", ROWS)
+    assert all(v.grid[(t, h)].best is None for t in v.targets for h in v.horizons if h > 1e5)
+
+
+def test_a_solution_error_is_trusted_less_where_an_invariant_drifts_or_its_slopes_steepen():
+    # rk4's energy drifts linearly: its linear solution error (t^1, 1 < 1 + 1) is trusted
+    # ten times its run
+    drifting = {**LINEAR, "H.growth_class": "linear", "H.growth": 1.0}
+    s = V.settings([drifting], V.measure([drifting]))[0]
+    assert s.kind == "drifting" and s.reach == 100.0 * V.TRUST_FACTORS["drifting"]["linear"] == 1e3
+    assert s.error_at(1e3) == pytest.approx(1e-5) and s.error_at(1.01e3) is None
+    assert "trusted to t = 1000, the energy drifts" in s.law_text()
+    # a quadratic solution error of a linear energy drift already grows like t^(1 + 1)
+    quad = {**drifting, "error.growth_class": "quadratic"}
+    assert V.settings([quad], V.measure([quad]))[0].kind == "solution"
+    rising = {**LINEAR, "H.growth_class": "undetermined", "H.growth_windows": [0.45, 0.69, 0.88]}
+    assert V.settings([rising], V.measure([rising]))[0].kind == "drifting"  # the energy still steepening
+    level = {**LINEAR, "H.growth_class": "undetermined", "H.growth_windows": [0.3, 0.1, 0.2]}
+    assert V.settings([level], V.measure([level]))[0].kind == "solution"
+    other = {**LINEAR, "L.growth_class": "linear"}  # another invariant's drift (a precession) does not count
+    assert V.settings([other], V.measure([other]))[0].kind == "solution"
+    # window slopes rising past the class's exponent: not extrapolated
+    steep = {**LINEAR, "error.growth_windows": [1.16, 1.28, 1.46]}
+    s = V.settings([steep], V.measure([steep]))[0]
+    assert s.steepening and not s.extrapolates and s.error_at(101.0) is None
+    assert "window slopes 1.16, 1.28, 1.46 rise past t^1" in s.law_text()
+    # slopes that fall toward the class: trusted, at most as far as the latest slope (1.2)
+    # would move the prediction by 3: 3^(1 / 0.2) = 243 times the run
+    falling = {**LINEAR, "error.growth_windows": [1.43, 1.40, 1.2]}
+    s = V.settings([falling], V.measure([falling]))[0]
+    assert not s.steepening and s.factor == pytest.approx(3 ** 5)
+    near = {**LINEAR, "error.growth_windows": [1.43, 1.40, 1.06]}
+    assert V.settings([near], V.measure([near]))[0].factor == 1000.0
+
+
+def test_a_predicted_error_of_o1_is_lost():
+    coarse = _row("euler", 0.1, 1e-3, 1e-4, "linear", 1.0)  # 1 at 1000 times its run
+    s = V.settings([coarse], V.measure([coarse]))[0]
+    assert s.state_at(1e4) == "predicted" and s.error_at(1e4) == pytest.approx(0.1)
+    assert s.state_at(5e4) == "lost" and s.error_at(5e4) is None  # 0.5: O(1)
+    assert s.state_at(1e5) == "lost"
+    d = V.decide([s], 0.9, 1e5)
+    assert d.best is None and d.open == [] and d.state == "none"
+    with pytest.raises(InputError, match=r"1 setting predicted lost there \(error >= 0.5\)"):
+        V.recommend([coarse], "harmonic", 0.9, 1e5)
 
 
 def test_undetermined_predicts_nothing_past_its_run_and_names_the_run_that_decides():
@@ -45,8 +123,8 @@ def test_undetermined_predicts_nothing_past_its_run_and_names_the_run_that_decid
     gauss = next(s for s in cands if s.scheme == "gauss4")
     assert gauss.error_at(100.0) == 1e-8 and gauss.error_at(50.0) == 1e-8  # its own run: measured
     assert gauss.error_at(101.0) is None and not gauss.extrapolates
-    d = V.decide(cands, 1e-3, 1e6)
-    assert [s.scheme for s in d.open] == ["gauss4"]  # cheaper than verlet, law unknown
+    d = V.decide(cands, 1e-2, 1e5)
+    assert d.best.scheme == "rk4" and [s.scheme for s in d.open] == ["gauss4"]  # cheaper than rk4, law unknown
     assert V.decide(cands, 1e-3, 100.0).best.scheme == "gauss4"  # within its run it is measured
     # a target only gauss4 keeps over its run: undetermined, not a winner
     d = V.decide(cands, 1e-7, 1e4)
@@ -59,21 +137,25 @@ def test_undetermined_predicts_nothing_past_its_run_and_names_the_run_that_decid
 def test_winner_map_spans_the_horizons_past_the_runs():
     v = V.problem_verdict("harmonic", ROWS)
     assert v.horizons[0] == 100.0 and v.horizons[-1] == 1e8
-    assert v.grid[(1e-3, 1e3)].best.scheme == "rk4" and v.grid[(1e-3, 1e6)].best.scheme == "verlet"
+    assert v.grid[(1e-3, 1e3)].best.scheme == "rk4" and v.grid[(1e-3, 1e5)].best.scheme == "rk4"
+    assert v.grid[(1e-4, 1e4)].best.scheme == "rk4" and v.grid[(1e-4, 1e5)].state == "undetermined"
     # the targets some setting reaches, and one decade finer
     assert v.targets[0] == 1e-1 and v.targets[-1] == 1e-9
     text = "\n".join(V.verdict_lines(v))
-    assert "verlet dt=0.1" in text and "rk4 dt=0.1" in text
+    assert "rk4 dt=0.1" in text
     assert "`longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 1000`" in text
+    assert ("trusted: solution error: bounded x1, sqrt x1, linear x1000, quadratic x1000; the energy drifting: "
+            "bounded x1, sqrt x1, linear x10, quadratic x10") in text
+    assert ("not determined past t = 1e+05 (the farthest reach; the most accurate there, rk4 dt=0.1): "
+            "`longtime run -p harmonic -i rk4 "
+            "--dt 0.1 --t-final 1e+08` would decide it") in text
 
 
 def test_rows_without_a_reference_are_judged_by_the_energy_error():
-    rows = [{**r, "l2_error": None, "final_error": None, "error.growth_class": None,
-             "H.max": r["l2_error"], "H.growth_class": r["error.growth_class"], "H.growth": r["error.growth"]}
-            for r in ROWS]
+    rows = _invariant([BOUNDED, LINEAR, OPEN])
     m = V.measure(rows)
     assert (m.field, m.law) == ("H.max", "H") and "no reference" in m.text
-    assert V.decide(V.settings(rows, m), 1e-3, 1e6).best.scheme == "verlet"
+    assert V.decide(V.settings(rows, m), 5e-4, 1e5).best.scheme == "verlet"
 
 
 def test_a_lost_or_saturated_row_is_no_candidate():
@@ -82,15 +164,24 @@ def test_a_lost_or_saturated_row_is_no_candidate():
     assert {s.scheme for s in V.settings([lost, saturated, *ROWS], V.measure(ROWS))} == {"verlet", "rk4", "gauss4"}
 
 
-def test_checks_are_planned_within_budget_and_judged():
-    # rk4 wins past its run (up to T = 1e5 at 1e-3), at 5e-5 s per unit time: 1e4 is within
-    # 1 s; verlet wins only where rk4 does not hold (1e-4 from T = 1e5: 10 s)
-    plan = V.plan_checks(ROWS, limit=6, budget_s=1.0)
+def test_checks_are_planned_within_budget_and_reach_and_judged():
+    # rk4 wins past its run (up to T = 1e5 at 1e-3, its reach), at 5e-5 s per unit time: 1e4
+    # is within 1 s; verlet never wins (rk4 is cheaper and finer), gauss4 is undetermined
+    free = lambda v: 0.0  # no reference to pay for  # noqa: E731
+    plan = V.plan_checks(ROWS, limit=6, budget_s=1.0, reference_rate=free)
     assert {(s.scheme, h) for s, h, _ in plan} == {("rk4", 1e4)}
-    wide = V.plan_checks(ROWS, limit=6, budget_s=20.0)
-    assert {(s.scheme, h) for s, h, _ in wide} == {("rk4", 1e5), ("verlet", 1e5)}
-    assert len(V.plan_checks(ROWS, limit=1, budget_s=20.0)) == 1
-    assert V.plan_checks(ROWS, budget_s=1e-4) == []
+    wide = V.plan_checks(ROWS, limit=6, budget_s=1e3, reference_rate=free)
+    assert {(s.scheme, h) for s, h, _ in wide} == {("rk4", 1e5)}  # not past its reach (1e5)
+    assert all(h <= s.reach for s, h, _ in wide)
+    assert len(V.plan_checks(ROWS, limit=1, budget_s=20.0, reference_rate=free)) == 1
+    assert V.plan_checks(ROWS, budget_s=1e-4, reference_rate=free) == []
+    # a reference of 1e-4 s per unit time reaches 5e4 within half of CHECK_REFERENCE_S: 1e5 is
+    # not planned, 1e4 is; one that cannot run at all plans nothing
+    slow = V.plan_checks(ROWS, limit=6, budget_s=1e3, reference_rate=lambda v: 1e-4)
+    assert {(s.scheme, h) for s, h, _ in slow} == {("rk4", 1e4)}
+    assert V.plan_checks(ROWS, budget_s=1e3, reference_rate=lambda v: float("inf")) == []
+    # a bounded solution error is not extrapolated, so never checked past its run
+    assert V.plan_checks([BOUNDED], budget_s=1e3, reference_rate=free) == []
     s = next(s for s, _, _ in plan if s.scheme == "rk4")
     row = {**LINEAR, "t_final": 1e4, "l2_error": 2.5e-4, "cpu_s": 0.6, "error_horizon": 1e4}
     short = V.check_row(s, 1e4, V.measure(ROWS), {**row, "error_horizon": 5e3})
@@ -101,6 +192,15 @@ def test_checks_are_planned_within_budget_and_judged():
     assert V.check_holds({**c, "measured_error": 4e-4}) is False
     assert V.check_holds({**c, "cpu_s": 0.8}) is False
     assert V.check_holds({**c, "measured_error": None}) is None
+    # the rule: error within [1/3, 3] of the predicted, CPU at most x1.5 the predicted
+    assert (V.CHECK_ERROR_FACTOR, V.CHECK_COST_FACTOR) == (3.0, 1.5)
+    p = {**c, "predicted_error": 1e-4, "predicted_cpu_s": 0.5}
+    assert V.check_holds({**p, "measured_error": 2.99e-4, "cpu_s": 0.7499}) is True
+    assert V.check_holds({**p, "measured_error": 1e-4 / 2.99}) is True
+    assert V.check_holds({**p, "measured_error": 1e-4 / 3.01}) is False
+    assert V.check_holds({**p, "measured_error": 3.01e-4}) is False
+    assert V.check_holds({**p, "cpu_s": 0.7501}) is False
+    assert V.check_holds({**p, "cpu_s": 1e-9}) is True  # cheaper than predicted holds
     assert V.check_summary([c, {**c, "measured_error": 4e-4}]).startswith("1 of 2 checked predictions held")
 
 
@@ -124,10 +224,14 @@ def test_recommend_answers_in_a_few_lines(store, capsys):
     assert lines[1].startswith("  use      rk4 dt=0.1: error 1e-05 at T") and "CPU 0.05 s" in lines[1]
     assert lines[2].startswith("  runner-up verlet dt=0.1") and "x2 the CPU" in lines[2]
     assert lines[-1].startswith("  evidence: 3 settings (2 with a growth law that extrapolates)")
-    assert cli.main(["recommend", "-p", "harmonic", "--error", "1e-3", "--horizon", "1e6", "--db", store]) == 0
+    assert cli.main(["recommend", "-p", "harmonic", "--error", "0.2", "--horizon", "1e5", "--db", store]) == 0
     out = capsys.readouterr().out
-    assert "use      verlet dt=0.1" in out and "runner-up: none" in out
-    assert f"open     gauss4 dt=0.1" in out and "--t-final 1e+06 --db" in out
+    assert "use      rk4 dt=0.1: error 0.001 at T (linear: t^1, alpha 1.30 [1.25, 1.35] fitted, trusted to t = 1e+05" in out
+    assert "runner-up verlet dt=0.1: error 0.1 at T" in out
+    assert f"open     gauss4 dt=0.1" in out and "--t-final 100000 --db" in out
+    # past every setting's reach nothing is predicted: exit 2, naming the run that decides
+    assert cli.main(["recommend", "-p", "harmonic", "--error", "0.2", "--horizon", "1e6", "--db", store]) == 2
+    assert "`longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 1e+06" in capsys.readouterr().err
 
 
 def test_recommend_from_python_is_the_same_answer(store):
@@ -209,3 +313,21 @@ def test_checks_of_a_real_run_hold_and_are_stored(tmp_path):
     assert "  checks: " in text and "2 checked predictions held" in text
     page = build_page(rows, [], drift=False, stability=False, checks=store.checks(1))
     assert '<h2 id="checks">' in page and "checked: held" in page
+
+
+def test_a_checks_reference_cost_is_known_before_it_runs():
+    """The reference check's heyoka runs are timed per unit of t before a check is planned:
+    nothing for an exact solution without a heyoka system (KdV's soliton), a finite rate
+    for one checked against long double (the harmonic oscillator)."""
+    from longtime.execution.cells import build
+    from longtime.measure.reference import check_seconds_per_t
+
+    kdv = build(Cell("kdv", "rk4", {}, {"dt": 0.01}, 1.0))[0]
+    assert check_seconds_per_t(kdv, 10.0) == 0.0
+    harmonic = build(Cell("harmonic", "rk4", {}, {"dt": 0.1}, 10.0))[0]
+    rate = check_seconds_per_t(harmonic, 100.0)
+    assert 0 < rate < float("inf")
+    v = V.problem_verdict("harmonic", ROWS)
+    assert V.reference_seconds_per_t(v) > 0
+    inv = _invariant(ROWS)
+    assert V.reference_seconds_per_t(V.problem_verdict("harmonic", inv)) == 0.0  # no reference needed

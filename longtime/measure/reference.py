@@ -22,6 +22,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import math
 import os
 import time
 from dataclasses import dataclass
@@ -211,6 +212,28 @@ def reference_check(problem: Problem, t_final: float, budget_s: float | None = N
         if finer.horizon > trust.horizon:
             return finer
     return trust
+
+
+def check_seconds_per_t(problem: Problem, span: float, budget_s: float = 5.0) -> float:
+    """Wall seconds per unit of t that ``reference_check`` spends on ``problem`` (its heyoka
+    runs in the first two precisions, not cached), timed over [t0, t0 + span] once the
+    integrators are compiled; 0 where the check runs no heyoka (no heyoka system, or a
+    declared accuracy). Its runs' cost grows with t at about this rate, so a caller can tell
+    beforehand whether a check to some horizon fits a budget. The compile has the reference's
+    budget (``budget_seconds``); a timed run that passes ``budget_s`` gives the rate of what
+    it reached, inf if it reached nothing. Raises ReferenceUnavailable as the check would."""
+    ladder = _ladder()
+    if problem.heyoka_system is None or len(ladder) < 2:
+        return 0.0
+    compiled = time.perf_counter() + budget_seconds()
+    for precision in ladder[:2]:
+        _start(problem, precision, compiled)  # the compile, once a process: not the rate
+    start = time.perf_counter()
+    deadline = start + budget_s
+    times, _, stopped = _stepped_run(problem, problem.t0 + span, budget_s)
+    _, stopped_hi = _propagate(problem, times, ladder[1], max(deadline - time.perf_counter(), 0.0))
+    reached = min(t for t in (stopped, stopped_hi, times[-1]) if t is not None) - problem.t0
+    return (time.perf_counter() - start) / reached if reached > 0 else math.inf
 
 
 def _trust(source: str, rtol: float, times: np.ndarray, err: np.ndarray, basis: str, note: str) -> Trust:

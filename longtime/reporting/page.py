@@ -305,7 +305,7 @@ def _verdict_section(p: str, v, mine: list[dict]) -> str:
         out.append(f'<figure class="plot">{fig}<figcaption>Winner map: for each target ({escape(v.measure.text)}) '
                    f"and horizon T, the scheme of the cheapest setting predicted to keep it (its setting written "
                    f"in the cell), from each setting's measured CPU time per unit of simulated time and its growth "
-                   f"class; grey: undetermined (a cheaper setting's law does not extrapolate); "
+                   f"class, each class trusted up to a stated multiple of its run's span; grey: undetermined (a cheaper setting's law is not determined that far); "
                    f"circles and crosses: predictions re-run and checked.</figcaption></figure>")
     body = []
     for h in v.horizons:
@@ -327,8 +327,8 @@ def _verdict_section(p: str, v, mine: list[dict]) -> str:
         items = "".join(f"<li>{escape(s_.text)}: {escape(s_.law_text())}; <code>{escape(deciding_run(s_, 10 * s_.span))}"
                         f"</code></li>" for s_ in stuck[:12])
         more = f"<li>and {len(stuck) - 12} more</li>" if len(stuck) > 12 else ""
-        out.append(_fold(f"Not extrapolated: {len(stuck)} of {len(v.candidates)} settings (growth undetermined or "
-                         f"faster), with the run that would decide each", f"<ul>{items}{more}</ul>"))
+        out.append(_fold(f"Not extrapolated: {len(stuck)} of {len(v.candidates)} settings (growth undetermined, faster, "
+                         f"or a class not trusted past the run), with the run that would decide each", f"<ul>{items}{more}</ul>"))
     if v.checks:
         out.append(_fold(f"Checks: {escape(check_summary(v.checks))}",
                          "<ul>" + "".join(f"<li>{escape(check_text(c))}</li>" for c in v.checks) + "</ul>"))

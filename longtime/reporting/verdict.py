@@ -11,9 +11,16 @@ Each ok setting of a problem gives its cost per unit of simulated time, ``cpu_s 
 with k the exponent of the class, not the fitted alpha: the law is the class, whose windows
 agree on it, not the digits of a fit that still carries the run's transient (alpha 1.32 of a
 linear error overpredicts it by 4 at a hundred times the run). Its predicted cost is ``T * cpu_s / t_final``. Up to its own t_final a setting predicts its
-measured error. A setting whose law is undetermined (or faster than quadratic, which no
-power law of the run's span extrapolates) predicts nothing past its t_final; where such a
-setting could have won, the verdict says so and names the run that would decide it.
+measured error. A class is fitted on the last decades of its run, and is trusted only up to
+``TRUST_FACTORS[kind][class]`` times that run's span (its ``reach``; kind: a solution
+error, one whose energy drift will steepen it, or an invariant's error), not past the run where its windows' slopes are steepening, and at most
+as far as its latest window's slope would move the prediction by CHECK_ERROR_FACTOR: a
+bounded solution error can be the transient before a phase error's growth, and a power
+law's exponent can still be changing. Past its reach, and past t_final for a setting whose law is
+undetermined (or faster than quadratic, which no power law of the run's span extrapolates),
+a setting predicts nothing: where it could have won, the verdict says "not determined past
+t = X" and names the run that would decide it. A predicted relative error of ``LOST`` or
+more is O(1): the solution is lost there, and the prediction is ``lost``, not a number.
 
 The error read is the solution error ``l2_error`` (the relative RMS error over [0, T]; law
 ``error.growth_class``) where the problem's rows have a reference, else the energy error
@@ -35,12 +42,42 @@ from typing import Any, Iterable
 from longtime.core.fmt import positive
 from longtime.core.params import InputError
 from longtime.core.roles import ROW_PARAMETERS, flag
+from longtime.measure.growth import SATURATION
 from longtime.reporting.rowtext import main_t_final, setting
 
 # classes whose exponent extrapolates past the run (a power law), and the flat one
 POWER_LAWS = ("sqrt", "linear", "quadratic")
 EXPONENTS = {"bounded": 0.0, "sqrt": 0.5, "linear": 1.0, "quadratic": 2.0}
 FLAT = ("bounded",)
+# how far each class is trusted, for a solution error and for an invariant's: up to this
+# many times its run's span (t_final - t0), read from settings re-run at 10, 100 and 1000
+# times their span (benchmarks/verdict_reach.py; the table is in docs/metrics.md, "How far a
+# class is trusted"). A power law held within x3 up to 1000 times the run wherever its
+# prediction stayed below LOST. A solution error classed bounded or sqrt can be the transient
+# before a phase error grows (at least linearly; round-off's phase walks like t^1.5): some
+# held to 100 times the run, others were off by 3 to 40 at 10 times, so neither class of a
+# solution error is extrapolated. An invariant's bounded or sqrt error held to 1000 times.
+# A solution error growing like t^k whose setting lets the energy drift like t^a with
+# k < 1 + a is trusted ten times its run only: a drifting energy moves the frequencies, and
+# the phase error then turns to t^(1 + a) (the quadratic growth of a non-symplectic method's
+# error on an integrable system) at a time its run need not show (rk4 on the rigid body:
+# linear to t = 1e3, off by 2.1 at 1e4 and by 14 at 1e5).
+TRUST_FACTORS = {
+    "solution": {"bounded": 1.0, "sqrt": 1.0, "linear": 1000.0, "quadratic": 1000.0},
+    "drifting": {"bounded": 1.0, "sqrt": 1.0, "linear": 10.0, "quadratic": 10.0},
+    "invariant": {"bounded": 1000.0, "sqrt": 1000.0, "linear": 1000.0, "quadratic": 1000.0},
+}
+# the energy error classes that drift, and their exponents a
+DRIFTS = {"linear": 1.0, "quadratic": 2.0, "faster": math.inf, "saturated": math.inf, "diverged": math.inf}
+# a class is trusted past its run only where its last decades agree with it: windows' slopes
+# (longtime.measure.growth) that rise from each to the next and end more than this above the
+# class's exponent are steepening (an energy drift feeding a phase error, a bounded error
+# giving way to a phase error's growth): not extrapolated. Otherwise the reach is also at
+# most where the latest window's slope, if it held, would move the prediction by
+# CHECK_ERROR_FACTOR
+STEEPENING = 0.1
+# a predicted relative error this large is O(1) (the growth fit's saturation): lost
+LOST = SATURATION
 # targets of the winner map: the decades 1e-1 .. 1e-14
 TARGETS = tuple(10.0 ** -k for k in range(1, 15))
 # horizons of the winner map: the problem's main final time times these (integer multiples
@@ -95,6 +132,10 @@ class Setting:
     alpha: float | None  # the fitted exponent (evidence; a prediction uses the class's)
     ci: tuple[float, float] | None
     reason: str
+    # the error's kind: "solution" (l2_error), "drifting" (l2_error of a setting whose
+    # energy drift will steepen it, see TRUST_FACTORS) or "invariant" (NAME.max)
+    kind: str = "solution"
+    windows: tuple[float, ...] = ()  # the slopes of the growth fit's windows, earliest first
 
     @property
     def scheme(self) -> str:
@@ -105,28 +146,84 @@ class Setting:
         return " ".join(x for x in (self.scheme, setting(self.row)) if x)
 
     @property
+    def steepening(self) -> bool:
+        """Whether its windows' slopes rise from each to the next and end more than
+        STEEPENING above its class's exponent: the law is still changing."""
+        w = self.windows
+        return (self.law in EXPONENTS and len(w) >= 2 and all(b > a for a, b in zip(w, w[1:]))
+                and w[-1] - EXPONENTS[self.law] > STEEPENING)
+
+    @property
+    def factor(self) -> float:
+        """How many times its run's span its class is trusted (1: not past its run): its
+        class's TRUST_FACTORS, 1 where its slopes are steepening, and at most the factor
+        over which its latest window's slope would move the prediction by
+        CHECK_ERROR_FACTOR."""
+        base = TRUST_FACTORS[self.kind].get(self.law, 1.0)
+        if base <= 1 or not self.windows:
+            return base
+        if self.steepening:
+            return 1.0
+        off = abs(self.windows[-1] - EXPONENTS[self.law])
+        if off * math.log(base) <= math.log(CHECK_ERROR_FACTOR):
+            return base
+        return math.exp(math.log(CHECK_ERROR_FACTOR) / off)
+
+    @property
     def extrapolates(self) -> bool:
-        return self.law in EXPONENTS
+        return self.law in EXPONENTS and self.factor > 1
+
+    @property
+    def reach(self) -> float:
+        """The horizon up to which its error is determined: its run's span times its
+        class's trust factor."""
+        return self.span * self.factor
+
+    def state_at(self, horizon: float) -> str:
+        """What it says of its error at ``horizon``: "measured" (within its run),
+        "predicted" (its class, within its reach), "lost" (a predicted error of LOST or
+        more: O(1)) or "undetermined" (past its reach)."""
+        if horizon <= self.span * (1 + 1e-9):
+            return "measured"
+        if not self.extrapolates or horizon > self.reach * (1 + 1e-9):
+            return "undetermined"
+        return "lost" if self._law_at(horizon) >= LOST else "predicted"
+
+    def _law_at(self, horizon: float) -> float:
+        return self.error * (horizon / self.span) ** EXPONENTS[self.law]
 
     def error_at(self, horizon: float) -> float | None:
-        """The predicted error at ``horizon`` (None: the law does not reach it)."""
-        if horizon <= self.span * (1 + 1e-9):
+        """The measured or predicted error at ``horizon`` (None: undetermined there, or lost)."""
+        state = self.state_at(horizon)
+        if state == "measured":
             return self.error
-        if not self.extrapolates:
-            return None
-        return self.error * (horizon / self.span) ** EXPONENTS[self.law]
+        return self._law_at(horizon) if state == "predicted" else None
 
     def cpu_at(self, horizon: float) -> float:
         return self.cpu_per_t * horizon
 
     def law_text(self) -> str:
+        if self.extrapolates:
+            reach = f", trusted to t = {self.reach:.4g}" + (", the energy drifts" if self.kind == "drifting" else "")
+        elif self.steepening:
+            reach = (f", not trusted past its run (window slopes {', '.join(f'{w:.2f}' for w in self.windows)} "
+                     f"rise past t^{EXPONENTS[self.law]:g})")
+        else:
+            reach = f", not trusted past its run (a solution error's {self.law} class)"
         if self.law in FLAT:
-            return "bounded: flat"
+            return "bounded: flat" + reach
         if self.law in POWER_LAWS:
             fit = f", alpha {self.alpha:.2f}" if self.alpha is not None else ""
             ci = f" [{self.ci[0]:.2f}, {self.ci[1]:.2f}]" if self.ci and fit else ""
-            return f"{self.law}: t^{EXPONENTS[self.law]:g}{fit}{ci} fitted"
+            return f"{self.law}: t^{EXPONENTS[self.law]:g}{fit}{ci} fitted" + reach
         return f"{self.law}: {self.reason}" if self.reason else self.law
+
+    def undetermined_text(self, horizon: float) -> str:
+        """Why it predicts nothing at ``horizon``: its law, or its law's reach."""
+        if self.extrapolates:
+            return (f"its law ({self.law}) is not determined past t = {self.reach:.4g} "
+                    f"({self.factor:g} times its run)")
+        return f"its growth is {self.law_text()}"
 
 
 def settings(rows: Iterable[dict[str, Any]], m: Measure) -> list[Setting]:
@@ -143,13 +240,33 @@ def settings(rows: Iterable[dict[str, Any]], m: Measure) -> list[Setting]:
         alpha = r.get(f"{m.law}.growth")
         ci = r.get(f"{m.law}.growth_ci")
         reason = str(r.get(f"{m.law}.growth_reason") or "")
+        windows = r.get(f"{m.law}.growth_windows")
         if law == "faster":
             reason = f"faster than t^2.5 (alpha {alpha:.2f}): no power law of the run's span is extrapolated"
         out.append(Setting(r, float(err), float(span), float(cpu) / float(span), str(law),
                            float(alpha) if isinstance(alpha, (int, float)) else None,
                            (float(ci[0]), float(ci[1])) if isinstance(ci, list) and len(ci) == 2
-                           and all(isinstance(c, (int, float)) for c in ci) else None, reason))
+                           and all(isinstance(c, (int, float)) for c in ci) else None, reason,
+                           _kind(r, m, str(law)),
+                           tuple(float(w) for w in windows) if isinstance(windows, list)
+                           and all(isinstance(w, (int, float)) for w in windows) else ()))
     return sorted(out, key=lambda s: (s.cpu_per_t, s.text))
+
+
+def _kind(row: dict[str, Any], m: Measure, law: str) -> str:
+    """"invariant" for an invariant's error; for the solution error of class ``law`` (t^k)
+    "drifting" where the row's energy error drifts like t^a (DRIFTS; an undetermined one
+    whose window slopes rise past 0.25: a its latest slope) with k < 1 + a, else
+    "solution"."""
+    if m.field != "l2_error":
+        return "invariant"
+    a = DRIFTS.get(row.get("H.growth_class"))
+    w = row.get("H.growth_windows")
+    if a is None and row.get("H.growth_class") == "undetermined" and isinstance(w, list) and len(w) >= 2 \
+            and all(isinstance(x, (int, float)) for x in w) and all(y > x for x, y in zip(w, w[1:])) \
+            and w[-1] > 0.25:
+        a = float(w[-1])  # an energy error still steepening grows at least like its latest slope
+    return "drifting" if a is not None and law in EXPONENTS and EXPONENTS[law] < 1 + a else "solution"
 
 
 @dataclass
@@ -180,7 +297,8 @@ def decide(candidates: list[Setting], target: float, horizon: float) -> Decision
     best = keeps[0] if keeps else None
     runner = next((s for s in keeps if best is not None and s.scheme != best.scheme), None)
     cap = best.cpu_per_t if best is not None else math.inf
-    open_ = [s for s in candidates if s.error_at(horizon) is None and s.error <= target and s.cpu_per_t < cap]
+    open_ = [s for s in candidates if s.state_at(horizon) == "undetermined" and s.error <= target
+             and s.cpu_per_t < cap]
     # one per scheme, the cheapest: the run that decides it is named once
     seen, unique = set(), []
     for s in sorted(open_, key=lambda s: (s.cpu_per_t, s.text)):
@@ -328,11 +446,14 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
         if d.open:
             s = d.open[0]
             raise InputError(f"{problem}: no setting is predicted to keep {m.field} <= {error:g} up to T = {horizon:g}; "
-                             f"{s.text} keeps it to t = {s.span:.4g} but its growth is {s.law_text()}; "
+                             f"{s.text} keeps it to t = {s.span:.4g} but {s.undetermined_text(horizon)}; "
                              f"`{deciding_run(s, horizon, db)}` would decide it")
         finest = min(cands, key=lambda s: s.error)
+        lost = sum(1 for s in cands if s.state_at(horizon) == "lost")
+        lost_text = (f"; {lost} setting{'s' if lost != 1 else ''} predicted lost there (error >= {LOST:g})"
+                     if lost else "")
         raise InputError(f"{problem}: no stored setting keeps {m.field} <= {error:g} up to T = {horizon:g} (the "
-                         f"smallest measured is {finest.error:.2g}, {finest.text}, at t = {finest.span:.4g}); "
+                         f"smallest measured is {finest.error:.2g}, {finest.text}, at t = {finest.span:.4g}{lost_text}); "
                          f"smaller steps or tolerances would: `longtime matrix -p {problem} -i {finest.scheme} "
                          f"--t-final {finest.span:g}{where}` with a finer sweep (--dt or --tol)")
     b, r = d.best, d.runner_up
@@ -341,8 +462,8 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
     lines.append(f"  runner-up {_pick(r, horizon)}, x{r.cpu_at(horizon) / b.cpu_at(horizon):.3g} the CPU"
                  if r else "  runner-up: none (no other scheme is predicted to keep the target)")
     for s in d.open[:2]:
-        lines.append(f"  open     {s.text} might be cheaper ({s.cpu_at(horizon):.3g} s) but its growth is "
-                     f"{s.law_text()}: `{deciding_run(s, horizon, db)}` decides it")
+        lines.append(f"  open     {s.text} might be cheaper ({s.cpu_at(horizon):.3g} s) but "
+                     f"{s.undetermined_text(horizon)}: `{deciding_run(s, horizon, db)}` decides it")
     runs = sorted({c.row.get("run_id") for c in cands if c.row.get("run_id") is not None})
     mine_checks = [c for c in checks if c.get("problem") == problem]
     held = [c for c in mine_checks if check_holds(c)]
@@ -368,24 +489,34 @@ def check_holds(c: dict[str, Any]) -> bool | None:
     return (1 / CHECK_ERROR_FACTOR <= me / pe <= CHECK_ERROR_FACTOR) and mc <= CHECK_COST_FACTOR * pc
 
 
-def plan_checks(rows: list[dict[str, Any]], limit: int = CHECKS, budget_s: float = CHECK_BUDGET_S
-                ) -> list[tuple[Setting, float, Measure]]:
+def plan_checks(rows: list[dict[str, Any]], limit: int = CHECKS, budget_s: float = CHECK_BUDGET_S,
+                reference_rate=None) -> list[tuple[Setting, float, Measure]]:
     """The predictions to re-run: per problem whose checks can be measured (``_checkable``),
-    each setting the map names as the winner somewhere past its run, at the longest horizon
-    where it wins within ``budget_s`` of predicted CPU (so the check tests a prediction the
-    verdict makes); one problem at a time in turn (each problem's distinct schemes first, the
-    farthest horizon first), at most ``limit`` in all."""
+    each setting the map names as the winner somewhere past its run (so within its class's
+    reach: the check tests a prediction the verdict makes), at the longest horizon where it
+    wins within ``budget_s`` of predicted CPU and where the check's reference can be
+    measured (``reference_rate(verdict)``: the reference's wall seconds per unit of t, at
+    most half of CHECK_REFERENCE_S in all; default ``reference_seconds_per_t``); one problem
+    at a time in turn (each problem's distinct schemes first, the farthest horizon first),
+    at most ``limit`` in all."""
+    rate_of = reference_seconds_per_t if reference_rate is None else reference_rate
     per_problem: list[list[tuple[Setting, float, Measure]]] = []
     for v in verdicts(rows).values():
         if not _checkable(v, rows):
             continue
+        rate = None  # measured once a problem, when a pick needs it
         picks: dict[int, tuple[Setting, float, Measure]] = {}
-        for d in v.grid.values():
+        for d in sorted(v.grid.values(), key=lambda d: -d.horizon):
             s = d.best
             if s is None or d.horizon <= s.span * (1 + 1e-9) or s.cpu_at(d.horizon) > budget_s:
                 continue
-            if id(s) not in picks or d.horizon > picks[id(s)][1]:
-                picks[id(s)] = (s, d.horizon, v.measure)
+            if id(s) in picks and d.horizon <= picks[id(s)][1]:
+                continue
+            if rate is None:
+                rate = rate_of(v)
+            if rate * d.horizon > CHECK_REFERENCE_S / 2:
+                continue  # the reference would not reach the horizon within its budget
+            picks[id(s)] = (s, d.horizon, v.measure)
         mine = sorted(picks.values(), key=lambda p: (-p[1] / p[0].span, p[0].cpu_at(p[1]), p[0].text))
         schemes, first, rest = set(), [], []
         for p in mine:
@@ -398,6 +529,25 @@ def plan_checks(rows: list[dict[str, Any]], limit: int = CHECKS, budget_s: float
             if picks and len(out) < limit:
                 out.append(picks.pop(0))
     return out
+
+
+def reference_seconds_per_t(v: Verdict) -> float:
+    """The wall seconds per unit of t that a check of ``v``'s problem spends on its
+    reference: 0 for an invariant's error (no reference), else the reference check's
+    heyoka runs timed over ten times the problem's main final time
+    (longtime.measure.reference.check_seconds_per_t)."""
+    if v.measure is None or v.measure.field != "l2_error":
+        return 0.0
+    from longtime.execution.cells import build, cell_of_row
+    from longtime.measure.reference import ReferenceUnavailable, check_seconds_per_t
+
+    row = next(s.row for s in v.candidates)
+    problem = build(cell_of_row(row))[0]
+    try:
+        with _reference_budget(CHECK_REFERENCE_S):
+            return check_seconds_per_t(problem, 10 * v.t_main, budget_s=CHECK_REFERENCE_S / 5)
+    except ReferenceUnavailable:
+        return math.inf  # its reference cannot be run here: no check of it is planned
 
 
 def _checkable(v: Verdict, rows: list[dict[str, Any]]) -> bool:
@@ -542,11 +692,23 @@ def verdict_lines(v: Verdict, full: bool = False) -> list[str]:
         mark = "(run)" if h == v.t_main else ""
         text = "; ".join(f"{_range(lo, hi)} {decision_text(d)}" for lo, hi, d in groups) or "none predicted"
         lines.append(f"    T = {h:<9.3g}{mark:<6s}{text}")
+    kinds = ("invariant",) if v.candidates[0].kind == "invariant" else ("solution", "drifting")
+    lines.append("  trusted: " + "; ".join(
+        ("the energy drifting: " if kind == "drifting" else f"{kind} error: ")
+        + ", ".join(f"{k} x{f:g}" for k, f in TRUST_FACTORS[kind].items()) for kind in kinds)
+        + f" its run's span; past it, and at a predicted error >= {LOST:g} (lost), nothing is predicted")
+    far = max((s.reach for s in v.candidates), default=0.0)
+    if v.horizons and v.horizons[-1] > far * (1 + 1e-9):
+        # of the settings reaching farthest, the most accurate there
+        s = min((s for s in v.candidates if s.reach == far),
+                key=lambda s: (s._law_at(far) if s.extrapolates else s.error, s.cpu_per_t, s.text))
+        lines.append(f"  not determined past t = {far:.4g} (the farthest reach; the most accurate there, {s.text}): "
+                     f"`{deciding_run(s, v.horizons[-1])}` would decide it")
     stuck = [s for s in v.candidates if not s.extrapolates]
     if stuck:
         first = sorted(stuck, key=lambda s: s.cpu_per_t)[0]
-        lines.append(f"  not extrapolated: {len(stuck)} of {len(v.candidates)} settings (growth undetermined or "
-                     f"faster); the cheapest, {first.text} ({first.law_text()}), is decided by "
+        lines.append(f"  not extrapolated: {len(stuck)} of {len(v.candidates)} settings (growth undetermined, faster, "
+                     f"or a class not trusted past the run); the cheapest, {first.text} ({first.law_text()}), is decided by "
                      f"`{deciding_run(first, 10 * first.span)}`")
     if v.checks:
         lines.append(f"  checks: {check_summary(v.checks)}")
