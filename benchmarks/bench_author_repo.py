@@ -19,8 +19,10 @@ from the package index or pip's cache). Its commits:
 
 At each commit, with one CPU hog (``python -c 'while 1: pass'``) running throughout, the
 author runs ``asv run --python=same --set-commit-hash <commit>`` (asv's ``existing``
-environment: the checkout is the installed code) and ``longtime run ... --cost
-instructions`` into one store. Then ``asv compare`` between successive commits (asv's
+environment: the checkout is the installed code) and ``longtime run`` into one store
+(``--history-cost instructions`` adds ``--cost instructions``: a Valgrind process more a
+commit; asv's suite counts the instructions in any case). Then ``asv compare`` between
+successive commits (asv's
 default factor 1.1 and its significance test) and ``longtime history`` over the store say
 what changed. Per commit and cell, the script prints what each flagged and exits 1 where a
 flag is wrong or missing: slower / more instructions at 3 and faster / fewer at 5 only;
@@ -219,7 +221,7 @@ def build_repo(repo: Path, py: Path, env: dict) -> None:
         "--dt", str(DT), "--t-final", str(T_FINAL)], env=env)
 
 
-def measure(repo: Path, py: Path, env: dict, db: Path, sha: str, log) -> None:
+def measure(repo: Path, py: Path, env: dict, db: Path, sha: str, log, cost: str) -> None:
     """The author's commands at the checked-out commit: asv, then longtime run."""
     t0 = time.time()
     out = sh([str(py), "-m", "asv", "run", "--python=same", "--set-commit-hash", sha, "--machine", "author",
@@ -227,7 +229,7 @@ def measure(repo: Path, py: Path, env: dict, db: Path, sha: str, log) -> None:
     log.write(f"$ asv run --set-commit-hash {sha}\n{out}")
     t1 = time.time()
     out = sh([str(py), "-m", "longtime", "run", "-p", ",".join(PROBLEMS), "-i", ",".join(SCHEMES), "--dt", str(DT),
-              "--t-final", str(T_FINAL), "--cost", "instructions", "--db", str(db), "--format", "csv"], repo, env)
+              "--t-final", str(T_FINAL), "--cost", cost, "--db", str(db), "--format", "csv"], repo, env)
     log.write(f"$ longtime run ({sha[:10]})\n{out}")
     print(f"  measured {sha[:10]}: asv {t1 - t0:.0f} s, longtime run {time.time() - t1:.0f} s", file=sys.stderr)
 
@@ -277,13 +279,13 @@ def expected_asv(scheme: str, k: int) -> dict[str, str]:
             REVERT: {"time_integrate": "-", "track_instructions": "-", "track_l2_error": "-"}}.get(k, {})
 
 
-def expected_history(scheme: str, k: int) -> dict[str, str]:
+def expected_history(scheme: str, k: int, counted: bool) -> dict[str, str]:
     if scheme != "author-rk4":
         return {}
-    return {SLOWER: {"cpu_s_calibrated": "slower", "instructions": "more instructions"},
+    more, fewer = ({"instructions": "more instructions"}, {"instructions": "fewer instructions"}) if counted else ({}, {})
+    return {SLOWER: {"cpu_s_calibrated": "slower", **more},
             LESS_ACCURATE: {"l2_error": "less accurate"},
-            REVERT: {"cpu_s_calibrated": "faster", "instructions": "fewer instructions",
-                     "l2_error": "more accurate"}}.get(k, {})
+            REVERT: {"cpu_s_calibrated": "faster", "l2_error": "more accurate", **fewer}}.get(k, {})
 
 
 def tune() -> int:
@@ -325,6 +327,9 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--hogs", type=int, default=1, help="CPU hogs running throughout (default 1)")
     parser.add_argument("--keep", default=None, metavar="DIR", help="build in DIR (kept) instead of a temp folder")
+    parser.add_argument("--history-cost", choices=["time", "instructions"], default="time",
+                        help="longtime run's --cost at each commit (instructions: a Valgrind process more a "
+                             "commit; asv counts them in any case)")
     parser.add_argument("--judge", default=None, metavar="DIR",
                         help="measure nothing: judge the repository and store that --keep DIR left")
     parser.add_argument("--tune", action="store_true", help="only time the versions in this process")
@@ -354,7 +359,7 @@ def main() -> int:
                     sh(["git", "revert", "--no-edit", "HEAD", "HEAD~1"], repo)
                     commits.append(sh(["git", "rev-parse", "HEAD"], repo).strip())
                 print(f"commit {k} {commits[-1][:10]}", file=sys.stderr)
-                measure(repo, py, env, db, commits[-1], log)
+                measure(repo, py, env, db, commits[-1], log, args.history_cost)
         history = json.loads(sh([str(py), "-m", "longtime", "history", "--db", str(db), "--format", "json"], repo, env))
         log.write("$ longtime history\n" + sh([str(py), "-m", "longtime", "history", "--db", str(db)], repo, env))
         asv = {k: asv_marks(repo, py, env, commits[k - 2], commits[k - 1], log) for k in range(2, 6)}
@@ -392,7 +397,7 @@ def main() -> int:
             a = asv[k].get((problem, scheme), {})
             h = steps.get(k, {})
             wrong = check(a, expected_asv(scheme, k), "track_l2_error", set(ACCURACY_NAMES))
-            hist_expect = expected_history(scheme, k)
+            hist_expect = expected_history(scheme, k, any(isinstance(p.get("instructions"), int) for p in runs))
             wrong += check(h, hist_expect, "l2_error", {f for f in h if f not in ("cpu_s_calibrated", "instructions")})
             shown_a = " ".join(f"{b}{a[b]}x{a.get(b + '_ratio')}" for b in (*TIME_NAMES, *ACCURACY_NAMES) if b in a) or "-"
             shown_h = " ".join(f"{f}:{v}x{h.get(f + '_ratio')}" for f, v in h.items() if not f.endswith("_ratio")) or "-"

@@ -39,7 +39,7 @@ def test_flags_are_checked_both_ways():
     assert bench.check({"track_l2_error": "+", "time_integrate": "+"}, expect, "track_l2_error", accuracy)
     slower = bench.expected_asv("author-rk4", bench.SLOWER)
     assert bench.check({**slower, "track_drift": "+"}, slower, "track_l2_error", accuracy)
-    assert bench.expected_asv("verlet", bench.SLOWER) == {} and bench.expected_history("author-rk4", 2) == {}
+    assert bench.expected_asv("verlet", bench.SLOWER) == {} and bench.expected_history("author-rk4", 2, True) == {}
 
 
 def test_versions_change_only_what_they_claim(tmp_path):
