@@ -161,3 +161,24 @@ def test_rank_test_and_round_off_floor():
     cell = compare([a], [b])["cells"][0]
     assert cell["errors"]["H.max"]["ratio"] == pytest.approx(9.0)
     assert cell["regressions"] == ["status ok -> diverged"]  # H.max at round-off, l2 within x2
+
+
+def test_same_instructions_hold_the_time_verdict_to_the_cell_factor():
+    """Identical code (the same instruction count) slowed x1.57 by a neighbour's load is
+    not slower; x2.1 is; more instructions with x1.3 is slower on both counts."""
+    from longtime.reporting.compare import compare_rows
+
+    def row(cpu, spread, count):
+        return {"problem": "toda", "integrator": "gauss4", "status": "ok", "cpu_s": cpu, "t_final": 500.0,
+                "cpu_s_process_spread": spread, "instructions": count, "instructions_tool": "callgrind 3.19"}
+
+    c = compare_rows(row(1.0, 1.1, 1_000_000), row(1.57, 1.2, 1_000_040))
+    assert c["instruction_verdict"] == "within" and c["time_verdict"] == "within" and not c["regressions"]
+    assert c["time_threshold"] == 2.0
+    c = compare_rows(row(1.0, 1.1, 1_000_000), row(2.1, 1.2, 1_000_040))
+    assert c["time_verdict"] == "slower" and "instructions within" in c["regressions"][0]
+    c = compare_rows(row(1.0, 1.1, 1_000_000), row(1.3, 1.1, 1_300_000))
+    assert c["time_verdict"] == "slower" and c["instruction_verdict"] == "more" and len(c["regressions"]) == 2
+    # without counts, the spread between processes and --factor judge as before
+    a, b = row(1.0, 1.1, None), row(1.3, 1.1, None)
+    assert compare_rows(a, b)["time_verdict"] == "slower"
