@@ -21,6 +21,7 @@ nothing else. Exit 1 otherwise.
 
     python benchmarks/bench_hogs.py                  # about 10 minutes
     python benchmarks/bench_hogs.py --db /tmp/hogs.sqlite
+    python benchmarks/bench_hogs.py --db /tmp/hogs.sqlite --judge 1,2,3,4   # judge again
 
 docs/performance.md ("Hogs, identical code and a slower plugin") has the results.
 """
@@ -88,6 +89,8 @@ def compare(db: str, a: int, b: int) -> dict:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--db", default=None, help="the store (default: a new one in a temporary folder)")
+    parser.add_argument("--judge", default=None, metavar="A,B,C,D",
+                        help="measure nothing: judge these four run ids of --db (runs 1 to 4 above)")
     parser.add_argument("--phase", default=None, help=argparse.SUPPRESS)
     parser.add_argument("--repeat", type=float, default=0.0, help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -98,8 +101,8 @@ def main() -> int:
     from bench_author_repo import REPEAT
 
     db = args.db or str(Path(tempfile.mkdtemp(prefix="hogs-")) / "hogs.sqlite")
-    runs = []
-    for name, hog, n, repeat in PHASES:
+    runs = [int(x) for x in args.judge.split(",")] if args.judge else []
+    for name, hog, n, repeat in [] if args.judge else PHASES:
         hogs = [subprocess.Popen([sys.executable, "-c", hog]) for _ in range(n)]
         try:
             if hogs:

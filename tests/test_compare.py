@@ -182,3 +182,32 @@ def test_same_instructions_hold_the_time_verdict_to_the_cell_factor():
     # without counts, the spread between processes and --factor judge as before
     a, b = row(1.0, 1.1, None), row(1.3, 1.1, None)
     assert compare_rows(a, b)["time_verdict"] == "slower"
+
+
+def test_a_cell_with_more_instructions_is_judged_against_the_unchanged_cells():
+    """Run B ran on a machine 0.9x as loaded: the cells of unchanged code took 0.9 of their
+    time. A cell with 25 % more instructions at x1.18 (x1.31 against them) is slower; the
+    same cell at x1.05 (x1.17) is not, and without three unchanged cells nothing is judged again."""
+    from longtime.reporting.compare import compare
+
+    def rows(ratio, plugin_ratio, plugin_count, n=4):
+        a, b = [], []
+        for i in range(n):
+            base = {"problem": "toda", "integrator": f"s{i}", "status": "ok", "t_final": 500.0,
+                    "cpu_s_process_spread": 1.05, "instructions_tool": "callgrind"}
+            a.append({**base, "cpu_s": 1e-2, "instructions": 10**7})
+            b.append({**base, "cpu_s": 1e-2 * ratio, "instructions": 10**7})
+        base = {"problem": "harmonic", "integrator": "plugin", "status": "ok", "t_final": 1000.0,
+                "cpu_s_process_spread": 1.1, "instructions_tool": "callgrind"}
+        a.append({**base, "cpu_s": 6e-3, "instructions": 4 * 10**7})
+        b.append({**base, "cpu_s": 6e-3 * plugin_ratio, "instructions": plugin_count})
+        return a, b
+
+    cells = {c["integrator"]: c for c in compare(*rows(0.9, 1.18, 5 * 10**7))["cells"]}
+    assert cells["plugin"]["time_verdict"] == "slower"
+    assert abs(cells["plugin"]["time_ratio_against_unchanged"] - 1.18 / 0.9) < 1e-9
+    assert all(cells[f"s{i}"]["time_verdict"] == "within" for i in range(4))
+    assert compare(*rows(0.9, 1.05, 5 * 10**7))["cells"][-1]["time_verdict"] == "within"
+    assert compare(*rows(0.9, 1.18, 5 * 10**7, n=2))["cells"][-1]["time_verdict"] == "within"
+    # the same instructions: no second judgement, whatever the others did
+    assert compare(*rows(0.7, 1.18, 4 * 10**7))["cells"][-1]["time_verdict"] == "within"

@@ -32,7 +32,10 @@ RUN_B). Cells are matched by problem, scheme, t_final and every setting. Per com
   judged against ``--cell-factor`` (and the spread between processes, if larger), and it
   takes no verdict from its scheme's or problem's median, since identical code beside a
   neighbour's load moves by up to 1.6x on a shared machine (docs/performance.md, "Hogs,
-  identical code and a slower plugin");
+  identical code and a slower plugin"). Those cells measure the load between the runs: a
+  cell whose count rose (fell) is also slower (faster) when its time ratio over their
+  median passes its threshold (``time_ratio_against_unchanged``; at least ``MIN_BATCHES``
+  such cells);
 - growth classes (``NAME.growth_class``) and observed orders (longtime.measure.orders), per
   problem x scheme: every change is listed; a status that was ok and is not any more is a
   regression.
@@ -213,6 +216,31 @@ def _faster(cell: dict, why: str) -> None:
                                    f"({cell['time_basis']}; {why})")
 
 
+def _against_unchanged(cells: list[dict], factor: float, min_cells: int = MIN_BATCHES) -> None:
+    """A cell whose instruction count rose (fell) and whose time is within its threshold is
+    judged again against the cells whose counts did not change: they did the same work in
+    both runs, so the median of their time ratios is what the machine's load did to time
+    between the runs (the reference workload, all in registers, does not see it). The
+    cell's ratio over that median (``time_ratio_against_unchanged``) beyond its threshold,
+    in the direction of its count, makes it slower (faster). Needs ``min_cells`` such cells."""
+    same = [c["time_ratio"] for c in cells if c["instruction_verdict"] == "within"
+            and c["time_verdict"] in ("within", "slower", "faster")]
+    if len(same) < min_cells:
+        return
+    load = float(np.median(same))
+    for c in cells:
+        if c["time_verdict"] != "within" or c["instruction_verdict"] not in ("more", "fewer"):
+            continue
+        ratio = c["time_ratio"] / load
+        c["time_ratio_against_unchanged"] = ratio
+        why = (f"x{ratio:.3g} against the {len(same)} cells whose instructions did not change (their median "
+               f"x{load:.3g}); beyond x{c['time_threshold']:.3g}")
+        if c["instruction_verdict"] == "more" and ratio > c["time_threshold"]:
+            _slower(c, why)
+        elif c["instruction_verdict"] == "fewer" and ratio < 1 / c["time_threshold"]:
+            _faster(c, why)
+
+
 def _lower_median(values: list[float]) -> float:
     """The median; of an even count, the middle value nearer 1 (a verdict needs most of them)."""
     v = sorted(values)
@@ -317,6 +345,7 @@ def compare(rows_a: list[dict], rows_b: list[dict], factor: float = TIME_FACTOR,
     cells = [compare_rows(by_a[k], by_b[k], factor, error_factor, alpha, raw, cell_factor, short,
                           instruction_factor) for k in common]
     groups = group_verdicts(cells, factor)
+    _against_unchanged(cells, factor)
     for c in cells:  # a scheme's or a problem's change of speed: its cells beyond --factor
         if c["time_verdict"] != "within" or c["instruction_verdict"] == "within":  # the same work: the cell's own
             continue
