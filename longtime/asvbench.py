@@ -11,7 +11,9 @@ a value or a list, as ``longtime.sweep`` takes them):
 - ``Integration.time_integrate``: the integration alone (its kernel compiled in setup),
   timed by asv in ``processes`` separate processes (``DEFAULT_PROCESSES``, asv's own
   benchmark attribute: its samples pool every process's, so the spread asv judges a change
-  against is the spread between processes, as longtime's verdicts are);
+  against is the spread between processes, as longtime's verdicts are), in CPU time of
+  the process (``timer = time.process_time``, as longtime's ``cpu_s``): asv's default
+  clock is the wall clock, which counts the time a neighbour holds the core;
 - ``Cost.track_instructions``: the instructions of the integration alone, counted under
   Valgrind (``--cost instructions``; all cells in one Valgrind process, in
   ``setup_cache``). The count is deterministic: a ratio between two commits is the code's,
@@ -96,11 +98,13 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
     def time_integrate(self, problem, scheme, setting):
         self.integrator.integrate(self.problem, self.t_final)
 
+    import time
+
     from longtime.execution.processes import DEFAULT_PROCESSES
 
     integration = type(f"{prefix}Integration", (), {
         "params": params, "param_names": names, "setup": setup, "time_integrate": time_integrate,
-        "processes": DEFAULT_PROCESSES,
+        "processes": DEFAULT_PROCESSES, "timer": time.process_time,
         "__doc__": "The integration of each cell alone (its kernel compiled in setup)."})
 
     def setup_cache(self):

@@ -27,6 +27,10 @@ def test_benchmarks_time_and_track_every_cell():
     assert accuracy.track_growth_class.unit.startswith("growth class")
     assert not hasattr(accuracy, "track_growth")  # an exponent near 0: its ratio judges nothing
     assert classes["Cost"].track_instructions.unit == "instructions"
+    # asv times CPU seconds of the process, as longtime does: the wall clock counts a neighbour's turns
+    import time
+
+    assert integration.timer is time.process_time and integration.processes >= 2
 
     bench = integration()
     bench.setup("kepler", "asv-verlet-copy", "dt=0.01")

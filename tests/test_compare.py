@@ -161,3 +161,53 @@ def test_rank_test_and_round_off_floor():
     cell = compare([a], [b])["cells"][0]
     assert cell["errors"]["H.max"]["ratio"] == pytest.approx(9.0)
     assert cell["regressions"] == ["status ok -> diverged"]  # H.max at round-off, l2 within x2
+
+
+def test_same_instructions_hold_the_time_verdict_to_the_cell_factor():
+    """Identical code (the same instruction count) slowed x1.57 by a neighbour's load is
+    not slower; x2.1 is; more instructions with x1.3 is slower on both counts."""
+    from longtime.reporting.compare import compare_rows
+
+    def row(cpu, spread, count):
+        return {"problem": "toda", "integrator": "gauss4", "status": "ok", "cpu_s": cpu, "t_final": 500.0,
+                "cpu_s_process_spread": spread, "instructions": count, "instructions_tool": "callgrind 3.19"}
+
+    c = compare_rows(row(1.0, 1.1, 1_000_000), row(1.57, 1.2, 1_000_040))
+    assert c["instruction_verdict"] == "within" and c["time_verdict"] == "within" and not c["regressions"]
+    assert c["time_threshold"] == 2.0
+    c = compare_rows(row(1.0, 1.1, 1_000_000), row(2.1, 1.2, 1_000_040))
+    assert c["time_verdict"] == "slower" and "instructions within" in c["regressions"][0]
+    c = compare_rows(row(1.0, 1.1, 1_000_000), row(1.3, 1.1, 1_300_000))
+    assert c["time_verdict"] == "slower" and c["instruction_verdict"] == "more" and len(c["regressions"]) == 2
+    # without counts, the spread between processes and --factor judge as before
+    a, b = row(1.0, 1.1, None), row(1.3, 1.1, None)
+    assert compare_rows(a, b)["time_verdict"] == "slower"
+
+
+def test_a_cell_with_more_instructions_is_judged_against_the_unchanged_cells():
+    """Run B ran on a machine 0.9x as loaded: the cells of unchanged code took 0.9 of their
+    time. A cell with 25 % more instructions at x1.18 (x1.31 against them) is slower; the
+    same cell at x1.05 (x1.17) is not, and without three unchanged cells nothing is judged again."""
+    from longtime.reporting.compare import compare
+
+    def rows(ratio, plugin_ratio, plugin_count, n=4):
+        a, b = [], []
+        for i in range(n):
+            base = {"problem": "toda", "integrator": f"s{i}", "status": "ok", "t_final": 500.0,
+                    "cpu_s_process_spread": 1.05, "instructions_tool": "callgrind"}
+            a.append({**base, "cpu_s": 1e-2, "instructions": 10**7})
+            b.append({**base, "cpu_s": 1e-2 * ratio, "instructions": 10**7})
+        base = {"problem": "harmonic", "integrator": "plugin", "status": "ok", "t_final": 1000.0,
+                "cpu_s_process_spread": 1.1, "instructions_tool": "callgrind"}
+        a.append({**base, "cpu_s": 6e-3, "instructions": 4 * 10**7})
+        b.append({**base, "cpu_s": 6e-3 * plugin_ratio, "instructions": plugin_count})
+        return a, b
+
+    cells = {c["integrator"]: c for c in compare(*rows(0.9, 1.18, 5 * 10**7))["cells"]}
+    assert cells["plugin"]["time_verdict"] == "slower"
+    assert abs(cells["plugin"]["time_ratio_against_unchanged"] - 1.18 / 0.9) < 1e-9
+    assert all(cells[f"s{i}"]["time_verdict"] == "within" for i in range(4))
+    assert compare(*rows(0.9, 1.05, 5 * 10**7))["cells"][-1]["time_verdict"] == "within"
+    assert compare(*rows(0.9, 1.18, 5 * 10**7, n=2))["cells"][-1]["time_verdict"] == "within"
+    # the same instructions: no second judgement, whatever the others did
+    assert compare(*rows(0.7, 1.18, 4 * 10**7))["cells"][-1]["time_verdict"] == "within"

@@ -28,7 +28,14 @@ RUN_B). Cells are matched by problem, scheme, t_final and every setting. Per com
   ratio B / A of the cell's count. The count is deterministic (runs of identical code agree
   within 1e-4, beside CPU-bound processes too), so a cell whose count grows
   beyond ``--instruction-factor`` (``INSTRUCTION_FACTOR``) regressed, whatever the time
-  says;
+  says. A cell whose counts agree within that factor did the same work: its time is
+  judged against ``--cell-factor`` (and the spread between processes, if larger), and it
+  takes no verdict from its scheme's or problem's median, since identical code beside a
+  neighbour's load moves by up to 1.6x on a shared machine (docs/performance.md, "Hogs,
+  identical code and a slower plugin"). Those cells measure the load between the runs: a
+  cell whose count rose (fell) is also slower (faster) when its time ratio over their
+  median passes its threshold (``time_ratio_against_unchanged``; at least ``MIN_BATCHES``
+  such cells);
 - growth classes (``NAME.growth_class``) and observed orders (longtime.measure.orders), per
   problem x scheme: every change is listed; a status that was ok and is not any more is a
   regression.
@@ -119,6 +126,7 @@ def compare_rows(a: dict, b: dict, factor: float = TIME_FACTOR, error_factor: fl
     if _number(a.get("cpu_s")) and _number(b.get("cpu_s")) and a["cpu_s"] > 0:
         out.update(cpu_a=a["cpu_s"], cpu_b=b["cpu_s"], cpu_ratio=b["cpu_s"] / a["cpu_s"],
                    p_slower=slower_p(a.get("cpu_s_samples") or [], b.get("cpu_s_samples") or []))
+    _judge_instructions(out, a, b, instruction_factor)
     timed = _timed(a, b, raw)
     out["time_verdict"] = None
     if _number(a.get("cpu_s_calibrated")) and _number(b.get("cpu_s_calibrated")) and a["cpu_s_calibrated"] > 0:
@@ -128,7 +136,12 @@ def compare_rows(a: dict, b: dict, factor: float = TIME_FACTOR, error_factor: fl
         ratio = tb / ta
         out.update(time_basis=basis, time_a=ta, time_b=tb, time_ratio=ratio)
         spread = process_spread(a, b)
-        if spread is not None:  # the spread between processes, measured in both runs
+        if out["instruction_verdict"] == "within":
+            # the same work, instruction for instruction: a time step below --cell-factor is the
+            # machine's (a neighbour's load slows identical code by up to 1.6x), not the code's
+            threshold = max(cell_factor, spread or 0.0)
+            why = f"beyond x{threshold:.3g}: --cell-factor, the instructions within x{instruction_factor:g}"
+        elif spread is not None:  # the spread between processes, measured in both runs
             threshold = max(factor, spread)
             why = f"beyond x{threshold:.3g}: the spread between processes x{spread:.3g} and --factor x{factor:g}"
         else:
@@ -142,7 +155,6 @@ def compare_rows(a: dict, b: dict, factor: float = TIME_FACTOR, error_factor: fl
             _faster(out, why)
         else:
             out["time_verdict"] = "within"
-    _judge_instructions(out, a, b, instruction_factor)
     errors = {}
     worse = better = False
     for f in sorted(set(error_fields(a)) & set(error_fields(b))):
@@ -202,6 +214,31 @@ def _faster(cell: dict, why: str) -> None:
     cell["time_verdict"] = "faster"
     cell["improvements"].insert(0, f"{'cpu' if cell['time_basis'] == 'raw' else 'time'} x{cell['time_ratio']:.3g} "
                                    f"({cell['time_basis']}; {why})")
+
+
+def _against_unchanged(cells: list[dict], factor: float, min_cells: int = MIN_BATCHES) -> None:
+    """A cell whose instruction count rose (fell) and whose time is within its threshold is
+    judged again against the cells whose counts did not change: they did the same work in
+    both runs, so the median of their time ratios is what the machine's load did to time
+    between the runs (the reference workload, all in registers, does not see it). The
+    cell's ratio over that median (``time_ratio_against_unchanged``) beyond its threshold,
+    in the direction of its count, makes it slower (faster). Needs ``min_cells`` such cells."""
+    same = [c["time_ratio"] for c in cells if c["instruction_verdict"] == "within"
+            and c["time_verdict"] in ("within", "slower", "faster")]
+    if len(same) < min_cells:
+        return
+    load = float(np.median(same))
+    for c in cells:
+        if c["time_verdict"] != "within" or c["instruction_verdict"] not in ("more", "fewer"):
+            continue
+        ratio = c["time_ratio"] / load
+        c["time_ratio_against_unchanged"] = ratio
+        why = (f"x{ratio:.3g} against the {len(same)} cells whose instructions did not change (their median "
+               f"x{load:.3g}); beyond x{c['time_threshold']:.3g}")
+        if c["instruction_verdict"] == "more" and ratio > c["time_threshold"]:
+            _slower(c, why)
+        elif c["instruction_verdict"] == "fewer" and ratio < 1 / c["time_threshold"]:
+            _faster(c, why)
 
 
 def _lower_median(values: list[float]) -> float:
@@ -308,8 +345,9 @@ def compare(rows_a: list[dict], rows_b: list[dict], factor: float = TIME_FACTOR,
     cells = [compare_rows(by_a[k], by_b[k], factor, error_factor, alpha, raw, cell_factor, short,
                           instruction_factor) for k in common]
     groups = group_verdicts(cells, factor)
+    _against_unchanged(cells, factor)
     for c in cells:  # a scheme's or a problem's change of speed: its cells beyond --factor
-        if c["time_verdict"] != "within":
+        if c["time_verdict"] != "within" or c["instruction_verdict"] == "within":  # the same work: the cell's own
             continue
         for kind, name in (("schemes", c["integrator"]), ("problems", c["problem"])):
             g = groups[kind][name]
