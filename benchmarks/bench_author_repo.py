@@ -166,7 +166,7 @@ VERSIONS = [("baseline RK4", version(0, "6.0", False)),
             ("less accurate: a weight's denominator mistyped", version(REPEAT, MISTYPED_SIX, True))]
 SLOWER, LESS_ACCURATE, REVERT = 3, 4, 5
 HOG = "while 1: pass"
-TIME_NAMES = ("time_integrate", "track_instructions")
+TIME_NAMES = ("time_integrate", "track_cpu_s", "track_instructions")
 ACCURACY_NAMES = ("track_l2_error", "track_drift", "track_growth_class")
 
 
@@ -274,9 +274,9 @@ def check(found: dict[str, str], expect: dict[str, str], anchor: str, accuracy: 
 def expected_asv(scheme: str, k: int) -> dict[str, str]:
     if scheme != "author-rk4":
         return {}
-    return {SLOWER: {"time_integrate": "+", "track_instructions": "+"},
+    return {SLOWER: {"time_integrate": "+", "track_cpu_s": "+", "track_instructions": "+"},
             LESS_ACCURATE: {"track_l2_error": "+"},
-            REVERT: {"time_integrate": "-", "track_instructions": "-", "track_l2_error": "-"}}.get(k, {})
+            REVERT: {"time_integrate": "-", "track_cpu_s": "-", "track_instructions": "-", "track_l2_error": "-"}}.get(k, {})
 
 
 def expected_history(scheme: str, k: int, counted: bool) -> dict[str, str]:

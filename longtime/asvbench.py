@@ -14,6 +14,12 @@ a value or a list, as ``longtime.sweep`` takes them):
   against is the spread between processes, as longtime's verdicts are), in CPU time of
   the process (``timer = time.process_time``, as longtime's ``cpu_s``): asv's default
   clock is the wall clock, which counts the time a neighbour holds the core;
+- ``Integration.track_cpu_s``: the same integration's CPU seconds as longtime's timing
+  processes take them: the minimum of its runs spread over a few seconds in rounds
+  (longtime.execution.processes.time_cells). asv's samples of ``time_integrate`` are bursts
+  whose median a slow moment of the machine (it comes and goes within a second or two on a
+  shared virtual machine) can move by more than a slowdown; this minimum holds within a
+  few percent across invocations (docs/performance.md, "Two speeds");
 - ``Cost.track_instructions``: the instructions of the integration alone, counted under
   Valgrind (``--cost instructions``; all cells in one Valgrind process, in
   ``setup_cache``). The count is deterministic: a ratio between two commits is the code's,
@@ -98,12 +104,26 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
     def time_integrate(self, problem, scheme, setting):
         self.integrator.integrate(self.problem, self.t_final)
 
+    def track_cpu_s(self, problem, scheme, setting):
+        from longtime.core.integrator import Timing
+        from longtime.execution.processes import time_cells
+
+        cell = _cell(problem, scheme, points[setting], t_final)
+        record = time_cells([cell], 100_001, Timing(repeats=3))[0]
+        return float(record["cpu_s"]) if record.get("status") == "ok" else math.nan
+
+    track_cpu_s.unit = "seconds"
+    track_cpu_s.__doc__ = ("CPU seconds of the integration: the minimum of its runs spread over "
+                           "longtime's SPREAD_S seconds (longtime.execution.processes.time_cells), so "
+                           "that a slow moment of the machine does not make the figure")
+
     import time
 
     from longtime.execution.processes import DEFAULT_PROCESSES
 
     integration = type(f"{prefix}Integration", (), {
         "params": params, "param_names": names, "setup": setup, "time_integrate": time_integrate,
+        "track_cpu_s": track_cpu_s,
         "processes": DEFAULT_PROCESSES, "timer": time.process_time,
         "__doc__": "The integration of each cell alone (its kernel compiled in setup)."})
 
