@@ -397,15 +397,7 @@ class Store:
     def checks(self, run_id: int | None = None) -> list[dict[str, Any]]:
         """The checked predictions of ``run_id`` (default: every run's), in the order stored;
         none in a store older than the checks table."""
-        query, args = "SELECT run_id, row FROM checks", ()
-        if run_id is not None:
-            query, args = query + " WHERE run_id = ?", (run_id,)
-        with closing(self._connect()) as con:
-            try:
-                fetched = con.execute(query + " ORDER BY rowid", args).fetchall()
-            except sqlite3.OperationalError:  # a store of schema version 1 or 2, opened read-only
-                return []
-        return [{"run_id": rid, **json.loads(text)} for rid, text in fetched]
+        return self._records("checks", "row", run_id)
 
     def add_ensemble(self, run_id: int, record: dict[str, Any]) -> None:
         """Store one scheme's ensemble distance on a chaotic problem
@@ -423,13 +415,19 @@ class Store:
     def ensembles(self, run_id: int | None = None) -> list[dict[str, Any]]:
         """The ensemble records of ``run_id`` (default: every run's), in the order stored;
         none in a store older than the ensembles table."""
-        query, args = "SELECT run_id, record FROM ensembles", ()
+        return self._records("ensembles", "record", run_id)
+
+    def _records(self, table: str, column: str, run_id: int | None) -> list[dict[str, Any]]:
+        """The JSON records of a side table (checks, ensembles) of ``run_id`` (default: every
+        run's) with their run id, in the order stored; none where a store opened read-only
+        predates the table."""
+        query, args = f"SELECT run_id, {column} FROM {table}", ()
         if run_id is not None:
             query, args = query + " WHERE run_id = ?", (run_id,)
         with closing(self._connect()) as con:
             try:
                 fetched = con.execute(query + " ORDER BY rowid", args).fetchall()
-            except sqlite3.OperationalError:  # a store of schema version 1 to 3, opened read-only
+            except sqlite3.OperationalError:  # an older schema without the table
                 return []
         return [{"run_id": rid, **json.loads(text)} for rid, text in fetched]
 
