@@ -477,8 +477,10 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
            '<p class="note">Per problem, the cheapest stored setting predicted to keep a target error up to a horizon T: '
            "its error at T from its measured error and growth class (bounded: flat; sqrt, linear, quadratic: "
            "t^(1/2, 1, 2) from its run's final time), its CPU time from its measured CPU time per unit of simulated "
-           "time. A setting whose growth is undetermined predicts nothing past its own run. docs/metrics.md says how "
-           "a prediction is made and checked.</p>"]
+           "time. A class predicts only as far as it was measured to hold (its reach: a solution error classed "
+           "bounded or sqrt not past its run, a power law or an invariant's error up to 1000 times it, less where "
+           "the energy drifts or the slopes still steepen); past its reach, or where its growth is undetermined, a "
+           "setting predicts nothing. docs/metrics.md says how a prediction is made and checked.</p>"]
     for p in problems:
         out.append(_verdict_section(p, found[p], by_problem[p]))
     out.append(_checks_section(checks))
