@@ -37,10 +37,14 @@ def test_a_timing_process_runs_its_cells_in_rounds_until_their_runs_span_seconds
     cells = [Cell("harmonic", "verlet", {}, {"dt": 0.05}, 20.0), Cell("kepler", "rk4", {}, {"dt": 0.01}, 5.0)]
     monkeypatch.setattr(processes, "SPREAD_S", 0.0)
     quick = time_cells(cells, 1000, Timing(repeats=2, min_time=0))
-    assert [len(r["cpu_s_samples"]) for r in quick] == [2, 2]  # no span asked: the repeats alone
+    assert [len(r["cpu_s_samples"]) for r in quick] == [2, 2]  # no span asked: the minimum runs alone
+    once = time_cells(cells, 1000, Timing(repeats=5, min_time=0, min_runs=1))
+    assert [len(r["cpu_s_samples"]) for r in once] == [1, 1]  # a large batch: one run a cell
+    budget = time_cells(cells, 1000, Timing(repeats=4, min_time=600.0, min_runs=1))
+    assert [len(r["cpu_s_samples"]) for r in budget] == [4, 4]  # under the time budget: up to the repeats
     monkeypatch.setattr(processes, "SPREAD_S", 600.0)
     monkeypatch.setattr(processes, "MAX_ROUNDS", 5)
-    spread = time_cells(cells, 1000, Timing(repeats=2, min_time=0))
+    spread = time_cells(cells, 1000, Timing(repeats=2, min_time=0, min_runs=1))
     assert [len(r["cpu_s_samples"]) for r in spread] == [5, 5]  # rounds until the span, at most MAX_ROUNDS
     for r, q in zip(spread, quick):
         assert r["status"] == "ok" and r["cpu_s"] == min(r["cpu_s_samples"])
