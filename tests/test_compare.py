@@ -179,7 +179,7 @@ def test_same_instructions_hold_the_time_verdict_to_the_cell_factor():
     assert c["time_verdict"] == "slower" and "instructions within" in c["regressions"][0]
     c = compare_rows(row(1.0, 1.1, 1_000_000), row(1.3, 1.1, 1_300_000))
     assert c["time_verdict"] == "slower" and c["instruction_verdict"] == "more" and len(c["regressions"]) == 2
-    # without counts, the spread between processes and --factor judge as before
+    # without counts, the spread between processes and --factor judge the time
     a, b = row(1.0, 1.1, None), row(1.3, 1.1, None)
     assert compare_rows(a, b)["time_verdict"] == "slower"
 

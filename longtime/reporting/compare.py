@@ -216,7 +216,7 @@ def _faster(cell: dict, why: str) -> None:
                                    f"({cell['time_basis']}; {why})")
 
 
-def _against_unchanged(cells: list[dict], factor: float, min_cells: int = MIN_BATCHES) -> None:
+def _against_unchanged(cells: list[dict], min_cells: int = MIN_BATCHES) -> None:
     """A cell whose instruction count rose (fell) and whose time is within its threshold is
     judged again against the cells whose counts did not change: they did the same work in
     both runs, so the median of their time ratios is what the machine's load did to time
@@ -345,7 +345,7 @@ def compare(rows_a: list[dict], rows_b: list[dict], factor: float = TIME_FACTOR,
     cells = [compare_rows(by_a[k], by_b[k], factor, error_factor, alpha, raw, cell_factor, short,
                           instruction_factor) for k in common]
     groups = group_verdicts(cells, factor)
-    _against_unchanged(cells, factor)
+    _against_unchanged(cells)
     for c in cells:  # a scheme's or a problem's change of speed: its cells beyond --factor
         if c["time_verdict"] != "within" or c["instruction_verdict"] == "within":  # the same work: the cell's own
             continue
