@@ -98,13 +98,19 @@ class Timing:
                 self.min_runs, (int, np.integer)) or self.min_runs < 1):
             raise InputError(f"min_runs={self.min_runs!r} is not valid: expected an integer >= 1")
 
+    @property
+    def least_runs(self) -> int:
+        """The runs a process times at least: ``min_runs`` (default ``MIN_RUNS``), at most
+        ``repeats``."""
+        return min(self.repeats, self.MIN_RUNS if self.min_runs is None else self.min_runs)
+
     def wants_another(self, wall_times: list[float]) -> bool:
         n = len(wall_times)
         if n and wall_times[0] > self.ONCE_ABOVE:
             return False
         if n >= self.repeats:
             return False
-        if n < (self.MIN_RUNS if self.min_runs is None else self.min_runs):
+        if n < self.least_runs:
             return True
         return not self.settled(wall_times) and sum(wall_times) < self.min_time
 

@@ -87,12 +87,13 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing,
     raises gives ``status`` failed and its ``message``.
 
     The cells are timed in rounds, one run of each cell a round: a cell runs again while it
-    has fewer than the timing's minimum runs, while its timed total is under
-    ``timing.min_time`` (at most ``timing.repeats`` runs), and while the rounds span less
-    than ``SPREAD_S`` seconds (at most ``MAX_ROUNDS`` rounds): a state of the machine that slows work through the caches by up to
-    twice comes and goes within a second or two (docs/performance.md, "Two speeds"), so runs
-    spread over seconds meet a quiet moment where a burst of repeats may not. Every run must
-    reproduce the first bit for bit."""
+    has fewer than ``timing.least_runs``, while its timed total is under ``timing.min_time``
+    (at most ``timing.repeats`` runs), and while the rounds span less than ``SPREAD_S``
+    seconds (at most ``MAX_ROUNDS`` rounds). A state of the machine that slows work through
+    the caches by up to twice comes and goes within a second or two (docs/performance.md,
+    "Two speeds"), so the runs of a small batch, spread over seconds, meet a quiet moment where
+    a burst of repeats may not; a large batch spans SPREAD_S in one round and costs one run a
+    cell. Every run must reproduce the first bit for bit."""
     prepared: list[tuple[Any, Any, float] | None] = []
     out: list[dict[str, Any]] = []
     for cell in cells:
@@ -106,14 +107,10 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing,
             prepared.append(None)
             out.append({"status": "failed", "message": f"{type(exc).__name__}: {exc}", "pid": os.getpid()})
     start, rounds = time.monotonic(), 0
-    min_runs = min(timing.repeats, Timing.MIN_RUNS if timing.min_runs is None else timing.min_runs)
     while rounds < MAX_ROUNDS:
         spreading = time.monotonic() - start < SPREAD_S
-        # a cell runs again to reach its minimum runs, while its timed total is under the
-        # timing's budget (at most ``repeats`` runs), and while the rounds span less than
-        # SPREAD_S: a large batch of cells spans it in one round and costs one run a cell
         active = [k for k, p in enumerate(prepared) if p is not None and out[k]["status"] == "ok" and (
-            len(out[k]["cpu_s_samples"]) < min_runs or spreading
+            len(out[k]["cpu_s_samples"]) < timing.least_runs or spreading
             or (len(out[k]["cpu_s_samples"]) < timing.repeats and sum(out[k]["wall_s_samples"]) < timing.min_time))]
         if not active:
             break
