@@ -9,27 +9,30 @@ Each ok setting of a problem gives its cost per unit of simulated time, ``cpu_s 
     e(T) = e(t_final)                     (class bounded: flat)
 
 with k the exponent of the class, not the fitted alpha: the law is the class, whose windows
-agree on it, not the digits of a fit that still carries the run's transient (alpha 1.32 of a
-linear error overpredicts it by 4 at a hundred times the run). Its predicted cost is ``T * cpu_s / t_final``. Up to its own t_final a setting predicts its
-measured error. A class is fitted on the last decades of its run, and is trusted only up to
+agree on it, not the digits of a fit that still carries the run's transient (alpha 1.32 of
+a linear error overpredicts it by 4 at a hundred times the run). Its predicted cost is ``T
+* cpu_s / t_final``. Up to its own t_final a setting predicts its measured error. A class
+is fitted on the last decades of its run, and is trusted only up to
 ``TRUST_FACTORS[kind][class]`` times that run's span (its ``reach``; kind: a solution
-error, one whose energy drift will steepen it, or an invariant's error), not past the run where its windows' slopes are steepening, and at most
-as far as its latest window's slope would move the prediction by CHECK_ERROR_FACTOR: a
-bounded solution error can be the transient before a phase error's growth, and a power
-law's exponent can still be changing. Past its reach, and past t_final for a setting whose law is
-undetermined (or faster than quadratic, which no power law of the run's span extrapolates),
-a setting predicts nothing: where it could have won, the verdict says "not determined past
-t = X" and names the run that would decide it. A predicted relative error of ``LOST`` or
-more is O(1): the solution is lost there, and the prediction is ``lost``, not a number.
+error, one whose energy drift will steepen it, or an invariant's error), not past the run
+where its windows' slopes are steepening, and at most as far as its latest window's slope
+would move the prediction by CHECK_ERROR_FACTOR: a bounded solution error can be the
+transient before a phase error's growth, and a power law's exponent can still be changing.
+Past its reach, and past t_final for a setting whose law is undetermined (or faster than
+quadratic, which no power law of the run's span extrapolates), a setting predicts nothing:
+where it could have won, the verdict says "not determined past t = X" and names the run
+that would decide it. A predicted relative error of ``LOST`` or more is O(1): the solution
+is lost there, and the prediction is ``lost``, not a number.
 
 The error read is the solution error ``l2_error`` (the relative RMS error over [0, T]; law
 ``error.growth_class``) where the problem's rows have a reference, else the energy error
 ``H.max`` (the largest relative error of H up to T; law ``H.growth_class``), else the first
 invariant's: ``measure`` says which. An error averaged over the run follows the law of the
-pointwise one (the RMS of C t^k over [0, T] is C T^k / sqrt(2k + 1)), and does not depend on
-where in an oscillation the run stops, as the error at the last sample (``final_error``) does. Predictions are checked: the main job re-runs
-a few of them at the longest horizon its budget affords (``plan_checks``, ``run_checks``)
-and stores the predicted beside the measured error and cost (``Store.add_check``).
+pointwise one (the RMS of C t^k over [0, T] is C T^k / sqrt(2k + 1)), and does not depend
+on where in an oscillation the run stops, as the error at the last sample (``final_error``)
+does. Predictions are checked: the main job re-runs a few of them at the longest horizon
+its budget affords (``plan_checks``, ``run_checks``) and stores the predicted beside the
+measured error and cost (``Store.add_check``).
 """
 from __future__ import annotations
 
@@ -149,9 +152,7 @@ class Setting:
     def steepening(self) -> bool:
         """Whether its windows' slopes rise from each to the next and end more than
         STEEPENING above its class's exponent: the law is still changing."""
-        w = self.windows
-        return (self.law in EXPONENTS and len(w) >= 2 and all(b > a for a, b in zip(w, w[1:]))
-                and w[-1] - EXPONENTS[self.law] > STEEPENING)
+        return self.law in EXPONENTS and _rising(self.windows) and self.windows[-1] - EXPONENTS[self.law] > STEEPENING
 
     @property
     def factor(self) -> float:
@@ -253,6 +254,11 @@ def settings(rows: Iterable[dict[str, Any]], m: Measure) -> list[Setting]:
     return sorted(out, key=lambda s: (s.cpu_per_t, s.text))
 
 
+def _rising(windows) -> bool:
+    """Whether growth windows' slopes (earliest first, at least two) rise from each to the next."""
+    return len(windows) >= 2 and all(b > a for a, b in zip(windows, windows[1:]))
+
+
 def _kind(row: dict[str, Any], m: Measure, law: str) -> str:
     """"invariant" for an invariant's error; for the solution error of class ``law`` (t^k)
     "drifting" where the row's energy error drifts like t^a (DRIFTS; an undetermined one
@@ -262,9 +268,8 @@ def _kind(row: dict[str, Any], m: Measure, law: str) -> str:
         return "invariant"
     a = DRIFTS.get(row.get("H.growth_class"))
     w = row.get("H.growth_windows")
-    if a is None and row.get("H.growth_class") == "undetermined" and isinstance(w, list) and len(w) >= 2 \
-            and all(isinstance(x, (int, float)) for x in w) and all(y > x for x, y in zip(w, w[1:])) \
-            and w[-1] > 0.25:
+    if a is None and row.get("H.growth_class") == "undetermined" and isinstance(w, list) \
+            and all(isinstance(x, (int, float)) for x in w) and _rising(w) and w[-1] > 0.25:
         a = float(w[-1])  # an energy error still steepening grows at least like its latest slope
     return "drifting" if a is not None and law in EXPONENTS and EXPONENTS[law] < 1 + a else "solution"
 
