@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import Counter
 from typing import Any, Iterable
 
 import numpy as np
@@ -167,8 +168,9 @@ def measure_problem(name: str, rows: list[dict[str, Any]], members: int = MEMBER
             continue
         cell = cell_of_row(row)
         _, integrator = build(Cell(name, scheme, settings, cell.integrator_settings))
-        if integrator.incompatibility(problem):
-            out.append(record(row, status="skipped", note=integrator.incompatibility(problem)))
+        reason = integrator.incompatibility(problem)
+        if reason:
+            out.append(record(row, status="skipped", note=reason))
             continue
         start = time.process_time()
         try:
@@ -218,10 +220,7 @@ def summary(records: list[dict[str, Any]]) -> dict[str, str]:
             continue
         ok = [r for r in mine if r.get("status") == "ok" and r.get("distance") is not None]
         apart = sorted((r for r in ok if r.get("distinguishable")), key=lambda r: -r["distance"])
-        others = {}
-        for r in mine:
-            if r not in ok:
-                others[r.get("status")] = others.get(r.get("status"), 0) + 1
+        others = Counter(r.get("status") for r in mine if r not in ok)
         text = (f"{len(ok) - len(apart)} of {len(ok)} schemes as heyoka (distance <= {ensemble.FLOOR_FACTOR:g} x the "
                 f"floor {first['floor']:.3g})")
         if apart:
