@@ -10,10 +10,14 @@ Each measurement is a fresh Python process with its own empty ``NUMBA_CACHE_DIR`
 ten-step run, whose integration is negligible), the warm figure the same call in a second
 process over the caches the first one filled. With ``--events`` the cold run also lists
 the functions numba spent longest compiling (numba's event API, ``numba:compile``), which
-is where to look when a family's figure grows.
+is where to look when a family's figure grows. With ``--stages`` it splits the cold run's
+CPU seconds by compiler stage (numba's bytecode analysis and untyped passes, IR inlining,
+type inference, lowering to LLVM IR; LLVM's function passes, module passes and object code;
+the cache's writing), each stage's own time, the stages nested in it subtracted.
 
     python benchmarks/bench_compile.py                  # every family
     python benchmarks/bench_compile.py -f bpl --events  # one family, with the breakdown
+    python benchmarks/bench_compile.py -f splitting --stages
 """
 from __future__ import annotations
 
@@ -41,7 +45,43 @@ _CHILD = r"""
 import contextlib, json, sys, time
 from numba.core import event
 from longtime.core import registry
-problem_name, scheme_name, events = sys.argv[1], sys.argv[2], sys.argv[3] == "1"
+problem_name, scheme_name, events, stages = sys.argv[1], sys.argv[2], sys.argv[3] == "1", sys.argv[4] == "1"
+own, open_stages = {}, []
+
+
+def timed(owner, method, label):
+    # owner.method adds its CPU seconds, less those of the stages nested in it, to own[label]
+    original = getattr(owner, method)
+
+    def wrapper(*args, **kwargs):
+        c0 = time.process_time()
+        open_stages.append(0.0)
+        try:
+            return original(*args, **kwargs)
+        finally:
+            spent, nested = time.process_time() - c0, open_stages.pop()
+            own[label] = own.get(label, 0.0) + spent - nested
+            if open_stages:
+                open_stages[-1] += spent
+
+    setattr(owner, method, wrapper)
+
+
+if stages:
+    from numba.core import base, caching, codegen, compiler_machinery, lowering, typed_passes, typeinfer, untyped_passes
+    for owner, method, label in (
+            (compiler_machinery.PassManager, "run", "numba: other passes (bytecode, rewrites, SSA, wrappers)"),
+            (untyped_passes.InlineInlinables, "run_pass", "numba: IR inlining (inline='always')"),
+            (typeinfer.TypeInferer, "propagate", "numba: type inference"),
+            (typed_passes.NopythonRewrites, "run_pass", "numba: typed rewrites"),
+            (lowering.Lower, "lower", "numba: lowering to LLVM IR"),
+            (base.BaseContext, "refresh", "numba: target context set-up (once a process)"),
+            (codegen.CPUCodeLibrary, "add_ir_module", "llvm: parsing the IR"),
+            (codegen.CPUCodeLibrary, "_optimize_functions", "llvm: function passes"),
+            (codegen.CPUCodeLibrary, "_optimize_final_module", "llvm: module passes (O3, after linking)"),
+            (codegen.JITCodeLibrary, "_finalize_specific", "llvm: object code (MCJIT)"),
+            (caching.Cache, "save_overload", "cache: writing (pickle, index)")):
+        timed(owner, method, label)
 problem = registry.problem_class(problem_name)()
 scheme = registry.integrator_class(scheme_name)()
 t_final = problem.t0 + 10 * problem.default_dt
@@ -58,11 +98,11 @@ for ts, ev in (recorder.buffer if events else []):
     elif key in begun and fn is not None:
         top.append((ts - begun.pop(key), f"{fn.__module__}.{fn.__qualname__}"))
 top.sort(reverse=True)
-print(json.dumps({"seconds": seconds, "top": top[:8]}))
+print(json.dumps({"seconds": seconds, "top": top[:8], "stages": sorted(own.items(), key=lambda kv: -kv[1])}))
 """
 
 
-def measure(family: str, events: bool = False) -> dict:
+def measure(family: str, events: bool = False, stages: bool = False) -> dict:
     """Cold and warm first-call seconds of ``family``'s pair, each in a fresh process."""
     problem, scheme = FAMILIES[family]
     with tempfile.TemporaryDirectory() as numba_dir, tempfile.TemporaryDirectory() as lt_dir:
@@ -70,12 +110,16 @@ def measure(family: str, events: bool = False) -> dict:
         env.pop("LONGTIME_NO_KERNEL_CACHE", None)
         figures = {}
         for label, record in (("cold", events), ("warm", False)):
-            out = subprocess.run([sys.executable, "-c", _CHILD, problem, scheme, "1" if record else "0"],
+            split = stages and label == "cold"
+            out = subprocess.run([sys.executable, "-c", _CHILD, problem, scheme, "1" if record else "0",
+                                  "1" if split else "0"],
                                  env=env, capture_output=True, text=True, check=True)
             result = json.loads(out.stdout.strip().splitlines()[-1])
             figures[f"{label}_s"] = result["seconds"]
             if record:
                 figures["top"] = result["top"]
+            if split:
+                figures["stages"] = result["stages"]
     return figures
 
 
@@ -110,13 +154,17 @@ def main(argv: list[str] | None = None) -> int:
                         help="families to measure (default: all)")
     parser.add_argument("--events", action="store_true",
                         help="list the functions that took longest to compile (cold run)")
+    parser.add_argument("--stages", action="store_true",
+                        help="split the cold run's CPU seconds by compiler stage")
     args = parser.parse_args(argv)
     print(f"{'family':14s} {'pair':28s} {'cold s':>8s} {'warm s':>8s}")
     for family in args.family or list(FAMILIES):
-        figures = measure(family, args.events)
+        figures = measure(family, args.events, args.stages)
         pair = " x ".join(FAMILIES[family])
         print(f"{family:14s} {pair:28s} {figures['cold_s']:8.2f} {figures['warm_s']:8.2f}")
         for seconds, label in figures.get("top", []):
+            print(f"{'':16s}{seconds:7.2f} s  {label}")
+        for label, seconds in figures.get("stages", []):
             print(f"{'':16s}{seconds:7.2f} s  {label}")
     return 0
 
