@@ -18,6 +18,12 @@ the cache's writing), each stage's own time, the stages nested in it subtracted.
     python benchmarks/bench_compile.py                  # every family
     python benchmarks/bench_compile.py -f bpl --events  # one family, with the breakdown
     python benchmarks/bench_compile.py -f splitting --stages
+    python benchmarks/bench_compile.py --matrix -- -p kepler,toda   # longtime matrix's kernels
+
+``--matrix`` compiles, in one fresh process with empty caches (as one worker of a cold main
+job would), the kernel of every distinct cell of ``longtime matrix`` (its arguments after
+``--``; none: the default matrix), each by a few steps of its scheme, and prints the CPU
+seconds of numba's compiles (the outermost ones) in total and by pair.
 """
 from __future__ import annotations
 
@@ -102,6 +108,57 @@ print(json.dumps({"seconds": seconds, "top": top[:8], "stages": sorted(own.items
 """
 
 
+_MATRIX_CHILD = r"""
+import collections, json, sys, time
+from numba.core import event
+from longtime.commands.cli import build_parser, matrix_cells
+from longtime.core.integrator import AdaptiveIntegrator, FixedStepIntegrator
+from longtime.execution.cells import build
+cells, _ = matrix_cells(build_parser().parse_args(["matrix"] + sys.argv[1:]))
+by_pair, count, depth, start, pair = collections.Counter(), collections.Counter(), [0], [0.0], [None]
+
+
+class Compiles(event.Listener):
+    def on_start(self, ev):
+        if depth[0] == 0:
+            start[0] = time.process_time()
+        depth[0] += 1
+
+    def on_end(self, ev):
+        depth[0] -= 1
+        if depth[0] == 0:
+            by_pair[pair[0]] += time.process_time() - start[0]
+            count[pair[0]] += 1
+
+
+event.register("numba:compile", Compiles())
+seen = set()
+for cell in cells:
+    key = json.dumps(cell.to_dict(), sort_keys=True, default=str)
+    if cell.skip_reason or key in seen:
+        continue
+    seen.add(key)
+    pair[0] = f"{cell.problem} x {cell.integrator}"
+    problem, scheme = build(cell)
+    if isinstance(scheme, FixedStepIntegrator):
+        scheme.integrate(problem, problem.t0 + 3 * scheme.dt_for(problem), max_samples=16)
+    elif isinstance(scheme, AdaptiveIntegrator):
+        scheme.integrate(problem, problem.t0 + 3 * problem.default_dt, max_samples=16)
+print(json.dumps({"cells": len(seen), "compiles": sum(count.values()), "cpu_s": sum(by_pair.values()),
+                  "pairs": by_pair.most_common()}))
+"""
+
+
+def measure_matrix(matrix_args: list[str]) -> dict:
+    """CPU seconds of the compiles of a matrix's kernels, in one process with empty caches."""
+    with tempfile.TemporaryDirectory() as numba_dir, tempfile.TemporaryDirectory() as lt_dir:
+        env = {**os.environ, "NUMBA_CACHE_DIR": numba_dir, "LONGTIME_CACHE_DIR": lt_dir}
+        env.pop("LONGTIME_NO_KERNEL_CACHE", None)
+        out = subprocess.run([sys.executable, "-c", _MATRIX_CHILD, *matrix_args], env=env,
+                             capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
 def measure(family: str, events: bool = False, stages: bool = False) -> dict:
     """Cold and warm first-call seconds of ``family``'s pair, each in a fresh process."""
     problem, scheme = FAMILIES[family]
@@ -156,7 +213,17 @@ def main(argv: list[str] | None = None) -> int:
                         help="list the functions that took longest to compile (cold run)")
     parser.add_argument("--stages", action="store_true",
                         help="split the cold run's CPU seconds by compiler stage")
+    parser.add_argument("--matrix", action="store_true",
+                        help="compile CPU seconds of longtime matrix's kernels (its arguments after --)")
+    parser.add_argument("matrix_args", nargs="*", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.matrix:
+        figures = measure_matrix(args.matrix_args)
+        print(f"{figures['cells']} distinct cells, {figures['compiles']} compiles, "
+              f"{figures['cpu_s']:.1f} CPU s of compiling")
+        for pair, seconds in figures["pairs"]:
+            print(f"{seconds:8.2f} s  {pair}")
+        return 0
     print(f"{'family':14s} {'pair':28s} {'cold s':>8s} {'warm s':>8s}")
     for family in args.family or list(FAMILIES):
         figures = measure(family, args.events, args.stages)
