@@ -9,8 +9,11 @@ see that. So a timed cell runs in ``processes`` processes (``DEFAULT_PROCESSES``
 ``processes - 1`` fresh interpreters started here that only time its integration
 (``time_cells``), loading its kernel from the kernel cache, with the determinism check
 alone: each must reproduce the row's run bit for bit (``samples_digest``), else the row is
-``failed`` (non-deterministic). The repeats are split among the processes
-(``Timing.per_process``), so the timed runs cost about what one process's did.
+``failed`` (non-deterministic). The repeats are split among the fresh processes
+(``Timing.per_process``), so the timed runs cost about what one process's did; the row's own
+process runs the cell once where the fresh ones will time it (``row_timing``): its run gives
+the samples, the digest and one time, and a burst of repeats there would land in one
+moment of the machine, which the spread leaves out anyway.
 
 The row then keeps each process's minimum (``cpu_s_processes``, the row's own process
 first) and their spread (``cpu_s_process_spread`` = max / min, a factor >= 1); ``cpu_s`` is
@@ -37,6 +40,7 @@ import time
 from pathlib import Path
 from typing import Any, Iterable
 
+from longtime.core import phases
 from longtime.core.integrator import Timing
 from longtime.core.params import InputError
 from longtime.execution import tempdirs
@@ -70,6 +74,18 @@ def default_processes() -> int:
     """``$LONGTIME_PROCESSES`` or ``DEFAULT_PROCESSES``."""
     value = os.environ.get(ENV)
     return DEFAULT_PROCESSES if not value else check_processes(value, f"${ENV}")
+
+
+def row_timing(timing: Timing, processes: int) -> Timing:
+    """How the process that measures a cell's row (samples, metrics, reference) times its run
+    when ``processes`` processes time the cell: one run where there are others (they repeat
+    it in rounds spread over seconds; a cell too long for them, ``Timing.ONCE_ABOVE``, is
+    timed once anyway), ``timing`` itself where it is the only one."""
+    if processes <= 1:
+        return timing
+    # one run: the minimum runs 1 and no time budget; the repeats stay, so that a row timed
+    # once for its length says so (Integrator.integrate)
+    return Timing(repeats=timing.repeats, min_time=0.0, min_runs=1)
 
 
 def timed_elsewhere(row: dict[str, Any]) -> bool:
@@ -119,8 +135,9 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing,
             record = out[k]
             try:
                 deadline = time.monotonic() + time_limit if time_limit else None
-                traj = integrator.integrate(problem, t_final, max_samples=max_samples, timing=Timing(repeats=1),
-                                            deadline=deadline)
+                with phases.phase("timing", f"{cells[k].problem} x {cells[k].integrator}"):
+                    traj = integrator.integrate(problem, t_final, max_samples=max_samples, timing=Timing(repeats=1),
+                                                deadline=deadline)
             except (Exception, SystemExit) as exc:
                 record.update(status="failed", message=f"{type(exc).__name__}: {exc}")
                 continue
@@ -208,7 +225,8 @@ def across_processes(pairs: Iterable[tuple[Cell, dict[str, Any]]], processes: in
         return []
     cells = [c for c, _ in todo]
     budget = START_S + 10 * sum(float(r["wall_s"]) * len(r.get("cpu_s_samples") or [1]) for _, r in todo)
-    results = run_children(cells, processes - 1, max_samples, timing, jobs, budget, time_limit, memory_limit)
+    with phases.phase("timing processes"):  # this process while they run
+        results = run_children(cells, processes - 1, max_samples, timing, jobs, budget, time_limit, memory_limit)
     for k, (cell, row) in enumerate(todo):
         merge(row, [res[k] if res is not None else {"status": "failed", "message": err}
                     for res, err in results], processes)
@@ -274,6 +292,7 @@ def _child_main(folder: str) -> None:
     from longtime.execution.isolation import restore_session
     from longtime.execution.limits import die_with_parent, set_memory_limit
 
+    phases.since_process_start("timing start")  # an interpreter and its imports
     path = Path(folder)
     job = json.loads((path / "job.json").read_text())
     die_with_parent(job["parent"])
