@@ -15,12 +15,15 @@ CPU seconds: the sum of the rows' ``cpu_s_samples``), that integration's share o
 machine's core-seconds, integration / (wall x cores), and the overhead ratio
 wall / (integration / cores): 1 when the workers did nothing but timed integration.
 
-Then the breakdown, per run: wall seconds by phase, summed over the processes
-(longtime.core.phases, recorded through $LONGTIME_PHASES): the main process's start-up,
+Then the breakdown, per run: wall seconds by phase, summed over the processes, with their CPU
+seconds beside them (longtime.core.phases, recorded through $LONGTIME_PHASES; on a loaded
+machine the wall seconds also count the waits for a core): the main process's start-up,
 plan (expanding and sizing the cells), the workers' start-up, compilation by where it
 happens (numba kernels on a cell's first run, heyoka's LLVM for references and for the
 heyoka scheme, kernels compiled to measure stability intervals, ...), integration (every
-run of the cells: timed repeats, their warm-up, kernels loaded from the cache), references,
+run of the cells: timed repeats, their warm-up, kernels loaded from the cache), the timing
+processes' start-up and runs (longtime.execution.processes) and the main process's wait on
+them, references,
 metrics, calibration, figures, stability intervals, the page and the report, the main
 process's time while the pool runs (storing rows, waiting), and the idle workers: the
 workers' core-seconds during the pool's span that no phase used. The same cells'
