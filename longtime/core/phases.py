@@ -5,8 +5,9 @@ references, integration, metrics, figures, page, idle workers). Each process the
 one JSON line per finished phase to ``phases-<pid>.jsonl`` in that folder: the phase's name,
 its start and end (``time.time()``), its own seconds (the phases nested in it subtracted)
 and its own CPU seconds (``cpu``, the process's CPU time, nested phases' subtracted: on a
-loaded machine a phase's wall time also counts the time it waited for a core). numba's compilations are phases of their own, named after the phase they
-happen in ("compile:integration" is a kernel compiled on a cell's first run,
+loaded machine a phase's wall time also counts the time it waited for a core). numba's
+compilations are phases of their own, named after the phase they happen in
+("compile:integration" is a kernel compiled on a cell's first run,
 "compile:stability" one compiled to measure a stability interval), so a compile is never
 counted as the work around it. Without the variable ``phase`` records nothing and numba
 is not listened to.
