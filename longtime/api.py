@@ -187,7 +187,7 @@ def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_sample
     ``cost="instructions"`` also counts the integration under Valgrind (``--cost
     instructions``: the row's ``instructions`` and ``instructions_per_step``)."""
     from longtime.execution.matrix import check_cost
-    from longtime.execution.processes import across_processes, check_processes, default_processes, row_timing
+    from longtime.execution.processes import across_processes, check_processes, default_processes
     from longtime.reporting.report import complete
 
     memory = check_options(max_samples=max_samples, repeats=repeats, min_time=min_time, time_limit=time_limit,
@@ -206,8 +206,7 @@ def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_sample
     t0 = time.time()
     timing = Timing(repeats=repeats, min_time=min_time).per_process(processes)
     with limits.memory_limited(memory):
-        row = run_cell(cells[0], max_samples, timing=row_timing(timing, processes), time_limit=time_limit or None,
-                       keep=keep)
+        row = run_cell(cells[0], max_samples, timing=timing, time_limit=time_limit or None, keep=keep)
     if not cells[0].skip_reason:
         here.cell(row, t0, time.time())
         calibration.take_points(row)  # the calibrations themselves belong to a stored run

@@ -92,11 +92,10 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
                    help=f"timed runs of each cell after the warm-up, split among --processes: in each, at "
                         f"least {Timing.MIN_RUNS} / processes (rounded up), more while its two fastest differ by "
                         f"more than {100 * Timing.SETTLED:g} %% and their total is below --min-time / processes, "
-                        f"at most N / processes (rounded up); the row's own process runs once where fresh "
-                        f"ones time the cell; cpu_s is the minimum (default {Timing.repeats})")
+                        f"at most N / processes (rounded up); cpu_s is the minimum (default {Timing.repeats})")
     p.add_argument("--processes", type=cli_args.integer("--processes", 1), default=None, metavar="N",
                    help=f"processes that time each cell: the one that measures its row and N - 1 fresh "
-                        f"ones that time its integration alone, the repeats split among the fresh ones; cpu_s is "
+                        f"ones that time its integration alone, the repeats split among them; cpu_s is "
                         f"the minimum over them, cpu_s_processes each one's and cpu_s_process_spread "
                         f"their spread, which compare and history judge (default {DEFAULT_PROCESSES}, "
                         f"or $LONGTIME_PROCESSES)")

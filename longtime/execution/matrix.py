@@ -43,7 +43,7 @@ from longtime.execution.limits import (
     worker_init,
 )
 from longtime.execution.pool import spawn_pool
-from longtime.execution.processes import across_processes, default_processes, row_timing
+from longtime.execution.processes import across_processes, default_processes
 from longtime.execution.pool import workers as pool_workers
 from longtime.execution.store import Store
 from longtime.execution.tempdirs import DiskFull, disk_full
@@ -363,14 +363,12 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
                on_row: Callable[[Cell, dict], None] | None = None) -> list[dict]:
     """Run the cells, storing each row as it completes (then ``on_row(cell, row)``), then
     time them in ``options.processes - 1`` more processes (longtime.execution.processes), each
-    stored row updated with their times; returns the rows in cell order. With more than one
-    process, a row's own process runs its cell once (``processes.row_timing``)."""
+    stored row updated with their times; returns the rows in cell order."""
     options = options or ExecOptions()
     # the timing processes start on this machine: a Dask cluster's rows are timed where they
     # ran, in one process
     processes = 1 if executor == "dask" else options.processes
-    timing = options.timing.per_process(processes)  # each fresh timing process's
-    options = dataclasses.replace(options, timing=row_timing(timing, processes))
+    options = dataclasses.replace(options, timing=options.timing.per_process(processes))
     if options.max_samples < 2:
         raise InputError(f"max_samples={options.max_samples} is not valid: must be >= 2")
     check_cost(options.cost)
@@ -404,7 +402,7 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
         if bar is not None:
             bar.close()
     found = [(cell, rows[cell.key]) for cell in cells if cell.key in rows]
-    changed = across_processes(found, processes, options.max_samples, timing, options.workers(),
+    changed = across_processes(found, processes, options.max_samples, options.timing, options.workers(),
                                options.time_limit, options.memory_limit)
     if storing:
         for cell in changed:

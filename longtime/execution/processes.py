@@ -9,11 +9,8 @@ see that. So a timed cell runs in ``processes`` processes (``DEFAULT_PROCESSES``
 ``processes - 1`` fresh interpreters started here that only time its integration
 (``time_cells``), loading its kernel from the kernel cache, with the determinism check
 alone: each must reproduce the row's run bit for bit (``samples_digest``), else the row is
-``failed`` (non-deterministic). The repeats are split among the fresh processes
-(``Timing.per_process``), so the timed runs cost about what one process's did; the row's own
-process runs the cell once where the fresh ones will time it (``row_timing``): its run gives
-the samples, the digest and one time, and a burst of repeats there would land in one
-moment of the machine, which the spread leaves out anyway.
+``failed`` (non-deterministic). The repeats are split among the processes
+(``Timing.per_process``), so the timed runs cost about what one process's did.
 
 The row then keeps each process's minimum (``cpu_s_processes``, the row's own process
 first) and their spread (``cpu_s_process_spread`` = max / min, a factor >= 1); ``cpu_s`` is
@@ -74,18 +71,6 @@ def default_processes() -> int:
     """``$LONGTIME_PROCESSES`` or ``DEFAULT_PROCESSES``."""
     value = os.environ.get(ENV)
     return DEFAULT_PROCESSES if not value else check_processes(value, f"${ENV}")
-
-
-def row_timing(timing: Timing, processes: int) -> Timing:
-    """How the process that measures a cell's row (samples, metrics, reference) times its run
-    when ``processes`` processes time the cell: one run where there are others (they repeat
-    it in rounds spread over seconds; a cell too long for them, ``Timing.ONCE_ABOVE``, is
-    timed once anyway), ``timing`` itself where it is the only one."""
-    if processes <= 1:
-        return timing
-    # one run: the minimum runs 1 and no time budget; the repeats stay, so that a row timed
-    # once for its length says so (Integrator.integrate)
-    return Timing(repeats=timing.repeats, min_time=0.0, min_runs=1)
 
 
 def timed_elsewhere(row: dict[str, Any]) -> bool:
