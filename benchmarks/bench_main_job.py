@@ -15,12 +15,15 @@ CPU seconds: the sum of the rows' ``cpu_s_samples``), that integration's share o
 machine's core-seconds, integration / (wall x cores), and the overhead ratio
 wall / (integration / cores): 1 when the workers did nothing but timed integration.
 
-Then the breakdown, per run: wall seconds by phase, summed over the processes
-(longtime.core.phases, recorded through $LONGTIME_PHASES): the main process's start-up,
+Then the breakdown, per run: wall seconds by phase, summed over the processes, with their CPU
+seconds beside them (longtime.core.phases, recorded through $LONGTIME_PHASES; on a loaded
+machine the wall seconds also count the waits for a core): the main process's start-up,
 plan (expanding and sizing the cells), the workers' start-up, compilation by where it
 happens (numba kernels on a cell's first run, heyoka's LLVM for references and for the
 heyoka scheme, kernels compiled to measure stability intervals, ...), integration (every
-run of the cells: timed repeats, their warm-up, kernels loaded from the cache), references,
+run of the cells: timed repeats, their warm-up, kernels loaded from the cache), the timing
+processes' start-up and runs (longtime.execution.processes) and the main process's wait on
+them, references,
 metrics, calibration, figures, stability intervals, the page and the report, the main
 process's time while the pool runs (storing rows, waiting), and the idle workers: the
 workers' core-seconds during the pool's span that no phase used. The same cells'
@@ -59,11 +62,13 @@ BREAKDOWN = (
     ("start-up (main process)", ("startup",)),
     ("plan (cells, sizes)", ("plan",)),
     ("workers' start-up", ("worker start",)),
-    ("compile: kernels (cells)", ("compile:integration", "compile:cell")),
+    ("compile: kernels (cells)", ("compile:integration", "compile:cell", "compile:timing")),
     ("compile: references (heyoka)", ("compile:reference",)),
     ("compile: stability intervals", ("compile:stability",)),
     ("compile: figures, metrics, other", None),  # every other compile:*
     ("integration (every run of a cell)", ("integration",)),
+    ("timing processes' start-up", ("timing start",)),
+    ("timing processes' runs", ("timing",)),
     ("references", ("reference",)),
     ("metrics", ("metrics",)),
     ("calibration", ("calibration",)),
@@ -73,6 +78,7 @@ BREAKDOWN = (
     ("page (besides figures)", ("page",)),
     ("report", ("report",)),
     ("main process while the pool runs", ("pool",)),
+    ("main process while timing processes run", ("timing processes",)),
 )
 # the caches a cold run starts without; XDG_CACHE_HOME: heyoka keeps its compiled code there
 CACHE_VARIABLES = ("NUMBA_CACHE_DIR", "LONGTIME_CACHE_DIR", "XDG_CACHE_HOME")
@@ -95,13 +101,13 @@ def integration_core_s(store: Path) -> tuple[float, int]:
     return sum(sum(row.get("cpu_s_samples") or []) for row in rows), len(rows)
 
 
-def breakdown(events: list[dict], workers: int) -> dict[str, float]:
-    """Seconds per line of BREAKDOWN from the phases of one run, and "idle workers": the
-    workers' core-seconds within the pool's span (``workers`` x its wall) that none of their
-    phases used."""
+def breakdown(events: list[dict], workers: int, key: str = "s") -> dict[str, float]:
+    """Seconds per line of BREAKDOWN from the phases of one run (``key`` "s": wall seconds,
+    "cpu": CPU seconds), and with wall seconds "idle workers": the workers' core-seconds
+    within the pool's span (``workers`` x its wall) that none of their phases used."""
     totals: dict[str, float] = {}
     for e in events:
-        totals[e["phase"]] = totals.get(e["phase"], 0.0) + e["s"]
+        totals[e["phase"]] = totals.get(e["phase"], 0.0) + e.get(key, 0.0)
     named = {p for _, ps in BREAKDOWN if ps for p in ps}
     out = {}
     for label, names in BREAKDOWN:
@@ -109,6 +115,8 @@ def breakdown(events: list[dict], workers: int) -> dict[str, float]:
             out[label] = sum(s for p, s in totals.items() if p.startswith("compile:") and p not in named)
         else:
             out[label] = sum(totals.get(p, 0.0) for p in names)
+    if key != "s":
+        return out
     pool = [e for e in events if e["phase"] == "pool"]
     if pool:
         main = pool[0]["pid"]
@@ -141,7 +149,8 @@ def run_job(folder: Path, env: dict[str, str], matrix_args: list[str], workers: 
     integration, rows = integration_core_s(store) if store.exists() else (0.0, 0)
     events = read(str(folder / "phases"))
     return {"wall": wall, "status": status, "integration": integration, "rows": rows,
-            "phases": breakdown(events, workers), "compiles": compiles(events)}
+            "phases": breakdown(events, workers), "cpu": breakdown(events, workers, "cpu"),
+            "compiles": compiles(events)}
 
 
 def compiles(events: list[dict]) -> dict[str, float]:
@@ -203,12 +212,14 @@ def main(argv: list[str] | None = None) -> int:
         share = r["integration"] / (r["wall"] * n) if r["wall"] > 0 else 0.0
         print(f"{name:8s} {r['wall']:8.1f} {r['integration']:19.1f} {100 * share:5.0f}% {ratio(r, n):>29s} "
               f"{r['rows']:5d} {r['status']}")
-    print("\nbreakdown: wall seconds by phase, summed over the processes (core-s on a busy pool)")
+    print("\nbreakdown: wall seconds by phase, summed over the processes (core-s on a busy pool), and their CPU "
+          "seconds\n(what a loaded machine inflates less)")
     labels = [label for label, _ in BREAKDOWN] + ["idle workers"]
-    print(f"{'':36s}" + "".join(f"{name:>10s}" for name, _ in runs))
+    print(f"{'':40s}" + "".join(f"{name + ' wall':>12s}{'cpu':>7s}" for name, _ in runs))
     for label in labels:
-        print(f"{label:36s}" + "".join(f"{r['phases'].get(label, 0.0):10.1f}" for _, r in runs))
-    print(f"{'timed integration (rows cpu_s_samples)':36s}" + "".join(f"{r['integration']:10.1f}" for _, r in runs))
+        print(f"{label:40s}" + "".join(f"{r['phases'].get(label, 0.0):12.1f}" + (
+            f"{r['cpu'][label]:7.1f}" if label in r["cpu"] else f"{'':7s}") for _, r in runs))
+    print(f"{'timed integration (rows cpu_s_samples)':40s}" + "".join(f"{'':12s}{r['integration']:7.1f}" for _, r in runs))
     for name, r in runs[:1]:  # the costliest compiles of the first run (the cold one, unless --no-cold)
         top = sorted(r["compiles"].items(), key=lambda kv: -kv[1])[:TOP_COMPILES]
         if top:

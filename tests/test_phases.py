@@ -31,3 +31,23 @@ def test_nothing_is_recorded_without_the_variable(tmp_path, monkeypatch):
             pass
     phases.since_process_start("startup")
     assert phases.read(str(tmp_path)) == []
+
+
+def test_a_phase_counts_its_own_cpu_seconds_apart_from_its_wall_and_its_nested_phases(tmp_path, monkeypatch):
+    monkeypatch.setattr(phases, "_FOLDER", str(tmp_path))
+    monkeypatch.setattr(phases, "_OUT", None)
+
+    def spin(seconds):
+        end = time.process_time() + seconds
+        while time.process_time() < end:
+            pass
+
+    with phases.phase("timing processes"):
+        time.sleep(0.2)  # waiting: wall, no CPU
+        with phases.phase("timing"):
+            spin(0.2)
+    phases._OUT.close()
+    events = {e["phase"]: e for e in phases.read(str(tmp_path))}
+    waiting, working = events["timing processes"], events["timing"]
+    assert working["cpu"] >= 0.2 and working["cpu"] <= working["s"] + 0.05
+    assert waiting["s"] >= 0.2 and waiting["cpu"] < 0.1  # the nested phase's CPU is not its own

@@ -199,6 +199,17 @@ def test_figures_drawn_ahead_serve_only_the_rows_they_were_drawn_from():
     assert ahead.figures("kepler", rows, style, drift) is None
 
 
+def test_figures_are_not_drawn_ahead_from_rows_that_timing_processes_will_change():
+    from longtime.execution.cells import Cell
+    from longtime.reporting.figures_ahead import FiguresAhead
+
+    cells = [Cell("harmonic", "rk4", {}, {}, 10.0)]
+    ahead = FiguresAhead(cells, run_id=7, draw=False)
+    ahead.add(cells[0], {"problem": "harmonic", "integrator": "rk4", "status": "ok", "cpu_s": 0.1})
+    fn, args, _ = ahead.task()  # the scheme's stability interval still is measured ahead
+    assert fn.__name__ == "interval_texts" and ahead.task() is None
+
+
 def test_a_tol_sweep_whose_order_follows_tol_is_one_curve_and_set_orders_split():
     from longtime.reporting.figures.results import sweeps
 

@@ -261,7 +261,9 @@ def cmd_matrix(args) -> int:
         if executor == "process" and args.resume is None and not args.no_report and not args.no_html:
             from longtime.reporting.figures_ahead import FiguresAhead
 
-            ahead = FiguresAhead(cells, run_id)  # the page's figures on workers that have no cell left
+            # the page's figures on workers that have no cell left, unless timing processes will
+            # change the rows' times after the pool (the figures show them): then the intervals only
+            ahead = FiguresAhead(cells, run_id, draw=options.processes <= 1)
             options = dataclasses.replace(options, idle_work=ahead.task)
         run_matrix(cells, store, run_id, executor, options,
                    progress=not args.no_progress, on_row=ahead.add if ahead is not None else None)

@@ -3,9 +3,11 @@
 ``benchmarks/bench_main_job.py`` sets it to print a main job's breakdown (compile,
 references, integration, metrics, figures, page, idle workers). Each process then appends
 one JSON line per finished phase to ``phases-<pid>.jsonl`` in that folder: the phase's name,
-its start and end (``time.time()``) and its own seconds (the phases nested in it
-subtracted). numba's compilations are phases of their own, named after the phase they
-happen in ("compile:integration" is a kernel compiled on a cell's first run,
+its start and end (``time.time()``), its own seconds (the phases nested in it subtracted)
+and its own CPU seconds (``cpu``, the process's CPU time, nested phases' subtracted: on a
+loaded machine a phase's wall time also counts the time it waited for a core). numba's
+compilations are phases of their own, named after the phase they happen in
+("compile:integration" is a kernel compiled on a cell's first run,
 "compile:stability" one compiled to measure a stability interval), so a compile is never
 counted as the work around it. Without the variable ``phase`` records nothing and numba
 is not listened to.
@@ -21,7 +23,8 @@ from typing import Iterator
 ENV = "LONGTIME_PHASES"
 _FOLDER = os.environ.get(ENV) or None
 # the open phases of this process, innermost last: [name, start (time.time()), seconds of the
-# nested, detail (what it worked on: a cell's "problem x scheme")]
+# nested, detail (what it worked on: a cell's "problem x scheme"), CPU start
+# (time.process_time()), CPU seconds of the nested]
 _STACK: list[list] = []
 _OUT = None
 
@@ -71,11 +74,11 @@ def since_process_start(name: str) -> None:
         return
     now = time.time()
     start = now - (uptime - started_ticks / os.sysconf("SC_CLK_TCK"))
-    _write(name, start, now, now - start)
+    _write(name, start, now, now - start, cpu=time.process_time())
 
 
 def _enter(name: str, detail: str | None = None) -> None:
-    _STACK.append([name, time.time(), 0.0, detail])
+    _STACK.append([name, time.time(), 0.0, detail, time.process_time(), 0.0])
 
 
 def _enter_compile(function: str | None) -> None:
@@ -86,14 +89,16 @@ def _enter_compile(function: str | None) -> None:
 
 
 def _exit() -> None:
-    name, start, nested, detail = _STACK.pop()
-    end = time.time()
+    name, start, nested, detail, cpu_start, nested_cpu = _STACK.pop()
+    end, cpu_end = time.time(), time.process_time()
     if _STACK:
         _STACK[-1][2] += end - start
-    _write(name, start, end, max(0.0, end - start - nested), detail)
+        _STACK[-1][5] += cpu_end - cpu_start
+    _write(name, start, end, max(0.0, end - start - nested), detail, max(0.0, cpu_end - cpu_start - nested_cpu))
 
 
-def _write(name: str, start: float, end: float, own: float, detail: str | None = None) -> None:
+def _write(name: str, start: float, end: float, own: float, detail: str | None = None,
+           cpu: float | None = None) -> None:
     global _OUT
     if _OUT is None:
         os.makedirs(_FOLDER, exist_ok=True)
@@ -101,6 +106,8 @@ def _write(name: str, start: float, end: float, own: float, detail: str | None =
     record = {"pid": os.getpid(), "phase": name, "start": start, "end": end, "s": own}
     if detail:
         record["detail"] = detail
+    if cpu is not None:
+        record["cpu"] = cpu
     _OUT.write(json.dumps(record) + "\n")
 
 

@@ -37,6 +37,7 @@ import time
 from pathlib import Path
 from typing import Any, Iterable
 
+from longtime.core import phases
 from longtime.core.integrator import Timing
 from longtime.core.params import InputError
 from longtime.execution import tempdirs
@@ -119,8 +120,9 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing,
             record = out[k]
             try:
                 deadline = time.monotonic() + time_limit if time_limit else None
-                traj = integrator.integrate(problem, t_final, max_samples=max_samples, timing=Timing(repeats=1),
-                                            deadline=deadline)
+                with phases.phase("timing", f"{cells[k].problem} x {cells[k].integrator}"):
+                    traj = integrator.integrate(problem, t_final, max_samples=max_samples, timing=Timing(repeats=1),
+                                                deadline=deadline)
             except (Exception, SystemExit) as exc:
                 record.update(status="failed", message=f"{type(exc).__name__}: {exc}")
                 continue
@@ -208,7 +210,8 @@ def across_processes(pairs: Iterable[tuple[Cell, dict[str, Any]]], processes: in
         return []
     cells = [c for c, _ in todo]
     budget = START_S + 10 * sum(float(r["wall_s"]) * len(r.get("cpu_s_samples") or [1]) for _, r in todo)
-    results = run_children(cells, processes - 1, max_samples, timing, jobs, budget, time_limit, memory_limit)
+    with phases.phase("timing processes"):  # this process while they run
+        results = run_children(cells, processes - 1, max_samples, timing, jobs, budget, time_limit, memory_limit)
     for k, (cell, row) in enumerate(todo):
         merge(row, [res[k] if res is not None else {"status": "failed", "message": err}
                     for res, err in results], processes)
@@ -274,6 +277,7 @@ def _child_main(folder: str) -> None:
     from longtime.execution.isolation import restore_session
     from longtime.execution.limits import die_with_parent, set_memory_limit
 
+    phases.since_process_start("timing start")  # an interpreter and its imports
     path = Path(folder)
     job = json.loads((path / "job.json").read_text())
     die_with_parent(job["parent"])

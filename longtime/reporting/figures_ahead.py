@@ -51,10 +51,12 @@ class FiguresAhead:
     problems are then drawn beside its last cells instead of after them. The page takes a
     figure only if it was drawn from the very rows and styles it would draw it from (a
     resumed run's page has older rows too), an interval only for the same N; it does the
-    others itself."""
+    others itself. ``draw`` False: the intervals only, where the rows will change after the
+    pool (timing processes fold their times into them: a figure drawn from the rows as first
+    stored would never be the page's, and the pool would wait for it)."""
 
-    def __init__(self, cells: Sequence, run_id: int | None, drift: bool = True):
-        self.run_id, self.drift = run_id, drift
+    def __init__(self, cells: Sequence, run_id: int | None, drift: bool = True, draw: bool = True):
+        self.run_id, self.drift, self.draw = run_id, drift, draw
         self.left: dict[str, int] = {}  # cells not stored yet, per problem and per scheme
         for c in cells:
             for name in (("problem", c.problem), ("scheme", c.integrator)):
@@ -83,6 +85,8 @@ class FiguresAhead:
             kind, name = self.ready.pop(0)
             if kind == "problem":
                 rows = self.rows.pop(name)
+                if not self.draw:
+                    continue
                 key = self._key(rows, self.style, self.drift)
                 return problem_figures, (rows, self.style, self.drift), \
                     lambda figs: self.drawn.__setitem__(name, (key, figs))
