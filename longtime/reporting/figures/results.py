@@ -19,7 +19,7 @@ import numpy as np
 
 from longtime.core.fmt import positive
 from longtime.core.phases import phase
-from longtime.reporting.figures import plain_log_ticks, pyplot
+from longtime.reporting.figures import pyplot
 from longtime.reporting.figures.style import (
     LEGEND_BESIDE,
     LINE_STYLES,
@@ -75,9 +75,12 @@ def work_precision_svg(rows: list[dict], field: str, style: dict, cost: str = "c
     ok = [r for r in rows if r.get("status") == "ok" and positive(r.get(cost)) and positive(r.get(field))]
     if not ok:
         return None
+    from matplotlib.collections import LineCollection
+
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.0, 4.2))
     t_main = main_t_final(ok)
+    bars, bar_colours = [], []  # every sweep's bars in one collection, beneath the lines as errorbar draws them
     for (scheme, t_final, settings, order), mine in sweeps(ok).items():
         pts = sorted((r[cost], r[field], (r.get("cpu_s_max") or r["cpu_s"]) if cost == "cpu_s" else r[cost])
                      for r in mine)
@@ -85,9 +88,13 @@ def work_precision_svg(rows: list[dict], field: str, style: dict, cost: str = "c
         st, other_t = style[scheme], t_final != t_main
         label = f"{scheme} ({family(scheme)})" + (f" t_final={t_final:.4g}" if other_t else "") \
             + (f" N={order}" if order is not None else "") + (f" {settings}" if settings else "")
-        ax.errorbar(x, y, xerr=[np.zeros_like(x), x_max - x], color=st["color"], marker=st["marker"], ms=5,
-                    lw=1.1, ls="--" if other_t or settings else "-", capsize=0, elinewidth=2.2, alpha=0.9,
-                    label=label)
+        ax.plot(x, y, color=st["color"], marker=st["marker"], ms=5, lw=1.1, ls="--" if other_t or settings else "-",
+                alpha=0.9, zorder=2.1, label=label)
+        spread = x_max > x
+        bars += [[(a, b), (c, b)] for a, b, c in zip(x[spread], y[spread], x_max[spread])]
+        bar_colours += [st["color"]] * int(spread.sum())
+    if bars:  # autolim: the axis reaches the slowest repeat
+        ax.add_collection(LineCollection(bars, colors=bar_colours, linewidths=2.2, alpha=0.9, zorder=2.0))
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("CPU seconds (minimum of repeats; bar to the slowest)" if cost == "cpu_s" else
@@ -165,6 +172,7 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
     rows_ = -(-len(names) // cols)
     size = (7.0, 4.2) if len(names) == 1 else (3.4 * cols, 2.7 * rows_ + 0.2)
     fig, axes = plt.subplots(rows_, cols, figsize=size, squeeze=False, sharex=True)
+    _space_panels(fig, rows_, cols)
     what = "relative error" if kind == "invariant" else "relative change"
     handles: dict[str, Any] = {}
     for k, ax in enumerate(axes.flat):
@@ -172,6 +180,8 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
             ax.set_visible(False)
             continue
         mine = [c for c in curves if c[2] == names[k]]
+        ax.set_xscale("log")  # once a panel: every loglog call would set both scales again
+        ax.set_yscale("log")
         for i, (scheme, row, name, t, err) in enumerate(mine):
             keep = (t > t[0]) & (err > 0)
             st = style[scheme]
@@ -179,7 +189,7 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
             label = f"{scheme} {setting(row)}"
             # curves that coincide (a diagnostic the schemes all follow) stay apart: a dash
             # pattern and the markers shifted per curve
-            (line,) = ax.loglog(t[keep] - t[0], err[keep], color=st["color"], marker=st["marker"],
+            (line,) = ax.plot(t[keep] - t[0], err[keep], color=st["color"], marker=st["marker"],
                                 markevery=(i % every, every), ms=4 if len(names) == 1 else 3, lw=0.9,
                                 ls=LINE_STYLES[i % len(LINE_STYLES)], label=label)
             handles.setdefault(label, line)
@@ -193,9 +203,6 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
             ax.tick_params(labelsize=8)
         if k >= len(names) - cols:
             ax.set_xlabel("t - t0")
-    for ax in axes.flat:  # plain tick labels before the layout: it measures the labels it is given
-        plain_log_ticks(ax)
-    fig.tight_layout()  # the panels laid out first: the legend below them takes no room from them
     labels = list(handles)
     if len(names) == 1 and len(labels) <= LEGEND_BESIDE:
         legend_outside(axes[0, 0], list(handles.values()), labels)
@@ -203,6 +210,25 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
         fig.legend(list(handles.values()), labels, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, 0.0),
                    frameon=False, ncol=legend_columns(fig.get_figwidth(), labels))
     return svg(fig), notes
+
+
+# the margins and the gaps between the panels of a drift figure, inches: room for the tick
+# labels ('2×10⁻¹⁵' at 8 pt), a panel's title and the axis labels, as matplotlib's tight
+# layout leaves them, set rather than measured (measuring lays every panel out once more,
+# ticks and labels included, before ``svg`` lays it out again); what reaches past the
+# figure's edge stays in the picture (``svg`` crops to what is drawn)
+PANEL_MARGINS = {"left": 0.72, "right": 0.15, "top": 0.34, "bottom": 0.55, "wgap": 0.6, "hgap": 0.42}
+ONE_PANEL_MARGINS = {"left": 0.82, "right": 0.15, "top": 0.15, "bottom": 0.58, "wgap": 0.0, "hgap": 0.0}
+
+
+def _space_panels(fig, rows: int, cols: int) -> None:
+    """Place ``fig``'s rows x cols panels by ``PANEL_MARGINS`` (one panel: ``ONE_PANEL_MARGINS``)."""
+    m = ONE_PANEL_MARGINS if rows * cols == 1 else PANEL_MARGINS
+    width, height = fig.get_size_inches()
+    panel_w = (width - m["left"] - m["right"] - (cols - 1) * m["wgap"]) / cols
+    panel_h = (height - m["top"] - m["bottom"] - (rows - 1) * m["hgap"]) / rows
+    fig.subplots_adjust(left=m["left"] / width, right=1 - m["right"] / width, bottom=m["bottom"] / height,
+                        top=1 - m["top"] / height, wspace=m["wgap"] / panel_w, hspace=m["hgap"] / panel_h)
 
 
 def problem_figures(rows: list[dict[str, Any]], style: dict, drift: bool = True) -> dict[str, Any]:
