@@ -261,7 +261,8 @@ def cmd_matrix(args) -> int:
         if executor == "process" and args.resume is None and not args.no_report and not args.no_html:
             from longtime.reporting.figures_ahead import FiguresAhead
 
-            ahead = FiguresAhead(cells, run_id)  # the page's figures on workers that have no cell left
+            # the page's figures on workers that have no cell left
+            ahead = FiguresAhead(cells, run_id, timed_again=options.processes > 1)
             options = dataclasses.replace(options, idle_work=ahead.task)
         run_matrix(cells, store, run_id, executor, options,
                    progress=not args.no_progress, on_row=ahead.add if ahead is not None else None)

@@ -37,6 +37,10 @@ from longtime.reporting.report import (
 DRIFT_BUDGET_S = 2.0  # stored cpu_s above which a drift curve is not recomputed for the page
 DRIFT_PROBLEM_BUDGET_S = 10.0  # and the stored cpu_s of the curves re-run for one problem, in all
 DRIFT_SAMPLES = 2001
+# all_figures' estimate of its work, seconds of one process: a work-precision figure, a
+# problem's drift figures in work-precision figures, a stability interval not cached, and
+# the start of a pool's process (an interpreter importing matplotlib and longtime)
+FIGURE_S, DRIFT_FIGURES, INTERVAL_S, POOL_START_S = 0.3, 2.0, 1.0, 3.0
 MAX_PANELS = 12  # invariants (or diagnostics) a drift figure draws; the caption names the rest
 
 
@@ -140,19 +144,40 @@ def row_curves(row: dict) -> dict[str, list[tuple[str, np.ndarray, np.ndarray]]]
                                     ("diagnostic", problem.diagnostics(traj.t, traj.u)))}
 
 
+def drawn_settings(rows: list[dict]) -> list[tuple[str, dict]]:
+    """(scheme, its representative row) in the order the drift figures draw them and list
+    them: by scheme, so that a CPU time measured again, which may swap two settings' order
+    by cost, leaves the figure as it is unless it changes the representative setting."""
+    return sorted(representative(rows).items())
+
+
+def _reruns(settings: list[tuple[str, dict]]) -> tuple[set[str], list[str]]:
+    """The schemes whose representative row keeps no curves (a row of an older store) run
+    again for the drift figure: the cheapest first, within ``DRIFT_BUDGET_S`` a run and
+    ``DRIFT_PROBLEM_BUDGET_S`` in all, so that the budget leaves out the fewest; and the
+    notes naming those left out."""
+    chosen, notes, spent = set(), [], 0.0
+    for scheme, row in sorted(((s, r) for s, r in settings if "drift_curve" not in r), key=lambda x: x[1]["cpu_s"]):
+        if row["cpu_s"] > DRIFT_BUDGET_S or spent + row["cpu_s"] > DRIFT_PROBLEM_BUDGET_S:
+            notes.append(f"{scheme}: not drawn (its run takes {row['cpu_s']:.3g} s)")
+            continue
+        spent += row["cpu_s"]
+        chosen.add(scheme)
+    return chosen, notes
+
+
 def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[str | None, list[str]]:
     """The drift figure of one problem, one panel per invariant (``kind`` "diagnostic": per
     diagnostic, their change), and the notes on what it leaves out."""
-    notes, curves, spent = [], [], 0.0
-    # the cheapest first, so a problem's budget leaves out the fewest schemes
-    for scheme, row in sorted(representative(rows).items(), key=lambda item: item[1]["cpu_s"]):
+    settings = drawn_settings(rows)
+    reruns, notes = _reruns(settings)
+    curves = []
+    for scheme, row in settings:
         rerun = "drift_curve" not in row  # a row of an older store keeps none: run it again
         if not rerun and not (row.get("drift_curves") or row.get("drift_curve") or row.get("diag_curves")):
             continue  # nothing to draw (a row measured since rows keep their curves)
-        if rerun and (row["cpu_s"] > DRIFT_BUDGET_S or spent + row["cpu_s"] > DRIFT_PROBLEM_BUDGET_S):
-            notes.append(f"{scheme}: not drawn (its run takes {row['cpu_s']:.3g} s)")
-            continue
-        spent += row["cpu_s"] if rerun else 0.0
+        if rerun and scheme not in reruns:
+            continue  # past the budget: noted by _reruns
         try:
             found = row_curves(row)[kind]
         except Exception as exc:  # a scheme that cannot be re-run here leaves a note, not a hole
@@ -231,22 +256,58 @@ def _space_panels(fig, rows: int, cols: int) -> None:
                         top=1 - m["top"] / height, wspace=m["wgap"] / panel_w, hspace=m["hgap"] / panel_h)
 
 
-def problem_figures(rows: list[dict[str, Any]], style: dict, drift: bool = True) -> dict[str, Any]:
+# a problem's figures in two groups, each drawn from its own inputs: the work-precision
+# figures read every row's error and CPU time, the drift figures only the representative
+# settings' kept curves
+FIGURE_GROUPS = {"work_precision": ("field", "work_precision", "work_precision_instructions"),
+                 "drift": ("drift", "drift_notes", "diagnostics", "diagnostics_notes")}
+
+
+def figure_inputs(rows: list[dict[str, Any]], style: dict, drift: bool = True) -> dict[str, str]:
+    """group -> a digest of what problem_figures reads to draw that group of figures: equal
+    digests, the same figures. The drift group's is the representative settings, each as its
+    scheme's style, its setting and the curves it keeps (a row that keeps none is run again:
+    the whole row), so a row's CPU time measured again leaves the drift figures as drawn
+    unless it changes which setting represents a scheme."""
+    from longtime.reporting.rowtext import setting as setting_text
+
+    def drawn(row):
+        if "drift_curve" not in row:
+            return row
+        return [setting_text(row), *(row.get(k) for k in ("drift_curve", "drift_curves", "diag_curves"))]
+
+    settings = [[scheme, style.get(scheme), drawn(row)] for scheme, row in drawn_settings(rows)] if drift else []
+    return {"work_precision": _digest([rows, style]),
+            "drift": _digest([drift, any(r.get("diag_curves") for r in rows), settings])}
+
+
+def _digest(value: Any) -> str:
+    import hashlib
+    import json
+
+    return hashlib.sha256(json.dumps(value, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def problem_figures(rows: list[dict[str, Any]], style: dict, drift: bool = True,
+                    groups: tuple[str, ...] = tuple(FIGURE_GROUPS)) -> dict[str, Any]:
     """One problem's figures: {"field", "work_precision" (SVG or None), "drift" (SVG or
     None), "drift_notes", "diagnostics" (SVG or None: the problem's diagnostics, where its
-    rows keep them), "diagnostics_notes"}."""
+    rows keep them), "diagnostics_notes"}, of the ``groups`` (of FIGURE_GROUPS) asked for."""
+    out: dict[str, Any] = {}
     with phase("figures"):
-        field = pareto_field(rows)
-        out: dict[str, Any] = {"field": field, "work_precision": None, "drift": None, "drift_notes": [],
-                               "diagnostics": None, "diagnostics_notes": [], "work_precision_instructions": None}
-        if field:
-            out["work_precision"] = work_precision_svg(rows, field, style)
-            if any(positive(r.get("instructions")) for r in rows):  # a run with --cost instructions
-                out["work_precision_instructions"] = work_precision_svg(rows, field, style, "instructions")
-        if drift:
-            out["drift"], out["drift_notes"] = drift_svg(rows, style)
-            if any(r.get("diag_curves") for r in rows):
-                out["diagnostics"], out["diagnostics_notes"] = drift_svg(rows, style, "diagnostic")
+        if "work_precision" in groups:
+            field = pareto_field(rows)
+            out.update({"field": field, "work_precision": None, "work_precision_instructions": None})
+            if field:
+                out["work_precision"] = work_precision_svg(rows, field, style)
+                if any(positive(r.get("instructions")) for r in rows):  # a run with --cost instructions
+                    out["work_precision_instructions"] = work_precision_svg(rows, field, style, "instructions")
+        if "drift" in groups:
+            out.update({"drift": None, "drift_notes": [], "diagnostics": None, "diagnostics_notes": []})
+            if drift:
+                out["drift"], out["drift_notes"] = drift_svg(rows, style)
+                if any(r.get("diag_curves") for r in rows):
+                    out["diagnostics"], out["diagnostics_notes"] = drift_svg(rows, style, "diagnostic")
     return out
 
 
@@ -256,32 +317,38 @@ def all_figures(by_problem: dict[str, list[dict]], style: dict, drift: bool, job
     """problem_figures of every problem, and the interval texts of the ``stability`` schemes
     (measured where not cached), on ``jobs`` processes: matplotlib spends about a third of a
     second a figure, and a scheme's stability interval about a second when not cached, all of
-    it in Python, so only processes run them side by side. Figures ``ahead`` drew from the
-    same rows and styles are taken as they are, and the intervals it found at the same N."""
+    it in Python, so only processes run them side by side (when there is more of it than a
+    process takes to start). The groups of figures ``ahead`` drew from the same inputs
+    (``figure_inputs``) are taken as they are, and the intervals it found at the same N."""
     from longtime.measure.stability import cached_texts, interval_texts
 
-    figures = {}
+    figures, todo = {}, {}
     for p, rows in by_problem.items():
-        found = ahead.figures(p, rows, style, drift) if ahead is not None else None
-        if found is not None:
-            figures[p] = found
-    todo = {p: rows for p, rows in by_problem.items() if p not in figures}
+        figures[p] = (ahead.figures(p, rows, style, drift) if ahead is not None else None) or {}
+        groups = tuple(g for g, fields in FIGURE_GROUPS.items() if not all(f in figures[p] for f in fields))
+        if groups:
+            todo[p] = (rows, groups)
     texts = {s: ahead.interval(s, o) for s, o in stability.items()} if ahead is not None else {}
     texts = {s: text for s, text in texts.items() if text is not None}
     found, missing = cached_texts({s: o for s, o in stability.items() if s not in texts})
     texts.update(found)
-    if jobs <= 1 or len(todo) + len(missing) < 4:
-        figures.update({p: problem_figures(rows, style, drift) for p, rows in todo.items()})
+    # the work in seconds, as the pool's start-up is: a problem's drift figures (one to a
+    # dozen panels) cost a few work-precision figures
+    work = INTERVAL_S * len(missing) + sum(FIGURE_S * (1 + DRIFT_FIGURES * ("drift" in g)) for _, g in todo.values())
+    if jobs <= 1 or work < POOL_START_S * jobs:
+        for p, (rows, groups) in todo.items():
+            figures[p].update(problem_figures(rows, style, drift, groups))
         texts.update(interval_texts(missing, compute=True))
         return figures, texts
     from longtime.execution.pool import spawn_pool
 
     with spawn_pool(jobs) as pool:
         intervals = [pool.submit(interval_texts, {s: o}, True) for s, o in missing.items()]
-        drawn = {p: pool.submit(problem_figures, rows, style, drift) for p, rows in todo.items()}
+        drawn = {p: pool.submit(problem_figures, rows, style, drift, groups) for p, (rows, groups) in todo.items()}
         for f in intervals:
             texts.update(f.result())
-        figures.update({p: f.result() for p, f in drawn.items()})
+        for p, f in drawn.items():
+            figures[p].update(f.result())
         return figures, texts
 
 
