@@ -13,7 +13,9 @@ rows kept any is run again, untimed, skipped when its stored CPU time exceeds
 """
 from __future__ import annotations
 
-from typing import Any
+import contextlib
+import math
+from typing import Any, Callable, Iterator
 
 import numpy as np
 
@@ -37,7 +39,7 @@ from longtime.reporting.report import (
 DRIFT_BUDGET_S = 2.0  # stored cpu_s above which a drift curve is not recomputed for the page
 DRIFT_PROBLEM_BUDGET_S = 10.0  # and the stored cpu_s of the curves re-run for one problem, in all
 DRIFT_SAMPLES = 2001
-# all_figures' estimate of its work, seconds of one process: a work-precision figure, a
+# figures_drawing's estimate of its work, seconds of one process: a work-precision figure, a
 # problem's drift figures in work-precision figures, a stability interval not cached, and
 # the start of a pool's process (an interpreter importing matplotlib and longtime)
 FIGURE_S, DRIFT_FIGURES, INTERVAL_S, POOL_START_S = 0.3, 2.0, 1.0, 3.0
@@ -311,15 +313,18 @@ def problem_figures(rows: list[dict[str, Any]], style: dict, drift: bool = True,
     return out
 
 
-def all_figures(by_problem: dict[str, list[dict]], style: dict, drift: bool, jobs: int,
-                 stability: dict[str, list | None], ahead: Any = None
-                 ) -> tuple[dict[str, dict], dict[str, str]]:
-    """problem_figures of every problem, and the interval texts of the ``stability`` schemes
-    (measured where not cached), on ``jobs`` processes: matplotlib spends about a third of a
-    second a figure, and a scheme's stability interval about a second when not cached, all of
-    it in Python, so only processes run them side by side (when there is more of it than a
-    process takes to start). The groups of figures ``ahead`` drew from the same inputs
-    (``figure_inputs``) are taken as they are, and the intervals it found at the same N."""
+@contextlib.contextmanager
+def figures_drawing(by_problem: dict[str, list[dict]], style: dict, drift: bool, jobs: int,
+                    stability: dict[str, list | None], ahead: Any = None
+                    ) -> Iterator[Callable[[], tuple[dict[str, dict], dict[str, str]]]]:
+    """Start problem_figures of every problem, and the interval texts of the ``stability``
+    schemes (measured where not cached); yield the function that returns them ({problem:
+    figures}, {scheme: text}), so that the caller does its own work meanwhile. The groups of
+    figures ``ahead`` drew from the same inputs (``figure_inputs``) are taken as they are, and
+    the intervals it found at the same N. matplotlib spends about a third of a second a
+    figure, and a scheme's stability interval about a second when not cached, all of it in
+    Python, so only processes run them beside the caller: up to ``jobs`` of them, where the
+    work outweighs their start-up; else the returned function does the work itself."""
     from longtime.measure.stability import cached_texts, interval_texts
 
     figures, todo = {}, {}
@@ -332,24 +337,34 @@ def all_figures(by_problem: dict[str, list[dict]], style: dict, drift: bool, job
     texts = {s: text for s, text in texts.items() if text is not None}
     found, missing = cached_texts({s: o for s, o in stability.items() if s not in texts})
     texts.update(found)
-    # the work in seconds, as the pool's start-up is: a problem's drift figures (one to a
+    # the work in seconds, as a process's start-up is: a problem's drift figures (one to a
     # dozen panels) cost a few work-precision figures
     work = INTERVAL_S * len(missing) + sum(FIGURE_S * (1 + DRIFT_FIGURES * ("drift" in g)) for _, g in todo.values())
-    if jobs <= 1 or work < POOL_START_S * jobs:
-        for p, (rows, groups) in todo.items():
-            figures[p].update(problem_figures(rows, style, drift, groups))
-        texts.update(interval_texts(missing, compute=True))
-        return figures, texts
+    # a process where it has at least twice its start-up to do
+    processes = 0 if jobs <= 1 or work < POOL_START_S else min(jobs, math.ceil(work / (2 * POOL_START_S)))
+    if not processes:
+        def here():
+            for p, (rows, groups) in todo.items():
+                figures[p].update(problem_figures(rows, style, drift, groups))
+            texts.update(interval_texts(missing, compute=True))
+            return figures, texts
+
+        yield here
+        return
     from longtime.execution.pool import spawn_pool
 
-    with spawn_pool(jobs) as pool:
+    with spawn_pool(processes) as pool:
         intervals = [pool.submit(interval_texts, {s: o}, True) for s, o in missing.items()]
         drawn = {p: pool.submit(problem_figures, rows, style, drift, groups) for p, (rows, groups) in todo.items()}
-        for f in intervals:
-            texts.update(f.result())
-        for p, f in drawn.items():
-            figures[p].update(f.result())
-        return figures, texts
+
+        def collected():
+            for f in intervals:
+                texts.update(f.result())
+            for p, f in drawn.items():
+                figures[p].update(f.result())
+            return figures, texts
+
+        yield collected
 
 
 def calibration_svg(points: list[dict[str, Any]]) -> str | None:
