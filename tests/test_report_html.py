@@ -178,6 +178,7 @@ def test_main_job_page_takes_the_figures_its_workers_drew(tmp_path, monkeypatch)
 
 def test_figures_drawn_ahead_serve_only_the_rows_they_were_drawn_from():
     from longtime.execution.cells import Cell
+    from longtime.reporting.figures.results import FIGURE_GROUPS
     from longtime.reporting.figures_ahead import FiguresAhead
 
     cells = [Cell("harmonic", s, {}, {}, 10.0) for s in ("rk4", "verlet")]
@@ -188,26 +189,54 @@ def test_figures_drawn_ahead_serve_only_the_rows_they_were_drawn_from():
     done({"rk4": "[0, 2.83]"})
     assert ahead.interval("rk4", None) == "[0, 2.83]" and ahead.interval("rk4", [10]) is None
     ahead.add(cells[1], {"problem": "harmonic", "integrator": "verlet", "status": "ok", "cpu_s": 0.2})
-    fn, (rows, style, drift), done = ahead.task()
+    fn, (rows, style, drift, groups), done = ahead.task()
     assert fn.__name__ == "problem_figures" and [r["run_id"] for r in rows] == [7, 7]
+    assert groups == ("work_precision", "drift")
     assert ahead.task()[1] == ({"verlet": None}, True) and ahead.task() is None
-    done({"drawn": True})
-    assert ahead.figures("harmonic", rows, style, drift) == {"drawn": True}
+    drawn = {f: f"<{f}>" for fields in FIGURE_GROUPS.values() for f in fields}
+    done(drawn)
+    assert ahead.figures("harmonic", rows, style, drift) == drawn
     older = [{**rows[0], "cpu_s": 0.3}, rows[1]]  # e.g. a resumed run's page: other rows
-    assert ahead.figures("harmonic", older, style, drift) is None
-    assert ahead.figures("harmonic", rows, {**style, "euler": {}}, drift) is None
+    assert ahead.figures("harmonic", older, style, drift) is None  # rows without kept curves: drawn from all
+    # a scheme's style that no drift figure draws: only the work-precision figures change
+    assert set(ahead.figures("harmonic", rows, {**style, "euler": {}}, drift)) == set(FIGURE_GROUPS["drift"])
+    assert ahead.figures("harmonic", rows, {**style, "rk4": {"color": "#000000", "marker": "o"}}, drift) is None
     assert ahead.figures("kepler", rows, style, drift) is None
 
 
-def test_figures_are_not_drawn_ahead_from_rows_that_timing_processes_will_change():
+def test_drift_figures_drawn_ahead_outlive_a_new_cpu_time_unless_it_changes_the_drawn_setting():
+    """Rows that keep their curves: CPU times measured again (the timing processes after the
+    matrix) leave the drift figures as drawn, not the work-precision ones, even where they
+    reorder the schemes by cost; a time that changes a scheme's setting of median CPU time
+    (the one drawn) leaves neither."""
     from longtime.execution.cells import Cell
+    from longtime.reporting.figures.results import FIGURE_GROUPS
     from longtime.reporting.figures_ahead import FiguresAhead
 
-    cells = [Cell("harmonic", "rk4", {}, {}, 10.0)]
-    ahead = FiguresAhead(cells, run_id=7, draw=False)
-    ahead.add(cells[0], {"problem": "harmonic", "integrator": "rk4", "status": "ok", "cpu_s": 0.1})
-    fn, args, _ = ahead.task()  # the scheme's stability interval still is measured ahead
-    assert fn.__name__ == "interval_texts" and ahead.task() is None
+    def curve(scale):
+        return {"invariant": "H", "t": [1.0, 10.0], "error": [1e-9 * scale, 1e-8 * scale]}
+
+    cells = [Cell("harmonic", s, {}, {"dt": dt}, 10.0) for s in ("rk4", "verlet") for dt in (0.1, 0.05, 0.02)]
+    ahead = FiguresAhead(cells, run_id=7, timed_again=True)
+    for k, cell in enumerate(cells):
+        dt = cell.integrator_settings["dt"]
+        ahead.add(cell, {"problem": "harmonic", "integrator": cell.integrator, "status": "ok", "dt": dt,
+                         "cpu_s": 0.01 * (k + 1) / dt, "l2_error": dt**4, "drift_curve": curve(dt),
+                         "drift_curves": [curve(dt)]})
+    task = next(t for t in iter(ahead.task, None) if t[0].__name__ == "problem_figures")
+    fn, (rows, style, drift, groups), done = task
+    assert groups == ("drift",)  # the work-precision figures wait for the final CPU times
+    drift_figs = {f: f"<{f}>" for f in FIGURE_GROUPS["drift"]}
+    done(drift_figs)
+    # verlet's rows now cheaper than rk4's, each scheme's order by cost kept
+    retimed = [{**r, "cpu_s": r["cpu_s"] * (0.1 if r["integrator"] == "verlet" else 1.0),
+                "cpu_s_processes": [r["cpu_s"]]} for r in rows]
+    assert ahead.figures("harmonic", retimed, style, drift) == drift_figs
+    # rk4 at dt 0.02 now cheaper than at 0.05: its median setting is another row
+    moved = [{**r, "cpu_s": 1e-4} if r["integrator"] == "rk4" and r["dt"] == 0.02 else r for r in rows]
+    assert ahead.figures("harmonic", moved, style, drift) is None
+    other_curve = [{**r, "drift_curves": [curve(7.0)]} if r["integrator"] == "verlet" else r for r in rows]
+    assert ahead.figures("harmonic", other_curve, style, drift) is None
 
 
 def test_a_tol_sweep_whose_order_follows_tol_is_one_curve_and_set_orders_split():

@@ -261,9 +261,8 @@ def cmd_matrix(args) -> int:
         if executor == "process" and args.resume is None and not args.no_report and not args.no_html:
             from longtime.reporting.figures_ahead import FiguresAhead
 
-            # the page's figures on workers that have no cell left, unless timing processes will
-            # change the rows' times after the pool (the figures show them): then the intervals only
-            ahead = FiguresAhead(cells, run_id, draw=options.processes <= 1)
+            # the page's figures on workers that have no cell left
+            ahead = FiguresAhead(cells, run_id, timed_again=options.processes > 1)
             options = dataclasses.replace(options, idle_work=ahead.task)
         run_matrix(cells, store, run_id, executor, options,
                    progress=not args.no_progress, on_row=ahead.add if ahead is not None else None)

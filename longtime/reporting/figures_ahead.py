@@ -4,11 +4,10 @@ stability interval of each scheme whose cells are; the page takes what was drawn
 rows it shows."""
 from __future__ import annotations
 
-import hashlib
 import json
 from typing import Any, Sequence
 
-from longtime.reporting.figures.results import problem_figures
+from longtime.reporting.figures.results import FIGURE_GROUPS, figure_inputs, problem_figures
 from longtime.reporting.figures.style import styles
 
 
@@ -49,14 +48,16 @@ class FiguresAhead:
     built-in scheme's stability interval once its last cell is stored (measured into the
     cache on a cold machine: about a second a scheme). The figures of a main job's last
     problems are then drawn beside its last cells instead of after them. The page takes a
-    figure only if it was drawn from the very rows and styles it would draw it from (a
-    resumed run's page has older rows too), an interval only for the same N; it does the
-    others itself. ``draw`` False: the intervals only, where the rows will change after the
-    pool (timing processes fold their times into them: a figure drawn from the rows as first
-    stored would never be the page's, and the pool would wait for it)."""
+    group of figures only if it was drawn from the very inputs it would draw it from
+    (``figure_inputs``: a resumed run's page has older rows too), an interval only for the
+    same N; it does the others itself. ``timed_again``: the rows' cells are timed again in
+    other processes after the matrix (``--processes`` above 1), which changes their CPU
+    times, so the work-precision figures are left to the page; the drift figures, which
+    read the kept curves, are drawn ahead."""
 
-    def __init__(self, cells: Sequence, run_id: int | None, drift: bool = True, draw: bool = True):
-        self.run_id, self.drift, self.draw = run_id, drift, draw
+    def __init__(self, cells: Sequence, run_id: int | None, drift: bool = True, timed_again: bool = False):
+        self.run_id, self.drift = run_id, drift
+        self.groups = tuple(g for g in FIGURE_GROUPS if not (timed_again and g == "work_precision"))
         self.left: dict[str, int] = {}  # cells not stored yet, per problem and per scheme
         for c in cells:
             for name in (("problem", c.problem), ("scheme", c.integrator)):
@@ -65,7 +66,7 @@ class FiguresAhead:
         self.rows: dict[str, list[dict]] = {}
         self.outcomes: dict[str, list[dict]] = {}  # per scheme: what stability_schemes reads
         self.ready: list[tuple[str, str]] = []
-        self.drawn: dict[str, tuple[str, dict]] = {}
+        self.drawn: dict[str, tuple[dict[str, str], dict]] = {}  # problem -> (its inputs, its figures)
         self.intervals: dict[str, tuple[Any, str | None]] = {}  # scheme -> (its N, its text)
 
     def add(self, cell, row: dict) -> None:
@@ -85,11 +86,9 @@ class FiguresAhead:
             kind, name = self.ready.pop(0)
             if kind == "problem":
                 rows = self.rows.pop(name)
-                if not self.draw:
-                    continue
-                key = self._key(rows, self.style, self.drift)
-                return problem_figures, (rows, self.style, self.drift), \
-                    lambda figs: self.drawn.__setitem__(name, (key, figs))
+                inputs = figure_inputs(rows, self.style, self.drift)
+                return problem_figures, (rows, self.style, self.drift, self.groups), \
+                    lambda figs: self.drawn.__setitem__(name, (inputs, figs))
             builtin, _ = stability_schemes(self.outcomes.pop(name))
             if name in builtin:  # a plugin's is read from the cache only (see stability_schemes)
                 from longtime.measure.stability import interval_texts
@@ -100,9 +99,15 @@ class FiguresAhead:
         return None
 
     def figures(self, problem: str, rows: list[dict], style: dict, drift: bool) -> dict | None:
-        """The figures drawn ahead for ``problem`` if they were drawn from these rows and styles."""
-        key, figs = self.drawn.get(problem, (None, None))
-        return figs if key is not None and key == self._key(rows, style, drift) else None
+        """The figures drawn ahead for ``problem``, of each group drawn from the inputs these
+        rows and styles give (None: no such group)."""
+        inputs, figs = self.drawn.get(problem, (None, None))
+        if inputs is None:
+            return None
+        now = figure_inputs(rows, style, drift)
+        found = {f: figs[f] for g, fields in FIGURE_GROUPS.items()
+                 if inputs[g] == now[g] and all(f in figs for f in fields) for f in fields}
+        return found or None
 
     def interval(self, scheme: str, orders) -> str | None:
         """``scheme``'s interval text if it was found ahead at these N (None: a scheme without N)."""
@@ -110,8 +115,3 @@ class FiguresAhead:
             return None
         found_orders, text = self.intervals[scheme]
         return text if found_orders == orders else None
-
-    @staticmethod
-    def _key(rows: list[dict], style: dict, drift: bool) -> str:
-        text = json.dumps([rows, style, drift], sort_keys=True, default=str)
-        return hashlib.sha256(text.encode()).hexdigest()

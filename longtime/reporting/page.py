@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from longtime.measure.orders import left_out, observed_orders
-from longtime.reporting.figures.results import all_figures
+from longtime.reporting.figures.results import figures_drawing
 from longtime.reporting.figures.style import styles
 from longtime.reporting.figures_ahead import FiguresAhead, stability_schemes
 from longtime.reporting.markup import CSS, SCRIPT, escape, num, slug, table
@@ -456,12 +456,16 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
     from longtime.measure.stability import interval_texts
 
     builtin, plugins = stability_schemes(rows) if stability else ({}, {})
-    figures, intervals = all_figures(by_problem, style, drift, jobs, builtin, ahead)
-    fits = observed_orders(rows)
-    missing = left_out(rows)
-    counts = status_counts(rows)
-    found = verdicts(rows, checks)
-    cards = _cards_section(rows)
+    # the figures drawn on other processes while this one does the rest
+    with figures_drawing(by_problem, style, drift, jobs, builtin, ahead) as drawn:
+        fits = observed_orders(rows)
+        missing = left_out(rows)
+        counts = status_counts(rows)
+        found = verdicts(rows, checks)
+        cards = _cards_section(rows)
+        verdict_sections = [_verdict_section(p, found[p], by_problem[p]) for p in problems]
+        checked = _checks_section(checks)
+        figures, intervals = drawn()
     ids = ", ".join(str(r["id"]) for r in runs) or "-"
     out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
            '<meta name="viewport" content="width=device-width, initial-scale=1">',
@@ -481,9 +485,8 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
            "bounded or sqrt not past its run, a power law or an invariant's error up to 1000 times it, less where "
            "the energy drifts or the slopes still steepen); past its reach, or where its growth is undetermined, a "
            "setting predicts nothing. docs/metrics.md says how a prediction is made and checked.</p>"]
-    for p in problems:
-        out.append(_verdict_section(p, found[p], by_problem[p]))
-    out.append(_checks_section(checks))
+    out += verdict_sections
+    out.append(checked)
     if cards:
         out.append(cards)
     out.append('<h2 id="evidence">Evidence</h2><p class="note">What the verdicts rest on, per problem, folded: '

@@ -40,6 +40,7 @@ import contextlib
 import math
 import shlex
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any, Iterable
 
 from longtime.core.fmt import positive
@@ -144,7 +145,9 @@ class Setting:
     def scheme(self) -> str:
         return self.row["integrator"]
 
-    @property
+    # text and factor are read for every cell of the winner map: computed once (a Setting is
+    # not changed once made)
+    @cached_property
     def text(self) -> str:
         return " ".join(x for x in (self.scheme, setting(self.row)) if x)
 
@@ -154,7 +157,7 @@ class Setting:
         STEEPENING above its class's exponent: the law is still changing."""
         return self.law in EXPONENTS and _rising(self.windows) and self.windows[-1] - EXPONENTS[self.law] > STEEPENING
 
-    @property
+    @cached_property
     def factor(self) -> float:
         """How many times its run's span its class is trusted (1: not past its run): its
         class's TRUST_FACTORS, 1 where its slopes are steepening, and at most the factor

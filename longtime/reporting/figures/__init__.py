@@ -69,6 +69,66 @@ def plain_log_ticks(ax) -> None:
             axis.set_minor_formatter(FuncFormatter(_minor_labels(axis)))
 
 
+def _wide_log_axes(ax):
+    """(axis, its minor tick locations in view) of ``ax``'s log axes that span two decades or
+    more: their minor ticks carry no label (``_minor_labels``)."""
+    import numpy as np
+
+    out = []
+    for axis in (ax.xaxis, ax.yaxis):
+        if axis.get_scale() != "log":
+            continue
+        low, high = sorted(axis.get_view_interval())
+        if not 0 < low or high / low < 100.0:
+            continue
+        locs = np.asarray(axis.get_minorticklocs(), dtype=float)  # without those on a major tick
+        locs = locs[locs > 0]
+        inside = np.abs(np.log10(locs) - np.clip(np.log10(locs), math.log10(low), math.log10(high))) < 1e-9
+        if inside.any():
+            out.append((axis, locs[inside]))
+    return out
+
+
+def collect_minor_ticks(fig) -> None:
+    """The minor ticks and minor grid lines of every log axis of ``fig`` that spans two decades
+    or more, drawn as one artist each instead of a tick object apiece: the same marks and lines
+    where matplotlib puts them (its locator's locations, its tick's style), laid out and drawn
+    at a fraction of the cost (a wide log-log panel has dozens of minor ticks, each a tick
+    object with a mark, a grid line and an empty label, measured and drawn on every layout
+    pass). Called once the axes' limits are final; narrower axes keep their labelled minor
+    ticks."""
+    import numpy as np
+    from matplotlib.collections import LineCollection
+    from matplotlib.lines import Line2D
+    from matplotlib.ticker import NullLocator
+
+    # every axis's locations first: shared axes share one locator, which the second step replaces
+    plans = [(ax, axis, locs) for ax in fig.axes for axis, locs in _wide_log_axes(ax)]
+    for ax, axis, locs in plans:
+        tick = axis.get_minor_ticks(1)[0]  # the style matplotlib would give each minor tick
+        is_x = axis is ax.xaxis
+        place = ax.get_xaxis_transform if is_x else ax.get_yaxis_transform
+        grid = tick.gridline
+        if grid.get_visible():
+            segments = [[(v, 0.0), (v, 1.0)] if is_x else [(0.0, v), (1.0, v)] for v in locs]
+            lines = LineCollection(segments, transform=place(which="grid"), colors=[grid.get_color()],
+                                   linewidths=grid.get_linewidth(), linestyles=grid.get_linestyle(),
+                                   alpha=grid.get_alpha(), zorder=grid.get_zorder())
+            ax.add_artist(lines)  # add_artist: the axes' limits stay as they are
+        for mark, edge, which in ((tick.tick1line, 0.0, "tick1"), (tick.tick2line, 1.0, "tick2")):
+            if not mark.get_visible():
+                continue
+            edges = np.full(locs.size, edge)
+            line = Line2D(locs if is_x else edges, edges if is_x else locs, transform=place(which=which),
+                          ls="none", marker=mark.get_marker(), ms=mark.get_markersize(),
+                          mew=mark.get_markeredgewidth(), mec=mark.get_markeredgecolor(),
+                          zorder=mark.get_zorder(), clip_on=False)
+            line.set_in_layout(False)
+            ax.add_artist(line)
+    for _ax, axis, _locs in plans:
+        axis.set_minor_locator(NullLocator())
+
+
 def plain_ticks(fig) -> None:
     """``plain_log_ticks`` on every axes of ``fig``: with mathtext off (``pyplot``), matplotlib's
     own log labels would print as their source ($\\mathdefault{10^{-2}}$). Called before the

@@ -13,13 +13,15 @@ rows kept any is run again, untimed, skipped when its stored CPU time exceeds
 """
 from __future__ import annotations
 
-from typing import Any
+import contextlib
+import math
+from typing import Any, Callable, Iterator
 
 import numpy as np
 
 from longtime.core.fmt import positive
 from longtime.core.phases import phase
-from longtime.reporting.figures import plain_log_ticks, pyplot
+from longtime.reporting.figures import pyplot
 from longtime.reporting.figures.style import (
     LEGEND_BESIDE,
     LINE_STYLES,
@@ -37,6 +39,10 @@ from longtime.reporting.report import (
 DRIFT_BUDGET_S = 2.0  # stored cpu_s above which a drift curve is not recomputed for the page
 DRIFT_PROBLEM_BUDGET_S = 10.0  # and the stored cpu_s of the curves re-run for one problem, in all
 DRIFT_SAMPLES = 2001
+# figures_drawing's estimate of its work, seconds of one process: a work-precision figure, a
+# problem's drift figures in work-precision figures, a stability interval not cached, and
+# the start of a pool's process (an interpreter importing matplotlib and longtime)
+FIGURE_S, DRIFT_FIGURES, INTERVAL_S, POOL_START_S = 0.3, 2.0, 1.0, 3.0
 MAX_PANELS = 12  # invariants (or diagnostics) a drift figure draws; the caption names the rest
 
 
@@ -75,9 +81,12 @@ def work_precision_svg(rows: list[dict], field: str, style: dict, cost: str = "c
     ok = [r for r in rows if r.get("status") == "ok" and positive(r.get(cost)) and positive(r.get(field))]
     if not ok:
         return None
+    from matplotlib.collections import LineCollection
+
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.0, 4.2))
     t_main = main_t_final(ok)
+    bars, bar_colours = [], []  # every sweep's bars in one collection, beneath the lines as errorbar draws them
     for (scheme, t_final, settings, order), mine in sweeps(ok).items():
         pts = sorted((r[cost], r[field], (r.get("cpu_s_max") or r["cpu_s"]) if cost == "cpu_s" else r[cost])
                      for r in mine)
@@ -85,9 +94,13 @@ def work_precision_svg(rows: list[dict], field: str, style: dict, cost: str = "c
         st, other_t = style[scheme], t_final != t_main
         label = f"{scheme} ({family(scheme)})" + (f" t_final={t_final:.4g}" if other_t else "") \
             + (f" N={order}" if order is not None else "") + (f" {settings}" if settings else "")
-        ax.errorbar(x, y, xerr=[np.zeros_like(x), x_max - x], color=st["color"], marker=st["marker"], ms=5,
-                    lw=1.1, ls="--" if other_t or settings else "-", capsize=0, elinewidth=2.2, alpha=0.9,
-                    label=label)
+        ax.plot(x, y, color=st["color"], marker=st["marker"], ms=5, lw=1.1, ls="--" if other_t or settings else "-",
+                alpha=0.9, zorder=2.1, label=label)
+        spread = x_max > x
+        bars += [[(a, b), (c, b)] for a, b, c in zip(x[spread], y[spread], x_max[spread])]
+        bar_colours += [st["color"]] * int(spread.sum())
+    if bars:  # autolim: the axis reaches the slowest repeat
+        ax.add_collection(LineCollection(bars, colors=bar_colours, linewidths=2.2, alpha=0.9, zorder=2.0))
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("CPU seconds (minimum of repeats; bar to the slowest)" if cost == "cpu_s" else
@@ -133,19 +146,40 @@ def row_curves(row: dict) -> dict[str, list[tuple[str, np.ndarray, np.ndarray]]]
                                     ("diagnostic", problem.diagnostics(traj.t, traj.u)))}
 
 
+def drawn_settings(rows: list[dict]) -> list[tuple[str, dict]]:
+    """(scheme, its representative row) in the order the drift figures draw them and list
+    them: by scheme, so that a CPU time measured again, which may swap two settings' order
+    by cost, leaves the figure as it is unless it changes the representative setting."""
+    return sorted(representative(rows).items())
+
+
+def _reruns(settings: list[tuple[str, dict]]) -> tuple[set[str], list[str]]:
+    """The schemes whose representative row keeps no curves (a row of an older store) run
+    again for the drift figure: the cheapest first, within ``DRIFT_BUDGET_S`` a run and
+    ``DRIFT_PROBLEM_BUDGET_S`` in all, so that the budget leaves out the fewest; and the
+    notes naming those left out."""
+    chosen, notes, spent = set(), [], 0.0
+    for scheme, row in sorted(((s, r) for s, r in settings if "drift_curve" not in r), key=lambda x: x[1]["cpu_s"]):
+        if row["cpu_s"] > DRIFT_BUDGET_S or spent + row["cpu_s"] > DRIFT_PROBLEM_BUDGET_S:
+            notes.append(f"{scheme}: not drawn (its run takes {row['cpu_s']:.3g} s)")
+            continue
+        spent += row["cpu_s"]
+        chosen.add(scheme)
+    return chosen, notes
+
+
 def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[str | None, list[str]]:
     """The drift figure of one problem, one panel per invariant (``kind`` "diagnostic": per
     diagnostic, their change), and the notes on what it leaves out."""
-    notes, curves, spent = [], [], 0.0
-    # the cheapest first, so a problem's budget leaves out the fewest schemes
-    for scheme, row in sorted(representative(rows).items(), key=lambda item: item[1]["cpu_s"]):
+    settings = drawn_settings(rows)
+    reruns, notes = _reruns(settings)
+    curves = []
+    for scheme, row in settings:
         rerun = "drift_curve" not in row  # a row of an older store keeps none: run it again
         if not rerun and not (row.get("drift_curves") or row.get("drift_curve") or row.get("diag_curves")):
             continue  # nothing to draw (a row measured since rows keep their curves)
-        if rerun and (row["cpu_s"] > DRIFT_BUDGET_S or spent + row["cpu_s"] > DRIFT_PROBLEM_BUDGET_S):
-            notes.append(f"{scheme}: not drawn (its run takes {row['cpu_s']:.3g} s)")
-            continue
-        spent += row["cpu_s"] if rerun else 0.0
+        if rerun and scheme not in reruns:
+            continue  # past the budget: noted by _reruns
         try:
             found = row_curves(row)[kind]
         except Exception as exc:  # a scheme that cannot be re-run here leaves a note, not a hole
@@ -165,6 +199,7 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
     rows_ = -(-len(names) // cols)
     size = (7.0, 4.2) if len(names) == 1 else (3.4 * cols, 2.7 * rows_ + 0.2)
     fig, axes = plt.subplots(rows_, cols, figsize=size, squeeze=False, sharex=True)
+    _space_panels(fig, rows_, cols)
     what = "relative error" if kind == "invariant" else "relative change"
     handles: dict[str, Any] = {}
     for k, ax in enumerate(axes.flat):
@@ -172,6 +207,8 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
             ax.set_visible(False)
             continue
         mine = [c for c in curves if c[2] == names[k]]
+        ax.set_xscale("log")  # once a panel: every loglog call would set both scales again
+        ax.set_yscale("log")
         for i, (scheme, row, name, t, err) in enumerate(mine):
             keep = (t > t[0]) & (err > 0)
             st = style[scheme]
@@ -179,7 +216,7 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
             label = f"{scheme} {setting(row)}"
             # curves that coincide (a diagnostic the schemes all follow) stay apart: a dash
             # pattern and the markers shifted per curve
-            (line,) = ax.loglog(t[keep] - t[0], err[keep], color=st["color"], marker=st["marker"],
+            (line,) = ax.plot(t[keep] - t[0], err[keep], color=st["color"], marker=st["marker"],
                                 markevery=(i % every, every), ms=4 if len(names) == 1 else 3, lw=0.9,
                                 ls=LINE_STYLES[i % len(LINE_STYLES)], label=label)
             handles.setdefault(label, line)
@@ -193,9 +230,6 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
             ax.tick_params(labelsize=8)
         if k >= len(names) - cols:
             ax.set_xlabel("t - t0")
-    for ax in axes.flat:  # plain tick labels before the layout: it measures the labels it is given
-        plain_log_ticks(ax)
-    fig.tight_layout()  # the panels laid out first: the legend below them takes no room from them
     labels = list(handles)
     if len(names) == 1 and len(labels) <= LEGEND_BESIDE:
         legend_outside(axes[0, 0], list(handles.values()), labels)
@@ -205,58 +239,132 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
     return svg(fig), notes
 
 
-def problem_figures(rows: list[dict[str, Any]], style: dict, drift: bool = True) -> dict[str, Any]:
+# the margins and the gaps between the panels of a drift figure, inches: room for the tick
+# labels ('2×10⁻¹⁵' at 8 pt), a panel's title and the axis labels, as matplotlib's tight
+# layout leaves them, set rather than measured (measuring lays every panel out once more,
+# ticks and labels included, before ``svg`` lays it out again); what reaches past the
+# figure's edge stays in the picture (``svg`` crops to what is drawn)
+PANEL_MARGINS = {"left": 0.72, "right": 0.15, "top": 0.34, "bottom": 0.55, "wgap": 0.6, "hgap": 0.42}
+ONE_PANEL_MARGINS = {"left": 0.82, "right": 0.15, "top": 0.15, "bottom": 0.58, "wgap": 0.0, "hgap": 0.0}
+
+
+def _space_panels(fig, rows: int, cols: int) -> None:
+    """Place ``fig``'s rows x cols panels by ``PANEL_MARGINS`` (one panel: ``ONE_PANEL_MARGINS``)."""
+    m = ONE_PANEL_MARGINS if rows * cols == 1 else PANEL_MARGINS
+    width, height = fig.get_size_inches()
+    panel_w = (width - m["left"] - m["right"] - (cols - 1) * m["wgap"]) / cols
+    panel_h = (height - m["top"] - m["bottom"] - (rows - 1) * m["hgap"]) / rows
+    fig.subplots_adjust(left=m["left"] / width, right=1 - m["right"] / width, bottom=m["bottom"] / height,
+                        top=1 - m["top"] / height, wspace=m["wgap"] / panel_w, hspace=m["hgap"] / panel_h)
+
+
+# a problem's figures in two groups, each drawn from its own inputs: the work-precision
+# figures read every row's error and CPU time, the drift figures only the representative
+# settings' kept curves
+FIGURE_GROUPS = {"work_precision": ("field", "work_precision", "work_precision_instructions"),
+                 "drift": ("drift", "drift_notes", "diagnostics", "diagnostics_notes")}
+
+
+def figure_inputs(rows: list[dict[str, Any]], style: dict, drift: bool = True) -> dict[str, str]:
+    """group -> a digest of what problem_figures reads to draw that group of figures: equal
+    digests, the same figures. The drift group's is the representative settings, each as its
+    scheme's style, its setting and the curves it keeps (a row that keeps none is run again:
+    the whole row), so a row's CPU time measured again leaves the drift figures as drawn
+    unless it changes which setting represents a scheme."""
+    from longtime.reporting.rowtext import setting as setting_text
+
+    def drawn(row):
+        if "drift_curve" not in row:
+            return row
+        return [setting_text(row), *(row.get(k) for k in ("drift_curve", "drift_curves", "diag_curves"))]
+
+    settings = [[scheme, style.get(scheme), drawn(row)] for scheme, row in drawn_settings(rows)] if drift else []
+    return {"work_precision": _digest([rows, style]),
+            "drift": _digest([drift, any(r.get("diag_curves") for r in rows), settings])}
+
+
+def _digest(value: Any) -> str:
+    import hashlib
+    import json
+
+    return hashlib.sha256(json.dumps(value, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def problem_figures(rows: list[dict[str, Any]], style: dict, drift: bool = True,
+                    groups: tuple[str, ...] = tuple(FIGURE_GROUPS)) -> dict[str, Any]:
     """One problem's figures: {"field", "work_precision" (SVG or None), "drift" (SVG or
     None), "drift_notes", "diagnostics" (SVG or None: the problem's diagnostics, where its
-    rows keep them), "diagnostics_notes"}."""
+    rows keep them), "diagnostics_notes"}, of the ``groups`` (of FIGURE_GROUPS) asked for."""
+    out: dict[str, Any] = {}
     with phase("figures"):
-        field = pareto_field(rows)
-        out: dict[str, Any] = {"field": field, "work_precision": None, "drift": None, "drift_notes": [],
-                               "diagnostics": None, "diagnostics_notes": [], "work_precision_instructions": None}
-        if field:
-            out["work_precision"] = work_precision_svg(rows, field, style)
-            if any(positive(r.get("instructions")) for r in rows):  # a run with --cost instructions
-                out["work_precision_instructions"] = work_precision_svg(rows, field, style, "instructions")
-        if drift:
-            out["drift"], out["drift_notes"] = drift_svg(rows, style)
-            if any(r.get("diag_curves") for r in rows):
-                out["diagnostics"], out["diagnostics_notes"] = drift_svg(rows, style, "diagnostic")
+        if "work_precision" in groups:
+            field = pareto_field(rows)
+            out.update({"field": field, "work_precision": None, "work_precision_instructions": None})
+            if field:
+                out["work_precision"] = work_precision_svg(rows, field, style)
+                if any(positive(r.get("instructions")) for r in rows):  # a run with --cost instructions
+                    out["work_precision_instructions"] = work_precision_svg(rows, field, style, "instructions")
+        if "drift" in groups:
+            out.update({"drift": None, "drift_notes": [], "diagnostics": None, "diagnostics_notes": []})
+            if drift:
+                out["drift"], out["drift_notes"] = drift_svg(rows, style)
+                if any(r.get("diag_curves") for r in rows):
+                    out["diagnostics"], out["diagnostics_notes"] = drift_svg(rows, style, "diagnostic")
     return out
 
 
-def all_figures(by_problem: dict[str, list[dict]], style: dict, drift: bool, jobs: int,
-                 stability: dict[str, list | None], ahead: Any = None
-                 ) -> tuple[dict[str, dict], dict[str, str]]:
-    """problem_figures of every problem, and the interval texts of the ``stability`` schemes
-    (measured where not cached), on ``jobs`` processes: matplotlib spends about a third of a
-    second a figure, and a scheme's stability interval about a second when not cached, all of
-    it in Python, so only processes run them side by side. Figures ``ahead`` drew from the
-    same rows and styles are taken as they are, and the intervals it found at the same N."""
+@contextlib.contextmanager
+def figures_drawing(by_problem: dict[str, list[dict]], style: dict, drift: bool, jobs: int,
+                    stability: dict[str, list | None], ahead: Any = None
+                    ) -> Iterator[Callable[[], tuple[dict[str, dict], dict[str, str]]]]:
+    """Start problem_figures of every problem, and the interval texts of the ``stability``
+    schemes (measured where not cached); yield the function that returns them ({problem:
+    figures}, {scheme: text}), so that the caller does its own work meanwhile. The groups of
+    figures ``ahead`` drew from the same inputs (``figure_inputs``) are taken as they are, and
+    the intervals it found at the same N. matplotlib spends about a third of a second a
+    figure, and a scheme's stability interval about a second when not cached, all of it in
+    Python, so only processes run them beside the caller: up to ``jobs`` of them, where the
+    work outweighs their start-up; else the returned function does the work itself."""
     from longtime.measure.stability import cached_texts, interval_texts
 
-    figures = {}
+    figures, todo = {}, {}
     for p, rows in by_problem.items():
-        found = ahead.figures(p, rows, style, drift) if ahead is not None else None
-        if found is not None:
-            figures[p] = found
-    todo = {p: rows for p, rows in by_problem.items() if p not in figures}
+        figures[p] = (ahead.figures(p, rows, style, drift) if ahead is not None else None) or {}
+        groups = tuple(g for g, fields in FIGURE_GROUPS.items() if not all(f in figures[p] for f in fields))
+        if groups:
+            todo[p] = (rows, groups)
     texts = {s: ahead.interval(s, o) for s, o in stability.items()} if ahead is not None else {}
     texts = {s: text for s, text in texts.items() if text is not None}
     found, missing = cached_texts({s: o for s, o in stability.items() if s not in texts})
     texts.update(found)
-    if jobs <= 1 or len(todo) + len(missing) < 4:
-        figures.update({p: problem_figures(rows, style, drift) for p, rows in todo.items()})
-        texts.update(interval_texts(missing, compute=True))
-        return figures, texts
+    # the work in seconds, as a process's start-up is: a problem's drift figures (one to a
+    # dozen panels) cost a few work-precision figures
+    work = INTERVAL_S * len(missing) + sum(FIGURE_S * (1 + DRIFT_FIGURES * ("drift" in g)) for _, g in todo.values())
+    # a process where it has at least twice its start-up to do
+    processes = 0 if jobs <= 1 or work < POOL_START_S else min(jobs, math.ceil(work / (2 * POOL_START_S)))
+    if not processes:
+        def here():
+            for p, (rows, groups) in todo.items():
+                figures[p].update(problem_figures(rows, style, drift, groups))
+            texts.update(interval_texts(missing, compute=True))
+            return figures, texts
+
+        yield here
+        return
     from longtime.execution.pool import spawn_pool
 
-    with spawn_pool(jobs) as pool:
+    with spawn_pool(processes) as pool:
         intervals = [pool.submit(interval_texts, {s: o}, True) for s, o in missing.items()]
-        drawn = {p: pool.submit(problem_figures, rows, style, drift) for p, rows in todo.items()}
-        for f in intervals:
-            texts.update(f.result())
-        figures.update({p: f.result() for p, f in drawn.items()})
-        return figures, texts
+        drawn = {p: pool.submit(problem_figures, rows, style, drift, groups) for p, (rows, groups) in todo.items()}
+
+        def collected():
+            for f in intervals:
+                texts.update(f.result())
+            for p, f in drawn.items():
+                figures[p].update(f.result())
+            return figures, texts
+
+        yield collected
 
 
 def calibration_svg(points: list[dict[str, Any]]) -> str | None:

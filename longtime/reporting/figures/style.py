@@ -6,7 +6,7 @@ from __future__ import annotations
 import io
 from typing import Sequence
 
-from longtime.reporting.figures import plain_log_ticks, pyplot
+from longtime.reporting.figures import collect_minor_ticks, plain_log_ticks, pyplot
 
 LINE_STYLES = ("-", "--", ":", "-.")
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "*", "h")
@@ -56,6 +56,7 @@ def svg(fig) -> str:
 
     for ax in fig.axes:
         plain_log_ticks(ax)
+    collect_minor_ticks(fig)
     x0, y0, x1, y1 = fig.get_tightbbox(fig.canvas.get_renderer()).extents
     box = Bbox.from_extents(x0 - 0.1, y0 - 0.1, x1 + 0.3, y1 + 0.1)  # inches
     buf = io.StringIO()

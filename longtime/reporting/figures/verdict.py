@@ -41,6 +41,7 @@ def winner_map_svg(v: Verdict) -> str | None:
     """The winner map of one problem's verdict, as inline SVG (None without a map)."""
     if not v.grid or not v.targets:
         return None
+    from matplotlib.collections import LineCollection, PolyCollection
     from matplotlib.patches import Patch
 
     targets = sorted(v.targets)  # ascending: the finest at the bottom
@@ -50,19 +51,22 @@ def winner_map_svg(v: Verdict) -> str | None:
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(1.0 + 1.1 * len(horizons), 0.8 + 0.3 * len(targets)))
     xe, ye = _edges(horizons), _edges(targets)
+    cells, fills = [], []  # the cells as one collection, the edges between them as two
     for i, t in enumerate(targets):
         for j, h in enumerate(horizons):
             d = v.grid[(t, h)]
-            colour = colours[d.best.scheme] if d.best is not None else (UNDETERMINED if d.open else NONE)
-            ax.fill_between([xe[j], xe[j + 1]], ye[i], ye[i + 1], color=colour, lw=0)
+            cells.append([(xe[j], ye[i]), (xe[j + 1], ye[i]), (xe[j + 1], ye[i + 1]), (xe[j], ye[i + 1])])
+            fills.append(colours[d.best.scheme] if d.best is not None else (UNDETERMINED if d.open else NONE))
             if d.best is not None:
                 text = setting(d.best.row) or d.best.scheme
+                # inside its cell, hence inside the axes: the layout need not measure it
                 ax.text(math.sqrt(xe[j] * xe[j + 1]), math.sqrt(ye[i] * ye[i + 1]), text, ha="center",
-                        va="center", fontsize=6.5, color="#111")
-    for x in xe:
-        ax.axvline(x, color="white", lw=0.6)
-    for y in ye:
-        ax.axhline(y, color="white", lw=0.6)
+                        va="center", fontsize=6.5, color="#111").set_in_layout(False)
+    ax.add_collection(PolyCollection(cells, facecolors=fills, linewidths=0, zorder=1), autolim=False)
+    ax.add_collection(LineCollection([[(x, 0), (x, 1)] for x in xe], colors="white", linewidths=0.6, zorder=2,
+                                     transform=ax.get_xaxis_transform()), autolim=False)
+    ax.add_collection(LineCollection([[(0, y), (1, y)] for y in ye], colors="white", linewidths=0.6, zorder=2,
+                                     transform=ax.get_yaxis_transform()), autolim=False)
     ax.axvline(v.t_main, color="#333", lw=1.0, ls="--")
     ax.set_xscale("log")
     ax.set_yscale("log")
