@@ -166,7 +166,7 @@ VERSIONS = [("baseline RK4", version(0, "6.0", False)),
             ("less accurate: a weight's denominator mistyped", version(REPEAT, MISTYPED_SIX, True))]
 SLOWER, LESS_ACCURATE, REVERT = 3, 4, 5
 HOG = "while 1: pass"
-TIME_NAMES = ("time_integrate", "track_cpu_s", "track_instructions")
+TIME_NAMES = ("time_integrate", "track_cpu_s", "track_cpu_ratio", "track_instructions")
 ACCURACY_NAMES = ("track_l2_error", "track_drift", "track_growth_class")
 
 
@@ -274,9 +274,10 @@ def check(found: dict[str, str], expect: dict[str, str], anchor: str, accuracy: 
 def expected_asv(scheme: str, k: int) -> dict[str, str]:
     if scheme != "author-rk4":
         return {}
-    return {SLOWER: {"time_integrate": "+", "track_cpu_s": "+", "track_instructions": "+"},
+    return {SLOWER: {"time_integrate": "+", "track_cpu_s": "+", "track_cpu_ratio": "+", "track_instructions": "+"},
             LESS_ACCURATE: {"track_l2_error": "+"},
-            REVERT: {"time_integrate": "-", "track_cpu_s": "-", "track_instructions": "-", "track_l2_error": "-"}}.get(k, {})
+            REVERT: {"time_integrate": "-", "track_cpu_s": "-", "track_cpu_ratio": "-", "track_instructions": "-",
+                     "track_l2_error": "-"}}.get(k, {})
 
 
 def expected_history(scheme: str, k: int, counted: bool) -> dict[str, str]:
@@ -375,6 +376,7 @@ def main() -> int:
             print(f"commit {k}: no asv result names {sha[:8]}")
             bad += 1
     print(f"{'commit':8s} {'cell':22s} {'asv compare (vs the commit before)':58s} history")
+    tally: dict[str, list[bool]] = {}  # per asv time benchmark: each judgement right or not
     for cell in history:
         c = cell["cell"]
         problem, scheme = c["problem"], c["integrator"]
@@ -405,6 +407,9 @@ def main() -> int:
             print(f"{k:<8d} {problem + ' ' + scheme:22s} {shown_a:58s} {shown_h}   [asv {ratios}]"
                   + (f"  WRONG: {'; '.join(wrong)}" if wrong else ""))
             bad += bool(wrong)
+            for b in TIME_NAMES:
+                tally.setdefault(b, []).append(a.get(b) == expected_asv(scheme, k).get(b))
+    print("asv time verdicts right: " + ", ".join(f"{b} {sum(v)}/{len(v)}" for b, v in tally.items()))
     print(f"{bad} wrong; commands and their output in {tmp / 'commands.log'}")
     if not (args.keep or args.judge) and not bad:
         shutil.rmtree(tmp, ignore_errors=True)

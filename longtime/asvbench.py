@@ -217,4 +217,55 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
         "params": params, "param_names": names, "setup_cache": cost_cache, "setup": cost_setup,
         "track_instructions": track_instructions, "timeout": 3600,
         "__doc__": "Instructions of each cell's integration, all cells counted in one Valgrind process."})
-    return {integration.__name__: integration, accuracy.__name__: accuracy, cost.__name__: cost}
+    def speed_cache(self):
+        import sys
+
+        from longtime.core.integrator import Timing
+        from longtime.execution.cells import DEFAULT_MAX_SAMPLES
+        from longtime.execution.processes import DEFAULT_PROCESSES, START_S, SPREAD_S, run_children
+
+        cells, labels = [], []
+        for p, s, (label, point) in itertools.product(pnames, inames, combos):
+            try:
+                cells.append(_cell(p, s, point, t_final))
+            except NotImplementedError:
+                continue
+            labels.append(f"{p}|{s}|{label}")
+        results = run_children(cells, DEFAULT_PROCESSES, DEFAULT_MAX_SAMPLES, Timing(repeats=3), 1,
+                               START_S + 60 * SPREAD_S, None, None, paired=True)
+        out = {}
+        for k, label in enumerate(labels):
+            records = [res[k] for res, _ in results if res is not None and res[k].get("status") == "ok"]
+            ratios = [r["cpu_ratio"] for r in records if r.get("cpu_ratio") == r.get("cpu_ratio")]
+            why = "; ".join(err or res[k].get("message") or res[k].get("status") for res, err in results
+                            if res is None or res[k].get("status") != "ok")
+            out[label] = {"cpu_ratio": min(ratios) if ratios else None, "processes": ratios, "why": why}
+            # the ratio of each timing process, read back in asv's log (asv run --show-stderr)
+            print(f"longtime: {label} cpu ratio per process: " + " ".join(f"{r:.4g}" for r in ratios)
+                  + (f" ({why})" if why else ""), file=sys.stderr)
+        return out
+
+    def speed_setup(self, ratios, problem, scheme, setting):
+        found = ratios.get(f"{problem}|{scheme}|{setting}")
+        if found is None:
+            raise NotImplementedError(f"{scheme} cannot run {problem}")
+        if found["cpu_ratio"] is None:
+            raise NotImplementedError(found["why"] or "not timed")
+
+    def track_cpu_ratio(self, ratios, problem, scheme, setting):
+        return ratios[f"{problem}|{scheme}|{setting}"]["cpu_ratio"]
+
+    track_cpu_ratio.unit = "x reference"
+    track_cpu_ratio.__doc__ = (
+        "CPU time of the integration in units of the calibration's reference workload, timed in pairs "
+        "(one run of the integration, then one of the reference) over longtime's SPREAD_S seconds in each of "
+        "DEFAULT_PROCESSES fresh processes: each process's ratio of the minima, the smallest over the processes "
+        "(longtime.execution.processes.paired_ratio). The time to judge a change of speed by: the load and the "
+        "core's speed between two commits' runs divide out, and a slow moment of the machine has to cover "
+        "every process's seconds to move it.")
+    speed = type(f"{prefix}Speed", (), {
+        "params": params, "param_names": names, "setup_cache": speed_cache, "setup": speed_setup,
+        "track_cpu_ratio": track_cpu_ratio, "timeout": 1800,
+        "__doc__": "The integration's CPU time against a reference workload timed beside it, in fresh processes."})
+    return {integration.__name__: integration, accuracy.__name__: accuracy, cost.__name__: cost,
+            speed.__name__: speed}
