@@ -5,7 +5,7 @@ In the repository's ``benchmarks/`` (``longtime asv-init DIR`` writes one), a mo
     from longtime.asvbench import benchmarks
     globals().update(benchmarks(["kepler"], ["my-scheme"], dt=[0.01, 0.005]))
 
-and asv finds three parametrized classes (problem x scheme x setting, every parameter
+and asv finds four parametrized classes (problem x scheme x setting, every parameter
 a value or a list, as ``longtime.sweep`` takes them):
 
 - ``Integration.time_integrate``: the integration alone (its kernel compiled in setup),
@@ -20,6 +20,17 @@ a value or a list, as ``longtime.sweep`` takes them):
   whose median a slow moment of the machine (it comes and goes within a second or two on a
   shared virtual machine) can move by more than a slowdown; this minimum holds within a
   few percent across invocations (docs/performance.md, "Two speeds");
+- ``Speed.track_cpu_ratio``: the integration's CPU time in units of the calibration's
+  reference workload (longtime.execution.calibration), the two timed in pairs (one run of
+  the integration, then one of the reference) over ``SPREAD_S`` seconds in each of
+  ``DEFAULT_PROCESSES`` fresh processes (``setup_cache``): each process's ratio of the
+  minima, the smallest over the processes (longtime.execution.processes.paired_ratio).
+  Judge a change of speed by this one: asv compares two commits' values by a fixed factor
+  (1.1) from runs minutes apart, and the load and the core's speed change between them;
+  the reference timed beside the integration divides them out, and a slow moment of the
+  machine must cover every process's seconds to move the minimum (docs/performance.md,
+  "A time asv can judge"). ``time_integrate`` and ``track_cpu_s`` stay, in seconds, for
+  the size of a change and for the history asv already holds;
 - ``Cost.track_instructions``: the instructions of the integration alone, counted under
   Valgrind (``--cost instructions``; all cells in one Valgrind process, in
   ``setup_cache``). The count is deterministic: a ratio between two commits is the code's,
