@@ -229,8 +229,6 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
         "track_instructions": track_instructions, "timeout": 3600,
         "__doc__": "Instructions of each cell's integration, all cells counted in one Valgrind process."})
     def speed_cache(self):
-        import sys
-
         from longtime.core.integrator import Timing
         from longtime.execution.cells import DEFAULT_MAX_SAMPLES
         from longtime.execution.processes import DEFAULT_PROCESSES, START_S, SPREAD_S, run_children
@@ -247,13 +245,11 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
         out = {}
         for k, label in enumerate(labels):
             records = [res[k] for res, _ in results if res is not None and res[k].get("status") == "ok"]
-            ratios = [r["cpu_ratio"] for r in records if r.get("cpu_ratio") == r.get("cpu_ratio")]
+            ratios = [r["cpu_ratio"] for r in records if not math.isnan(r.get("cpu_ratio", math.nan))]
             why = "; ".join(err or res[k].get("message") or res[k].get("status") for res, err in results
                             if res is None or res[k].get("status") != "ok")
+            # each process's ratio is kept beside the track (the smallest) for a reader of the cache
             out[label] = {"cpu_ratio": min(ratios) if ratios else None, "processes": ratios, "why": why}
-            # the ratio of each timing process, read back in asv's log (asv run --show-stderr)
-            print(f"longtime: {label} cpu ratio per process: " + " ".join(f"{r:.4g}" for r in ratios)
-                  + (f" ({why})" if why else ""), file=sys.stderr)
         return out
 
     def speed_setup(self, ratios, problem, scheme, setting):
