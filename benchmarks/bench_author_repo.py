@@ -25,7 +25,9 @@ commit; asv's suite counts the instructions in any case). Then ``asv compare`` b
 successive commits (asv's
 default factor 1.1 and its significance test) and ``longtime history`` over the store say
 what changed. Per commit and cell, the script prints what each flagged and exits 1 where a
-flag is wrong or missing: slower / more instructions at 3 and faster / fewer at 5 only;
+flag is wrong or missing: slower / more instructions at 3 and faster / fewer at 5 only
+(asv's time_integrate, track_cpu_s, track_cpu_ratio and track_instructions each; a last
+line counts each one's right verdicts);
 less accurate (l2_error) at 4 and more accurate at 5 only (other error fields may follow
 l2_error there, never elsewhere); nothing for verlet, longtime's own scheme in the same
 suite; every asv result and every stored run names the author's commit.
