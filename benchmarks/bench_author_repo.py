@@ -25,7 +25,9 @@ commit; asv's suite counts the instructions in any case). Then ``asv compare`` b
 successive commits (asv's
 default factor 1.1 and its significance test) and ``longtime history`` over the store say
 what changed. Per commit and cell, the script prints what each flagged and exits 1 where a
-flag is wrong or missing: slower / more instructions at 3 and faster / fewer at 5 only;
+flag is wrong or missing: slower / more instructions at 3 and faster / fewer at 5 only
+(asv's time_integrate, track_cpu_s, track_cpu_ratio and track_instructions each; a last
+line counts each one's right verdicts);
 less accurate (l2_error) at 4 and more accurate at 5 only (other error fields may follow
 l2_error there, never elsewhere); nothing for verlet, longtime's own scheme in the same
 suite; every asv result and every stored run names the author's commit.
@@ -166,7 +168,7 @@ VERSIONS = [("baseline RK4", version(0, "6.0", False)),
             ("less accurate: a weight's denominator mistyped", version(REPEAT, MISTYPED_SIX, True))]
 SLOWER, LESS_ACCURATE, REVERT = 3, 4, 5
 HOG = "while 1: pass"
-TIME_NAMES = ("time_integrate", "track_cpu_s", "track_instructions")
+TIME_NAMES = ("time_integrate", "track_cpu_s", "track_cpu_ratio", "track_instructions")
 ACCURACY_NAMES = ("track_l2_error", "track_drift", "track_growth_class")
 
 
@@ -274,9 +276,10 @@ def check(found: dict[str, str], expect: dict[str, str], anchor: str, accuracy: 
 def expected_asv(scheme: str, k: int) -> dict[str, str]:
     if scheme != "author-rk4":
         return {}
-    return {SLOWER: {"time_integrate": "+", "track_cpu_s": "+", "track_instructions": "+"},
+    return {SLOWER: {"time_integrate": "+", "track_cpu_s": "+", "track_cpu_ratio": "+", "track_instructions": "+"},
             LESS_ACCURATE: {"track_l2_error": "+"},
-            REVERT: {"time_integrate": "-", "track_cpu_s": "-", "track_instructions": "-", "track_l2_error": "-"}}.get(k, {})
+            REVERT: {"time_integrate": "-", "track_cpu_s": "-", "track_cpu_ratio": "-", "track_instructions": "-",
+                     "track_l2_error": "-"}}.get(k, {})
 
 
 def expected_history(scheme: str, k: int, counted: bool) -> dict[str, str]:
@@ -375,6 +378,7 @@ def main() -> int:
             print(f"commit {k}: no asv result names {sha[:8]}")
             bad += 1
     print(f"{'commit':8s} {'cell':22s} {'asv compare (vs the commit before)':58s} history")
+    tally: dict[str, list[bool]] = {}  # per asv time benchmark: each judgement right or not
     for cell in history:
         c = cell["cell"]
         problem, scheme = c["problem"], c["integrator"]
@@ -405,6 +409,9 @@ def main() -> int:
             print(f"{k:<8d} {problem + ' ' + scheme:22s} {shown_a:58s} {shown_h}   [asv {ratios}]"
                   + (f"  WRONG: {'; '.join(wrong)}" if wrong else ""))
             bad += bool(wrong)
+            for b in TIME_NAMES:
+                tally.setdefault(b, []).append(a.get(b) == expected_asv(scheme, k).get(b))
+    print("asv time verdicts right: " + ", ".join(f"{b} {sum(v)}/{len(v)}" for b, v in tally.items()))
     print(f"{bad} wrong; commands and their output in {tmp / 'commands.log'}")
     if not (args.keep or args.judge) and not bad:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -5,7 +5,7 @@ In the repository's ``benchmarks/`` (``longtime asv-init DIR`` writes one), a mo
     from longtime.asvbench import benchmarks
     globals().update(benchmarks(["kepler"], ["my-scheme"], dt=[0.01, 0.005]))
 
-and asv finds three parametrized classes (problem x scheme x setting, every parameter
+and asv finds four parametrized classes (problem x scheme x setting, every parameter
 a value or a list, as ``longtime.sweep`` takes them):
 
 - ``Integration.time_integrate``: the integration alone (its kernel compiled in setup),
@@ -20,6 +20,17 @@ a value or a list, as ``longtime.sweep`` takes them):
   whose median a slow moment of the machine (it comes and goes within a second or two on a
   shared virtual machine) can move by more than a slowdown; this minimum holds within a
   few percent across invocations (docs/performance.md, "Two speeds");
+- ``Speed.track_cpu_ratio``: the integration's CPU time in units of the calibration's
+  reference workload (longtime.execution.calibration), the two timed in pairs (one run of
+  the integration, then one of the reference) over ``SPREAD_S`` seconds in each of
+  ``DEFAULT_PROCESSES`` fresh processes (``setup_cache``): each process's ratio of the
+  minima, the smallest over the processes (longtime.execution.processes.paired_ratio).
+  Judge a change of speed by this one: asv compares two commits' values by a fixed factor
+  (1.1) from runs minutes apart, and the load and the core's speed change between them;
+  the reference timed beside the integration divides them out, and a slow moment of the
+  machine must cover every process's seconds to move the minimum (docs/performance.md,
+  "A time asv can judge"). ``time_integrate`` and ``track_cpu_s`` stay, in seconds, for
+  the size of a change and for the history asv already holds;
 - ``Cost.track_instructions``: the instructions of the integration alone, counted under
   Valgrind (``--cost instructions``; all cells in one Valgrind process, in
   ``setup_cache``). The count is deterministic: a ratio between two commits is the code's,
@@ -217,4 +228,51 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
         "params": params, "param_names": names, "setup_cache": cost_cache, "setup": cost_setup,
         "track_instructions": track_instructions, "timeout": 3600,
         "__doc__": "Instructions of each cell's integration, all cells counted in one Valgrind process."})
-    return {integration.__name__: integration, accuracy.__name__: accuracy, cost.__name__: cost}
+    def speed_cache(self):
+        from longtime.core.integrator import Timing
+        from longtime.execution.cells import DEFAULT_MAX_SAMPLES
+        from longtime.execution.processes import DEFAULT_PROCESSES, START_S, SPREAD_S, run_children
+
+        cells, labels = [], []
+        for p, s, (label, point) in itertools.product(pnames, inames, combos):
+            try:
+                cells.append(_cell(p, s, point, t_final))
+            except NotImplementedError:
+                continue
+            labels.append(f"{p}|{s}|{label}")
+        results = run_children(cells, DEFAULT_PROCESSES, DEFAULT_MAX_SAMPLES, Timing(repeats=3), 1,
+                               START_S + 60 * SPREAD_S, None, None, paired=True)
+        out = {}
+        for k, label in enumerate(labels):
+            records = [res[k] for res, _ in results if res is not None and res[k].get("status") == "ok"]
+            ratios = [r["cpu_ratio"] for r in records if not math.isnan(r.get("cpu_ratio", math.nan))]
+            why = "; ".join(err or res[k].get("message") or res[k].get("status") for res, err in results
+                            if res is None or res[k].get("status") != "ok")
+            # each process's ratio is kept beside the track (the smallest) for a reader of the cache
+            out[label] = {"cpu_ratio": min(ratios) if ratios else None, "processes": ratios, "why": why}
+        return out
+
+    def speed_setup(self, ratios, problem, scheme, setting):
+        found = ratios.get(f"{problem}|{scheme}|{setting}")
+        if found is None:
+            raise NotImplementedError(f"{scheme} cannot run {problem}")
+        if found["cpu_ratio"] is None:
+            raise NotImplementedError(found["why"] or "not timed")
+
+    def track_cpu_ratio(self, ratios, problem, scheme, setting):
+        return ratios[f"{problem}|{scheme}|{setting}"]["cpu_ratio"]
+
+    track_cpu_ratio.unit = "x reference"
+    track_cpu_ratio.__doc__ = (
+        "CPU time of the integration in units of the calibration's reference workload, timed in pairs "
+        "(one run of the integration, then one of the reference) over longtime's SPREAD_S seconds in each of "
+        "DEFAULT_PROCESSES fresh processes: each process's ratio of the minima, the smallest over the processes "
+        "(longtime.execution.processes.paired_ratio). The time to judge a change of speed by: the load and the "
+        "core's speed between two commits' runs divide out, and a slow moment of the machine has to cover "
+        "every process's seconds to move it.")
+    speed = type(f"{prefix}Speed", (), {
+        "params": params, "param_names": names, "setup_cache": speed_cache, "setup": speed_setup,
+        "track_cpu_ratio": track_cpu_ratio, "timeout": 1800,
+        "__doc__": "The integration's CPU time against a reference workload timed beside it, in fresh processes."})
+    return {integration.__name__: integration, accuracy.__name__: accuracy, cost.__name__: cost,
+            speed.__name__: speed}

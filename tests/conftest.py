@@ -38,6 +38,7 @@ SLOW_TESTS = {
     "test_bpl.py::test_bpl_exp_on_kdv_steps_past_bpls_cap",
     "test_api_input.py::test_a_script_without_main_guard_runs_its_sweep",
     "test_bench_author.py::test_versions_change_only_what_they_claim",
+    "test_asvbench.py::test_speed_tracks_a_ratio_per_cell_from_fresh_processes",
 }
 
 

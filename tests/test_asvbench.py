@@ -113,3 +113,123 @@ def test_growth_class_ranks_are_ratios_asv_can_judge():
     order = ["bounded", "sqrt", "linear", "quadratic", "faster", "saturated", "diverged"]
     assert [GROWTH_RANKS[c] for c in order] == sorted(GROWTH_RANKS.values())
     assert GROWTH_RANKS["linear"] / GROWTH_RANKS["bounded"] > 1.05  # a change of class is a step asv marks
+
+
+class _FakeRun:
+    """What time_cells reads of an integration: its status, times and digest."""
+
+    def __init__(self, cpu_s):
+        self.status, self.message, self.cpu_s, self.wall_s = "ok", None, cpu_s, cpu_s
+        self.extra = {"samples_digest": "same"}
+
+
+def _fake_cells(monkeypatch, runs, log):
+    """Cells whose integration is a fake: the n-th run of cell k logs ("cell", k) and
+    reports runs[k][n] (or, for a callable, what it returns) as its CPU seconds."""
+    from longtime.execution import processes
+
+    class Integrator:
+        def __init__(self, k):
+            self.k, self.n = k, 0
+
+        def integrate(self, problem, t_final, **kw):
+            log.append(("cell", self.k))
+            times = runs[self.k]
+            self.n += 1
+            return _FakeRun(times() if callable(times) else times[self.n - 1])
+
+    class Problem:
+        default_t_final = 1.0
+
+    made = iter(range(len(runs)))
+    monkeypatch.setattr(processes, "build", lambda cell: (Problem(), Integrator(next(made))))
+    return [processes.Cell("harmonic", "verlet", {}, {"dt": 0.1}, 1.0) for _ in runs]
+
+
+def test_paired_timing_alternates_cell_and_reference_and_takes_the_ratio_of_minima(monkeypatch):
+    from longtime.core.integrator import Timing
+    from longtime.execution import processes
+
+    log = []
+    refs = iter([1.0, 0.75, 1.0, 9.0, 9.0, 9.0])
+
+    def reference():
+        log.append(("reference",))
+        return next(refs)
+
+    # cell 0: pairs (3, 1), (1.5, 0.75), (3, 1): the pairs' ratios are 3, 2, 3 (median 3),
+    # the minima 1.5 and 0.75 (ratio 2)
+    cells = _fake_cells(monkeypatch, [[3.0, 1.5, 3.0]], log)
+    monkeypatch.setattr(processes, "SPREAD_S", 0.0)
+    (record,) = processes.time_cells(cells, 1000, Timing(repeats=3, min_time=0, min_runs=3), reference=reference)
+    assert log == [("cell", 0), ("reference",)] * 3  # each run of the cell followed by one of the reference
+    assert record["cpu_s_samples"] == [3.0, 1.5, 3.0] and record["reference_s_samples"] == [1.0, 0.75, 1.0]
+    assert record["cpu_ratio"] == 2.0
+    # two cells in rounds: each run paired with the reference run right after it
+    log.clear()
+    refs = iter([1.0, 2.0, 1.0, 2.0])
+    cells = _fake_cells(monkeypatch, [[1.0, 1.0], [4.0, 4.0]], log)
+    a, b = processes.time_cells(cells, 1000, Timing(repeats=2, min_time=0, min_runs=2), reference=reference)
+    assert log == [("cell", 0), ("reference",), ("cell", 1), ("reference",)] * 2
+    assert a["reference_s_samples"] == [1.0, 1.0] and b["reference_s_samples"] == [2.0, 2.0]
+    assert (a["cpu_ratio"], b["cpu_ratio"]) == (1.0, 2.0)
+    # no reference: no pairs and no ratio (the timing processes of longtime run)
+    log.clear()
+    cells = _fake_cells(monkeypatch, [[1.0, 1.0]], log)
+    (plain,) = processes.time_cells(cells, 1000, Timing(repeats=2, min_time=0, min_runs=2))
+    assert log == [("cell", 0)] * 2 and "cpu_ratio" not in plain and "reference_s_samples" not in plain
+
+
+def test_paired_ratio_is_the_ratio_of_minima_not_the_median_of_pair_ratios():
+    from longtime.execution.processes import paired_ratio
+
+    # a slow moment doubles two of the cell's runs and not the reference beside them
+    assert paired_ratio([2.0, 4.0, 4.1], [1.0, 1.0, 1.02]) == 2.0
+    assert paired_ratio([4.0, 2.0], [1.1, 1.0]) == 2.0
+    for cell, ref in (([], [1.0]), ([1.0], []), ([1.0], [0.0]), ([0.0], [1.0])):
+        assert math.isnan(paired_ratio(cell, ref))
+
+
+def test_twice_the_reference_work_has_a_ratio_of_about_two(monkeypatch):
+    """A cell that runs the reference workload twice, timed against it in pairs: about
+    2 (the same instructions in registers; loose bounds: the machine may be loaded)."""
+    import time
+
+    from longtime.core.integrator import Timing
+    from longtime.execution import calibration, processes
+
+    calibration.reference_workload(10, 0.01)
+
+    def twice():
+        c0 = time.process_time()
+        calibration.reference_workload(2 * calibration.STEPS, 0.01)
+        return time.process_time() - c0
+
+    cells = _fake_cells(monkeypatch, [twice], [])
+    monkeypatch.setattr(processes, "SPREAD_S", 0.5)
+    (record,) = processes.time_cells(cells, 1000, Timing(repeats=5, min_time=0, min_runs=5),
+                                     reference=calibration.reference_seconds)
+    assert len(record["cpu_s_samples"]) == len(record["reference_s_samples"]) >= 5
+    assert 1.6 < record["cpu_ratio"] < 2.5, record
+
+
+def test_speed_tracks_a_ratio_per_cell_from_fresh_processes(monkeypatch):
+    from longtime.execution import processes
+
+    monkeypatch.setattr(processes, "DEFAULT_PROCESSES", 2)
+    classes = benchmarks(["kepler", "linear-test"], ["verlet", "rk4"], dt=0.01, t_final=20)
+    assert set(classes) == {"Integration", "Accuracy", "Cost", "Speed"}
+    speed = classes["Speed"]
+    assert speed.track_cpu_ratio.unit == "x reference"
+    bench = speed()
+    ratios = bench.setup_cache()
+    assert "linear-test|verlet|dt=0.01" not in ratios  # a pair that cannot run: n/a in asv
+    with pytest.raises(NotImplementedError):
+        bench.setup(ratios, "linear-test", "verlet", "dt=0.01")
+    for key in ("kepler|verlet|dt=0.01", "kepler|rk4|dt=0.01"):
+        found = ratios[key]
+        assert len(found["processes"]) == 2 and found["cpu_ratio"] == min(found["processes"]) > 0
+    bench.setup(ratios, "kepler", "rk4", "dt=0.01")
+    # rk4 evaluates the force four times a step, Verlet once: more time against the same reference
+    assert bench.track_cpu_ratio(ratios, "kepler", "rk4", "dt=0.01") > bench.track_cpu_ratio(
+        ratios, "kepler", "verlet", "dt=0.01")

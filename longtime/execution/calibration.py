@@ -85,6 +85,14 @@ def memory_workload(a: np.ndarray, b: np.ndarray, passes: int) -> float:
     return b[0]
 
 
+def reference_seconds(steps: int = STEPS) -> float:
+    """CPU seconds of this process for one call of the reference workload over ``steps``
+    steps (loaded or compiled by an earlier call: ``measure`` makes one)."""
+    c0 = time.process_time()
+    reference_workload(steps, 0.01)
+    return time.process_time() - c0
+
+
 _ARRAYS: list[np.ndarray] = []
 
 
@@ -102,12 +110,8 @@ def measure(phase: str = "batch", repeats: int = REPEATS, steps: int = STEPS,
     loads or compiles it), then the memory workload ``memory_repeats`` times over
     ``memory_bytes`` (0: not timed)."""
     reference_workload(10, 0.01)
-    samples = []
     t = time.time()
-    for _ in range(repeats):
-        c0 = time.process_time()
-        reference_workload(steps, 0.01)
-        samples.append(time.process_time() - c0)
+    samples = [reference_seconds(steps) for _ in range(repeats)]
     point = {"t": t, "phase": phase, "pid": os.getpid(), "host": platform.node(), "steps": steps,
              "cpu_s": min(samples), "cpu_s_median": statistics.median(samples), "cpu_s_max": max(samples),
              "cpu_s_samples": samples}

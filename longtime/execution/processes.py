@@ -30,12 +30,13 @@ is not timed again.
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 from longtime.core import phases
 from longtime.core.integrator import Timing
@@ -81,11 +82,17 @@ def timed_elsewhere(row: dict[str, Any]) -> bool:
             and bool(row.get("samples_digest")) and isinstance(wall, (int, float)) and wall <= Timing.ONCE_ABOVE)
 
 
-def time_cells(cells: list[Cell], max_samples: int, timing: Timing,
-               time_limit: float | None = None) -> list[dict[str, Any]]:
+def time_cells(cells: list[Cell], max_samples: int, timing: Timing, time_limit: float | None = None,
+               reference: Callable[[], float] | None = None) -> list[dict[str, Any]]:
     """In this process, each cell's integration alone: per cell its ``cpu_s`` (the minimum),
     ``wall_s``, ``cpu_s_samples``, ``samples_digest``, ``status`` and ``pid``; a cell that
     raises gives ``status`` failed and its ``message``.
+
+    With ``reference`` (a baseline workload: a call runs it once and returns its CPU
+    seconds), each timed run of a cell is followed at once by one run of the baseline, so
+    the two meet the same moment of the machine; each record then has
+    ``reference_s_samples`` (the baseline's run after each of ``cpu_s_samples``) and
+    ``cpu_ratio`` (``paired_ratio``: the cell's time in units of the baseline's).
 
     The cells are timed in rounds, one run of each cell a round: a cell runs again while it
     has fewer than ``timing.least_runs``, while its timed total is under ``timing.min_time``
@@ -104,6 +111,8 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing,
             prepared.append((problem, integrator, t_final))
             out.append({"status": "ok", "message": None, "cpu_s_samples": [], "wall_s_samples": [],
                         "samples_digest": None, "pid": os.getpid()})
+            if reference is not None:
+                out[-1]["reference_s_samples"] = []
         except (Exception, SystemExit) as exc:
             prepared.append(None)
             out.append({"status": "failed", "message": f"{type(exc).__name__}: {exc}", "pid": os.getpid()})
@@ -138,12 +147,35 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing,
             record["samples_digest"] = digest
             record["cpu_s_samples"].append(float(traj.cpu_s))
             record["wall_s_samples"].append(float(traj.wall_s))
+            if reference is not None:
+                record["reference_s_samples"].append(float(reference()))
         rounds += 1
     for record in out:
         walls = record.pop("wall_s_samples", None)
         if record["status"] == "ok" and walls:
             record.update(cpu_s=min(record["cpu_s_samples"]), wall_s=min(walls))
+            if reference is not None:
+                record["cpu_ratio"] = paired_ratio(record["cpu_s_samples"], record["reference_s_samples"])
     return out
+
+
+def paired_ratio(cell_s: list[float], reference_s: list[float]) -> float:
+    """A cell's CPU time in units of a baseline's, from runs taken in pairs (one run of the
+    cell, then one of the baseline): the ratio of their minima.
+
+    The minimum of each, not the median of the pairs' ratios: the machine's slow moments
+    slow work that goes through the caches by up to twice while the compute-bound
+    reference workload does not move, and a scheme's kernel may be slowed more or less
+    than any baseline, so a pair's ratio rises with the moment and the median of the
+    ratios moves with the share of slow moments in the window (docs/performance.md, "A time
+    asv can judge": measured). The minimum of each side is its fastest, least disturbed
+    run, as ``cpu_s`` is; the pairs' spread over the same seconds gives both the same
+    moments to meet a fast one, and the ratio divides out the speed of the core (its clock
+    and what the host gives it) over the minutes between two commits' runs. NaN where
+    either side has no positive time."""
+    if not cell_s or not reference_s or not min(reference_s) > 0 or not min(cell_s) > 0:
+        return math.nan
+    return min(cell_s) / min(reference_s)
 
 
 def merge(row: dict[str, Any], others: list[dict[str, Any]], processes: int) -> None:
@@ -219,14 +251,17 @@ def across_processes(pairs: Iterable[tuple[Cell, dict[str, Any]]], processes: in
 
 
 def run_children(cells: list[Cell], count: int, max_samples: int, timing: Timing, jobs: int, timeout: float,
-                 time_limit: float | None, memory_limit: int | None) -> list[tuple[list[dict] | None, str]]:
+                 time_limit: float | None, memory_limit: int | None,
+                 paired: bool = False) -> list[tuple[list[dict] | None, str]]:
     """``count`` fresh interpreters, ``jobs`` at a time, each timing every cell of ``cells``
-    (``time_cells``): per child (its results, "") or (None, why it gave none)."""
+    (``time_cells``; ``paired``: each run followed by one of the calibration's reference
+    workload, ``calibration.reference_seconds``): per child (its results, "") or (None, why
+    it gave none)."""
     from longtime.execution.isolation import kill_group, write_session
 
     job = {"cells": [c.to_dict() for c in cells], "max_samples": max_samples, "parent": os.getpid(),
            "timing": {"repeats": timing.repeats, "min_time": timing.min_time, "min_runs": timing.min_runs},
-           "time_limit": time_limit, "memory_limit": memory_limit}
+           "time_limit": time_limit, "memory_limit": memory_limit, "paired": paired}
     waiting, running, done = list(range(count)), [], {}
     folders = []
     try:
@@ -286,8 +321,14 @@ def _child_main(folder: str) -> None:
     except Exception as exc:  # a registered class that cannot be rebuilt here: its cells fail alone
         print(f"longtime: the session's registered classes could not be restored: {exc!r}", file=sys.stderr)
     set_memory_limit(job.get("memory_limit"))
+    reference = None
+    if job.get("paired"):
+        from longtime.execution.calibration import reference_seconds, reference_workload
+
+        reference_workload(10, 0.01)  # loaded (or compiled) before the first timed call
+        reference = reference_seconds
     results = time_cells([Cell.from_dict(c) for c in job["cells"]], job["max_samples"], Timing(**job["timing"]),
-                         job.get("time_limit"))
+                         job.get("time_limit"), reference)
     tmp = path / "result.json.part"
     tmp.write_text(json.dumps(results))
     tmp.replace(path / "result.json")  # atomic: the parent never reads half a result

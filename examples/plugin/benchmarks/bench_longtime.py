@@ -1,7 +1,11 @@
 """asv benchmarks of example-forest-ruth, example-heun, example-midpoint on kepler, written by `longtime asv-init`.
 
-Integration.time_integrate times the integration alone; Cost.track_instructions counts
-its instructions under Valgrind (deterministic: a slowdown of the scheme shows on a loaded
+Judge a change of speed by Speed.track_cpu_ratio: the integration's CPU time in units of a
+reference workload timed beside it, in fresh processes, so that the load and the machine's
+speed between two commits' runs divide out. Integration.time_integrate and track_cpu_s
+give the time in seconds (its size; asv's fixed factor 1.1 between runs minutes apart
+misjudges them on a loaded machine). Cost.track_instructions counts the integration's
+instructions under Valgrind (deterministic: a slowdown of the scheme shows on a loaded
 machine too; Debian package valgrind, else n/a); Accuracy.track_l2_error, track_drift (the
 first invariant's maximum relative error) and track_growth_class (its growth class as a
 number: 1 bounded, 3 linear, ...) track the accuracy of each cell (see longtime.asvbench)."""
