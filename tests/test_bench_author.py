@@ -22,10 +22,10 @@ TABLE = """
 
 def test_asv_compare_table_is_read_per_cell():
     marks = bench.read_compare(TABLE)
-    assert marks[("harmonic", "author-rk4")] == {"time_integrate": "+", "time_integrate_ratio": "1.35",
-                                                 "track_instructions": "+", "track_instructions_ratio": "1.34"}
-    assert marks[("harmonic", "verlet")] == {"time_integrate_ratio": "~1.03"}  # not significant: no mark
-    assert marks[("duffing-2", "author-rk4")] == {"track_l2_error": "-", "track_l2_error_ratio": "0.02"}
+    assert marks[("harmonic", "author-rk4")] == {"time_integrate": "+", "time_integrate ratio": "1.35",
+                                                 "track_instructions": "+", "track_instructions ratio": "1.34"}
+    assert marks[("harmonic", "verlet")] == {"time_integrate ratio": "~1.03"}  # not significant: no mark
+    assert marks[("duffing-2", "author-rk4")] == {"track_l2_error": "-", "track_l2_error ratio": "0.02"}
     assert "track_growth_class" not in marks[("duffing-2", "verlet")]
 
 
@@ -40,6 +40,10 @@ def test_flags_are_checked_both_ways():
     slower = bench.expected_asv("author-rk4", bench.SLOWER)
     assert bench.check({**slower, "track_drift": "+"}, slower, "track_l2_error", accuracy)
     assert bench.expected_asv("verlet", bench.SLOWER) == {} and bench.expected_history("author-rk4", 2, True) == {}
+    # track_cpu_ratio is a benchmark, not a flag's ratio: a false flag on it is found, its ratio is not a flag
+    assert bench.check({"track_cpu_ratio": "+", "track_cpu_ratio ratio": "1.2"}, {}, "track_l2_error", accuracy) \
+        == ["track_cpu_ratio + not expected"]
+    assert bench.check({"track_cpu_ratio ratio": "1.01"}, {}, "track_l2_error", accuracy) == []
 
 
 def test_versions_change_only_what_they_claim(tmp_path):
