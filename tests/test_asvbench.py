@@ -6,6 +6,7 @@ import math
 import re
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -233,3 +234,15 @@ def test_speed_tracks_a_ratio_per_cell_from_fresh_processes(monkeypatch):
     # rk4 evaluates the force four times a step, Verlet once: more time against the same reference
     assert bench.track_cpu_ratio(ratios, "kepler", "rk4", "dt=0.01") > bench.track_cpu_ratio(
         ratios, "kepler", "verlet", "dt=0.01")
+
+
+def test_the_example_plugins_suite_is_what_asv_init_writes_for_it():
+    """examples/plugin/benchmarks/bench_longtime.py is the template's output for its cells:
+    a change of the template shows here until the example is written again."""
+    from longtime.commands.asv_init import BENCH_TEMPLATE
+
+    schemes = ["example-forest-ruth", "example-heun", "example-midpoint"]
+    expected = BENCH_TEMPLATE.format(what=f"{', '.join(schemes)} on kepler", problems=["kepler"], schemes=schemes,
+                                     settings={"dt": [0.01]}, t_final=None)
+    example = Path(__file__).resolve().parents[1] / "examples" / "plugin" / "benchmarks" / "bench_longtime.py"
+    assert example.read_text() == expected
