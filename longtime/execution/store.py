@@ -233,6 +233,9 @@ class Store:
             raise _Unsettled(f"store {self.path}: an empty file, not a longtime store; {refuse}")
         try:
             with closing(self._open_ro()) as con:
+                # one read transaction: the stamp, the tables and their columns from one snapshot,
+                # not the stamp from before another process's schema transaction and the tables after
+                con.execute("BEGIN")
                 app = con.execute("PRAGMA application_id").fetchone()[0]
                 version = con.execute("PRAGMA user_version").fetchone()[0]
                 tables = {r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
