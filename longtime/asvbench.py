@@ -138,20 +138,24 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
         "processes": DEFAULT_PROCESSES, "timer": time.process_time,
         "__doc__": "The integration of each cell alone (its kernel compiled in setup)."})
 
+    def runnable():
+        """(cell, "problem|scheme|setting") of each parameter combination a scheme can run."""
+        for p, s, (label, point) in itertools.product(pnames, inames, combos):
+            try:
+                cell = _cell(p, s, point, t_final)
+            except NotImplementedError:
+                continue
+            yield cell, f"{p}|{s}|{label}"
+
     def setup_cache(self):
         from longtime.core.integrator import Timing
         from longtime.execution.cells import run_cell
         from longtime.testing import accuracy_fields
 
         rows = {}
-        for p, s, (label, point) in itertools.product(pnames, inames, combos):
-            try:
-                cell = _cell(p, s, point, t_final)
-            except NotImplementedError:
-                continue
+        for cell, label in runnable():
             row = run_cell(cell, timing=Timing(repeats=1))
-            rows[f"{p}|{s}|{label}"] = {**accuracy_fields(row), "invariant": _first_invariant(row),
-                                        "message": row.get("message")}
+            rows[label] = {**accuracy_fields(row), "invariant": _first_invariant(row), "message": row.get("message")}
         return rows
 
     def acc_setup(self, rows, problem, scheme, setting):
@@ -198,13 +202,9 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
         from longtime.execution.valgrind import instruction_fields
 
         pairs, labels = [], {}
-        for p, s, (label, point) in itertools.product(pnames, inames, combos):
-            try:
-                cell = _cell(p, s, point, t_final)
-            except NotImplementedError:
-                continue
+        for cell, label in runnable():
             pairs.append((cell, run_cell(cell, timing=Timing(repeats=1))))  # fills the kernel cache
-            labels[cell.key] = f"{p}|{s}|{label}"
+            labels[cell.key] = label
         try:
             fields = instruction_fields(pairs, DEFAULT_MAX_SAMPLES, None)
         except InputError as exc:  # no Valgrind: every cell is skipped, saying why
@@ -234,12 +234,9 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
         from longtime.execution.processes import DEFAULT_PROCESSES, START_S, SPREAD_S, run_children
 
         cells, labels = [], []
-        for p, s, (label, point) in itertools.product(pnames, inames, combos):
-            try:
-                cells.append(_cell(p, s, point, t_final))
-            except NotImplementedError:
-                continue
-            labels.append(f"{p}|{s}|{label}")
+        for cell, label in runnable():
+            cells.append(cell)
+            labels.append(label)
         results = run_children(cells, DEFAULT_PROCESSES, DEFAULT_MAX_SAMPLES, Timing(repeats=3), 1,
                                START_S + 60 * SPREAD_S, None, None, paired=True)
         out = {}
