@@ -30,6 +30,7 @@ import os
 import sys
 import textwrap
 import types
+import weakref
 from typing import Any
 
 import numpy as np
@@ -43,6 +44,9 @@ from longtime.core.version import __version__
 
 _DECORATOR_OPTIONS = ("inline", "fastmath", "error_model", "boundscheck")
 _MODULES: dict[str, types.ModuleType] = {}
+# fingerprints by the object they describe, once a process: a kernel's closure is described
+# when its loop is found, again in its generated module's header and in numba's cache key
+_FINGERPRINTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 class Unfreezable(Exception):
@@ -112,10 +116,20 @@ def fingerprint(value: Any) -> str:
     its helpers), every value they close over (numbers, tuples, arrays by dtype, shape and
     bytes), their compile options and the package version. Equal in every process: no
     ids, addresses or set order go in. Raises Unfreezable for a value it cannot describe
-    (an arbitrary object), whose kernel must then not be shared."""
+    (an arbitrary object), whose kernel must then not be shared. Computed once per object
+    and process: what a compiled function closes over is fixed once it is compiled."""
+    try:
+        return _FINGERPRINTS[value]
+    except (KeyError, TypeError):  # not seen yet, or not an object a weak reference can name
+        pass
     chunks: list[bytes | str] = [f"longtime {__version__}"]
     _describe(value, chunks, {})
-    return digest(*chunks)
+    found = digest(*chunks)
+    try:
+        _FINGERPRINTS[value] = found
+    except TypeError:
+        pass
+    return found
 
 
 def _describe(value: Any, out: list, seen: dict[int, int]) -> None:
@@ -207,12 +221,7 @@ def _generate(dispatcher) -> str:
     fn = dispatcher.py_func
     if fn.__closure__ is None and _is_module_level(fn):
         raise Unfreezable("already a module-level function")
-    linecache.checkcache(fn.__code__.co_filename)
-    source = textwrap.dedent(inspect.getsource(fn))
-    lines = source.splitlines()
-    start = next(i for i, line in enumerate(lines) if line.lstrip().startswith("def "))
-    body = "\n".join(lines[start:])
-    _check_same_function(fn, body)
+    body = _function_body(fn.__code__)
     options = {k: v for k, v in dispatcher.targetoptions.items() if k in _DECORATOR_OPTIONS}
     decorator = "@numba.njit(" + ", ".join(["cache=True"] + [f"{k}={_literal(v)}" for k, v in options.items()]) + ")"
 
@@ -230,12 +239,25 @@ def _generate(dispatcher) -> str:
     return header + "\n".join(sorted(imports) + bindings) + f"\n\n\n{decorator}\n{body}\n"
 
 
-def _check_same_function(fn, body: str) -> None:
+@functools.lru_cache(maxsize=None)
+def _function_body(code: types.CodeType) -> str:
+    """The source of the function whose code is ``code``, from its ``def`` line, checked
+    against the code; once per code object and process (every closure a factory makes
+    shares its code, and reading a function's source tokenises its file)."""
+    linecache.checkcache(code.co_filename)
+    source = textwrap.dedent(inspect.getsource(code))
+    lines = source.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.lstrip().startswith("def "))
+    body = "\n".join(lines[start:])
+    _check_same_function(code, body)
+    return body
+
+
+def _check_same_function(old: types.CodeType, body: str) -> None:
     """The source text must be the running function's: a file edited after import (or a
     source lookup that lands on another function) would otherwise freeze the wrong code."""
     module_code = compile(body, "<kernel>", "exec")
     new = next((c for c in module_code.co_consts if isinstance(c, types.CodeType)), None)
-    old = fn.__code__
     if (
         new is None
         or new.co_name != old.co_name
@@ -245,7 +267,7 @@ def _check_same_function(fn, body: str) -> None:
         or [c for c in new.co_consts if not isinstance(c, types.CodeType)]
         != [c for c in old.co_consts if not isinstance(c, types.CodeType)]
     ):
-        raise Unfreezable(f"source of {fn.__qualname__} does not match its code")
+        raise Unfreezable(f"source of {old.co_qualname} does not match its code")
 
 
 def _load(text: str) -> types.ModuleType:
