@@ -57,6 +57,9 @@ COLD_GOAL_S = 120.0
 WARM_GOAL_S = 45.0
 RATIO_GOAL = 1.2  # a warm run's wall / (integration / cores)
 TOP_COMPILES = 15  # the costliest compiles listed
+HOLD = 1.15  # the cost issue's hold of a cell's cpu_s across invocations (max / min)
+# the hold table's bands: a cell's fastest cpu_s over the runs, seconds
+HOLD_BANDS = ((0.0, 0.01), (0.01, 0.067), (0.067, 0.25), (0.25, 1.0))
 # the breakdown's lines: (label, the phases it sums); "idle workers" is computed
 BREAKDOWN = (
     ("start-up (main process)", ("startup",)),
@@ -93,12 +96,49 @@ def longtime_command() -> str:
     return found
 
 
-def integration_core_s(store: Path) -> tuple[float, int]:
-    """Sum of every timed repeat's CPU seconds in ``store``, and its number of rows."""
+def stored_rows(store: Path) -> list[dict]:
     from longtime.execution.store import Store
 
-    rows = Store(str(store), readonly=True).rows()
-    return sum(sum(row.get("cpu_s_samples") or []) for row in rows), len(rows)
+    return Store(str(store), readonly=True).rows()
+
+
+def integration_core_s(rows: list[dict]) -> float:
+    """Sum of every timed repeat's CPU seconds in ``rows``."""
+    return sum(sum(row.get("cpu_s_samples") or []) for row in rows)
+
+
+def process_times(rows: list[dict]) -> dict[tuple, list[float]]:
+    """Each ok cell timed in several processes: its processes' minima, the row's own first."""
+    out = {}
+    for r in rows:
+        mins = r.get("cpu_s_processes") or []
+        if r.get("status") == "ok" and len(mins) > 1 and all(isinstance(m, (int, float)) and m > 0 for m in mins):
+            out[(r["problem"], r["integrator"], r.get("dt"), r.get("tol"), r.get("t_final"), r.get("settings"))] = mins
+    return out
+
+
+def hold_table(runs: list[dict[tuple, list[float]]]) -> list[str]:
+    """How a cell's CPU time holds across the runs (invocations of the same command): per band
+    of its fastest time, the median and 90th percentile over the cells of max / min across
+    the runs, and the share of cells beyond HOLD, for ``cpu_s`` (the minimum over its
+    processes), the row's own process alone and the fresh processes alone."""
+    import numpy as np
+
+    common = set.intersection(*(set(r) for r in runs))
+    ways = (("cpu_s (all processes)", min), ("the row's process", lambda m: m[0]),
+            ("the fresh processes", lambda m: min(m[1:])))
+    lines = [f"{'fastest cpu_s':16s} {'cells':>5s}" + "".join(f"  {name:>30s}" for name, _ in ways),
+             f"{'':22s}" + f"  {'median  p90  beyond x' + format(HOLD, 'g'):>30s}" * len(ways)]
+    for lo, hi in HOLD_BANDS:
+        keys = [k for k in common if lo <= min(min(r[k]) for r in runs) < hi]
+        if not keys:
+            continue
+        line = f"{f'{lo:g} to {hi:g} s':16s} {len(keys):5d}"
+        for _, way in ways:
+            spread = np.array([max(way(r[k]) for r in runs) / min(way(r[k]) for r in runs) for k in keys])
+            line += f"  {f'x{np.median(spread):.2f}  x{np.quantile(spread, 0.9):.2f}  {np.mean(spread > HOLD):6.0%}':>30s}"
+        lines.append(line)
+    return lines
 
 
 def breakdown(events: list[dict], workers: int, key: str = "s") -> dict[str, float]:
@@ -146,11 +186,11 @@ def run_job(folder: Path, env: dict[str, str], matrix_args: list[str], workers: 
                                  stdout=out, stderr=err)
         wall = time.perf_counter() - start
     store = folder / "longtime.sqlite"
-    integration, rows = integration_core_s(store) if store.exists() else (0.0, 0)
+    rows = stored_rows(store) if store.exists() else []
     events = read(str(folder / "phases"))
-    return {"wall": wall, "status": status, "integration": integration, "rows": rows,
+    return {"wall": wall, "status": status, "integration": integration_core_s(rows), "rows": len(rows),
             "phases": breakdown(events, workers), "cpu": breakdown(events, workers, "cpu"),
-            "compiles": compiles(events)}
+            "compiles": compiles(events), "times": process_times(rows)}
 
 
 def compiles(events: list[dict]) -> dict[str, float]:
@@ -228,6 +268,11 @@ def main(argv: list[str] | None = None) -> int:
                   f"({sum(s for _, s in top):.1f} of {total:.1f} s; phase: what it compiled for)")
             for what, s in top:
                 print(f"  {s:7.1f} s  {what}")
+    warm_times = [r["times"] for name, r in runs if name.startswith("warm") and r["times"]]
+    if len(warm_times) > 1:
+        print(f"\nhow each cell's CPU time held across the {len(warm_times)} warm runs (max / min over the runs; "
+              f"the cost issue's goal x{HOLD:g})")
+        print("\n".join(hold_table(warm_times)))
     if any(r["status"] != 0 for _, r in runs):
         print("a run failed: see its stderr.txt (--keep)")
         return 1
