@@ -184,15 +184,15 @@ def test_figures_drawn_ahead_serve_only_the_rows_they_were_drawn_from():
     cells = [Cell("harmonic", s, {}, {}, 10.0) for s in ("rk4", "verlet")]
     ahead = FiguresAhead(cells, run_id=7)
     ahead.add(cells[0], {"problem": "harmonic", "integrator": "rk4", "status": "ok", "cpu_s": 0.1})
-    fn, args, done = ahead.task()  # rk4's cells are all in: its stability interval, not yet the figures
-    assert fn.__name__ == "interval_texts" and args == ({"rk4": None}, True) and ahead.task() is None
+    fn, args, done = ahead.task()  # rk4's cells are all in: its interval and structure, not yet the figures
+    assert fn.__name__ == "scheme_ahead" and args == ("rk4", None) and ahead.task() is None
     done({"rk4": "[0, 2.83]"})
     assert ahead.interval("rk4", None) == "[0, 2.83]" and ahead.interval("rk4", [10]) is None
     ahead.add(cells[1], {"problem": "harmonic", "integrator": "verlet", "status": "ok", "cpu_s": 0.2})
     fn, (rows, style, drift, groups), done = ahead.task()
     assert fn.__name__ == "problem_figures" and [r["run_id"] for r in rows] == [7, 7]
     assert groups == ("work_precision", "drift")
-    assert ahead.task()[1] == ({"verlet": None}, True) and ahead.task() is None
+    assert ahead.task()[1] == ("verlet", None) and ahead.task() is None
     drawn = {f: f"<{f}>" for fields in FIGURE_GROUPS.values() for f in fields}
     done(drawn)
     assert ahead.figures("harmonic", rows, style, drift) == drawn
@@ -202,6 +202,20 @@ def test_figures_drawn_ahead_serve_only_the_rows_they_were_drawn_from():
     assert set(ahead.figures("harmonic", rows, {**style, "euler": {}}, drift)) == set(FIGURE_GROUPS["drift"])
     assert ahead.figures("harmonic", rows, {**style, "rk4": {"color": "#000000", "marker": "o"}}, drift) is None
     assert ahead.figures("kepler", rows, style, drift) is None
+
+
+def test_a_scheme_measured_ahead_leaves_its_interval_and_structure_in_the_caches(tmp_path, monkeypatch):
+    """What a pool worker measures ahead is what the page's card then reads without compiling."""
+    from longtime.measure import structure
+    from longtime.measure.stability import cached_texts
+    from longtime.reporting.figures_ahead import scheme_ahead
+
+    monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))
+    texts = scheme_ahead("verlet", None)
+    assert texts["verlet"] == cached_texts({"verlet": None})[0]["verlet"]
+    found = structure.measure("verlet")  # from the cache: the file the worker wrote
+    assert found.symplectic and found.reversible
+    assert list((tmp_path / "structure").glob("verlet-*.json"))
 
 
 def test_drift_figures_drawn_ahead_outlive_a_new_cpu_time_unless_it_changes_the_drawn_setting():

@@ -1,7 +1,8 @@
 """The results page's figures drawn ahead: while the matrix runs, a pool worker that has no
 cell left draws the figures of each problem whose cells are all stored, and measures the
-stability interval of each scheme whose cells are; the page takes what was drawn from the
-rows it shows."""
+stability interval and the step map's structure (its card's) of each scheme whose cells
+are; the page takes what was drawn from the rows it shows, and finds the rest in the
+caches."""
 from __future__ import annotations
 
 import json
@@ -41,12 +42,28 @@ def stability_schemes(rows: list[dict]) -> tuple[dict[str, list | None], dict[st
     return builtin, {s: o for s, o in schemes.items() if s not in builtin}
 
 
+def scheme_ahead(name: str, orders) -> dict[str, str]:
+    """A built-in scheme's stability interval at ``orders`` (its text by name) and its
+    structure on the canonical problem, each measured into its cache: on a cold machine each
+    compiles a step loop, which the page's card would otherwise compile in the main process
+    after the matrix."""
+    from longtime.measure import structure
+    from longtime.measure.stability import interval_texts
+
+    texts = interval_texts({name: orders}, True)
+    try:
+        structure.measure(name)
+    except Exception:  # the page's card measures it again and says why it could not
+        pass
+    return texts
+
+
 class FiguresAhead:
     """A page's figures drawn while the matrix still runs: each problem's as soon as its last
     cell is stored, by a pool worker that has no cell left to run (``task`` is the process
     pool's ``ExecOptions.idle_work``; ``add`` sees each row as it is stored), and likewise a
-    built-in scheme's stability interval once its last cell is stored (measured into the
-    cache on a cold machine: about a second a scheme). The figures of a main job's last
+    built-in scheme's stability interval and structure once its last cell is stored (measured
+    into their caches on a cold machine: a second or two a scheme). The figures of a main job's last
     problems are then drawn beside its last cells instead of after them. The page takes a
     group of figures only if it was drawn from the very inputs it would draw it from
     (``figure_inputs``: a resumed run's page has older rows too), an interval only for the
@@ -81,7 +98,8 @@ class FiguresAhead:
 
     def task(self):
         """(a function, its arguments, where its result goes): the figures of a problem whose
-        rows are all in, or the stability interval of such a scheme; None when there is none."""
+        rows are all in, or the stability interval and structure of such a scheme; None when
+        there is none."""
         while self.ready:
             kind, name = self.ready.pop(0)
             if kind == "problem":
@@ -91,10 +109,8 @@ class FiguresAhead:
                     lambda figs: self.drawn.__setitem__(name, (inputs, figs))
             builtin, _ = stability_schemes(self.outcomes.pop(name))
             if name in builtin:  # a plugin's is read from the cache only (see stability_schemes)
-                from longtime.measure.stability import interval_texts
-
                 orders = builtin[name]
-                return interval_texts, ({name: orders}, True), \
+                return scheme_ahead, (name, orders), \
                     lambda texts: self.intervals.__setitem__(name, (orders, texts.get(name)))
         return None
 
