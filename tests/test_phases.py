@@ -51,3 +51,24 @@ def test_a_phase_counts_its_own_cpu_seconds_apart_from_its_wall_and_its_nested_p
     waiting, working = events["timing processes"], events["timing"]
     assert working["cpu"] >= 0.2 and working["cpu"] <= working["s"] + 0.05
     assert waiting["s"] >= 0.2 and waiting["cpu"] < 0.1  # the nested phase's CPU is not its own
+
+
+def test_the_hold_table_tells_the_row_process_from_the_fresh_ones():
+    """bench_main_job's hold table: cells whose row's process moved x1.3 between two runs while
+    their fresh processes held are beyond x1.15 for the row's process alone, not for cpu_s."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import bench_main_job
+
+    first = {("p", f"s{k}", 0.1, None, 10.0, ""): [0.005, 0.0051, 0.0052] for k in range(10)}
+    second = {key: [0.005 * 1.3, 0.00505, 0.0052] for key in first}
+    lines = bench_main_job.hold_table([first, second])
+    band = next(line for line in lines if line.startswith("0 to 0.01 s"))
+    cpu_s, row, fresh = band.split()[5:8], band.split()[8:11], band.split()[11:14]
+    assert band.split()[4] == "10"  # cells
+    assert cpu_s == ["x1.01", "x1.01", "0%"]  # the minimum moved from 5 to 5.05 ms
+    assert row == ["x1.30", "x1.30", "100%"]
+    assert fresh[2] == "0%"
+    assert not any(line.startswith("0.01 to") for line in lines)  # an empty band is left out
