@@ -267,7 +267,7 @@ def _check_same_function(old: types.CodeType, body: str) -> None:
         or [c for c in new.co_consts if not isinstance(c, types.CodeType)]
         != [c for c in old.co_consts if not isinstance(c, types.CodeType)]
     ):
-        raise Unfreezable(f"source of {old.co_qualname} does not match its code")
+        raise Unfreezable(f"source of {getattr(old, 'co_qualname', old.co_name)} does not match its code")
 
 
 def _load(text: str) -> types.ModuleType:
