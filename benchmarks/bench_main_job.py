@@ -97,6 +97,7 @@ def longtime_command() -> str:
 
 
 def stored_rows(store: Path) -> list[dict]:
+    """The rows of ``store``."""
     from longtime.execution.store import Store
 
     return Store(str(store), readonly=True).rows()
@@ -108,12 +109,15 @@ def integration_core_s(rows: list[dict]) -> float:
 
 
 def process_times(rows: list[dict]) -> dict[tuple, list[float]]:
-    """Each ok cell timed in several processes: its processes' minima, the row's own first."""
+    """Each ok cell timed in several processes, by the key `longtime compare` matches rows by:
+    its processes' minima, the row's own first."""
+    from longtime.reporting.compare import cell_key
+
     out = {}
     for r in rows:
         mins = r.get("cpu_s_processes") or []
         if r.get("status") == "ok" and len(mins) > 1 and all(isinstance(m, (int, float)) and m > 0 for m in mins):
-            out[(r["problem"], r["integrator"], r.get("dt"), r.get("tol"), r.get("t_final"), r.get("settings"))] = mins
+            out[cell_key(r)] = mins
     return out
 
 
