@@ -37,7 +37,9 @@ def test_heyoka_scheme_stops_at_the_cell_time_limit():
     assert row["status"] == "timeout", row["message"]
     assert "time limit reached at t=" in row["message"] and "--time-limit" in row["message"]
     assert 20.0 < row["t_reached"] < 60.0
-    assert row["steps"] > 1000 and row["cpu_s"] > 0.5  # what it did is measured, not zero
+    # what it did is measured, not zero (the limit is wall time: on a loaded machine the run's
+    # share of a core, and so its CPU time, can be a fraction of the limit)
+    assert row["steps"] > 1000 and row["cpu_s"] > 0.05
     assert took < 15.0  # the limit and the compile
 
 
