@@ -351,8 +351,10 @@ class Order:
         if self.value is None:
             return head + f"order undetermined ({self.reason})" + (
                 f", declared {self.declared}" if self.declared is not None else "")
-        text = head + f"observed order {self.value:.3f}"
-        text += f" +- {self.ci:.3f} (95 %)" if self.ci is not None else " (2 points: no interval)"
+        from longtime.measure.orders import local_slopes, order_text
+
+        text = head + "observed order (+- 95 %) " + order_text(self.value, self.ci, len(self.points),
+                                                               local_slopes(self.points), 3)
         text += f", declared {self.declared}" if self.declared is not None else ""
         if self.flag:
             text += " (MISSES the declared order beyond its interval and 0.1)"
