@@ -353,8 +353,8 @@ class Order:
                 f", declared {self.declared}" if self.declared is not None else "")
         from longtime.measure.orders import local_slopes, order_text
 
-        text = head + "observed order (+- 95 %) " + order_text(self.value, self.ci, len(self.points),
-                                                               local_slopes(self.points), 3)
+        text = head + "observed order " + order_text(self.value, self.ci, len(self.points),
+                                                     local_slopes(self.points), 3)  # +- its 95 % interval
         text += f", declared {self.declared}" if self.declared is not None else ""
         if self.flag:
             text += " (MISSES the declared order beyond its interval and 0.1)"
