@@ -313,8 +313,8 @@ def _missing(v: Any) -> bool:
 class Order:
     """The observed order of one sweep (one problem, one scheme, one final time and setting):
     ``value`` (the least-squares slope of log error against log step; None when no order
-    could be fitted, ``reason`` says why), ``ci`` its 95 % half-width (None from two
-    points), ``points`` the (step, error) pairs used, ``dropped`` the (step, error, why)
+    could be fitted, ``reason`` says why), ``ci`` its 95 % half-width (an order
+    needs 3 points), ``points`` the (step, error) pairs used, ``dropped`` the (step, error, why)
     pairs left out (floors, above 0.1, pre-asymptotic), ``declared`` the scheme's declared
     order and ``flag`` (a determined order misses it beyond its interval and 0.1; an
     undetermined one is never flagged), ``slopes`` the local slopes between successive
