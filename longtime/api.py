@@ -316,7 +316,8 @@ class Order:
     could be fitted, ``reason`` says why), ``ci`` its 95 % half-width (an order
     needs 3 points), ``points`` the (step, error) pairs used, ``dropped`` the (step, error, why)
     pairs left out (floors, above 0.1, pre-asymptotic), ``declared`` the scheme's declared
-    order and ``flag`` (a determined order misses it beyond its interval and 0.1; an
+    order and ``flag`` (a determined order misses it beyond its interval and 0.1, and its
+    local slopes do not reach it; an
     undetermined one is never flagged), ``slopes`` the local slopes between successive
     points above the floors (by increasing step). An undetermined order (the local slopes
     still trend: pre-asymptotic) has ``value`` None and its ``reason`` lists the slopes."""
