@@ -92,6 +92,6 @@ def test_verlet_escapes_give_no_law_that_steps_outside_the_fit_contradict():
     assert result["judged"]["verdict"] == "undetermined"
     assert result["judged"]["reason"].startswith("an escape is not a breakdown of the O(dt^r) energy bound")
     points = result["points"]
-    assert points[-1]["t_star"] is None and points[-1]["held_swing"] >= 0.02  # dt 0.6: none escaped
+    assert points[-1]["t_star"] is None and points[-1]["held_swing"] > 0.01  # dt 0.6: none escaped (0.021)
     assert points[0]["t_star"] < 1e6 and points[0]["held_swing"] > 0.03
     assert result["local_slopes"][-1]["bound"] == "at least"
