@@ -193,7 +193,7 @@ def _lines(c: dict) -> list[tuple[str, str]]:
     out = [("declared", f"order {c['declared_order'] if c['declared_order'] is not None else '-'}, "
                         f"{'symplectic' if c['declared_symplectic'] else 'not declared symplectic'}, {c['kind']}"
                         + (f", needs {', '.join(c['requires'])}" if c["requires"] else "")),
-           ("stability", f"imaginary-axis interval {c['stability_interval']}"),
+           ("stability", f"on the imaginary axis {c['stability_interval']}"),
            ("structure", _structure_text(c["structure"]))]
     return out
 
