@@ -313,10 +313,11 @@ def _missing(v: Any) -> bool:
 class Order:
     """The observed order of one sweep (one problem, one scheme, one final time and setting):
     ``value`` (the least-squares slope of log error against log step; None when no order
-    could be fitted, ``reason`` says why), ``ci`` its 95 % half-width (None from two
-    points), ``points`` the (step, error) pairs used, ``dropped`` the (step, error, why)
+    could be fitted, ``reason`` says why), ``ci`` its 95 % half-width (an order
+    needs 3 points), ``points`` the (step, error) pairs used, ``dropped`` the (step, error, why)
     pairs left out (floors, above 0.1, pre-asymptotic), ``declared`` the scheme's declared
-    order and ``flag`` (a determined order misses it beyond its interval and 0.1; an
+    order and ``flag`` (a determined order misses it beyond its interval and 0.1, and its
+    local slopes do not reach it; an
     undetermined one is never flagged), ``slopes`` the local slopes between successive
     points above the floors (by increasing step). An undetermined order (the local slopes
     still trend: pre-asymptotic) has ``value`` None and its ``reason`` lists the slopes."""
@@ -351,8 +352,10 @@ class Order:
         if self.value is None:
             return head + f"order undetermined ({self.reason})" + (
                 f", declared {self.declared}" if self.declared is not None else "")
-        text = head + f"observed order {self.value:.3f}"
-        text += f" +- {self.ci:.3f} (95 %)" if self.ci is not None else " (2 points: no interval)"
+        from longtime.measure.orders import local_slopes, order_text
+
+        text = head + "observed order " + order_text(self.value, self.ci, len(self.points),
+                                                     local_slopes(self.points), 3)  # +- its 95 % interval
         text += f", declared {self.declared}" if self.declared is not None else ""
         if self.flag:
             text += " (MISSES the declared order beyond its interval and 0.1)"

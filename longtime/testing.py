@@ -66,8 +66,10 @@ def assert_order(scheme: Any, problem: Any, order: float, *, dts: Sequence[float
         raise AssertionError(f"{_label(scheme, problem)}: order undetermined ({found.reason}); {expected}; "
                              + _points(found) + _not_ok(rows) + _conditions(scheme, order))
     if abs(found.value - order) > slack:
-        ci = f" +- {found.ci:.3f} (95 %)" if found.ci is not None else " (2 points: no interval)"
-        raise AssertionError(f"{_label(scheme, problem)}: observed order {found.value:.3f}{ci}, {expected}; "
+        from longtime.measure.orders import local_slopes, order_text
+
+        text = order_text(found.value, found.ci, len(found.points), local_slopes(found.points), 3)
+        raise AssertionError(f"{_label(scheme, problem)}: observed order {text} (95 %), {expected}; "
                              + _points(found) + _conditions(scheme, order))
     return found
 

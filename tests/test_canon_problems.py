@@ -249,7 +249,7 @@ def test_arenstorf_orbit_closes_after_one_period():
     problem = P("restricted-three-body")()
     T = problem.period
     # the orbit through the data rounded to double does not close exactly: in long double it
-    # returns to 4.9e-11 (the rounding of y2'(0) and of T, amplified along the orbit)
+    # returns to 4.9e-11 (the rounding of 1 - mu and of 0.994, amplified along the orbit)
     closure = np.abs(reference_states(problem, np.array([0.0, T]), "long double")[-1] - problem.u0).max()
     assert closure < 1e-10
     traj = I("heyoka")().integrate(problem, T, max_samples=1001)

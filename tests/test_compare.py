@@ -84,11 +84,12 @@ def test_a_slower_machine_is_not_a_regression_of_calibrated_times(store, capsys)
     assert result["time_basis"] == "raw" and result["counts"]["time"]["slower"] == 2
 
 
-def _rows(times: dict[tuple[str, str], float], error: float = 1e-6, cpu: float = 0.01) -> list[dict]:
-    """Synthetic ok rows, two cells (dt) per problem x scheme, calibrated time scaled per pair."""
+def _rows(times: dict[tuple[str, str], float], error: float = 1e-6, cpu: float = 0.01,
+          dts: tuple[float, ...] = (0.1, 0.05)) -> list[dict]:
+    """Synthetic ok rows, a cell per dt per problem x scheme, calibrated time scaled per pair."""
     return [{"problem": p, "integrator": s, "status": "ok", "dt": dt, "t_final": 10.0, "settings": "",
              "cpu_s": cpu * f, "cpu_s_calibrated": 5 * f * dt, "l2_error": error * (dt / 0.1) ** 4}
-            for (p, s), f in times.items() for dt in (0.1, 0.05)]
+            for (p, s), f in times.items() for dt in dts]
 
 
 PAIRS = [(p, s) for p in ("harmonic", "toda", "kepler") for s in ("rk4", "verlet")]
@@ -115,19 +116,20 @@ def test_too_short_cells_get_no_verdict():
 
 
 def test_counts_once_under_each_heading_and_orders_and_machine():
-    a = _rows({k: 1.0 for k in PAIRS})
-    b = _rows({k: 2.5 if k == ("toda", "rk4") else 1.0 for k in PAIRS})
+    dts = (0.1, 0.05, 0.025)  # three steps a sweep: an order needs three points
+    a = _rows({k: 1.0 for k in PAIRS}, dts=dts)
+    b = _rows({k: 2.5 if k == ("toda", "rk4") else 1.0 for k in PAIRS}, dts=dts)
     for r in b:
         if r["problem"] == "toda" and r["integrator"] == "rk4":
             r["l2_error"] /= 10  # slower and more accurate
         if r["problem"] == "kepler" and r["integrator"] == "verlet":
-            r["l2_error"] = 1e-6 * (r["dt"] / 0.1) ** 2  # second order: less accurate at dt 0.05
+            r["l2_error"] = 1e-6 * (r["dt"] / 0.1) ** 2  # second order: less accurate at dt 0.05 and 0.025
     cals = ([{"t": 0.0, "cpu_s": 3e-3, "cpu_s_max": 3.1e-3}], [{"t": 9.0, "cpu_s": 3.6e-3, "cpu_s_max": 3.7e-3}])
     result = compare(a, b, calibrations=cals)
     counts = result["counts"]
-    assert counts["time"] == {"slower": 2, "faster": 0, "within": 10, "too short": 0, "not compared": 0}
-    assert counts["accuracy"]["more accurate"] == 2 and counts["accuracy"]["less accurate"] == 1
-    assert result["regressed"] == 3 and result["improved"] == 2
+    assert counts["time"] == {"slower": 3, "faster": 0, "within": 15, "too short": 0, "not compared": 0}
+    assert counts["accuracy"]["more accurate"] == 3 and counts["accuracy"]["less accurate"] == 2
+    assert result["regressed"] == 5 and result["improved"] == 3
     assert sum(counts["time"].values()) == sum(counts["accuracy"].values()) == len(result["cells"])
     orders = {(o["problem"], o["integrator"]): o for o in order_changes(a, b)}
     assert orders[("kepler", "verlet")]["order_changed"]
@@ -135,7 +137,7 @@ def test_counts_once_under_each_heading_and_orders_and_machine():
     assert not orders[("toda", "rk4")]["order_changed"]
     assert result["machine"]["differed"] and result["machine"]["ratio"] == pytest.approx(1.2)
     text = render(result)
-    assert "its speed differed" in text and "kepler verlet (2 cells)" in text and "CHANGED" in text
+    assert "its speed differed" in text and "kepler verlet (3 cells)" in text and "CHANGED" in text
 
 
 def test_matrix_baseline_exits_1_on_a_regression(tmp_path, capsys):

@@ -131,3 +131,32 @@ def test_adaptive_loop_reaches_t_end_and_counts_rejections():
     assert counters[drivers.STEPS] == 20 and counters[drivers.REJECTED] == 1
     assert hstats[0] == hstats[1] == 0.5
     assert n_out == 20 and out_t[n_out - 1] == 10.0
+
+
+def _stop_sweep(increments, scale=1.0):
+    """The sweep (1-based) at which drivers.reached_round_off ends an iteration with these
+    increments, or None when it never does."""
+    best, stale = np.inf, 0
+    for sweep, delta in enumerate(increments, start=1):
+        best, stale = drivers.track_increment(delta, best, stale)
+        if drivers.reached_round_off(delta, best, stale, scale):
+            return sweep
+    return None
+
+
+def test_a_non_monotone_convergence_is_not_a_stall():
+    # implicit midpoint on kepler (e = 0.6, h = 0.1) at its first step: the increment's
+    # largest component alternates, so every other sweep rises, down to round-off
+    pairs = [(0.14, 0.043), (6.2e-3, 3.6e-3), (2.1e-4, 2.8e-4), (1.4e-5, 2.3e-5), (1.1e-6, 1.8e-6),
+             (9.1e-8, 1.5e-7), (7.4e-9, 1.2e-8), (6e-10, 1e-9), (5e-11, 8e-11), (4e-12, 6e-12),
+             (3e-13, 5e-13), (2.5e-14, 4e-14), (2e-15, 3e-15), (1e-16, 0.0)]
+    increments = [d for pair in pairs for d in pair]
+    assert _stop_sweep(increments) == len(increments) - 1  # the first increment below round-off
+
+
+def test_a_round_off_floor_is_a_stall_and_a_large_one_is_not():
+    floor = [1e-3, 1e-6, 1e-9, 1e-12, 1e-14, 3e-14, 2e-14, 1.5e-14, 4e-14]
+    assert _stop_sweep(floor) == 5 + drivers.STALL_SWEEPS  # three sweeps without a new smallest
+    assert _stop_sweep([1e-3, 1e-4, 1e-5, 2e-5, 3e-5, 2e-5, 5e-5, 1e-4]) is None  # stuck far above round-off
+    assert _stop_sweep([1e-3, 1e-7, 1e-16]) == 3  # at machine precision (below half an ulp of the scale)
+    assert _stop_sweep([1e-3, 1e-7, 4e-16], scale=4.0) == 3 and _stop_sweep([1e-3, 1e-7, 2e-16]) is None

@@ -100,3 +100,18 @@ def test_one_step_runs_the_loop_a_run_compiled(name):
 def test_a_scheme_without_a_step_kernel_is_named_in_plain_words():
     with pytest.raises(stability.Unmeasurable, match="heyoka is an external integrator: no step kernel"):
         stability._scheme("heyoka")
+
+
+@pytest.mark.parametrize("scheme", ["gauss4", "midpoint"])
+def test_implicit_methods_are_stable_on_the_axis_and_their_solver_is_not(scheme):
+    # the method: |R(iy)| = 1 for every y (A-stable); the fixed-point iteration: converges
+    # only while h |lambda| ||A|| stays below about 1, so its step fails at a finite y
+    result = stability.imaginary_interval(scheme)
+    assert not result["linear"]["bounded"] and result["linear"]["y"] == pytest.approx(stability.Y_MAX)
+    assert result["solver_y"] is not None and 0.5 < result["solver_y"] < 4.0
+    assert result["bounded"] and result["y"] == pytest.approx(result["solver_y"])  # the step stops at the solver
+    A, b = stability.implicit_tableau(scheme)
+    assert abs(stability.stability_function(A, b, 3j)) == pytest.approx(1.0, abs=1e-14)
+    text = stability.format_interval(result)
+    assert text.startswith("linear stability (|R(iy)| <= 1 from R(z)) [0, >= 12]; fixed-point solver converges to y = ")
+    assert stability.linear_interval("rk4") is None and "linear" not in stability.imaginary_interval("rk4")

@@ -20,13 +20,16 @@ import numpy as np
 
 from longtime.core import cli_args
 from longtime.core.params import InputError
-from longtime.measure.horizon import estimate, fit_law, verdict_text
+from longtime.measure.horizon import estimate, fit_law, judge, local_slopes, verdict_text
 
 PROBLEM = "henon-heiles"
 ESCAPE_ENERGY = 1.0 / 6.0
 DEFAULT_GAP = 0.02
 DEFAULT_SCHEMES = ("verlet", "euler")
-DEFAULT_DTS = (0.9, 0.875, 0.85, 0.825, 0.8, 0.775, 0.75)
+# 1/dt from 1.11 to 1.67: wide enough that steps outside the range where verlet escapes
+# within t_final bound its T* from below (a narrower span, 1.11 to 1.33, cannot tell an
+# exponential law from a power law dt^-11.5)
+DEFAULT_DTS = (0.9, 0.85, 0.8, 0.75, 0.7, 0.65, 0.6)
 DEFAULT_MEMBERS = 24
 DEFAULT_T_FINAL = 5e6
 Y0_RANGE = (-0.25, 0.35)
@@ -39,8 +42,9 @@ def member_states(members: int) -> list[float]:
 
 
 def run_member(scheme: str, dt: float, energy: float, y0: float, t_final: float,
-               threshold: float | None) -> float | None:
-    """One member: its breakdown time, or None if it held to t_final."""
+               threshold: float | None) -> tuple[float | None, float]:
+    """One member: (its breakdown time, or None if it held to t_final; its largest |H - H0|
+    before it)."""
     from longtime.execution.cells import Cell, integrate_cell
     from longtime.measure.horizon import breakdown_time
     from longtime.measure.metrics import relative_error
@@ -52,8 +56,11 @@ def run_member(scheme: str, dt: float, energy: float, y0: float, t_final: float,
     escaped = traj.t_reached if traj.status == "diverged" else None
     t, u = traj.t, traj.u
     finite = np.all(np.isfinite(u), axis=1)
-    err = relative_error(problem.invariants(t[finite], u[finite])["H"])
-    return breakdown_time(t[finite], err, threshold, escaped)
+    H = problem.invariants(t[finite], u[finite])["H"]
+    err = relative_error(H)
+    when = breakdown_time(t[finite], err, threshold, escaped)
+    before = t[finite] <= (when if when is not None else np.inf)
+    return when, float(np.max(np.abs(H[before] - H[0]))) if np.any(before) else 0.0
 
 
 def study(schemes=DEFAULT_SCHEMES, dts=DEFAULT_DTS, members: int = DEFAULT_MEMBERS, t_final: float = DEFAULT_T_FINAL,
@@ -77,7 +84,7 @@ def study(schemes=DEFAULT_SCHEMES, dts=DEFAULT_DTS, members: int = DEFAULT_MEMBE
     energy = ESCAPE_ENERGY - gap
     tasks = [(s, float(dt), energy, y0, float(t_final), threshold)
              for s in schemes for dt in sorted(set(dts), reverse=True) for y0 in member_states(members)]
-    found: dict[tuple, float | None] = {}
+    found: dict[tuple, tuple[float | None, float]] = {}
     for n, (task, result) in enumerate(run_tasks(run_member, tasks, jobs), 1):
         found[task] = result
         if progress:
@@ -87,12 +94,18 @@ def study(schemes=DEFAULT_SCHEMES, dts=DEFAULT_DTS, members: int = DEFAULT_MEMBE
     out: dict[str, Any] = {"problem": PROBLEM, "energy": energy, "gap": gap, "threshold": threshold,
                            "members": members, "t_final": float(t_final), "schemes": {}}
     for s in schemes:
-        points = [estimate(dt, [found[(s, float(dt), energy, y0, float(t_final), threshold)]
-                                for y0 in member_states(members)], float(t_final))
-                  for dt in sorted(set(dts), reverse=True)]
+        points = []
+        for dt in sorted(set(dts), reverse=True):
+            results = [found[(s, float(dt), energy, y0, float(t_final), threshold)] for y0 in member_states(members)]
+            points.append(estimate(dt, [r[0] for r in results], float(t_final), swings=[r[1] for r in results]))
         exp_fit, power_fit = fit_law(points, "exponential"), fit_law(points, "power")
+        held = [p.held_swing for p in points if p.held_swing is not None]
+        # an escape is the breakdown only without a threshold; then the held orbits' swing decides
+        judged = judge(exp_fit, power_fit, max(held) if held and threshold is None else None, gap)
+        slopes = local_slopes(points)
         out["schemes"][s] = {"points": [p.as_dict() for p in points], "exponential": exp_fit, "power": power_fit,
-                             "verdict": verdict_text(s, exp_fit, power_fit)}
+                             "judged": judged, "local_slopes": slopes,
+                             "verdict": verdict_text(s, exp_fit, power_fit, judged, slopes)}
     return out
 
 
@@ -104,13 +117,14 @@ def markdown(result: dict[str, Any]) -> str:
     cause = "escape" + (f" or a relative energy error >= {result['threshold']:.3g}" if result["threshold"] else "")
     lines = [f"Henon-Heiles at energy 1/6 - {result['gap']:g} = {result['energy']:.6g}; breakdown: {cause}; "
              f"{result['members']} members to t = {result['t_final']:g} each.", "",
-             "| scheme | dt | 1/dt | broke down | T* | T* 95 % | median breakdown |", "|---|---|---|---|---|---|---|"]
+             "| scheme | dt | 1/dt | broke down | T* | T* 95 % | median breakdown | held orbits' max abs(H - H0) |",
+             "|---|---|---|---|---|---|---|---|"]
     for s, r in result["schemes"].items():
         for p in r["points"]:
             lo, hi = p["t_star_ci"]
             t_star = _g(p["t_star"]) if p["t_star"] is not None else f"> {lo:.3g}"
             lines.append(f"| {s} | {p['dt']:g} | {1 / p['dt']:.3g} | {p['events']}/{p['members']} | {t_star} | "
-                         f"{_g(lo)} .. {_g(hi)} | {_g(p['median_t'])} |")
+                         f"{_g(lo)} .. {_g(hi)} | {_g(p['median_t'])} | {_g(p.get('held_swing'))} |")
     lines.append("")
     lines += [f"- {r['verdict']}" for r in result["schemes"].values()]
     return "\n".join(lines)

@@ -201,8 +201,8 @@ def explain(rows: list[dict], steps: int, ensemble: int, seed: int) -> str:
         "- Linear or faster drift: " + ("; ".join(linear) or "none") + ".",
         "- Why (the mechanism, from Hairer, McLachlan and Razakarivony 2008; the table is what this run "
         "measured): an implicit scheme whose stage iteration stops on a tolerance (`stop=round-off`, the "
-        "default: increment below 2 eps or stalled) leaves an iteration error of one sign in every step, which "
-        "adds up linearly; `stop=brouwer` iterates until the increment is 0 or stops decreasing. Compensated "
+        "default: increment below half an ulp of the state's scale, or stalled) leaves an iteration error "
+        "of one sign in every step, which adds up linearly; `stop=brouwer` iterates until the increment is 0 or stops decreasing. Compensated "
         "summation (`compensated=true`) removes the rounding of u + increment, the largest round-off of a "
         "step; alone, on an implicit scheme, it can leave the tolerance stop's bias as the largest error "
         "(linear, but smaller). What remains with both (the rounding of the stage values and of the increment "

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from longtime.core.drivers import FAILED, NL_ITERS, OK, RHS_EVALS, state_scale
+from longtime.core.drivers import FAILED, NL_ITERS, OK, RHS_EVALS, state_scale, track_increment
 from longtime.core.integrator import FixedStepIntegrator
 from longtime.core.params import Param
 from longtime.integrators.implicit_rk import ImplicitRungeKutta, iteration_done
@@ -68,7 +68,7 @@ class AVF(FixedStepIntegrator):
             rhs(t, u, params, g)  # the first guess: u_{n+1} = u_n + h f(u_n)
             evals = 1
             converged = False
-            previous = np.inf
+            best, stale = np.inf, 0
             for sweep in range(max_iter):
                 for m in range(n):
                     total[m] = 0.0
@@ -84,10 +84,10 @@ class AVF(FixedStepIntegrator):
                     delta = max(delta, abs(h * (total[m] - g[m])))
                     g[m] = total[m]
                 counters[NL_ITERS] += 1
-                if iteration_done(delta, previous, scale, brouwer):
+                best, stale = track_increment(delta, best, stale)
+                if iteration_done(delta, best, stale, scale, brouwer):
                     converged = True
                     break
-                previous = delta
             counters[RHS_EVALS] += evals
             if not converged:
                 return FAILED

@@ -36,6 +36,7 @@ from longtime.core.drivers import (
     RHS_EVALS,
     reached_round_off,
     state_scale,
+    track_increment,
 )
 from longtime.core.integrator import FixedStepIntegrator
 from longtime.core.params import InputError, Param
@@ -201,7 +202,7 @@ def _dirac_kernels(problem: Problem, two_step: bool, midpoint: bool, max_iter: i
             G, qd, wold, gu = work[0:m], work[r_qprev], work[r_tmp], work[r_gu]
             scale = state_scale(q)
             converged = False
-            previous = np.inf
+            best, stale = np.inf, 0
             for it in range(max_iter):
                 for i in range(n):
                     qd[i] = q[i] + 0.5 * h * w[i]
@@ -215,10 +216,10 @@ def _dirac_kernels(problem: Problem, two_step: bool, midpoint: bool, max_iter: i
                 delta = 0.0
                 for i in range(n):
                     delta = max(delta, abs(h * (w[i] - wold[i])))
-                if reached_round_off(delta, previous, scale):
+                best, stale = track_increment(delta, best, stale)
+                if reached_round_off(delta, best, stale, scale):
                     converged = True
                     break
-                previous = delta
             if not converged:
                 return FAILED
         if two_step:

@@ -3,12 +3,14 @@
 The stage equations K_i = f(t + c_i h, u + h sum_j a_ij K_j) are solved by fixed-point
 iteration with Gauss-Seidel sweeps (for a diagonally implicit tableau such as rk4sym this
 solves the stages one after another). Iteration stops when the increment vanishes, reaches
-round-off, or stops decreasing at round-off level; the sweeps are counted in ``nl_iters``.
+round-off, or stops decreasing at round-off level (``drivers.stalled``: no new smallest
+increment for a few sweeps, so a non-monotone convergence is not taken for a stall); the
+sweeps are counted in ``nl_iters``.
 A solve that does not converge in ``max_iter`` sweeps fails the step (status ``failed``).
 
 For round-off studies (Brouwer's law), ``stop=brouwer`` is the stopping rule of Hairer,
 McLachlan and Razakarivony (BIT 2008): sweep until the increment is exactly 0 or stops
-decreasing, never stop on a tolerance; ``compensated=true`` sums the update u + h sum b_i K_i
+decreasing (``drivers.stalled``), never stop on a tolerance; ``compensated=true`` sums the update u + h sum b_i K_i
 with Kahan's compensation. Both are opt-in settings: the default is the published scheme.
 """
 from __future__ import annotations
@@ -23,7 +25,9 @@ from longtime.core.drivers import (
     RHS_EVALS,
     copy_into,
     reached_round_off,
+    stalled,
     state_scale,
+    track_increment,
 )
 from longtime.core.integrator import COMPENSATED, FixedStepIntegrator
 from longtime.core.params import Param
@@ -31,20 +35,21 @@ from longtime.integrators.tableau import add_weighted_slopes, checked_on_definit
 
 
 @numba.njit(cache=True, inline="always")
-def settled(delta, previous, scale):
+def settled(delta, best, stale, scale):
     """The stopping rule that does not bias the increments (Hairer, McLachlan, Razakarivony
-    2008): the increment is exactly 0, or it has stopped decreasing (only round-off is
-    left; the 1e-8 guard keeps a stalled, unconverged iteration from counting). Stopping
-    on a tolerance instead leaves an iteration error of the same sign step after step,
-    which adds up to a linear drift of the invariants."""
-    return delta == 0.0 or (delta >= previous and delta <= 1e-8 * scale)
+    2008): the increment is exactly 0, or the increments have stopped decreasing
+    (drivers.stalled: only round-off is left; its STALL_LEVEL guard keeps a stalled,
+    unconverged iteration from counting). Stopping on a tolerance instead leaves an
+    iteration error of the same sign step after step, which adds up to a linear drift of
+    the invariants."""
+    return delta == 0.0 or stalled(best, stale, scale)
 
 
 @numba.njit(cache=True, inline="always")
-def iteration_done(delta, previous, scale, brouwer):
-    """The fixed-point iteration's stopping rule of the ``stop`` setting: Brouwer's
-    (``settled``) or round-off's (drivers.reached_round_off)."""
-    return settled(delta, previous, scale) if brouwer else reached_round_off(delta, previous, scale)
+def iteration_done(delta, best, stale, scale, brouwer):
+    """The fixed-point iteration's stopping rule of the ``stop`` setting, after
+    drivers.track_increment: Brouwer's (``settled``) or round-off's (drivers.reached_round_off)."""
+    return settled(delta, best, stale, scale) if brouwer else reached_round_off(delta, best, stale, scale)
 
 
 class ImplicitRungeKutta(FixedStepIntegrator):
@@ -86,7 +91,7 @@ class ImplicitRungeKutta(FixedStepIntegrator):
                 copy_into(work[i], work[0])
             evals = 1
             converged = False
-            previous = np.inf
+            best, stale = np.inf, 0
             for sweep in range(max_iter):
                 delta = 0.0
                 for i in range(s):
@@ -101,10 +106,10 @@ class ImplicitRungeKutta(FixedStepIntegrator):
                         work[i, m] = k_new[m]
                 evals += s
                 counters[NL_ITERS] += 1
-                if iteration_done(delta, previous, scale, brouwer):
+                best, stale = track_increment(delta, best, stale)
+                if iteration_done(delta, best, stale, scale, brouwer):
                     converged = True
                     break
-                previous = delta
             counters[RHS_EVALS] += evals
             if not converged:
                 return FAILED

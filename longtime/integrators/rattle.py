@@ -28,6 +28,7 @@ from longtime.core.drivers import (
     RHS_EVALS,
     reached_round_off,
     state_scale,
+    track_increment,
 )
 from longtime.core.params import Param
 from longtime.integrators.dirac import (
@@ -93,7 +94,7 @@ class Rattle(ConstrainedIntegrator):
                 qnew[i] = qtil[i] - minv[i] * acc
             scale = state_scale(q)
             converged = False
-            previous = np.inf
+            best, stale = np.inf, 0
             for it in range(max_iter):
                 phi(qnew, params, res)
                 counters[NL_ITERS] += 1
@@ -121,10 +122,10 @@ class Rattle(ConstrainedIntegrator):
                     new = qtil[i] - minv[i] * acc
                     delta = max(delta, abs(new - qnew[i]))
                     qnew[i] = new
-                if reached_round_off(delta, previous, scale):
+                best, stale = track_increment(delta, best, stale)
+                if reached_round_off(delta, best, stale, scale):
                     converged = True
                     break
-                previous = delta
             if not converged:
                 return FAILED
             # p_half = p - h/2 grad U - G0^T Lambda / h; then q_{n+1}

@@ -219,7 +219,7 @@ class KahanLi8(Splitting):
     name = "kahan-li-8"
     summary = "Kahan-Li p8s17: symmetric composition of 17 Verlet steps (order 8, 1997)"
     order = 8
-    step_cost = 2.5  # 15 forces a step (the budget's estimate)
+    step_cost = 2.5  # 17 forces a step (the budget's estimate)
     long_runs = False  # verlet and yoshida carry the family's paper-scale cells
     # rows stored under this name by longtime 0.1.0 before the correction are McLachlan's p8s15
     notice = ("until the correction of its coefficients, rows stored as kahan-li-8 (15 forces a step) "

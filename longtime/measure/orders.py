@@ -11,23 +11,27 @@ point left out named with why:
 
 1. floors: an error below ``ROUND_OFF_FLOOR`` (round-off) or below ``REFERENCE_MARGIN``
    times the row's ``reference_error`` (the reference's own accuracy) is dropped; so is an
-   error above ``MAX_ERROR`` (the scheme does not resolve the solution);
+   error above ``MAX_ERROR`` (the scheme does not resolve the solution), and a row past
+   its predictability horizon (a chaotic solution lost);
 2. the local slopes log(e2/e1)/log(h2/h1) between successive points are computed; at the
    small end a point in the floor's zone (an error below ``FLOOR_ZONE`` times its floor)
-   whose slope falls below the next one's by more than ``SLOPE_BAND`` is the floor
-   flattening the curve, and is dropped;
-3. the asymptotic range grows from the smallest step while its local slopes stay within
-   ``SLOPE_BAND`` of one another; the larger steps beyond it are dropped as pre-asymptotic;
-4. the order is determined when the range holds at least ``MIN_POINTS`` points (two local
-   slopes that agree), or when the sweep has two usable points only (one slope, no
-   interval: nothing to check a trend against). Otherwise it is undetermined, with the
-   local slopes: "pre-asymptotic: local slopes 3.20, 3.65, 3.85 (dt 0.1 to 0.0125) still
-   rise toward small steps", or "local slopes disagree: ..." when they do not move one way.
+   whose slope falls below the next one's by more than ``SLOPE_BAND`` is on the floor (it
+   flattens the curve), and is dropped as such;
+3. the asymptotic range grows from the smallest step while its local slopes agree: within
+   ``slope_tolerance`` of one another (``SLOPE_BAND``, ``RELATIVE_BAND`` of the order fitted
+   through them, or that fit's interval from ``INTERVAL_POINTS`` points on); the larger
+   steps beyond it are dropped as pre-asymptotic. A drift of the slopes within it is not
+   pre-asymptotic: kahan-li-8's 8.14, 8.08, 7.97 is an order 8;
+4. the order is determined when the range holds at least ``MIN_POINTS`` points. Otherwise
+   it is undetermined, with the reason: "2 points only (...): not an order", or the local
+   slopes: "pre-asymptotic: local slopes 3.20, 3.65, 3.85 (dt 0.1 to 0.0125) still rise
+   toward small steps (...)", or "local slopes disagree: ..." when they do not move one way.
 
 A determined order is the least-squares slope over the range with a 95 % interval (Student
-t on the slope's standard error; none from two points). Only a determined order is
-compared with the declared one: it is flagged when it differs by more than its interval
-and more than ``ORDER_TOLERANCE``. An undetermined order is never flagged.
+t on the slope's standard error). It is flagged when it differs from the declared order by
+more than its interval and ``ORDER_TOLERANCE``, and its local slopes, widened by as much, do
+not reach the declared order (``_flagged``). An undetermined order is never flagged.
+``order_text`` is the one way an order is printed.
 """
 from __future__ import annotations
 
@@ -46,6 +50,11 @@ MIN_POINTS = 3
 ORDER_TOLERANCE = 0.1
 # local slopes within this of one another agree: the curvature a converged sweep still shows
 SLOPE_BAND = 0.1
+# ... and so do slopes within this fraction of the order fitted through them, or within that
+# fit's interval when it has at least INTERVAL_POINTS points (from 3, Student's t of one
+# degree of freedom, 12.7, makes any drift look small)
+RELATIVE_BAND = 0.1
+INTERVAL_POINTS = 4
 FLOOR_ZONE = 1e3
 ERROR_FIELDS = ("l2_error", "H.max")
 GROUP_KEYS = ("run_id", "problem", "integrator", "t_final", "order", "settings")
@@ -88,6 +97,19 @@ def _floors(points: list[tuple[float, float, float | None]]
     return list({x: (x, e, f) for x, e, f in sorted(kept)}.values()), dropped
 
 
+def slope_tolerance(pts: list[tuple[float, float]]) -> float:
+    """How far apart the local slopes of the (x, error) points ``pts`` may be and still
+    agree: SLOPE_BAND, RELATIVE_BAND of the order fitted through them, or that fit's 95 %
+    interval when it has at least INTERVAL_POINTS points, whichever is largest. A drift of
+    the slopes within it biases the fit by less than the order's tenth or its interval."""
+    slope, ci = fit_slope(*zip(*pts))
+    return max(SLOPE_BAND, RELATIVE_BAND * abs(slope), ci if ci is not None and len(pts) >= INTERVAL_POINTS else 0.0)
+
+
+def _spread(slopes: list[float]) -> float:
+    return max(slopes) - min(slopes)
+
+
 def asymptotic_range(points: list[tuple[float, float, float | None]], variable: str = "step") -> dict[str, Any]:
     """(x, error, reference_error) -> {"used": the (x, error) of the asymptotic range by
     increasing x, "dropped": the (x, error, why) left out, "slopes": the local slopes of the
@@ -98,41 +120,46 @@ def asymptotic_range(points: list[tuple[float, float, float | None]], variable: 
         (x0, e0, floor), slopes = kept[0], local_slopes([(x, e) for x, e, _ in kept])
         if not (e0 < FLOOR_ZONE * floor and slopes[0] < slopes[1] - SLOPE_BAND):
             break
-        dropped.append((x0, e0, f"the floor flattens the slope to {slopes[0]:.2f} "
-                                f"(next {slopes[1]:.2f}; error within {FLOOR_ZONE:g} x its floor {floor:g})"))
+        which = "round-off" if floor == ROUND_OFF_FLOOR else "reference's"
+        dropped.append((x0, e0, f"on the {which} floor: it flattens the slope to {slopes[0]:.2f} "
+                                f"(next {slopes[1]:.2f}; error within {FLOOR_ZONE:g} x the floor {floor:g})"))
         kept.pop(0)
     pts = [(x, e) for x, e, _ in kept]
     slopes = local_slopes(pts)
     n = 1 if slopes else 0  # local slopes in the range, from the smallest step
-    while n < len(slopes) and max(slopes[:n + 1]) - min(slopes[:n + 1]) <= SLOPE_BAND:
+    while n < len(slopes) and _spread(slopes[:n + 1]) <= slope_tolerance(pts[:n + 2]):
         n += 1
     out: dict[str, Any] = {"used": pts, "dropped": dropped, "slopes": slopes, "reason": None}
-    if len(pts) < 2:
-        return out
-    if len(pts) == 2:  # one slope: reported without an interval, nothing to check a trend against
+    if len(pts) < MIN_POINTS:  # one slope at most: no interval, nothing to check a trend against
+        out["used"] = []
+        if len(pts) == 2:
+            out["reason"] = (f"2 points only ({variable} {pts[0][0]:.3g} and {pts[1][0]:.3g}, local slope "
+                             f"{slopes[0]:.2f}): no interval, no trend to check; not an order")
         return out
     if n < MIN_POINTS - 1:
         out["used"], out["reason"] = [], _trend(pts, slopes, variable)
         dropped += [(x, e, "no asymptotic range") for x, e in pts]
         return out
     for x, e in pts[n + 1:]:
-        dropped.append((x, e, f"pre-asymptotic: local slope beyond {SLOPE_BAND:g} of the smaller steps' "
-                              f"{min(slopes[:n]):.2f} .. {max(slopes[:n]):.2f}"))
+        dropped.append((x, e, f"pre-asymptotic: local slope beyond {slope_tolerance(pts[:n + 1]):.2g} of the "
+                              f"smaller steps' {min(slopes[:n]):.2f} .. {max(slopes[:n]):.2f}"))
     out["used"] = pts[:n + 1]
     return out
 
 
 def _trend(pts: list[tuple[float, float]], slopes: list[float], variable: str) -> str:
     """Why local slopes that do not agree determine no order, the slopes listed from the
-    largest step to the smallest."""
+    largest step to the smallest, with how far apart they are against how far they may be."""
     listed = ", ".join(f"{s:.2f}" for s in reversed(slopes))
     span = f"({variable} {pts[-1][0]:.3g} to {pts[0][0]:.3g})"
+    beyond = (f"{_spread(slopes):.2f} apart, beyond the {slope_tolerance(pts):.2g} that {RELATIVE_BAND:g} of "
+              f"the order, {SLOPE_BAND:g} or the fit's interval allow")
     diffs = [b - a for a, b in zip(slopes, slopes[1:])]  # by increasing step
     if all(d < 0 for d in diffs):
-        return f"pre-asymptotic: local slopes {listed} {span} still rise toward small steps"
+        return f"pre-asymptotic: local slopes {listed} {span} still rise toward small steps ({beyond})"
     if all(d > 0 for d in diffs):
-        return f"pre-asymptotic: local slopes {listed} {span} still fall toward small steps"
-    return f"local slopes disagree: {listed} {span}, beyond {SLOPE_BAND:g} of one another"
+        return f"pre-asymptotic: local slopes {listed} {span} still fall toward small steps ({beyond})"
+    return f"local slopes disagree: {listed} {span}, {beyond}"
 
 
 def classify_points(points: list[tuple[float, float, float | None]]
@@ -191,6 +218,34 @@ def _groups(rows: Iterable[dict[str, Any]]) -> list[list[dict]]:
     return list(groups.values())
 
 
+def _points(ok: list[dict], field: str) -> tuple[list[tuple[float, float, float | None]], dict[str, int]]:
+    """(the (x, error, reference_error) of the sweep's computations, how many rows gave no
+    point and why)."""
+    points, why = [], {}
+    for r in distinct_runs(ok, field):
+        if not positive(r.get(field)):
+            reason = f"no positive {field}"
+        elif _x(r) is None:
+            reason = "no step"
+        elif field == "l2_error" and past_predictability(r):
+            reason = "past its predictability horizon (a chaotic solution lost)"
+        else:
+            points.append((_x(r), float(r[field]), r.get("reference_error") if field == "l2_error" else None))
+            continue
+        why[reason] = why.get(reason, 0) + 1
+    return points, why
+
+
+def _flagged(slope: float, ci: float | None, slopes: list[float], declared: int | None) -> bool:
+    """The declared order is beyond the fit's interval and ORDER_TOLERANCE, and beyond the
+    range of the local slopes the fit stands on widened by as much: slopes that drift toward
+    the declared order (a drift the range accepts) refute nothing."""
+    if declared is None or ci is None:
+        return False
+    margin = max(ci, ORDER_TOLERANCE)
+    return abs(slope - declared) > margin and not (min(slopes) - margin <= declared <= max(slopes) + margin)
+
+
 def _fit(members: list[dict]) -> tuple[dict | None, dict]:
     """(the fit of one sweep or None, why not: {"reason", "dropped"})."""
     ok = [r for r in members if r.get("status") == "ok"]
@@ -206,37 +261,57 @@ def _fit(members: list[dict]) -> tuple[dict | None, dict]:
         why = ("one step size: no sweep to fit" if len(steps) < 2 else
                f"fewer than two rows with {' or '.join(ERROR_FIELDS)}")
         return None, {"reason": why, "dropped": [], "slopes": []}
-    points = [(_x(r), float(r[field]), r.get("reference_error") if field == "l2_error" else None)
-              for r in distinct_runs(ok, field) if positive(r.get(field)) and _x(r) is not None
-              and not (field == "l2_error" and past_predictability(r))]  # a lost chaotic solution
+    points, no_point = _points(ok, field)
     variable = "dt" if all(_fixed_step(r) for r in members) else "mean_dt"
     found = asymptotic_range(points, variable)
     used, dropped, slopes = found["used"], sorted(found["dropped"]), [float(x) for x in found["slopes"]]
+    rows_without = ", ".join(f"{n} row{'s' * (n > 1)} {why}" for why, n in sorted(no_point.items()))
     if found["reason"] is not None:
-        return None, {"reason": found["reason"], "dropped": [list(d) for d in dropped], "slopes": slopes,
+        reason = found["reason"] + (f"; {rows_without}" if rows_without else "")
+        return None, {"reason": reason, "dropped": [list(d) for d in dropped], "slopes": slopes,
                       "error_field": field, "variable": variable}
-    if len(used) < 2 or len({x for x, _ in used}) < 2:
+    if len({x for x, _ in used}) < MIN_POINTS:
         whys: dict[str, int] = {}
         for _, _, why in dropped:
             whys[why] = whys.get(why, 0) + 1
-        if len(whys) == 1 and not used:
+        if len(whys) == 1 and not used and not no_point:
             reason = f"every point {next(iter(whys))}"
         else:
-            reason = (f"{len(used)} of {len(points)} points left: "
-                      + ", ".join(f"{n} {why}" for why, n in sorted(whys.items())))
-        return None, {"reason": reason, "dropped": [list(d) for d in dropped], "slopes": slopes}
+            parts = [f"{n} {why}" for why, n in sorted(whys.items())] + ([rows_without] if rows_without else [])
+            reason = (f"{len(used)} of {len(points)} points left, fewer than {MIN_POINTS}: "
+                      + ("; ".join(parts) or "no point"))
+        return None, {"reason": reason, "dropped": [list(d) for d in dropped], "slopes": slopes,
+                      "error_field": field, "variable": variable}
     slope, ci = fit_slope(*zip(*used))
     first = members[0]
     declared = declared_order(first)
-    flag = (declared is not None and ci is not None
-            and abs(slope - declared) > max(ci, ORDER_TOLERANCE))
+    range_slopes = local_slopes(used)
     return {"problem": first["problem"], "integrator": first["integrator"],
             "run_id": first.get("run_id"), "t_final": first.get("t_final"),
             "order": first.get("order"), "settings": first.get("settings"),
             "declared_order": declared, "observed_order": slope, "observed_order_ci": ci,
             "order_points": [[x, e] for x, e in used], "order_dropped": [list(d) for d in dropped],
-            "order_variable": variable, "order_error_field": field, "order_flag": bool(flag),
-            "order_slopes": slopes}, {}
+            "order_variable": variable, "order_error_field": field,
+            "order_flag": _flagged(slope, ci, range_slopes, declared), "order_slopes": slopes}, {}
+
+
+def order_text(value: float, ci: float | None, points: int, slopes: list[float] = (), digits: int = 2) -> str:
+    """The one way an observed order is printed: '8.07 +- 0.10'; ', local slopes 3.45 to
+    3.78' after it when the slopes of its range drift beyond SLOPE_BAND; and an order from
+    fewer than MIN_POINTS points (no interval), which ``observed_orders`` never gives but a
+    caller may hold, flagged: '5.16 (2 points: not an order)'."""
+    if points < MIN_POINTS or ci is None:
+        return f"{value:.{digits}f} ({points} points: not an order)"
+    text = f"{value:.{digits}f} +- {ci:.{digits}f}"
+    if slopes and _spread(list(slopes)) > SLOPE_BAND:
+        text += f", local slopes {min(slopes):.{digits}f} to {max(slopes):.{digits}f}"
+    return text
+
+
+def fit_text(fit: dict[str, Any]) -> str:
+    """``order_text`` of a fit of ``observed_orders``."""
+    return order_text(fit["observed_order"], fit["observed_order_ci"], len(fit["order_points"]),
+                      local_slopes([tuple(p) for p in fit["order_points"]]))
 
 
 def observed_orders(rows: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:

@@ -11,7 +11,11 @@ phases e^(i theta) instead.
 
 The imaginary-axis interval (the largest Y with |R(iy)| <= 1 + ``TOL`` on all of
 [0, Y]) caps the step on oscillatory problems: a mode of frequency omega is stable while
-omega h <= Y. Beside it, where it differs, the Y up to which the growth stays below 1 %
+omega h <= Y. A scheme with implicit stages has two limits, told apart: the method's linear
+stability, from the stability function R(z) = 1 + z b^T (I - zA)^-1 1 of its tableau (the
+Gauss methods, midpoint and rk4sym have |R(iy)| = 1 on the whole axis), and the limit of its
+fixed-point stage iteration, which stops converging near h ||A|| |lambda| = 1: its measured
+step fails there (``linear_interval``, ``solver_y``). Beside it, where it differs, the Y up to which the growth stays below 1 %
 per step (``GROWTH_1PCT``, bpl's amplification onset): a truncated series of order
 N = 5, 6 (mod 4) grows by y^(N+2)-small factors from y = 0, so only this bound says
 where its growth becomes fast. It is measured on the rotation q' = p, p' = -q (the ``harmonic`` problem,
@@ -178,19 +182,66 @@ def _first_stable_run(ys: np.ndarray, growth: np.ndarray, tol: float) -> tuple[f
     return (float(ys[k - 1]) if k else 0.0), k
 
 
+def implicit_tableau(name: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """(A, b) of a Runge-Kutta scheme whose stages are implicit (a non-zero a_ij with
+    j >= i), None for any other scheme."""
+    from longtime.core import registry
+
+    cls = registry.integrator_class(name)
+    A, b = getattr(cls, "A", None), getattr(cls, "b", None)
+    if A is None or b is None:
+        return None
+    A = np.asarray(A, dtype=float)
+    return (A, np.asarray(b, dtype=float)) if A.ndim == 2 and np.any(np.triu(A) != 0) else None
+
+
+def stability_function(A: np.ndarray, b: np.ndarray, z: complex) -> complex:
+    """R(z) = 1 + z b^T (I - z A)^-1 1: one step of the tableau on u' = lambda u, z = lambda h,
+    with its stages solved exactly (no iteration)."""
+    s = b.size
+    stages = np.linalg.solve(np.eye(s) - z * A, np.ones(s, dtype=complex))
+    return complex(1.0 + z * (b @ stages))
+
+
+def linear_interval(name: str, y_max: float = Y_MAX, y_step: float = Y_STEP) -> dict[str, Any] | None:
+    """{"y", "bounded", "why"}: the method's own linear stability on the imaginary axis, the
+    largest Y with |R(iy)| <= 1 + TOL on all of [0, Y] from the stability function of its
+    tableau (the stage equations solved exactly); None for a scheme without implicit stages,
+    whose measured step is the method (nothing iterates in it)."""
+    tableau = implicit_tableau(name)
+    if tableau is None:
+        return None
+    ys = np.arange(y_step, y_max + 0.5 * y_step, y_step)
+    growth = np.array([abs(stability_function(*tableau, complex(0.0, y))) for y in ys])
+    y, k = _first_stable_run(ys, growth, TOL)
+    if k is None:
+        return {"y": y, "bounded": False, "why": f"|R(iy)| <= 1 on all of [0, {y_max:g}]"}
+    return {"y": round(y, 6), "bounded": True, "why": f"|R| = {growth[k]:.6g} at y = {ys[k]:.3g}"}
+
+
 def imaginary_interval(name: str, order: int | None = None, y_max: float = Y_MAX,
                        y_step: float = Y_STEP) -> dict[str, Any]:
     """{"y", "bounded", "why", "y_1pct"}: the largest Y (to y_step) with growth <= 1 + TOL
-    on all of [0, Y] (bounded False: the whole scanned range is), and the same with growth
-    up to 1 % per step allowed (``y_1pct``: where a mode's growth becomes fast)."""
+    on all of [0, Y] (bounded False: the whole scanned range is) of the scheme's compiled
+    step, and the same with growth up to 1 % per step allowed (``y_1pct``: where a mode's
+    growth becomes fast). A scheme with implicit stages adds "linear" (``linear_interval``:
+    the method's stability, from R(z)) and "solver_y" (the largest y its stage iteration
+    converges to, None where it converges on all the scan): the measured interval of such a
+    scheme ends where the first of the two does."""
     ys = np.arange(y_step, y_max + 0.5 * y_step, y_step)
     growth = imaginary_growth(name, ys, order)
     y, k = _first_stable_run(ys, growth, TOL)
     y_1pct, _ = _first_stable_run(ys, growth, GROWTH_1PCT)
     if k is None:
-        return {"y": y, "bounded": False, "why": f"stable on all of [0, {y_max:g}]", "y_1pct": y_1pct}
-    why = "step failed" if np.isnan(growth[k]) else f"|R| = {growth[k]:.6g}"
-    return {"y": round(y, 6), "bounded": True, "why": f"{why} at y = {ys[k]:.3g}", "y_1pct": round(y_1pct, 6)}
+        out = {"y": y, "bounded": False, "why": f"stable on all of [0, {y_max:g}]", "y_1pct": y_1pct}
+    else:
+        why = "step failed" if np.isnan(growth[k]) else f"|R| = {growth[k]:.6g}"
+        out = {"y": round(y, 6), "bounded": True, "why": f"{why} at y = {ys[k]:.3g}", "y_1pct": round(y_1pct, 6)}
+    linear = linear_interval(name, y_max, y_step)
+    if linear is not None:
+        failed = np.nonzero(np.isnan(growth))[0]
+        out.update(linear=linear, solver_y=(float(ys[failed[0] - 1]) if failed[0] else 0.0) if failed.size else None)
+    return out
 
 
 def orders_of(name: str) -> list[int | None]:
@@ -200,9 +251,20 @@ def orders_of(name: str) -> list[int | None]:
     return list(SERIES_ORDERS) if roles.with_role([registry.integrator_class(name)], "order") else [None]
 
 
+def _bounds_text(result: dict[str, Any]) -> str:
+    return f"[0, {result['y']:.3g}]" if result["bounded"] else f"[0, >= {result['y']:.3g}]"
+
+
 def format_interval(result: dict[str, Any]) -> str:
+    """'[0, 2.82]' (the interval of the measured step); for a scheme with implicit stages the
+    method's linear stability and its solver's convergence limit, each named: 'linear
+    stability (|R(iy)| <= 1 from R(z)) [0, >= 12]; fixed-point solver converges to y = 2.07'."""
     if "error" in result:
         return f"not measured: {result['error']}"
+    if result.get("linear") is not None:
+        solver = ("fixed-point solver converges on all of the scan" if result.get("solver_y") is None
+                  else f"fixed-point solver converges to y = {result['solver_y']:.3g} (its step fails beyond)")
+        return f"linear stability (|R(iy)| <= 1 from R(z)) {_bounds_text(result['linear'])}; {solver}"
     y = result["y"]
     if not result["bounded"]:
         return f"[0, >= {y:.3g}]"
@@ -225,7 +287,7 @@ def _cache_key(name: str, order: int | None) -> str:
         code = fingerprint(build(Harmonic()))
     except Exception:  # no fingerprint (an opaque closure, a scheme that cannot step it): the class
         code = f"{type(scheme).__module__}.{type(scheme).__qualname__}"
-    return digest(name, str(order), code, repr((TOL, GROWTH_1PCT, Y_MAX, Y_STEP, PHASES, 3)))
+    return digest(name, str(order), code, repr((TOL, GROWTH_1PCT, Y_MAX, Y_STEP, PHASES, 4)))
 
 
 def _cache_file(name: str, order: int | None):
@@ -245,11 +307,18 @@ def _read_cached(path) -> dict[str, Any] | None:
         discard(path, "stability", exc)
         return None
     number = (int, float)
+
+    def interval(r: Any) -> bool:
+        return (isinstance(r, dict) and isinstance(r.get("y"), number) and isinstance(r.get("bounded"), bool)
+                and isinstance(r.get("why"), str))
+
+    base = {"y", "bounded", "why", "y_1pct"}
     whole = isinstance(result, dict) and (
         (set(result) == {"error"} and isinstance(result["error"], str))
-        or (set(result) == {"y", "bounded", "why", "y_1pct"} and isinstance(result["y"], number)
-            and isinstance(result["bounded"], bool) and isinstance(result["why"], str)
-            and isinstance(result["y_1pct"], number)))
+        or (set(result) in (base, base | {"linear", "solver_y"}) and interval(result)
+            and isinstance(result["y_1pct"], number)
+            and (set(result) == base or (interval(result["linear"])
+                                         and (result["solver_y"] is None or isinstance(result["solver_y"], number))))))
     if not whole:
         discard(path, "stability", f"not a stability result: {str(result)[:80]!r}")
         return None

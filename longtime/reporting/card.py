@@ -41,7 +41,7 @@ def _declared(name: str, scheme: Any = None) -> dict[str, Any]:
 
 
 def _orders(rows: list[dict], name: str) -> dict[str, list[dict[str, Any]]]:
-    from longtime.measure.orders import left_out, observed_orders
+    from longtime.measure.orders import fit_text, left_out, observed_orders
 
     mine = [r for r in rows if r.get("integrator") == name]
     out: dict[str, list[dict[str, Any]]] = {}
@@ -49,11 +49,11 @@ def _orders(rows: list[dict], name: str) -> dict[str, list[dict[str, Any]]]:
         out.setdefault(f["problem"], []).append(
             {"observed": f["observed_order"], "ci": f["observed_order_ci"], "flag": f["order_flag"],
              "points": len(f["order_points"]), "slopes": f["order_slopes"], "t_final": f["t_final"],
-             "setting": _fixed(f), "reason": None})
+             "setting": _fixed(f), "reason": None, "text": fit_text(f)})
     for m in left_out(mine):
         out.setdefault(m["problem"], []).append(
             {"observed": None, "ci": None, "flag": False, "points": 0, "slopes": m["slopes"], "t_final": None,
-             "setting": "", "reason": m["reason"]})
+             "setting": "", "reason": m["reason"], "text": None})
     return out
 
 
@@ -141,10 +141,9 @@ def card(scheme: Any, rows: Iterable[dict] | None = None, *, structure: bool = T
 def _order_text(o: dict) -> str:
     if o["observed"] is None:
         return f"undetermined ({o['reason']})"
-    ci = f" +- {o['ci']:.2f}" if o["ci"] is not None else " (2 points)"
     flag = " MISSES the declared order" if o["flag"] else ""
     at = f" [{o['setting']}]" if o["setting"] else ""
-    return f"{o['observed']:.2f}{ci}{at}{flag}"
+    return f"{o['text']}{at}{flag}"
 
 
 def _pareto_text(entries: list[dict]) -> str:
@@ -194,7 +193,7 @@ def _lines(c: dict) -> list[tuple[str, str]]:
     out = [("declared", f"order {c['declared_order'] if c['declared_order'] is not None else '-'}, "
                         f"{'symplectic' if c['declared_symplectic'] else 'not declared symplectic'}, {c['kind']}"
                         + (f", needs {', '.join(c['requires'])}" if c["requires"] else "")),
-           ("stability", f"imaginary-axis interval {c['stability_interval']}"),
+           ("stability", f"on the imaginary axis {c['stability_interval']}"),
            ("structure", _structure_text(c["structure"]))]
     return out
 

@@ -211,10 +211,10 @@ def _growth_summary(rows: list[dict[str, Any]]) -> list[str]:
 
 
 def _order_text(f: dict[str, Any]) -> str:
-    """'rk4 4.70+-0.53/4 MISSES': observed +- 95 % / declared."""
-    ci = f["observed_order_ci"]
-    text = f"{f['integrator']}{'' if f['order'] is None else ' N=' + str(f['order'])} {f['observed_order']:.2f}"
-    text += f"+-{ci:.2f}" if ci is not None else "(2 points)"
+    """'rk4 4.70 +- 0.53/4 MISSES': observed +- 95 % / declared."""
+    from longtime.measure.orders import fit_text
+
+    text = f"{f['integrator']}{'' if f['order'] is None else ' N=' + str(f['order'])} {fit_text(f)}"
     text += f"/{f['declared_order']}" if f["declared_order"] is not None else ""
     return text + (" MISSES" if f["order_flag"] else "")
 
