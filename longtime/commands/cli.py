@@ -34,7 +34,8 @@ from longtime.reporting.report import render
 COMMAND_MODULES: tuple[str, ...] = ("longtime.commands.asv_init", "longtime.commands.cache_cmd", "longtime.commands.card", "longtime.reporting.compare", "longtime.reporting.history",
                                    "longtime.commands.horizon", "longtime.commands.ensemble", "longtime.commands.matched", "longtime.plot",
                                    "longtime.commands.recommend", "longtime.commands.reproduce", "longtime.commands.roundoff",
-                                   "longtime.commands.warmup")
+                                   "longtime.commands.warmup",
+                                   "longtime.commands.merge")
 
 
 # argument types: one set for every command (longtime.core.cli_args)
@@ -407,6 +408,12 @@ def cmd_report(args) -> int:
         print(report_text(rows, args.format, full=args.full, checks=checks, ensembles=ensembles))
         if args.format == "table" and args.run != "all":
             print(f"\ncalibration: {drift_text(store.calibrations(run_id))}")
+        if args.format == "table":  # rows of several machines (a merged store): side by side
+            from longtime.reporting import compare, machines
+
+            table = compare.cross_machine_table(store, rows)
+            if table:
+                print(f"\n{machines.text(table)}")
     return 0
 
 

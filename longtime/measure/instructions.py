@@ -188,12 +188,12 @@ COUNT_PACKAGES = ("numba", "llvmlite", "numpy")
 
 
 def target_cache_dir() -> Path:
-    """The numba cache of the counted kernels: a folder of its own per target, beside the
-    host's ($NUMBA_CACHE_DIR, else the cache folder's ``numba``), so the host's kernels and
-    the counted ones never replace each other."""
+    """The numba cache of the counted kernels: a folder of its own per target, inside the
+    host's ($NUMBA_CACHE_DIR, else the cache folder's ``kernels``, where ``longtime cache``
+    sees and clears it), so the host's kernels and the counted ones never replace each other."""
     from longtime.core.cache import cache_root
 
-    base = Path(os.environ.get("NUMBA_CACHE_DIR") or cache_root() / "numba")
+    base = Path(os.environ.get("NUMBA_CACHE_DIR") or cache_root() / "kernels")
     return base / f"counted-{COUNT_TARGET}"
 
 

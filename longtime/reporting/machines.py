@@ -3,8 +3,8 @@ the stores of several machines, or one whose runs moved between machines).
 
 A run's machine is its recorded ``machine`` (longtime.execution.store.environment): the
 host name, the CPU model and the core count tell one machine from another (``machine_key``);
-two stores of one machine are one machine. Each machine is listed with its calibration (the
-median of its runs' reference workload, longtime.execution.calibration), the versions that
+two stores of one machine are one machine. Each machine is listed with its calibration (its
+runs' reference workload, longtime.execution.calibration.drift), the versions that
 can move an instruction count (Python, numba, llvmlite, numpy) and the targets its counts
 were compiled for.
 
@@ -25,9 +25,10 @@ machines:
 from __future__ import annotations
 
 import json
-import statistics
 from html import escape
 from typing import Any, Callable
+
+from longtime.execution.calibration import drift
 
 # what the table says about each kind of figure
 COMPARABLE = (
@@ -57,8 +58,9 @@ def machine_key(machine: dict[str, Any]) -> tuple:
 
 def machines(runs: list[dict[str, Any]], calibrations: Callable[[int], list[dict]]) -> dict[int, dict[str, Any]]:
     """Each run's machine by run id: ``label`` (M1, M2, ... in order of first run), ``node``,
-    ``cpu_model``, ``cpus``, ``versions`` (of VERSION_KEYS), ``calibration_cpu_s`` (the median
-    reference workload over the machine's runs; None without calibrations) and ``runs``.
+    ``cpu_model``, ``cpus``, ``versions`` (of VERSION_KEYS), ``calibration_cpu_s`` (the
+    reference workload over the machine's runs, as calibration.drift reads it; None without
+    calibrations) and ``runs``.
     ``calibrations(run_id)`` gives a run's calibration points."""
     found: dict[tuple, dict[str, Any]] = {}
     by_run: dict[int, dict[str, Any]] = {}
@@ -73,11 +75,11 @@ def machines(runs: list[dict[str, Any]], calibrations: Callable[[int], list[dict
                                   "versions": {k: versions.get(k) for k in VERSION_KEYS}
                                   if isinstance(versions, dict) else {}}
         entry["runs"].append(run["id"])
-        entry["points"] += [p["cpu_s"] for p in calibrations(run["id"]) if p.get("cpu_s")]
+        entry["points"] += calibrations(run["id"])
         by_run[run["id"]] = entry
     for entry in found.values():
-        points = entry.pop("points")
-        entry["calibration_cpu_s"] = statistics.median(points) if points else None
+        summary = drift(entry.pop("points"))
+        entry["calibration_cpu_s"] = summary["reference_cpu_s"] if summary else None
     return by_run
 
 
