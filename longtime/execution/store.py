@@ -569,7 +569,7 @@ def merge_stores(sources: Iterable[str | os.PathLike], into: str | os.PathLike) 
     target = Store(into)
     done: list[dict[str, Any]] = []
     with closing(target._connect()) as out, out:
-        seen = {_run_identity(r) for r in out.execute("SELECT started, command, git_commit, versions, machine FROM runs")}
+        seen = {_run_identity(*r) for r in out.execute("SELECT started, command, git_commit, versions, machine FROM runs")}
         for reader in readers:
             with closing(reader._connect()) as con:
                 con.row_factory = sqlite3.Row
@@ -578,11 +578,10 @@ def merge_stores(sources: Iterable[str | os.PathLike], into: str | os.PathLike) 
     return done
 
 
-def _run_identity(run) -> tuple:
+def _run_identity(started: str, command: str | None, commit: str | None, versions: str | None,
+                  machine: str | None) -> tuple:
     """What tells a run apart from every other: its start, command, commit, versions and
     machine (without the merge's own note of where it came from)."""
-    started, command, commit, versions, machine = (run[k] for k in range(5)) if not isinstance(run, dict) else \
-        (run["started"], run["command"], run["git_commit"], run["versions"], run["machine"])
     try:
         place = json.loads(machine or "null")
     except ValueError:
@@ -596,7 +595,7 @@ def _merge_run(con: sqlite3.Connection, out: sqlite3.Connection, run: dict[str, 
                seen: set) -> dict[str, Any]:
     """Copy the run ``run`` of the store ``con`` (at ``path``) and everything of it into ``out``."""
     record = {"store": str(path), "run": run["id"], "id": None, "status": run["status"]}
-    identity = _run_identity(run)
+    identity = _run_identity(run["started"], run["command"], run["git_commit"], run["versions"], run["machine"])
     if identity in seen:
         return record
     seen.add(identity)

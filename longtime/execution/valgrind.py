@@ -29,6 +29,7 @@ from __future__ import annotations
 import json
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -156,11 +157,7 @@ def _count(valgrind: str, cells: list[Cell], rows: dict[str, dict], max_samples:
         except subprocess.TimeoutExpired:
             trouble = f"the Valgrind process was stopped after {time.monotonic() - started:.0f} s (its limit)"
         counts = instructions.read_dumps(prefix)
-        done: dict[str, dict] = {}
-        results = folder / "results.jsonl"
-        for line in results.read_text().splitlines() if results.exists() else []:
-            item = json.loads(line)
-            done[item["key"]] = item
+        done = _results(folder / "results.jsonl")
         # the kernels counted are compiled for the fixed target: another target's count is another tool's
         tool = f"{instructions.tool_version()} ({instructions.COUNT_TARGET} kernels)"
         out = dict(prepared)
@@ -190,29 +187,35 @@ def _prepare(worker: list[str], env: dict[str, str], folder: Path, cells: list[C
     compiled for the fixed target, land in its cache, where the Valgrind process loads them
     (compiling them under Valgrind would take minutes each). Returns the skipped fields of
     the cells that cannot be counted (every cell when this process fails)."""
-    results = folder / "results.jsonl"
     limit = STARTUP_SECONDS + sum(PER_CELL_SECONDS + 2 * _budget(rows[c.key]) / instructions.SLOWDOWN for c in cells)
     what = f"compiling the kernels for {instructions.COUNT_TARGET} (outside Valgrind)"
     try:
         proc = subprocess.run([*worker, "--prepare"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                               text=True, timeout=limit)
-        trouble = "" if proc.returncode == 0 else \
-            f"{what}: {instructions.failure_text(proc.returncode, _last_line(proc.stderr), 'its process')}"
+        if proc.returncode == -signal.SIGILL:  # natively: this CPU lacks an instruction of the target
+            trouble = (f"{what}: its process was killed by SIGILL: this CPU cannot run {instructions.COUNT_TARGET} "
+                       f"code (AVX2, FMA, BMI2): counting needs an x86-64 CPU of Haswell's generation or newer")
+        else:
+            trouble = "" if proc.returncode == 0 else \
+                f"{what}: {instructions.failure_text(proc.returncode, _last_line(proc.stderr), 'its process')}"
     except subprocess.TimeoutExpired:
         trouble = f"{what} was stopped after {limit:.0f} s (its limit)"
-    done = {}
-    for line in results.read_text().splitlines() if results.exists() else []:
-        item = json.loads(line)
-        done[item["key"]] = item
-    results.unlink(missing_ok=True)
+    done = _results(folder / "results.jsonl")
+    (folder / "results.jsonl").unlink(missing_ok=True)
     out = {}
     for cell in cells:
         item = done.get(cell.key)
         if item is None:
             out[cell.key] = skipped(f"not counted: {trouble or what + ' gave nothing for it'}")
         elif item.get("reason"):
-            out[cell.key] = skipped(item["reason"].replace("under Valgrind", f"for {instructions.COUNT_TARGET}"))
+            out[cell.key] = skipped(item["reason"])
     return out
+
+
+def _results(path: Path) -> dict[str, dict]:
+    """The worker's record of each cell (by cell key) in the results file ``path``."""
+    lines = path.read_text().splitlines() if path.exists() else []
+    return {item["key"]: item for item in map(json.loads, lines)}
 
 
 _VALGRIND_PREFIX = re.compile(r"^==\d+==\s*")
@@ -257,7 +260,8 @@ def _counted_loops(integrator) -> None:
     integrator.compiled_loop = compiled_loop
 
 
-def _run_one(cell: Cell, max_samples: int) -> dict[str, Any]:
+def _run_one(cell: Cell, max_samples: int, where: str) -> dict[str, Any]:
+    """Run ``cell`` as the count runs it; ``where`` names the run in a reason."""
     problem, integrator = build(cell)
     reason = integrator.incompatibility(problem)
     if reason:
@@ -266,7 +270,7 @@ def _run_one(cell: Cell, max_samples: int) -> dict[str, Any]:
     t_final = problem.default_t_final if cell.t_final is None else cell.t_final
     traj = integrator.integrate(problem, t_final, max_samples=max_samples)
     if traj.status != "ok":
-        return {"reason": f"the run under Valgrind ended {traj.status}: {traj.message}"}
+        return {"reason": f"the run {where} ended {traj.status}: {traj.message}"}
     return {"steps": traj.steps}
 
 
@@ -277,6 +281,7 @@ def main(argv: list[str]) -> int:
 
     job = json.loads(Path(argv[0]).read_text())
     preparing = "--prepare" in argv[1:]
+    where = f"compiled for {instructions.COUNT_TARGET}" if preparing else "under Valgrind"
     sys.path.extend(p for p in job.get("sys_path", []) if p not in sys.path)
     if job.get("session"):
         registry.restore_session(Path(job["session"]).read_bytes())
@@ -290,9 +295,9 @@ def main(argv: list[str]) -> int:
         for i, data in enumerate(job["cells"]):
             cell = Cell.from_dict(data)
             try:
-                item = _run_one(cell, job["max_samples"])
+                item = _run_one(cell, job["max_samples"], where)
             except Exception as exc:  # a cell that fails here has no count, the others go on
-                item = {"reason": f"the run under Valgrind failed: {type(exc).__name__}: {exc}"}
+                item = {"reason": f"the run {where} failed: {type(exc).__name__}: {exc}"}
             if not preparing:
                 instructions.dump(f"cell {i}")  # the count since the warm-up (zero for a failed cell)
             results.write(json.dumps({"key": cell.key, **item}) + "\n")
