@@ -46,14 +46,9 @@ def test_counted_for_the_fixed_target(haswell_host):
 
 @needs_valgrind
 @pytest.mark.slow
-def test_the_same_count_under_another_host_cpu_beside_two_cpu_hogs(haswell_host):
-    hogs = [subprocess.Popen([sys.executable, "-c", "while 1: pass"]) for _ in range(2)]
-    try:
-        znver2_host = _count("znver2", "rk4")
-    finally:
-        for hog in hogs:
-            hog.kill()
-            hog.wait()
+def test_the_same_count_under_another_host_cpu(haswell_host):
+    # (the same count beside CPU-bound processes: tests/test_instructions.py)
+    znver2_host = _count("znver2", "rk4")
     a, b = haswell_host["rk4"]["instructions"], znver2_host["rk4"]["instructions"]
     assert abs(b / a - 1) < 1e-3, (a, b)
 
