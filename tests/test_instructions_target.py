@@ -13,7 +13,8 @@ import pytest
 from longtime.execution.valgrind import EXIT_NOTHING_COUNTED, _last_line
 from longtime.measure.instructions import COUNT_TARGET, counting_environment, failure_text
 
-needs_valgrind = pytest.mark.skipif(shutil.which("valgrind") is None and not os.environ.get("LONGTIME_REQUIRE_VALGRIND"),
+needs_valgrind = pytest.mark.skipif(shutil.which("valgrind") is None
+                                    and not os.environ.get("LONGTIME_REQUIRE_VALGRIND"),
                                     reason="valgrind is not installed (Debian package valgrind)")
 RUN = [sys.executable, "-m", "longtime.commands.cli", "run", "-p", "toda", "--t-final", "100", "--cost", "instructions",
        "--no-store", "--format", "json"]
@@ -65,7 +66,8 @@ def test_a_signal_is_named():
     said = _last_line("==12870== \n==12870== Process terminating with default action of signal 4 (SIGILL)\n"
                       "==12870==  Illegal opcode at address 0x54AF03C\n==12870==    at 0x54AF03C: ???\n")
     text = failure_text(-signal.SIGILL, said)
-    assert text.startswith("the Valgrind process was killed by SIGILL: the kernel uses instructions Valgrind cannot run")
+    assert text.startswith("the Valgrind process was killed by SIGILL: "
+                           "the kernel uses instructions Valgrind cannot run")
     assert text.endswith("it said: Illegal opcode at address 0x54AF03C")
     assert "killed by SIGKILL" in failure_text(-signal.SIGKILL, "")
     assert failure_text(1, "") == "the Valgrind process exited with 1: no message on stderr"

@@ -569,7 +569,8 @@ def merge_stores(sources: Iterable[str | os.PathLike], into: str | os.PathLike) 
     target = Store(into)
     done: list[dict[str, Any]] = []
     with closing(target._connect()) as out, out:
-        seen = {_run_identity(*r) for r in out.execute("SELECT started, command, git_commit, versions, machine FROM runs")}
+        known = out.execute("SELECT started, command, git_commit, versions, machine FROM runs")
+        seen = {_run_identity(*r) for r in known}
         for reader in readers:
             with closing(reader._connect()) as con:
                 con.row_factory = sqlite3.Row

@@ -207,7 +207,8 @@ def history(store, problems=None, schemes=None, sets: dict[str, str] | None = No
                            SPREAD_FIELD: r.get(SPREAD_FIELD), **{f: r.get(f) for f in errors},
                            INSTRUCTIONS_FIELD: r.get(INSTRUCTIONS_FIELD),
                            "machine": machine_of[rid]["label"] if rid in machine_of else None,
-                           "instructions_counted_by": json.dumps([r.get("instructions_tool"), r.get("instructions_versions")])})
+                           "instructions_counted_by": json.dumps([r.get("instructions_tool"),
+                                                                  r.get("instructions_versions")])})
         found = []
         specs = series_specs(points, errors, factor, error_factor)
         for spec in specs:

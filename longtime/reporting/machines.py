@@ -139,29 +139,37 @@ def machine_line(m: dict[str, Any]) -> str:
     calibration = (f"calibration {1e3 * m['calibration_cpu_s']:.3g} ms" if m["calibration_cpu_s"]
                    else "no calibration")
     targets = f"counted for {', '.join(m['targets'])}" if m.get("targets") else "no instruction count"
-    return (f"{m['label']}: {m['cpu_model'] or 'CPU unknown'}, {m['cpus'] or '?'} cores ({m['node'] or 'host unknown'}); "
-            f"{calibration}; {versions or 'versions unknown'}; {targets}; runs {', '.join(map(str, m['runs']))}")
+    return (f"{m['label']}: {m['cpu_model'] or 'CPU unknown'}, {m['cpus'] or '?'} cores "
+            f"({m['node'] or 'host unknown'}); {calibration}; {versions or 'versions unknown'}; {targets}; "
+            f"runs {', '.join(map(str, m['runs']))}")
 
 
 def _agree_text(agree: dict[str, Any]) -> str:
     return f"x{agree['ratio']:.5f}" if agree["ratio"] is not None else agree["why"]
 
 
-def text(table: dict[str, Any] | None) -> str:
-    """The table as text: the machines, what compares, one line per cell."""
-    if not table:
-        return ""
+def _grid(table: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
+    """The cell table's header and lines, as text: each machine's counts, the agreement,
+    each machine's calibrated times and CPU seconds."""
     labels = [m["label"] for m in table["machines"]]
-    lines = ["results from several machines:", *(f"  {machine_line(m)}" for m in table["machines"])]
-    lines += [f"  {c['figure']}: {c['says']}" for c in table["comparable"]]
     head = (["cell"] + [f"{x} instructions" for x in labels] + ["instructions agree"]
             + [f"{x} calibrated" for x in labels] + [f"{x} cpu_s" for x in labels])
     body = []
     for cell in table["cells"]:
         figs = [cell["machines"].get(x, {}) for x in labels]
-        body.append([cell["cell"]] + [_number(f.get("instructions")) for f in figs]
-                    + [_agree_text(cell["instructions_agree"])]
-                    + [_number(f.get("cpu_s_calibrated")) for f in figs] + [_number(f.get("cpu_s"), " s") for f in figs])
+        body.append([cell["cell"], *(_number(f.get("instructions")) for f in figs),
+                     _agree_text(cell["instructions_agree"]), *(_number(f.get("cpu_s_calibrated")) for f in figs),
+                     *(_number(f.get("cpu_s"), " s") for f in figs)])
+    return head, body
+
+
+def text(table: dict[str, Any] | None) -> str:
+    """The table as text: the machines, what compares, one line per cell."""
+    if not table:
+        return ""
+    lines = ["results from several machines:", *(f"  {machine_line(m)}" for m in table["machines"])]
+    lines += [f"  {c['figure']}: {c['says']}" for c in table["comparable"]]
+    head, body = _grid(table)
     widths = [max(len(r[i]) for r in [head, *body]) for i in range(len(head))]
     for r in [head, *body]:
         lines.append("  " + "  ".join(v.ljust(w) if i == 0 else v.rjust(w) for i, (v, w) in enumerate(zip(r, widths))))
@@ -172,19 +180,11 @@ def html(table: dict[str, Any] | None) -> str:
     """The table as an HTML section (empty when the rows come from one machine)."""
     if not table:
         return ""
-    labels = [m["label"] for m in table["machines"]]
     items = "".join(f"<li>{escape(machine_line(m))}</li>" for m in table["machines"])
     says = "".join(f"<li><b>{escape(c['figure'])}</b> {escape(c['says'])}</li>" for c in table["comparable"])
-    head = "".join(f"<th>{escape(x)}</th>" for x in (["cell"] + [f"{x} instructions" for x in labels]
-                                                    + ["instructions agree"] + [f"{x} calibrated" for x in labels]
-                                                    + [f"{x} cpu_s" for x in labels]))
-    body = ""
-    for cell in table["cells"]:
-        figs = [cell["machines"].get(x, {}) for x in labels]
-        values = ([_number(f.get("instructions")) for f in figs] + [_agree_text(cell["instructions_agree"])]
-                  + [_number(f.get("cpu_s_calibrated")) for f in figs] + [_number(f.get("cpu_s"), " s") for f in figs])
-        body += f"<tr><td>{escape(cell['cell'])}</td>" + "".join(f"<td>{escape(v)}</td>" for v in values) + "</tr>"
+    head, body = _grid(table)
+    cells = "".join("<tr>" + "".join(f"<td>{escape(v)}</td>" for v in r) + "</tr>" for r in body)
     return (f'<section id="machines"><h2>Results from several machines</h2><ul>{items}</ul>'
             f"<p>Which figures compare across machines:</p><ul>{says}</ul>"
-            f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></section>")
-
+            f"<table><thead><tr>{''.join(f'<th>{escape(h)}</th>' for h in head)}</tr></thead>"
+            f"<tbody>{cells}</tbody></table></section>")
