@@ -222,8 +222,10 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
         return counts[f"{problem}|{scheme}|{setting}"]["instructions"]
 
     track_instructions.unit = "instructions"
-    track_instructions.__doc__ = ("Instructions of the integration alone, counted by Valgrind's Callgrind "
-                                  "(deterministic: the same code gives the same count on a loaded machine).")
+    track_instructions.__doc__ = ("Instructions of the integration alone, counted by Valgrind's Callgrind with the "
+                                  "kernels compiled for one fixed target (x86-64-v3, docs/machines.md) whatever the "
+                                  "host: the same code gives the same count on a loaded machine and on another "
+                                  "x86-64 machine with the same Python, numba, llvmlite and numpy.")
     cost = type(f"{prefix}Cost", (), {
         "params": params, "param_names": names, "setup_cache": cost_cache, "setup": cost_setup,
         "track_instructions": track_instructions, "timeout": 3600,

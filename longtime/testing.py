@@ -303,7 +303,7 @@ def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float 
         from longtime.execution.valgrind import FIELDS, instruction_fields
 
         row.update(instruction_fields([(cells[0], row)], DEFAULT_MAX_SAMPLES, None)[cells[0].key])
-        benchmark.extra_info.update({k: row[k] for k in FIELDS})
+        benchmark.extra_info.update({k: row.get(k) for k in FIELDS})
     return row
 
 

@@ -1,8 +1,8 @@
 """The ``longtime`` command: list | run | matrix | report (and commands added by modules).
 
 Exit codes: 0 done; 1 a requested cell failed (``run``) or a failure that changing the
-command does not fix; 2 bad input; 130, 143, 129 stopped by SIGINT, SIGTERM, SIGHUP
-(longtime.commands.guard).
+command does not fix; 2 bad input; 3 ``run --cost instructions`` counted no row (stderr
+says why); 130, 143, 129 stopped by SIGINT, SIGTERM, SIGHUP (longtime.commands.guard).
 """
 from __future__ import annotations
 
@@ -34,7 +34,8 @@ from longtime.reporting.report import render
 COMMAND_MODULES: tuple[str, ...] = ("longtime.commands.asv_init", "longtime.commands.cache_cmd", "longtime.commands.card", "longtime.reporting.compare", "longtime.reporting.history",
                                    "longtime.commands.horizon", "longtime.commands.ensemble", "longtime.commands.matched", "longtime.plot",
                                    "longtime.commands.recommend", "longtime.commands.reproduce", "longtime.commands.roundoff",
-                                   "longtime.commands.warmup")
+                                   "longtime.commands.warmup",
+                                   "longtime.commands.merge")
 
 
 # argument types: one set for every command (longtime.core.cli_args)
@@ -106,8 +107,9 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
     p.add_argument("--db", default=None, help=f"SQLite store (default: $LONGTIME_DB or {default_path()})")
     p.add_argument("--cost", choices=COSTS, default="time",
                    help="instructions: also count each ok cell's integration under Valgrind (Callgrind; "
-                        "Debian package valgrind), a deterministic cost beside the time (rows gain "
-                        "instructions, instructions_per_step)")
+                        "Debian package valgrind), a deterministic cost beside the time, with kernels compiled "
+                        "for x86-64-v3 whatever the host (rows gain instructions, instructions_per_step, "
+                        "instructions_target, instructions_versions); `run` exits 3 when no row was counted")
 
 
 def _selection(args) -> dict:
@@ -215,7 +217,16 @@ def cmd_run(args) -> int:
     rows, _ = run_cells(cells, store=store, command=command_line(args), executor=executor,
                         options=options)
     print(render(rows, args.format))  # json: every row with the contract's keys (report.complete)
-    return 1 if any(r["status"] == "failed" for r in rows) else 0
+    if any(r["status"] == "failed" for r in rows):
+        return 1
+    if options.cost == "instructions":  # asked for counts and got none: said, and exit 3
+        from longtime.execution.valgrind import EXIT_NOTHING_COUNTED, nothing_counted
+
+        why = nothing_counted(rows)
+        if why:
+            print(f"error: {why}", file=sys.stderr)
+            return EXIT_NOTHING_COUNTED
+    return 0
 
 
 def cmd_matrix(args) -> int:
@@ -397,6 +408,12 @@ def cmd_report(args) -> int:
         print(report_text(rows, args.format, full=args.full, checks=checks, ensembles=ensembles))
         if args.format == "table" and args.run != "all":
             print(f"\ncalibration: {drift_text(store.calibrations(run_id))}")
+        if args.format == "table":  # rows of several machines (a merged store): side by side
+            from longtime.reporting import compare, machines
+
+            table = compare.cross_machine_table(store, rows)
+            if table:
+                print(f"\n{machines.text(table)}")
     return 0
 
 

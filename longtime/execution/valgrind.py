@@ -9,16 +9,27 @@ under Valgrind (longtime.measure.instructions.command) and reads the counts back
 scheme, loads and warms up the kernel uncounted, then counts only the calls into the
 compiled loop (longtime.measure.instructions.counting), in one chunk.
 
+The counted kernels are compiled for one fixed target (instructions.COUNT_TARGET,
+x86-64-v3) whatever the host, in a numba cache of their own (instructions.target_cache_dir):
+a first process, outside Valgrind and with the target's environment, runs the cells once
+(compiling and caching their kernels), then the Valgrind process loads them from that
+cache. The timed runs keep the host's own kernels. So a count does not depend on the host
+CPU (an AVX-512 host's kernels would stop Valgrind with SIGILL), and counts from two x86-64
+machines with the same versions compare.
+
 Fields a row gains (only when instructions are asked for): ``instructions`` (the count of
 the integration, an integer), ``instructions_per_step``, ``instructions_tool`` (the
-Valgrind that counted and the CPU the kernels were compiled for) and ``instructions_skipped`` (why a cell has no count; null when it
-has one).
+Valgrind that counted and the target the kernels were compiled for),
+``instructions_target`` (that target), ``instructions_versions`` (the versions that can
+still move a count: Python, numba, llvmlite, numpy) and ``instructions_skipped`` (why a
+cell has no count; null when it has one).
 """
 from __future__ import annotations
 
 import json
-import os
+import re
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -30,7 +41,10 @@ from longtime.core.integrator import AdaptiveIntegrator, FixedStepIntegrator
 from longtime.execution.cells import Cell, build
 from longtime.measure import instructions
 
-FIELDS = ("instructions", "instructions_per_step", "instructions_tool", "instructions_skipped")
+FIELDS = ("instructions", "instructions_per_step", "instructions_tool", "instructions_target", "instructions_versions",
+          "instructions_skipped")
+# the exit code of `longtime run --cost instructions` when no row has a count
+EXIT_NOTHING_COUNTED = 3
 # what the worker may spend before its first cell: Python, numpy, numba, longtime and the
 # request function under Valgrind (about a minute of CPU on an idle machine; a loaded one
 # takes longer)
@@ -43,7 +57,17 @@ _COUNTED_DRIVERS = (FixedStepIntegrator._integrate, AdaptiveIntegrator._integrat
 
 def skipped(reason: str) -> dict[str, Any]:
     return {"instructions": None, "instructions_per_step": None, "instructions_tool": None,
-            "instructions_skipped": reason}
+            "instructions_target": None, "instructions_versions": None, "instructions_skipped": reason}
+
+
+def nothing_counted(rows: Iterable[dict[str, Any]]) -> str | None:
+    """Why none of ``rows`` (asked to be counted) has a count, in one line; None when one has."""
+    rows = list(rows)
+    if any(r.get("instructions") is not None for r in rows):
+        return None
+    reasons = sorted({r.get("instructions_skipped") or "no reason given" for r in rows})
+    more = f" (and {len(reasons) - 1} other reason(s))" if len(reasons) > 1 else ""
+    return f"--cost instructions: no row was counted: {reasons[0] if reasons else 'no row'}{more}"
 
 
 def not_isolated(scheme: str) -> str | None:
@@ -113,28 +137,30 @@ def _count(valgrind: str, cells: list[Cell], rows: dict[str, dict], max_samples:
                                    "sys_path": [p for p in sys.path if p],
                                    "results": str(folder / "results.jsonl")}))
         prefix = folder / "callgrind.out"
-        target = instructions.numba_target_environment()
-        env = {**os.environ, **target, "LONGTIME_PROGRESS": "0",
+        env = {**instructions.counting_environment(), "LONGTIME_PROGRESS": "0",
                "PYTHONHASHSEED": "0"}  # the same dict layouts in every run: the same dispatch path
+        worker = [sys.executable, "-m", "longtime.execution.valgrind", str(job)]
+        prepared = _prepare(worker, env, folder, cells, rows)
+        if prepared:
+            cells = [c for c in cells if c.key not in prepared]
+            if not cells:
+                return prepared
+        job.write_text(json.dumps({**json.loads(job.read_text()), "cells": [c.to_dict() for c in cells]}))
         limit = STARTUP_SECONDS + sum(PER_CELL_SECONDS + _budget(rows[c.key]) for c in cells)
-        argv = [*instructions.command(valgrind, prefix), sys.executable, "-m", "longtime.execution.valgrind", str(job)]
+        argv = [*instructions.command(valgrind, prefix), *worker]
         started = time.monotonic()
         try:
             proc = subprocess.run(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                                   timeout=limit)
-            trouble = "" if proc.returncode == 0 else \
-                f"the Valgrind process exited with {proc.returncode}: {_last_line(proc.stderr)}"
+            trouble = "" if proc.returncode == 0 else instructions.failure_text(proc.returncode,
+                                                                                _last_line(proc.stderr))
         except subprocess.TimeoutExpired:
             trouble = f"the Valgrind process was stopped after {time.monotonic() - started:.0f} s (its limit)"
         counts = instructions.read_dumps(prefix)
-        done: dict[str, dict] = {}
-        results = folder / "results.jsonl"
-        for line in results.read_text().splitlines() if results.exists() else []:
-            item = json.loads(line)
-            done[item["key"]] = item
-        # the kernels counted are compiled for this CPU: another CPU's count is another tool's
-        tool = f"{instructions.tool_version()} ({target['NUMBA_CPU_NAME']} kernels)"
-        out = {}
+        done = _results(folder / "results.jsonl")
+        # the kernels counted are compiled for the fixed target: another target's count is another tool's
+        tool = f"{instructions.tool_version()} ({instructions.COUNT_TARGET} kernels)"
+        out = dict(prepared)
         for i, cell in enumerate(cells):
             item, count = done.get(cell.key), counts.get(f"cell {i}")
             steps = rows[cell.key].get("steps")
@@ -148,15 +174,66 @@ def _count(valgrind: str, cells: list[Cell], rows: dict[str, dict], max_samples:
             else:
                 out[cell.key] = {"instructions": count,
                                  "instructions_per_step": count / steps if steps else None,
-                                 "instructions_tool": tool, "instructions_skipped": None}
+                                 "instructions_tool": tool, "instructions_target": instructions.COUNT_TARGET,
+                                 "instructions_versions": instructions.count_versions(), "instructions_skipped": None}
         return out
     finally:
         shutil.rmtree(folder, ignore_errors=True)
 
 
+def _prepare(worker: list[str], env: dict[str, str], folder: Path, cells: list[Cell],
+             rows: dict[str, dict]) -> dict[str, dict]:
+    """Run ``cells`` once outside Valgrind with the counting environment: their kernels,
+    compiled for the fixed target, land in its cache, where the Valgrind process loads them
+    (compiling them under Valgrind would take minutes each). Returns the skipped fields of
+    the cells that cannot be counted (every cell when this process fails)."""
+    limit = STARTUP_SECONDS + sum(PER_CELL_SECONDS + 2 * _budget(rows[c.key]) / instructions.SLOWDOWN for c in cells)
+    what = f"compiling the kernels for {instructions.COUNT_TARGET} (outside Valgrind)"
+    try:
+        proc = subprocess.run([*worker, "--prepare"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                              text=True, timeout=limit)
+        if proc.returncode == -signal.SIGILL:  # natively: this CPU lacks an instruction of the target
+            trouble = (f"{what}: its process was killed by SIGILL: this CPU cannot run {instructions.COUNT_TARGET} "
+                       f"code (AVX2, FMA, BMI2): counting needs an x86-64 CPU of Haswell's generation or newer")
+        else:
+            trouble = "" if proc.returncode == 0 else \
+                f"{what}: {instructions.failure_text(proc.returncode, _last_line(proc.stderr), 'its process')}"
+    except subprocess.TimeoutExpired:
+        trouble = f"{what} was stopped after {limit:.0f} s (its limit)"
+    done = _results(folder / "results.jsonl")
+    (folder / "results.jsonl").unlink(missing_ok=True)
+    out = {}
+    for cell in cells:
+        item = done.get(cell.key)
+        if item is None:
+            out[cell.key] = skipped(f"not counted: {trouble or what + ' gave nothing for it'}")
+        elif item.get("reason"):
+            out[cell.key] = skipped(item["reason"])
+    return out
+
+
+def _results(path: Path) -> dict[str, dict]:
+    """The worker's record of each cell (by cell key) in the results file ``path``."""
+    lines = path.read_text().splitlines() if path.exists() else []
+    return {item["key"]: item for item in map(json.loads, lines)}
+
+
+_VALGRIND_PREFIX = re.compile(r"^==\d+==\s*")
+# Valgrind's own lines that say why the process it ran ended
+_VALGRIND_REASONS = ("unhandled instruction bytes", "Illegal opcode", "Process terminating")
+
+
 def _last_line(text: str) -> str:
-    lines = [ln for ln in (text or "").splitlines() if ln.strip() and not ln.startswith("==")]
-    return lines[-1].strip() if lines else "no message"
+    """What the counting process said last on stderr: Valgrind's line on why the process
+    ended where there is one (an instruction it cannot decode, an illegal opcode), else
+    the last line that is not Valgrind's own."""
+    lines = [ln.strip() for ln in (text or "").splitlines() if ln.strip()]
+    for reason in _VALGRIND_REASONS:
+        found = [ln for ln in lines if reason in ln]
+        if found:
+            return _VALGRIND_PREFIX.sub("", found[-1])
+    own = [ln for ln in lines if not ln.startswith("==")]
+    return own[-1] if own else ""
 
 
 # ------------------------------------------------------------------ the worker, under Valgrind
@@ -183,7 +260,8 @@ def _counted_loops(integrator) -> None:
     integrator.compiled_loop = compiled_loop
 
 
-def _run_one(cell: Cell, max_samples: int) -> dict[str, Any]:
+def _run_one(cell: Cell, max_samples: int, where: str) -> dict[str, Any]:
+    """Run ``cell`` as the count runs it; ``where`` names the run in a reason."""
     problem, integrator = build(cell)
     reason = integrator.incompatibility(problem)
     if reason:
@@ -192,14 +270,18 @@ def _run_one(cell: Cell, max_samples: int) -> dict[str, Any]:
     t_final = problem.default_t_final if cell.t_final is None else cell.t_final
     traj = integrator.integrate(problem, t_final, max_samples=max_samples)
     if traj.status != "ok":
-        return {"reason": f"the run under Valgrind ended {traj.status}: {traj.message}"}
+        return {"reason": f"the run {where} ended {traj.status}: {traj.message}"}
     return {"steps": traj.steps}
 
 
 def main(argv: list[str]) -> int:
+    """Count the cells of the job file ``argv[0]`` (under Valgrind); with ``--prepare``,
+    run them once outside it to compile and cache their kernels."""
     from longtime.core import integrator as core_integrator
 
     job = json.loads(Path(argv[0]).read_text())
+    preparing = "--prepare" in argv[1:]
+    where = f"compiled for {instructions.COUNT_TARGET}" if preparing else "under Valgrind"
     sys.path.extend(p for p in job.get("sys_path", []) if p not in sys.path)
     if job.get("session"):
         registry.restore_session(Path(job["session"]).read_bytes())
@@ -207,15 +289,17 @@ def main(argv: list[str]) -> int:
     # deadline would each add a call's dispatch to the count, and their number follows the
     # wall clock
     core_integrator.FIRST_CHUNK = 2**62
-    instructions.running()  # the request function is compiled before any cell
+    if not preparing:
+        instructions.running()  # the request function is compiled before any cell
     with open(job["results"], "a") as results:
         for i, data in enumerate(job["cells"]):
             cell = Cell.from_dict(data)
             try:
-                item = _run_one(cell, job["max_samples"])
+                item = _run_one(cell, job["max_samples"], where)
             except Exception as exc:  # a cell that fails here has no count, the others go on
-                item = {"reason": f"the run under Valgrind failed: {type(exc).__name__}: {exc}"}
-            instructions.dump(f"cell {i}")  # the count since the warm-up (zero for a failed cell)
+                item = {"reason": f"the run {where} failed: {type(exc).__name__}: {exc}"}
+            if not preparing:
+                instructions.dump(f"cell {i}")  # the count since the warm-up (zero for a failed cell)
             results.write(json.dumps({"key": cell.key, **item}) + "\n")
             results.flush()
     return 0

@@ -64,8 +64,9 @@ def require() -> str:
         raise InputError(f"counting instructions (--cost instructions) needs Valgrind, which is not on PATH: install the Debian package "
                          f"'{DEBIAN_PACKAGE}' (apt-get install {DEBIAN_PACKAGE})")
     if platform.machine() not in ("x86_64", "AMD64"):
-        raise InputError(f"--cost instructions counts with Valgrind client requests written for x86-64; "
-                         f"this machine is {platform.machine()}")
+        raise InputError(f"--cost instructions counts with Valgrind client requests written for x86-64 (amd64); "
+                         f"this machine is {platform.machine()}: count on an x86-64 machine (the count is the same "
+                         f"on every one: docs/machines.md) and bring its store here with `longtime merge`")
     return path
 
 
@@ -172,14 +173,86 @@ def command(valgrind: str, out_prefix: str | os.PathLike) -> list[str]:
     return [valgrind, *CALLGRIND_OPTIONS, f"--callgrind-out-file={out_prefix}", "-q"]
 
 
-def numba_target_environment() -> dict[str, str]:
-    """NUMBA_CPU_NAME and NUMBA_CPU_FEATURES of this process's machine, for the process
-    Valgrind runs: Valgrind presents a CPU of its own (another name, fewer features), and
-    numba keys its disk cache by the CPU, so without these the kernels would compile anew
-    under Valgrind (minutes each) instead of loading from the cache this process filled.
-    The kernels counted are then the ones that were timed."""
-    import llvmlite.binding as llvm
+# The CPU the counted kernels are compiled for, whatever the host: x86-64-v3 (the x86-64
+# psABI level of Haswell: AVX2, FMA, BMI1/2, F16C, LZCNT, MOVBE), every instruction of which
+# Valgrind runs, with its features spelled out (numba otherwise adds the host's own, AVX-512
+# among them). The same kernels on every x86-64 host give the same count.
+COUNT_TARGET = "x86-64-v3"
+COUNT_TARGET_FEATURES = ("+64bit,+cmov,+cx8,+fxsr,+mmx,+sse,+sse2,+cx16,+sahf,+popcnt,+sse3,+ssse3,+sse4.1,"
+                         "+sse4.2,+avx,+avx2,+bmi,+bmi2,+f16c,+fma,+lzcnt,+movbe,+xsave")
+# settings that change the code numba compiles: the counting process runs without them
+_CODE_SETTINGS = ("NUMBA_OPT", "NUMBA_LOOP_VECTORIZE", "NUMBA_SLP_VECTORIZE", "NUMBA_ENABLE_AVX",
+                  "NUMBA_DISABLE_JIT", "NUMBA_BOUNDSCHECK", "NUMBA_DEBUGINFO")
+# the packages whose version can move a count of the same code, cell and target
+COUNT_PACKAGES = ("numba", "llvmlite", "numpy")
 
-    name = os.environ.get("NUMBA_CPU_NAME") or llvm.get_host_cpu_name()
-    features = os.environ.get("NUMBA_CPU_FEATURES") or llvm.get_host_cpu_features().flatten()
-    return {"NUMBA_CPU_NAME": name, "NUMBA_CPU_FEATURES": features}
+
+def target_cache_dir() -> Path:
+    """The numba cache of the counted kernels: a folder of its own per target, inside the
+    host's ($NUMBA_CACHE_DIR, else the cache folder's ``kernels``, where ``longtime cache``
+    sees and clears it), so the host's kernels and the counted ones never replace each other."""
+    from longtime.core.cache import cache_root
+
+    base = Path(os.environ.get("NUMBA_CACHE_DIR") or cache_root() / "kernels")
+    return base / f"counted-{COUNT_TARGET}"
+
+
+def numba_target_environment() -> dict[str, str]:
+    """The environment of the processes that compile and count the kernels: NUMBA_CPU_NAME
+    and NUMBA_CPU_FEATURES of the fixed target (COUNT_TARGET), whatever the host's (and its
+    NUMBA_CPU_NAME) are, and its own numba cache. Valgrind presents a CPU of its own, and
+    numba keys its disk cache by the CPU: with these the kernels compiled beforehand, outside
+    Valgrind, are the ones loaded under it."""
+    return {"NUMBA_CPU_NAME": COUNT_TARGET, "NUMBA_CPU_FEATURES": COUNT_TARGET_FEATURES,
+            "NUMBA_CACHE_DIR": str(target_cache_dir())}
+
+
+def counting_environment(base: dict[str, str] | None = None) -> dict[str, str]:
+    """``base`` (default: this process's environment) with the fixed target's settings, and
+    without the settings that would change the code compiled for it."""
+    env = {k: v for k, v in (os.environ if base is None else base).items() if k not in _CODE_SETTINGS}
+    return {**env, **numba_target_environment()}
+
+
+@functools.lru_cache(maxsize=1)
+def count_versions() -> dict[str, str | None]:
+    """The versions that can move a count of the same code, cell and target: Python's,
+    numba's and LLVM's (llvmlite), numpy's."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    found: dict[str, str | None] = {"python": platform.python_version()}
+    for name in COUNT_PACKAGES:
+        try:
+            found[name] = version(name)
+        except PackageNotFoundError:
+            found[name] = None
+    return found
+
+
+# what a signal that ended the Valgrind process says about the count
+_SIGNAL_MEANING = {
+    "SIGILL": (f"the kernel uses instructions Valgrind cannot run (compiled for a CPU with instructions Valgrind "
+               f"lacks, such as AVX-512; the counted kernels are compiled for {COUNT_TARGET}: a kernel or library "
+               f"compiled for the host CPU instead reached the count)"),
+    "SIGKILL": "killed from outside (the kernel's out-of-memory killer, or a user)",
+    "SIGSEGV": "the process crashed (a bad memory access)",
+    "SIGBUS": "the process crashed (a bad memory access)",
+    "SIGABRT": "the process aborted",
+    "SIGTERM": "stopped from outside",
+}
+
+
+def failure_text(returncode: int, last_line: str, process: str = "the Valgrind process") -> str:
+    """Why ``process`` (a counting process) that ended with ``returncode`` gave no count, in
+    one line: a negative code is the signal that killed it, named, with what it means here."""
+    import signal
+
+    if returncode < 0:
+        try:
+            name = signal.Signals(-returncode).name
+        except ValueError:
+            name = f"signal {-returncode}"
+        meaning = _SIGNAL_MEANING.get(name) or signal.strsignal(-returncode) or "no description"
+        said = f"; it said: {last_line}" if last_line else ""
+        return f"{process} was killed by {name}: {meaning}{said}"
+    return f"{process} exited with {returncode}: {last_line or 'no message on stderr'}"

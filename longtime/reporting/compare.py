@@ -53,6 +53,7 @@ import numpy as np
 
 from longtime.core.params import InputError
 from longtime.core.roles import row_columns
+from longtime.reporting import machines
 
 # set above the spread measured between runs of identical code, alone and beside CPU-bound
 # processes (README, "compare")
@@ -506,7 +507,28 @@ def render(result: dict[str, Any], show_all: bool = False) -> str:
     for side in ("a", "b"):
         for m in result.get(f"left_out_{side}", []):
             lines.append(f"  left out of {side.upper()}'s order table: {m['problem']} {m['integrator']} ({m['reason']})")
+    if result.get("cross_machine"):
+        lines.append("runs A and B ran on different machines: their times compare only calibrated and roughly; "
+                     "their instruction counts where the table says they agree")
+        lines.append(machines.text(result["cross_machine"]))
     return "\n".join(lines)
+
+
+def cross_machine_table(store, rows: list[dict]) -> dict[str, Any] | None:
+    """The cross-machine table (longtime.reporting.machines) of ``rows`` of ``store``, cells
+    matched as compare matches them; None when the rows come from one machine."""
+    return machines.cross_machine(rows, store.runs(), store.calibrations, cell_key, label)
+
+
+def _cross_machine_pair(store_a, rows_a: list[dict], store_b, rows_b: list[dict]) -> dict[str, Any] | None:
+    """The cross-machine table of the two compared runs (None on one machine); runs of two
+    stores are told apart by giving B's run ids negated."""
+    if store_a.path.absolute() == store_b.path.absolute():
+        return cross_machine_table(store_a, rows_a + rows_b)
+    runs = store_a.runs() + [{**r, "id": -r["id"]} for r in store_b.runs()]
+    rows = rows_a + [{**r, "run_id": -r["run_id"]} for r in rows_b]
+    return machines.cross_machine(rows, runs, lambda i: store_a.calibrations(i) if i > 0 else store_b.calibrations(-i),
+                                  cell_key, label)
 
 
 def _store(db, readonly: bool = True):
@@ -536,6 +558,7 @@ def run_compare(db_a, run_a, db_b, run_b, factor: float = TIME_FACTOR, error_fac
     if not result["cells"]:
         raise InputError(f"runs {run_a} and {run_b} have no cell in common")
     result["provenance"] = {"a": provenance(_store(db_a).run(int(run_a))), "b": provenance(_store(db_b).run(int(run_b)))}
+    result["cross_machine"] = _cross_machine_pair(_store(db_a), rows_a, _store(db_b), rows_b)
     return result
 
 

@@ -26,6 +26,10 @@ Each series is one entry of ``series_specs``: its field, how its factor is found
 its steps are named. Where runs counted instructions (``--cost instructions``),
 ``instructions`` is a series too: deterministic, so every level counts, and neighbouring
 levels within ``compare.INSTRUCTION_FACTOR`` are one level.
+A store that holds runs of several machines (``longtime merge``) gives each run its
+machine (``machine``: M1, M2, ..., longtime.reporting.machines); a time step is looked for
+only between runs of one machine, an instruction step only between counts of one target,
+Valgrind and versions; the table ends with the cross-machine table.
 The header of a cell names every setting that tells two cells apart (``label``), t_final
 included; each run shows the commit of longtime and of the code under test
 (longtime.execution.provenance).
@@ -38,12 +42,14 @@ from typing import Any
 
 from longtime.core.params import InputError
 from longtime.core.roles import ROW_PARAMETERS
+from longtime.reporting import machines
 from longtime.reporting.compare import (
     INSTRUCTION_FACTOR,
     MATCH_KEYS,
     ROUND_OFF,
     TIME_FACTOR,
     cell_key,
+    cross_machine_table,
     error_fields,
     label,
 )
@@ -181,6 +187,7 @@ def history(store, problems=None, schemes=None, sets: dict[str, str] | None = No
     from longtime.execution.provenance import run_code
 
     runs = {r["id"]: r for r in store.runs()}
+    machine_of = machines.machines(list(runs.values()), store.calibrations)
     only = fields
     cells: dict[tuple, dict[int, dict]] = {}
     for row in store.rows():
@@ -198,7 +205,10 @@ def history(store, problems=None, schemes=None, sets: dict[str, str] | None = No
                            "date": run.get("started"), "status": r.get("status"), "cpu_s": r.get("cpu_s"),
                            TIME_FIELD: r.get(TIME_FIELD), "cpu_s_processes": r.get("cpu_s_processes"),
                            SPREAD_FIELD: r.get(SPREAD_FIELD), **{f: r.get(f) for f in errors},
-                           INSTRUCTIONS_FIELD: r.get(INSTRUCTIONS_FIELD)})
+                           INSTRUCTIONS_FIELD: r.get(INSTRUCTIONS_FIELD),
+                           "machine": machine_of[rid]["label"] if rid in machine_of else None,
+                           "instructions_counted_by": json.dumps([r.get("instructions_tool"),
+                                                                  r.get("instructions_versions")])})
         found = []
         specs = series_specs(points, errors, factor, error_factor)
         for spec in specs:
@@ -207,7 +217,7 @@ def history(store, problems=None, schemes=None, sets: dict[str, str] | None = No
                 continue
             values = [p[field] if p["status"] == "ok" and isinstance(p.get(field), (int, float)) else None
                       for p in points]
-            for s in steps(values, spec["factor"], spec["min_runs"], spec["floor"]):
+            for s in _steps_apart(values, points, field, spec):
                 p = points[s["index"]]
                 kind = spec["kinds"][0] if s["ratio"] > 1 else spec["kinds"][1]
                 found.append({"field": field, "run_id": p["run_id"], "commit": p["commit"], "code": p["code"],
@@ -216,6 +226,19 @@ def history(store, problems=None, schemes=None, sets: dict[str, str] | None = No
         out.append({"cell": {k: first.get(k) for k in MATCH_KEYS}, "runs": points,
                     "time_factor": specs[0]["factor"], "time_factor_basis": specs[0]["basis"], "steps": found})
     return out
+
+
+def _steps_apart(values: list, points: list[dict[str, Any]], field: str, spec: dict) -> list[dict[str, Any]]:
+    """The steps of one series, looked for apart among the runs that compare: a time only
+    with the times of its own machine, a count only with the counts of its own target,
+    Valgrind and versions (every run of an error series compares)."""
+    group = "machine" if field == TIME_FIELD else "instructions_counted_by" if field == INSTRUCTIONS_FIELD else None
+    kinds = sorted({str(p.get(group)) for p in points}) if group else [None]
+    found = []
+    for kind in kinds:
+        mine = values if group is None else [v if str(p.get(group)) == kind else None for v, p in zip(values, points)]
+        found += steps(mine, spec["factor"], spec["min_runs"], spec["floor"])
+    return sorted(found, key=lambda s: s["index"])
 
 
 def _short(commit: str | None) -> str:
@@ -233,9 +256,10 @@ def render(found: list[dict[str, Any]]) -> str:
     parts = []
     for c in found:
         shown = [f for f in (*SHOWN_ERRORS, INSTRUCTIONS_FIELD) if any(p.get(f) is not None for p in c["runs"])]
-        header = ["run", "commit", "code", "date", "status", "time (calibrated)", "cpu_s", "processes",
+        header = ["run", "machine", "commit", "code", "date", "status", "time (calibrated)", "cpu_s", "processes",
                   "spread", *shown]
-        body = [[str(p["run_id"]), _short(p["commit"]), _code(p.get("code")), (p["date"] or "-")[:19], str(p["status"]),
+        body = [[str(p["run_id"]), str(p.get("machine") or "-"), _short(p["commit"]), _code(p.get("code")),
+                 (p["date"] or "-")[:19], str(p["status"]),
                  number(p[TIME_FIELD]), number(p["cpu_s"]), str(len(p.get("cpu_s_processes") or []) or "-"),
                  f"x{p[SPREAD_FIELD]:.3g}" if isinstance(p.get(SPREAD_FIELD), (int, float)) else "-",
                  *(number(p.get(f)) for f in shown)] for p in c["runs"]]
@@ -261,7 +285,11 @@ def cmd_history(args) -> int:
     found = history(store, args.problem, args.integrator, sets)
     if not found:
         raise InputError(f"no stored cell in {store.path} matches -p/-i/--set")
-    print(json.dumps(found, indent=1) if args.format == "json" else render(found))
+    if args.format == "json":  # each run's point names its machine
+        print(json.dumps(found, indent=1))
+        return 0
+    table = cross_machine_table(store, [r for r in store.rows() if _selected(r, args.problem, args.integrator, sets)])
+    print(render(found) + (f"\n\n{machines.text(table)}" if table else ""))
     return 0
 
 
@@ -313,6 +341,12 @@ def page_section(store, rows: list[dict], style: dict) -> str | None:
                    f"{len(mine)} cell{'s' if len(mine) != 1 else ''}, {marked} step{'s' if marked != 1 else ''} "
                    f"marked (<code>longtime history -p {escape(problem)}</code> lists every field's).</figcaption></figure>")
     return "\n".join(out)
+
+
+def machines_section(store, rows: list[dict]) -> str:
+    """The results page's cross-machine section (longtime.reporting.machines): empty when
+    ``rows`` come from one machine."""
+    return machines.html(cross_machine_table(store, rows))
 
 
 def _main_error(cell: dict) -> str | None:

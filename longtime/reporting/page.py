@@ -543,7 +543,7 @@ def write_html(out_dir, rows: list[dict[str, Any]], store, run_ids: Iterable[int
     come from), its figures drawn on ``jobs`` processes (default: one per core) but for those
     drawn ``ahead`` (an figures_ahead.FiguresAhead); ``writer``: the command that writes it
     (the footer names it); returns its path."""
-    from longtime.reporting.history import page_section
+    from longtime.reporting.history import machines_section, page_section
 
     ids = sorted(set(run_ids) if run_ids is not None else {r.get("run_id") for r in rows if r.get("run_id")})
     runs = [{**r, "calibrations": store.calibrations(r["id"])} for r in store.runs() if r["id"] in ids]
@@ -551,6 +551,7 @@ def write_html(out_dir, rows: list[dict[str, Any]], store, run_ids: Iterable[int
     problems = {r["problem"] for r in rows}
     ensembles = [e for i in ids for e in store.ensembles(i) if e["problem"] in problems]
     history = page_section(store, rows, styles(sorted({r["integrator"] for r in rows})))
+    history = "\n".join(filter(None, (history, machines_section(store, rows)))) or None  # several machines
     from longtime.execution.pool import workers
 
     return write_page(out_dir, rows, runs, jobs=workers(jobs or 0), ahead=ahead, history=history, checks=checks,
