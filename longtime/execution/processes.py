@@ -54,6 +54,9 @@ POLL_S = 0.05
 # a timing process spreads each cell's runs over at least this many seconds (time_cells)
 SPREAD_S = 3.0
 MAX_ROUNDS = 100
+# the statuses of a timing process's run that end it before its end (a time limit passed, the
+# process paused or killed): a lost sample, never evidence that the run differs
+LOST = ("timeout",)
 
 
 def check_processes(value: Any, name: str = "--processes") -> int:
@@ -116,10 +119,11 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing, time_limit: 
         except (Exception, SystemExit) as exc:
             prepared.append(None)
             out.append({"status": "failed", "message": f"{type(exc).__name__}: {exc}", "pid": os.getpid()})
-    start, rounds = time.monotonic(), 0
+    start, rounds, stopped = time.monotonic(), 0, set()
     while rounds < MAX_ROUNDS:
         spreading = time.monotonic() - start < SPREAD_S
-        active = [k for k, p in enumerate(prepared) if p is not None and out[k]["status"] == "ok" and (
+        active = [k for k, p in enumerate(prepared) if p is not None and out[k]["status"] == "ok"
+                  and k not in stopped and (
             len(out[k]["cpu_s_samples"]) < timing.least_runs or spreading
             or (len(out[k]["cpu_s_samples"]) < timing.repeats and sum(out[k]["wall_s_samples"]) < timing.min_time))]
         if not active:
@@ -136,6 +140,13 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing, time_limit: 
                 record.update(status="failed", message=f"{type(exc).__name__}: {exc}")
                 continue
             digest = traj.extra.get("samples_digest")
+            if traj.status == "timeout":  # stopped, not finished: no sample, and nothing to compare
+                if not record["cpu_s_samples"]:
+                    record.update(status="timeout", message=f"the run passed the time limit in this process "
+                                                            f"({traj.message})", samples_digest=None)
+                else:
+                    stopped.add(k)  # the runs timed so far stand
+                continue
             if traj.status != "ok" or (record["samples_digest"] is not None and digest != record["samples_digest"]):
                 if not record["cpu_s_samples"]:
                     record.update(status=traj.status, message=traj.message, samples_digest=digest)
@@ -191,7 +202,7 @@ def merge(row: dict[str, Any], others: list[dict[str, Any]], processes: int) -> 
             mins.append(o["cpu_s"])
             walls.append(o["wall_s"])
             samples += o["cpu_s_samples"]
-        elif o.get("status") == "ok" or o.get("samples_digest"):
+        elif o.get("status") not in LOST and (o.get("status") == "ok" or o.get("samples_digest")):
             row["status"] = "failed"
             row["message"] = "; ".join(m for m in (
                 row.get("message"), f"non-deterministic: the run timed in another process (pid {o.get('pid')}) did "
@@ -260,7 +271,7 @@ def run_children(cells: list[Cell], count: int, max_samples: int, timing: Timing
     from longtime.execution.isolation import kill_group, write_session
 
     job = {"cells": [c.to_dict() for c in cells], "max_samples": max_samples, "parent": os.getpid(),
-           "timing": {"repeats": timing.repeats, "min_time": timing.min_time, "min_runs": timing.min_runs},
+           "timing": timing.to_dict(),
            "time_limit": time_limit, "memory_limit": memory_limit, "paired": paired}
     waiting, running, done = list(range(count)), [], {}
     folders = []
@@ -327,7 +338,7 @@ def _child_main(folder: str) -> None:
 
         reference_workload(10, 0.01)  # loaded (or compiled) before the first timed call
         reference = reference_seconds
-    results = time_cells([Cell.from_dict(c) for c in job["cells"]], job["max_samples"], Timing(**job["timing"]),
+    results = time_cells([Cell.from_dict(c) for c in job["cells"]], job["max_samples"], Timing.from_dict(job["timing"]),
                          job.get("time_limit"), reference)
     tmp = path / "result.json.part"
     tmp.write_text(json.dumps(results))
