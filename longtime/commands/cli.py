@@ -23,7 +23,17 @@ from longtime.execution import budget, limits
 from longtime.execution.calibration import drift_text
 from longtime.execution.cells import DEFAULT_TIME_LIMIT, check_size, expand
 from longtime.execution.lifecycle import command_line, recorded_run
-from longtime.execution.matrix import COSTS, EXECUTORS, ExecOptions, check_cost, run_matrix
+from longtime.execution.matrix import (
+    COSTS,
+    COUNTS_PHASE,
+    EXECUTORS,
+    PHASES_FIELD,
+    PROCESSES_PHASE,
+    ExecOptions,
+    check_cost,
+    complete_phases,
+    run_matrix,
+)
 from longtime.execution.processes import DEFAULT_PROCESSES, default_processes
 from longtime.execution.store import Store, default_path
 from longtime.measure import stability
@@ -232,11 +242,16 @@ def cmd_matrix(args) -> int:
             raise InputError(f"--resume: no incomplete run in {store.path} (give a run id to pick one)")
         store.run(run_id)  # an unknown id is an error, not "0 cells left"
         cells = store.pending(run_id)
-        if not cells:  # every planned row is stored (only its end mark was lost): nothing to run
+        lacking = len(store.incomplete_rows(run_id, PHASES_FIELD))
+        if lacking:  # rows stored before their timing processes or counts ran: run them
+            print(f"run {run_id}: {lacking} stored row(s) lack a phase ({PROCESSES_PHASE}, {COUNTS_PHASE}): "
+                  f"it runs for them", file=sys.stderr)
+        elif not cells:  # every planned row is stored (only its end mark was lost): nothing to run
             store.finish_run(run_id, "done")
             print(f"run {run_id}: every planned cell is stored; marked done", file=sys.stderr)
             return 0
-        print(f"resuming run {run_id}: {len(cells)} cells left", file=sys.stderr)
+        if cells:
+            print(f"resuming run {run_id}: {len(cells)} cells left", file=sys.stderr)
         died = store.died_in(run_id)
         if died:  # perhaps killed, perhaps the cell's crash: each runs again in a process of its own
             print(f"run {run_id} ended inside {len(died)} cell(s): they run again one process each", file=sys.stderr)
@@ -266,6 +281,8 @@ def cmd_matrix(args) -> int:
             options = dataclasses.replace(options, idle_work=ahead.task)
         run_matrix(cells, store, run_id, executor, options,
                    progress=not args.no_progress, on_row=ahead.add if ahead is not None else None)
+        if args.resume is not None:  # the rows stored before the interruption, timed and counted
+            complete_phases(store, run_id, options)
         if args.checks is None:
             from longtime.reporting.verdict import CHECKS
 
