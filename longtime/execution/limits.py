@@ -170,15 +170,21 @@ def memory_message(exc: BaseException) -> str:
 def die_with_parent(parent: int) -> None:
     """Ask Linux to kill this process when its parent dies (a SIGKILLed matrix leaves no
     orphan computing); elsewhere a no-op. Exits at once if the parent is already gone."""
+    kill_with_parent()
+    if os.getppid() != parent:
+        os._exit(1)
+
+
+def kill_with_parent() -> None:
+    """A ``preexec_fn`` for ``subprocess.Popen``: the child (and the program it runs, such as
+    Valgrind) gets SIGKILL when the thread that started it ends (Linux; elsewhere a no-op),
+    from its very start, before its interpreter has read a line."""
     try:
         import ctypes
 
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
     except (OSError, AttributeError):
-        return
-    if os.getppid() != parent:
-        os._exit(1)
+        pass
 
 
 def worker_init(parent: int, memory_limit: int | None) -> None:

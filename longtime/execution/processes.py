@@ -43,6 +43,7 @@ from longtime.core.integrator import Timing
 from longtime.core.params import InputError
 from longtime.execution import tempdirs
 from longtime.execution.cells import Cell, build
+from longtime.execution.limits import kill_with_parent
 
 DEFAULT_PROCESSES = 3
 # $LONGTIME_PROCESSES sets the default of --processes (a test session sets 1)
@@ -286,7 +287,7 @@ def run_children(cells: list[Cell], count: int, max_samples: int, timing: Timing
                 with open(folder / "stderr.txt", "wb") as err:
                     proc = subprocess.Popen([sys.executable, "-m", "longtime.execution.processes", str(folder)],
                                             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err,
-                                            start_new_session=True)
+                                            start_new_session=True, preexec_fn=kill_with_parent)
                 running.append((index, folder, proc, time.monotonic() + timeout))
             still = []
             for index, folder, proc, deadline in running:

@@ -28,6 +28,7 @@ from typing import Any, Iterable
 from longtime.core import registry
 from longtime.core.integrator import AdaptiveIntegrator, FixedStepIntegrator
 from longtime.execution.cells import Cell, build
+from longtime.execution.limits import kill_with_parent
 from longtime.measure import instructions
 
 FIELDS = ("instructions", "instructions_per_step", "instructions_tool", "instructions_skipped")
@@ -117,11 +118,13 @@ def _count(valgrind: str, cells: list[Cell], rows: dict[str, dict], max_samples:
         env = {**os.environ, **target, "LONGTIME_PROGRESS": "0",
                "PYTHONHASHSEED": "0"}  # the same dict layouts in every run: the same dispatch path
         limit = STARTUP_SECONDS + sum(PER_CELL_SECONDS + _budget(rows[c.key]) for c in cells)
-        argv = [*instructions.command(valgrind, prefix), sys.executable, "-m", "longtime.execution.valgrind", str(job)]
+        # no gdb server: a killed Valgrind leaves no vgdb-pipe files in the temp folder
+        argv = [*instructions.command(valgrind, prefix), "--vgdb=no",
+                sys.executable, "-m", "longtime.execution.valgrind", str(job)]
         started = time.monotonic()
         try:
             proc = subprocess.run(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                                  timeout=limit)
+                                  timeout=limit, preexec_fn=kill_with_parent)  # no orphan counting on
             trouble = "" if proc.returncode == 0 else \
                 f"the Valgrind process exited with {proc.returncode}: {_last_line(proc.stderr)}"
         except subprocess.TimeoutExpired:
