@@ -16,6 +16,7 @@ from pathlib import Path
 from longtime.commands import guard
 from longtime.core import cli_args, phases, registry
 from longtime.core.cache import check_cache_root
+from longtime.core.files import write_atomic
 from longtime.core.integrator import Timing
 from longtime.core.params import InputError
 from longtime.core.roles import ROW_PARAMETERS, flag
@@ -306,6 +307,7 @@ def cmd_matrix(args) -> int:
                     ensembles.run(store, run_id, store.rows(run_id))
             except (InputError, OSError, ValueError, RuntimeError) as exc:  # the rows are stored; this is extra
                 print(f"warning: ensembles not measured: {type(exc).__name__}: {exc}", file=sys.stderr)
+    page_error = None
     if not args.no_report:
         from longtime.reporting.page import write_html
         from longtime.reporting.report import report_text
@@ -317,8 +319,9 @@ def cmd_matrix(args) -> int:
                 with phases.phase("page"):
                     page = write_html(args.html or store.path.parent / "longtime-report" / f"run-{run_id}", rows,
                                       store, [run_id], ahead=ahead, writer="matrix")  # default: beside the store
-            except Exception as exc:  # the rows are stored; `longtime report --html DIR` can retry
-                print(f"warning: results page not written: {type(exc).__name__}: {exc}", file=sys.stderr)
+            except Exception as exc:  # the rows are stored; `longtime report --html DIR` can retry (exit 1 below)
+                page_error = f"results page not written: {type(exc).__name__}: {exc}"
+                print(f"warning: {page_error}", file=sys.stderr)
         with phases.phase("report"):
             text = report_text(rows, "table", full=args.full, checks=store.checks(run_id),
                                ensembles=store.ensembles(run_id))
@@ -326,12 +329,16 @@ def cmd_matrix(args) -> int:
         print(f"\ncalibration: {drift_text(store.calibrations(run_id))}")
         if page is not None:
             print(f"\nresults page: {page}")
+    code = 0
     if args.baseline is not None:  # CI's gate: this run against the baseline, exit 1 on a regression
         from longtime.reporting import compare
 
         print(f"\n== compared with run {args.baseline} (longtime compare {args.baseline} {run_id}) ==")
-        return compare.report(compare.run_compare(store.path, str(args.baseline), store.path, str(run_id)))
-    return 0
+        code = compare.report(compare.run_compare(store.path, str(args.baseline), store.path, str(run_id)))
+    if page_error:  # the rows are stored and reported; the page the command owes is not there
+        print(f"longtime matrix: error: {page_error}", file=sys.stderr)
+        return max(code, 1)
+    return code
 
 
 def matrix_cells(args) -> tuple[list, list]:
@@ -409,7 +416,7 @@ def cmd_report(args) -> int:
     elif args.out:
         text = report_text(rows, args.format, full=args.full, checks=checks, ensembles=ensembles)
         with cli_args.writing("--out", args.out):
-            Path(args.out).write_text(text)
+            write_atomic(args.out, text)
     else:
         print(report_text(rows, args.format, full=args.full, checks=checks, ensembles=ensembles))
         if args.format == "table" and args.run != "all":
