@@ -128,7 +128,10 @@ def _selection(args) -> dict:
     for k in swept:
         if k in sweeps:
             raise InputError(f"{flag(k)} and --set {k}= both give {k}: give one of them")
-    return {"sweeps": {**sweeps, **swept}, "sets": sets, "t_final": args.t_final}
+    return {"sweeps": {**sweeps, **swept}, "sets": sets, "t_final": args.t_final,
+            # a plugin's up-front checks run under a cell's limits
+            "time_limit": getattr(args, "time_limit", DEFAULT_TIME_LIMIT) or None,
+            "memory_limit": getattr(args, "memory_limit", limits.default_memory_limit())}
 
 
 def _options(args, executor: str) -> ExecOptions:

@@ -127,7 +127,8 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
            sweeps: Mapping[str, list] | None = None,
            t_final: float | Iterable[float] | None = None,
            sets: Mapping[str, Any] | None = None, default_sweep: bool = False,
-           strict: bool = False) -> list[Cell]:
+           strict: bool = False, time_limit: float | None = DEFAULT_TIME_LIMIT,
+           memory_limit: int | None = limits.default_memory_limit()) -> list[Cell]:
     """All cells of problems x integrators x the sweep.
 
     ``sweeps`` maps any declared parameter of a selected problem or scheme to its values
@@ -136,7 +137,8 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
     that sweeps (``Param.sweeps``), a cell takes the parameter's default (or, with
     ``default_sweep``, the problem's ``sweep_dt`` for the step and the scheme's ``sweep``
     for the rest). An incompatible pair becomes one cell with a skip reason, or an error
-    when ``strict``.
+    when ``strict``. A plugin's problem is checked first (its functions on the initial state)
+    under the limits of a cell, ``time_limit`` and ``memory_limit``.
     """
     # a name or value given twice is one cell (a repeat would be run twice and stored once)
     problem_names, integrator_names = list(dict.fromkeys(problem_names)), list(dict.fromkeys(integrator_names))
@@ -158,19 +160,44 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
             except MemoryError:
                 raise InputError(f"problem {pname} with {psets}: out of memory while building it") from None
             psets = {k: problem.settings[k] for k in psets}  # typed: "0.5" from the command line is 0.5
-            plugin = not contract.built_in(pcls)
-            if plugin:  # a plugin's compiled functions, once with bounds checked, before any cell runs
-                contract.probe_problem_kernels(problem)
-            for horizon in horizons:
-                tf = horizon if horizon is not None else (
-                    pcls.sweep_t_final if default_sweep and pcls.sweep_t_final else pcls.default_t_final)
+            t_finals = [horizon if horizon is not None else (
+                pcls.sweep_t_final if default_sweep and pcls.sweep_t_final else pcls.default_t_final)
+                for horizon in horizons]
+            for tf in t_finals:
                 check_time_span(pcls.t0, tf, f"problem {pname}")
-                if plugin:  # the shapes of what its Python functions return
-                    contract.check_problem_outputs(problem, tf)
+            if not contract.built_in(pcls):  # a plugin: its functions once, under a cell's limits, before any cell
+                _check_plugin_problem(problem, t_finals, time_limit, memory_limit)
+            for tf in t_finals:
                 for iname in integrator_names:
                     cells += _scheme_cells(pname, pcls, problem, psets, iname, tf, sets, sweeps, default_sweep,
                                            strict, given_t_final=horizons != [None])
     return cells
+
+
+def _plugin_problem_checks(problem: Problem, t_finals: list[float]) -> None:
+    contract.probe_problem_kernels(problem)  # its compiled functions, once with bounds checked
+    for tf in t_finals:  # the shapes of what its Python functions return
+        contract.check_problem_outputs(problem, tf)
+
+
+def _check_plugin_problem(problem: Problem, t_finals: list[float], time_limit: float | None,
+                          memory_limit: int | None) -> None:
+    """The contract checks of a plugin's problem (``contract.probe_problem_kernels``,
+    ``check_problem_outputs``) under the limits of a cell (``limits.call_limited``): one that
+    raises or does not return is an InputError naming the problem."""
+    try:
+        limits.call_limited(_plugin_problem_checks, problem, t_finals, time_limit=time_limit, memory_limit=memory_limit)
+    except InputError:
+        raise
+    except limits.PastLimit as exc:
+        raise InputError(f"problem {problem.name}: its contract check (rhs, exact, invariants, violations, "
+                         f"diagnostics on the initial state) failed: {exc}") from None
+    except MemoryError as exc:
+        raise InputError(f"problem {problem.name}: out of memory in its contract check ({exc})") from None
+    except Exception as exc:
+        first = (str(exc).strip().splitlines() or [""])[0]
+        raise InputError(f"problem {problem.name}: its contract check (rhs, exact, invariants, violations, "
+                         f"diagnostics on the initial state) raised {type(exc).__name__}: {first}") from None
 
 
 def _scheme_cells(pname: str, pcls, problem: Problem, psets: dict, iname: str, tf: float, sets: Mapping[str, Any],

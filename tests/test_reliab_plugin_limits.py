@@ -1,0 +1,74 @@
+"""Calls into a plugin before any cell (the contract check of its problem) run under a cell's
+limits: invariants that never return stop at the hard time limit; invariants that raise give
+one error naming the problem."""
+import time
+
+import numba
+import numpy as np
+import pytest
+
+import longtime
+from longtime import InputError, Param, Problem
+from longtime.core import registry
+from longtime.execution import limits
+
+
+@numba.njit
+def _rhs(t, u, params, out):
+    out[0] = u[1]
+    out[1] = -u[0]
+
+
+class _Osc(Problem):
+    summary = "q' = p, p' = -q"
+    parameters = {"n": Param(2, "size of the state", int, positive=True)}
+    default_t_final = 10.0
+    default_dt = 0.1
+    rhs = staticmethod(_rhs)
+
+    def initial_state(self):
+        return np.r_[1.0, 0.0]
+
+
+class SpinningInvariants(_Osc):
+    name = "reliab-spinning-invariants"
+
+    def invariants(self, t, U):
+        while True:
+            pass
+
+
+class RaisingInvariants(_Osc):
+    name = "reliab-raising-invariants"
+
+    def invariants(self, t, U):
+        return {"H": 1.0 / 0.0}
+
+
+def test_invariants_that_never_return_stop_at_the_hard_limit(monkeypatch):
+    monkeypatch.setattr(limits, "GRACE_S", 1.0)
+    registry.register(SpinningInvariants)
+    started = time.monotonic()
+    with pytest.raises(InputError) as info:
+        longtime.sweep("reliab-spinning-invariants", "verlet", dt=0.1, time_limit=2, executor="serial")
+    took = time.monotonic() - started
+    assert took < 2 + 1 + 0.2 + 10, took  # the hard limit (2 s + 1 s + 10 %) and the start-up
+    message = str(info.value)
+    assert "problem reliab-spinning-invariants" in message and "did not return within 3.2 s" in message
+
+
+def test_invariants_that_raise_are_one_error_naming_the_problem():
+    registry.register(RaisingInvariants)
+    with pytest.raises(InputError) as info:
+        longtime.sweep("reliab-raising-invariants", "verlet", dt=0.1, executor="serial")
+    message = str(info.value)
+    assert "problem reliab-raising-invariants" in message and "ZeroDivisionError" in message
+    assert "\n" not in message
+
+
+def test_a_limited_call_returns_its_result_and_raises_its_exception():
+    assert limits.call_limited(sum, [1, 2, 3], time_limit=5) == 6
+    with pytest.raises(KeyError):
+        limits.call_limited({}.__getitem__, "x", time_limit=5)
+    with pytest.raises(MemoryError):
+        limits.call_limited(np.ones, 2**33, time_limit=30, memory_limit=2**28)
