@@ -200,8 +200,7 @@ def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_sample
     if len(cells) != 1:
         raise InputError(f"solve runs one cell; these settings give {len(cells)}: give one value per "
                          f"parameter (longtime.sweep takes lists)")
-    if not allow_large:
-        check_size(cells, max_samples, memory)
+    check_size(cells, max_samples, memory, allow_large=allow_large)
     keep: dict[str, Any] = {}
     here = calibration.here()  # the machine's speed beside the time, as every stored row has it
     here.start()
@@ -260,8 +259,7 @@ def sweep(problems: Any, schemes: Any, *, t_final: Any = None, executor: str = "
     processes = default_processes() if processes is None else check_processes(processes, "processes")
     cells = cells_for(problems, schemes, t_final, sweeps, default_sweep=default_sweep, caller="sweep",
                       limits={"time_limit": time_limit or None, "memory_limit": memory})
-    if not allow_large:
-        check_size(cells, max_samples, memory)
+    check_size(cells, max_samples, memory, allow_large=allow_large)
     if store is not None and not isinstance(store, Store):
         store = Store(store)
     if executor in ("process", "dask"):

@@ -1,9 +1,9 @@
 """``longtime card SCHEME``: the scheme's card (longtime.reporting.card) from a stored run."""
 from __future__ import annotations
 
-import json
 import sys
 
+from longtime.core import jsontext
 from longtime.core.params import InputError
 
 
@@ -52,7 +52,7 @@ def cmd_card(args) -> int:
     found = card(args.scheme, rows)
     found["rows_from"] = source
     if args.format == "json":
-        print(json.dumps(found, indent=1, default=str))
+        print(jsontext.dumps(found, default=str))
     elif args.format == "markdown":
         print(card_markdown(found))
     else:

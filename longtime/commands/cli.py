@@ -9,12 +9,11 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import importlib
-import json
 import sys
 from pathlib import Path
 
 from longtime.commands import guard
-from longtime.core import cli_args, phases, registry
+from longtime.core import cli_args, jsontext, phases, registry
 from longtime.core.cache import check_cache_root
 from longtime.core.files import write_atomic
 from longtime.core.integrator import Timing
@@ -35,7 +34,7 @@ from longtime.execution.matrix import (
     complete_phases,
     run_matrix,
 )
-from longtime.execution.processes import DEFAULT_PROCESSES, default_processes
+from longtime.execution.processes import DEFAULT_PROCESSES, default_processes, max_processes
 from longtime.execution.store import Store, default_path
 from longtime.measure import stability
 from longtime.measure.reference import budget_seconds
@@ -104,7 +103,8 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
                         f"least {Timing.MIN_RUNS} / processes (rounded up), more while its two fastest differ by "
                         f"more than {100 * Timing.SETTLED:g} %% and their total is below --min-time / processes, "
                         f"at most N / processes (rounded up); cpu_s is the minimum (default {Timing.repeats})")
-    p.add_argument("--processes", type=cli_args.integer("--processes", 1), default=None, metavar="N",
+    p.add_argument("--processes", type=cli_args.integer("--processes", 1, maximum=max_processes()),
+                   default=None, metavar="N",
                    help=f"processes that time each cell: the one that measures its row and N - 1 fresh "
                         f"ones that time its integration alone, the repeats split among them; cpu_s is "
                         f"the minimum over them, cpu_s_processes each one's and cpu_s_process_spread "
@@ -188,7 +188,7 @@ def cmd_list(args) -> int:
         "broken": [vars(b) for b in registry.broken()],
     }
     if args.format == "json":
-        print(json.dumps(data, indent=1))
+        print(jsontext.dumps(data))
         return 0
     print("problems:")
     for p in data["problems"]:
@@ -217,8 +217,7 @@ def cmd_run(args) -> int:
     _warn_broken()
     cells = expand(args.problem, args.integrator, **_selection(args), strict=True)
     _notices(c.integrator for c in cells)
-    if not args.allow_large:
-        check_size(cells, args.max_samples, args.memory_limit)
+    check_size(cells, args.max_samples, args.memory_limit, allow_large=args.allow_large)
     # by default one cell at a time in one worker process, under the hard limits (longtime.execution.limits);
     # --executor serial runs them in this process
     executor = args.executor or "process"
@@ -354,8 +353,7 @@ def matrix_cells(args) -> tuple[list, list]:
     moves = []
     if not args.full_sweep:
         cells, moves = budget.fit(cells, given_t_final=args.t_final is not None)
-    if not args.allow_large:
-        check_size(cells, args.max_samples, args.memory_limit)
+    check_size(cells, args.max_samples, args.memory_limit, allow_large=args.allow_large)
     return cells, moves
 
 

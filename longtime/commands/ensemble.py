@@ -3,11 +3,11 @@ horizon, per scheme (longtime.measure.ensemble), beside the Lyapunov time
 (longtime.measure.lyapunov) that says where that horizon lies."""
 from __future__ import annotations
 
-import json
 from typing import Any
 
-from longtime.core import cli_args
+from longtime.core import cli_args, jsontext
 from longtime.core.params import InputError
+from longtime.execution.cells import MAX_STEPS
 from longtime.measure import ensemble
 
 
@@ -20,12 +20,15 @@ def study(problems: list[str], schemes: list[str], dt: float | None = None, t_fi
     from longtime.execution.cells import Cell, build
     from longtime.measure import lyapunov
 
-    if members < 2:
-        raise InputError(f"--members {members}: expected an integer >= 2")
-    if not 0 < size < 1:
-        raise InputError(f"--size {size:g}: expected a relative perturbation in (0, 1)")
-    if not 0 < window <= 1:
-        raise InputError(f"--window {window:g}: expected a share of the span in (0, 1]")
+    if not 2 <= members <= cli_args.MAX_MEMBERS:
+        raise InputError(f"--members {members}: expected an integer from 2 to {cli_args.MAX_MEMBERS}")
+    if not cli_args.MIN_SIZE <= size < 1:
+        raise InputError(f"--size {size:g}: expected a relative perturbation from {cli_args.MIN_SIZE:g} to 1")
+    if not 1e-6 <= window <= 1:
+        raise InputError(f"--window {window:g}: expected a share of the span from 1e-6 to 1")
+    if dt is not None and t_final is not None and not (0 < dt and t_final / dt <= MAX_STEPS):
+        raise InputError(f"--t-final {t_final:g} with --dt {dt:g}: about {t_final / dt:.3g} steps a member, "
+                         f"over the limit of {MAX_STEPS:.0e}")
     for p in problems:
         if not registry.problem_class(p).chaotic:
             raise InputError(f"-p {p}: not a chaotic problem (ensembles are for problems that declare "
@@ -82,7 +85,7 @@ def cmd_ensemble(args) -> int:
     rows = study(args.problem, args.integrator, dt=args.dt[0] if args.dt else None,
                  t_final=args.t_final[0] if args.t_final else None, members=args.members, size=args.size,
                  seed=args.seed, window=args.window)
-    print(json.dumps(rows, indent=1) if args.format == "json" else markdown(rows))
+    print(jsontext.dumps(rows) if args.format == "json" else markdown(rows))
     return 0
 
 
@@ -94,10 +97,11 @@ def add_parser(subparsers) -> None:
     p.add_argument("-i", "--integrator", type=cli_args.names, required=True, metavar="SCHEME[,..]")
     p.add_argument("--dt", type=cli_args.floats("--dt"), default=None, metavar="X", help="the step of fixed-step schemes")
     p.add_argument("--t-final", type=cli_args.floats("--t-final"), default=None, metavar="T")
-    p.add_argument("--members", type=cli_args.integer("--members", 2), default=ensemble.DEFAULT_MEMBERS, metavar="K")
-    p.add_argument("--size", type=float, default=ensemble.DEFAULT_SIZE, help="relative size of the perturbations")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--window", type=float, default=ensemble.DEFAULT_WINDOW,
+    p.add_argument("--members", type=cli_args.members("--members", 2), default=ensemble.DEFAULT_MEMBERS, metavar="K")
+    p.add_argument("--size", type=cli_args.bounded("--size", cli_args.MIN_SIZE, 1.0), default=ensemble.DEFAULT_SIZE,
+                   help="relative size of the perturbations")
+    p.add_argument("--seed", type=cli_args.seed(), default=1)
+    p.add_argument("--window", type=cli_args.share("--window"), default=ensemble.DEFAULT_WINDOW,
                    help="the last share of the span the distributions are taken over")
     p.add_argument("--format", choices=["markdown", "json"], default="markdown")
     p.set_defaults(func=cmd_ensemble)

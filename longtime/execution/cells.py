@@ -33,6 +33,8 @@ DEFAULT_MAX_SAMPLES = 100_001
 DEFAULT_TIME_LIMIT = 600.0
 # a cell beyond these is refused up front, unless --allow-large
 MAX_STEPS = 10**9
+# beyond this many steps a run's 64-bit step counters overflow: refused even with --allow-large
+MAX_COUNTED_STEPS = 2**62
 MAX_SAMPLE_BYTES = 4 * 2**30
 
 
@@ -427,13 +429,14 @@ def cell_size(cell: Cell, dims: dict[str, int]) -> tuple[int, float, float]:
 
 @to_stderr  # plugin code runs here: its output is not the contract's
 def check_size(cells: Iterable[Cell], max_samples: int = DEFAULT_MAX_SAMPLES,
-               memory_limit: int | None = None) -> None:
+               memory_limit: int | None = None, allow_large: bool = False) -> None:
     """Refuse, before anything runs, a cell whose estimated step count passes MAX_STEPS,
     whose recorded samples pass MAX_SAMPLE_BYTES, or whose samples and what its metrics
     allocate (``Problem.metrics_bytes``) pass ``memory_limit`` (the cell's, --memory-limit)
     (``--allow-large`` skips this). Steps are (t_final - t0) / dt, with the problem's default
     step for adaptive schemes (a rough size); samples as the integrator keeps them (see
-    Integrator.integrate)."""
+    Integrator.integrate). A cell of more than MAX_COUNTED_STEPS steps is refused even with
+    ``allow_large``."""
     from longtime.core.integrator import SAMPLE_BUDGET
 
     dims: dict[str, int] = {}
@@ -445,6 +448,11 @@ def check_size(cells: Iterable[Cell], max_samples: int = DEFAULT_MAX_SAMPLES,
         given = cell.integrator_settings.get("dt")
         step = f"dt={dt:g}" if given else f"steps of about the problem's dt={dt:g}"
         what = f"{cell.problem} x {cell.integrator} ({step}, t_final={cell.t_final:g})"
+        if not steps <= MAX_COUNTED_STEPS:
+            raise InputError(f"{what}: about {steps:.3g} steps, more than a run can count ({MAX_COUNTED_STEPS:.3g}, "
+                             f"even with --allow-large): lower --t-final or raise the step")
+        if allow_large:
+            continue
         if not steps <= MAX_STEPS:
             raise InputError(f"{what}: about {steps:.3g} steps, over the limit of {MAX_STEPS:.0e}; "
                              f"pass --allow-large to run it anyway")

@@ -60,15 +60,23 @@ MAX_ROUNDS = 100
 LOST = ("timeout",)
 
 
+def max_processes() -> int:
+    """The most processes that may time a cell: four per core, at least 16, at most 256 (each
+    is an interpreter started per batch of cells)."""
+    return min(256, max(16, 4 * (os.cpu_count() or 1)))
+
+
 def check_processes(value: Any, name: str = "--processes") -> int:
-    """A process count: an integer >= 1 (one line naming ``name`` otherwise)."""
+    """A process count: an integer from 1 to ``max_processes()`` (one line naming ``name``
+    otherwise)."""
+    allowed = f"expected an integer from 1 to {max_processes()} (processes that time each cell)"
     if isinstance(value, bool) or not isinstance(value, int):
         try:
             value = int(str(value), 10)
         except ValueError:
-            raise InputError(f"{name} {value!r}: expected an integer >= 1 (processes that time each cell)") from None
-    if value < 1:
-        raise InputError(f"{name} {value}: expected an integer >= 1 (processes that time each cell)")
+            raise InputError(f"{name} {value!r}: {allowed}") from None
+    if not 1 <= value <= max_processes():
+        raise InputError(f"{name} {value}: {allowed}")
     return value
 
 

@@ -36,6 +36,7 @@ import json
 import math
 from typing import Any
 
+from longtime.core import jsontext
 from longtime.core.params import InputError
 from longtime.core.roles import ROW_PARAMETERS
 from longtime.reporting.compare import (
@@ -261,7 +262,7 @@ def cmd_history(args) -> int:
     found = history(store, args.problem, args.integrator, sets)
     if not found:
         raise InputError(f"no stored cell in {store.path} matches -p/-i/--set")
-    print(json.dumps(found, indent=1) if args.format == "json" else render(found))
+    print(jsontext.dumps(found) if args.format == "json" else render(found))
     return 0
 
 

@@ -10,6 +10,7 @@ from typing import Any, Iterable
 
 import pandas as pd
 
+from longtime.core import jsontext
 from longtime.core.files import write_atomic
 from longtime.core.fmt import number, positive
 from longtime.core.roles import ROW_PARAMETERS, row_columns
@@ -73,7 +74,7 @@ def render(rows: list[dict[str, Any]], fmt: str = "table") -> str:
     if fmt == "json":
         import json
 
-        return json.dumps([complete(r) for r in rows], indent=1)
+        return jsontext.dumps([complete(r) for r in rows])
     if fmt == "csv":
         return _object_frame(rows).to_csv(index=False)
     df = _object_frame(rows)
