@@ -10,6 +10,7 @@ import pytest
 import longtime
 from longtime import InputError, Param, Problem
 from longtime.core import registry
+from longtime.integrators.explicit_rk import ExplicitRungeKutta
 from longtime.execution import limits
 
 
@@ -72,3 +73,37 @@ def test_a_limited_call_returns_its_result_and_raises_its_exception():
         limits.call_limited({}.__getitem__, "x", time_limit=5)
     with pytest.raises(MemoryError):
         limits.call_limited(np.ones, 2**33, time_limit=30, memory_limit=2**28)
+
+
+@numba.njit
+def _spin_step(t, u, h, params, work, counters, first):
+    x = 1.0
+    while x > 0.0:  # compiled code that never returns to Python
+        x = x * 1.0000001 + 1.0
+        u[0] = x
+    return 0
+
+
+class SpinningStep(ExplicitRungeKutta):
+    name = "reliab-spinning-step"
+    summary = "a compiled step that never returns"
+    order = 2
+    A = np.array([[0.0, 0.0], [1.0, 0.0]])
+    b = np.array([0.5, 0.5])
+    c = np.array([0.0, 1.0])
+
+    def make_step(self, problem):
+        return _spin_step
+
+
+def test_an_ensemble_whose_step_spins_stops_at_the_hard_limit(monkeypatch):
+    from longtime.commands import ensemble as ensemble_command
+
+    monkeypatch.setattr(limits, "GRACE_S", 1.0)
+    registry.register(SpinningStep)
+    started = time.monotonic()
+    rows = ensemble_command.study(["henon-heiles"], ["reliab-spinning-step"], dt=0.1, t_final=5.0, members=2,
+                                  time_limit=1.0)
+    assert time.monotonic() - started < 1 + 1 + 0.1 + 15
+    (row,) = rows
+    assert row["status"] == "timeout" and "did not return within 2.1 s" in row["message"]

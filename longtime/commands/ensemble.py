@@ -7,14 +7,18 @@ from typing import Any
 
 from longtime.core import cli_args, jsontext
 from longtime.core.params import InputError
-from longtime.execution.cells import MAX_STEPS
+from longtime.execution.cells import DEFAULT_TIME_LIMIT, MAX_STEPS
+from longtime.execution.limits import PastLimit, call_limited, default_memory_limit
 from longtime.measure import ensemble
 
 
 def study(problems: list[str], schemes: list[str], dt: float | None = None, t_final: float | None = None,
           members: int = ensemble.DEFAULT_MEMBERS, size: float = ensemble.DEFAULT_SIZE, seed: int = 1,
-          window: float = ensemble.DEFAULT_WINDOW) -> list[dict[str, Any]]:
-    """One row per problem x scheme that the scheme can treat."""
+          window: float = ensemble.DEFAULT_WINDOW, time_limit: float | None = DEFAULT_TIME_LIMIT,
+          memory_limit: int | None = default_memory_limit()) -> list[dict[str, Any]]:
+    """One row per problem x scheme that the scheme can treat; each ensemble (its members
+    together) runs under ``time_limit`` and ``memory_limit`` as a cell does (limits.call_limited):
+    past them its row is ``timeout`` or ``failed``."""
     from longtime.core import registry
     from longtime.core.integrator import FixedStepIntegrator
     from longtime.execution.cells import Cell, build
@@ -48,7 +52,15 @@ def study(problems: list[str], schemes: list[str], dt: float | None = None, t_fi
                 problem, scheme = build(Cell(p, s, {}, {"dt": dt}))
             tf = problem.default_t_final if t_final is None else t_final
             row.update(dt=scheme.dt_for(problem) if isinstance(scheme, FixedStepIntegrator) else None, t_final=tf)
-            row.update(ensemble.measure(problem, scheme, tf, members, size, seed, window))
+            try:
+                row.update(call_limited(ensemble.measure, problem, scheme, tf, members, size, seed, window,
+                                        time_limit=time_limit, memory_limit=memory_limit))
+            except PastLimit as exc:
+                rows.append({**row, "status": "timeout", "message": f"the ensemble stopped: {exc}"})
+                continue
+            except MemoryError as exc:
+                rows.append({**row, "status": "failed", "message": f"the ensemble ran out of memory: {exc}"})
+                continue
             found = lyapunov.measure(problem)
             row["lyapunov_time"] = found["lyapunov_time"]
             row["span_lyapunov"] = (tf - problem.t0) / found["lyapunov_time"] if found["lyapunov_time"] else None
@@ -84,7 +96,7 @@ def cmd_ensemble(args) -> int:
         raise InputError("--t-final: give one final time")
     rows = study(args.problem, args.integrator, dt=args.dt[0] if args.dt else None,
                  t_final=args.t_final[0] if args.t_final else None, members=args.members, size=args.size,
-                 seed=args.seed, window=args.window)
+                 seed=args.seed, window=args.window, time_limit=args.time_limit or None)
     print(jsontext.dumps(rows) if args.format == "json" else markdown(rows))
     return 0
 
@@ -103,6 +115,10 @@ def add_parser(subparsers) -> None:
     p.add_argument("--seed", type=cli_args.seed(), default=1)
     p.add_argument("--window", type=cli_args.share("--window"), default=ensemble.DEFAULT_WINDOW,
                    help="the last share of the span the distributions are taken over")
+    p.add_argument("--time-limit", type=cli_args.seconds("--time-limit", allow_zero=True),
+                   default=DEFAULT_TIME_LIMIT, metavar="SECONDS",
+                   help=f"seconds one ensemble (its members together) may take, as a cell's limit "
+                        f"(default {DEFAULT_TIME_LIMIT:g}; 0: no limit)")
     p.add_argument("--format", choices=["markdown", "json"], default="markdown")
     p.set_defaults(func=cmd_ensemble)
 

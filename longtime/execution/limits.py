@@ -226,22 +226,24 @@ def call_limited(func: Callable[..., Any], *args: Any, time_limit: float | None,
         finally:
             os._exit(0)
     os.close(write_end)
-    chunks, deadline = [], time.monotonic() + limit
+    chunks, deadline, ended = [], time.monotonic() + limit, False
     try:
         while True:
             left = deadline - time.monotonic()
             ready = select.select([read_end], [], [], max(0.0, left))[0] if left > 0 else []
             if not ready:
-                with contextlib.suppress(ProcessLookupError):
-                    os.kill(pid, signal.SIGKILL)
                 raise PastLimit(f"it did not return within {limit:g} s (the hard limit of a cell with a time limit "
                                 f"of {time_limit:g} s); it was stopped")
             data = os.read(read_end, 1 << 16)
             if not data:
+                ended = True
                 break
             chunks.append(data)
     finally:
         os.close(read_end)
+        if not ended:  # past the limit, or a stop signal here: the child ends with the call
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
         _, status = os.waitpid(pid, 0)
     if not chunks:
         how = f"killed by signal {-os.waitstatus_to_exitcode(status)}" if os.WIFSIGNALED(status) else \
