@@ -6,6 +6,7 @@ import threading
 import time
 
 from longtime.core.integrator import Timing
+from longtime.integrators.explicit_rk import ExplicitRungeKutta
 from longtime.execution import isolation, processes
 from longtime.execution.cells import Cell
 from longtime.execution.matrix import ExecOptions, run_matrix
@@ -98,3 +99,34 @@ def test_a_deterministic_cell_paused_in_its_timing_process_is_not_failed():
         thread.join()
     assert paused, "no timing process was seen"
     assert rows[0]["status"] == "ok", rows[0]["message"]
+
+
+class _DiesWhenTimedElsewhere(ExplicitRungeKutta):
+    """Heun's method that ends a timing process (exit code 3) when it is timed there."""
+    name = "reliab-dies-in-timing"
+    summary = "exits in a timing process"
+    order = 2
+
+    def _integrate(self, *args, **kwargs):
+        import sys
+
+        if sys.argv and sys.argv[0].endswith("processes.py"):
+            os._exit(3)
+        return super()._integrate(*args, **kwargs)
+
+
+def test_a_plugin_that_kills_its_timing_process_is_named_on_its_own_row_only():
+    import numpy as np
+
+    from longtime.core import registry
+
+    cls = type("DiesWhenTimedElsewhere", (_DiesWhenTimedElsewhere,), {
+        "A": np.array([[0.0, 0.0], [1.0, 0.0]]), "b": np.array([0.5, 0.5]), "c": np.array([0.0, 1.0])})
+    registry.register(cls, "reliab-dies-in-timing")
+    cells = [Cell("harmonic", "reliab-dies-in-timing", {}, {"dt": 0.05}, 5.0),
+             Cell("harmonic", "verlet", {}, {"dt": 0.05}, 5.0)]
+    bad, good = run_matrix(cells, None, None, "serial", ExecOptions(processes=2, timing=Timing(repeats=2, min_time=0)))
+    assert good["status"] == "ok" and len(good["cpu_s_processes"]) == 2, good["message"]
+    assert "exited with code 3" not in (good["message"] or "")
+    assert bad["status"] == "ok" and len(bad["cpu_s_processes"]) == 1
+    assert "timed in 1 of 2 processes" in bad["message"] and "exited with code 3" in bad["message"]

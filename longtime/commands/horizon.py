@@ -138,7 +138,8 @@ def add_parser(subparsers) -> None:
                    help=f"schemes (default: {','.join(DEFAULT_SCHEMES)})")
     p.add_argument("--dt", type=cli_args.floats("--dt"), default=None, metavar="X[,..]",
                    help=f"steps (default: {','.join(f'{d:g}' for d in DEFAULT_DTS)})")
-    p.add_argument("--members", type=cli_args.members("--members", 2), default=DEFAULT_MEMBERS, metavar="K", help="runs per scheme and step")
+    p.add_argument("--members", type=cli_args.members("--members", 2), default=DEFAULT_MEMBERS, metavar="K",
+                   help="runs per scheme and step")
     p.add_argument("--t-final", type=cli_args.positive_number("--t-final"), default=DEFAULT_T_FINAL, metavar="T",
                    help=f"how long each member runs (default {DEFAULT_T_FINAL:g})")
     p.add_argument("--gap", type=cli_args.positive_number("--gap"), default=DEFAULT_GAP, help="the energy's distance below the escape "

@@ -95,7 +95,8 @@ def timed_elsewhere(row: dict[str, Any]) -> bool:
 
 
 def time_cells(cells: list[Cell], max_samples: int, timing: Timing, time_limit: float | None = None,
-               reference: Callable[[], float] | None = None) -> list[dict[str, Any]]:
+               reference: Callable[[], float] | None = None,
+               on_cell: Callable[[int], None] | None = None) -> list[dict[str, Any]]:
     """In this process, each cell's integration alone: per cell its ``cpu_s`` (the minimum),
     ``wall_s``, ``cpu_s_samples``, ``samples_digest``, ``status`` and ``pid``; a cell that
     raises gives ``status`` failed and its ``message``.
@@ -113,11 +114,14 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing, time_limit: 
     the caches by up to twice comes and goes within a second or two (docs/performance.md,
     "Two speeds"), so the runs of a small batch, spread over seconds, meet a quiet moment where
     a burst of repeats may not; a large batch spans SPREAD_S in one round and costs one run a
-    cell. Every run must reproduce the first bit for bit."""
+    cell. Every run must reproduce the first bit for bit. ``on_cell(k)`` is called before the
+    k-th cell is built and before each of its runs (a timing process marks the cell it is in)."""
     prepared: list[tuple[Any, Any, float] | None] = []
     out: list[dict[str, Any]] = []
-    for cell in cells:
+    for k, cell in enumerate(cells):
         try:
+            if on_cell is not None:
+                on_cell(k)
             problem, integrator = build(cell)
             t_final = problem.default_t_final if cell.t_final is None else cell.t_final
             prepared.append((problem, integrator, t_final))
@@ -141,6 +145,8 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing, time_limit: 
             problem, integrator, t_final = prepared[k]
             record = out[k]
             try:
+                if on_cell is not None:
+                    on_cell(k)
                 deadline = time.monotonic() + time_limit if time_limit else None
                 with phases.phase("timing", f"{cells[k].problem} x {cells[k].integrator}"):
                     traj = integrator.integrate(problem, t_final, max_samples=max_samples, timing=Timing(repeats=1),
@@ -283,7 +289,7 @@ def run_children(cells: list[Cell], count: int, max_samples: int, timing: Timing
            "timing": timing.to_dict(),
            "time_limit": time_limit, "memory_limit": memory_limit, "paired": paired}
     waiting, running, done = list(range(count)), [], {}
-    folders = []
+    folders, culprits = [], {}
     try:
         while waiting or running:
             while waiting and len(running) < max(1, jobs):
@@ -301,9 +307,13 @@ def run_children(cells: list[Cell], count: int, max_samples: int, timing: Timing
             for index, folder, proc, deadline in running:
                 if proc.poll() is not None:
                     done[index] = _result(folder, proc)
+                    if done[index][0] is None and len(cells) > 1:
+                        culprits[index] = _current_cell(folder)
                 elif time.monotonic() > deadline:
                     kill_group(proc)
                     done[index] = (None, f"the timing process passed {timeout:.0f} s and was stopped")
+                    if len(cells) > 1:
+                        culprits[index] = _current_cell(folder)
                 else:
                     still.append((index, folder, proc, deadline))
             if len(still) == len(running):
@@ -317,7 +327,32 @@ def run_children(cells: list[Cell], count: int, max_samples: int, timing: Timing
             for p in folder.iterdir():
                 p.unlink()
             folder.rmdir()
+    for index, culprit in culprits.items():
+        if culprit is not None:
+            done[index] = _without(cells, culprit, done[index][1], max_samples, timing, timeout, time_limit,
+                                   memory_limit, paired)
     return [done[i] for i in range(count)]
+
+
+def _current_cell(folder: Path) -> int | None:
+    """The index of the cell a timing process was in when it ended (its ``current`` file)."""
+    try:
+        return int((folder / "current").read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _without(cells: list[Cell], culprit: int, why: str, max_samples: int, timing: Timing, timeout: float,
+             time_limit: float | None, memory_limit: int | None, paired: bool) -> tuple[list[dict] | None, str]:
+    """The results of a timing process that ended in cell ``culprit`` without a result: the
+    other cells timed again in a fresh process without it, and the culprit's record naming
+    ``why`` (one plugin's crash costs the other cells of its batch nothing)."""
+    rest = [c for i, c in enumerate(cells) if i != culprit]
+    ((results, again),) = run_children(rest, 1, max_samples, timing, 1, timeout, time_limit, memory_limit, paired)
+    if results is None:
+        return None, again
+    results.insert(culprit, {"status": "failed", "message": f"{why}, in this cell", "pid": None})
+    return results, ""
 
 
 def _result(folder: Path, proc: subprocess.Popen) -> tuple[list[dict] | None, str]:
@@ -347,8 +382,12 @@ def _child_main(folder: str) -> None:
 
         reference_workload(10, 0.01)  # loaded (or compiled) before the first timed call
         reference = reference_seconds
-    results = time_cells([Cell.from_dict(c) for c in job["cells"]], job["max_samples"], Timing.from_dict(job["timing"]),
-                         job.get("time_limit"), reference)
+    def on_cell(k: int) -> None:  # the parent knows which cell a process that dies was in
+        (path / "current").write_text(str(k))
+
+    cells = [Cell.from_dict(c) for c in job["cells"]]
+    results = time_cells(cells, job["max_samples"], Timing.from_dict(job["timing"]), job.get("time_limit"), reference,
+                         on_cell)
     tmp = path / "result.json.part"
     tmp.write_text(json.dumps(results))
     tmp.replace(path / "result.json")  # atomic: the parent never reads half a result
