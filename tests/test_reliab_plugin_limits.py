@@ -107,3 +107,16 @@ def test_an_ensemble_whose_step_spins_stops_at_the_hard_limit(monkeypatch):
     assert time.monotonic() - started < 1 + 1 + 0.1 + 15
     (row,) = rows
     assert row["status"] == "timeout" and "did not return within 2.1 s" in row["message"]
+
+
+def test_the_card_of_a_scheme_whose_step_spins_stops_at_the_hard_limit(monkeypatch, tmp_path, capsys):
+    from longtime.commands.cli import main
+
+    monkeypatch.setattr(limits, "GRACE_S", 1.0)
+    registry.register(SpinningStep)
+    started = time.monotonic()
+    code = main(["card", "reliab-spinning-step", "--time-limit", "1", "--db", str(tmp_path / "none.sqlite")])
+    assert time.monotonic() - started < 1 + 1 + 0.1 + 15
+    assert code == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the card of reliab-spinning-step" in err[0] and "did not return within 2.1 s" in err[0]

@@ -70,3 +70,4 @@ def test_a_kill_in_the_timing_phase_then_resume_times_every_row_across_processes
         assert row["status"] == "ok", row["message"]
         assert "phases_missing" not in row
         assert len(row["cpu_s_processes"]) == 2 and row["cpu_s"] == min(row["cpu_s_processes"])
+

@@ -5,6 +5,8 @@ import signal
 import threading
 import time
 
+import pytest
+
 from longtime.core.integrator import Timing
 from longtime.integrators.explicit_rk import ExplicitRungeKutta
 from longtime.execution import isolation, processes
@@ -61,6 +63,7 @@ def test_a_run_past_the_time_limit_within_a_timing_process_ends_its_timing_not_i
     assert row["status"] == "ok" and "timed in 1 of 2 processes" in row["message"]
 
 
+@pytest.mark.slow
 def test_a_deterministic_cell_paused_in_its_timing_process_is_not_failed():
     """The timing processes are stopped (SIGSTOP) for longer than the time limit, as a host's
     preemption does: the row stays ok, missing that process's sample."""
@@ -130,3 +133,21 @@ def test_a_plugin_that_kills_its_timing_process_is_named_on_its_own_row_only():
     assert "exited with code 3" not in (good["message"] or "")
     assert bad["status"] == "ok" and len(bad["cpu_s_processes"]) == 1
     assert "timed in 1 of 2 processes" in bad["message"] and "exited with code 3" in bad["message"]
+
+
+@pytest.mark.parametrize("executor", ["serial", "process"])
+def test_rows_of_one_process_are_stored_with_the_process_fields_they_print(tmp_path, executor):
+    from longtime.core.integrator import Timing
+    from longtime.execution.cells import Cell
+    from longtime.execution.matrix import ExecOptions, run_matrix
+    from longtime.execution.store import Store
+
+    store = Store(tmp_path / "one.sqlite")
+    cells = [Cell("harmonic", "verlet", {}, {"dt": 0.05}, 5.0), Cell("harmonic", "rk4", {}, {"dt": 0.05}, 5.0)]
+    run_id = store.begin_run("test", cells)
+    printed = run_matrix(cells, store, run_id, executor, ExecOptions(processes=1, jobs=1, timing=Timing(repeats=2)))
+    stored = {(r["integrator"]): r for r in store.rows(run_id)}
+    for row in printed:
+        kept = stored[row["integrator"]]
+        assert kept["cpu_s_processes"] == row["cpu_s_processes"] == [row["cpu_s"]]
+        assert "cpu_s_process_spread" in kept and "phases_missing" not in kept
