@@ -138,16 +138,27 @@ def _count(valgrind: str, cells: list[Cell], rows: dict[str, dict], max_samples:
         # the kernels counted are compiled for this CPU: another CPU's count is another tool's
         tool = f"{instructions.tool_version()} ({target['NUMBA_CPU_NAME']} kernels)"
         out = {}
+        lost = next((i for i, c in enumerate(cells) if c.key not in done), None)
+        if trouble and lost is not None and lost + 1 < len(cells):
+            # Valgrind ended in cell ``lost``: the cells after it are counted again without it,
+            # so one plugin's crash costs only its own row its count
+            out.update(_count(valgrind, cells[lost + 1:], rows, max_samples))
         for i, cell in enumerate(cells):
+            if cell.key in out:
+                continue
             item, count = done.get(cell.key), counts.get(f"cell {i}")
             steps = rows[cell.key].get("steps")
             if item is None or (count is None and item.get("reason") is None):
-                out[cell.key] = skipped(f"not counted: {trouble or 'the Valgrind process gave no count for it'}")
+                where = ", in this cell" if i == lost and trouble else ""
+                out[cell.key] = skipped(f"not counted: {trouble or 'the Valgrind process gave no count for it'}{where}")
             elif item.get("reason"):
                 out[cell.key] = skipped(item["reason"])
             elif item["steps"] != steps:
                 out[cell.key] = skipped(f"the run under Valgrind took {item['steps']} steps, the timed run {steps}: "
                                         f"not the same integration")
+            elif item.get("digest") != rows[cell.key].get("samples_digest"):
+                out[cell.key] = skipped("the run under Valgrind did not reproduce the timed run bitwise (another "
+                                        "samples_digest): not the same integration")
             else:
                 out[cell.key] = {"instructions": count,
                                  "instructions_per_step": count / steps if steps else None,
@@ -196,7 +207,7 @@ def _run_one(cell: Cell, max_samples: int) -> dict[str, Any]:
     traj = integrator.integrate(problem, t_final, max_samples=max_samples)
     if traj.status != "ok":
         return {"reason": f"the run under Valgrind ended {traj.status}: {traj.message}"}
-    return {"steps": traj.steps}
+    return {"steps": traj.steps, "digest": traj.extra.get("samples_digest")}
 
 
 def main(argv: list[str]) -> int:
