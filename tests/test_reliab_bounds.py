@@ -22,7 +22,7 @@ from longtime.execution.processes import check_processes, max_processes
     (["roundoff", "--seed", "-1"], "--seed takes an integer from 0"),
     (["roundoff", "--steps", "1e300"], "--steps takes a number from 1 to"),
     (["roundoff", "--scheduler", "not an address"], "--scheduler"),
-    (["ensemble", "-p", "henon-heiles", "-i", "verlet", "--window", "1e-300"], "--window takes a share"),
+    (["ensemble", "-p", "henon-heiles", "-i", "verlet", "--window", "1e-300"], "--window takes a number from 1e-06 to 1"),
     (["ensemble", "-p", "henon-heiles", "-i", "verlet", "--seed", "-1"], "--seed takes an integer from 0"),
     (["ensemble", "-p", "henon-heiles", "-i", "verlet", "--size", "1e-300"], "--size takes a number"),
     (["ensemble", "-p", "henon-heiles", "-i", "verlet", "--members", "1000000000"], "--members"),

@@ -9,27 +9,11 @@ import sys
 import time
 
 import pytest
+from _procs import children
 
 from longtime.commands.cli import main
 
 pytestmark = pytest.mark.slow
-
-
-def _children(pid: int, marker: bytes) -> list[int]:
-    found = []
-    for entry in os.listdir("/proc"):
-        if not entry.isdigit():
-            continue
-        try:
-            with open(f"/proc/{entry}/stat") as f:
-                ppid = int(f.read().rsplit(")", 1)[1].split()[1])
-            with open(f"/proc/{entry}/cmdline", "rb") as f:
-                cmd = f.read()
-        except OSError:
-            continue
-        if ppid == pid and marker in cmd:
-            found.append(int(entry))
-    return found
 
 
 def _rows(db):
@@ -51,7 +35,7 @@ def test_a_kill_in_the_timing_phase_then_resume_times_every_row_across_processes
                              "--no-ensemble", "--no-report", "--no-progress", "--db", str(db)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
     deadline = time.monotonic() + 120
-    while not _children(proc.pid, b"longtime.execution.processes"):
+    while not children(proc.pid, "longtime.execution.processes"):
         assert proc.poll() is None, proc.stderr.read().decode()
         assert time.monotonic() < deadline, "no timing process started"
         time.sleep(0.02)

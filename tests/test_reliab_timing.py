@@ -6,9 +6,10 @@ import threading
 import time
 
 import pytest
+from _procs import children
 
 from longtime.core.integrator import Timing
-from longtime.integrators.explicit_rk import ExplicitRungeKutta
+from longtime.integrators.explicit_rk import RK4
 from longtime.execution import isolation, processes
 from longtime.execution.cells import Cell
 from longtime.execution.matrix import ExecOptions, run_matrix
@@ -71,24 +72,15 @@ def test_a_deterministic_cell_paused_in_its_timing_process_is_not_failed():
     paused = set()
 
     def pause_children():
-        me = os.getpid()
         while not stop.is_set():
-            for pid in os.listdir("/proc"):
-                if not pid.isdigit() or int(pid) in paused:
+            for pid in children(os.getpid(), "longtime.execution.processes"):
+                if pid in paused:
                     continue
-                try:
-                    with open(f"/proc/{pid}/stat") as f:
-                        ppid = int(f.read().rsplit(")", 1)[1].split()[1])
-                    with open(f"/proc/{pid}/cmdline", "rb") as f:
-                        cmd = f.read()
-                except OSError:
-                    continue
-                if ppid == me and b"longtime.execution.processes" in cmd:
-                    paused.add(int(pid))
-                    time.sleep(4.0)  # its imports done, its cell begun
-                    os.kill(int(pid), signal.SIGSTOP)
-                    time.sleep(2.5)
-                    os.kill(int(pid), signal.SIGCONT)
+                paused.add(pid)
+                time.sleep(4.0)  # its imports done, its cell begun
+                os.kill(pid, signal.SIGSTOP)
+                time.sleep(2.5)
+                os.kill(pid, signal.SIGCONT)
             time.sleep(0.05)
 
     thread = threading.Thread(target=pause_children, daemon=True)
@@ -104,11 +96,10 @@ def test_a_deterministic_cell_paused_in_its_timing_process_is_not_failed():
     assert rows[0]["status"] == "ok", rows[0]["message"]
 
 
-class _DiesWhenTimedElsewhere(ExplicitRungeKutta):
-    """Heun's method that ends a timing process (exit code 3) when it is timed there."""
+class DiesWhenTimedElsewhere(RK4):
+    """RK4 that ends a timing process (exit code 3) when it is timed there."""
     name = "reliab-dies-in-timing"
     summary = "exits in a timing process"
-    order = 2
 
     def _integrate(self, *args, **kwargs):
         import sys
@@ -119,13 +110,9 @@ class _DiesWhenTimedElsewhere(ExplicitRungeKutta):
 
 
 def test_a_plugin_that_kills_its_timing_process_is_named_on_its_own_row_only():
-    import numpy as np
-
     from longtime.core import registry
 
-    cls = type("DiesWhenTimedElsewhere", (_DiesWhenTimedElsewhere,), {
-        "A": np.array([[0.0, 0.0], [1.0, 0.0]]), "b": np.array([0.5, 0.5]), "c": np.array([0.0, 1.0])})
-    registry.register(cls, "reliab-dies-in-timing")
+    registry.register(DiesWhenTimedElsewhere)
     cells = [Cell("harmonic", "reliab-dies-in-timing", {}, {"dt": 0.05}, 5.0),
              Cell("harmonic", "verlet", {}, {"dt": 0.05}, 5.0)]
     bad, good = run_matrix(cells, None, None, "serial", ExecOptions(processes=2, timing=Timing(repeats=2, min_time=0)))

@@ -124,18 +124,8 @@ def bounded(flag: str, low: float, high: float) -> Callable[[str], float]:
 
 
 def share(flag: str) -> Callable[[str], float]:
-    """A share of a whole: a number > 0 and <= 1 that is not vanishingly small (>= 1e-6)."""
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            value = float("nan")
-        if not 1e-6 <= value <= 1:
-            raise argparse.ArgumentTypeError(f"{flag} takes a share from 1e-6 to 1, got {text!r}")
-        return value
-
-    return parse
+    """A share of a whole: a number from 1e-6 (not vanishingly small) to 1."""
+    return bounded(flag, 1e-6, 1.0)
 
 
 def jobs(text: str) -> int:
