@@ -25,10 +25,8 @@ from longtime.execution.cells import DEFAULT_TIME_LIMIT, check_size, expand
 from longtime.execution.lifecycle import command_line, recorded_run
 from longtime.execution.matrix import (
     COSTS,
-    COUNTS_PHASE,
     EXECUTORS,
     PHASES_FIELD,
-    PROCESSES_PHASE,
     ExecOptions,
     check_cost,
     complete_phases,
@@ -245,9 +243,10 @@ def cmd_matrix(args) -> int:
             raise InputError(f"--resume: no incomplete run in {store.path} (give a run id to pick one)")
         store.run(run_id)  # an unknown id is an error, not "0 cells left"
         cells = store.pending(run_id)
-        lacking = len(store.incomplete_rows(run_id, PHASES_FIELD))
+        lacking = [row for _, row in store.incomplete_rows(run_id, PHASES_FIELD)]
         if lacking:  # rows stored before their timing processes or counts ran: run them
-            print(f"run {run_id}: {lacking} stored row(s) lack a phase ({PROCESSES_PHASE}, {COUNTS_PHASE}): "
+            phases_lacked = sorted({p for row in lacking for p in row[PHASES_FIELD]})
+            print(f"run {run_id}: {len(lacking)} stored row(s) lack a phase ({', '.join(phases_lacked)}): "
                   f"it runs for them", file=sys.stderr)
         elif not cells:  # every planned row is stored (only its end mark was lost): nothing to run
             store.finish_run(run_id, "done")
