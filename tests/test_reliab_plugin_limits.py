@@ -8,30 +8,14 @@ import numpy as np
 import pytest
 
 import longtime
-from longtime import InputError, Param, Problem
+from longtime import InputError
 from longtime.core import registry
 from longtime.integrators.explicit_rk import RK4
+from longtime.problems.harmonic import Harmonic
 from longtime.execution import limits
 
 
-@numba.njit
-def _rhs(t, u, params, out):
-    out[0] = u[1]
-    out[1] = -u[0]
-
-
-class _Osc(Problem):
-    summary = "q' = p, p' = -q"
-    parameters = {"n": Param(2, "size of the state", int, positive=True)}
-    default_t_final = 10.0
-    default_dt = 0.1
-    rhs = staticmethod(_rhs)
-
-    def initial_state(self):
-        return np.r_[1.0, 0.0]
-
-
-class SpinningInvariants(_Osc):
+class SpinningInvariants(Harmonic):
     name = "reliab-spinning-invariants"
 
     def invariants(self, t, U):
@@ -39,7 +23,7 @@ class SpinningInvariants(_Osc):
             pass
 
 
-class RaisingInvariants(_Osc):
+class RaisingInvariants(Harmonic):
     name = "reliab-raising-invariants"
 
     def invariants(self, t, U):

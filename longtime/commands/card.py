@@ -55,8 +55,8 @@ def cmd_card(args) -> int:
     registry.integrator_class(args.scheme)  # an unknown name: one line naming the known ones
     rows, source = stored_rows(args.db, args.run)
     try:  # the scheme's code runs here (its structure): under a cell's limits
-        found = call_limited(card, args.scheme, rows, time_limit=getattr(args, "time_limit", DEFAULT_TIME_LIMIT) or None,
-                             memory_limit=default_memory_limit())
+        limit = getattr(args, "time_limit", DEFAULT_TIME_LIMIT) or None
+        found = call_limited(card, args.scheme, rows, time_limit=limit, memory_limit=default_memory_limit())
     except PastLimit as exc:
         raise PastLimit(f"the card of {args.scheme}: {exc}") from None
     found["rows_from"] = source
