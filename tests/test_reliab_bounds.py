@@ -27,6 +27,10 @@ from longtime.execution.processes import check_processes, max_processes
     (["ensemble", "-p", "henon-heiles", "-i", "verlet", "--seed", "-1"], "--seed takes an integer from 0"),
     (["ensemble", "-p", "henon-heiles", "-i", "verlet", "--size", "1e-300"], "--size takes a number"),
     (["ensemble", "-p", "henon-heiles", "-i", "verlet", "--members", "1000000000"], "--members"),
+    (["ensemble", "-p", "henon-heiles", "-i", "verlet", "--t-final", "1e308"], "over the limit"),
+    (["ensemble", "-p", "henon-heiles", "-i", "verlet", "--dt", "1e-300", "--t-final", "10"], "over the limit"),
+    (["roundoff", "--spread", "H.max", "-p", "henon-heiles", "-i", "verlet", "--dt", "1e-300", "--t-final", "10"],
+     "over the limit"),
 ], ids=lambda x: " ".join(x[:4]) if isinstance(x, list) else None)
 def test_out_of_bounds_arguments_are_one_line_exit_2(argv, words, capsys, tmp_path):
     with pytest.raises(SystemExit) as info:

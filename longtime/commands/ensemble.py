@@ -30,15 +30,19 @@ def study(problems: list[str], schemes: list[str], dt: float | None = None, t_fi
         raise InputError(f"--size {size:g}: expected a relative perturbation from {cli_args.MIN_SIZE:g} to 1")
     if not 1e-6 <= window <= 1:
         raise InputError(f"--window {window:g}: expected a share of the span from 1e-6 to 1")
-    if dt is not None and t_final is not None and not (0 < dt and t_final / dt <= MAX_STEPS):
-        raise InputError(f"--t-final {t_final:g} with --dt {dt:g}: about {t_final / dt:.3g} steps a member, "
-                         f"over the limit of {MAX_STEPS:.0e}")
     for p in problems:
         if not registry.problem_class(p).chaotic:
             raise InputError(f"-p {p}: not a chaotic problem (ensembles are for problems that declare "
                              f"`chaotic`: {', '.join(n for n, c in registry.problems().items() if c.chaotic)})")
     for s in schemes:
         registry.integrator_class(s)
+    for p in problems:  # every member's length, before any member runs
+        pcls = registry.problem_class(p)
+        tf = pcls.default_t_final if t_final is None else t_final
+        step = dt if dt is not None else pcls.default_dt
+        if step and not (tf - pcls.t0) / step <= MAX_STEPS:
+            raise InputError(f"-p {p}: t_final {tf:g} with the step {step:g} is about {(tf - pcls.t0) / step:.3g} "
+                             f"steps a member, over the limit of {MAX_STEPS:.0e}")
     rows = []
     for p in problems:
         for s in schemes:

@@ -223,6 +223,10 @@ def spread(args) -> int:
         raise InputError("--spread needs -p PROBLEM, -i SCHEME and --t-final T (and --dt for a fixed step)")
     settings = {"dt": args.dt} if args.dt is not None else {}
     problem, scheme = build(Cell(args.problem, args.integrator, {}, settings))
+    step = args.dt or problem.default_dt
+    if step and not (args.t_final - problem.t0) / step <= MAX_STEPS:
+        raise InputError(f"--t-final {args.t_final:g} with the step {step:g}: about "
+                         f"{(args.t_final - problem.t0) / step:.3g} steps a run, over the limit of {MAX_STEPS:.0e}")
     if args.ensemble < 2:
         raise InputError(f"--ensemble {args.ensemble}: --spread needs an integer >= 2")
     out = field_spread(problem, scheme, args.t_final, args.spread, args.ensemble, args.size, args.seed)
