@@ -100,3 +100,44 @@ def test_the_card_of_a_scheme_whose_step_spins_stops_at_the_hard_limit(monkeypat
     assert code == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "the card of reliab-spinning-step" in err[0] and "did not return within 2.1 s" in err[0]
+
+
+SPIN_ENSEMBLE = """
+import sys
+sys.path.insert(0, {tests!r})
+from test_reliab_plugin_limits import SpinningStep
+from longtime.core import registry
+from longtime.commands.cli import main
+registry.register(SpinningStep)
+sys.exit(main(["ensemble", "-p", "henon-heiles", "-i", "reliab-spinning-step", "--dt", "0.1", "--t-final", "5",
+               "--members", "2"]))
+"""
+
+
+def test_sigterm_ends_an_ensemble_whose_step_spins_and_leaves_no_child():
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    from _procs import alive, descendants
+
+    tests = os.path.dirname(os.path.abspath(__file__))
+    proc = subprocess.Popen([sys.executable, "-c", SPIN_ENSEMBLE.format(tests=tests)], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 60
+        while not descendants(proc.pid):  # the forked child that runs the ensemble
+            assert proc.poll() is None, proc.stderr.read().decode()
+            assert time.monotonic() < deadline, "the ensemble did not start a child"
+            time.sleep(0.05)
+        time.sleep(1.0)
+        children = list(descendants(proc.pid))
+        proc.send_signal(signal.SIGTERM)
+        code = proc.wait(timeout=20)
+    finally:
+        proc.kill()
+        proc.wait()
+    assert code == 128 + signal.SIGTERM
+    time.sleep(0.5)
+    assert not [p for p in children if alive(p)]
