@@ -98,7 +98,7 @@ def test_a_deterministic_cell_paused_in_its_timing_process_is_not_failed():
 
 class DiesWhenTimedElsewhere(RK4):
     """RK4 that ends a timing process (exit code 3) when it is timed there."""
-    name = "reliab-dies-in-timing"
+    name = "faulty-dies-in-timing"
     summary = "exits in a timing process"
 
     def _integrate(self, *args, **kwargs):
@@ -113,7 +113,7 @@ def test_a_plugin_that_kills_its_timing_process_is_named_on_its_own_row_only():
     from longtime.core import registry
 
     registry.register(DiesWhenTimedElsewhere)
-    cells = [Cell("harmonic", "reliab-dies-in-timing", {}, {"dt": 0.05}, 5.0),
+    cells = [Cell("harmonic", "faulty-dies-in-timing", {}, {"dt": 0.05}, 5.0),
              Cell("harmonic", "verlet", {}, {"dt": 0.05}, 5.0)]
     bad, good = run_matrix(cells, None, None, "serial", ExecOptions(processes=2, timing=Timing(repeats=2, min_time=0)))
     assert good["status"] == "ok" and len(good["cpu_s_processes"]) == 2, good["message"]

@@ -18,7 +18,7 @@ SHIM = [sys.executable, "-c", "import os, sys; os.execv(sys.argv[2], sys.argv[2:
 
 
 class ExitsWhenCounted(RK4):
-    name = "reliab-exits-when-counted"
+    name = "faulty-exits-when-counted"
     summary = "RK4 that ends the counting process"
 
     def make_step(self, problem):
@@ -33,7 +33,7 @@ def test_a_crash_is_its_own_row_and_a_count_needs_the_same_digest(monkeypatch):
     monkeypatch.setattr(instructions, "command", lambda valgrind_path, prefix: SHIM)
     monkeypatch.setattr(instructions, "read_dumps", lambda prefix: {f"cell {i}": 1000 + i for i in range(10)})
     monkeypatch.setattr(instructions, "tool_version", lambda: "callgrind (stand-in)")
-    cells = [Cell("harmonic", "reliab-exits-when-counted", {}, {"dt": 0.05}, 5.0),
+    cells = [Cell("harmonic", "faulty-exits-when-counted", {}, {"dt": 0.05}, 5.0),
              Cell("harmonic", "verlet", {}, {"dt": 0.05}, 5.0),
              Cell("harmonic", "rk4", {}, {"dt": 0.05}, 5.0)]
     pairs = [(c, run_cell(c, 1000, timing=Timing(repeats=1))) for c in cells]

@@ -16,7 +16,7 @@ from longtime.execution import limits
 
 
 class SpinningInvariants(Harmonic):
-    name = "reliab-spinning-invariants"
+    name = "faulty-spinning-invariants"
 
     def invariants(self, t, U):
         while True:
@@ -24,7 +24,7 @@ class SpinningInvariants(Harmonic):
 
 
 class RaisingInvariants(Harmonic):
-    name = "reliab-raising-invariants"
+    name = "faulty-raising-invariants"
 
     def invariants(self, t, U):
         return {"H": 1.0 / 0.0}
@@ -35,19 +35,19 @@ def test_invariants_that_never_return_stop_at_the_hard_limit(monkeypatch):
     registry.register(SpinningInvariants)
     started = time.monotonic()
     with pytest.raises(InputError) as info:
-        longtime.sweep("reliab-spinning-invariants", "verlet", dt=0.1, time_limit=2, executor="serial")
+        longtime.sweep("faulty-spinning-invariants", "verlet", dt=0.1, time_limit=2, executor="serial")
     took = time.monotonic() - started
     assert took < 2 + 1 + 0.2 + 10, took  # the hard limit (2 s + 1 s + 10 %) and the start-up
     message = str(info.value)
-    assert "problem reliab-spinning-invariants" in message and "did not return within 3.2 s" in message
+    assert "problem faulty-spinning-invariants" in message and "did not return within 3.2 s" in message
 
 
 def test_invariants_that_raise_are_one_error_naming_the_problem():
     registry.register(RaisingInvariants)
     with pytest.raises(InputError) as info:
-        longtime.sweep("reliab-raising-invariants", "verlet", dt=0.1, executor="serial")
+        longtime.sweep("faulty-raising-invariants", "verlet", dt=0.1, executor="serial")
     message = str(info.value)
-    assert "problem reliab-raising-invariants" in message and "ZeroDivisionError" in message
+    assert "problem faulty-raising-invariants" in message and "ZeroDivisionError" in message
     assert "\n" not in message
 
 
@@ -69,7 +69,7 @@ def _spin_step(t, u, h, params, work, counters, first):
 
 
 class SpinningStep(RK4):
-    name = "reliab-spinning-step"
+    name = "faulty-spinning-step"
     summary = "a compiled step that never returns"
 
     def make_step(self, problem):
@@ -82,7 +82,7 @@ def test_an_ensemble_whose_step_spins_stops_at_the_hard_limit(monkeypatch):
     monkeypatch.setattr(limits, "GRACE_S", 1.0)
     registry.register(SpinningStep)
     started = time.monotonic()
-    rows = ensemble_command.study(["henon-heiles"], ["reliab-spinning-step"], dt=0.1, t_final=5.0, members=2,
+    rows = ensemble_command.study(["henon-heiles"], ["faulty-spinning-step"], dt=0.1, t_final=5.0, members=2,
                                   time_limit=1.0)
     assert time.monotonic() - started < 1 + 1 + 0.1 + 15
     (row,) = rows
@@ -95,21 +95,21 @@ def test_the_card_of_a_scheme_whose_step_spins_stops_at_the_hard_limit(monkeypat
     monkeypatch.setattr(limits, "GRACE_S", 1.0)
     registry.register(SpinningStep)
     started = time.monotonic()
-    code = main(["card", "reliab-spinning-step", "--time-limit", "1", "--db", str(tmp_path / "none.sqlite")])
+    code = main(["card", "faulty-spinning-step", "--time-limit", "1", "--db", str(tmp_path / "none.sqlite")])
     assert time.monotonic() - started < 1 + 1 + 0.1 + 15
     assert code == 1
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "the card of reliab-spinning-step" in err[0] and "did not return within 2.1 s" in err[0]
+    assert len(err) == 1 and "the card of faulty-spinning-step" in err[0] and "did not return within 2.1 s" in err[0]
 
 
 SPIN_ENSEMBLE = """
 import sys
 sys.path.insert(0, {tests!r})
-from test_reliab_plugin_limits import SpinningStep
+from test_plugin_limits import SpinningStep
 from longtime.core import registry
 from longtime.commands.cli import main
 registry.register(SpinningStep)
-sys.exit(main(["ensemble", "-p", "henon-heiles", "-i", "reliab-spinning-step", "--dt", "0.1", "--t-final", "5",
+sys.exit(main(["ensemble", "-p", "henon-heiles", "-i", "faulty-spinning-step", "--dt", "0.1", "--t-final", "5",
                "--members", "2"]))
 """
 
