@@ -86,7 +86,8 @@ def resolve(thing: Any, kind: str) -> tuple[str, dict[str, Any]]:
 
 
 def cells_for(problems: Any, schemes: Any, t_final: Any = None, settings: dict[str, Any] | None = None,
-              *, strict: bool = False, default_sweep: bool = False, caller: str = "sweep") -> list[Cell]:
+              *, strict: bool = False, default_sweep: bool = False, caller: str = "sweep",
+              limits: dict[str, Any] | None = None) -> list[Cell]:
     """The cells of problems x schemes x settings, through ``cells.expand`` as the command
     line builds them: a parameter with a flag of its own (dt, tol, eps_res, order) or given
     as several values is swept (``sweeps``); any other single value is a ``--set``.
@@ -125,7 +126,7 @@ def cells_for(problems: Any, schemes: Any, t_final: Any = None, settings: dict[s
         else:
             sets[key] = values[0]
     return expand(pnames, inames, sweeps=sweeps, t_final=t_final, sets=sets, strict=strict,
-                  default_sweep=default_sweep)
+                  default_sweep=default_sweep, **(limits or {}))  # a plugin's checks under a cell's limits
 
 
 def run_cells(cells: list[Cell], *, store=None, command: str = "", executor: str = "serial",
@@ -194,12 +195,12 @@ def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_sample
                            memory_limit=memory_limit, allow_large=allow_large)
     check_cost(cost)
     processes = default_processes() if processes is None else check_processes(processes, "processes")
-    cells = cells_for(problem, scheme, t_final, settings, strict=True, caller="solve")
+    cells = cells_for(problem, scheme, t_final, settings, strict=True, caller="solve",
+                      limits={"time_limit": time_limit or None, "memory_limit": memory})
     if len(cells) != 1:
         raise InputError(f"solve runs one cell; these settings give {len(cells)}: give one value per "
                          f"parameter (longtime.sweep takes lists)")
-    if not allow_large:
-        check_size(cells, max_samples, memory)
+    check_size(cells, max_samples, memory, allow_large=allow_large)
     keep: dict[str, Any] = {}
     here = calibration.here()  # the machine's speed beside the time, as every stored row has it
     here.start()
@@ -256,9 +257,9 @@ def sweep(problems: Any, schemes: Any, *, t_final: Any = None, executor: str = "
                            default_sweep=default_sweep)
     check_cost(cost)
     processes = default_processes() if processes is None else check_processes(processes, "processes")
-    cells = cells_for(problems, schemes, t_final, sweeps, default_sweep=default_sweep, caller="sweep")
-    if not allow_large:
-        check_size(cells, max_samples, memory)
+    cells = cells_for(problems, schemes, t_final, sweeps, default_sweep=default_sweep, caller="sweep",
+                      limits={"time_limit": time_limit or None, "memory_limit": memory})
+    check_size(cells, max_samples, memory, allow_large=allow_large)
     if store is not None and not isinstance(store, Store):
         store = Store(store)
     if executor in ("process", "dask"):

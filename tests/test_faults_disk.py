@@ -119,21 +119,21 @@ def test_item2_full_cache_folder_is_skipped_with_a_warning(full_disk, tmp_path):
 
 
 def test_item2_cache_write_without_space_warns_and_goes_on(tmp_path, monkeypatch):
-    from longtime.core import cache
+    from longtime.core import cache, files
 
-    def full(self, data):
+    def full(fd, data):
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(Path, "write_bytes", full)
+    monkeypatch.setattr(files.os, "write", full)
     with pytest.warns(UserWarning, match="cannot cache in .*No space left on device"):
         assert cache.write_atomic(tmp_path / "kernel.py", b"x") is False
-    assert not list(tmp_path.iterdir())
     monkeypatch.undo()
+    assert not list(tmp_path.iterdir())
 
-    def denied(self, data):
+    def denied(fd, data):
         raise OSError(errno.EIO, "Input/output error")
 
-    monkeypatch.setattr(Path, "write_bytes", denied)
+    monkeypatch.setattr(files.os, "write", denied)
     with pytest.raises(OSError):  # only a want of space is skipped
         cache.write_atomic(tmp_path / "kernel.py", b"x")
 

@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 from longtime.core import cli_args
+from longtime.core.files import write_atomic
 from longtime.core.params import InputError
 
 CONF_TEMPLATE = {
@@ -126,9 +127,7 @@ def write(folder: Path, problems: list[str], schemes: list[str], settings: dict,
             print(f"kept {path} (exists; --force replaces it)", file=sys.stderr)
             continue
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.asv-init.tmp")
-        tmp.write_text(text)
-        tmp.replace(path)  # replaces a link itself, never the file it points to
+        write_atomic(path, text)  # replaces a link itself, never the file it points to
         written.append(path)
     return written
 

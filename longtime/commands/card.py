@@ -1,10 +1,12 @@
 """``longtime card SCHEME``: the scheme's card (longtime.reporting.card) from a stored run."""
 from __future__ import annotations
 
-import json
 import sys
 
+from longtime.core import cli_args, jsontext
 from longtime.core.params import InputError
+from longtime.execution.cells import DEFAULT_TIME_LIMIT
+from longtime.execution.limits import PastLimit, call_limited, default_memory_limit
 
 
 def add_parser(subparsers) -> None:
@@ -16,6 +18,9 @@ def add_parser(subparsers) -> None:
     p.add_argument("--run", default=None, help="run id, or 'all' (default: the latest run)")
     p.add_argument("--db", default=None, help=f"SQLite store (default: $LONGTIME_DB or {default_path()})")
     p.add_argument("--format", choices=["table", "json", "markdown"], default="table")
+    p.add_argument("--time-limit", type=cli_args.seconds("--time-limit", allow_zero=True), default=DEFAULT_TIME_LIMIT,
+                   metavar="SECONDS", help=f"seconds the card (the scheme's runs it measures) may take, as a cell's "
+                                           f"limit (default {DEFAULT_TIME_LIMIT:g}; 0: no limit)")
     p.set_defaults(func=cmd_card)
 
 
@@ -49,10 +54,14 @@ def cmd_card(args) -> int:
 
     registry.integrator_class(args.scheme)  # an unknown name: one line naming the known ones
     rows, source = stored_rows(args.db, args.run)
-    found = card(args.scheme, rows)
+    try:  # the scheme's code runs here (its structure): under a cell's limits
+        limit = getattr(args, "time_limit", DEFAULT_TIME_LIMIT) or None
+        found = call_limited(card, args.scheme, rows, time_limit=limit, memory_limit=default_memory_limit())
+    except PastLimit as exc:
+        raise PastLimit(f"the card of {args.scheme}: {exc}") from None
     found["rows_from"] = source
     if args.format == "json":
-        print(json.dumps(found, indent=1, default=str))
+        print(jsontext.dumps(found, default=str))
     elif args.format == "markdown":
         print(card_markdown(found))
     else:

@@ -9,13 +9,13 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import importlib
-import json
 import sys
 from pathlib import Path
 
 from longtime.commands import guard
-from longtime.core import cli_args, phases, registry
+from longtime.core import cli_args, jsontext, phases, registry
 from longtime.core.cache import check_cache_root
+from longtime.core.files import write_atomic
 from longtime.core.integrator import Timing
 from longtime.core.params import InputError
 from longtime.core.roles import ROW_PARAMETERS, flag
@@ -23,8 +23,16 @@ from longtime.execution import budget, limits
 from longtime.execution.calibration import drift_text
 from longtime.execution.cells import DEFAULT_TIME_LIMIT, check_size, expand
 from longtime.execution.lifecycle import command_line, recorded_run
-from longtime.execution.matrix import COSTS, EXECUTORS, ExecOptions, check_cost, run_matrix
-from longtime.execution.processes import DEFAULT_PROCESSES, default_processes
+from longtime.execution.matrix import (
+    COSTS,
+    EXECUTORS,
+    PHASES_FIELD,
+    ExecOptions,
+    check_cost,
+    complete_phases,
+    run_matrix,
+)
+from longtime.execution.processes import DEFAULT_PROCESSES, default_processes, max_processes
 from longtime.execution.store import Store, default_path
 from longtime.measure import stability
 from longtime.measure.reference import budget_seconds
@@ -94,7 +102,8 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
                         f"least {Timing.MIN_RUNS} / processes (rounded up), more while its two fastest differ by "
                         f"more than {100 * Timing.SETTLED:g} %% and their total is below --min-time / processes, "
                         f"at most N / processes (rounded up); cpu_s is the minimum (default {Timing.repeats})")
-    p.add_argument("--processes", type=cli_args.integer("--processes", 1), default=None, metavar="N",
+    p.add_argument("--processes", type=cli_args.integer("--processes", 1, maximum=max_processes()),
+                   default=None, metavar="N",
                    help=f"processes that time each cell: the one that measures its row and N - 1 fresh "
                         f"ones that time its integration alone, the repeats split among them; cpu_s is "
                         f"the minimum over them, cpu_s_processes each one's and cpu_s_process_spread "
@@ -119,7 +128,10 @@ def _selection(args) -> dict:
     for k in swept:
         if k in sweeps:
             raise InputError(f"{flag(k)} and --set {k}= both give {k}: give one of them")
-    return {"sweeps": {**sweeps, **swept}, "sets": sets, "t_final": args.t_final}
+    return {"sweeps": {**sweeps, **swept}, "sets": sets, "t_final": args.t_final,
+            # a plugin's up-front checks run under a cell's limits
+            "time_limit": getattr(args, "time_limit", DEFAULT_TIME_LIMIT) or None,
+            "memory_limit": getattr(args, "memory_limit", limits.default_memory_limit())}
 
 
 def _options(args, executor: str) -> ExecOptions:
@@ -176,7 +188,7 @@ def cmd_list(args) -> int:
         "broken": [vars(b) for b in registry.broken()],
     }
     if args.format == "json":
-        print(json.dumps(data, indent=1))
+        print(jsontext.dumps(data))
         return 0
     print("problems:")
     for p in data["problems"]:
@@ -205,8 +217,7 @@ def cmd_run(args) -> int:
     _warn_broken()
     cells = expand(args.problem, args.integrator, **_selection(args), strict=True)
     _notices(c.integrator for c in cells)
-    if not args.allow_large:
-        check_size(cells, args.max_samples, args.memory_limit)
+    check_size(cells, args.max_samples, args.memory_limit, allow_large=args.allow_large)
     # by default one cell at a time in one worker process, under the hard limits (longtime.execution.limits);
     # --executor serial runs them in this process
     executor = args.executor or "process"
@@ -243,11 +254,17 @@ def cmd_matrix(args) -> int:
             raise InputError(f"--resume: no incomplete run in {store.path} (give a run id to pick one)")
         store.run(run_id)  # an unknown id is an error, not "0 cells left"
         cells = store.pending(run_id)
-        if not cells:  # every planned row is stored (only its end mark was lost): nothing to run
+        lacking = [row for _, row in store.incomplete_rows(run_id, PHASES_FIELD)]
+        if lacking:  # rows stored before their timing processes or counts ran: run them
+            phases_lacked = sorted({p for row in lacking for p in row[PHASES_FIELD]})
+            print(f"run {run_id}: {len(lacking)} stored row(s) lack a phase ({', '.join(phases_lacked)}): "
+                  f"it runs for them", file=sys.stderr)
+        elif not cells:  # every planned row is stored (only its end mark was lost): nothing to run
             store.finish_run(run_id, "done")
             print(f"run {run_id}: every planned cell is stored; marked done", file=sys.stderr)
             return 0
-        print(f"resuming run {run_id}: {len(cells)} cells left", file=sys.stderr)
+        if cells:
+            print(f"resuming run {run_id}: {len(cells)} cells left", file=sys.stderr)
         died = store.died_in(run_id)
         if died:  # perhaps killed, perhaps the cell's crash: each runs again in a process of its own
             print(f"run {run_id} ended inside {len(died)} cell(s): they run again one process each", file=sys.stderr)
@@ -277,6 +294,8 @@ def cmd_matrix(args) -> int:
             options = dataclasses.replace(options, idle_work=ahead.task)
         run_matrix(cells, store, run_id, executor, options,
                    progress=not args.no_progress, on_row=ahead.add if ahead is not None else None)
+        if args.resume is not None:  # the rows stored before the interruption, timed and counted
+            complete_phases(store, run_id, options)
         if args.checks is None:
             from longtime.reporting.verdict import CHECKS
 
@@ -300,6 +319,7 @@ def cmd_matrix(args) -> int:
                     ensembles.run(store, run_id, store.rows(run_id))
             except (InputError, OSError, ValueError, RuntimeError) as exc:  # the rows are stored; this is extra
                 print(f"warning: ensembles not measured: {type(exc).__name__}: {exc}", file=sys.stderr)
+    page_error = None
     if not args.no_report:
         from longtime.reporting.page import write_html
         from longtime.reporting.report import report_text
@@ -311,8 +331,9 @@ def cmd_matrix(args) -> int:
                 with phases.phase("page"):
                     page = write_html(args.html or store.path.parent / "longtime-report" / f"run-{run_id}", rows,
                                       store, [run_id], ahead=ahead, writer="matrix")  # default: beside the store
-            except Exception as exc:  # the rows are stored; `longtime report --html DIR` can retry
-                print(f"warning: results page not written: {type(exc).__name__}: {exc}", file=sys.stderr)
+            except Exception as exc:  # the rows are stored; `longtime report --html DIR` can retry (exit 1 below)
+                page_error = f"results page not written: {type(exc).__name__}: {exc}"
+                print(f"warning: {page_error}", file=sys.stderr)
         with phases.phase("report"):
             text = report_text(rows, "table", full=args.full, checks=store.checks(run_id),
                                ensembles=store.ensembles(run_id))
@@ -320,12 +341,16 @@ def cmd_matrix(args) -> int:
         print(f"\ncalibration: {drift_text(store.calibrations(run_id))}")
         if page is not None:
             print(f"\nresults page: {page}")
+    code = 0
     if args.baseline is not None:  # CI's gate: this run against the baseline, exit 1 on a regression
         from longtime.reporting import compare
 
         print(f"\n== compared with run {args.baseline} (longtime compare {args.baseline} {run_id}) ==")
-        return compare.report(compare.run_compare(store.path, str(args.baseline), store.path, str(run_id)))
-    return 0
+        code = compare.report(compare.run_compare(store.path, str(args.baseline), store.path, str(run_id)))
+    if page_error:  # the rows are stored and reported; the page the command owes is not there
+        print(f"longtime matrix: error: {page_error}", file=sys.stderr)
+        return max(code, 1)
+    return code
 
 
 def matrix_cells(args) -> tuple[list, list]:
@@ -338,8 +363,7 @@ def matrix_cells(args) -> tuple[list, list]:
     moves = []
     if not args.full_sweep:
         cells, moves = budget.fit(cells, given_t_final=args.t_final is not None)
-    if not args.allow_large:
-        check_size(cells, args.max_samples, args.memory_limit)
+    check_size(cells, args.max_samples, args.memory_limit, allow_large=args.allow_large)
     return cells, moves
 
 
@@ -403,7 +427,7 @@ def cmd_report(args) -> int:
     elif args.out:
         text = report_text(rows, args.format, full=args.full, checks=checks, ensembles=ensembles)
         with cli_args.writing("--out", args.out):
-            Path(args.out).write_text(text)
+            write_atomic(args.out, text)
     else:
         print(report_text(rows, args.format, full=args.full, checks=checks, ensembles=ensembles))
         if args.format == "table" and args.run != "all":

@@ -3,35 +3,46 @@ horizon, per scheme (longtime.measure.ensemble), beside the Lyapunov time
 (longtime.measure.lyapunov) that says where that horizon lies."""
 from __future__ import annotations
 
-import json
 from typing import Any
 
-from longtime.core import cli_args
+from longtime.core import cli_args, jsontext
 from longtime.core.params import InputError
+from longtime.execution.cells import DEFAULT_TIME_LIMIT, MAX_STEPS
+from longtime.execution.limits import PastLimit, call_limited, default_memory_limit
 from longtime.measure import ensemble
 
 
 def study(problems: list[str], schemes: list[str], dt: float | None = None, t_final: float | None = None,
           members: int = ensemble.DEFAULT_MEMBERS, size: float = ensemble.DEFAULT_SIZE, seed: int = 1,
-          window: float = ensemble.DEFAULT_WINDOW) -> list[dict[str, Any]]:
-    """One row per problem x scheme that the scheme can treat."""
+          window: float = ensemble.DEFAULT_WINDOW, time_limit: float | None = DEFAULT_TIME_LIMIT,
+          memory_limit: int | None = default_memory_limit()) -> list[dict[str, Any]]:
+    """One row per problem x scheme that the scheme can treat; each ensemble (its members
+    together) runs under ``time_limit`` and ``memory_limit`` as a cell does (limits.call_limited):
+    past them its row is ``timeout`` or ``failed``."""
     from longtime.core import registry
     from longtime.core.integrator import FixedStepIntegrator
     from longtime.execution.cells import Cell, build
     from longtime.measure import lyapunov
 
-    if members < 2:
-        raise InputError(f"--members {members}: expected an integer >= 2")
-    if not 0 < size < 1:
-        raise InputError(f"--size {size:g}: expected a relative perturbation in (0, 1)")
-    if not 0 < window <= 1:
-        raise InputError(f"--window {window:g}: expected a share of the span in (0, 1]")
+    if not 2 <= members <= cli_args.MAX_MEMBERS:
+        raise InputError(f"--members {members}: expected an integer from 2 to {cli_args.MAX_MEMBERS}")
+    if not cli_args.MIN_SIZE <= size < 1:
+        raise InputError(f"--size {size:g}: expected a relative perturbation from {cli_args.MIN_SIZE:g} to 1")
+    if not 1e-6 <= window <= 1:
+        raise InputError(f"--window {window:g}: expected a share of the span from 1e-6 to 1")
     for p in problems:
         if not registry.problem_class(p).chaotic:
             raise InputError(f"-p {p}: not a chaotic problem (ensembles are for problems that declare "
                              f"`chaotic`: {', '.join(n for n, c in registry.problems().items() if c.chaotic)})")
     for s in schemes:
         registry.integrator_class(s)
+    for p in problems:  # every member's length, before any member runs
+        pcls = registry.problem_class(p)
+        tf = pcls.default_t_final if t_final is None else t_final
+        step = dt if dt is not None else pcls.default_dt
+        if step and not (tf - pcls.t0) / step <= MAX_STEPS:
+            raise InputError(f"-p {p}: t_final {tf:g} with the step {step:g} is about {(tf - pcls.t0) / step:.3g} "
+                             f"steps a member, over the limit of {MAX_STEPS:.0e}")
     rows = []
     for p in problems:
         for s in schemes:
@@ -45,7 +56,15 @@ def study(problems: list[str], schemes: list[str], dt: float | None = None, t_fi
                 problem, scheme = build(Cell(p, s, {}, {"dt": dt}))
             tf = problem.default_t_final if t_final is None else t_final
             row.update(dt=scheme.dt_for(problem) if isinstance(scheme, FixedStepIntegrator) else None, t_final=tf)
-            row.update(ensemble.measure(problem, scheme, tf, members, size, seed, window))
+            try:
+                row.update(call_limited(ensemble.measure, problem, scheme, tf, members, size, seed, window,
+                                        time_limit=time_limit, memory_limit=memory_limit))
+            except PastLimit as exc:
+                rows.append({**row, "status": "timeout", "message": f"the ensemble stopped: {exc}"})
+                continue
+            except MemoryError as exc:
+                rows.append({**row, "status": "failed", "message": f"the ensemble ran out of memory: {exc}"})
+                continue
             found = lyapunov.measure(problem)
             row["lyapunov_time"] = found["lyapunov_time"]
             row["span_lyapunov"] = (tf - problem.t0) / found["lyapunov_time"] if found["lyapunov_time"] else None
@@ -81,8 +100,8 @@ def cmd_ensemble(args) -> int:
         raise InputError("--t-final: give one final time")
     rows = study(args.problem, args.integrator, dt=args.dt[0] if args.dt else None,
                  t_final=args.t_final[0] if args.t_final else None, members=args.members, size=args.size,
-                 seed=args.seed, window=args.window)
-    print(json.dumps(rows, indent=1) if args.format == "json" else markdown(rows))
+                 seed=args.seed, window=args.window, time_limit=args.time_limit or None)
+    print(jsontext.dumps(rows) if args.format == "json" else markdown(rows))
     return 0
 
 
@@ -94,11 +113,16 @@ def add_parser(subparsers) -> None:
     p.add_argument("-i", "--integrator", type=cli_args.names, required=True, metavar="SCHEME[,..]")
     p.add_argument("--dt", type=cli_args.floats("--dt"), default=None, metavar="X", help="the step of fixed-step schemes")
     p.add_argument("--t-final", type=cli_args.floats("--t-final"), default=None, metavar="T")
-    p.add_argument("--members", type=cli_args.integer("--members", 2), default=ensemble.DEFAULT_MEMBERS, metavar="K")
-    p.add_argument("--size", type=float, default=ensemble.DEFAULT_SIZE, help="relative size of the perturbations")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--window", type=float, default=ensemble.DEFAULT_WINDOW,
+    p.add_argument("--members", type=cli_args.members("--members", 2), default=ensemble.DEFAULT_MEMBERS, metavar="K")
+    p.add_argument("--size", type=cli_args.bounded("--size", cli_args.MIN_SIZE, 1.0), default=ensemble.DEFAULT_SIZE,
+                   help="relative size of the perturbations")
+    p.add_argument("--seed", type=cli_args.seed(), default=1)
+    p.add_argument("--window", type=cli_args.share("--window"), default=ensemble.DEFAULT_WINDOW,
                    help="the last share of the span the distributions are taken over")
+    p.add_argument("--time-limit", type=cli_args.seconds("--time-limit", allow_zero=True),
+                   default=DEFAULT_TIME_LIMIT, metavar="SECONDS",
+                   help=f"seconds one ensemble (its members together) may take, as a cell's limit "
+                        f"(default {DEFAULT_TIME_LIMIT:g}; 0: no limit)")
     p.add_argument("--format", choices=["markdown", "json"], default="markdown")
     p.set_defaults(func=cmd_ensemble)
 

@@ -12,14 +12,15 @@ power law). The members run as tasks on a process pool, as the round-off study's
 """
 from __future__ import annotations
 
-import json
+import math
 import sys
 from typing import Any
 
 import numpy as np
 
-from longtime.core import cli_args
+from longtime.core import cli_args, jsontext
 from longtime.core.params import InputError
+from longtime.execution.cells import MAX_STEPS
 from longtime.measure.horizon import estimate, fit_law, judge, local_slopes, verdict_text
 
 PROBLEM = "henon-heiles"
@@ -75,12 +76,15 @@ def study(schemes=DEFAULT_SCHEMES, dts=DEFAULT_DTS, members: int = DEFAULT_MEMBE
     if not 0 < gap < 0.06:
         raise InputError(f"--gap {gap:g}: expected 0 < gap < 0.06 (the energy 1/6 - gap keeps the orbits' "
                          "initial states valid)")
-    if members < 2:
-        raise InputError(f"--members {members}: expected an integer >= 2")
-    if len(set(dts)) < 2 or min(dts) <= 0:
-        raise InputError("--dt: expected at least 2 distinct positive steps")
-    if not t_final > max(dts):
-        raise InputError(f"--t-final {t_final:g}: expected more than the largest step")
+    if not 2 <= members <= cli_args.MAX_MEMBERS:
+        raise InputError(f"--members {members}: expected an integer from 2 to {cli_args.MAX_MEMBERS}")
+    if len(set(dts)) < 2 or not all(0 < d < math.inf for d in dts):
+        raise InputError("--dt: expected at least 2 distinct positive finite steps")
+    if not max(dts) < t_final < math.inf:
+        raise InputError(f"--t-final {t_final:g}: expected a finite time more than the largest step")
+    if not t_final / min(dts) <= MAX_STEPS:
+        raise InputError(f"--t-final {t_final:g} with --dt {min(dts):g}: about {t_final / min(dts):.3g} steps a "
+                         f"member, over the limit of {MAX_STEPS:.0e}")
     energy = ESCAPE_ENERGY - gap
     tasks = [(s, float(dt), energy, y0, float(t_final), threshold)
              for s in schemes for dt in sorted(set(dts), reverse=True) for y0 in member_states(members)]
@@ -134,7 +138,7 @@ def cmd_horizon(args) -> int:
     result = study(schemes=args.integrator or DEFAULT_SCHEMES, dts=args.dt or DEFAULT_DTS, members=args.members,
                    t_final=args.t_final, gap=args.gap, threshold=args.threshold, jobs=args.jobs)
     if args.format == "json":
-        print(json.dumps(result, indent=1, default=float))
+        print(jsontext.dumps(result, default=float))
     else:
         print(markdown(result))
     return 0
@@ -148,7 +152,8 @@ def add_parser(subparsers) -> None:
                    help=f"schemes (default: {','.join(DEFAULT_SCHEMES)})")
     p.add_argument("--dt", type=cli_args.floats("--dt"), default=None, metavar="X[,..]",
                    help=f"steps (default: {','.join(f'{d:g}' for d in DEFAULT_DTS)})")
-    p.add_argument("--members", type=cli_args.integer("--members", 2), default=DEFAULT_MEMBERS, metavar="K", help="runs per scheme and step")
+    p.add_argument("--members", type=cli_args.members("--members", 2), default=DEFAULT_MEMBERS, metavar="K",
+                   help="runs per scheme and step")
     p.add_argument("--t-final", type=cli_args.positive_number("--t-final"), default=DEFAULT_T_FINAL, metavar="T",
                    help=f"how long each member runs (default {DEFAULT_T_FINAL:g})")
     p.add_argument("--gap", type=cli_args.positive_number("--gap"), default=DEFAULT_GAP, help="the energy's distance below the escape "

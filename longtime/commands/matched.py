@@ -20,11 +20,10 @@ alone (the stiffness grows as d^3, so explicit schemes' steps shrink with it).
 """
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
-from longtime.core import cli_args, registry
+from longtime.core import cli_args, jsontext, registry
 from longtime.core.fmt import column
 from longtime.core.params import InputError
 from longtime.execution.cells import Cell, build, expand
@@ -212,7 +211,7 @@ def cmd_match(args) -> int:
                 paths = scaling_figure(scaling, orders, problem, Path(args.out), args.metric)
                 text.append("figures: " + ", ".join(map(str, paths)))
     if args.format == "json":
-        print(json.dumps(out_rows, indent=1, default=str))
+        print(jsontext.dumps(out_rows, default=str))
     else:
         print("\n\n".join(text))
     return 0

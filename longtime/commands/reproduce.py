@@ -27,6 +27,7 @@ from typing import Any, Callable
 import numpy as np
 
 from longtime.core import cli_args, registry
+from longtime.core.files import write_atomic
 from longtime.core.fmt import markdown_table, number
 from longtime.core.params import InputError
 from longtime.execution import search
@@ -463,7 +464,7 @@ def reproduce(out: str | Path = "reproduction", quick: bool = False, figures: bo
             parts += [f"## {title}", "", body, "", f"*(section: {time.perf_counter() - t0:.1f} s wall)*", ""]
     parts.append(f"Total: {time.perf_counter() - started:.1f} s wall, {ctx.cells_run} cells.")
     report = out / "report.md"
-    report.write_text("\n".join(parts) + "\n")
+    write_atomic(report, "\n".join(parts) + "\n")
     return report, failed
 
 

@@ -25,8 +25,9 @@ from typing import Any
 
 import numpy as np
 
-from longtime.core import cli_args
+from longtime.core import cli_args, jsontext
 from longtime.core.params import InputError
+from longtime.execution.cells import MAX_STEPS
 from longtime.measure.growth import growth_fields
 
 PERTURBATION = 1e-12
@@ -215,8 +216,6 @@ def explain(rows: list[dict], steps: int, ensemble: int, seed: int) -> str:
 
 def spread(args) -> int:
     """``--spread FIELD``: the round-off spread of one figure of a chaotic run."""
-    import json
-
     from longtime.execution.cells import Cell, build
     from longtime.measure.ensemble import field_spread
 
@@ -224,12 +223,16 @@ def spread(args) -> int:
         raise InputError("--spread needs -p PROBLEM, -i SCHEME and --t-final T (and --dt for a fixed step)")
     settings = {"dt": args.dt} if args.dt is not None else {}
     problem, scheme = build(Cell(args.problem, args.integrator, {}, settings))
+    step = args.dt or problem.default_dt
+    if step and not (args.t_final - problem.t0) / step <= MAX_STEPS:
+        raise InputError(f"--t-final {args.t_final:g} with the step {step:g}: about "
+                         f"{(args.t_final - problem.t0) / step:.3g} steps a run, over the limit of {MAX_STEPS:.0e}")
     if args.ensemble < 2:
         raise InputError(f"--ensemble {args.ensemble}: --spread needs an integer >= 2")
     out = field_spread(problem, scheme, args.t_final, args.spread, args.ensemble, args.size, args.seed)
     out.update(problem=args.problem, scheme=args.integrator, dt=args.dt, t_final=args.t_final)
     if args.format == "json":
-        print(json.dumps(out, indent=1))
+        print(jsontext.dumps(out))
     else:
         print(f"{args.problem} x {args.integrator} (dt {args.dt}, t_final {args.t_final:g}): {args.spread} = "
               f"{out['value']:.6g} from the initial state; {out['min']:.6g} .. {out['max']:.6g} over "
@@ -238,17 +241,17 @@ def spread(args) -> int:
 
 
 def cmd_roundoff(args) -> int:
-    import json
-
     if args.spread:
         return spread(args)
 
-    if args.ensemble < 0:
-        raise InputError(f"--ensemble {args.ensemble}: expected an integer >= 0")
+    if args.scheduler:  # an address where no Dask scheduler answers: one line before any member runs
+        from longtime.execution.dask_executor import check_scheduler
+
+        check_scheduler(args.scheduler)
     rows = study(steps=int(args.steps), ensemble=args.ensemble, seed=args.seed, jobs=args.jobs,
                  scheduler=args.scheduler, heyoka=not args.no_heyoka)
     if args.format == "json":
-        print(json.dumps(rows, indent=1))
+        print(jsontext.dumps(rows))
     else:
         print(markdown(rows))
         print()
@@ -259,11 +262,14 @@ def cmd_roundoff(args) -> int:
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser("roundoff", help="round-off study: Brouwer's law or linear drift per scheme and setting",
                               description=__doc__.splitlines()[0])
-    p.add_argument("--steps", type=float, default=1e7, help="steps per run (dt = 0.01; default 1e7)")
-    p.add_argument("--ensemble", type=int, default=8, metavar="K", help="perturbed members per configuration")
-    p.add_argument("--seed", type=int, default=1, metavar="S", help="seed of the perturbations")
+    p.add_argument("--steps", type=cli_args.bounded("--steps", 1, MAX_STEPS), default=1e7,
+                   help="steps per run (dt = 0.01; default 1e7)")
+    p.add_argument("--ensemble", type=cli_args.members("--ensemble", 0), default=8, metavar="K",
+                   help="perturbed members per configuration")
+    p.add_argument("--seed", type=cli_args.seed(), default=1, metavar="S", help="seed of the perturbations")
     p.add_argument("--jobs", type=cli_args.jobs, default=0, help="worker processes (default: one per core)")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="run the members on this Dask cluster")
+    p.add_argument("--scheduler", type=cli_args.scheduler, default=None, metavar="ADDRESS",
+                   help="run the members on this Dask cluster")
     p.add_argument("--no-heyoka", action="store_true", help="leave out heyoka's row")
     p.add_argument("--format", choices=["markdown", "json"], default="markdown")
     g = p.add_argument_group("the round-off spread of one figure of a chaotic run (--spread)")
@@ -272,9 +278,10 @@ def add_parser(subparsers) -> None:
                         "initial states perturbed by --size")
     g.add_argument("-p", "--problem", default=None, metavar="PROBLEM")
     g.add_argument("-i", "--integrator", default=None, metavar="SCHEME")
-    g.add_argument("--dt", type=float, default=None)
-    g.add_argument("--t-final", type=float, default=None, metavar="T")
-    g.add_argument("--size", type=float, default=1e-14, help="relative perturbation (default 1e-14)")
+    g.add_argument("--dt", type=cli_args.positive_number("--dt"), default=None)
+    g.add_argument("--t-final", type=cli_args.positive_number("--t-final"), default=None, metavar="T")
+    g.add_argument("--size", type=cli_args.bounded("--size", cli_args.MIN_SIZE, 1.0), default=1e-14,
+                   help="relative perturbation (default 1e-14)")
     p.set_defaults(func=cmd_roundoff)
 
 

@@ -15,6 +15,8 @@ import os
 import warnings
 from pathlib import Path
 
+from longtime.core import files
+
 # a write that failed for want of space (a full disk, a quota): the place, not the data, is at fault
 NO_SPACE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT})
 _warned: set[str] = set()
@@ -99,17 +101,13 @@ def write_atomic(path: Path, data: bytes) -> bool:
     """Write the cache file ``path`` whole or not at all (a temporary file renamed over it):
     a reader never sees a half-written file, and processes writing the same file at once each
     write whole. On a full disk nothing is written (``skip_cache``): returns False."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
-        tmp.write_bytes(data)
-        os.replace(tmp, path)
+        files.write_atomic(path, data)
     except OSError as exc:
         if not no_space(exc):
             raise
         skip_cache(path.parent, exc)
         return False
-    finally:
-        tmp.unlink(missing_ok=True)
     return True
 
 

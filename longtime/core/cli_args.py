@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 from typing import Callable, Iterator
 
 from longtime.core.params import InputError
@@ -31,6 +32,8 @@ def floats(flag: str) -> Callable[[str], list[float]]:
             raise argparse.ArgumentTypeError(f"{flag} takes comma-separated numbers, got {text!r}") from None
         if not values:
             raise argparse.ArgumentTypeError(f"{flag} needs at least one value")
+        if not all(math.isfinite(v) for v in values):  # nan, inf: refused before any work
+            raise argparse.ArgumentTypeError(f"{flag} takes finite numbers, got {text!r}")
         return values
 
     return parse
@@ -67,19 +70,62 @@ def ints(flag: str) -> Callable[[str], list[int]]:
     return parse
 
 
-def integer(flag: str, minimum: int, note: str = "") -> Callable[[str], int]:
-    """One integer >= ``minimum`` (``note`` says what the smallest means, e.g. 0: one per core)."""
+def integer(flag: str, minimum: int, note: str = "", maximum: int | None = None) -> Callable[[str], int]:
+    """One integer >= ``minimum`` and <= ``maximum`` (None: no bound) (``note`` says what the
+    smallest means, e.g. 0: one per core)."""
 
     def parse(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
             value = None
-        if value is None or value < minimum:
-            raise argparse.ArgumentTypeError(f"{flag} takes an integer >= {minimum}{note}, got {text!r}")
+        if value is None or value < minimum or (maximum is not None and value > maximum):
+            bound = f"from {minimum} to {maximum}" if maximum is not None else f">= {minimum}"
+            raise argparse.ArgumentTypeError(f"{flag} takes an integer {bound}{note}, got {text!r}")
         return value
 
     return parse
+
+
+# the largest seed taken (numpy's generators take any integer >= 0; a larger one is a typo)
+MAX_SEED = 2**63 - 1
+# the most members an ensemble (horizon, ensemble, roundoff) may have: each is a run of its own
+MAX_MEMBERS = 10_000
+
+
+def seed(flag: str = "--seed") -> Callable[[str], int]:
+    """A random seed: an integer from 0 to MAX_SEED."""
+    return integer(flag, 0, maximum=MAX_SEED)
+
+
+def members(flag: str, minimum: int) -> Callable[[str], int]:
+    """The members of an ensemble: an integer from ``minimum`` to MAX_MEMBERS."""
+    return integer(flag, minimum, " (runs of their own each)", maximum=MAX_MEMBERS)
+
+
+# the smallest relative perturbation taken: half the double's epsilon (a smaller one leaves the
+# state as it is)
+MIN_SIZE = 1.1e-16
+
+
+def bounded(flag: str, low: float, high: float) -> Callable[[str], float]:
+    """A number from ``low`` to ``high`` (finite)."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{flag} takes a number from {low:g} to {high:g}, got {text!r}")
+        return value
+
+    return parse
+
+
+def share(flag: str) -> Callable[[str], float]:
+    """A share of a whole: a number from 1e-6 (not vanishingly small) to 1."""
+    return bounded(flag, 1e-6, 1.0)
 
 
 def jobs(text: str) -> int:

@@ -132,6 +132,15 @@ class Timing:
         return Timing(repeats=max(1, math.ceil(self.repeats / processes)), min_time=self.min_time / processes,
                       min_runs=max(1, math.ceil(runs / processes)))
 
+    def to_dict(self) -> dict[str, Any]:
+        """The timing as JSON for a child process (``from_dict`` reads it back whole)."""
+        return {"repeats": int(self.repeats), "min_time": float(self.min_time),
+                "min_runs": None if self.min_runs is None else int(self.min_runs)}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "Timing":
+        return cls(repeats=data["repeats"], min_time=data["min_time"], min_runs=data.get("min_runs"))
+
 
 def same_run(a: "Trajectory", b: "Trajectory") -> bool:
     """Bitwise equality of two runs of one cell: outcome, counters and every sample."""

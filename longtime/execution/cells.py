@@ -33,6 +33,8 @@ DEFAULT_MAX_SAMPLES = 100_001
 DEFAULT_TIME_LIMIT = 600.0
 # a cell beyond these is refused up front, unless --allow-large
 MAX_STEPS = 10**9
+# beyond this many steps a run's 64-bit step counters overflow: refused even with --allow-large
+MAX_COUNTED_STEPS = 2**62
 MAX_SAMPLE_BYTES = 4 * 2**30
 
 
@@ -127,7 +129,8 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
            sweeps: Mapping[str, list] | None = None,
            t_final: float | Iterable[float] | None = None,
            sets: Mapping[str, Any] | None = None, default_sweep: bool = False,
-           strict: bool = False) -> list[Cell]:
+           strict: bool = False, time_limit: float | None = DEFAULT_TIME_LIMIT,
+           memory_limit: int | None = limits.default_memory_limit()) -> list[Cell]:
     """All cells of problems x integrators x the sweep.
 
     ``sweeps`` maps any declared parameter of a selected problem or scheme to its values
@@ -136,7 +139,8 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
     that sweeps (``Param.sweeps``), a cell takes the parameter's default (or, with
     ``default_sweep``, the problem's ``sweep_dt`` for the step and the scheme's ``sweep``
     for the rest). An incompatible pair becomes one cell with a skip reason, or an error
-    when ``strict``.
+    when ``strict``. A plugin's problem is checked first (its functions on the initial state)
+    under the limits of a cell, ``time_limit`` and ``memory_limit``.
     """
     # a name or value given twice is one cell (a repeat would be run twice and stored once)
     problem_names, integrator_names = list(dict.fromkeys(problem_names)), list(dict.fromkeys(integrator_names))
@@ -158,19 +162,44 @@ def expand(problem_names: list[str], integrator_names: list[str], *,
             except MemoryError:
                 raise InputError(f"problem {pname} with {psets}: out of memory while building it") from None
             psets = {k: problem.settings[k] for k in psets}  # typed: "0.5" from the command line is 0.5
-            plugin = not contract.built_in(pcls)
-            if plugin:  # a plugin's compiled functions, once with bounds checked, before any cell runs
-                contract.probe_problem_kernels(problem)
-            for horizon in horizons:
-                tf = horizon if horizon is not None else (
-                    pcls.sweep_t_final if default_sweep and pcls.sweep_t_final else pcls.default_t_final)
+            t_finals = [horizon if horizon is not None else (
+                pcls.sweep_t_final if default_sweep and pcls.sweep_t_final else pcls.default_t_final)
+                for horizon in horizons]
+            for tf in t_finals:
                 check_time_span(pcls.t0, tf, f"problem {pname}")
-                if plugin:  # the shapes of what its Python functions return
-                    contract.check_problem_outputs(problem, tf)
+            if not contract.built_in(pcls):  # a plugin: its functions once, under a cell's limits, before any cell
+                _check_plugin_problem(problem, t_finals, time_limit, memory_limit)
+            for tf in t_finals:
                 for iname in integrator_names:
                     cells += _scheme_cells(pname, pcls, problem, psets, iname, tf, sets, sweeps, default_sweep,
                                            strict, given_t_final=horizons != [None])
     return cells
+
+
+def _plugin_problem_checks(problem: Problem, t_finals: list[float]) -> None:
+    contract.probe_problem_kernels(problem)  # its compiled functions, once with bounds checked
+    for tf in t_finals:  # the shapes of what its Python functions return
+        contract.check_problem_outputs(problem, tf)
+
+
+def _check_plugin_problem(problem: Problem, t_finals: list[float], time_limit: float | None,
+                          memory_limit: int | None) -> None:
+    """The contract checks of a plugin's problem (``contract.probe_problem_kernels``,
+    ``check_problem_outputs``) under the limits of a cell (``limits.call_limited``): one that
+    raises or does not return is an InputError naming the problem."""
+    try:
+        limits.call_limited(_plugin_problem_checks, problem, t_finals, time_limit=time_limit, memory_limit=memory_limit)
+    except InputError:
+        raise
+    except limits.PastLimit as exc:
+        raise InputError(f"problem {problem.name}: its contract check (rhs, exact, invariants, violations, "
+                         f"diagnostics on the initial state) failed: {exc}") from None
+    except MemoryError as exc:
+        raise InputError(f"problem {problem.name}: out of memory in its contract check ({exc})") from None
+    except Exception as exc:
+        first = (str(exc).strip().splitlines() or [""])[0]
+        raise InputError(f"problem {problem.name}: its contract check (rhs, exact, invariants, violations, "
+                         f"diagnostics on the initial state) raised {type(exc).__name__}: {first}") from None
 
 
 def _scheme_cells(pname: str, pcls, problem: Problem, psets: dict, iname: str, tf: float, sets: Mapping[str, Any],
@@ -400,13 +429,14 @@ def cell_size(cell: Cell, dims: dict[str, int]) -> tuple[int, float, float]:
 
 @to_stderr  # plugin code runs here: its output is not the contract's
 def check_size(cells: Iterable[Cell], max_samples: int = DEFAULT_MAX_SAMPLES,
-               memory_limit: int | None = None) -> None:
+               memory_limit: int | None = None, allow_large: bool = False) -> None:
     """Refuse, before anything runs, a cell whose estimated step count passes MAX_STEPS,
     whose recorded samples pass MAX_SAMPLE_BYTES, or whose samples and what its metrics
     allocate (``Problem.metrics_bytes``) pass ``memory_limit`` (the cell's, --memory-limit)
     (``--allow-large`` skips this). Steps are (t_final - t0) / dt, with the problem's default
     step for adaptive schemes (a rough size); samples as the integrator keeps them (see
-    Integrator.integrate)."""
+    Integrator.integrate). A cell of more than MAX_COUNTED_STEPS steps is refused even with
+    ``allow_large``."""
     from longtime.core.integrator import SAMPLE_BUDGET
 
     dims: dict[str, int] = {}
@@ -418,6 +448,11 @@ def check_size(cells: Iterable[Cell], max_samples: int = DEFAULT_MAX_SAMPLES,
         given = cell.integrator_settings.get("dt")
         step = f"dt={dt:g}" if given else f"steps of about the problem's dt={dt:g}"
         what = f"{cell.problem} x {cell.integrator} ({step}, t_final={cell.t_final:g})"
+        if not steps <= MAX_COUNTED_STEPS:
+            raise InputError(f"{what}: about {steps:.3g} steps, more than a run can count ({MAX_COUNTED_STEPS:.3g}, "
+                             f"even with --allow-large): lower --t-final or raise the step")
+        if allow_large:
+            continue
         if not steps <= MAX_STEPS:
             raise InputError(f"{what}: about {steps:.3g} steps, over the limit of {MAX_STEPS:.0e}; "
                              f"pass --allow-large to run it anyway")

@@ -92,7 +92,7 @@ def _spawn(cell: Cell, max_samples: int, timeout: float | None, timing: Timing,
            time_limit: float | None, memory_limit: int | None) -> _Child:
     folder = tempdirs.make("cell")
     job = {"cell": cell.to_dict(), "max_samples": max_samples, "parent": os.getpid(), "time_limit": time_limit,
-           "timing": {"repeats": timing.repeats, "min_time": timing.min_time}, "memory_limit": memory_limit}
+           "timing": timing.to_dict(), "memory_limit": memory_limit}
     (folder / "cell.json").write_text(json.dumps(job))
     write_session(folder)
     with open(folder / "stderr.txt", "wb") as err:
@@ -211,7 +211,7 @@ def _child_main(folder: str) -> None:
     set_memory_limit(job.get("memory_limit"))
     try:
         (path / "started").touch()  # the parent's time limit counts from here
-        row = run_cell(Cell.from_dict(job["cell"]), job["max_samples"], timing=Timing(**job["timing"]),
+        row = run_cell(Cell.from_dict(job["cell"]), job["max_samples"], timing=Timing.from_dict(job["timing"]),
                        time_limit=job.get("time_limit"))
         tmp = path / "row.json.part"
         tmp.write_text(json.dumps(row))

@@ -170,15 +170,89 @@ def memory_message(exc: BaseException) -> str:
 def die_with_parent(parent: int) -> None:
     """Ask Linux to kill this process when its parent dies (a SIGKILLed matrix leaves no
     orphan computing); elsewhere a no-op. Exits at once if the parent is already gone."""
+    kill_with_parent()
+    if os.getppid() != parent:
+        os._exit(1)
+
+
+def kill_with_parent() -> None:
+    """A ``preexec_fn`` for ``subprocess.Popen``: the child (and the program it runs, such as
+    Valgrind) gets SIGKILL when the thread that started it ends (Linux; elsewhere a no-op),
+    from its very start, before its interpreter has read a line."""
     try:
         import ctypes
 
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
     except (OSError, AttributeError):
-        return
-    if os.getppid() != parent:
-        os._exit(1)
+        pass
+
+
+class PastLimit(RuntimeError):
+    """A call into a plugin (``call_limited``) that did not return within its hard limit."""
+
+
+def call_limited(func: Callable[..., Any], *args: Any, time_limit: float | None,
+                 memory_limit: int | None = None) -> Any:
+    """``func(*args)`` under the limits of a cell: in a forked child of this process (it has
+    this process's classes and compiled kernels) under ``memory_limit``, killed past
+    ``hard_limit(time_limit)`` (``PastLimit``); what it returns or raises comes back here
+    (pickled). Where the platform cannot fork, or without a time limit, it runs here.
+    For calls whose effects are only their result or their exception (checks)."""
+    import pickle
+    import select
+
+    limit = hard_limit(time_limit)
+    if limit is None or not hasattr(os, "fork"):
+        return func(*args)
+    read_end, write_end = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: never returns into the caller's code
+        try:
+            os.close(read_end)
+            kill_with_parent()
+            set_memory_limit(memory_limit)
+            try:
+                outcome = ("returned", func(*args))
+            except BaseException as exc:  # noqa: BLE001 (every outcome goes back to the parent)
+                outcome = ("raised", exc)
+            try:
+                data = pickle.dumps(outcome)
+            except Exception as exc:  # an unpicklable result or exception: its text goes back
+                data = pickle.dumps(("raised", RuntimeError(f"{type(outcome[1]).__name__}: {outcome[1]} "
+                                                            f"(not picklable: {exc})")))
+            view = memoryview(data)
+            while view:
+                view = view[os.write(write_end, view):]
+        finally:
+            os._exit(0)
+    os.close(write_end)
+    chunks, deadline, ended = [], time.monotonic() + limit, False
+    try:
+        while True:
+            left = deadline - time.monotonic()
+            ready = select.select([read_end], [], [], max(0.0, left))[0] if left > 0 else []
+            if not ready:
+                raise PastLimit(f"it did not return within {limit:g} s (the hard limit of a cell with a time limit "
+                                f"of {time_limit:g} s); it was stopped")
+            data = os.read(read_end, 1 << 16)
+            if not data:
+                ended = True
+                break
+            chunks.append(data)
+    finally:
+        os.close(read_end)
+        if not ended:  # past the limit, or a stop signal here: the child ends with the call
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+        _, status = os.waitpid(pid, 0)
+    if not chunks:
+        how = f"killed by signal {-os.waitstatus_to_exitcode(status)}" if os.WIFSIGNALED(status) else \
+            f"exited with code {os.waitstatus_to_exitcode(status)}"
+        raise PastLimit(f"its process {how} without a result")
+    kind, value = pickle.loads(b"".join(chunks))
+    if kind == "raised":
+        raise value
+    return value
 
 
 def worker_init(parent: int, memory_limit: int | None) -> None:

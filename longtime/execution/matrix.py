@@ -386,11 +386,13 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
     if storing:
         store.add_calibrations(run_id, [here.take("before")])
         here.handed()
+    later = [PROCESSES_PHASE] + ([COUNTS_PHASE] if options.cost == "instructions" else [])
     try:
         for cell, row in run(cells, options):
             points = calibration.take_points(row)
             rows[cell.key] = row
             if storing:
+                row[PHASES_FIELD] = list(later)  # stored before them: a resume knows what it lacks
                 store.add_calibrations(run_id, points)
                 store.add_row(run_id, cell, row)
             if on_row is not None:
@@ -402,11 +404,13 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
         if bar is not None:
             bar.close()
     found = [(cell, rows[cell.key]) for cell in cells if cell.key in rows]
-    changed = across_processes(found, processes, options.max_samples, options.timing, options.workers(),
-                               options.time_limit, options.memory_limit)
+    across_processes(found, processes, options.max_samples, options.timing, options.workers(),
+                     options.time_limit, options.memory_limit)
+    for cell, row in found:
+        phase_done(row, PROCESSES_PHASE)
+        if storing:
+            store.update_row(run_id, cell, row)
     if storing:
-        for cell in changed:
-            store.update_row(run_id, cell, rows[cell.key])
         store.add_calibrations(run_id, [here.take("after")])
     if options.cost == "instructions":  # after every timed run: Valgrind's process times nothing
         _add_instructions(cells, rows, store if storing else None, run_id, options)
@@ -422,5 +426,52 @@ def _add_instructions(cells: list[Cell], rows: dict[str, dict], store: Store | N
     fields = instruction_fields(measured, options.max_samples, options.time_limit)
     for cell, row in measured:
         row.update(fields[cell.key])
+        phase_done(row, COUNTS_PHASE)
         if store is not None:
             store.add_row(run_id, cell, row)
+
+
+# a row's phases after its cell's own run, each named in the row's PHASES_FIELD (the phases it
+# still lacks) from when it is stored until the phase has run for it: a run killed in a later
+# phase leaves rows that say what they lack, and ``complete_phases`` (``matrix --resume``) runs it
+PROCESSES_PHASE = "timing processes"
+COUNTS_PHASE = "counts"
+PHASES_FIELD = "phases_missing"
+
+
+def phase_done(row: dict[str, Any], phase: str) -> None:
+    """``phase`` has run for ``row``: the row loses it from its missing phases (and the field
+    once none is missing)."""
+    missing = [p for p in row.get(PHASES_FIELD) or [] if p != phase]
+    if missing:
+        row[PHASES_FIELD] = missing
+    else:
+        row.pop(PHASES_FIELD, None)
+
+
+def complete_phases(store: Store, run_id: int, options: ExecOptions) -> int:
+    """Run, for each stored row of ``run_id`` that lacks them, the phases after its cell's run
+    (the timing processes, the instruction counts), each row updated in the store; a phase
+    that cannot run here (no Valgrind) stays in the row's missing phases and its message says
+    so. Returns the number of rows that lacked a phase."""
+    incomplete = store.incomplete_rows(run_id, PHASES_FIELD)
+    if not incomplete:
+        return 0
+    timed = [(c, r) for c, r in incomplete if PROCESSES_PHASE in r[PHASES_FIELD]]
+    if timed:
+        across_processes(timed, options.processes, options.max_samples, options.timing.per_process(options.processes),
+                         options.workers(), options.time_limit, options.memory_limit)
+        for cell, row in timed:
+            phase_done(row, PROCESSES_PHASE)
+            store.update_row(run_id, cell, row)
+    counted = [(c, r) for c, r in incomplete if COUNTS_PHASE in r.get(PHASES_FIELD, ())]
+    if counted:
+        try:
+            check_cost("instructions")
+            _add_instructions([c for c, _ in counted], {c.key: r for c, r in counted}, store, run_id, options)
+        except InputError as exc:
+            for cell, row in counted:
+                note = f"not counted: {exc}"
+                row["message"] = f"{row['message']}; {note}" if row.get("message") else note
+                store.update_row(run_id, cell, row)
+    return len(incomplete)

@@ -43,6 +43,7 @@ from longtime.core.integrator import Timing
 from longtime.core.params import InputError
 from longtime.execution import tempdirs
 from longtime.execution.cells import Cell, build
+from longtime.execution.limits import kill_with_parent
 
 DEFAULT_PROCESSES = 3
 # $LONGTIME_PROCESSES sets the default of --processes (a test session sets 1)
@@ -54,17 +55,28 @@ POLL_S = 0.05
 # a timing process spreads each cell's runs over at least this many seconds (time_cells)
 SPREAD_S = 3.0
 MAX_ROUNDS = 100
+# the statuses of a timing process's run that end it before its end (a time limit passed, the
+# process paused or killed): a lost sample, never evidence that the run differs
+LOST = ("timeout",)
+
+
+def max_processes() -> int:
+    """The most processes that may time a cell: four per core, at least 16, at most 256 (each
+    is an interpreter started per batch of cells)."""
+    return min(256, max(16, 4 * (os.cpu_count() or 1)))
 
 
 def check_processes(value: Any, name: str = "--processes") -> int:
-    """A process count: an integer >= 1 (one line naming ``name`` otherwise)."""
+    """A process count: an integer from 1 to ``max_processes()`` (one line naming ``name``
+    otherwise)."""
+    allowed = f"expected an integer from 1 to {max_processes()} (processes that time each cell)"
     if isinstance(value, bool) or not isinstance(value, int):
         try:
             value = int(str(value), 10)
         except ValueError:
-            raise InputError(f"{name} {value!r}: expected an integer >= 1 (processes that time each cell)") from None
-    if value < 1:
-        raise InputError(f"{name} {value}: expected an integer >= 1 (processes that time each cell)")
+            raise InputError(f"{name} {value!r}: {allowed}") from None
+    if not 1 <= value <= max_processes():
+        raise InputError(f"{name} {value}: {allowed}")
     return value
 
 
@@ -83,7 +95,8 @@ def timed_elsewhere(row: dict[str, Any]) -> bool:
 
 
 def time_cells(cells: list[Cell], max_samples: int, timing: Timing, time_limit: float | None = None,
-               reference: Callable[[], float] | None = None) -> list[dict[str, Any]]:
+               reference: Callable[[], float] | None = None,
+               on_cell: Callable[[int], None] | None = None) -> list[dict[str, Any]]:
     """In this process, each cell's integration alone: per cell its ``cpu_s`` (the minimum),
     ``wall_s``, ``cpu_s_samples``, ``samples_digest``, ``status`` and ``pid``; a cell that
     raises gives ``status`` failed and its ``message``.
@@ -101,11 +114,14 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing, time_limit: 
     the caches by up to twice comes and goes within a second or two (docs/performance.md,
     "Two speeds"), so the runs of a small batch, spread over seconds, meet a quiet moment where
     a burst of repeats may not; a large batch spans SPREAD_S in one round and costs one run a
-    cell. Every run must reproduce the first bit for bit."""
+    cell. Every run must reproduce the first bit for bit. ``on_cell(k)`` is called before the
+    k-th cell is built and before each of its runs (a timing process marks the cell it is in)."""
     prepared: list[tuple[Any, Any, float] | None] = []
     out: list[dict[str, Any]] = []
-    for cell in cells:
+    for k, cell in enumerate(cells):
         try:
+            if on_cell is not None:
+                on_cell(k)
             problem, integrator = build(cell)
             t_final = problem.default_t_final if cell.t_final is None else cell.t_final
             prepared.append((problem, integrator, t_final))
@@ -116,10 +132,11 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing, time_limit: 
         except (Exception, SystemExit) as exc:
             prepared.append(None)
             out.append({"status": "failed", "message": f"{type(exc).__name__}: {exc}", "pid": os.getpid()})
-    start, rounds = time.monotonic(), 0
+    start, rounds, stopped = time.monotonic(), 0, set()
     while rounds < MAX_ROUNDS:
         spreading = time.monotonic() - start < SPREAD_S
-        active = [k for k, p in enumerate(prepared) if p is not None and out[k]["status"] == "ok" and (
+        active = [k for k, p in enumerate(prepared) if p is not None and out[k]["status"] == "ok"
+                  and k not in stopped and (
             len(out[k]["cpu_s_samples"]) < timing.least_runs or spreading
             or (len(out[k]["cpu_s_samples"]) < timing.repeats and sum(out[k]["wall_s_samples"]) < timing.min_time))]
         if not active:
@@ -128,6 +145,8 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing, time_limit: 
             problem, integrator, t_final = prepared[k]
             record = out[k]
             try:
+                if on_cell is not None:
+                    on_cell(k)
                 deadline = time.monotonic() + time_limit if time_limit else None
                 with phases.phase("timing", f"{cells[k].problem} x {cells[k].integrator}"):
                     traj = integrator.integrate(problem, t_final, max_samples=max_samples, timing=Timing(repeats=1),
@@ -136,6 +155,13 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing, time_limit: 
                 record.update(status="failed", message=f"{type(exc).__name__}: {exc}")
                 continue
             digest = traj.extra.get("samples_digest")
+            if traj.status == "timeout":  # stopped, not finished: no sample, and nothing to compare
+                if not record["cpu_s_samples"]:
+                    record.update(status="timeout", message=f"the run passed the time limit in this process "
+                                                            f"({traj.message})", samples_digest=None)
+                else:
+                    stopped.add(k)  # the runs timed so far stand
+                continue
             if traj.status != "ok" or (record["samples_digest"] is not None and digest != record["samples_digest"]):
                 if not record["cpu_s_samples"]:
                     record.update(status=traj.status, message=traj.message, samples_digest=digest)
@@ -191,7 +217,7 @@ def merge(row: dict[str, Any], others: list[dict[str, Any]], processes: int) -> 
             mins.append(o["cpu_s"])
             walls.append(o["wall_s"])
             samples += o["cpu_s_samples"]
-        elif o.get("status") == "ok" or o.get("samples_digest"):
+        elif o.get("status") not in LOST and (o.get("status") == "ok" or o.get("samples_digest")):
             row["status"] = "failed"
             row["message"] = "; ".join(m for m in (
                 row.get("message"), f"non-deterministic: the run timed in another process (pid {o.get('pid')}) did "
@@ -260,10 +286,10 @@ def run_children(cells: list[Cell], count: int, max_samples: int, timing: Timing
     from longtime.execution.isolation import kill_group, write_session
 
     job = {"cells": [c.to_dict() for c in cells], "max_samples": max_samples, "parent": os.getpid(),
-           "timing": {"repeats": timing.repeats, "min_time": timing.min_time, "min_runs": timing.min_runs},
+           "timing": timing.to_dict(),
            "time_limit": time_limit, "memory_limit": memory_limit, "paired": paired}
     waiting, running, done = list(range(count)), [], {}
-    folders = []
+    folders, culprits = [], {}
     try:
         while waiting or running:
             while waiting and len(running) < max(1, jobs):
@@ -275,15 +301,19 @@ def run_children(cells: list[Cell], count: int, max_samples: int, timing: Timing
                 with open(folder / "stderr.txt", "wb") as err:
                     proc = subprocess.Popen([sys.executable, "-m", "longtime.execution.processes", str(folder)],
                                             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err,
-                                            start_new_session=True)
+                                            start_new_session=True, preexec_fn=kill_with_parent)
                 running.append((index, folder, proc, time.monotonic() + timeout))
             still = []
             for index, folder, proc, deadline in running:
                 if proc.poll() is not None:
                     done[index] = _result(folder, proc)
+                    if done[index][0] is None and len(cells) > 1:
+                        culprits[index] = _current_cell(folder)
                 elif time.monotonic() > deadline:
                     kill_group(proc)
                     done[index] = (None, f"the timing process passed {timeout:.0f} s and was stopped")
+                    if len(cells) > 1:
+                        culprits[index] = _current_cell(folder)
                 else:
                     still.append((index, folder, proc, deadline))
             if len(still) == len(running):
@@ -297,7 +327,32 @@ def run_children(cells: list[Cell], count: int, max_samples: int, timing: Timing
             for p in folder.iterdir():
                 p.unlink()
             folder.rmdir()
+    for index, culprit in culprits.items():
+        if culprit is not None:
+            done[index] = _without(cells, culprit, done[index][1], max_samples, timing, timeout, time_limit,
+                                   memory_limit, paired)
     return [done[i] for i in range(count)]
+
+
+def _current_cell(folder: Path) -> int | None:
+    """The index of the cell a timing process was in when it ended (its ``current`` file)."""
+    try:
+        return int((folder / "current").read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _without(cells: list[Cell], culprit: int, why: str, max_samples: int, timing: Timing, timeout: float,
+             time_limit: float | None, memory_limit: int | None, paired: bool) -> tuple[list[dict] | None, str]:
+    """The results of a timing process that ended in cell ``culprit`` without a result: the
+    other cells timed again in a fresh process without it, and the culprit's record naming
+    ``why`` (one plugin's crash costs the other cells of its batch nothing)."""
+    rest = [c for i, c in enumerate(cells) if i != culprit]
+    ((results, again),) = run_children(rest, 1, max_samples, timing, 1, timeout, time_limit, memory_limit, paired)
+    if results is None:
+        return None, again
+    results.insert(culprit, {"status": "failed", "message": f"{why}, in this cell", "pid": None})
+    return results, ""
 
 
 def _result(folder: Path, proc: subprocess.Popen) -> tuple[list[dict] | None, str]:
@@ -327,8 +382,12 @@ def _child_main(folder: str) -> None:
 
         reference_workload(10, 0.01)  # loaded (or compiled) before the first timed call
         reference = reference_seconds
-    results = time_cells([Cell.from_dict(c) for c in job["cells"]], job["max_samples"], Timing(**job["timing"]),
-                         job.get("time_limit"), reference)
+    def on_cell(k: int) -> None:  # the parent knows which cell a process that dies was in
+        (path / "current").write_text(str(k))
+
+    cells = [Cell.from_dict(c) for c in job["cells"]]
+    results = time_cells(cells, job["max_samples"], Timing.from_dict(job["timing"]), job.get("time_limit"), reference,
+                         on_cell)
     tmp = path / "result.json.part"
     tmp.write_text(json.dumps(results))
     tmp.replace(path / "result.json")  # atomic: the parent never reads half a result

@@ -469,6 +469,23 @@ class Store:
                 "(SELECT cell_key FROM rows WHERE run_id = ?) ORDER BY rowid", (run_id, run_id)).fetchall()
         return [Cell.from_dict(json.loads(r[0])) for r in rows]
 
+    def incomplete_rows(self, run_id: int, field: str) -> list[tuple[Cell, dict[str, Any]]]:
+        """(cell, row) of each stored row of ``run_id`` whose ``field`` (its missing phases,
+        longtime.execution.matrix.PHASES_FIELD) names one, in the run's order."""
+        with closing(self._connect()) as con:
+            fetched = con.execute(
+                "SELECT p.cell, w.row FROM rows w JOIN planned p ON p.run_id = w.run_id AND p.cell_key = w.cell_key "
+                "WHERE w.run_id = ? ORDER BY w.id", (run_id,)).fetchall()
+        out = []
+        for cell, text in fetched:
+            try:
+                row = json.loads(text)
+            except ValueError:
+                continue
+            if isinstance(row, dict) and row.get(field):
+                out.append((Cell.from_dict(json.loads(cell)), row))
+        return out
+
     def runs(self) -> list[dict[str, Any]]:
         with closing(self._connect()) as con:
             con.row_factory = sqlite3.Row

@@ -39,6 +39,7 @@ from typing import Any, Iterable
 from longtime.core import registry
 from longtime.core.integrator import AdaptiveIntegrator, FixedStepIntegrator
 from longtime.execution.cells import Cell, build
+from longtime.execution.limits import kill_with_parent
 from longtime.measure import instructions
 
 FIELDS = ("instructions", "instructions_per_step", "instructions_tool", "instructions_target", "instructions_versions",
@@ -147,11 +148,12 @@ def _count(valgrind: str, cells: list[Cell], rows: dict[str, dict], max_samples:
                 return prepared
         job.write_text(json.dumps({**json.loads(job.read_text()), "cells": [c.to_dict() for c in cells]}))
         limit = STARTUP_SECONDS + sum(PER_CELL_SECONDS + _budget(rows[c.key]) for c in cells)
-        argv = [*instructions.command(valgrind, prefix), *worker]
+        # no gdb server: a killed Valgrind leaves no vgdb-pipe files in the temp folder
+        argv = [*instructions.command(valgrind, prefix), "--vgdb=no", *worker]
         started = time.monotonic()
         try:
             proc = subprocess.run(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                                  timeout=limit)
+                                  timeout=limit, preexec_fn=kill_with_parent)  # no orphan counting on
             trouble = "" if proc.returncode == 0 else instructions.failure_text(proc.returncode,
                                                                                 _last_line(proc.stderr))
         except subprocess.TimeoutExpired:
@@ -161,16 +163,27 @@ def _count(valgrind: str, cells: list[Cell], rows: dict[str, dict], max_samples:
         # the kernels counted are compiled for the fixed target: another target's count is another tool's
         tool = f"{instructions.tool_version()} ({instructions.COUNT_TARGET} kernels)"
         out = dict(prepared)
+        lost = next((i for i, c in enumerate(cells) if c.key not in done), None)
+        if trouble and lost is not None and lost + 1 < len(cells):
+            # Valgrind ended in cell ``lost``: the cells after it are counted again without it,
+            # so one plugin's crash costs only its own row its count
+            out.update(_count(valgrind, cells[lost + 1:], rows, max_samples))
         for i, cell in enumerate(cells):
+            if cell.key in out:
+                continue
             item, count = done.get(cell.key), counts.get(f"cell {i}")
             steps = rows[cell.key].get("steps")
             if item is None or (count is None and item.get("reason") is None):
-                out[cell.key] = skipped(f"not counted: {trouble or 'the Valgrind process gave no count for it'}")
+                where = ", in this cell" if i == lost and trouble else ""
+                out[cell.key] = skipped(f"not counted: {trouble or 'the Valgrind process gave no count for it'}{where}")
             elif item.get("reason"):
                 out[cell.key] = skipped(item["reason"])
             elif item["steps"] != steps:
                 out[cell.key] = skipped(f"the run under Valgrind took {item['steps']} steps, the timed run {steps}: "
                                         f"not the same integration")
+            elif item.get("digest") != rows[cell.key].get("samples_digest"):
+                out[cell.key] = skipped("the run under Valgrind did not reproduce the timed run bitwise (another "
+                                        "samples_digest): not the same integration")
             else:
                 out[cell.key] = {"instructions": count,
                                  "instructions_per_step": count / steps if steps else None,
@@ -191,7 +204,7 @@ def _prepare(worker: list[str], env: dict[str, str], folder: Path, cells: list[C
     what = f"compiling the kernels for {instructions.COUNT_TARGET} (outside Valgrind)"
     try:
         proc = subprocess.run([*worker, "--prepare"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                              text=True, timeout=limit)
+                              text=True, timeout=limit, preexec_fn=kill_with_parent)
         if proc.returncode == -signal.SIGILL:  # natively: this CPU lacks an instruction of the target
             trouble = (f"{what}: its process was killed by SIGILL: this CPU cannot run {instructions.COUNT_TARGET} "
                        f"code (AVX2, FMA, BMI2): counting needs an x86-64 CPU of Haswell's generation or newer")
@@ -271,7 +284,7 @@ def _run_one(cell: Cell, max_samples: int, where: str) -> dict[str, Any]:
     traj = integrator.integrate(problem, t_final, max_samples=max_samples)
     if traj.status != "ok":
         return {"reason": f"the run {where} ended {traj.status}: {traj.message}"}
-    return {"steps": traj.steps}
+    return {"steps": traj.steps, "digest": traj.extra.get("samples_digest")}
 
 
 def main(argv: list[str]) -> int:

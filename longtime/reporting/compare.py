@@ -51,6 +51,7 @@ from typing import Any
 
 import numpy as np
 
+from longtime.core import jsontext
 from longtime.core.params import InputError
 from longtime.core.roles import row_columns
 from longtime.reporting import machines
@@ -591,7 +592,7 @@ def provenance_lines(prov: dict[str, Any]) -> list[str]:
 
 def report(result: dict[str, Any], fmt: str = "table", show_all: bool = False) -> int:
     """Print ``result`` (stdout) and the verdict (stderr); the exit code: 1 if anything regressed."""
-    print(json.dumps(result, indent=1) if fmt == "json" else render(result, show_all=show_all))
+    print(jsontext.dumps(result) if fmt == "json" else render(result, show_all=show_all))
     if result["regressed"]:
         print(f"{result['regressed']} cell(s) regressed: slower beyond the spread between processes and "
               f"x{result['factor']:g} (x{result['cell_factor']:g} a cell timed in one process, x{result['factor']:g} "

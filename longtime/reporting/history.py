@@ -40,6 +40,7 @@ import json
 import math
 from typing import Any
 
+from longtime.core import jsontext
 from longtime.core.params import InputError
 from longtime.core.roles import ROW_PARAMETERS
 from longtime.reporting import machines
@@ -286,7 +287,7 @@ def cmd_history(args) -> int:
     if not found:
         raise InputError(f"no stored cell in {store.path} matches -p/-i/--set")
     if args.format == "json":  # each run's point names its machine
-        print(json.dumps(found, indent=1))
+        print(jsontext.dumps(found))
         return 0
     table = cross_machine_table(store, [r for r in store.rows() if _selected(r, args.problem, args.integrator, sets)])
     print(render(found) + (f"\n\n{machines.text(table)}" if table else ""))

@@ -23,6 +23,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Iterable
 
+from longtime.core.files import write_atomic
 from longtime.measure.orders import left_out, observed_orders
 from longtime.reporting.figures.results import figures_drawing
 from longtime.reporting.figures.style import styles
@@ -531,9 +532,8 @@ def write_page(out_dir: str | Path, rows: list[dict[str, Any]], runs: list[dict[
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     path = out / PAGE_NAME
-    path.write_text(build_page(rows, runs, drift=drift, jobs=jobs, ahead=ahead, history=history, checks=checks,
-                               writer=writer, ensembles=ensembles), encoding="utf-8")
-    return path
+    return write_atomic(path, build_page(rows, runs, drift=drift, jobs=jobs, ahead=ahead, history=history,
+                                         checks=checks, writer=writer, ensembles=ensembles))
 
 
 def write_html(out_dir, rows: list[dict[str, Any]], store, run_ids: Iterable[int] | None = None,

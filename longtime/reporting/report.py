@@ -5,10 +5,13 @@ classes), and the full per-cell tables (``--full``, csv, json, markdown, parquet
 In Python: ``frame(Store("longtime.sqlite").rows())`` is one pandas row per cell."""
 from __future__ import annotations
 
+import io
 from typing import Any, Iterable
 
 import pandas as pd
 
+from longtime.core import jsontext
+from longtime.core.files import write_atomic
 from longtime.core.fmt import number, positive
 from longtime.core.roles import ROW_PARAMETERS, row_columns
 from longtime.measure.lyapunov import past_predictability
@@ -71,7 +74,7 @@ def render(rows: list[dict[str, Any]], fmt: str = "table") -> str:
     if fmt == "json":
         import json
 
-        return json.dumps([complete(r) for r in rows], indent=1)
+        return jsontext.dumps([complete(r) for r in rows])
     if fmt == "csv":
         return _object_frame(rows).to_csv(index=False)
     df = _object_frame(rows)
@@ -324,12 +327,14 @@ def to_parquet(rows: list[dict[str, Any]], path) -> None:
     """Every row as one parquet table (list values, such as confidence intervals, as JSON text)."""
     df = _object_frame(rows).infer_objects()  # typed columns: a float column stays float64
     try:
-        df.to_parquet(path, index=False)
+        buffer = io.BytesIO()
+        df.to_parquet(buffer, index=False)
     except ImportError as exc:
         from longtime.core.params import InputError
 
         raise InputError(f"--format parquet needs a parquet engine: pip install pyarrow "
                          f"(the extra longtime[parquet]); {str(exc).splitlines()[0]}") from None
+    write_atomic(path, buffer.getvalue())
 
 
 def report_text(rows: list[dict[str, Any]], fmt: str = "table", full: bool = False,

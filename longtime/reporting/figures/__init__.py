@@ -5,10 +5,12 @@ the paths it wrote through ``save``.
 """
 from __future__ import annotations
 
+import io
 import math
 from pathlib import Path
 from typing import Sequence
 
+from longtime.core.files import write_atomic
 from longtime.core.params import InputError
 
 FORMATS = ("png", "svg", "pdf")
@@ -151,8 +153,9 @@ def save(fig, out: str | Path, formats: Sequence[str] = ("png", "svg")) -> list[
     paths = []
     for fmt in formats:
         path = out.with_name(f"{out.name}.{fmt}")
-        fig.savefig(path, dpi=130, bbox_inches="tight")
-        paths.append(path)
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format=fmt, dpi=130, bbox_inches="tight")
+        paths.append(write_atomic(path, buffer.getvalue()))
     pyplot().close(fig)
     return paths
 
