@@ -18,6 +18,7 @@ from longtime.core import cli_args, phases, registry
 from longtime.core.cache import check_cache_root
 from longtime.core.integrator import Timing
 from longtime.core.params import InputError
+from longtime.core.progress import Progress
 from longtime.core.roles import ROW_PARAMETERS, flag
 from longtime.execution import budget, limits
 from longtime.execution.calibration import drift_text
@@ -223,6 +224,7 @@ def cmd_matrix(args) -> int:
     _warn_broken()
     executor = args.executor or "process"
     options = _options(args, executor)
+    shown = Progress(on=not args.no_progress)
     if args.resume is not None:
         store = Store(args.db, create=False)  # resuming never creates an empty store
         if args.resume < 0:
@@ -243,7 +245,7 @@ def cmd_matrix(args) -> int:
             keys = {c.key for c in died}
             cells = [c for c in cells if c.key not in keys]
     else:
-        with phases.phase("plan"):
+        with phases.phase("plan"), shown.phase("plan", detail="the cells of the selection, fitted to the budget"):
             cells, moves = matrix_cells(args)
         _say_moves(moves)
         store, run_id, died = Store(args.db), None, []
@@ -265,7 +267,7 @@ def cmd_matrix(args) -> int:
             ahead = FiguresAhead(cells, run_id, timed_again=options.processes > 1)
             options = dataclasses.replace(options, idle_work=ahead.task)
         run_matrix(cells, store, run_id, executor, options,
-                   progress=not args.no_progress, on_row=ahead.add if ahead is not None else None)
+                   progress=shown, on_row=ahead.add if ahead is not None else None)
         if args.checks is None:
             from longtime.reporting.verdict import CHECKS
 
@@ -275,7 +277,8 @@ def cmd_matrix(args) -> int:
 
             rows = store.rows(run_id)
             try:
-                checks = run_checks(store, run_id, rows, options, limit=args.checks, budget_s=check_budget(rows))
+                with shown.phase("checks", detail=f"up to {args.checks} predictions re-run past the rows' final times"):
+                    checks = run_checks(store, run_id, rows, options, limit=args.checks, budget_s=check_budget(rows))
             except (InputError, OSError, ValueError) as exc:  # the rows are stored; the checks are extra
                 print(f"warning: predictions not checked: {type(exc).__name__}: {exc}", file=sys.stderr)
                 checks = []
@@ -285,7 +288,7 @@ def cmd_matrix(args) -> int:
             from longtime.execution import ensembles
 
             try:
-                with phases.phase("ensembles"):
+                with phases.phase("ensembles"), shown.phase("ensembles", detail="chaotic problems' ensembles"):
                     ensembles.run(store, run_id, store.rows(run_id))
             except (InputError, OSError, ValueError, RuntimeError) as exc:  # the rows are stored; this is extra
                 print(f"warning: ensembles not measured: {type(exc).__name__}: {exc}", file=sys.stderr)
@@ -297,12 +300,12 @@ def cmd_matrix(args) -> int:
         page = None
         if not args.no_html:  # the results page first, so that a long report ends with its path
             try:
-                with phases.phase("page"):
+                with phases.phase("page"), shown.phase("page", detail="figures and the results page"):
                     page = write_html(args.html or store.path.parent / "longtime-report" / f"run-{run_id}", rows,
                                       store, [run_id], ahead=ahead, writer="matrix")  # default: beside the store
             except Exception as exc:  # the rows are stored; `longtime report --html DIR` can retry
                 print(f"warning: results page not written: {type(exc).__name__}: {exc}", file=sys.stderr)
-        with phases.phase("report"):
+        with phases.phase("report"), shown.phase("report"):
             text = report_text(rows, "table", full=args.full, checks=store.checks(run_id),
                                ensembles=store.ensembles(run_id))
         print(text)
