@@ -111,3 +111,15 @@ def test_a_matrix_under_a_terminal_prints_something_at_least_every_15_seconds(tm
     assert proc.returncode == 0, text[-2000:]
     assert "cells" in text and "timing processes" in text and "page" in text
     assert _gaps(stamps, start, end) <= 15, text[-3000:]
+
+
+def test_a_quiet_phase_speaks_only_once_it_outlasts_an_interval(monkeypatch):
+    monkeypatch.setenv(progress.ENV_SECONDS, "0.3")
+    quick, slow = io.StringIO(), io.StringIO()
+    with progress.Progress(stream=quick).phase("compare", announce=False):
+        pass
+    with progress.Progress(stream=slow).phase("compare", detail="runs 1 and 2", announce=False):
+        time.sleep(0.8)
+    assert quick.getvalue() == ""
+    lines = slow.getvalue().splitlines()
+    assert lines[0].startswith("longtime: compare: 0 s, runs 1 and 2") and lines[-1].startswith("longtime: compare: done")

@@ -8,6 +8,7 @@ from typing import Any
 
 from longtime.core import cli_args
 from longtime.core.params import InputError
+from longtime.core.progress import Progress
 from longtime.measure import ensemble
 
 
@@ -79,9 +80,11 @@ def cmd_ensemble(args) -> int:
         raise InputError("--dt: give one step")
     if args.t_final is not None and len(args.t_final) != 1:
         raise InputError("--t-final: give one final time")
-    rows = study(args.problem, args.integrator, dt=args.dt[0] if args.dt else None,
-                 t_final=args.t_final[0] if args.t_final else None, members=args.members, size=args.size,
-                 seed=args.seed, window=args.window)
+    with Progress().phase("ensemble", detail=f"{args.members} members a scheme, heyoka's beside them",
+                          announce=False):
+        rows = study(args.problem, args.integrator, dt=args.dt[0] if args.dt else None,
+                     t_final=args.t_final[0] if args.t_final else None, members=args.members, size=args.size,
+                     seed=args.seed, window=args.window)
     print(json.dumps(rows, indent=1) if args.format == "json" else markdown(rows))
     return 0
 

@@ -71,19 +71,21 @@ class Progress:
 
     @contextlib.contextmanager
     def phase(self, name: str, total: int | None = None, unit: str = "", estimate_s: float | None = None,
-              detail: str = "") -> Iterator["Progress"]:
+              detail: str = "", announce: bool = True) -> Iterator["Progress"]:
         """The ``with`` block as phase ``name``: ``total`` units of ``unit`` (``advance`` counts
-        them), or an expected duration ``estimate_s``; ``detail`` says what it works on."""
+        them), or an expected duration ``estimate_s``; ``detail`` says what it works on.
+        ``announce=False``: silent unless the phase outlasts one interval (a command that is
+        usually quick, whose stderr says nothing else then)."""
         if not self.on:
             yield self
             return
         state = {"name": name, "total": total, "unit": unit, "done": 0, "start": time.monotonic(),
-                 "estimate": estimate_s, "detail": detail, "last": ""}
+                 "estimate": estimate_s, "detail": detail, "last": "", "spoke": announce}
         outer, outer_bar = self._state, self._bar
-        self._state = state
-        if self.terminal:
+        self._state, self._bar = state, None
+        if announce and self.terminal:
             self._bar = self._new_bar(state)
-        else:
+        elif announce:
             self._line(state, "started")
         stop = threading.Event()
         beat = threading.Thread(target=self._beat, args=(state, stop), daemon=True, name=f"progress {name}")
@@ -94,13 +96,14 @@ class Progress:
             stop.set()
             beat.join()
             with self._lock:
-                if self._bar is not None:
+                if self._bar is not None and self._bar is not outer_bar:
                     self._bar.close()
                 self._bar = outer_bar
                 self._state = outer
             took = _clock(time.monotonic() - state["start"])
             counted = f"{state['done']} {state['unit']}, " if state["total"] is not None else ""
-            print(f"longtime: {name}: done ({counted}{took})", file=self.stream, flush=True)
+            if state["spoke"]:
+                print(f"longtime: {name}: done ({counted}{took})", file=self.stream, flush=True)
 
     def advance(self, count: int = 1, last: str = "") -> None:
         """``count`` more units of the open phase done; ``last`` names the one that ended."""
@@ -145,7 +148,10 @@ class Progress:
             with self._lock:
                 if self._state is not state:
                     continue  # a nested phase speaks for now
-                if self._bar is not None:
+                state["spoke"] = True
+                if self.terminal and self._bar is None:
+                    self._bar = self._new_bar(state)
+                elif self._bar is not None:
                     self._bar.refresh()
                 else:
                     self._line(state)
