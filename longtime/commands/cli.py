@@ -307,10 +307,10 @@ def cmd_matrix(args) -> int:
                 print(f"warning: results page not written: {type(exc).__name__}: {exc}", file=sys.stderr)
         with phases.phase("report"), shown.phase("report"):
             text = report_text(rows, "table", full=args.full, checks=store.checks(run_id),
-                               ensembles=store.ensembles(run_id))
+                               ensembles=store.ensembles(run_id), page=str(page) if page is not None else None)
         print(text)
-        print(f"\ncalibration: {drift_text(store.calibrations(run_id))}")
-        if page is not None:
+        print("\n" + _wrapped(f"calibration: {drift_text(store.calibrations(run_id))}"))
+        if page is not None and args.full:  # the first screen names it; the full text ends with it
             print(f"\nresults page: {page}")
     if args.baseline is not None:  # CI's gate: this run against the baseline, exit 1 on a regression
         from longtime.reporting import compare
@@ -358,6 +358,15 @@ def _check_baseline(store: Store, baseline: int, cells) -> None:
                          f"(it holds {have})")
 
 
+def _wrapped(text: str) -> str:
+    """A line of the report's text wrapped at the report's width, continued indented."""
+    import textwrap
+
+    from longtime.reporting.report import WIDTH
+
+    return "\n".join(textwrap.wrap(text, width=WIDTH, subsequent_indent="  ", break_on_hyphens=False))
+
+
 def cmd_report(args) -> int:
     store = Store(args.db, readonly=True)  # a report writes nothing, not even an empty store
     if args.html:
@@ -386,8 +395,10 @@ def cmd_report(args) -> int:
     from longtime.reporting.page import write_html
     from longtime.reporting.report import report_text, to_parquet
 
+    page = None
     if args.html:
-        print(f"results page: {write_html(args.html, rows, store, writer='report --html')}", file=sys.stderr)
+        page = str(write_html(args.html, rows, store, writer='report --html'))
+        print(f"results page: {page}", file=sys.stderr)
     if args.format == "parquet":
         with cli_args.writing("--out", args.out or "longtime.parquet"):
             to_parquet(rows, args.out or "longtime.parquet")
@@ -397,9 +408,9 @@ def cmd_report(args) -> int:
         with cli_args.writing("--out", args.out):
             Path(args.out).write_text(text)
     else:
-        print(report_text(rows, args.format, full=args.full, checks=checks, ensembles=ensembles))
+        print(report_text(rows, args.format, full=args.full, checks=checks, ensembles=ensembles, page=page))
         if args.format == "table" and args.run != "all":
-            print(f"\ncalibration: {drift_text(store.calibrations(run_id))}")
+            print("\n" + _wrapped(f"calibration: {drift_text(store.calibrations(run_id))}"))
     return 0
 
 
