@@ -108,7 +108,7 @@ def work_precision_svg(rows: list[dict], field: str, style: dict, cost: str = "c
     if bars:  # autolim: the axis reaches the slowest repeat
         ax.add_collection(LineCollection(bars, colors=bar_colours, linewidths=2.2, alpha=0.9, zorder=2.0))
     if greyed:
-        ax.plot([], [], color=GREY, lw=0.8, label=f"{len(greyed)} other schemes (grey: on no Pareto decade)")
+        ax.plot([], [], color=GREY, lw=0.8, label=f"{len(greyed)} other schemes (grey: off the Pareto front)")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("CPU seconds (minimum of repeats; bar to the slowest)" if cost == "cpu_s" else
@@ -223,7 +223,7 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
             st = style[scheme]
             every = max(1, int(keep.sum()) // 12)
             grey = scheme in greyed
-            label = f"{len(greyed)} other schemes (grey: on no Pareto decade)" if grey else f"{scheme} {setting(row)}"
+            label = f"{len(greyed)} other schemes (grey: off the Pareto front)" if grey else f"{scheme} {setting(row)}"
             # curves that coincide (a diagnostic the schemes all follow) stay apart: a dash
             # pattern and the markers shifted per curve
             (line,) = ax.plot(t[keep] - t[0], err[keep], color=st["color"], marker=st["marker"],

@@ -7,8 +7,9 @@ own schemes, sorted by name, take the pairs in turn (the k-th: colour k mod 20, 
 11, so the first 220 pairs are distinct and neighbours by name differ in both); a scheme
 that is not longtime's (a plugin's) takes a pair by a hash of its name (md5) among those the
 built-in schemes leave free, so installing a plugin changes no other scheme's look. A figure
-of more than MAX_CURVES schemes greys all but the schemes on the problem's Pareto front
-(``emphasis``), so that its legend stays legible."""
+of more than MAX_CURVES schemes greys all but the schemes on the problem's Pareto front, the
+fastest and the next fastest at each accuracy decade (``emphasis``), so that its legend
+stays legible; the greyed schemes are one legend entry."""
 from __future__ import annotations
 
 import functools
@@ -22,10 +23,11 @@ from longtime.reporting.figures import collect_minor_ticks, plain_log_ticks, pyp
 
 LINE_STYLES = ("-", "--", ":", "-.")
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "*", "h")
-# twenty colours told apart on screen and in print: tab10, then ten darker or stronger ones
+# twenty colours told apart on screen and in print: tab10 (its grey a gold), then ten darker or stronger ones
+# (no grey: grey marks the schemes a crowded figure sets back, and undetermined map cells)
 PALETTE = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22",
-           "#7f7f7f", "#393b79", "#637939", "#8c6d31", "#843c39", "#7b4173", "#3182bd", "#e6550d", "#31a354",
-           "#756bb1", "#000000")
+           "#e7ba52", "#393b79", "#637939", "#8c6d31", "#843c39", "#7b4173", "#3182bd", "#e6550d", "#31a354",
+           "#756bb1", "#ad494a")
 # a figure with more schemes than this draws the Pareto front's in colour and the rest grey
 MAX_CURVES = 10
 GREY = "#c8c8c8"
@@ -86,11 +88,12 @@ def emphasis(style: dict[str, dict[str, str]], schemes: Sequence[str], front: It
 
 
 def front_schemes(rows: list[dict]) -> set[str]:
-    """The schemes fastest at some accuracy decade of one problem's rows (report.pareto)."""
+    """The schemes fastest, or next fastest of another scheme, at some accuracy decade of
+    one problem's rows (report.pareto)."""
     from longtime.reporting.report import pareto, pareto_field
 
     field = pareto_field(rows)
-    return {p["best"]["integrator"] for p in pareto(rows, field)} if field else set()
+    return {r["integrator"] for p in (pareto(rows, field) if field else []) for r in (p["best"], p["next"]) if r}
 
 
 def svg(fig) -> str:

@@ -25,11 +25,11 @@ def scheme_colours(schemes: list[str]) -> dict[str, Any]:
 
 
 def text_colour(fill: Any) -> str:
-    """Dark text on a light fill, white on a dark one (relative luminance below 0.35)."""
+    """Dark text on a light fill, white on a dark or middle one (luminance below 0.5)."""
     from matplotlib.colors import to_rgb
 
     r, g, b = to_rgb(fill)
-    return "#ffffff" if 0.2126 * r + 0.7152 * g + 0.0722 * b < 0.35 else "#111111"
+    return "#ffffff" if 0.2126 * r + 0.7152 * g + 0.0722 * b < 0.5 else "#111111"
 
 
 # the text of a winner map's cells, points: legible at 100 % zoom
@@ -100,7 +100,7 @@ def winner_map_svg(v: Verdict) -> str | None:
         handles += [Line2D([], [], marker="o", mfc="none", mec="#111", mew=1.6, ls="none",
                            label="checked: held (at the measured error)"),
                     Line2D([], [], marker="X", mfc="#b71c1c", mec="#b71c1c", ls="none", label="checked: missed (on the edge: off the map)")]
-    ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
+    ax.legend(handles=handles, fontsize=9, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
               frameon=False, ncol=1 if len(handles) <= 18 else 2)
     return svg(fig)
 
