@@ -490,7 +490,7 @@ def problem_line(problem: str, rows: list[dict[str, Any]], fits: list[dict[str, 
         parts.append("misses its order: " + ", ".join(sorted(set(misses))))
     lines = _wrap(f"{problem}: " + "; ".join(parts))
     if chaos:
-        lines += _wrap(f"    ensembles (W1 / std to heyoka's): {chaos.split(';')[0]}")
+        lines += _wrap(f"    ensemble distance to heyoka's (W1 / std): {chaos.split(';')[0]}")
     return lines
 
 
