@@ -75,16 +75,6 @@ def _axes(ax):
     return plt.subplots(figsize=(9, 4.6), layout="constrained")[1]
 
 
-def built_in(scheme: str) -> bool:
-    """Whether ``scheme`` is one of longtime's own (defined in longtime.integrators)."""
-    from longtime.core import registry
-
-    try:
-        return registry.integrator_class(scheme).__module__.startswith("longtime.integrators.")
-    except Exception:  # a scheme of an old run that is no longer installed
-        return True
-
-
 def scheme_styles(schemes) -> dict[str, dict[str, str]]:
     """The results page's style: each scheme its own colour and marker, the same in every
     figure and every run (longtime.reporting.figures.style.scheme_style)."""

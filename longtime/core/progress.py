@@ -125,7 +125,7 @@ class Progress:
             return tqdm(total=state["total"], unit=state["unit"] or "it", desc=state["name"], file=self.stream,
                         dynamic_ncols=True, mininterval=0.5)
         expected = f" of about {_clock(state['estimate'])}" if (state["estimate"] or 0) >= 1 else ""
-        return tqdm(total=None, desc=state["name"], file=self.stream, dynamic_ncols=True,
+        return tqdm(total=None, desc=state["name"], file=self.stream, dynamic_ncols=True, leave=False,
                     bar_format="{desc}: {elapsed}" + expected + (f" ({state['detail']})" if state["detail"] else ""))
 
     def _line(self, state: dict[str, Any], when: str = "") -> None:
