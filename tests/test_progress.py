@@ -68,7 +68,7 @@ def test_a_matrix_in_a_pipe_prints_a_line_at_least_every_interval(tmp_path):
     end = time.monotonic()
     assert proc.returncode == 0, "".join(lines)[-2000:]
     phases = {line.split(":")[1].strip() for line in lines if line.startswith("longtime: ")}
-    assert {"plan", "cells", "timing processes", "checks", "page", "report"} <= phases, phases
+    assert {"cells", "timing processes", "checks", "page", "report"} <= phases, phases
     assert not any("\r" in line for line in lines)
     # after the first line (the interpreter's start and imports before it), a line at least
     # every interval, with room for a loaded machine
@@ -123,3 +123,12 @@ def test_a_quiet_phase_speaks_only_once_it_outlasts_an_interval(monkeypatch):
     assert quick.getvalue() == ""
     lines = slow.getvalue().splitlines()
     assert lines[0].startswith("longtime: compare: 0 s, runs 1 and 2") and lines[-1].startswith("longtime: compare: done")
+
+
+def test_a_phase_that_fails_says_no_done(monkeypatch):
+    monkeypatch.setenv(progress.ENV_SECONDS, "5")
+    out = io.StringIO()
+    with pytest.raises(ValueError):
+        with progress.Progress(stream=out).phase("page"):
+            raise ValueError("no space")
+    assert out.getvalue() == "longtime: page: started, 0 s\n"

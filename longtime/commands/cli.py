@@ -245,7 +245,8 @@ def cmd_matrix(args) -> int:
             keys = {c.key for c in died}
             cells = [c for c in cells if c.key not in keys]
     else:
-        with phases.phase("plan"), shown.phase("plan", detail="the cells of the selection, fitted to the budget"):
+        with phases.phase("plan"), shown.phase("plan", detail="the cells of the selection, fitted to the budget",
+                                                         announce=False):
             cells, moves = matrix_cells(args)
         _say_moves(moves)
         store, run_id, died = Store(args.db), None, []

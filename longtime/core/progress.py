@@ -90,8 +90,12 @@ class Progress:
         stop = threading.Event()
         beat = threading.Thread(target=self._beat, args=(state, stop), daemon=True, name=f"progress {name}")
         beat.start()
+        failed = False
         try:
             yield self
+        except BaseException:
+            failed = True  # the error says what happened: no "done" line
+            raise
         finally:
             stop.set()
             beat.join()
@@ -102,7 +106,7 @@ class Progress:
                 self._state = outer
             took = _clock(time.monotonic() - state["start"])
             counted = f"{state['done']} {state['unit']}, " if state["total"] is not None else ""
-            if state["spoke"]:
+            if state["spoke"] and not failed:
                 print(f"longtime: {name}: done ({counted}{took})", file=self.stream, flush=True)
 
     def advance(self, count: int = 1, last: str = "") -> None:
