@@ -11,7 +11,7 @@ import numpy as np
 
 from longtime.core.fmt import positive
 from longtime.reporting.figures import pyplot
-from longtime.reporting.figures.style import scheme_style, svg
+from longtime.reporting.figures.style import legend_columns, scheme_style, svg
 from longtime.reporting.rowtext import setting
 from longtime.reporting.verdict import CHECK_COST_FACTOR, CHECK_ERROR_FACTOR, Verdict, check_holds
 
@@ -33,7 +33,7 @@ def text_colour(fill: Any) -> str:
 
 
 # the text of a winner map's cells, points: legible at 100 % zoom
-CELL_FONT = 8.5
+CELL_FONT = 9.5
 
 
 def _edges(values: list[float]) -> np.ndarray:
@@ -56,7 +56,7 @@ def winner_map_svg(v: Verdict) -> str | None:
     winners = list(dict.fromkeys(d.best.scheme for d in v.grid.values() if d.best is not None))
     colours = scheme_colours(winners)
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(1.0 + 1.5 * len(horizons), 0.8 + 0.4 * len(targets)))
+    fig, ax = plt.subplots(figsize=(1.0 + 1.7 * len(horizons), 0.8 + 0.4 * len(targets)))
     xe, ye = _edges(horizons), _edges(targets)
     cells, fills = [], []  # the cells as one collection, the edges between them as two
     for i, t in enumerate(targets):
@@ -100,8 +100,10 @@ def winner_map_svg(v: Verdict) -> str | None:
         handles += [Line2D([], [], marker="o", mfc="none", mec="#111", mew=1.6, ls="none",
                            label="checked: held (at the measured error)"),
                     Line2D([], [], marker="X", mfc="#b71c1c", mec="#b71c1c", ls="none", label="checked: missed (on the edge: off the map)")]
-    ax.legend(handles=handles, fontsize=9, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
-              frameon=False, ncol=1 if len(handles) <= 18 else 2)
+    # below the map, so that the figure is no wider than the map and the page shows it at full size
+    below = 0.7 / (0.4 * len(targets))  # inches under the axes for the tick labels and the axis label
+    ax.legend(handles=handles, fontsize=9, loc="upper center", bbox_to_anchor=(0.5, -below), borderaxespad=0.0,
+              frameon=False, ncol=legend_columns(fig.get_figwidth(), [h.get_label() for h in handles]))
     return svg(fig)
 
 
