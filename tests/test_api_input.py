@@ -154,7 +154,8 @@ def test_a_transposed_exact_is_told_from_wrong_values():
     with pytest.raises(InputError, match=r"problem input-transposed-exact: exact\(t\) for 3 times returned shape "
                                          r"\(2, 3\): transposed; expected \(3, 2\)"):
         longtime.solve(TransposedExact, "rk4", dt=0.1)
-    with pytest.raises(InputError, match=r"problem input-wrong-exact: exact\(t0\) = .* is not the initial state") as info:
+    with pytest.raises(InputError,
+                       match=r"problem input-wrong-exact: exact\(t0\) = .* is not the initial state") as info:
         longtime.solve(WrongExact, "rk4", dt=0.1)
     assert "transposed" not in str(info.value)
 

@@ -122,7 +122,8 @@ def test_a_quiet_phase_speaks_only_once_it_outlasts_an_interval(monkeypatch):
         time.sleep(0.8)
     assert quick.getvalue() == ""
     lines = slow.getvalue().splitlines()
-    assert lines[0].startswith("longtime: compare: 0 s, runs 1 and 2") and lines[-1].startswith("longtime: compare: done")
+    assert lines[0].startswith("longtime: compare: 0 s, runs 1 and 2")
+    assert lines[-1].startswith("longtime: compare: done")
 
 
 def test_a_phase_that_fails_says_no_done(monkeypatch):
