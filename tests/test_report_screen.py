@@ -58,4 +58,4 @@ def test_a_chaotic_problem_that_lost_the_solution_has_no_pointwise_answer():
     found = answer_rows(rows)
     assert found[0]["answers"] == [NO_POINTWISE] * 3
     assert NO_POINTWISE in first_screen(rows)
-    assert report_text(rows).startswith("the cheapest setting")
+    assert report_text(rows).startswith("cheapest setting predicted")

@@ -386,7 +386,7 @@ def answer_table(answers: list[dict[str, Any]]) -> list[str]:
         t = f"{a['t_main']:.4g}" if a["t_main"] else "-"
         cells = [_cell_text(x) for x in a["answers"]]
         if all(x == NO_POINTWISE for x in a["answers"]):
-            cells = [f"{NO_POINTWISE}: chaotic, the solution is lost within the run (ensembles below)"]
+            cells = [f"{NO_POINTWISE} (chaotic: the solution is lost within the run)"]
         lines.append((f"{name:<{width}}  {t:>8}  " + "  ".join(f"{c:<{ANSWER_CELL}}" for c in cells)).rstrip())
     return lines
 
@@ -507,9 +507,8 @@ def first_screen(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = 
         return "no rows"
     checks = list(checks)
     answers = answer_rows(rows, checks)
-    lines = _wrap("the cheapest setting predicted to keep the error up to T (T: the run's final time; the error: "
-                  "the solution's, or the energy's where marked (H); `longtime recommend -p P --error E --horizon T` "
-                  "says why):", "  ")
+    lines = _wrap("cheapest setting predicted to keep the error up to T (T: the run's final time; the error: the "
+                  "solution's, the energy's where marked (H)); `longtime recommend -p P --error E --horizon T`:", "  ")
     lines += answer_table(answers)
     lines.append("")
     lines += count_lines(rows)
