@@ -8,15 +8,23 @@ In the repository's ``benchmarks/`` (``longtime asv-init DIR`` writes one), a mo
 and asv finds four parametrized classes (problem x scheme x setting, every parameter
 a value or a list, as ``longtime.sweep`` takes them):
 
-- ``Integration.time_integrate``: the integration alone (its kernel compiled in setup),
-  timed by asv in ``processes`` separate processes (``DEFAULT_PROCESSES``, asv's own
+- ``Integration.time_integrate``: the whole call ``integrator.integrate(problem, t_final)``
+  (its kernel compiled in setup): the compiled step loop and the Python work around it
+  (the output arrays, a one-step warm-up call, the first invariant's growth judged over the
+  samples, the samples' digest), timed by asv in ``processes`` separate processes (``DEFAULT_PROCESSES``, asv's own
   benchmark attribute: its samples pool every process's, so the spread asv judges a change
   against is the spread between processes, as longtime's verdicts are), in CPU time of
   the process (``timer = time.process_time``, as longtime's ``cpu_s``): asv's default
   clock is the wall clock, which counts the time a neighbour holds the core;
 - ``Integration.track_cpu_s``: the same integration's CPU seconds as longtime's timing
-  processes take them: the minimum of its runs spread over a few seconds in rounds
-  (longtime.execution.processes.time_cells). asv's samples of ``time_integrate`` are bursts
+  processes take them (a row's ``cpu_s``): the compiled step loop alone, without the
+  Python work around it, the minimum of its runs spread over a few seconds in rounds
+  (longtime.execution.processes.time_cells). The two differ by that work, which grows with
+  the samples (a few thousand samples cost a few hundred microseconds), and by asv's median
+  against this minimum: for a run of under a millisecond (verlet on kepler's default span:
+  about 0.3 ms of loop, 6285 samples) ``time_integrate`` is two to ten times
+  ``track_cpu_s``, the more the busier the machine; for a run of a second they meet within
+  the samples' share. asv's samples of ``time_integrate`` are bursts
   whose median a slow moment of the machine (it comes and goes within a second or two on a
   shared virtual machine) can move by more than a slowdown; this minimum holds within a
   few percent across invocations (docs/performance.md, "Two speeds");
@@ -115,6 +123,12 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
     def time_integrate(self, problem, scheme, setting):
         self.integrator.integrate(self.problem, self.t_final)
 
+    time_integrate.__doc__ = ("CPU seconds of the whole call integrator.integrate(problem, t_final): the compiled "
+                              "step loop and the Python work on its samples (output arrays, the invariant's "
+                              "growth, the samples' digest), the median of asv's samples. track_cpu_s is the "
+                              "loop alone, the minimum of runs spread over seconds: for a run of a millisecond "
+                              "the Python work and the machine's load make this one several times that one.")
+
     def track_cpu_s(self, problem, scheme, setting):
         from longtime.core.integrator import Timing
         from longtime.execution.processes import time_cells
@@ -124,9 +138,11 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
         return float(record["cpu_s"]) if record.get("status") == "ok" else math.nan
 
     track_cpu_s.unit = "seconds"
-    track_cpu_s.__doc__ = ("CPU seconds of the integration: the minimum of its runs spread over "
-                           "longtime's SPREAD_S seconds (longtime.execution.processes.time_cells), so "
-                           "that a slow moment of the machine does not make the figure")
+    track_cpu_s.__doc__ = ("CPU seconds of the integration's compiled step loop alone (a row's cpu_s): the "
+                           "minimum of its runs spread over longtime's SPREAD_S seconds "
+                           "(longtime.execution.processes.time_cells), so that a slow moment of the machine does "
+                           "not make the figure. time_integrate adds the Python work on the samples and takes "
+                           "asv's median: on a short run it is several times this one.")
 
     import time
 

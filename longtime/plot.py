@@ -67,13 +67,6 @@ def draw(kind: str, out_dir: str | Path = "figures", **options: Any) -> list[Pat
 RC = {"legend.fontsize": 8, "legend.frameon": False, "axes.grid": True, "grid.alpha": 0.3}
 # a legend column holds this many entries; more make another column
 LEGEND_ROWS = 20
-# colours of schemes that are not built in (a plugin's, a class defined in memory): each its
-# own, none a family's colour (matplotlib's tab20b, then tab20c)
-OWN_COLOURS = ("#393b79", "#637939", "#8c6d31", "#843c39", "#7b4173", "#5254a3", "#8ca252", "#bd9e39",
-               "#ad494a", "#a55194", "#6b6ecf", "#b5cf6b", "#e7ba52", "#d6616b", "#ce6dbd", "#3182bd",
-               "#e6550d", "#31a354", "#756bb1", "#636363")
-
-
 def _axes(ax):
     if ax is not None:
         return ax
@@ -82,27 +75,12 @@ def _axes(ax):
     return plt.subplots(figsize=(9, 4.6), layout="constrained")[1]
 
 
-def built_in(scheme: str) -> bool:
-    """Whether ``scheme`` is one of longtime's own (defined in longtime.integrators)."""
-    from longtime.core import registry
-
-    try:
-        return registry.integrator_class(scheme).__module__.startswith("longtime.integrators.")
-    except Exception:  # a scheme of an old run that is no longer installed
-        return True
-
-
 def scheme_styles(schemes) -> dict[str, dict[str, str]]:
-    """The results page's style (a colour per built-in family, a marker per scheme), except
-    that a scheme that is not built in gets a colour of its own: a plugin's splitting is
-    told from the built-in ones and from another plugin's."""
+    """The results page's style: each scheme its own colour and marker, the same in every
+    figure and every run (longtime.reporting.figures.style.scheme_style)."""
     from longtime.reporting.figures.style import styles
 
-    out = styles(schemes)
-    own = [s for s in sorted(schemes) if not built_in(s)]
-    for k, s in enumerate(own):
-        out[s] = {**out[s], "color": OWN_COLOURS[k % len(OWN_COLOURS)]}
-    return out
+    return styles(schemes)
 
 
 def _literal(*texts) -> None:

@@ -111,13 +111,14 @@ def test_convergence_names_why_a_scheme_has_no_order():
     assert "Left out of the order table:" in page and "<li>euler: every point above 0.1</li>" in page
 
 
-def test_a_plugin_splitting_is_drawn_as_the_splitting_family():
+def test_a_plugin_splitting_is_of_the_splitting_family_with_a_look_of_its_own():
     from longtime.reporting.figures.style import family, styles
 
     longtime.solve("kepler", ApiForestRuth, t_final=1, repeats=1)  # registers it
     assert family("api-forest-ruth") == family("verlet") == "splitting"
     s = styles(["api-forest-ruth", "verlet", "rk4"])
-    assert s["api-forest-ruth"]["color"] == s["verlet"]["color"] != s["rk4"]["color"]
+    looks = {(v["color"], v["marker"]) for v in s.values()}
+    assert len(looks) == 3  # a plugin's scheme is told from the built-in ones
 
 
 def test_plot_helpers_return_axes():

@@ -97,6 +97,22 @@ class BadExact(Osc):
         return np.cos(np.asarray(t) - self.t0)[:, None]  # (n, 1) for a 2-dimensional state
 
 
+class TransposedExact(Osc):
+    name = "input-transposed-exact"
+
+    def exact(self, t):
+        s = np.asarray(t) - self.t0
+        return np.vstack([np.cos(s), -np.sin(s)])  # (2, n) instead of (n, 2)
+
+
+class WrongExact(Osc):
+    name = "input-wrong-exact"
+
+    def exact(self, t):
+        s = np.asarray(t) - self.t0
+        return np.column_stack([np.sin(s), np.cos(s)])  # the right shape, not the initial state
+
+
 class BadInvariant(Osc):
     name = "input-bad-invariant"
 
@@ -127,11 +143,21 @@ def test_a_state_of_the_wrong_size_is_found_before_any_cell_runs():
 
 
 def test_shapes_of_exact_and_invariants():
-    with pytest.raises(InputError, match=r"problem input-bad-exact: exact\(t\) for 2 times returned shape \(2, 1\); "
-                                         r"expected \(2, 2\)"):
+    with pytest.raises(InputError, match=r"problem input-bad-exact: exact\(t\) for 3 times returned shape \(3, 1\); "
+                                         r"expected \(3, 2\)"):
         longtime.solve(BadExact, "rk4", dt=0.1)
     with pytest.raises(InputError, match=r"invariants\(t, U\)\['H'\] for 2 samples returned shape \(2, 2, 2\)"):
         longtime.solve(BadInvariant, "rk4", dt=0.1)
+
+
+def test_a_transposed_exact_is_told_from_wrong_values():
+    with pytest.raises(InputError, match=r"problem input-transposed-exact: exact\(t\) for 3 times returned shape "
+                                         r"\(2, 3\): transposed; expected \(3, 2\)"):
+        longtime.solve(TransposedExact, "rk4", dt=0.1)
+    with pytest.raises(InputError,
+                       match=r"problem input-wrong-exact: exact\(t0\) = .* is not the initial state") as info:
+        longtime.solve(WrongExact, "rk4", dt=0.1)
+    assert "transposed" not in str(info.value)
 
 
 def test_a_problem_without_default_t_final_needs_t_final():

@@ -72,7 +72,7 @@ def test_card_command_and_its_bad_input(tmp_path):
     assert out.returncode == 0, out.stderr
     c = json.loads(out.stdout)
     assert c["scheme"] == "verlet" and c["problems"][0]["problem"] == "harmonic"
-    assert abs(c["problems"][0]["orders"][0]["observed"] - 2) < 0.05 and c["rows_from"].startswith("run 1 of")
+    assert abs(c["problems"][0]["orders"][0]["observed"] - 2) < 0.05 and c["rows_from"].startswith("every run of")
     table = _cli("verlet", "--db", str(db))
     assert table.returncode == 0 and table.stdout.startswith("verlet: ") and "== harmonic: 3 of 3 cells ok ==" in table.stdout
     assert _cli("verlet", "--db", str(db), "--format", "markdown").stdout.startswith("### verlet")
@@ -81,3 +81,31 @@ def test_card_command_and_its_bad_input(tmp_path):
                       (("verlet", "--db", str(db), "--run", "x"), "--run 'x': expected a run id")):
         got = _cli(*bad)
         assert got.returncode == 2 and says in got.stderr and got.stdout == "" and len(got.stderr.splitlines()) == 1
+
+
+@pytest.mark.slow
+def test_card_reads_every_run_says_does_not_apply_and_hints_a_command_that_runs(tmp_path):
+    db = tmp_path / "runs.sqlite"
+    longtime.sweep("harmonic", "verlet", dt=[0.2, 0.1], t_final=10, executor="serial", repeats=1, store=str(db))
+    longtime.sweep("linear-test", ["verlet", "rk4"], dt=[0.1], t_final=1, executor="serial", repeats=1, store=str(db))
+    table = _cli("verlet", "--db", str(db))
+    assert table.returncode == 0, table.stderr
+    # every run by default (recommend's rows): run 1's harmonic rows, though run 2 is the latest
+    assert "== harmonic: 2 of 2 cells ok ==" in table.stdout
+    assert "== linear-test: does not apply (verlet needs" in table.stdout
+    assert "linear-test: 0 of" not in table.stdout and table.stdout.count("Pareto front") == 1
+    narrowed = _cli("verlet", "--db", str(db), "--run", "2", "--format", "json")
+    assert [p["problem"] for p in json.loads(narrowed.stdout)["problems"]] == ["linear-test"]
+    assert json.loads(narrowed.stdout)["rows_from"].startswith("run 2 of")
+    # the hint's flags come from the scheme's declared parameters: bpl's accuracy is eps_res, not a step
+    from longtime.reporting.card import run_hint
+
+    assert "--dt" not in run_hint("bpl") and "--eps-res" in run_hint("bpl")
+    assert "--dt" in run_hint("verlet") and "--tol" in run_hint("rk45")
+    hint = run_hint("verlet").split()
+    assert hint[:2] == ["longtime", "run"]
+    ran = subprocess.run([sys.executable, "-m", "longtime", *hint[1:], "--t-final", "1", "--db",
+                          str(tmp_path / "hint.sqlite")], capture_output=True, text=True)
+    assert ran.returncode == 0, ran.stderr
+    empty = _cli("bpl", "--db", str(tmp_path / "hint.sqlite"))
+    assert empty.returncode == 0 and "no stored rows of bpl" in empty.stdout and "--eps-res" in empty.stdout

@@ -78,3 +78,24 @@ def test_item17_entry_points_not_a_table_is_a_refusal(tmp_path, capsys, toml):
     code, err = _asv_init(capsys, tmp_path)
     assert code == 2 and "not a table" in err and "Traceback" not in err, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["pyproject.toml"]
+
+
+def test_asv_init_says_what_to_run_next_and_that_asv_needs_a_commit(tmp_path, capsys):
+    import shutil
+    import subprocess
+
+    if shutil.which("git") is None:
+        pytest.skip("git is not installed")
+    code, err = _asv_init(capsys, tmp_path, "-p", "harmonic", "-i", "rk4")
+    assert code == 0, err
+    assert "asv needs a git repository with a commit" in err and "is not in a git repository" in err
+    assert "--git-commit" in err and "asv run --quick --python=same --set-commit-hash HEAD" in err
+    # asked, it makes the repository and its first commit; then only the next steps are said
+    code, err = _asv_init(capsys, tmp_path, "-p", "harmonic", "-i", "rk4", "--git-commit")
+    assert code == 0, err
+    assert "first commit made for asv" in err and "asv needs a git repository" not in err
+    assert "asv machine --yes" in err
+    listed = subprocess.run(["git", "-C", str(tmp_path), "ls-files"], capture_output=True, text=True).stdout.split()
+    assert sorted(listed) == ["asv.conf.json", "benchmarks/__init__.py", "benchmarks/bench_longtime.py"]
+    code, err = _asv_init(capsys, tmp_path, "-p", "harmonic", "-i", "rk4", "--git-commit")
+    assert code == 0 and "has a git commit already" in err

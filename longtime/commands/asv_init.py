@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 from longtime.core import cli_args
 from longtime.core.files import write_atomic
@@ -37,14 +38,14 @@ CONF_TEMPLATE = {
     "regressions_thresholds": {r".*Cost\.track_instructions": 0.01},
 }
 
-CONF_HEAD = """\
-// asv configuration written by `longtime asv-init`.
-// On the environment that has this package and longtime installed:
-//     asv machine --yes
-//     asv run --quick --python=same --set-commit-hash HEAD
-//     asv publish && asv preview
-// History, each commit built in a fresh virtualenv: asv run -E virtualenv --steps 10 ALL
-"""
+# what to run in DIR once the files are written, on the environment that has the plugin and longtime
+NEXT_STEPS = ("asv machine --yes", "asv run --quick --python=same --set-commit-hash HEAD",
+              "asv publish && asv preview")
+HISTORY_STEP = "asv run -E virtualenv --steps 10 ALL"
+CONF_HEAD = ("// asv configuration written by `longtime asv-init`.\n"
+             "// On the environment that has this package and longtime installed:\n"
+             + "".join(f"//     {step}\n" for step in NEXT_STEPS)
+             + f"// History, each commit built in a fresh virtualenv: {HISTORY_STEP}\n")
 
 BENCH_TEMPLATE = '''\
 """asv benchmarks of {what}, written by `longtime asv-init`.
@@ -53,7 +54,10 @@ Judge a change of speed by Speed.track_cpu_ratio: the integration's CPU time in 
 reference workload timed beside it, in fresh processes, so that the load and the machine's
 speed between two commits' runs divide out. Integration.time_integrate and track_cpu_s
 give the time in seconds (its size; asv's fixed factor 1.1 between runs minutes apart
-misjudges them on a loaded machine). Cost.track_instructions counts the integration's
+misjudges them on a loaded machine): time_integrate the whole call (the compiled loop and
+the Python work on its samples, asv's median), track_cpu_s the loop alone (the minimum of
+runs spread over seconds), so on a run of a millisecond the first is several times the
+second. Cost.track_instructions counts the integration's
 instructions under Valgrind (deterministic: a slowdown of the scheme shows on a loaded
 machine too; Debian package valgrind, else n/a); Accuracy.track_l2_error, track_drift (the
 first invariant's maximum relative error) and track_growth_class (its growth class as a
@@ -105,6 +109,66 @@ def repo_path(folder: Path) -> str:
     except (OSError, subprocess.SubprocessError):
         top = ""
     return os.path.relpath(top, folder.resolve()) if top else "."
+
+
+def _git(folder: Path, *args: str) -> Any:
+    import subprocess
+
+    try:
+        return subprocess.run(["git", "-C", str(folder), *args], capture_output=True, text=True, timeout=60)
+    except (OSError, subprocess.SubprocessError):
+        return None
+
+
+def git_state(folder: Path) -> str:
+    """"no git" (git is not installed), "no repository", "no commit" or "ok": whether asv,
+    which clones the repository and builds a commit, can run in ``folder``."""
+    found = _git(folder, "rev-parse", "--show-toplevel")
+    if found is None:
+        return "no git"
+    if found.returncode != 0:
+        return "no repository"
+    head = _git(folder, "rev-parse", "--verify", "--quiet", "HEAD")
+    return "ok" if head is not None and head.returncode == 0 else "no commit"
+
+
+def first_commit(folder: Path) -> str:
+    """Make ``folder`` a git repository with a commit (``git init`` where there is none, then
+    every file committed) for asv; an identity for the commit where git has none. What was
+    done, as one line; an InputError when git refuses."""
+    state = git_state(folder)
+    if state == "ok":
+        return f"{folder} has a git commit already: nothing committed"
+    if state == "no git":
+        raise InputError("--git-commit: git is not installed (Debian package git)")
+    steps = [("init",)] if state == "no repository" else []
+    email = _git(folder, "config", "user.email")
+    identity = [] if email is not None and email.stdout.strip() else [
+        "-c", "user.name=longtime asv-init", "-c", "user.email=asv-init@localhost"]
+    steps += [("add", "-A"), (*identity, "commit", "-q", "-m", "asv benchmarks written by longtime asv-init")]
+    for step in steps:
+        done = _git(folder, *step)
+        if done is None or done.returncode != 0:
+            why = (done.stderr or done.stdout).strip().splitlines()[-1:] if done is not None else ["git did not run"]
+            raise InputError(f"--git-commit: git {' '.join(step)} failed in {folder}: {' '.join(why)}")
+    return f"{folder}: {'git init, ' if state == 'no repository' else ''}first commit made for asv"
+
+
+def next_steps(folder: Path, state: str) -> str:
+    """What to run after asv-init, for stderr: the git repository asv needs where it is
+    missing, then asv's commands."""
+    lines = []
+    if state != "ok":
+        what = {"no git": "git is not installed (Debian package git)",
+                "no repository": f"{folder} is not in a git repository",
+                "no commit": f"{folder}'s git repository has no commit"}[state]
+        lines += [f"asv needs a git repository with a commit (it clones the repository and builds a commit): {what}.",
+                  f"  make one: cd {folder} && git init && git add -A && git commit -m 'asv benchmarks'",
+                  f"  or let asv-init make it: longtime asv-init {folder} --git-commit"]
+    lines.append(f"next, in {folder}, on the environment that has longtime and the plugin installed:")
+    lines += [f"  {step}" for step in NEXT_STEPS]
+    lines.append(f"  history, each commit built in a fresh virtualenv: {HISTORY_STEP}")
+    return "\n".join(lines)
 
 
 def write(folder: Path, problems: list[str], schemes: list[str], settings: dict, t_final: float | None,
@@ -178,6 +242,9 @@ def cmd_asv_init(args) -> int:
         settings[key] = value
     for path in write(folder, args.problem or [], args.integrator or [], settings, args.t_final, args.force):
         print(path)
+    if args.git_commit:
+        print(first_commit(folder), file=sys.stderr)
+    print(next_steps(folder, git_state(folder)), file=sys.stderr)
     return 0
 
 
@@ -195,4 +262,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--set", type=cli_args.key_value, action="append", default=[], metavar="KEY=VALUE",
                    help="any other parameter (repeatable)")
     p.add_argument("--force", action="store_true", help="replace existing files")
+    p.add_argument("--git-commit", action="store_true",
+                   help="where DIR is not a git repository with a commit (asv needs one), make it: git init "
+                        "if needed, then commit every file")
     p.set_defaults(func=cmd_asv_init)

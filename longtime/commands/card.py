@@ -15,7 +15,8 @@ def add_parser(subparsers) -> None:
     p = subparsers.add_parser("card", help="one scheme's card: orders, growth, cost, Pareto place, stability, "
                                            "structure")
     p.add_argument("scheme", metavar="SCHEME", help="a scheme name (see `longtime list`)")
-    p.add_argument("--run", default=None, help="run id, or 'all' (default: the latest run)")
+    p.add_argument("--run", default=None, help="run id, or 'all' (default: every run of the store, as recommend "
+                                                "reads it)")
     p.add_argument("--db", default=None, help=f"SQLite store (default: $LONGTIME_DB or {default_path()})")
     p.add_argument("--format", choices=["table", "json", "markdown"], default="table")
     p.add_argument("--time-limit", type=cli_args.seconds("--time-limit", allow_zero=True), default=DEFAULT_TIME_LIMIT,
@@ -25,8 +26,9 @@ def add_parser(subparsers) -> None:
 
 
 def stored_rows(db, run: str | None) -> tuple[list[dict], str]:
-    """(rows of ``run`` in the store ``db`` (the latest run by default, every run for
-    'all'), what they are); no rows when the store has none."""
+    """(rows of ``run`` in the store ``db`` (every run by default or for 'all', as
+    ``longtime recommend`` reads them; a run id narrows), what they are); no rows when the
+    store has none."""
     from pathlib import Path
 
     from longtime.execution.store import Store, default_path
@@ -39,13 +41,10 @@ def stored_rows(db, run: str | None) -> tuple[list[dict], str]:
             raise InputError(f"--db {path}: no such store, so no run {run}")
         return [], f"no store at {path}"
     store = Store(path, readonly=True)
-    if run == "all":
+    if run is None or run == "all":
         return store.rows(), f"every run of {path}"
-    run_id = int(run) if run else store.latest_run()
-    if run_id is None:
-        return [], f"no runs in {path}"
-    store.run(run_id)  # InputError naming the runs there are
-    return store.rows(run_id), f"run {run_id} of {path}"
+    store.run(int(run))  # InputError naming the runs there are
+    return store.rows(int(run)), f"run {run} of {path}"
 
 
 def cmd_card(args) -> int:

@@ -18,6 +18,7 @@ from longtime.core.cache import check_cache_root
 from longtime.core.files import write_atomic
 from longtime.core.integrator import Timing
 from longtime.core.params import InputError
+from longtime.core.progress import Progress
 from longtime.core.roles import ROW_PARAMETERS, flag
 from longtime.execution import budget, limits
 from longtime.execution.calibration import drift_text
@@ -245,6 +246,7 @@ def cmd_matrix(args) -> int:
     _warn_broken()
     executor = args.executor or "process"
     options = _options(args, executor)
+    shown = Progress(on=not args.no_progress)
     if args.resume is not None:
         store = Store(args.db, create=False)  # resuming never creates an empty store
         if args.resume < 0:
@@ -271,7 +273,8 @@ def cmd_matrix(args) -> int:
             keys = {c.key for c in died}
             cells = [c for c in cells if c.key not in keys]
     else:
-        with phases.phase("plan"):
+        with phases.phase("plan"), shown.phase("plan", detail="the cells of the selection, fitted to the budget",
+                                                         announce=False):
             cells, moves = matrix_cells(args)
         _say_moves(moves)
         store, run_id, died = Store(args.db), None, []
@@ -293,7 +296,7 @@ def cmd_matrix(args) -> int:
             ahead = FiguresAhead(cells, run_id, timed_again=options.processes > 1)
             options = dataclasses.replace(options, idle_work=ahead.task)
         run_matrix(cells, store, run_id, executor, options,
-                   progress=not args.no_progress, on_row=ahead.add if ahead is not None else None)
+                   progress=shown, on_row=ahead.add if ahead is not None else None)
         if args.resume is not None:  # the rows stored before the interruption, timed and counted
             complete_phases(store, run_id, options)
         if args.checks is None:
@@ -305,7 +308,8 @@ def cmd_matrix(args) -> int:
 
             rows = store.rows(run_id)
             try:
-                checks = run_checks(store, run_id, rows, options, limit=args.checks, budget_s=check_budget(rows))
+                with shown.phase("checks", detail=f"up to {args.checks} predictions re-run past the rows' final times"):
+                    checks = run_checks(store, run_id, rows, options, limit=args.checks, budget_s=check_budget(rows))
             except (InputError, OSError, ValueError) as exc:  # the rows are stored; the checks are extra
                 print(f"warning: predictions not checked: {type(exc).__name__}: {exc}", file=sys.stderr)
                 checks = []
@@ -315,7 +319,7 @@ def cmd_matrix(args) -> int:
             from longtime.execution import ensembles
 
             try:
-                with phases.phase("ensembles"):
+                with phases.phase("ensembles"), shown.phase("ensembles", detail="chaotic problems' ensembles"):
                     ensembles.run(store, run_id, store.rows(run_id))
             except (InputError, OSError, ValueError, RuntimeError) as exc:  # the rows are stored; this is extra
                 print(f"warning: ensembles not measured: {type(exc).__name__}: {exc}", file=sys.stderr)
@@ -328,18 +332,18 @@ def cmd_matrix(args) -> int:
         page = None
         if not args.no_html:  # the results page first, so that a long report ends with its path
             try:
-                with phases.phase("page"):
+                with phases.phase("page"), shown.phase("page", detail="figures and the results page"):
                     page = write_html(args.html or store.path.parent / "longtime-report" / f"run-{run_id}", rows,
                                       store, [run_id], ahead=ahead, writer="matrix")  # default: beside the store
             except Exception as exc:  # the rows are stored; `longtime report --html DIR` can retry (exit 1 below)
                 page_error = f"results page not written: {type(exc).__name__}: {exc}"
                 print(f"warning: {page_error}", file=sys.stderr)
-        with phases.phase("report"):
+        with phases.phase("report"), shown.phase("report"):
             text = report_text(rows, "table", full=args.full, checks=store.checks(run_id),
-                               ensembles=store.ensembles(run_id))
+                               ensembles=store.ensembles(run_id), page=str(page) if page is not None else None)
         print(text)
-        print(f"\ncalibration: {drift_text(store.calibrations(run_id))}")
-        if page is not None:
+        print("\n" + _wrapped(f"calibration: {drift_text(store.calibrations(run_id))}"))
+        if page is not None and args.full:  # the first screen names it; the full text ends with it
             print(f"\nresults page: {page}")
     code = 0
     if args.baseline is not None:  # CI's gate: this run against the baseline, exit 1 on a regression
@@ -390,6 +394,15 @@ def _check_baseline(store: Store, baseline: int, cells) -> None:
                          f"(it holds {have})")
 
 
+def _wrapped(text: str) -> str:
+    """A line of the report's text wrapped at the report's width, continued indented."""
+    import textwrap
+
+    from longtime.reporting.report import WIDTH
+
+    return "\n".join(textwrap.wrap(text, width=WIDTH, subsequent_indent="  ", break_on_hyphens=False))
+
+
 def cmd_report(args) -> int:
     store = Store(args.db, readonly=True)  # a report writes nothing, not even an empty store
     if args.html:
@@ -418,8 +431,10 @@ def cmd_report(args) -> int:
     from longtime.reporting.page import write_html
     from longtime.reporting.report import report_text, to_parquet
 
+    page = None
     if args.html:
-        print(f"results page: {write_html(args.html, rows, store, writer='report --html')}", file=sys.stderr)
+        page = str(write_html(args.html, rows, store, writer='report --html'))
+        print(f"results page: {page}", file=sys.stderr)
     if args.format == "parquet":
         with cli_args.writing("--out", args.out or "longtime.parquet"):
             to_parquet(rows, args.out or "longtime.parquet")
@@ -429,9 +444,9 @@ def cmd_report(args) -> int:
         with cli_args.writing("--out", args.out):
             write_atomic(args.out, text)
     else:
-        print(report_text(rows, args.format, full=args.full, checks=checks, ensembles=ensembles))
+        print(report_text(rows, args.format, full=args.full, checks=checks, ensembles=ensembles, page=page))
         if args.format == "table" and args.run != "all":
-            print(f"\ncalibration: {drift_text(store.calibrations(run_id))}")
+            print("\n" + _wrapped(f"calibration: {drift_text(store.calibrations(run_id))}"))
         if args.format == "table":  # rows of several machines (a merged store): side by side
             from longtime.reporting import compare, machines
 

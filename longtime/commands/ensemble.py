@@ -7,6 +7,7 @@ from typing import Any
 
 from longtime.core import cli_args, jsontext
 from longtime.core.params import InputError
+from longtime.core.progress import Progress
 from longtime.execution.cells import DEFAULT_TIME_LIMIT, MAX_STEPS
 from longtime.execution.limits import PastLimit, call_limited, default_memory_limit
 from longtime.measure import ensemble
@@ -98,9 +99,11 @@ def cmd_ensemble(args) -> int:
         raise InputError("--dt: give one step")
     if args.t_final is not None and len(args.t_final) != 1:
         raise InputError("--t-final: give one final time")
-    rows = study(args.problem, args.integrator, dt=args.dt[0] if args.dt else None,
-                 t_final=args.t_final[0] if args.t_final else None, members=args.members, size=args.size,
-                 seed=args.seed, window=args.window, time_limit=args.time_limit or None)
+    with Progress().phase("ensemble", detail=f"{args.members} members a scheme, heyoka's beside them",
+                          announce=False):
+        rows = study(args.problem, args.integrator, dt=args.dt[0] if args.dt else None,
+                     t_final=args.t_final[0] if args.t_final else None, members=args.members, size=args.size,
+                     seed=args.seed, window=args.window, time_limit=args.time_limit or None)
     print(jsontext.dumps(rows) if args.format == "json" else markdown(rows))
     return 0
 

@@ -30,6 +30,7 @@ from longtime.core import cli_args, registry
 from longtime.core.files import write_atomic
 from longtime.core.fmt import markdown_table, number
 from longtime.core.params import InputError
+from longtime.core.progress import Progress
 from longtime.execution import search
 from longtime.execution.cells import Cell, integrate_cell, run_cell
 from longtime.execution.lifecycle import command_line, recorded_run
@@ -431,8 +432,11 @@ SECTIONS: list[tuple[str, Callable[[Context], str]]] = [
 
 def reproduce(out: str | Path = "reproduction", quick: bool = False, figures: bool = True,
               executor: str = "process", options: ExecOptions | None = None, store: Store | None = None,
-              sections: list[str] | None = None, command: str = "reproduce") -> tuple[Path, list[str]]:
-    """Write out/report.md; return its path and the titles of the sections that failed."""
+              sections: list[str] | None = None, command: str = "reproduce",
+              progress: bool = True) -> tuple[Path, list[str]]:
+    """Write out/report.md; return its path and the titles of the sections that failed.
+    ``progress``: each section's title, the sections done and the time on stderr
+    (longtime.core.progress)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     ctx = Context(quick=quick, out=out, figures=figures, executor=executor, options=options or ExecOptions(),
@@ -449,9 +453,10 @@ def reproduce(out: str | Path = "reproduction", quick: bool = False, figures: bo
         "Paper's numbers: quoted from docs/paper.md (its own code and machine). Ours: measured in this run "
         "(CPU = process time of the compiled integration alone). 'ours / paper' is the ratio of the two.", ""]
     failed = []
-    with recorded_run(store, command) as ctx.run_id:
+    shown = Progress(on=progress)
+    with recorded_run(store, command) as ctx.run_id, shown.phase("reproduce", total=len(chosen), unit="sections"):
         for title, build in chosen:
-            print(f"reproduce: {title} ...", file=sys.stderr)
+            shown.say(f"reproduce: {title} ...")
             t0 = time.perf_counter()
             try:
                 body = build(ctx)
@@ -462,6 +467,7 @@ def reproduce(out: str | Path = "reproduction", quick: bool = False, figures: bo
                 body = ("**Section failed**:\n\n```\n" + "".join(traceback.format_exception(exc))[-3000:]
                         + "\n```")
             parts += [f"## {title}", "", body, "", f"*(section: {time.perf_counter() - t0:.1f} s wall)*", ""]
+            shown.advance(last=title)
     parts.append(f"Total: {time.perf_counter() - started:.1f} s wall, {ctx.cells_run} cells.")
     report = out / "report.md"
     write_atomic(report, "\n".join(parts) + "\n")

@@ -230,19 +230,35 @@ def _shape_check(owner: str, what: str, value: Any, expected: tuple, meaning: st
         raise InputError(f"{owner}: {what} returned shape {shape}; expected {meaning}")
 
 
+def exact_probe_times(problem: Any, t_final: float) -> Any:
+    """The times ``exact`` is probed at: t0, t_final and points between, as many as make the
+    expected (times, dim) output non-square (3 times, or 4 on a 3-component problem), so that
+    an output transposed to (dim, times) has a shape that tells it from wrong values."""
+    import numpy as np
+
+    count = 4 if problem.dim == 3 else 3
+    return np.linspace(problem.t0, t_final, count)
+
+
 def check_problem_outputs(problem: Any, t_final: float) -> None:
-    """The Python-level outputs of a plugin's problem, on the initial state twice: ``exact``
-    at [t0, t_final] is (2, dim) and starts at the initial state; each invariant, violation
-    and diagnostic is (2,) or (2, k). An InputError names the problem and the output."""
+    """The Python-level outputs of a plugin's problem: ``exact`` at t0, t_final and a time
+    between (``exact_probe_times``) is (times, dim), not transposed, and starts at the initial
+    state; each invariant, violation and diagnostic on the initial state twice is (2,) or
+    (2, k). An InputError names the problem and the output."""
     import numpy as np
 
     owner, dim = f"problem {problem.name}", problem.dim
     t = np.array([problem.t0, t_final], dtype=float)
     U = np.vstack([problem.u0, problem.u0])
     if problem.exact is not None:
-        E = problem.exact(t)
-        _shape_check(owner, "exact(t) for 2 times", E, (2, dim),
-                     f"(2, {dim}): a row per time, a column per component of the state (dimension {dim})")
+        times = exact_probe_times(problem, t_final)
+        count = times.size
+        E = problem.exact(times)
+        if np.shape(E) == (dim, count):
+            raise InputError(f"{owner}: exact(t) for {count} times returned shape {np.shape(E)}: transposed; "
+                             f"expected ({count}, {dim}), a row per time, a column per component of the state")
+        _shape_check(owner, f"exact(t) for {count} times", E, (count, dim),
+                     f"({count}, {dim}): a row per time, a column per component of the state (dimension {dim})")
         E = np.asarray(E, dtype=float)
         tol = max(float(problem.exact_rtol or 0.0), 1e-8) * max(1.0, float(np.max(np.abs(problem.u0))))
         if not np.all(np.abs(E[0] - problem.u0) <= tol):

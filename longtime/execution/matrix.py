@@ -43,7 +43,8 @@ from longtime.execution.limits import (
     worker_init,
 )
 from longtime.execution.pool import spawn_pool
-from longtime.execution.processes import across_processes, default_processes
+from longtime.core.progress import Progress
+from longtime.execution.processes import across_processes, default_processes, timed_elsewhere
 from longtime.execution.pool import workers as pool_workers
 from longtime.execution.store import Store
 from longtime.execution.tempdirs import DiskFull, disk_full
@@ -359,11 +360,13 @@ def get_executor(name: str) -> Executor:
 
 
 def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, executor: str = "process",
-               options: ExecOptions | None = None, progress: bool = False,
+               options: ExecOptions | None = None, progress: "bool | Progress" = False,
                on_row: Callable[[Cell, dict], None] | None = None) -> list[dict]:
     """Run the cells, storing each row as it completes (then ``on_row(cell, row)``), then
     time them in ``options.processes - 1`` more processes (longtime.execution.processes), each
-    stored row updated with their times; returns the rows in cell order."""
+    stored row updated with their times; returns the rows in cell order. ``progress`` (True,
+    or a longtime.core.progress.Progress) shows each phase on stderr: the cells, the timing
+    processes, the instruction counts."""
     options = options or ExecOptions()
     # the timing processes start on this machine: a Dask cluster's rows are timed where they
     # ran, in one process
@@ -376,18 +379,14 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
     if store is not None and run_id is not None and options.on_start is None:
         options = dataclasses.replace(options, on_start=lambda cell: store.mark_started(run_id, cell))
     rows: dict[str, dict] = {}
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=len(cells), unit="cell", dynamic_ncols=True)
+    shown = progress if isinstance(progress, Progress) else Progress(on=bool(progress))
     storing = store is not None and run_id is not None
-    here = calibration.here(reset=True)  # the machine's speed ahead of the cells, and after them
-    if storing:
-        store.add_calibrations(run_id, [here.take("before")])
-        here.handed()
     later = [PROCESSES_PHASE] + ([COUNTS_PHASE] if options.cost == "instructions" else [])
-    try:
+    with shown.phase("cells", total=len(cells), unit="cells"):
+        here = calibration.here(reset=True)  # the machine's speed ahead of the cells, and after them
+        if storing:
+            store.add_calibrations(run_id, [here.take("before")])
+            here.handed()
         for cell, row in run(cells, options):
             points = calibration.take_points(row)
             rows[cell.key] = row
@@ -397,15 +396,15 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
                 store.add_row(run_id, cell, row)
             if on_row is not None:
                 on_row(cell, row)
-            if bar is not None:
-                bar.set_postfix_str(f"{cell.problem} x {cell.integrator}: {row['status']}", refresh=False)
-                bar.update()
-    finally:
-        if bar is not None:
-            bar.close()
+            shown.advance(last=f"{cell.problem} x {cell.integrator}: {row['status']}")
     found = [(cell, rows[cell.key]) for cell in cells if cell.key in rows]
-    across_processes(found, processes, options.max_samples, options.timing, options.workers(),
-                     options.time_limit, options.memory_limit)
+    again = [r for _, r in found if processes > 1 and timed_elsewhere(r)]
+    timing_phase = shown.phase("timing processes", estimate_s=timing_estimate(again, processes, options.workers()),
+                               detail=f"{len(again)} cells timed again in {processes - 1} fresh processes") \
+        if again else contextlib.nullcontext()
+    with timing_phase:
+        across_processes(found, processes, options.max_samples, options.timing, options.workers(),
+                         options.time_limit, options.memory_limit)
     for cell, row in found:
         phase_done(row, PROCESSES_PHASE)
         if storing:
@@ -413,8 +412,26 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
     if storing:
         store.add_calibrations(run_id, [here.take("after")])
     if options.cost == "instructions":  # after every timed run: Valgrind's process times nothing
-        _add_instructions(cells, rows, store if storing else None, run_id, options)
+        with shown.phase("instruction counts", detail=f"{len(found)} cells under Valgrind"):
+            _add_instructions(cells, rows, store if storing else None, run_id, options)
     return [rows[c.key] for c in cells if c.key in rows]
+
+
+PROCESS_START_S = 5.0
+
+
+def timing_estimate(rows: list[dict], processes: int, jobs: int) -> float | None:
+    """The seconds the timing processes are expected to take: each of the ``processes - 1``
+    processes times every row's cell again (its runs spread over at least SPREAD_S seconds,
+    each run about the row's wall time), ``jobs`` processes at a time, after its start
+    (``PROCESS_START_S``: an interpreter, its imports, its kernels loaded from the cache)."""
+    from longtime.execution.processes import SPREAD_S
+
+    if not rows or processes < 2:
+        return None
+    one = sum(float(r.get("wall_s") or 0.0) * max(1, len(r.get("cpu_s_samples") or [1])) for r in rows)
+    waves = -(-(processes - 1) // max(1, jobs))
+    return waves * (PROCESS_START_S + max(SPREAD_S, one))
 
 
 def _add_instructions(cells: list[Cell], rows: dict[str, dict], store: Store | None, run_id: int | None,

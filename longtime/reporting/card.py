@@ -128,13 +128,51 @@ def card(scheme: Any, rows: Iterable[dict] | None = None, *, structure: bool = T
     for problem in sorted({r["problem"] for r in rows if r.get("integrator") == name}):
         all_rows = [r for r in rows if r["problem"] == problem]
         mine = [r for r in all_rows if r.get("integrator") == name]
-        problems.append({"problem": problem, "cells": len(mine),
+        if all(r.get("status") == "skipped" for r in mine):  # the scheme cannot treat the problem
+            problems.append({"problem": problem, "cells": len(mine), "ok": 0, "statuses": ["skipped"],
+                             "does_not_apply": _skip_reason(mine), "orders": [], "growth": {},
+                             "rhs_evals_per_step": None, "instructions_per_step": None, "pareto": []})
+            continue
+        problems.append({"problem": problem, "cells": len(mine), "does_not_apply": None,
                          "ok": sum(r.get("status") == "ok" for r in mine),
                          "statuses": sorted({str(r.get("status")) for r in mine}),
                          "orders": orders.get(problem, []), "growth": _growth(mine), **_per_step(mine),
                          "pareto": _pareto(all_rows, name)})
     out["problems"] = problems
     return out
+
+
+def _skip_reason(rows: list[dict]) -> str:
+    reasons = sorted({str(r.get("message") or "skipped") for r in rows})
+    return "; ".join(reasons)
+
+
+def run_hint(name: str) -> str:
+    """A ``longtime run`` command that measures some rows of scheme ``name``: on a problem
+    it can treat (kepler or harmonic where it can, else the first by name), sweeping the
+    parameter its accuracy is set by (its step or accuracy role: --dt for a fixed-step
+    scheme, --eps-res for bpl, --tol for an adaptive one), three values from its default
+    (a fixed step from the problem's default step, halved; an accuracy tightened tenfold, or
+    loosened from a default near round-off); no flag where it declares none."""
+    from longtime.core import registry, roles
+
+    cls = registry.integrator_class(name)
+    problems = registry.problems()
+    fits = [p for p in ("kepler", "harmonic", *sorted(problems)) if p in problems
+            and not set(cls.requires) - problems[p].capabilities()]
+    problem = fits[0] if fits else "PROBLEM"
+    command = f"longtime run -i {name} -p {problem}"
+    params = roles.declared([cls])
+    for param_name in roles.with_role([cls], *roles.ACCURACY_ROLES):
+        default = params[param_name].default
+        if default is None and params[param_name].role == "step" and problem in problems:
+            default = getattr(problems[problem], "default_dt", None)
+        if isinstance(default, (int, float)) and default > 0:
+            # a step halves; an accuracy tightens tenfold, or loosens from a default near round-off
+            scale = 2.0 if params[param_name].role == "step" else (10.0 if default >= 1e-12 else 0.01)
+            values = ",".join(f"{default / scale ** k:.3g}" for k in range(3))
+            return f"{command} {roles.flag(param_name)} {values}"
+    return command
 
 
 # ------------------------------------------------------------------ rendering
@@ -211,9 +249,12 @@ def card_text(c: dict) -> str:
     lines = [f"{c['scheme']}: {c['summary']}".rstrip(": ")]
     lines += [f"  {label}: {text}" for label, text in _lines(c)]
     if not c["problems"]:
-        lines.append(f"  no stored rows of {c['scheme']}: `longtime run -i {c['scheme']} -p PROBLEM --dt A,B,C` "
-                     f"measures some")
+        lines.append(f"  no stored rows of {c['scheme']} in {c.get('rows_from') or 'the rows'}: "
+                     f"`{run_hint(c['scheme'])}` measures some")
     for p in c["problems"]:
+        if p.get("does_not_apply"):
+            lines.append(f"  == {p['problem']}: does not apply ({p['does_not_apply']}) ==")
+            continue
         lines.append(f"  == {p['problem']}: {p['ok']} of {p['cells']} cells ok ==")
         lines += [f"    {label}: {text}" for label, text in _problem_lines(p)]
     return "\n".join(lines)
@@ -226,7 +267,9 @@ def card_markdown(c: dict) -> str:
         lines += ["", "| problem | " + " | ".join(label for label, _ in _problem_lines(c["problems"][0])) + " |",
                   "|---" * 5 + "|"]
         for p in c["problems"]:
-            lines.append(f"| {p['problem']} | " + " | ".join(t.replace("|", "/") for _, t in _problem_lines(p)) + " |")
+            texts = [f"does not apply ({p['does_not_apply']})"] + [""] * 3 if p.get("does_not_apply") else [
+                t for _, t in _problem_lines(p)]
+            lines.append(f"| {p['problem']} | " + " | ".join(t.replace("|", "/") for t in texts) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -248,6 +291,10 @@ def card_html(c: dict, notes: Iterable[tuple[str, str]] = ()) -> str:
                    for label, text in [*_lines(c), *notes])
     rows = []
     for p in c["problems"]:
+        if p.get("does_not_apply"):
+            rows.append(f"<tr><td>{escape(p['problem'])}</td><td colspan=\"4\">does not apply "
+                        f"({escape(p['does_not_apply'])})</td></tr>")
+            continue
         rows.append("<tr>" + f"<td>{escape(p['problem'])}</td>"
                     + "".join(f"<td>{escape(t)}</td>" for _, t in _problem_lines(p)) + "</tr>")
     table = ("<table><tr><th>problem</th>" + "".join(f"<th>{escape(label)}</th>" for label, _ in

@@ -603,8 +603,11 @@ def report(result: dict[str, Any], fmt: str = "table", show_all: bool = False) -
 
 
 def cmd_compare(args) -> int:
-    result = run_compare(args.db, args.run_a, args.db_b or args.db, args.run_b, args.factor, args.error_factor,
-                         args.alpha, args.raw_time, args.cell_factor, args.instruction_factor)
+    from longtime.core.progress import Progress
+
+    with Progress().phase("compare", detail=f"runs {args.run_a} and {args.run_b}, cell by cell", announce=False):
+        result = run_compare(args.db, args.run_a, args.db_b or args.db, args.run_b, args.factor, args.error_factor,
+                             args.alpha, args.raw_time, args.cell_factor, args.instruction_factor)
     return report(result, args.format, args.all)
 
 

@@ -283,7 +283,10 @@ def cmd_history(args) -> int:
 
     store = Store(args.db, readonly=True)
     sets = dict(args.set)
-    found = history(store, args.problem, args.integrator, sets)
+    from longtime.core.progress import Progress
+
+    with Progress().phase("history", detail="every stored run's rows of the selection", announce=False):
+        found = history(store, args.problem, args.integrator, sets)
     if not found:
         raise InputError(f"no stored cell in {store.path} matches -p/-i/--set")
     if args.format == "json":  # each run's point names its machine

@@ -243,17 +243,21 @@ def _capability_matrix(rows: list[dict]) -> str:
             worst = next(st for st in ("failed", "timeout", "diverged", "skipped", "ok") if counts.get(st))
             title = format_counts(counts)
             text = ABBREVIATIONS[worst]
+            lost = sum(1 for r in mine if r.get("status") == "ok" and r.get("solution_lost"))
             if worst == "skipped":
                 title = "skipped: " + str(mine[0].get("message") or "").removeprefix(s + " ")
             elif worst != "ok":
                 text += f" {counts[worst]}/{len(mine)}"
+            elif lost:  # ran to the end, but the error reached O(1): not an ok answer
+                worst, text = "lost", "lost" if lost == len(mine) else f"lost {lost}/{len(mine)}"
+                title += f"; {lost} of them lost the solution (error O(1) at the end)"
             cells.append(f'<td class="{worst} cap" title="{escape(title)}">{escape(text)}</td>')
         body.append(cells)
     head = "".join(f'<th class="rot"><span>{escape(p)}</span></th>' for p in problems)
     rows_html = "".join("<tr>" + "".join(c) + "</tr>" for c in body)
-    return ('<p class="note">Each cell: the worst outcome of the scheme on the problem (ok; - skipped; div '
-            'diverged; fail failed; t/o timeout; blank: not in this run), with the counts and the reason of a skip '
-            'in its title.</p>'
+    return ('<p class="note">Each cell: the worst outcome of the scheme on the problem (ok; lost: ran to the end '
+            'with an error of O(1), the solution not followed; - skipped: does not apply; div diverged; fail failed; '
+            't/o timeout; blank: not in this run), with the counts and the reason of a skip in its title.</p>'
             f'<table class="capabilities"><tr><th>scheme \\ problem</th>{head}</tr>{rows_html}</table>')
 
 

@@ -21,8 +21,11 @@ def drift(out: Path, formats: Sequence[str] = ("png", "svg"), problems: list[str
     from longtime.core import registry
     from longtime.measure.metrics import relative_error
 
+    from longtime.reporting.figures.style import styles
+
     problems = problems or ["toda"]
     schemes = schemes or ["rk4", "rk4sym"]
+    colours = {s: st["color"] for s, st in styles(schemes).items()}  # each scheme's own, as in every figure
     plt = pyplot()
     fig, axes = plt.subplots(len(problems), 1, figsize=(8, 3.8 * len(problems)), squeeze=False)
     for ax, name in zip(axes[:, 0], problems):
@@ -45,7 +48,7 @@ def drift(out: Path, formats: Sequence[str] = ("png", "svg"), problems: list[str
             if traj.status != "ok":
                 label += f" [{traj.status} at t={traj.t_reached:.4g}]"
             # the first scheme on top: oscillating curves of later ones must not hide it
-            ax.semilogy(traj.t[ok], err[ok], lw=0.6, label=label, color=f"C{i}", zorder=len(schemes) - i,
+            ax.semilogy(traj.t[ok], err[ok], lw=0.6, label=label, color=colours[scheme], zorder=len(schemes) - i,
                         alpha=0.9 if i == 0 else 0.6)
         what = "relative error" if drawn not in watched else "relative change"
         ax.set_xlabel("t")

@@ -23,9 +23,12 @@ from longtime.core.fmt import positive
 from longtime.core.phases import phase
 from longtime.reporting.figures import pyplot
 from longtime.reporting.figures.style import (
+    GREY,
     LEGEND_BESIDE,
     LINE_STYLES,
+    emphasis,
     family,
+    front_schemes,
     legend_columns,
     legend_outside,
     svg,
@@ -86,6 +89,7 @@ def work_precision_svg(rows: list[dict], field: str, style: dict, cost: str = "c
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.0, 4.2))
     t_main = main_t_final(ok)
+    style, greyed = emphasis(style, sorted({r["integrator"] for r in ok}), front_schemes(rows))
     bars, bar_colours = [], []  # every sweep's bars in one collection, beneath the lines as errorbar draws them
     for (scheme, t_final, settings, order), mine in sweeps(ok).items():
         pts = sorted((r[cost], r[field], (r.get("cpu_s_max") or r["cpu_s"]) if cost == "cpu_s" else r[cost])
@@ -94,13 +98,17 @@ def work_precision_svg(rows: list[dict], field: str, style: dict, cost: str = "c
         st, other_t = style[scheme], t_final != t_main
         label = f"{scheme} ({family(scheme)})" + (f" t_final={t_final:.4g}" if other_t else "") \
             + (f" N={order}" if order is not None else "") + (f" {settings}" if settings else "")
-        ax.plot(x, y, color=st["color"], marker=st["marker"], ms=5, lw=1.1, ls="--" if other_t or settings else "-",
-                alpha=0.9, zorder=2.1, label=label)
+        grey = scheme in greyed
+        ax.plot(x, y, color=st["color"], marker=st["marker"], ms=5, lw=0.8 if grey else 1.1,
+                ls="--" if other_t or settings else "-", alpha=0.9, zorder=1.9 if grey else 2.1,
+                label="_" + label if grey else label)
         spread = x_max > x
         bars += [[(a, b), (c, b)] for a, b, c in zip(x[spread], y[spread], x_max[spread])]
         bar_colours += [st["color"]] * int(spread.sum())
     if bars:  # autolim: the axis reaches the slowest repeat
         ax.add_collection(LineCollection(bars, colors=bar_colours, linewidths=2.2, alpha=0.9, zorder=2.0))
+    if greyed:
+        ax.plot([], [], color=GREY, lw=0.8, label=f"{len(greyed)} other schemes (grey: off the Pareto front)")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("CPU seconds (minimum of repeats; bar to the slowest)" if cost == "cpu_s" else
@@ -192,6 +200,7 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
     if len(names) > MAX_PANELS:
         notes.append(f"{', '.join(names[MAX_PANELS:])}: not drawn here (longtime plot drift --invariant NAME)")
         names = names[:MAX_PANELS]
+    style, greyed = emphasis(style, sorted({c[0] for c in curves}), front_schemes(rows))
     plt = pyplot()
     # small multiples sized to their number: panels of a legible size (3.4 x 2.7 in), at most
     # three across, the figure growing with their rows
@@ -213,12 +222,14 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
             keep = (t > t[0]) & (err > 0)
             st = style[scheme]
             every = max(1, int(keep.sum()) // 12)
-            label = f"{scheme} {setting(row)}"
+            grey = scheme in greyed
+            label = f"{len(greyed)} other schemes (grey: off the Pareto front)" if grey else f"{scheme} {setting(row)}"
             # curves that coincide (a diagnostic the schemes all follow) stay apart: a dash
             # pattern and the markers shifted per curve
             (line,) = ax.plot(t[keep] - t[0], err[keep], color=st["color"], marker=st["marker"],
-                                markevery=(i % every, every), ms=4 if len(names) == 1 else 3, lw=0.9,
-                                ls=LINE_STYLES[i % len(LINE_STYLES)], label=label)
+                              markevery=(i % every, every), ms=4 if len(names) == 1 else 3, lw=0.6 if grey else 0.9,
+                              ls="-" if grey else LINE_STYLES[i % len(LINE_STYLES)], label=label,
+                              zorder=1.5 if grey else 2.0)
             handles.setdefault(label, line)
         ax.grid(True, which="both", alpha=0.3)
         if len(names) == 1:
@@ -234,7 +245,7 @@ def drift_svg(rows: list[dict], style: dict, kind: str = "invariant") -> tuple[s
     if len(names) == 1 and len(labels) <= LEGEND_BESIDE:
         legend_outside(axes[0, 0], list(handles.values()), labels)
     else:  # below every panel, in as many columns as the figure's width holds
-        fig.legend(list(handles.values()), labels, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, 0.0),
+        fig.legend(list(handles.values()), labels, fontsize=8, loc="upper center", bbox_to_anchor=(0.5, 0.0),
                    frameon=False, ncol=legend_columns(fig.get_figwidth(), labels))
     return svg(fig), notes
 

@@ -56,7 +56,9 @@ def stability_regions(out: str | Path = "stability", formats: Sequence[str] = ("
 
     schemes = list(schemes or DEFAULT_SCHEMES)
     registry.check_names("integrator", schemes) if hasattr(registry, "check_names") else None
-    colours = {s: f"C{k % 10}" for k, s in enumerate(schemes)}  # contours have no markers: a colour each
+    from longtime.reporting.figures.style import styles
+
+    colours = {s: st["color"] for s, st in styles(schemes).items()}  # each scheme's own, as in every figure
     xs = np.linspace(*RE, int(resolution * (RE[1] - RE[0]) / (IM[1] - IM[0]) / 2) * 2 + 1)
     ys = np.linspace(*IM, resolution)
     axis = np.linspace(0.01, 8.0, 800)

@@ -1,17 +1,36 @@
-"""How schemes look in every figure: one colour per scheme family (the module of
-longtime.integrators that defines it, or the built-in family it subclasses), a marker per
-scheme within it, legends outside the axes; and a figure as inline SVG."""
+"""How schemes look in every figure: one colour and one marker per scheme, the same in every
+figure of the results page and of ``longtime.plot`` and the same from run to run; legends
+outside the axes; and a figure as inline SVG with ids of its own.
+
+A scheme's look is a (colour, marker) pair of PALETTE x MARKERS, by a fixed rule: longtime's
+own schemes, sorted by name, take the pairs in turn (the k-th: colour k mod 20, marker k mod
+11, so the first 220 pairs are distinct and neighbours by name differ in both); a scheme
+that is not longtime's (a plugin's) takes a pair by a hash of its name (md5) among those the
+built-in schemes leave free, so installing a plugin changes no other scheme's look. A figure
+of more than MAX_CURVES schemes greys all but the schemes on the problem's Pareto front, the
+fastest and the next fastest at each accuracy decade (``emphasis``), so that its legend
+stays legible; the greyed schemes are one legend entry."""
 from __future__ import annotations
 
+import functools
+import hashlib
 import io
-from typing import Sequence
+import itertools
+import re
+from typing import Iterable, Sequence
 
 from longtime.reporting.figures import collect_minor_ticks, plain_log_ticks, pyplot
 
 LINE_STYLES = ("-", "--", ":", "-.")
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "*", "h")
-FAMILY_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2",
-                  "#17becf", "#7f7f7f", "#bcbd22")
+# twenty colours told apart on screen and in print: tab10 (its grey a gold), then ten darker or stronger ones
+# (no grey: grey marks the schemes a crowded figure sets back, and undetermined map cells)
+PALETTE = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22",
+           "#e7ba52", "#393b79", "#637939", "#8c6d31", "#843c39", "#7b4173", "#3182bd", "#e6550d", "#31a354",
+           "#756bb1", "#ad494a")
+# a figure with more schemes than this draws the Pareto front's in colour and the rest grey
+MAX_CURVES = 10
+GREY = "#c8c8c8"
 
 
 def family(scheme: str) -> str:
@@ -29,17 +48,52 @@ def family(scheme: str) -> str:
     return builtin.rsplit(".", 1)[-1]
 
 
-def styles(schemes: Sequence[str]) -> dict[str, dict[str, str]]:
-    """scheme -> {color, marker}: one colour per family, one marker per scheme within it."""
-    fams = sorted({family(s) for s in schemes})
-    out, used = {}, {}
-    for s in sorted(schemes):
-        f = family(s)
-        k = used.get(f, 0)
-        used[f] = k + 1
-        out[s] = {"color": FAMILY_COLOURS[fams.index(f) % len(FAMILY_COLOURS)],
-                  "marker": MARKERS[k % len(MARKERS)]}
-    return out
+@functools.lru_cache(maxsize=1)
+def _built_in_schemes() -> tuple[str, ...]:
+    from longtime.core import registry
+
+    return tuple(sorted(n for n, cls in registry.integrators().items() if cls.__module__.startswith("longtime.")))
+
+
+def _pair(k: int) -> dict[str, str]:
+    return {"color": PALETTE[k % len(PALETTE)], "marker": MARKERS[k % len(MARKERS)]}
+
+
+def scheme_style(scheme: str) -> dict[str, str]:
+    """{color, marker} of ``scheme``, the same in every figure and every run (the module's
+    rule: longtime's own schemes by their sorted names, another by a hash of its name)."""
+    own = _built_in_schemes()
+    if scheme in own:
+        return _pair(own.index(scheme))
+    pairs = len(PALETTE) * len(MARKERS)  # distinct for k < 220 (20 and 11 are coprime)
+    free = max(1, pairs - len(own))
+    digest = int(hashlib.md5(scheme.encode()).hexdigest(), 16)
+    return _pair(len(own) + digest % free)
+
+
+def styles(schemes: Iterable[str]) -> dict[str, dict[str, str]]:
+    """scheme -> {color, marker}: each scheme's own (``scheme_style``)."""
+    return {s: scheme_style(s) for s in sorted(set(schemes))}
+
+
+def emphasis(style: dict[str, dict[str, str]], schemes: Sequence[str], front: Iterable[str]) \
+        -> tuple[dict[str, dict[str, str]], set[str]]:
+    """(style, greyed): with more than MAX_CURVES ``schemes``, those not in ``front`` (the
+    problem's Pareto front) grey and without a marker; else ``style`` as it is."""
+    front = set(front)
+    if len(set(schemes)) <= MAX_CURVES or not front:
+        return style, set()
+    greyed = {s for s in schemes if s not in front}
+    return {**style, **{s: {"color": GREY, "marker": ""} for s in greyed}}, greyed
+
+
+def front_schemes(rows: list[dict]) -> set[str]:
+    """The schemes fastest, or next fastest of another scheme, at some accuracy decade of
+    one problem's rows (report.pareto)."""
+    from longtime.reporting.report import pareto, pareto_field
+
+    field = pareto_field(rows)
+    return {r["integrator"] for p in (pareto(rows, field) if field else []) for r in (p["best"], p["next"]) if r}
 
 
 def svg(fig) -> str:
@@ -64,7 +118,25 @@ def svg(fig) -> str:
         fig.savefig(buf, format="svg", bbox_inches=box)
     pyplot().close(fig)
     text = buf.getvalue()
-    return text[text.index("<svg"):]
+    return unique_ids(text[text.index("<svg"):])
+
+
+_FIGURES = itertools.count()
+
+
+def unique_ids(text: str) -> str:
+    """The SVG with every element id (and every reference to one: url(#..), href="#..")
+    prefixed by one of its own: a digest of the figure and a count of this process's
+    figures, so that many inline figures on one page share no id."""
+    prefix = f"f{hashlib.md5(text.encode()).hexdigest()[:6]}{next(_FIGURES)}-"
+    ids = set(re.findall(r'\bid="([^"]+)"', text))
+    if not ids:
+        return text
+    text = re.sub(r'\bid="([^"]+)"', lambda m: f'id="{prefix}{m.group(1)}"', text)
+    text = re.sub(r"url\(#([^)]+)\)", lambda m: f"url(#{prefix}{m.group(1)})" if m.group(1) in ids else m.group(0),
+                  text)
+    return re.sub(r'((?:xlink:)?href)="#([^"]+)"',
+                  lambda m: f'{m.group(1)}="#{prefix}{m.group(2)}"' if m.group(2) in ids else m.group(0), text)
 
 
 # a legend of more entries than this goes below the axes, in columns, rather than beside them
@@ -73,9 +145,9 @@ LEGEND_BESIDE = 14
 
 
 def legend_columns(width_in: float, labels) -> int:
-    """How many columns of ``labels`` fit across ``width_in`` inches at font size 7."""
+    """How many columns of ``labels`` fit across ``width_in`` inches at font size 8."""
     longest = max((len(str(x)) for x in labels), default=10)
-    return max(1, int(width_in / (0.3 + 0.065 * longest)))
+    return max(1, int(width_in / (0.3 + 0.075 * longest)))
 
 
 def legend_outside(ax, handles=None, labels=None) -> None:
@@ -88,5 +160,5 @@ def legend_outside(ax, handles=None, labels=None) -> None:
                   frameon=False)
         return
     width = ax.figure.get_figwidth()
-    ax.legend(handles, labels, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), borderaxespad=0.0,
+    ax.legend(handles, labels, fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.16), borderaxespad=0.0,
               frameon=False, ncol=legend_columns(width, labels))

@@ -11,7 +11,7 @@ import numpy as np
 
 from longtime.core.fmt import positive
 from longtime.reporting.figures import pyplot
-from longtime.reporting.figures.style import svg
+from longtime.reporting.figures.style import legend_columns, scheme_style, svg
 from longtime.reporting.rowtext import setting
 from longtime.reporting.verdict import CHECK_COST_FACTOR, CHECK_ERROR_FACTOR, Verdict, check_holds
 
@@ -20,13 +20,20 @@ NONE = "#ffffff"
 
 
 def scheme_colours(schemes: list[str]) -> dict[str, Any]:
-    """One distinct colour per winning scheme of a map (tab20, then tab20b: a map has fewer
-    winners than schemes, and neighbours must differ even within a family)."""
-    import matplotlib
+    """Each winning scheme's colour: its own, as in every figure (style.scheme_style)."""
+    return {s: scheme_style(s)["color"] for s in schemes}
 
-    palette = [*matplotlib.colormaps["tab20"].colors[::2], *matplotlib.colormaps["tab20"].colors[1::2],
-               *matplotlib.colormaps["tab20b"].colors]
-    return {s: palette[i % len(palette)] for i, s in enumerate(schemes)}
+
+def text_colour(fill: Any) -> str:
+    """Dark text on a light fill, white on a dark or middle one (luminance below 0.5)."""
+    from matplotlib.colors import to_rgb
+
+    r, g, b = to_rgb(fill)
+    return "#ffffff" if 0.2126 * r + 0.7152 * g + 0.0722 * b < 0.5 else "#111111"
+
+
+# the text of a winner map's cells, points: legible at 100 % zoom
+CELL_FONT = 9.5
 
 
 def _edges(values: list[float]) -> np.ndarray:
@@ -49,7 +56,7 @@ def winner_map_svg(v: Verdict) -> str | None:
     winners = list(dict.fromkeys(d.best.scheme for d in v.grid.values() if d.best is not None))
     colours = scheme_colours(winners)
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(1.0 + 1.1 * len(horizons), 0.8 + 0.3 * len(targets)))
+    fig, ax = plt.subplots(figsize=(1.0 + 1.7 * len(horizons), 0.8 + 0.4 * len(targets)))
     xe, ye = _edges(horizons), _edges(targets)
     cells, fills = [], []  # the cells as one collection, the edges between them as two
     for i, t in enumerate(targets):
@@ -61,7 +68,7 @@ def winner_map_svg(v: Verdict) -> str | None:
                 text = setting(d.best.row) or d.best.scheme
                 # inside its cell, hence inside the axes: the layout need not measure it
                 ax.text(math.sqrt(xe[j] * xe[j + 1]), math.sqrt(ye[i] * ye[i + 1]), text, ha="center",
-                        va="center", fontsize=6.5, color="#111").set_in_layout(False)
+                        va="center", fontsize=CELL_FONT, color=text_colour(fills[-1])).set_in_layout(False)
     ax.add_collection(PolyCollection(cells, facecolors=fills, linewidths=0, zorder=1), autolim=False)
     ax.add_collection(LineCollection([[(x, 0), (x, 1)] for x in xe], colors="white", linewidths=0.6, zorder=2,
                                      transform=ax.get_xaxis_transform()), autolim=False)
@@ -93,8 +100,10 @@ def winner_map_svg(v: Verdict) -> str | None:
         handles += [Line2D([], [], marker="o", mfc="none", mec="#111", mew=1.6, ls="none",
                            label="checked: held (at the measured error)"),
                     Line2D([], [], marker="X", mfc="#b71c1c", mec="#b71c1c", ls="none", label="checked: missed (on the edge: off the map)")]
-    ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
-              frameon=False, ncol=1 if len(handles) <= 18 else 2)
+    # below the map, so that the figure is no wider than the map and the page shows it at full size
+    below = 0.7 / (0.4 * len(targets))  # inches under the axes for the tick labels and the axis label
+    ax.legend(handles=handles, fontsize=9, loc="upper center", bbox_to_anchor=(0.5, -below), borderaxespad=0.0,
+              frameon=False, ncol=legend_columns(fig.get_figwidth(), [h.get_label() for h in handles]))
     return svg(fig)
 
 

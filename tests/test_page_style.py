@@ -1,0 +1,81 @@
+"""The results page and the API's plots: a scheme has one colour and one marker in every
+figure and every run; a crowded figure greys the schemes off the Pareto front; the
+capability matrix says "lost" where a scheme lost the solution; the inline SVGs share no id."""
+import re
+from collections import Counter
+
+import pytest
+
+import longtime
+from longtime.reporting.figures.style import GREY, MARKERS, PALETTE, emphasis, scheme_style, styles, unique_ids
+
+
+@pytest.fixture(scope="module")
+def rows():
+    return longtime.sweep("kepler", ["verlet", "rk4"], dt=[0.02, 0.01], t_final=10, executor="serial",
+                          repeats=1).to_dict("records")
+
+
+def test_a_scheme_has_the_same_colour_in_every_figure(rows):
+    from longtime import plot
+    from longtime.reporting.figures.results import drift_svg, work_precision_svg
+    from longtime.reporting.figures.verdict import scheme_colours
+
+    colour = scheme_style("verlet")["color"]
+    other = scheme_style("rk4")["color"]
+    assert colour != other
+    # whatever else a figure holds
+    assert styles(["verlet", "rk4"])["verlet"] == styles(["verlet", "euler", "dop853", "heyoka"])["verlet"]
+    precision = work_precision_svg(rows, "l2_error", styles(["verlet", "rk4"]))
+    drift, _ = drift_svg(rows, styles(["verlet", "rk4"]))
+    for figure in (precision, drift):
+        assert f"stroke: {colour}" in figure and f"stroke: {other}" in figure
+    assert scheme_colours(["verlet", "rk4"])["verlet"] == colour  # the winner maps
+    assert plot.scheme_styles(["verlet", "euler"])["verlet"]["color"] == colour  # the API's plots
+
+
+def test_the_looks_follow_a_fixed_rule():
+    from longtime.core import registry
+
+    own = sorted(n for n, c in registry.integrators().items() if c.__module__.startswith("longtime."))
+    looks = [(scheme_style(s)["color"], scheme_style(s)["marker"]) for s in own]
+    assert len(set(looks)) == len(own)  # every built-in scheme its own pair
+    assert looks[0] == (PALETTE[0], MARKERS[0]) and looks[1] == (PALETTE[1], MARKERS[1])
+    plugin = scheme_style("some-plugin-scheme")
+    assert (plugin["color"], plugin["marker"]) not in looks and plugin == scheme_style("some-plugin-scheme")
+
+
+def test_a_crowded_figure_greys_the_schemes_off_the_front():
+    schemes = [f"s{k}" for k in range(12)]
+    style = {s: {"color": "#123456", "marker": "o"} for s in schemes}
+    shown, greyed = emphasis(style, schemes, ["s0", "s5"])
+    assert greyed == set(schemes) - {"s0", "s5"} and shown["s3"]["color"] == GREY and shown["s5"] == style["s5"]
+    assert emphasis(style, schemes[:10], ["s0"]) == (style, set())
+
+
+def test_the_capability_matrix_flags_a_lost_solution():
+    from longtime.reporting.page import _capability_matrix
+
+    rows = [{"problem": "kepler", "integrator": "euler", "status": "ok", "solution_lost": True},
+            {"problem": "kepler", "integrator": "euler", "status": "ok", "solution_lost": True},
+            {"problem": "kepler", "integrator": "rk4", "status": "ok", "solution_lost": False},
+            {"problem": "fpu", "integrator": "rk4", "status": "ok", "solution_lost": True},
+            {"problem": "fpu", "integrator": "rk4", "status": "ok"}]
+    html = _capability_matrix(rows)
+    cells = re.findall(r'<td class="(\w+) cap"[^>]*>([^<]*)</td>', html)
+    # schemes by name, problems by name: euler (fpu: not in the run), rk4 on fpu, rk4 on kepler
+    assert cells == [("lost", "lost"), ("lost", "lost 1/2"), ("ok", "ok")]
+
+
+def test_the_inline_figures_share_no_id(rows):
+    from longtime.reporting.page import build_page
+
+    page = build_page(rows, [], drift=True, jobs=1)
+    ids = Counter(re.findall(r'\bid="([^"]+)"', page))
+    assert len(ids) > 20 and [k for k, n in ids.items() if n > 1] == []
+    # every reference to an id points at one of the page's
+    refs = set(re.findall(r'url\(#([^)]+)\)', page)) | set(re.findall(r'href="#([^"]+)"', page))
+    assert refs <= set(ids)
+    svg = '<svg><defs><path id="m1"/></defs><use xlink:href="#m1"/><g clip-path="url(#m1)"/></svg>'
+    once, twice = unique_ids(svg), unique_ids(svg)
+    assert once != twice and 'xlink:href="#' in once and re.search(r'id="(f\w+-m1)"', once)
