@@ -77,8 +77,12 @@ def test_errors_cover_only_the_samples_up_to_the_reference_horizon():
     assert row["l2_error"] == 0.0 and row["error_horizon"] == 2.0 and row["final_error"] is None
     assert row["reference_horizon"] == 2.5 and row["reference_error"] == 1e-12
     row = evaluate(p, traj, ref, Trust("exact", 1e-8, 4.0, 1e-12, "test"))
-    assert row["final_error"] == pytest.approx(4.0) and row["error_horizon"] == 4.0
-    assert row["l2_error"] == pytest.approx(np.sqrt(17 / 5))  # |u_ref| = 1 at every sample
+    # each component against the reference's RMS variation of it over the samples
+    scale = ref.std(axis=0)
+    dev = np.abs(U - ref) / scale
+    assert row["final_error"] == pytest.approx(dev[-1].max()) and row["error_horizon"] == 4.0
+    assert row["l2_error"] == pytest.approx(np.sqrt((dev**2).mean(axis=0)).max())
+    assert row["error_curve"]["l2"][-1] == pytest.approx(row["l2_error"], rel=1e-5)
     row = evaluate(p, traj, None)
     assert row["l2_error"] is None and row["error_horizon"] is None and row["reference_horizon"] is None
 
@@ -96,3 +100,39 @@ def test_drift_envelope_keeps_the_peaks_at_log_spaced_times():
     late = tau > 100  # bins wider than the period pi there
     # each kept point is its bin's peak: the envelope 1e-6 (1 + t), not a random phase
     assert np.all(e[late] >= 0.9e-6 * (1 + tau[late]))
+
+
+def test_a_drifting_component_does_not_hide_a_lost_planar_motion():
+    """charged-particle's shape: a circle of radius 0.4 in the plane and x3 = 0.1 + 0.2 t.
+    A scheme that keeps x3 exactly but walks the circle's phase off by 0.3 rad at t = 1e3
+    is off by ~0.4 of the planar motion, while against the state (dominated by x3 ~ 200)
+    its error is 1e-3."""
+    from longtime.measure.metrics import motion_scale, solution_errors
+
+    t = np.linspace(0.0, 1000.0, 10_001)
+    phase = 0.3 * t / t[-1]
+    ref = np.column_stack([0.4 * np.cos(t), 0.4 * np.sin(t), 0.1 + 0.2 * t])
+    u = np.column_stack([0.4 * np.cos(t + phase), 0.4 * np.sin(t + phase), 0.1 + 0.2 * t])
+    state = np.sqrt(np.sum((u - ref) ** 2) / np.sum(ref**2))
+    assert state < 2e-3
+    e, l2, scale = solution_errors(u, ref)
+    assert scale[:2] == pytest.approx([0.4 / np.sqrt(2)] * 2, rel=1e-3) and scale[2] == pytest.approx(0.2 * 1000 / np.sqrt(12), rel=1e-3)
+    # at most a chord of 0.3 rad, 2 r sin(0.15), over the RMS variation r / sqrt(2)
+    assert e.max() == pytest.approx(2 * np.sin(0.15) * np.sqrt(2), rel=0.02)
+    assert 0.15 < l2[-1] < 0.3 and l2[-1] > 100 * state
+    # a constant component is measured against MOTION_FLOOR of the largest motion, not against 0
+    const = np.column_stack([ref[:, :2], np.full(t.size, 5.0)])
+    assert motion_scale(const)[2] == pytest.approx(1e-3 * 0.4 / np.sqrt(2), rel=1e-3)
+
+
+def test_samples_a_period_apart_take_the_motion_from_the_window():
+    """Samples evenly spaced by the period see a periodic motion at one phase: its variation
+    over them is 0; the window's log-spaced times see the whole orbit."""
+    from longtime.measure.metrics import motion_scale
+
+    t = 2 * np.pi * np.arange(10_001)
+    strobe = np.column_stack([np.cos(t), np.sin(t)])
+    assert motion_scale(strobe)[1] < 1e-9  # sin(2 pi k): nothing moves at the samples
+    w = np.logspace(-3, 0, 1001) * t[-1] / 100
+    window = np.column_stack([np.cos(w), np.sin(w)])
+    assert motion_scale(strobe, window) == pytest.approx([1 / np.sqrt(2)] * 2, rel=0.15)

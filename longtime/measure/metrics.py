@@ -5,12 +5,17 @@ error where I(u0) = 0. Per invariant NAME: NAME.max, NAME.final, NAME.mean (time
 e_I by the trapezoid rule over the samples, which are every step up to max_samples),
 NAME.t_1pct, NAME.t_50pct (first sample time with e_I > 1 % / 50 %, null if never).
 Against the reference, over the samples up to its horizon (``error_horizon`` is the last
-one): ``l2_error`` = sqrt(sum |u - u_ref|^2 / sum |u_ref|^2), ``final_error`` the relative
-error at the last sample, null when the horizon ends before it.
+one), every solution error is relative to the scale of the motion (``motion_scale``): each
+component j of u - u_ref is divided by s_j, the reference's RMS variation of that component
+about its mean over those samples (at least MOTION_FLOOR times the largest s_k), so that a
+drifting or constant component cannot hide a lost solution. The error at a sample is
+e(t) = max_j |u_j - u_ref,j| / s_j; ``l2_error`` = max_j sqrt(mean_i (u_ij - u_ref,ij)^2) / s_j
+(the RMS over the samples of the worst component); ``final_error`` = e at the last sample,
+null when the horizon ends before it; ``error_curve`` keeps e's upper envelope and the
+l2_error up to each of its times (``error_curve``).
 Growth law of each error (longtime.measure.growth): NAME.growth, NAME.growth_ci, NAME.growth_class,
 NAME.growth_reason, NAME.growth_windows, NAME.saturated_t per invariant, and the same as
-``error.`` for the relative solution error |u - u_ref| / |u_ref| over the samples up to the
-horizon. ``drift_curves`` keeps the drift curve of every invariant (``drift_curve``: the
+``error.`` for the solution error e(t) over the samples up to the horizon. ``drift_curves`` keeps the drift curve of every invariant (``drift_curve``: the
 first one's alone).
 Diagnostics (``Problem.diagnostics``: quantities watched, not conserved): diag.NAME.max and
 diag.NAME.final of |D(t) - D(0)| / |D(0)| (absolute where D(0) = 0) and their curves in
@@ -38,6 +43,10 @@ DRIFT_POINTS = 80  # points of the drift curve each row keeps (drift_envelope)
 # a relative error (l2, final, or the solution error at a sample) from this on is O(1): the
 # solution is not followed (a row's ``solution_lost``, a chaotic row's predictability horizon)
 O1_ERROR = 0.5
+# a component whose reference moves less than this fraction of the largest component's motion
+# is measured against that fraction (a constant component has no motion of its own)
+MOTION_FLOOR = 1e-3
+WINDOW_POINTS = 1001  # reference states at log-spaced times of the run's first hundredth (motion_window)
 
 
 def finite_or_none(x) -> float | None:
@@ -54,6 +63,82 @@ def relative_error(values: np.ndarray) -> np.ndarray:
     else:
         num, den = np.linalg.norm(diff, axis=1), float(np.linalg.norm(v0))
     return num / den if den > 0 else num
+
+
+def motion_scale(reference: np.ndarray, window: np.ndarray | None = None) -> np.ndarray:
+    """s_j of each component of ``reference`` (samples x components): its RMS variation about
+    its mean over the samples, or over ``window`` (reference states at log-spaced times of
+    the run's start, ``motion_window``) where that is larger, at least MOTION_FLOOR times
+    the largest one; the largest magnitude of the state (or 1) for every component where
+    nothing moves. Samples evenly spaced by a period see a periodic motion at one phase
+    only (kepler's 10,001 samples over 10,000 periods): the window's times, log-spaced,
+    alias with no period."""
+    reference = np.asarray(reference, dtype=float)
+    sigma = reference.std(axis=0)
+    if window is not None and len(window) >= 2 and np.isfinite(window).all():
+        sigma = np.maximum(sigma, np.asarray(window, dtype=float).std(axis=0))
+    top = float(np.max(sigma)) if sigma.size else 0.0
+    if not top > 0:
+        size = float(np.max(np.abs(reference))) if reference.size else 0.0
+        return np.full(reference.shape[1], size if size > 0 else 1.0)
+    return np.maximum(sigma, MOTION_FLOOR * top)
+
+
+def motion_window(problem: Problem, t_end: float, trust: Trust | None) -> np.ndarray | None:
+    """The reference states at WINDOW_POINTS log-spaced times of [t0, t0 + W], W = the
+    run's span / 100 (its first hundredth, where the reference is trusted), for
+    ``motion_scale``; None where the reference cannot give them."""
+    from longtime.measure.reference import ReferenceUnavailable, reference_states
+
+    span = min(float(t_end - problem.t0), float(trust.horizon - problem.t0)) if trust else float(t_end - problem.t0)
+    if trust is None or not span > 0:
+        return None
+    times = problem.t0 + span / 100 * np.logspace(-3, 0, WINDOW_POINTS)
+    precision = "double" if trust.source == "exact" else trust.source
+    try:
+        return reference_states(problem, times, precision)
+    except (ReferenceUnavailable, ValueError, RuntimeError):
+        return None
+
+
+def solution_errors(U: np.ndarray, reference: np.ndarray,
+                    window: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(e, l2, scale) of states ``U`` against ``reference`` (the same samples): e(t) =
+    max_j |u_j - u_ref,j| / s_j at each sample, s = motion_scale(reference) over all the
+    samples; l2 at each sample = the l2_error of the samples up to it, each with the motion
+    scale of those samples (the l2_error a run ending there reports). ``window``: see
+    motion_scale."""
+    scale = motion_scale(reference, window)
+    diff = U - reference
+    pointwise = (np.abs(diff) / scale).max(axis=1)
+    count = np.arange(1, diff.shape[0] + 1, dtype=float)[:, None]
+    # the running RMS variation of each component (mean and mean square up to each sample)
+    mean = np.cumsum(reference, axis=0) / count
+    variance = np.maximum(np.cumsum(reference**2, axis=0) / count - mean**2, 0.0)
+    running = np.sqrt(variance)
+    if window is not None and len(window) >= 2 and np.isfinite(window).all():
+        running = np.maximum(running, np.asarray(window, dtype=float).std(axis=0))
+    top = running.max(axis=1, keepdims=True)
+    size = np.maximum.accumulate(np.abs(reference).max(axis=1))[:, None]
+    still = np.where(size > 0, size, 1.0)  # nothing has moved yet: the state's size
+    running = np.where(top > 0, np.maximum(running, MOTION_FLOOR * top), still)
+    l2 = np.sqrt((np.cumsum(diff**2, axis=0) / count / running**2).max(axis=1))
+    l2[-1] = float(np.sqrt((diff**2).mean(axis=0) / scale**2).max())  # the whole run's, without cancellation
+    return pointwise, l2, scale
+
+
+def error_curve(t: np.ndarray, pointwise: np.ndarray, l2: np.ndarray,
+                points: int = DRIFT_POINTS) -> dict[str, Any] | None:
+    """The solution error as a curve small enough to keep in the row: e(t)'s upper envelope
+    (drift_envelope: ``t``, ``error``) and ``l2``, the l2_error over the samples up to each
+    of those times (6 significant digits). Predictions at a horizon within the run read it."""
+    curve = drift_envelope("solution", t, pointwise, points, kind="curve")
+    if curve is None:
+        return None
+    tau = t - t[0]
+    idx = np.clip(np.searchsorted(tau, np.asarray(curve["t"]) * (1 + 1e-9), side="right") - 1, 0, t.size - 1)
+    curve["l2"] = [float(f"{l2[i]:.6g}") for i in idx]
+    return curve
 
 
 def time_mean(t: np.ndarray, y: np.ndarray) -> float:
@@ -148,6 +233,7 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
         "l2_error": None,  # null unless a reference is at hand
         "final_error": None,
         "error_horizon": None,  # the last sample time the errors cover
+        "error_curve": None,  # the solution error's curve (null without a reference)
         "drift_curve": None,  # null: no invariant (the results page then runs nothing again)
         "drift_curves": None,  # every invariant's curve, in the problem's order
         "diag_curves": None,  # every diagnostic's curve
@@ -192,17 +278,16 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
             bad = int(np.argmin(np.isfinite(reference[:k]).all(axis=1)))
             notes.append(f"the reference is not finite at t = {t[bad]:.6g}: no error measured")
         elif k >= 2:
-            diff = np.linalg.norm(U[:k] - reference[:k], axis=1)
-            ref = np.linalg.norm(reference[:k], axis=1)
-            row["l2_error"] = finite_or_none(np.sqrt(np.sum(diff**2) / np.sum(ref**2)))
-            # growth law of the relative error |u - u_ref| / |u_ref|, up to the horizon
-            rel = diff / np.where(ref > 0, ref, 1.0)
+            rel, l2, _ = solution_errors(U[:k], reference[:k], motion_window(problem, float(t[k - 1]), trust))
+            row["l2_error"] = finite_or_none(l2[-1])
+            row["error_curve"] = error_curve(t[:k], rel, l2)
+            # growth law of the error relative to the motion, up to the horizon
             row.update(growth_fields("error", t[:k], rel, problem.t0, diverged, steps=steps))
             row["error_horizon"] = float(t[k - 1])
             if problem.chaotic:
                 row["predictability_t"] = predictability(t[:k], rel, O1_ERROR)
             if k == finite:
-                row["final_error"] = finite_or_none(diff[-1] / ref[-1] if ref[-1] > 0 else diff[-1])
+                row["final_error"] = finite_or_none(rel[-1])
     row.update(traj.extra)
     if notes:
         row["message"] = "; ".join(notes)
