@@ -48,12 +48,9 @@ def stores(tmp_path_factory):
 
 def _run(setting: V.Setting, horizon: float) -> dict:
     out = io.StringIO()
-    row = setting.row
-    argv = ["run", "-p", row["problem"], "-i", row["integrator"], "--t-final", repr(horizon), "--repeats", "1",
-            "--min-time", "0", "--format", "json", "--no-store"]
-    for key, flag in (("dt", "--dt"), ("tol", "--tol"), ("order", "--order")):
-        if row.get(key):
-            argv += [flag, f"{row[key]:g}" if key != "order" else str(int(row[key]))]
+    argv = V.run_command(setting, horizon)[1:] + ["--repeats", "1", "--min-time", "0", "--format", "json",
+                                                  "--no-store"]
+    argv[argv.index("--t-final") + 1] = repr(horizon)
     with redirect_stdout(out):
         assert main(argv) == 0
     return json.loads(out.getvalue())[0]

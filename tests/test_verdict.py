@@ -178,11 +178,14 @@ def test_checks_are_planned_as_groups_that_test_the_rank_within_budget():
     assert all(c.horizon <= c.setting.reach for c in plan if c.role == "best")
     wide = V.plan_checks(ROWS, limit=6, budget_s=1e3, reference_rate=free, total_s=1e9)
     assert {c.horizon for c in wide} == {1e5}  # not past rk4's reach (1e5)
-    # the total time bounds the checks: TIMED_RUNS x the predicted CPU, plus the reference's
-    assert V.plan_checks(ROWS, budget_s=2.0, reference_rate=free, total_s=1.0) == []
+    # the total time bounds the checks: TIMED_RUNS x the predicted CPU, plus the reference's;
+    # a group that does not fit is planned at a nearer horizon where rk4 still wins past its run
+    near = V.plan_checks(ROWS, budget_s=2.0, reference_rate=free, total_s=1.0)
+    assert {c.horizon for c in near} == {1e3} and V.TIMED_RUNS * sum(c.predicted_cpu() for c in near) <= 1.0
+    assert V.plan_checks(ROWS, budget_s=2.0, reference_rate=free, total_s=0.1) == []
     assert V.plan_checks(ROWS, budget_s=1e-4, reference_rate=free) == []
     slow = V.plan_checks(ROWS, limit=6, budget_s=2.0, reference_rate=lambda v: 1e-3, total_s=1e9)
-    assert slow == []  # its reference would take 10 s to t = 1e4: past half of CHECK_REFERENCE_S
+    assert {c.horizon for c in slow} == {1e3}  # its reference would take 10 s to 1e4: past half of CHECK_REFERENCE_S
     assert V.plan_checks(ROWS, budget_s=2.0, reference_rate=lambda v: float("inf"), total_s=1e9) == []
     # a bounded solution error is not extrapolated, so never checked past its run
     assert V.plan_checks([BOUNDED], budget_s=1e3, reference_rate=free) == []
@@ -447,3 +450,17 @@ def test_a_longer_run_that_lost_the_solution_makes_the_setting_lost_from_there()
     s = V.settings([short, lost], V.measure([short]))
     assert len(s) == 1 and s[0].span == 100.0 and s[0].lost_at == 1e4
     assert s[0].error_at(1e3) == pytest.approx(1e-5) and s[0].state_at(1e4) == "lost" and s[0].error_at(2e4) is None
+
+
+def test_an_undetermined_law_whose_slopes_do_not_rise_is_bounded_by_its_steepest_for_a_decade():
+    # heyoka on kepler to 1e4 periods: slopes 2.25, 1.36, 2.21 (round-off and a phase error in turn)
+    row = {**OPEN, "error.growth_windows": [2.25, 1.36, 2.21], "l2_error": 5e-8, "t_final": 100.0}
+    s = V.settings([row], V.measure([row]))[0]
+    assert s.bound_exponent == 2.25 and s.reach == 1e3 and s.extrapolates
+    assert s.error_at(200.0) == pytest.approx(5e-8 * 2 ** 2.25) and s.error_at(1.1e3) is None
+    assert "at most t^2.25 (its steepest window" in s.law_text()
+    # slopes that rise are no bound (the law is still steepening); a solution error's bound is at least t^1
+    rising = V.settings([{**row, "error.growth_windows": [0.2, 0.6, 1.1]}], V.measure([row]))[0]
+    assert rising.bound_exponent is None and not rising.extrapolates
+    flat = V.settings([{**row, "error.growth_windows": [0.3, 0.1, 0.2]}], V.measure([row]))[0]
+    assert flat.bound_exponent == 1.0

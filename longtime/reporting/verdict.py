@@ -505,12 +505,24 @@ def decide(candidates: list[Setting], target: float, horizon: float,
 def deciding_run(s: Setting, horizon: float, db: str | None = None) -> str:
     """The command that would measure ``s``'s law up to ``horizon`` (at least a decade past
     its run: a growth law needs 1.5 decades of t past the early transient)."""
+    return shlex.join(run_command(s, max(horizon, 10 * s.span), db))
+
+
+def run_command(s: Setting, t_final: float, db: str | None = None) -> list[str]:
+    """``longtime run`` of ``s``'s setting to ``t_final``, as arguments: the row's parameters
+    that its scheme takes (a recorded one it does not, heyoka's order, is left out), its
+    other settings."""
+    from longtime.core import registry
+
     row = s.row
-    t_final = max(horizon, 10 * s.span)
+    try:
+        takes = set(registry.integrator_class(row["integrator"]).parameters)
+    except Exception:  # a scheme no longer registered: every recorded parameter
+        takes = set(ROW_PARAMETERS)
     parts = ["longtime", "run", "-p", row["problem"], "-i", row["integrator"]]
     for k in ROW_PARAMETERS:
         v = row.get(k)
-        if positive(v):
+        if positive(v) and k in takes:
             parts += [flag(k), f"{int(v)}" if k == "order" else f"{v:g}"]
     if row.get("settings"):
         import json
@@ -520,7 +532,7 @@ def deciding_run(s: Setting, horizon: float, db: str | None = None) -> str:
     parts += ["--t-final", f"{t_final:g}"]
     if db:
         parts += ["--db", db]
-    return shlex.join(parts)
+    return parts
 
 
 # ------------------------------------------------------------------ a problem's verdict
@@ -794,24 +806,28 @@ def _chaos_group(v: Verdict, rows: list[dict[str, Any]], budget_s: float) -> lis
     return []
 
 
-def _decision_groups(v: Verdict, budget_s: float) -> list[list[PlannedCheck]]:
-    """Per setting the map names as the winner past its run (within its reach), at the
-    farthest horizon where the winner, its runner-up and its open rivals (at most two) fit
-    ``budget_s`` of predicted CPU together: those runs, the farthest first."""
-    best: dict[int, list[PlannedCheck]] = {}
+def _decision_groups(v: Verdict, budget_s: float) -> list[list[list[PlannedCheck]]]:
+    """Per setting the map names as the winner past its run (within its reach), its groups:
+    at each horizon where it wins, the winner, its runner-up and its open rivals (at most
+    two), within ``budget_s`` of predicted CPU together; the farthest horizon first (the
+    planner takes the first that fits the checks' time)."""
+    best: dict[int, list[list[PlannedCheck]]] = {}
     # at each horizon the decision with the most rivals first (the rank tested against most)
     for d in sorted(v.grid.values(), key=lambda d: (-d.horizon, -(d.runner_up is not None) - len(d.open[:2]),
                                                     d.target)):
         b = d.best
-        if b is None or d.horizon <= b.span * (1 + 1e-9) or id(b) in best:
+        if b is None or d.horizon <= b.span * (1 + 1e-9):
+            continue
+        if any(g[0].horizon == d.horizon for g in best.get(id(b), [])):
             continue
         runs = [(b, "best")] + ([(d.runner_up, "runner-up")] if d.runner_up else []) + [(o, "open") for o in d.open[:2]]
         if sum(x.cpu_at(d.horizon) for x, _ in runs) > budget_s:
             continue
         group = f"{v.problem} {d.target:g} T={d.horizon:g}"
         kind = _group_kind(v, [x for x, _ in runs])
-        best[id(b)] = [PlannedCheck(x, d.horizon, v.measure, role, d.target, group, kind) for x, role in runs]
-    return sorted(best.values(), key=lambda g: (-g[0].horizon / g[0].setting.span, g[0].setting.text))
+        best.setdefault(id(b), []).append([PlannedCheck(x, d.horizon, v.measure, role, d.target, group, kind)
+                                           for x, role in runs])
+    return sorted(best.values(), key=lambda gs: (-gs[0][0].horizon / gs[0][0].setting.span, gs[0][0].setting.text))
 
 
 def plan_checks(rows: list[dict[str, Any]], limit: int = CHECKS, budget_s: float = CHECK_BUDGET_S,
@@ -830,14 +846,14 @@ def plan_checks(rows: list[dict[str, Any]], limit: int = CHECKS, budget_s: float
     for v in found.values():
         if v.measure is None:
             continue
-        groups = ([g] if (g := _chaos_group(v, rows, budget_s)) else []) + _decision_groups(v, budget_s)
+        groups = ([[g]] if (g := _chaos_group(v, rows, budget_s)) else []) + _decision_groups(v, budget_s)
         per_problem.append((v, groups))
     # round-robin over problems within each kind, so one problem does not take a kind's turns
     depth = max((len(g) for _, g in per_problem), default=0)
     for k in range(depth):
         for v, groups in per_problem:
             if k < len(groups):
-                pool[groups[k][0].kind].append(groups[k])
+                pool[groups[k][0][0].kind].append(groups[k])
     rates: dict[str, float] = {}
     out: list[PlannedCheck] = []
     chosen, spent = 0, 0.0
@@ -845,19 +861,20 @@ def plan_checks(rows: list[dict[str, Any]], limit: int = CHECKS, budget_s: float
         for kind in CHECK_KINDS:
             if not pool[kind] or chosen >= limit:
                 continue
-            group = pool[kind].pop(0)
-            v = found[group[0].setting.row["problem"]]
+            alternatives = pool[kind].pop(0)
+            v = found[alternatives[0][0].setting.row["problem"]]
             if v.problem not in rates:
                 started = time.perf_counter()
                 rates[v.problem] = rate_of(v)
                 spent += time.perf_counter() - started  # timing the reference is part of the checks' time
-            cost = TIMED_RUNS * sum(c.predicted_cpu() for c in group) + rates[v.problem] * group[0].horizon
-            if not math.isfinite(cost) or spent + cost > total_s or rates[v.problem] * group[0].horizon > \
-                    CHECK_REFERENCE_S / 2:
-                continue
-            out += group
-            chosen += 1
-            spent += cost
+            for group in alternatives:  # the farthest horizon whose runs and reference fit
+                reference = rates[v.problem] * group[0].horizon
+                cost = TIMED_RUNS * sum(c.predicted_cpu() for c in group) + reference
+                if math.isfinite(cost) and spent + cost <= total_s and reference <= CHECK_REFERENCE_S / 2:
+                    out += group
+                    chosen += 1
+                    spent += cost
+                    break
     return out
 
 
