@@ -136,3 +136,12 @@ def test_samples_a_period_apart_take_the_motion_from_the_window():
     w = np.logspace(-3, 0, 1001) * t[-1] / 100
     window = np.column_stack([np.cos(w), np.sin(w)])
     assert motion_scale(strobe, window) == pytest.approx([1 / np.sqrt(2)] * 2, rel=0.15)
+
+
+def test_a_component_that_follows_a_line_in_t_drifts():
+    from longtime.measure.metrics import drifting_components
+
+    t = np.linspace(0.0, 1000.0, 10_001)
+    ref = np.column_stack([0.4 * np.cos(t), 0.4 * np.sin(t), 0.1 + 0.2 * t, np.full(t.size, 3.0)])
+    assert drifting_components(t, ref) == 1  # x3; the circle oscillates, the constant does not move
+    assert drifting_components(t, ref[:, :2]) == 0

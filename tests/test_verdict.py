@@ -464,3 +464,14 @@ def test_an_undetermined_law_whose_slopes_do_not_rise_is_bounded_by_its_steepest
     assert rising.bound_exponent is None and not rising.extrapolates
     flat = V.settings([{**row, "error.growth_windows": [0.3, 0.1, 0.2]}], V.measure([row]))[0]
     assert flat.bound_exponent == 1.0
+
+
+def test_a_drift_dominated_problem_is_a_class_the_checks_cover():
+    free = lambda v: 0.0  # noqa: E731
+    drifting = [{**r, "drifting_components": 1} for r in ROWS]
+    plan = V.plan_checks(drifting, budget_s=2.0, reference_rate=free, total_s=1e9)
+    assert plan and {c.kind for c in plan} == {"drifting"}
+    # with a chaotic problem beside it, each class gets a group before any gets a second
+    chaotic = _chaotic([_row("gauss6", 0.004, 8e-12, 0.002, "quadratic", 2.0, t_final=10.0)])
+    both = V.plan_checks(drifting + chaotic, limit=2, budget_s=2.0, reference_rate=free, total_s=1e9)
+    assert {c.kind for c in both} == {"drifting", "chaotic"}

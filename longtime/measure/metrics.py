@@ -12,7 +12,8 @@ drifting or constant component cannot hide a lost solution. The error at a sampl
 e(t) = max_j |u_j - u_ref,j| / s_j; ``l2_error`` = max_j sqrt(mean_i (u_ij - u_ref,ij)^2) / s_j
 (the RMS over the samples of the worst component); ``final_error`` = e at the last sample,
 null when the horizon ends before it; ``error_curve`` keeps e's upper envelope and the
-l2_error up to each of its times (``error_curve``).
+l2_error up to each of its times (``error_curve``); ``drifting_components`` counts the
+reference's components that drift (``drifting_components``).
 Growth law of each error (longtime.measure.growth): NAME.growth, NAME.growth_ci, NAME.growth_class,
 NAME.growth_reason, NAME.growth_windows, NAME.saturated_t per invariant, and the same as
 ``error.`` for the solution error e(t) over the samples up to the horizon. ``drift_curves`` keeps the drift curve of every invariant (``drift_curve``: the
@@ -46,6 +47,8 @@ O1_ERROR = 0.5
 # a component whose reference moves less than this fraction of the largest component's motion
 # is measured against that fraction (a constant component has no motion of its own)
 MOTION_FLOOR = 1e-3
+# a component whose samples a straight line in t explains to this fraction drifts (drifting_components)
+DRIFT_R2 = 0.9
 WINDOW_POINTS = 1001  # reference states at log-spaced times of the run's first hundredth (motion_window)
 
 
@@ -125,6 +128,22 @@ def solution_errors(U: np.ndarray, reference: np.ndarray,
     l2 = np.sqrt((np.cumsum(diff**2, axis=0) / count / running**2).max(axis=1))
     l2[-1] = float(np.sqrt((diff**2).mean(axis=0) / scale**2).max())  # the whole run's, without cancellation
     return pointwise, l2, scale
+
+
+def drifting_components(t: np.ndarray, reference: np.ndarray) -> int:
+    """How many components of ``reference`` drift: their samples follow a straight line in t
+    (coefficient of determination at least DRIFT_R2, charged-particle's x3 = 0.1 + 0.2 t)
+    over the run; a component that oscillates about a mean over the run is no drift. The verdict's checks cover a drift-dominated problem."""
+    t = np.asarray(t, dtype=float)
+    if t.size < 3 or not np.ptp(t) > 0:
+        return 0
+    x = t - t.mean()
+    y = reference - reference.mean(axis=0)
+    slope = (x @ y) / (x @ x)
+    explained = slope**2 * (x @ x)
+    total = (y**2).sum(axis=0)
+    moving = total > 0
+    return int(np.sum(explained[moving] >= DRIFT_R2 * total[moving]))
 
 
 def error_curve(t: np.ndarray, pointwise: np.ndarray, l2: np.ndarray,
@@ -234,6 +253,7 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
         "final_error": None,
         "error_horizon": None,  # the last sample time the errors cover
         "error_curve": None,  # the solution error's curve (null without a reference)
+        "drifting_components": None,  # components of the reference that drift (null without one)
         "drift_curve": None,  # null: no invariant (the results page then runs nothing again)
         "drift_curves": None,  # every invariant's curve, in the problem's order
         "diag_curves": None,  # every diagnostic's curve
@@ -281,6 +301,7 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
             rel, l2, _ = solution_errors(U[:k], reference[:k], motion_window(problem, float(t[k - 1]), trust))
             row["l2_error"] = finite_or_none(l2[-1])
             row["error_curve"] = error_curve(t[:k], rel, l2)
+            row["drifting_components"] = drifting_components(t[:k], reference[:k])
             # growth law of the error relative to the motion, up to the horizon
             row.update(growth_fields("error", t[:k], rel, problem.t0, diverged, steps=steps))
             row["error_horizon"] = float(t[k - 1])

@@ -761,7 +761,8 @@ class PlannedCheck:
 
 
 # the classes of problem the checks cover, each before a second check of any: a chaotic
-# problem (its predictability horizon), a solution error whose energy drifts, an adaptive
+# problem (its predictability horizon), a drift-dominated one (a state component that drifts,
+# ``drifting_components``, or a solution error whose energy drifts), an adaptive
 # scheme (heyoka, a tolerance), a splitting (a scheme that needs a separable H), the rest
 CHECK_KINDS = ("chaotic", "drifting", "adaptive", "splitting", "other")
 # the checks' total wall-time estimate (seconds): each run's predicted CPU times TIMED_RUNS
@@ -776,8 +777,8 @@ CHAOS_MARGIN_LYAPUNOV = 5.0
 def _group_kind(v: Verdict, runs: list[Setting]) -> str:
     from longtime.core import registry
 
-    if any(s.kind == "drifting" for s in runs):
-        return "drifting"
+    if any(s.kind == "drifting" or (s.row.get("drifting_components") or 0) > 0 for s in runs):
+        return "drifting"  # an energy that drifts, or a state with a drifting component
     if any(positive(s.row.get("tol")) for s in runs):
         return "adaptive"
     for s in runs:
