@@ -475,3 +475,22 @@ def test_a_drift_dominated_problem_is_a_class_the_checks_cover():
     chaotic = _chaotic([_row("gauss6", 0.004, 8e-12, 0.002, "quadratic", 2.0, t_final=10.0)])
     both = V.plan_checks(drifting + chaotic, limit=2, budget_s=2.0, reference_rate=free, total_s=1e9)
     assert {c.kind for c in both} == {"drifting", "chaotic"}
+
+
+def test_the_page_and_the_report_show_checks_of_every_role():
+    from longtime.reporting.page import build_page
+    from longtime.reporting.report import summary
+
+    rows = _chaotic([_row("gauss6", 0.004, 8e-12, 0.002, "quadratic", 2.0, t_final=10.0)])
+    chaos = V.plan_checks(rows, budget_s=1.0, reference_rate=lambda v: 0.0)[0]
+    unmeasured = V.check_row(chaos, {**rows[0], "t_final": chaos.horizon, "l2_error": None, "error_horizon": 5.0})
+    plan = V.plan_checks(ROWS, budget_s=2.0, reference_rate=lambda v: 0.0, total_s=1e9)
+    records = [V.check_row(c, {**c.setting.row, "t_final": c.horizon, "l2_error": 1e3 * c.setting.error,
+                               "error_horizon": c.horizon}) for c in plan]
+    V.judge_ranks(records)
+    checks = [unmeasured, *records]
+    assert V.check_counts(checks)["unjudged"] >= 2  # the unmeasured chaos check, the open rival
+    text = summary(rows + ROWS, checks=checks)
+    assert "checks: " in text and "failed" in text
+    page = build_page(rows + ROWS, [], drift=False, stability=False, checks=checks)
+    assert "not judged" in page
