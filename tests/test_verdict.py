@@ -283,7 +283,8 @@ def test_recommend_bad_input_is_one_line_exit_2(store, capsys, args, message):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["-p", "kepler", "--error", "1e-3", "--horizon", "1e3"], "no rows of kepler in the store; `longtime matrix -p kepler"),
+    (["-p", "kepler", "--error", "1e-3", "--horizon", "1e3"],
+     "no rows of kepler in the store; `longtime matrix -p kepler"),
     (["-p", "harmonic", "--error", "1e-7", "--horizon", "1e4"],
      "`longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 10000"),
     (["-p", "harmonic", "--error", "1e-12", "--horizon", "1e4"], "no stored setting keeps l2_error <= 1e-12"),
@@ -303,7 +304,8 @@ def test_recommend_without_a_store_names_the_command(tmp_path, capsys):
 
 def test_recommend_on_a_store_of_no_verdict_names_the_command(tmp_path):
     rec = V.recommend([{**LINEAR, "status": "diverged"}], "harmonic", 1e-3, 1e3)
-    assert not rec.answered and re.search(r"no ok row of harmonic with an error.*`longtime matrix -p harmonic`", str(rec))
+    assert not rec.answered
+    assert re.search(r"no ok row of harmonic with an error.*`longtime matrix -p harmonic`", str(rec))
 
 
 def test_checks_are_stored_apart_from_the_rows(store):

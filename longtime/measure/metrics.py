@@ -16,13 +16,13 @@ l2_error up to each of its times (``error_curve``); ``drifting_components`` coun
 reference's components that drift (``drifting_components``).
 Growth law of each error (longtime.measure.growth): NAME.growth, NAME.growth_ci, NAME.growth_class,
 NAME.growth_reason, NAME.growth_windows, NAME.saturated_t per invariant, and the same as
-``error.`` for the solution error e(t) over the samples up to the horizon. ``drift_curves`` keeps the drift curve of every invariant (``drift_curve``: the
-first one's alone).
+``error.`` for the solution error e(t) over the samples up to the horizon. ``drift_curves``
+keeps the drift curve of every invariant (``drift_curve``: the first one's alone).
 Diagnostics (``Problem.diagnostics``: quantities watched, not conserved): diag.NAME.max and
 diag.NAME.final of |D(t) - D(0)| / |D(0)| (absolute where D(0) = 0) and their curves in
 ``diag_curves``; never a growth class.
 A problem that declares itself ``chaotic`` adds ``predictability_t``: the first sample time
-at which the relative solution error reaches O1_ERROR (null where it stays below, or
+at which the solution error e(t) reaches O1_ERROR (null where it stays below, or
 without a reference).
 Non-finite values become null: a diverged run is a status, never a NaN in a table.
 """
@@ -133,7 +133,8 @@ def solution_errors(U: np.ndarray, reference: np.ndarray,
 def drifting_components(t: np.ndarray, reference: np.ndarray) -> int:
     """How many components of ``reference`` drift: their samples follow a straight line in t
     (coefficient of determination at least DRIFT_R2, charged-particle's x3 = 0.1 + 0.2 t)
-    over the run; a component that oscillates about a mean over the run is no drift. The verdict's checks cover a drift-dominated problem."""
+    over the run; a component that oscillates about a mean over the run is no drift. The
+    verdict's checks cover a drift-dominated problem."""
     t = np.asarray(t, dtype=float)
     if t.size < 3 or not np.ptp(t) > 0:
         return 0

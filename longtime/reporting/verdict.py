@@ -1,38 +1,42 @@
 """The verdict: which setting (scheme and step or tolerance) keeps a target error up to a
 horizon T at the least cost, predicted from what each stored setting measured.
 
-Each ok setting of a problem gives its cost per unit of simulated time, ``cpu_s / (t_final
-- t0)``, and its error at its final time with the growth law fitted to it
-(longtime.measure.growth). Its predicted error at a horizon T beyond its run is
+A setting is one scheme and its parameters; its longest usable run gives its error and law,
+all its runs' lengths its cost model. Up to its run's final time t_f its error at T is the
+error reached by T (read on its ``error_curve``: never an average over a different span).
+Past t_f, with the growth law fitted to it (longtime.measure.growth),
 
-    e(T) = e(t_final) (T / t_final)^k     (class sqrt, linear or quadratic: k = 1/2, 1, 2)
-    e(T) = e(t_final)                     (class bounded: flat)
+    e(T) = e(t_f) (T / t_f)^k     (class sqrt, linear or quadratic: k = 1/2, 1, 2)
+    e(T) = e(t_f)                 (class bounded: flat)
 
 with k the exponent of the class, not the fitted alpha: the law is the class, whose windows
-agree on it, not the digits of a fit that still carries the run's transient (alpha 1.32 of
-a linear error overpredicts it by 4 at a hundred times the run). Its predicted cost is ``T
-* cpu_s / t_final``. Up to its own t_final a setting predicts its measured error. A class
-is fitted on the last decades of its run, and is trusted only up to
-``TRUST_FACTORS[kind][class]`` times that run's span (its ``reach``; kind: a solution
-error, one whose energy drift will steepen it, or an invariant's error), not past the run
-where its windows' slopes are steepening, and at most as far as its latest window's slope
-would move the prediction by CHECK_ERROR_FACTOR: a bounded solution error can be the
-transient before a phase error's growth, and a power law's exponent can still be changing.
-Past its reach, and past t_final for a setting whose law is undetermined (or faster than
-quadratic, which no power law of the run's span extrapolates), a setting predicts nothing:
-where it could have won, the verdict says "not determined past t = X" and names the run
-that would decide it. A predicted relative error of ``LOST`` or more is O(1): the solution
-is lost there, and the prediction is ``lost``, not a number.
+agree on it, not the digits of a fit that still carries the run's transient. A class is
+trusted only up to ``TRUST_FACTORS[kind][class]`` times that run's span (its ``reach``;
+kind: a solution error, one whose energy drift will steepen it, a chaotic problem's, or an
+invariant's error), not past the run where its windows' slopes are steepening, and at most
+as far as its latest window's slope would move the prediction by CHECK_ERROR_FACTOR. An
+undetermined law whose windows' slopes do not rise is bounded by its steepest slope for
+BOUND_FACTOR times its run. Past its reach a setting predicts nothing: where it could have
+won, the verdict says "not determined past t = X" and names the run that would decide it. A
+predicted error of ``LOST`` or more is O(1): ``lost``, not a number.
 
-The error read is the solution error ``l2_error`` (the relative RMS error over [0, T]; law
-``error.growth_class``) where the problem's rows have a reference, else the energy error
-``H.max`` (the largest relative error of H up to T; law ``H.growth_class``), else the first
-invariant's: ``measure`` says which. An error averaged over the run follows the law of the
-pointwise one (the RMS of C t^k over [0, T] is C T^k / sqrt(2k + 1)), and does not depend
-on where in an oscillation the run stops, as the error at the last sample (``final_error``)
-does. Predictions are checked: the main job re-runs a few of them at the longest horizon
-its budget affords (``plan_checks``, ``run_checks``) and stores the predicted beside the
-measured error and cost (``Store.add_check``).
+On a chaotic problem (rows with a Lyapunov time) no pointwise error is predicted past the
+predictability horizon of the target E, lyapunov_time * ln(E / INITIAL_ROUNDING), at most
+the reference's trusted horizon (``predictability``): the answer there is "no
+double-precision scheme keeps a pointwise error of E past t = X" with the reason, and the
+ensembles' statistical answer where the store has them.
+
+The predicted cost is ``CostModel.at(T)``: fixed + per-time parts fitted on runs of two
+lengths of the setting (set-up and dense-output sampling apart from the stepping), else
+per-time from one run; each prediction says which.
+
+The error read is the solution error ``l2_error`` (the RMS error over [0, T] relative to the
+motion, longtime.measure.metrics; law ``error.growth_class``) where the problem's rows have
+a reference, else the energy error ``H.max`` (law ``H.growth_class``), else the first
+invariant's: ``measure`` says which. Predictions are checked: the main job re-runs groups of
+them, a winner with its runner-up and open rivals so that the rank is tested, covering
+every class of problem it ran (``plan_checks``, ``run_checks``), and stores the predicted
+beside the measured error and cost (``Store.add_check``).
 """
 from __future__ import annotations
 
@@ -622,7 +626,8 @@ class Recommendation:
 def _pick(s: Setting, horizon: float) -> str:
     e = s.error_at(horizon)
     if horizon <= s.span * (1 + 1e-9):
-        how = f"reached by t = {horizon:.4g} in its run to t = {s.span:.4g}" + ("" if s.curve else " (no curve: the run's)")
+        how = f"reached by t = {horizon:.4g} in its run to t = {s.span:.4g}"
+        how += "" if s.curve else " (no curve: the run's)"
     else:
         how = f"{s.law_text()}; {s.error:.2g} measured at t = {s.span:.4g}"
     cost = s.cost.text() if s.cost else "per-time"
@@ -941,9 +946,11 @@ def run_checks(store, run_id: int, rows: list[dict[str, Any]], options=None,
                limit: int = CHECKS, budget_s: float = CHECK_BUDGET_S,
                reference_s: float = CHECK_REFERENCE_S, total_s: float = CHECKS_TOTAL_S) -> list[dict[str, Any]]:
     """Run ``plan_checks``'s checks of ``rows`` (each a cell at its horizon, one at a time in
-    this process under ``options``' timing and time limit, its reference given
+    this process, under ``options``' time limit, timed by at most TIMED_RUNS - 1 runs after
+    its warm-up, its reference given
     ``reference_s`` wall seconds), judge each group's rank (``judge_ranks``) and store each
     with its prediction (``Store.add_check``); returns the stored checks."""
+    from longtime.core.integrator import Timing
     from longtime.execution.cells import cell_of_row, run_cell
     from longtime.execution.matrix import ExecOptions
 
@@ -951,10 +958,12 @@ def run_checks(store, run_id: int, rows: list[dict[str, Any]], options=None,
     if not plan:
         return []
     options = options or ExecOptions()
+    # the warm-up and TIMED_RUNS - 1 timed runs at most (the checks' time estimate), no minimum time
+    timing = Timing(repeats=min(options.timing.repeats, TIMED_RUNS - 1), min_time=0.0)
     records, cells = [], []
     for c in plan:
         cell = cell_of_row(c.setting.row, t_final=c.horizon)
-        row = run_cell(cell, options.max_samples, timing=options.timing, time_limit=options.time_limit,
+        row = run_cell(cell, options.max_samples, timing=timing, time_limit=options.time_limit,
                        reference_budget_s=reference_s)
         records.append(check_row(c, row))
         cells.append(cell)
