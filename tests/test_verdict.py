@@ -431,7 +431,7 @@ def test_no_pointwise_prediction_past_the_predictability_horizon():
     v = V.problem_verdict("double-pendulum", rows)
     d = v.grid[(1e-6, 1e3)]
     assert d.state == "chaotic" and d.best is None and "past t = 22.8 (" in d.limit.text()
-    assert V.decision_text(d) == "no pointwise answer past t = 22.8 (chaos)"
+    assert V.decision_text(d) == "no pointwise answer past t = 22.8 (chaos; a finer target: sooner)"
 
 
 def test_a_chaos_check_is_planned_and_judged():

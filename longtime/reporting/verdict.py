@@ -133,8 +133,8 @@ def measure(rows: Iterable[dict[str, Any]]) -> Measure | None:
     ok = [r for r in rows if r.get("status") == "ok"]
     if any(positive(r.get("l2_error")) and r.get("error.growth_class") for r in ok):
         ref = next((r.get("reference") for r in ok if r.get("reference")), None)
-        return Measure("l2_error", "error", f"the relative RMS error of the solution over [0, T] against the "
-                                            f"{'exact solution' if ref == 'exact' else 'reference'}")
+        return Measure("l2_error", "error", f"the RMS error of the solution over [0, T] relative to its motion, "
+                                            f"against the {'exact solution' if ref == 'exact' else 'reference'}")
     names = [k[: -len(".growth_class")] for r in ok for k in r if k.endswith(".growth_class")
              and r.get(k) and k != "error.growth_class" and positive(r.get(k[: -len(".growth_class")] + ".max"))]
     if not names:
@@ -1043,7 +1043,7 @@ def _range(lo: float, hi: float) -> str:
 
 def decision_text(d: Decision) -> str:
     if d.limit is not None:
-        return f"no pointwise answer past t = {d.limit.horizon:.3g} (chaos)"
+        return f"no pointwise answer past t = {d.limit.horizon:.3g} (chaos; a finer target: sooner)"
     if d.best is not None:
         return d.best.text
     if d.open:
@@ -1065,12 +1065,19 @@ def verdict_lines(v: Verdict, full: bool = False) -> list[str]:
         text = "; ".join(f"{_range(lo, hi)} {decision_text(d)}" for lo, hi, d in groups) or "none predicted"
         lines.append(f"    T = {h:<9.3g}{mark:<6s}{text}")
     kinds = ("invariant",) if v.candidates[0].kind == "invariant" else ("solution", "drifting")
+    chaotic = any(s.kind == "chaotic" for s in v.candidates)
+    if chaotic:
+        kinds = ("chaotic",)
     lines.append("  trusted: " + "; ".join(
-        ("the energy drifting: " if kind == "drifting" else f"{kind} error: ")
+        ("the energy drifting: " if kind == "drifting" else "a chaotic problem's solution error: "
+         if kind == "chaotic" else f"{kind} error: ")
         + ", ".join(f"{k} x{f:g}" for k, f in TRUST_FACTORS[kind].items()) for kind in kinds)
         + f" its run's span; past it, and at a predicted error >= {LOST:g} (lost), nothing is predicted")
     far = max((s.reach for s in v.candidates), default=0.0)
-    if v.horizons and v.horizons[-1] > far * (1 + 1e-9):
+    if chaotic:
+        lines.append(f"  chaotic: past the predictability horizon no run decides a pointwise error; `longtime ensemble "
+                     f"-p {v.problem}` measures which schemes keep the distribution the orbit visits")
+    elif v.horizons and v.horizons[-1] > far * (1 + 1e-9):
         # of the settings reaching farthest, the most accurate there
         s = min((s for s in v.candidates if s.reach == far),
                 key=lambda s: (s._law_at(far) if s.extrapolates else s.error, s.cpu_per_t, s.text))
