@@ -5,12 +5,12 @@ error where I(u0) = 0. Per invariant NAME: NAME.max, NAME.final, NAME.mean (time
 e_I by the trapezoid rule over the samples, which are every step up to max_samples),
 NAME.t_1pct, NAME.t_50pct (first sample time with e_I > 1 % / 50 %, null if never).
 Against the reference, over the samples up to its horizon (``error_horizon`` is the last
-one), every solution error is relative to the scale of the motion (``motion_scale``): each
-component j of u - u_ref is divided by s_j, the reference's RMS variation of that component
-about its mean over those samples (at least MOTION_FLOOR times the largest s_k), so that a
-drifting or constant component cannot hide a lost solution. The error at a sample is
-e(t) = max_j |u_j - u_ref,j| / s_j; ``l2_error`` = max_j sqrt(mean_i (u_ij - u_ref,ij)^2) / s_j
-(the RMS over the samples of the worst component); ``final_error`` = e at the last sample,
+one), every solution error is relative to the size of the motion (``motion_scale``): S =
+sqrt(mean_i sum_j (u_ref,ij - line_j(t_i))^2), line_j the least-squares line in t of
+component j (its mean and any drift taken out), so that a drifting or constant component
+(charged-particle's x3 = 0.1 + 0.2 t) cannot hide a lost solution. The error at a sample is
+e(t) = |u - u_ref| / S; ``l2_error`` = sqrt(mean_i |u_i - u_ref,i|^2) / S; ``final_error`` = e
+at the last sample,
 null when the horizon ends before it; ``error_curve`` keeps e's upper envelope and the
 l2_error up to each of its times (``error_curve``); ``drifting_components`` counts the
 reference's components that drift (``drifting_components``).
@@ -44,11 +44,10 @@ DRIFT_POINTS = 80  # points of the drift curve each row keeps (drift_envelope)
 # a relative error (l2, final, or the solution error at a sample) from this on is O(1): the
 # solution is not followed (a row's ``solution_lost``, a chaotic row's predictability horizon)
 O1_ERROR = 0.5
-# a component whose reference moves less than this fraction of the largest component's motion
-# is measured against that fraction (a constant component has no motion of its own)
-MOTION_FLOOR = 1e-3
 # a component whose samples a straight line in t explains to this fraction drifts (drifting_components)
 DRIFT_R2 = 0.9
+# a motion smaller than this fraction of the state's size is rounding: nothing moves
+STILL = 1e-8
 WINDOW_POINTS = 1001  # reference states at log-spaced times of the run's first hundredth (motion_window)
 
 
@@ -68,27 +67,42 @@ def relative_error(values: np.ndarray) -> np.ndarray:
     return num / den if den > 0 else num
 
 
-def motion_scale(reference: np.ndarray, window: np.ndarray | None = None) -> np.ndarray:
-    """s_j of each component of ``reference`` (samples x components): its RMS variation about
-    its mean over the samples, or over ``window`` (reference states at log-spaced times of
-    the run's start, ``motion_window``) where that is larger, at least MOTION_FLOOR times
-    the largest one; the largest magnitude of the state (or 1) for every component where
-    nothing moves. Samples evenly spaced by a period see a periodic motion at one phase
-    only (kepler's 10,001 samples over 10,000 periods): the window's times, log-spaced,
-    alias with no period."""
-    reference = np.asarray(reference, dtype=float)
-    sigma = reference.std(axis=0)
-    if window is not None and len(window) >= 2 and np.isfinite(window).all():
-        sigma = np.maximum(sigma, np.asarray(window, dtype=float).std(axis=0))
-    top = float(np.max(sigma)) if sigma.size else 0.0
-    if not top > 0:
-        size = float(np.max(np.abs(reference))) if reference.size else 0.0
-        return np.full(reference.shape[1], size if size > 0 else 1.0)
-    return np.maximum(sigma, MOTION_FLOOR * top)
+def detrended_ss(t: np.ndarray, states: np.ndarray) -> np.ndarray:
+    """The motion of ``states`` (samples x components) at times ``t``: at each sample k, the
+    sum over components of the squared residuals of the samples up to k about each
+    component's least-squares line in t (its mean and its drift taken out)."""
+    t = np.asarray(t, dtype=float)
+    x = np.asarray(states, dtype=float)
+    t = t - t.mean()
+    x = x - x.mean(axis=0)  # centred first: the cumulative sums keep their digits
+    n = np.arange(1, t.size + 1, dtype=float)
+    st, stt = np.cumsum(t), np.cumsum(t * t)
+    sx, sxx, stx = np.cumsum(x, axis=0), np.cumsum(x * x, axis=0), np.cumsum(t[:, None] * x, axis=0)
+    ctt = stt - st**2 / n
+    cxx = sxx - sx**2 / n[:, None]
+    ctx = stx - st[:, None] * sx / n[:, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        trend = np.where(ctt[:, None] > 0, ctx**2 / ctt[:, None], 0.0)
+    return np.maximum(cxx - trend, 0.0).sum(axis=1)
 
 
-def motion_window(problem: Problem, t_end: float, trust: Trust | None) -> np.ndarray | None:
-    """The reference states at WINDOW_POINTS log-spaced times of [t0, t0 + W], W = the
+def motion_scale(t: np.ndarray, reference: np.ndarray, window: tuple[np.ndarray, np.ndarray] | None = None) -> float:
+    """S, the RMS size of the reference's motion over its samples: sqrt(detrended_ss / n),
+    the larger of that over the samples and over ``window`` ((times, states) at log-spaced
+    times of the run's start, ``motion_window``); the RMS size of the state where nothing
+    moves. Samples evenly spaced by a period see a periodic motion at one phase only
+    (kepler's 10,001 samples over 10,000 periods): the window's times alias with no period."""
+    variance = float(detrended_ss(t, reference)[-1]) / len(t)
+    if window is not None and len(window[0]) >= 3 and np.isfinite(window[1]).all():
+        variance = max(variance, float(detrended_ss(*window)[-1]) / len(window[0]))
+    size = float(np.mean(np.sum(np.asarray(reference, dtype=float) ** 2, axis=1)))
+    if not variance > STILL**2 * size:  # a motion below the state's rounding: nothing moves
+        variance = size
+    return math.sqrt(variance) if variance > 0 else 1.0
+
+
+def motion_window(problem: Problem, t_end: float, trust: Trust | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """(times, reference states) at WINDOW_POINTS log-spaced times of [t0, t0 + W], W = the
     run's span / 100 (its first hundredth, where the reference is trusted), for
     ``motion_scale``; None where the reference cannot give them."""
     from longtime.measure.reference import ReferenceUnavailable, reference_states
@@ -99,34 +113,28 @@ def motion_window(problem: Problem, t_end: float, trust: Trust | None) -> np.nda
     times = problem.t0 + span / 100 * np.logspace(-3, 0, WINDOW_POINTS)
     precision = "double" if trust.source == "exact" else trust.source
     try:
-        return reference_states(problem, times, precision)
+        return times, reference_states(problem, times, precision)
     except (ReferenceUnavailable, ValueError, RuntimeError):
         return None
 
 
-def solution_errors(U: np.ndarray, reference: np.ndarray,
-                    window: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(e, l2, scale) of states ``U`` against ``reference`` (the same samples): e(t) =
-    max_j |u_j - u_ref,j| / s_j at each sample, s = motion_scale(reference) over all the
-    samples; l2 at each sample = the l2_error of the samples up to it, each with the motion
-    scale of those samples (the l2_error a run ending there reports). ``window``: see
-    motion_scale."""
-    scale = motion_scale(reference, window)
-    diff = U - reference
-    pointwise = (np.abs(diff) / scale).max(axis=1)
-    count = np.arange(1, diff.shape[0] + 1, dtype=float)[:, None]
-    # the running RMS variation of each component (mean and mean square up to each sample)
-    mean = np.cumsum(reference, axis=0) / count
-    variance = np.maximum(np.cumsum(reference**2, axis=0) / count - mean**2, 0.0)
-    running = np.sqrt(variance)
-    if window is not None and len(window) >= 2 and np.isfinite(window).all():
-        running = np.maximum(running, np.asarray(window, dtype=float).std(axis=0))
-    top = running.max(axis=1, keepdims=True)
-    size = np.maximum.accumulate(np.abs(reference).max(axis=1))[:, None]
-    still = np.where(size > 0, size, 1.0)  # nothing has moved yet: the state's size
-    running = np.where(top > 0, np.maximum(running, MOTION_FLOOR * top), still)
-    l2 = np.sqrt((np.cumsum(diff**2, axis=0) / count / running**2).max(axis=1))
-    l2[-1] = float(np.sqrt((diff**2).mean(axis=0) / scale**2).max())  # the whole run's, without cancellation
+def solution_errors(t: np.ndarray, U: np.ndarray, reference: np.ndarray,
+                    window: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+    """(e, l2, S) of states ``U`` against ``reference`` at times ``t``: S = motion_scale,
+    e(t) = |u - u_ref| / S at each sample, l2 at each sample = the l2_error of the samples up
+    to it, sqrt(sum |u - u_ref|^2 / sum of the motion), the motion of those samples (the
+    l2_error a run ending there reports)."""
+    scale = motion_scale(t, reference, window)
+    diff = np.sum((U - reference) ** 2, axis=1)
+    pointwise = np.sqrt(diff) / scale
+    n = np.arange(1, len(t) + 1, dtype=float)
+    motion = detrended_ss(t, reference)
+    if window is not None and len(window[0]) >= 3 and np.isfinite(window[1]).all():
+        motion = np.maximum(motion, n * float(detrended_ss(*window)[-1]) / len(window[0]))
+    size = np.cumsum(np.sum(np.asarray(reference, dtype=float) ** 2, axis=1))  # nothing moved yet: the state's size
+    motion = np.where(motion > STILL**2 * size, motion, np.where(size > 0, size, n))
+    l2 = np.sqrt(np.cumsum(diff) / motion)
+    l2[-1] = math.sqrt(float(np.sum(diff)) / len(t)) / scale  # the whole run's, with its motion scale
     return pointwise, l2, scale
 
 
@@ -299,7 +307,7 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
             bad = int(np.argmin(np.isfinite(reference[:k]).all(axis=1)))
             notes.append(f"the reference is not finite at t = {t[bad]:.6g}: no error measured")
         elif k >= 2:
-            rel, l2, _ = solution_errors(U[:k], reference[:k], motion_window(problem, float(t[k - 1]), trust))
+            rel, l2, _ = solution_errors(t[:k], U[:k], reference[:k], motion_window(problem, float(t[k - 1]), trust))
             row["l2_error"] = finite_or_none(l2[-1])
             row["error_curve"] = error_curve(t[:k], rel, l2)
             row["drifting_components"] = drifting_components(t[:k], reference[:k])
