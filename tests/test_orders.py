@@ -167,14 +167,11 @@ def test_pendulum_rk4_and_the_3_8_rule_are_pre_asymptotic_not_flagged():
                          executor="serial", repeats=1, min_time=0.0))
     assert len(found) == 2
     for o in found:
-        assert not o.flag and o.value is None, str(o)
+        assert not o.flag and o.value is None and o.reason.startswith("pre-asymptotic: local slopes"), str(o)
         assert len(o.slopes) == 3 and o.slopes[0] > o.slopes[-1] and 3.1 < min(o.slopes) and max(o.slopes) < 4.0
+        assert "order undetermined (pre-asymptotic" in str(o)
     rk4 = next(o for o in found if o.scheme == "rk4")
-    assert rk4.reason.startswith("pre-asymptotic: local slopes") and "order undetermined (pre-asymptotic" in str(rk4)
-    # the 3/8 rule's slopes (3.54, 3.49, 3.78 from dt 0.1 down) do not rise in turn: they disagree
-    kutta = next(o for o in found if o.scheme != "rk4")
-    assert kutta.reason.startswith(("pre-asymptotic: local slopes", "local slopes disagree")), str(kutta)
-    assert [round(s, 2) for s in reversed(rk4.slopes)] == [3.26, 3.65, 3.85]
+    assert [round(s, 1) for s in reversed(rk4.slopes)] == [3.2, 3.6, 3.8]
 
 
 def test_perturbed_composition_is_undetermined_then_order_two():
