@@ -4,8 +4,7 @@ their run's span, the error measured there against the class's prediction.
     python benchmarks/verdict_reach.py --db STORE [--run ID] [--factors 10,100,1000]
         [--per-class 3] [--budget 4] [-p PROBLEM,..] [--kind solution|drifting|invariant]
 
-For every problem whose checks can be measured (longtime.reporting.verdict: an invariant's
-error, or a solution error against an exact solution), and every growth class that
+For every problem that is not chaotic (no row with a Lyapunov time), and every growth class that
 extrapolates, the cheapest settings of distinct schemes whose run at the largest factor
 costs at most ``--budget`` predicted CPU seconds are re-run (one repeat: the errors, not
 the times, are compared) at each factor f, and the line says measured / predicted error
@@ -48,7 +47,8 @@ def main(argv=None) -> int:
     print("| problem | kind | setting | class | t_f | e(t_f) | " + " | ".join(f"x{f:g}" for f in factors) + " |")
     print("|" + "---|" * (6 + len(factors)))
     for v in V.verdicts(rows).values():
-        if not V._checkable(v, rows) or (args.problems and v.problem not in args.problems.split(",")):
+        chaotic = any(r.get("lyapunov_time") for r in rows if r["problem"] == v.problem)  # no power law there
+        if v.measure is None or chaotic or (args.problems and v.problem not in args.problems.split(",")):
             continue
         for law in V.EXPONENTS:
             seen, picks = set(), []

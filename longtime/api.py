@@ -475,11 +475,11 @@ def _stored_recommendation(problem: str, error: float, horizon: float, db: str |
                          f"to decide")
     store = Store(path, readonly=True)
     if run in (None, "all"):
-        rows, checks = store.rows(), store.checks()
+        rows, checks, ensembles = store.rows(), store.checks(), store.ensembles()
     else:
         if not (str(run).isascii() and str(run).isdigit()):
             raise InputError(f"--run {run!r}: expected a run id (a positive integer) or 'all'")
         store.run(int(run))
-        rows, checks = store.rows(int(run)), store.checks(int(run))
+        rows, checks, ensembles = store.rows(int(run)), store.checks(int(run)), store.ensembles(int(run))
     return decide(rows, problem, error, horizon, db=str(store.path) if db else None,
-                  known=registry.problems(), checks=checks)
+                  known=registry.problems(), checks=checks, ensembles=ensembles)

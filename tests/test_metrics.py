@@ -77,8 +77,13 @@ def test_errors_cover_only_the_samples_up_to_the_reference_horizon():
     assert row["l2_error"] == 0.0 and row["error_horizon"] == 2.0 and row["final_error"] is None
     assert row["reference_horizon"] == 2.5 and row["reference_error"] == 1e-12
     row = evaluate(p, traj, ref, Trust("exact", 1e-8, 4.0, 1e-12, "test"))
-    assert row["final_error"] == pytest.approx(4.0) and row["error_horizon"] == 4.0
-    assert row["l2_error"] == pytest.approx(np.sqrt(17 / 5))  # |u_ref| = 1 at every sample
+    # against the size of the reference's motion about its least-squares line in t
+    fit = [np.polyval(np.polyfit(t, ref[:, j], 1), t) for j in range(2)]
+    scale = np.sqrt(np.mean(sum((ref[:, j] - fit[j]) ** 2 for j in range(2))))
+    dev = np.linalg.norm(U - ref, axis=1) / scale
+    assert row["final_error"] == pytest.approx(dev[-1]) and row["error_horizon"] == 4.0
+    assert row["l2_error"] == pytest.approx(np.sqrt(np.mean(dev**2)))
+    assert row["error_curve"]["l2"][-1] == pytest.approx(row["l2_error"], rel=1e-5)
     row = evaluate(p, traj, None)
     assert row["l2_error"] is None and row["error_horizon"] is None and row["reference_horizon"] is None
 
@@ -96,3 +101,50 @@ def test_drift_envelope_keeps_the_peaks_at_log_spaced_times():
     late = tau > 100  # bins wider than the period pi there
     # each kept point is its bin's peak: the envelope 1e-6 (1 + t), not a random phase
     assert np.all(e[late] >= 0.9e-6 * (1 + tau[late]))
+
+
+def test_a_drifting_component_does_not_hide_a_lost_planar_motion():
+    """charged-particle's shape: a circle of radius 0.4 in the plane and x3 = 0.1 + 0.2 t.
+    A scheme that keeps x3 exactly but walks the circle's phase off by 0.3 rad at t = 1e3
+    is off by a chord of up to 0.12 of a motion of size 0.4, while against the state
+    (dominated by x3 ~ 200) its error is 1e-3."""
+    from longtime.measure.metrics import motion_scale, solution_errors
+
+    t = np.linspace(0.0, 1000.0, 10_001)
+    phase = 0.3 * t / t[-1]
+    ref = np.column_stack([0.4 * np.cos(t), 0.4 * np.sin(t), 0.1 + 0.2 * t])
+    u = np.column_stack([0.4 * np.cos(t + phase), 0.4 * np.sin(t + phase), 0.1 + 0.2 * t])
+    state = np.sqrt(np.sum((u - ref) ** 2) / np.sum(ref**2))
+    assert state < 2e-3
+    e, l2, scale = solution_errors(t, u, ref)
+    assert scale == pytest.approx(0.4, rel=1e-3)  # the circle's; the drift is taken out
+    assert e[-1] == pytest.approx(2 * np.sin(0.15), rel=1e-3)  # the chord over the radius
+    assert l2[-1] == pytest.approx(np.sqrt(np.mean((2 * np.sin(phase / 2)) ** 2)), rel=1e-3)
+    assert l2[-1] > 50 * state
+    assert l2[len(t) // 2] == pytest.approx(l2[-1] / 2, rel=0.05)  # the l2_error of the first half
+    # a constant component adds nothing to the motion; nothing moving at all: the state's size
+    const = np.column_stack([ref[:, :2], np.full(t.size, 5.0)])
+    assert motion_scale(t, const) == pytest.approx(0.4, rel=1e-3)
+    assert motion_scale(t, np.full((t.size, 2), 3.0)) == pytest.approx(np.sqrt(18))
+
+
+def test_samples_a_period_apart_take_the_motion_from_the_window():
+    """Samples evenly spaced by the period see a periodic motion at one phase: it does not
+    move at them; the window's log-spaced times see the whole orbit."""
+    from longtime.measure.metrics import motion_scale
+
+    t = 2 * np.pi * np.arange(10_001)
+    strobe = np.column_stack([np.cos(t), np.sin(t)])
+    w = np.logspace(-3, 0, 1001) * t[-1] / 100
+    window = (w, np.column_stack([np.cos(w), np.sin(w)]))
+    assert motion_scale(t, strobe, window) == pytest.approx(1.0, rel=0.15)
+    assert motion_scale(t, strobe) == pytest.approx(1.0)  # nothing moves: the state's size
+
+
+def test_a_component_that_follows_a_line_in_t_drifts():
+    from longtime.measure.metrics import drifting_components
+
+    t = np.linspace(0.0, 1000.0, 10_001)
+    ref = np.column_stack([0.4 * np.cos(t), 0.4 * np.sin(t), 0.1 + 0.2 * t, np.full(t.size, 3.0)])
+    assert drifting_components(t, ref) == 1  # x3; the circle oscillates, the constant does not move
+    assert drifting_components(t, ref[:, :2]) == 0

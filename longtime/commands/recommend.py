@@ -1,5 +1,9 @@
 """``longtime recommend``: the cheapest stored setting predicted to keep an error up to a
-horizon on a problem, with the runner-up and the evidence (longtime.reporting.verdict)."""
+horizon on a problem, with the runner-up and the evidence (longtime.reporting.verdict).
+
+Exit codes: 0 an answer; 3 (``NO_ANSWER_EXIT``) no answer the store determines (no setting
+predicted to keep the target, or a horizon past a chaotic problem's predictability horizon):
+the lines on stdout say why and name the command that would decide it; 2 bad input."""
 from __future__ import annotations
 
 from longtime.core import cli_args
@@ -8,17 +12,21 @@ from longtime.execution.store import default_path
 
 def cmd_recommend(args) -> int:
     from longtime.api import recommend
+    from longtime.reporting.verdict import NO_ANSWER_EXIT
 
-    print(recommend(args.problem, args.error, args.horizon, db=args.db, run=args.run))
-    return 0
+    answer = recommend(args.problem, args.error, args.horizon, db=args.db, run=args.run)
+    print(answer)
+    return 0 if answer.answered else NO_ANSWER_EXIT
 
 
 def add_parser(subparsers) -> None:
-    p = subparsers.add_parser("recommend", help="which scheme and setting keep an error up to a horizon, cheapest")
+    p = subparsers.add_parser("recommend", help="which scheme and setting keep an error up to a horizon, cheapest",
+                              epilog="exit status: 0 an answer; 3 no answer the store determines (stdout says why "
+                                     "and names the run that would decide it); 2 bad input")
     p.add_argument("-p", "--problem", required=True, metavar="PROBLEM", help="a problem name (see `longtime list`)")
     p.add_argument("--error", type=cli_args.positive_number("--error"), required=True, metavar="E",
-                   help="the target error (the solution error where the problem has a reference, else the "
-                        "relative energy error)")
+                   help="the target error (the solution error relative to the motion where the problem has a "
+                        "reference, docs/metrics.md; else the relative energy error)")
     p.add_argument("--horizon", type=cli_args.positive_number("--horizon"), required=True, metavar="T",
                    help="the final time the error must hold to")
     p.add_argument("--db", default=None, help=f"SQLite store (default: $LONGTIME_DB or {default_path()})")

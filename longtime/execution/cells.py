@@ -304,9 +304,10 @@ def integrate_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES) -> tuple[
 @to_stderr  # plugin code runs here: its output is not the contract's
 def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool = True,
              timing: Timing | None = None, time_limit: float | None = DEFAULT_TIME_LIMIT,
-             keep: dict[str, Any] | None = None) -> dict[str, Any]:
+             keep: dict[str, Any] | None = None, reference_budget_s: float | None = None) -> dict[str, Any]:
     """Run one cell, timed by ``timing`` (default: ``Timing()``, the repeated timing of
-    every row); every outcome is a row, nothing raises. Past ``time_limit`` seconds (None:
+    every row); every outcome is a row, nothing raises. Its heyoka reference gets
+    ``reference_budget_s`` wall seconds (default: longtime.measure.reference.budget_seconds). Past ``time_limit`` seconds (None:
     no limit) the integration stops where it got: a ``timeout`` row. ``keep``, a dict,
     receives what the row was measured from (``problem``, ``integrator``, ``trajectory``,
     ``reference``: the trusted reference states, ``trust``), for ``longtime.solve``."""
@@ -345,7 +346,7 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
         if reference and has_reference(problem):
             try:
                 with phases.phase("reference", cell.problem):
-                    ref, trust = trusted_reference(problem, traj.t, cell.t_final)
+                    ref, trust = trusted_reference(problem, traj.t, cell.t_final, reference_budget_s)
                 note = trust.message(float(traj.t[-1]))
             except ReferenceUnavailable as exc:
                 note = f"no reference: {exc}"

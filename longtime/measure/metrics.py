@@ -5,18 +5,24 @@ error where I(u0) = 0. Per invariant NAME: NAME.max, NAME.final, NAME.mean (time
 e_I by the trapezoid rule over the samples, which are every step up to max_samples),
 NAME.t_1pct, NAME.t_50pct (first sample time with e_I > 1 % / 50 %, null if never).
 Against the reference, over the samples up to its horizon (``error_horizon`` is the last
-one): ``l2_error`` = sqrt(sum |u - u_ref|^2 / sum |u_ref|^2), ``final_error`` the relative
-error at the last sample, null when the horizon ends before it.
+one), every solution error is relative to the size of the motion (``motion_scale``): S =
+sqrt(mean_i sum_j (u_ref,ij - line_j(t_i))^2), line_j the least-squares line in t of
+component j (its mean and any drift taken out), so that a drifting or constant component
+(charged-particle's x3 = 0.1 + 0.2 t) cannot hide a lost solution. The error at a sample is
+e(t) = |u - u_ref| / S; ``l2_error`` = sqrt(mean_i |u_i - u_ref,i|^2) / S; ``final_error`` = e
+at the last sample,
+null when the horizon ends before it; ``error_curve`` keeps e's upper envelope and the
+l2_error up to each of its times (``error_curve``); ``drifting_components`` counts the
+reference's components that drift (``drifting_components``).
 Growth law of each error (longtime.measure.growth): NAME.growth, NAME.growth_ci, NAME.growth_class,
 NAME.growth_reason, NAME.growth_windows, NAME.saturated_t per invariant, and the same as
-``error.`` for the relative solution error |u - u_ref| / |u_ref| over the samples up to the
-horizon. ``drift_curves`` keeps the drift curve of every invariant (``drift_curve``: the
-first one's alone).
+``error.`` for the solution error e(t) over the samples up to the horizon. ``drift_curves``
+keeps the drift curve of every invariant (``drift_curve``: the first one's alone).
 Diagnostics (``Problem.diagnostics``: quantities watched, not conserved): diag.NAME.max and
 diag.NAME.final of |D(t) - D(0)| / |D(0)| (absolute where D(0) = 0) and their curves in
 ``diag_curves``; never a growth class.
 A problem that declares itself ``chaotic`` adds ``predictability_t``: the first sample time
-at which the relative solution error reaches O1_ERROR (null where it stays below, or
+at which the solution error e(t) reaches O1_ERROR (null where it stays below, or
 without a reference).
 Non-finite values become null: a diverged run is a status, never a NaN in a table.
 """
@@ -38,6 +44,11 @@ DRIFT_POINTS = 80  # points of the drift curve each row keeps (drift_envelope)
 # a relative error (l2, final, or the solution error at a sample) from this on is O(1): the
 # solution is not followed (a row's ``solution_lost``, a chaotic row's predictability horizon)
 O1_ERROR = 0.5
+# a component whose samples a straight line in t explains to this fraction drifts (drifting_components)
+DRIFT_R2 = 0.9
+# a motion smaller than this fraction of the state's size is rounding: nothing moves
+STILL = 1e-8
+WINDOW_POINTS = 1001  # reference states at log-spaced times of the run's first hundredth (motion_window)
 
 
 def finite_or_none(x) -> float | None:
@@ -54,6 +65,108 @@ def relative_error(values: np.ndarray) -> np.ndarray:
     else:
         num, den = np.linalg.norm(diff, axis=1), float(np.linalg.norm(v0))
     return num / den if den > 0 else num
+
+
+def detrended_ss(t: np.ndarray, states: np.ndarray) -> np.ndarray:
+    """The motion of ``states`` (samples x components) at times ``t``: at each sample k, the
+    sum over components of the squared residuals of the samples up to k about each
+    component's least-squares line in t (its mean and its drift taken out)."""
+    t = np.asarray(t, dtype=float)
+    x = np.asarray(states, dtype=float)
+    t = t - t.mean()
+    x = x - x.mean(axis=0)  # centred first: the cumulative sums keep their digits
+    n = np.arange(1, t.size + 1, dtype=float)
+    st, stt = np.cumsum(t), np.cumsum(t * t)
+    sx, sxx, stx = np.cumsum(x, axis=0), np.cumsum(x * x, axis=0), np.cumsum(t[:, None] * x, axis=0)
+    ctt = stt - st**2 / n
+    cxx = sxx - sx**2 / n[:, None]
+    ctx = stx - st[:, None] * sx / n[:, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        trend = np.where(ctt[:, None] > 0, ctx**2 / ctt[:, None], 0.0)
+    return np.maximum(cxx - trend, 0.0).sum(axis=1)
+
+
+def motion_scale(t: np.ndarray, reference: np.ndarray, window: tuple[np.ndarray, np.ndarray] | None = None) -> float:
+    """S, the RMS size of the reference's motion over its samples: sqrt(detrended_ss / n),
+    the larger of that over the samples and over ``window`` ((times, states) at log-spaced
+    times of the run's start, ``motion_window``); the RMS size of the state where nothing
+    moves. Samples evenly spaced by a period see a periodic motion at one phase only
+    (kepler's 10,001 samples over 10,000 periods): the window's times alias with no period."""
+    variance = float(detrended_ss(t, reference)[-1]) / len(t)
+    if window is not None and len(window[0]) >= 3 and np.isfinite(window[1]).all():
+        variance = max(variance, float(detrended_ss(*window)[-1]) / len(window[0]))
+    size = float(np.mean(np.sum(np.asarray(reference, dtype=float) ** 2, axis=1)))
+    if not variance > STILL**2 * size:  # a motion below the state's rounding: nothing moves
+        variance = size
+    return math.sqrt(variance) if variance > 0 else 1.0
+
+
+def motion_window(problem: Problem, t_end: float, trust: Trust | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """(times, reference states) at WINDOW_POINTS log-spaced times of [t0, t0 + W], W = the
+    run's span / 100 (its first hundredth, where the reference is trusted), for
+    ``motion_scale``; None where the reference cannot give them."""
+    from longtime.measure.reference import ReferenceUnavailable, reference_states
+
+    span = min(float(t_end - problem.t0), float(trust.horizon - problem.t0)) if trust else float(t_end - problem.t0)
+    if trust is None or not span > 0:
+        return None
+    times = problem.t0 + span / 100 * np.logspace(-3, 0, WINDOW_POINTS)
+    precision = "double" if trust.source == "exact" else trust.source
+    try:
+        return times, reference_states(problem, times, precision)
+    except (ReferenceUnavailable, ValueError, RuntimeError):
+        return None
+
+
+def solution_errors(t: np.ndarray, U: np.ndarray, reference: np.ndarray,
+                    window: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+    """(e, l2, S) of states ``U`` against ``reference`` at times ``t``: S = motion_scale,
+    e(t) = |u - u_ref| / S at each sample, l2 at each sample = the l2_error of the samples up
+    to it, sqrt(sum |u - u_ref|^2 / sum of the motion), the motion of those samples (the
+    l2_error a run ending there reports)."""
+    scale = motion_scale(t, reference, window)
+    diff = np.sum((U - reference) ** 2, axis=1)
+    pointwise = np.sqrt(diff) / scale
+    n = np.arange(1, len(t) + 1, dtype=float)
+    motion = detrended_ss(t, reference)
+    if window is not None and len(window[0]) >= 3 and np.isfinite(window[1]).all():
+        motion = np.maximum(motion, n * float(detrended_ss(*window)[-1]) / len(window[0]))
+    size = np.cumsum(np.sum(np.asarray(reference, dtype=float) ** 2, axis=1))  # nothing moved yet: the state's size
+    motion = np.where(motion > STILL**2 * size, motion, np.where(size > 0, size, n))
+    l2 = np.sqrt(np.cumsum(diff) / motion)
+    l2[-1] = math.sqrt(float(np.sum(diff)) / len(t)) / scale  # the whole run's, with its motion scale
+    return pointwise, l2, scale
+
+
+def drifting_components(t: np.ndarray, reference: np.ndarray) -> int:
+    """How many components of ``reference`` drift: their samples follow a straight line in t
+    (coefficient of determination at least DRIFT_R2, charged-particle's x3 = 0.1 + 0.2 t)
+    over the run; a component that oscillates about a mean over the run is no drift. The
+    verdict's checks cover a drift-dominated problem."""
+    t = np.asarray(t, dtype=float)
+    if t.size < 3 or not np.ptp(t) > 0:
+        return 0
+    x = t - t.mean()
+    y = reference - reference.mean(axis=0)
+    slope = (x @ y) / (x @ x)
+    explained = slope**2 * (x @ x)
+    total = (y**2).sum(axis=0)
+    moving = total > 0
+    return int(np.sum(explained[moving] >= DRIFT_R2 * total[moving]))
+
+
+def error_curve(t: np.ndarray, pointwise: np.ndarray, l2: np.ndarray,
+                points: int = DRIFT_POINTS) -> dict[str, Any] | None:
+    """The solution error as a curve small enough to keep in the row: e(t)'s upper envelope
+    (drift_envelope: ``t``, ``error``) and ``l2``, the l2_error over the samples up to each
+    of those times (6 significant digits). Predictions at a horizon within the run read it."""
+    curve = drift_envelope("solution", t, pointwise, points, kind="curve")
+    if curve is None:
+        return None
+    tau = t - t[0]
+    idx = np.clip(np.searchsorted(tau, np.asarray(curve["t"]) * (1 + 1e-9), side="right") - 1, 0, t.size - 1)
+    curve["l2"] = [float(f"{l2[i]:.6g}") for i in idx]
+    return curve
 
 
 def time_mean(t: np.ndarray, y: np.ndarray) -> float:
@@ -148,6 +261,8 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
         "l2_error": None,  # null unless a reference is at hand
         "final_error": None,
         "error_horizon": None,  # the last sample time the errors cover
+        "error_curve": None,  # the solution error's curve (null without a reference)
+        "drifting_components": None,  # components of the reference that drift (null without one)
         "drift_curve": None,  # null: no invariant (the results page then runs nothing again)
         "drift_curves": None,  # every invariant's curve, in the problem's order
         "diag_curves": None,  # every diagnostic's curve
@@ -192,17 +307,17 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
             bad = int(np.argmin(np.isfinite(reference[:k]).all(axis=1)))
             notes.append(f"the reference is not finite at t = {t[bad]:.6g}: no error measured")
         elif k >= 2:
-            diff = np.linalg.norm(U[:k] - reference[:k], axis=1)
-            ref = np.linalg.norm(reference[:k], axis=1)
-            row["l2_error"] = finite_or_none(np.sqrt(np.sum(diff**2) / np.sum(ref**2)))
-            # growth law of the relative error |u - u_ref| / |u_ref|, up to the horizon
-            rel = diff / np.where(ref > 0, ref, 1.0)
+            rel, l2, _ = solution_errors(t[:k], U[:k], reference[:k], motion_window(problem, float(t[k - 1]), trust))
+            row["l2_error"] = finite_or_none(l2[-1])
+            row["error_curve"] = error_curve(t[:k], rel, l2)
+            row["drifting_components"] = drifting_components(t[:k], reference[:k])
+            # growth law of the error relative to the motion, up to the horizon
             row.update(growth_fields("error", t[:k], rel, problem.t0, diverged, steps=steps))
             row["error_horizon"] = float(t[k - 1])
             if problem.chaotic:
                 row["predictability_t"] = predictability(t[:k], rel, O1_ERROR)
             if k == finite:
-                row["final_error"] = finite_or_none(diff[-1] / ref[-1] if ref[-1] > 0 else diff[-1])
+                row["final_error"] = finite_or_none(rel[-1])
     row.update(traj.extra)
     if notes:
         row["message"] = "; ".join(notes)

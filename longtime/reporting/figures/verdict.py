@@ -91,6 +91,8 @@ def winner_map_svg(v: Verdict) -> str | None:
     for c in checks:
         held = check_holds(c)
         y = c.get("measured_error") if positive(c.get("measured_error")) else c.get("predicted_error")
+        if not positive(y):  # a rival run without a prediction, or a check that measured no error
+            continue
         y = min(max(y, ye[0] * 1.05), ye[-1] / 1.05)  # a measured error off the map sits on its edge
         ax.plot([c["t_final"]], [y], marker="o" if held else "X", ms=8, mfc="none" if held else "#b71c1c",
                 mec="#111" if held else "#b71c1c", mew=1.6, ls="none", zorder=5, clip_on=False)
