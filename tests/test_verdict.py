@@ -496,3 +496,22 @@ def test_the_page_and_the_report_show_checks_of_every_role():
     assert "checks: " in text and "failed" in text
     page = build_page(rows + ROWS, [], drift=False, stability=False, checks=checks)
     assert "not judged" in page
+
+
+def test_the_page_puts_failed_checks_first_and_says_no_pointwise_answer_past_chaos():
+    from longtime.reporting.page import build_page
+
+    rows = _chaotic([_row("gauss6", 0.004, 8e-12, 0.002, "quadratic", 2.0, t_final=10.0)])
+    plan = V.plan_checks(ROWS, budget_s=2.0, reference_rate=lambda v: 0.0, total_s=1e9)
+    # every winner measured 1e3 times its predicted error: each best's check fails
+    records = [V.check_row(c, {**c.setting.row, "t_final": c.horizon, "l2_error": 1e3 * c.setting.error,
+                               "error_horizon": c.horizon}) for c in plan]
+    V.judge_ranks(records)
+    assert V.check_counts(records)["failed"] >= 1
+    page = build_page(rows + ROWS, [], drift=False, stability=False, checks=records)
+    section = page[page.index('id="checks"'):]
+    assert "Failed:</p><ul><li>" in section and "failed" in section
+    failed_list = section[section.index("Failed:"):section.index("</ul>", section.index("Failed:"))]
+    assert "MISSED" in failed_list and ": held" not in failed_list
+    # the chaotic problem's headline: no pointwise answer, with the predictability horizon's reason
+    assert "No pointwise answer up to T = " in page and "Lyapunov time" in page

@@ -281,7 +281,8 @@ def _verdict_section(p: str, v, mine: list[dict]) -> str:
     """One problem's verdict: an example answer, the winner map, the winners as a table
     (folded) and the settings whose law does not extrapolate, each with its deciding run."""
     from longtime.reporting.figures.verdict import winner_map_svg
-    from longtime.reporting.verdict import check_summary, check_text, deciding_run, decision_text, horizon_groups
+    from longtime.reporting.verdict import (check_counts, check_summary, check_text, deciding_run, decision_text,
+                                            failed_first, horizon_groups)
 
     head = f'<h3 id="verdict-{slug(p)}">{escape(p)}</h3>'
     if v.measure is None or not v.candidates:
@@ -304,7 +305,12 @@ def _verdict_section(p: str, v, mine: list[dict]) -> str:
                    f'<span class="note">Any other target and horizon: the map below, or <code>longtime recommend -p '
                    f'{escape(p)} --error E --horizon T</code>.</span></p>')
     else:
-        out.append(f'<p class="answer">No setting is predicted to keep any target up to T = {h:.3g}.</p>')
+        chaotic = next((d for (_, h_), d in v.grid.items() if h_ == h and d.limit is not None), None)
+        if chaotic is not None:  # past the predictability horizon: no pointwise answer, and why
+            out.append(f'<p class="answer">No pointwise answer up to T = {h:.3g}: '
+                       f'{escape(chaotic.limit.text())}.</p>')
+        else:
+            out.append(f'<p class="answer">No setting is predicted to keep any target up to T = {h:.3g}.</p>')
     fig = winner_map_svg(v)
     if fig:
         out.append(f'<figure class="plot">{fig}<figcaption>Winner map: for each target ({escape(v.measure.text)}) '
@@ -336,20 +342,24 @@ def _verdict_section(p: str, v, mine: list[dict]) -> str:
                          f"or a class not trusted past the run), with the run that would decide each", f"<ul>{items}{more}</ul>"))
     if v.checks:
         out.append(_fold(f"Checks: {escape(check_summary(v.checks))}",
-                         "<ul>" + "".join(f"<li>{escape(check_text(c))}</li>" for c in v.checks) + "</ul>"))
+                         "<ul>" + "".join(f"<li>{escape(check_text(c))}</li>" for c in failed_first(v.checks))
+                         + "</ul>", open_=check_counts(v.checks)["failed"] > 0))
     return "".join(out)
 
 
 def _checks_section(checks: list[dict]) -> str:
     from longtime.reporting.figures.verdict import checks_svg
-    from longtime.reporting.verdict import check_summary
+    from longtime.reporting.verdict import check_counts, check_summary, check_text, failed_first
 
     out = ['<h2 id="checks">Checked predictions</h2>']
     if not checks:
         out.append('<p class="note">No prediction of these rows was re-run: <code>longtime matrix</code> checks a few '
                    'at the longest horizon its budget affords (<code>--checks N</code>).</p>')
         return "".join(out)
-    out.append(f"<p>{escape(check_summary(checks))}.</p>")
+    out.append(f'<p class="answer">{escape(check_summary(checks))}.</p>')
+    failed = [c for c in failed_first(checks) if check_counts([c])["failed"]]
+    if failed:  # the checks that failed first, each in a line
+        out.append('<p>Failed:</p><ul>' + "".join(f"<li>{escape(check_text(c))}</li>" for c in failed) + "</ul>")
     fig = checks_svg(checks)
     if fig:
         out.append(f'<figure class="plot">{fig}<figcaption>Each check: a winner of a map re-run at a horizon past its '
