@@ -48,7 +48,14 @@ COMMAND_MODULES: tuple[str, ...] = ("longtime.commands.asv_init", "longtime.comm
 
 
 # argument types: one set for every command (longtime.core.cli_args)
-_floats, _names, _key_value = cli_args.floats, cli_args.names, cli_args.key_value
+_names, _key_value = cli_args.names, cli_args.key_value
+
+
+def _floats(flag: str):
+    """run and matrix: the cells' validation refuses a non-finite value up front, naming it as a setting."""
+    return cli_args.floats(flag, finite=False)
+
+
 _seconds = cli_args.seconds("--cell-timeout")
 _limit = cli_args.seconds("--time-limit", allow_zero=True)
 

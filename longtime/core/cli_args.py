@@ -22,8 +22,9 @@ def names(text: str) -> list[str]:
     return found
 
 
-def floats(flag: str) -> Callable[[str], list[float]]:
-    """A comma-separated list of numbers, at least one."""
+def floats(flag: str, finite: bool = True) -> Callable[[str], list[float]]:
+    """A comma-separated list of numbers, at least one; finite ones unless ``finite`` is False
+    (where the cells' own validation names the parameter and its value, ``dt=nan``)."""
 
     def parse(text: str) -> list[float]:
         try:
@@ -32,7 +33,7 @@ def floats(flag: str) -> Callable[[str], list[float]]:
             raise argparse.ArgumentTypeError(f"{flag} takes comma-separated numbers, got {text!r}") from None
         if not values:
             raise argparse.ArgumentTypeError(f"{flag} needs at least one value")
-        if not all(math.isfinite(v) for v in values):  # nan, inf: refused before any work
+        if finite and not all(math.isfinite(v) for v in values):  # nan, inf: refused before any work
             raise argparse.ArgumentTypeError(f"{flag} takes finite numbers, got {text!r}")
         return values
 

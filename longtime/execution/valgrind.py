@@ -216,10 +216,20 @@ def _prepare(worker: list[str], env: dict[str, str], folder: Path, cells: list[C
     done = _results(folder / "results.jsonl")
     (folder / "results.jsonl").unlink(missing_ok=True)
     out = {}
-    for cell in cells:
+    lost = next((i for i, c in enumerate(cells) if c.key not in done), None)
+    if trouble and lost is not None and lost + 1 < len(cells):
+        # the process ended in cell ``lost``: the cells after it are prepared again without it,
+        # so one plugin's crash costs only its own row its count
+        job = folder / "job.json"
+        rest = cells[lost + 1:]
+        job.write_text(json.dumps({**json.loads(job.read_text()), "cells": [c.to_dict() for c in rest]}))
+        out.update(_prepare(worker, env, folder, rest, rows))
+        cells = cells[:lost + 1]  # the rest has its answer from the second process
+    for i, cell in enumerate(cells):
         item = done.get(cell.key)
         if item is None:
-            out[cell.key] = skipped(f"not counted: {trouble or what + ' gave nothing for it'}")
+            where = ", in this cell" if i == lost and trouble else ""
+            out[cell.key] = skipped(f"not counted: {trouble or what + ' gave nothing for it'}{where}")
         elif item.get("reason"):
             out[cell.key] = skipped(item["reason"])
     return out
