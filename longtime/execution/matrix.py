@@ -399,12 +399,13 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
             shown.advance(last=f"{cell.problem} x {cell.integrator}: {row['status']}")
     found = [(cell, rows[cell.key]) for cell in cells if cell.key in rows]
     again = [r for _, r in found if processes > 1 and timed_elsewhere(r)]
-    timing_phase = shown.phase("timing processes", estimate_s=timing_estimate(again, processes, options.workers()),
-                               detail=f"{len(again)} cells timed again in {processes - 1} fresh processes") \
+    timing_phase = shown.phase("timing processes", total=len(again) * (processes - 1), unit="cells timed",
+                               estimate_s=timing_estimate(again, processes, options.workers()),
+                               detail=f"{len(again)} cells timed again in each of {processes - 1} fresh processes") \
         if again else contextlib.nullcontext()
     with timing_phase:
         across_processes(found, processes, options.max_samples, options.timing, options.workers(),
-                         options.time_limit, options.memory_limit)
+                         options.time_limit, options.memory_limit, on_progress=shown.advance)
     for cell, row in found:
         phase_done(row, PROCESSES_PHASE)
         if storing:

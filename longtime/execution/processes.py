@@ -254,10 +254,12 @@ def one_process(row: dict[str, Any]) -> None:
 
 def across_processes(pairs: Iterable[tuple[Cell, dict[str, Any]]], processes: int, max_samples: int,
                      timing: Timing, jobs: int = 1, time_limit: float | None = None,
-                     memory_limit: int | None = None) -> list[Cell]:
+                     memory_limit: int | None = None,
+                     on_progress: Callable[[int], None] | None = None) -> list[Cell]:
     """Time the cells of ``pairs`` (cell, its row as measured) in ``processes - 1`` fresh
     processes, ``jobs`` at a time, and fold their times into the rows (``merge``); rows not
-    timed elsewhere get their own process's fields. Returns the cells whose rows changed."""
+    timed elsewhere get their own process's fields. Returns the cells whose rows changed.
+    ``on_progress(k)``: k more cells timed, summed over the processes (a progress display)."""
     pairs = list(pairs)
     todo = [(c, r) for c, r in pairs if processes > 1 and timed_elsewhere(r)]
     chosen = {id(r) for _, r in todo}
@@ -269,7 +271,8 @@ def across_processes(pairs: Iterable[tuple[Cell, dict[str, Any]]], processes: in
     cells = [c for c, _ in todo]
     budget = START_S + 10 * sum(float(r["wall_s"]) * len(r.get("cpu_s_samples") or [1]) for _, r in todo)
     with phases.phase("timing processes"):  # this process while they run
-        results = run_children(cells, processes - 1, max_samples, timing, jobs, budget, time_limit, memory_limit)
+        results = run_children(cells, processes - 1, max_samples, timing, jobs, budget, time_limit, memory_limit,
+                               on_progress=on_progress)
     for k, (cell, row) in enumerate(todo):
         merge(row, [res[k] if res is not None else {"status": "failed", "message": err}
                     for res, err in results], processes)
@@ -277,12 +280,13 @@ def across_processes(pairs: Iterable[tuple[Cell, dict[str, Any]]], processes: in
 
 
 def run_children(cells: list[Cell], count: int, max_samples: int, timing: Timing, jobs: int, timeout: float,
-                 time_limit: float | None, memory_limit: int | None,
-                 paired: bool = False) -> list[tuple[list[dict] | None, str]]:
+                 time_limit: float | None, memory_limit: int | None, paired: bool = False,
+                 on_progress: Callable[[int], None] | None = None) -> list[tuple[list[dict] | None, str]]:
     """``count`` fresh interpreters, ``jobs`` at a time, each timing every cell of ``cells``
     (``time_cells``; ``paired``: each run followed by one of the calibration's reference
     workload, ``calibration.reference_seconds``): per child (its results, "") or (None, why
-    it gave none)."""
+    it gave none). ``on_progress(k)``: k more cells timed (each child's ``current`` cell
+    counts the cells before it as done), called as the count grows."""
     from longtime.execution.isolation import kill_group, write_session
 
     job = {"cells": [c.to_dict() for c in cells], "max_samples": max_samples, "parent": os.getpid(),
@@ -290,6 +294,7 @@ def run_children(cells: list[Cell], count: int, max_samples: int, timing: Timing
            "time_limit": time_limit, "memory_limit": memory_limit, "paired": paired}
     waiting, running, done = list(range(count)), [], {}
     folders, culprits = [], {}
+    reported = 0
     try:
         while waiting or running:
             while waiting and len(running) < max(1, jobs):
@@ -316,6 +321,11 @@ def run_children(cells: list[Cell], count: int, max_samples: int, timing: Timing
                         culprits[index] = _current_cell(folder)
                 else:
                     still.append((index, folder, proc, deadline))
+            if on_progress is not None:  # the cells timed so far: the ended children's and each running one's
+                timed = len(done) * len(cells) + sum(_current_cell(f) or 0 for _, f, _, _ in still)
+                if timed > reported:
+                    on_progress(timed - reported)
+                    reported = timed
             if len(still) == len(running):
                 time.sleep(POLL_S)
             running = still
