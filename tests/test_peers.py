@@ -157,3 +157,12 @@ def test_the_peers_default_sweep_is_short_and_budgeted():
     assert registry.integrator_class("dop853").cell_budget_s is None  # its sweep and budget as before
     assert budget.cell_budget("scipy-radau") == registry.integrator_class("scipy-radau").cell_budget_s
     assert budget.cell_budget("rk4") == budget.CELL_BUDGET_S
+
+
+@needs_sundials
+def test_cvode_takes_a_problem_with_many_params():
+    # kdv's params are an array of many values: scikit-sundae gets them in a 1-tuple
+    problem = registry.problem_class("kdv")(d=32)
+    assert problem.params.size > 1
+    traj = registry.integrator_class("cvode-bdf")(tol=1e-6).integrate(problem, 0.05)
+    assert traj.status == "ok" and traj.steps >= 2, traj.message

@@ -7,7 +7,7 @@ problem's Jacobian where it has one, else CVODE's difference quotients).
 Called as its best users call it: the right-hand side ``f(t, y, yp, params)`` and the
 Jacobian ``J(t, y, yp, JJ, params)`` are compiled (numba) wrappers around the problem's
 compiled functions, writing into SUNDIALS' own arrays (no allocation per call), with the
-problem's params as scikit-sundae's ``userdata``. CVODE steps from Python one internal step
+problem's params (in a 1-tuple) as scikit-sundae's ``userdata``. CVODE steps from Python one internal step
 at a time (``step(t_final, method='onestep', tstop=t_final)``), which records every
 accepted step and checks the cell's deadline as it goes; the CPU time includes that call and
 the calls of the wrappers from C. ``peer_overhead_s`` (longtime.integrators.peer_common)
@@ -30,18 +30,18 @@ EXTRA = "sundials"  # pip install "longtime[sundials]"
 
 
 def rhs_function(problem_rhs):
-    """scikit-sundae's rhsfn(t, y, yp, userdata) around a problem's rhs(t, u, params, out)."""
+    """scikit-sundae's rhsfn(t, y, yp, (params,)) around a problem's rhs(t, u, params, out)."""
     @numba.njit
-    def rhsfn(t, y, yp, params):
-        problem_rhs(t, y, params, yp)
+    def rhsfn(t, y, yp, userdata):
+        problem_rhs(t, y, userdata[0], yp)
     return rhsfn
 
 
 def jac_function(problem_jac):
-    """scikit-sundae's jacfn(t, y, yp, JJ, userdata) around a problem's jac(t, u, params, out)."""
+    """scikit-sundae's jacfn(t, y, yp, JJ, (params,)) around a problem's jac(t, u, params, out)."""
     @numba.njit
-    def jacfn(t, y, yp, JJ, params):
-        problem_jac(t, y, params, JJ)
+    def jacfn(t, y, yp, JJ, userdata):
+        problem_jac(t, y, userdata[0], JJ)
     return jacfn
 
 
@@ -74,7 +74,8 @@ class CVODE(Integrator):
         atol = tol if self.settings["atol"] is None else self.settings["atol"]
         if self.method == "BDF" and jac is not None:
             options["jacfn"] = compiled(jac_function(jac))
-        return Solver(compiled(rhs_function(rhs)), userdata=problem.params, method=self.method, rtol=tol,
+        # userdata is a 1-tuple: scikit-sundae tests its truth, which an array of several has not
+        return Solver(compiled(rhs_function(rhs)), userdata=(problem.params,), method=self.method, rtol=tol,
                       atol=atol, max_num_steps=2**31 - 1, **options)
 
     def overhead(self, problem) -> float:
