@@ -11,7 +11,8 @@ of a few either way, and only decides which pairs move.
 What moves: the sweep of a pair whose costliest cell is estimated above its budget (CELL_BUDGET_S,
 or the scheme's shorter ``cell_budget_s``: the library peers, scipy's, SUNDIALS' and diffrax's,
 whose many rows must not lengthen the main job by more than a few percent) runs
-at the longest of the shorter horizons HORIZON_FRACTIONS of its problem's sweep horizon at
+at the longest of the shorter horizons HORIZON_FRACTIONS (and, for a scheme with its own
+budget, SHORT_BUDGET_FRACTIONS) of its problem's sweep horizon at
 which every cell of the sweep fits (never shorter than its largest step); the long-time cell
 of such a pair (a problem's ``long_t_final``) is left out when it is estimated above
 LONG_CELL_BUDGET_S. Every pair keeps its sweep's rows; nothing else changes. Each moved
@@ -39,6 +40,8 @@ CELL_BUDGET_S = 5.0
 LONG_CELL_BUDGET_S = 30.0
 # the shorter horizons a moved sweep may take, as fractions of the problem's sweep horizon
 HORIZON_FRACTIONS = (0.5, 0.2, 0.1, 0.05, 0.02, 0.01)
+# the shorter ones a scheme with its own ``cell_budget_s`` may take besides
+SHORT_BUDGET_FRACTIONS = (0.005, 0.002, 0.001)
 # the start of every note the budget leaves in a row's message (the report finds them by it)
 NOTE = "budget:"
 
@@ -120,7 +123,8 @@ def _shorter_horizon(sweep: list[Cell], main: float, dims: dict[str, int]) -> fl
     fixed = issubclass(registry.integrator_class(sweep[0].integrator), FixedStepIntegrator)
     largest_step = max((float(c.integrator_settings.get("dt") or pcls.default_dt) for c in sweep), default=0.0)
     allowed = []
-    for f in HORIZON_FRACTIONS:
+    own = registry.integrator_class(sweep[0].integrator).cell_budget_s is not None
+    for f in HORIZON_FRACTIONS + (SHORT_BUDGET_FRACTIONS if own else ()):
         horizon = pcls.t0 + f * (main - pcls.t0)
         if fixed and horizon - pcls.t0 < largest_step * (1 + 1e-9):
             break

@@ -60,7 +60,7 @@ class ScipyIVP(Integrator):
     # the default matrix: two tolerances (the peers' rows are many: their budget is short)
     sweep = {"tol": (1e-6, 1e-9)}
     python_step_s = 1e-4  # solve_ivp's step in Python and its Python calls of the rhs
-    cell_budget_s = 0.05  # the default matrix's estimated seconds of one run (execution.budget)
+    cell_budget_s = 0.03  # the default matrix's estimated seconds of one run (execution.budget)
 
     def _functions(self, problem, rhs, jac):
         """solve_ivp's fun(t, y) and jac(t, y) (or None) around compiled rhs and jac."""

@@ -57,7 +57,7 @@ class CVODE(Integrator):
     }
     sweep = {"tol": (1e-6, 1e-9)}
     python_step_s = 3e-5  # a Python call per step and the wrappers' calls from C
-    cell_budget_s = 0.05  # the default matrix's estimated seconds of one run (execution.budget)
+    cell_budget_s = 0.03  # the default matrix's estimated seconds of one run (execution.budget)
 
     def incompatibility(self, problem):
         reason = super().incompatibility(problem)
