@@ -34,6 +34,18 @@ def test_the_peers_are_registered_by_library():
     assert found["rk45"].library == "longtime" and found["heyoka"].library == "heyoka"
 
 
+def test_longtime_list_shows_the_six_scipy_methods(capsys):
+    import json
+
+    from longtime.commands.cli import main
+
+    assert main(["list", "--format", "json"]) == 0
+    listed = {s["name"]: s for s in json.loads(capsys.readouterr().out)["integrators"]}
+    assert set(SCIPY) <= set(listed) and all(listed[n]["kind"] == "external" for n in SCIPY)
+    # the other peers are listed too; without their extras their rows are skipped (below)
+    assert set(CVODE + DIFFRAX) <= set(listed) and listed["diffrax-tsit5"]["requires"] == ["jax_rhs"]
+
+
 @pytest.fixture(scope="module")
 def kepler():
     return registry.problem_class("kepler")()
