@@ -34,6 +34,8 @@ CAPABILITIES: dict[str, tuple[str, ...]] = {
     # a velocity-dependent (Lorentz) force on unit charges and masses in space:
     # u = (x, v), x and v in R^(3N), x_k'' = v_k x B(x_k) + E(x_k) for each particle k
     "lorentz": ("field_B", "field_E"),
+    # the right-hand side written in jax.numpy, jax_rhs(t, u, params) -> u' (the diffrax peers)
+    "jax_rhs": ("jax_rhs",),
 }
 
 # compiled functions a problem may provide (see docs/plugins.md)

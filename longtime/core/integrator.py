@@ -206,6 +206,9 @@ class Integrator(ABC):
     order: ClassVar[int | None] = None
     symplectic: ClassVar[bool] = False
     kind: ClassVar[str] = "fixed"  # fixed | adaptive | external
+    # the library whose method runs: "longtime" for the suite's own kernels, else the peer's
+    # (scipy, sundials, diffrax, heyoka, rebound); the results page groups schemes by it
+    library: ClassVar[str] = "longtime"
     parameters: ClassVar[dict[str, Param]] = {}
     # default matrix sweep of parameters other than dt, e.g. {"tol": (1e-6, 1e-9)}
     sweep: ClassVar[dict[str, tuple]] = {}
@@ -221,6 +224,9 @@ class Integrator(ABC):
     # spends in Python whatever the problem (a peer stepped by a Python loop)
     step_cost: ClassVar[float] = 1.0
     python_step_s: ClassVar[float] = 0.0
+    # the default matrix's estimated seconds of one run of a cell for this scheme, where it is
+    # shorter than the budget's CELL_BUDGET_S (the library peers: many rows, a short budget each)
+    cell_budget_s: ClassVar[float | None] = None
 
     # what a reader of stored rows must know about the name (rows it meant before a
     # correction): `longtime list` shows it, and `run` and `report` say it on stderr

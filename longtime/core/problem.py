@@ -40,6 +40,9 @@ Python-level capabilities (vectorised over samples; ``U`` has shape (n, dim)):
                                                         None: checked against heyoka in long
                                                         double (longtime.measure.reference)
     heyoka_system() -> (vars, rhs expressions)          for the heyoka reference
+    jax_rhs(t, u, params) -> u'                         ("jax_rhs") the rhs in jax.numpy (a
+                                                        staticmethod that imports jax when
+                                                        called), for the diffrax peers
     constraints, linear_part, nonlinear                 see the constrained and
                                                         exponential schemes
 
@@ -137,6 +140,7 @@ class Problem(ABC):
     grad_U: ClassVar[Callable | None] = None
     field_B: ClassVar[Callable | None] = None
     field_E: ClassVar[Callable | None] = None
+    jax_rhs: ClassVar[Callable | None] = None
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)

@@ -8,8 +8,11 @@ of the problem's default step for a scheme that chooses its own), times a cost p
 DOP853: about a tenth of a millisecond a step whatever the problem). It is rough, a factor
 of a few either way, and only decides which pairs move.
 
-What moves: the sweep of a pair whose costliest cell is estimated above CELL_BUDGET_S runs
-at the longest of the shorter horizons HORIZON_FRACTIONS of its problem's sweep horizon at
+What moves: the sweep of a pair whose costliest cell is estimated above its budget (CELL_BUDGET_S,
+or the scheme's shorter ``cell_budget_s``: the library peers, scipy's, SUNDIALS' and diffrax's,
+whose many rows must not lengthen the main job by more than a few percent) runs
+at the longest of the shorter horizons HORIZON_FRACTIONS (and, for a scheme with its own
+budget, SHORT_BUDGET_FRACTIONS) of its problem's sweep horizon at
 which every cell of the sweep fits (never shorter than its largest step); the long-time cell
 of such a pair (a problem's ``long_t_final``) is left out when it is estimated above
 LONG_CELL_BUDGET_S. Every pair keeps its sweep's rows; nothing else changes. Each moved
@@ -37,6 +40,8 @@ CELL_BUDGET_S = 5.0
 LONG_CELL_BUDGET_S = 30.0
 # the shorter horizons a moved sweep may take, as fractions of the problem's sweep horizon
 HORIZON_FRACTIONS = (0.5, 0.2, 0.1, 0.05, 0.02, 0.01)
+# the shorter ones a scheme with its own ``cell_budget_s`` may take besides
+SHORT_BUDGET_FRACTIONS = (0.005, 0.002, 0.001)
 # the start of every note the budget leaves in a row's message (the report finds them by it)
 NOTE = "budget:"
 
@@ -61,6 +66,11 @@ def run_seconds(cell: Cell, dims: dict[str, int] | None = None) -> float:
     return steps * (icls.python_step_s + dim * icls.step_cost * COMPONENT_STEP_S)
 
 
+def cell_budget(scheme: str) -> float:
+    """The estimated seconds one run of a default cell of ``scheme`` may take."""
+    return registry.integrator_class(scheme).cell_budget_s or CELL_BUDGET_S
+
+
 def fit(cells: list[Cell], given_t_final: bool = False) -> tuple[list[Cell], list[Move]]:
     """The default matrix's ``cells`` (``cells.expand`` with ``default_sweep``) within the
     budget, and what it moved. ``given_t_final``: the final times were given (nothing moves
@@ -80,12 +90,13 @@ def fit(cells: list[Cell], given_t_final: bool = False) -> tuple[list[Cell], lis
         sweep = [i for i in members if long_tf is None or cells[i].t_final != long_tf]
         long_ = [i for i in members if i not in sweep]
         worst = max((run_seconds(cells[i], dims) for i in sweep), default=0.0)
-        if not given_t_final and worst > CELL_BUDGET_S and all(cells[i].t_final == main for i in sweep):
+        budget = cell_budget(scheme)
+        if not given_t_final and worst > budget and all(cells[i].t_final == main for i in sweep):
             horizon = _shorter_horizon([cells[i] for i in sweep], main, dims)
             if horizon is not None:
                 setting = f"t_final {number(main)} -> {number(horizon)}"
                 reason = (f"about {worst:.3g} s a run at t_final {number(main)}, over the default "
-                          f"matrix's {CELL_BUDGET_S:g} s a cell")
+                          f"matrix's {budget:g} s a cell")
                 moves.append(Move(problem, scheme, setting, reason))
                 note = f"{NOTE} {setting} ({reason}; --full-sweep runs {number(main)})"
                 for i in sweep:
@@ -112,13 +123,15 @@ def _shorter_horizon(sweep: list[Cell], main: float, dims: dict[str, int]) -> fl
     fixed = issubclass(registry.integrator_class(sweep[0].integrator), FixedStepIntegrator)
     largest_step = max((float(c.integrator_settings.get("dt") or pcls.default_dt) for c in sweep), default=0.0)
     allowed = []
-    for f in HORIZON_FRACTIONS:
+    own = registry.integrator_class(sweep[0].integrator).cell_budget_s is not None
+    for f in HORIZON_FRACTIONS + (SHORT_BUDGET_FRACTIONS if own else ()):
         horizon = pcls.t0 + f * (main - pcls.t0)
         if fixed and horizon - pcls.t0 < largest_step * (1 + 1e-9):
             break
         allowed.append(_round(horizon))
+    budget = cell_budget(sweep[0].integrator)
     for horizon in allowed:
-        if all(run_seconds(dataclasses.replace(c, t_final=horizon), dims) <= CELL_BUDGET_S for c in sweep):
+        if all(run_seconds(dataclasses.replace(c, t_final=horizon), dims) <= budget for c in sweep):
             return horizon
     return allowed[-1] if allowed else None
 

@@ -34,6 +34,7 @@ class Heyoka(Integrator):
     name = "heyoka"
     summary = "heyoka's adaptive Taylor integrator (order from tol), compiled outside the timing"
     kind = "external"
+    library = "heyoka"
     requires = frozenset({"heyoka"})
     parameters = {
         "tol": Param(float(np.finfo(float).eps), "heyoka's tolerance (order p = ceil(-ln(tol)/2 + 1))",

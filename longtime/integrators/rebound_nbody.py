@@ -58,6 +58,7 @@ class Rebound(Integrator):
     """A REBOUND integrator on an n-body problem (the module's docstring)."""
 
     kind = "external"
+    library = "rebound"
     integrator: str = ""  # REBOUND's name of the integrator
     symplectic = True
     # the default matrix's paper-scale cell on the outer solar system (1e6 days), where

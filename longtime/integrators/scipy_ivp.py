@@ -1,84 +1,197 @@
-"""scipy's DOP853 (Hairer's 8(5,3) pair) as an external peer, stepped as solve_ivp steps it.
+"""scipy's ``solve_ivp`` methods as external peers, stepped as solve_ivp steps them: ``dop853``
+(Hairer's 8(5,3) pair), ``scipy-rk23`` (Bogacki-Shampine 3(2)), ``scipy-rk45``
+(Dormand-Prince 5(4)), ``scipy-radau`` (Radau IIA, order 5), ``scipy-bdf`` (variable-order
+NDF/BDF 1-5) and ``scipy-lsoda`` (ODEPACK's LSODA: Adams/BDF switching).
 
-It runs scipy's own Python step loop and calls the problem's compiled rhs through a Python
-wrapper once per evaluation, so its CPU time includes that interpreter overhead (tens of
-microseconds per step): it measures what a user of scipy pays, not the cost of the method
-itself, and is labelled so. Every accepted step is recorded (thinned to max_samples).
+Each is called as its best users call it: the right-hand side is the problem's compiled
+(numba) rhs behind one compiled wrapper that returns a new array (solve_ivp's calling
+convention), and the implicit methods (Radau, BDF, LSODA) get the problem's compiled
+Jacobian the same way where the problem has one (else scipy's finite differences). The loop
+is scipy's own Python step loop (``OdeSolver.step``, what solve_ivp runs), written out so
+that the cell's deadline is checked as it goes; every accepted step is recorded (thinned to
+max_samples). CPU time therefore includes scipy's Python overhead per step and per rhs call:
+it measures what a user of scipy pays. ``peer_overhead_s`` (longtime.integrators.peer_common)
+says how much of a step that overhead is.
 """
 from __future__ import annotations
 
 import time
 
+import numba
 import numpy as np
 
-from longtime.core.integrator import Integrator, Trajectory, cached_kernel
+from longtime.core.integrator import Integrator
 from longtime.core.params import Param
-from longtime.core.problem import BLOWUP_MESSAGE
+from longtime.integrators import peer_common
+from longtime.integrators.peer_common import compiled
 
-DEADLINE_EVERY = 256  # steps between two looks at the cell's deadline
+
+def rhs_function(problem_rhs):
+    """A compiled f(t, y, params) -> new array around a problem's rhs(t, u, params, out)."""
+    @numba.njit
+    def fun(t, y, params):
+        out = np.empty_like(y)
+        problem_rhs(t, y, params, out)
+        return out
+    return fun
 
 
-class DOP853(Integrator):
-    name = "dop853"
-    summary = ("scipy solve_ivp(method='DOP853'), external peer: CPU includes scipy's Python "
-               "overhead per step and per rhs call")
+def jac_function(problem_jac):
+    """A compiled J(t, y, params) -> new (dim, dim) array around a problem's jac."""
+    @numba.njit
+    def jac(t, y, params):
+        out = np.zeros((y.size, y.size))
+        problem_jac(t, y, params, out)
+        return out
+    return jac
+
+
+class ScipyIVP(Integrator):
+    """A scipy ``OdeSolver`` stepped to t_final (the module's docstring)."""
+
     kind = "external"
-    order = 8
+    library = "scipy"
+    method: str = ""  # the OdeSolver class in scipy.integrate
+    uses_jacobian = False  # the method solves implicit stages with a Jacobian
     parameters = {
         "tol": Param(1e-8, "relative tolerance rtol", float, positive=True, role="accuracy"),
         "atol": Param(None, "absolute tolerance (default: tol)", float, positive=True),
     }
-    sweep = {"tol": (1e-6, 1e-9, 1e-12)}
-    python_step_s = 1e-4  # solve_ivp's step in Python and its twelve Python calls of the rhs
+    # the default matrix: two tolerances (the peers' rows are many: their budget is short)
+    sweep = {"tol": (1e-6, 1e-9)}
+    python_step_s = 1e-4  # solve_ivp's step in Python and its Python calls of the rhs
+    cell_budget_s = 0.03  # the default matrix's estimated seconds of one run (execution.budget)
 
-    def _integrate(self, problem, t_final, max_samples):
-        from scipy.integrate import DOP853 as Solver
+    def _functions(self, problem, rhs, jac):
+        """solve_ivp's fun(t, y) and jac(t, y) (or None) around compiled rhs and jac."""
+        params = problem.params
+        fun = compiled(rhs_function(rhs))
+        jac_of = None
+        if self.uses_jacobian and jac is not None:
+            compiled_jac = compiled(jac_function(jac))
+            jac_of = lambda t, y: compiled_jac(t, y, params)  # noqa: E731
+        return (lambda t, y: fun(t, y, params)), jac_of
 
-        # the cached twin of the rhs: a problem's closure rhs would compile in every process
-        rhs, params = cached_kernel(self, problem, lambda: problem.rhs), problem.params
+    def _solver(self, fun, jac, t0, u0, t_final, **options):
+        import scipy.integrate
 
-        def fun(t, y):
-            out = np.empty_like(y)
-            rhs(t, y, params, out)
-            return out
-
-        fun(problem.t0, problem.u0.copy())  # compile outside the timing
+        solver_cls = getattr(scipy.integrate, self.method)
         tol = self.settings["tol"]
         atol = tol if self.settings["atol"] is None else self.settings["atol"]
-        # solve_ivp's own loop, written out (it records every step alike) so that the cell's
-        # deadline is checked as it goes: solve_ivp cannot be stopped from outside
-        c0, w0 = time.process_time(), time.perf_counter()
-        solver = Solver(fun, problem.t0, problem.u0.copy(), t_final, rtol=tol, atol=atol)
-        ts, ys, failure, timed_out = [problem.t0], [problem.u0.copy()], None, False
-        while solver.status == "running":
-            failure = solver.step()
-            ts.append(solver.t)
-            ys.append(solver.y.copy())
-            if len(ts) % DEADLINE_EVERY == 0 and self._deadline is not None and time.monotonic() > self._deadline:
-                timed_out = True
-                break
-        cpu, wall = time.process_time() - c0, time.perf_counter() - w0
+        if jac is not None:
+            options["jac"] = jac
+        return solver_cls(fun, t0, u0, t_final, rtol=tol, atol=atol, **options)
+
+    def overhead(self, problem) -> float:
+        """Seconds a step costs on u' = 0 of the problem's dimension (peer_common)."""
+        def measure():
+            fun, jac = self._functions(problem, peer_common.zero_rhs, peer_common.zero_jac)
+            h = 1.0 / peer_common.OVERHEAD_STEPS
+            solver = self._solver(fun, jac, 0.0, np.zeros(problem.dim), 1.0, first_step=h, max_step=h)
+            fun(0.0, np.zeros(problem.dim))
+            steps, cpu, _ = peer_common.timed(lambda: _step_all(solver))
+            return cpu, steps
+
+        key = (self.name, problem.dim, tuple(sorted(self.settings.items())))
+        return peer_common.per_step_overhead(key, measure)
+
+    def _integrate(self, problem, t_final, max_samples):
+        fun, jac = self._functions(problem, problem.rhs, problem.jac)
+        u0 = problem.u0.copy()
+        fun(problem.t0, u0)  # compile outside the timing
+        if jac is not None:
+            jac(problem.t0, u0)
+        overhead = self.overhead(problem)
+        deadline = self._deadline
+        ts, ys = [problem.t0], [u0.copy()]
+
+        def run():
+            solver = self._solver(fun, jac, problem.t0, u0.copy(), t_final)
+            failure, timed_out = None, False
+            while solver.status == "running":
+                failure = solver.step()
+                ts.append(solver.t)
+                ys.append(solver.y.copy())
+                if len(ts) % peer_common.DEADLINE_EVERY == 0 and deadline is not None \
+                        and time.monotonic() > deadline:
+                    timed_out = True
+                    break
+            return solver, failure, timed_out
+
+        (solver, failure, timed_out), cpu, wall = peer_common.timed(run)
         if solver.status == "failed":  # a failed step leaves t and y where they were
             ts.pop(), ys.pop()
-        t, u = np.array(ts), np.array(ys)
-        status, message = "ok", ""
-        first = problem.first_blowup(u)
-        if first is not None:
-            t, u = t[:first + 1], u[:first + 1]
-            status, message = "diverged", BLOWUP_MESSAGE.format(t=t[-1])
-        elif timed_out:
-            status, message = "timeout", f"stopped at t={t[-1]:.6g}: past the cell's time limit"
-        elif solver.status == "failed":
-            status, message = "failed", f"DOP853: {failure} (t={t[-1]:.6g})"
-        steps = t.size - 1
-        dts = np.diff(t)
-        if t.size > max_samples:
-            stride = -(-(t.size - 1) // (max_samples - 1))
-            keep = np.r_[np.arange(0, t.size - 1, stride), t.size - 1]
-            t, u = t[keep], u[keep]
-        counters = {"steps": steps, "rhs_evals": int(solver.nfev), "nl_iters": 0, "rejected": 0,
-                    "fallbacks": 0, "jac_evals": int(solver.njev)}
-        return Trajectory(status=status, message=message, t=np.ascontiguousarray(t),
-                          u=np.ascontiguousarray(u), cpu_s=cpu, wall_s=wall, counters=counters,
-                          min_dt=float(dts.min()) if steps else None,
-                          max_dt=float(dts.max()) if steps else None)
+        counters = {"rhs_evals": int(solver.nfev), "nl_iters": 0, "rejected": 0, "fallbacks": 0,
+                    "jac_evals": int(solver.njev)}
+        return peer_common.trajectory(
+            problem, self.method, np.array(ts), np.array(ys), cpu, wall, counters, max_samples,
+            failure=failure if solver.status == "failed" else None, timed_out=timed_out,
+            extra={"peer_overhead_s": overhead})
+
+
+def _step_all(solver) -> int:
+    """Step ``solver`` to its end; the steps taken."""
+    steps = 0
+    while solver.status == "running":
+        solver.step()
+        steps += 1
+    return steps
+
+
+class DOP853(ScipyIVP):
+    name = "dop853"
+    summary = ("scipy solve_ivp(method='DOP853'), external peer: CPU includes scipy's Python "
+               "overhead per step and per rhs call")
+    method = "DOP853"
+    order = 8
+    sweep = {"tol": (1e-6, 1e-9, 1e-12)}
+    cell_budget_s = None  # the default matrix's budget for every scheme
+
+
+class ScipyRK23(ScipyIVP):
+    name = "scipy-rk23"
+    summary = ("scipy solve_ivp(method='RK23'), Bogacki-Shampine 3(2), external peer: CPU includes scipy's "
+               "Python overhead per step")
+    method = "RK23"
+    order = 3
+
+
+class ScipyRK45(ScipyIVP):
+    name = "scipy-rk45"
+    summary = ("scipy solve_ivp(method='RK45'), Dormand-Prince 5(4), external peer: CPU includes scipy's "
+               "Python overhead per step")
+    method = "RK45"
+    order = 5
+
+
+class ScipyRadau(ScipyIVP):
+    name = "scipy-radau"
+    summary = ("scipy solve_ivp(method='Radau'), Radau IIA order 5 with the problem's Jacobian where it has "
+               "one, external peer")
+    method = "Radau"
+    order = 5
+    uses_jacobian = True
+    python_step_s = 4e-4  # Newton iterations and LU factorisations driven from Python
+    step_cost = 300.0  # finite-difference Jacobians (a Python rhs call per component) and dense LUs
+
+
+class ScipyBDF(ScipyIVP):
+    name = "scipy-bdf"
+    summary = ("scipy solve_ivp(method='BDF'), variable-order NDF 1-5 with the problem's Jacobian where it "
+               "has one, external peer")
+    method = "BDF"
+    order = None  # variable, 1 to 5
+    uses_jacobian = True
+    python_step_s = 2e-4
+    step_cost = 300.0  # as Radau's
+
+
+class ScipyLSODA(ScipyIVP):
+    name = "scipy-lsoda"
+    summary = ("scipy solve_ivp(method='LSODA'), ODEPACK's Adams/BDF switching with the problem's Jacobian "
+               "where it has one, external peer")
+    method = "LSODA"
+    order = None  # variable: Adams 1 to 12, BDF 1 to 5
+    uses_jacobian = True
+    python_step_s = 5e-5
+    step_cost = 300.0  # as Radau's, when it switches to BDF

@@ -70,10 +70,20 @@ def _taylor(t0, u, params, coeffs, work):
         coeffs[n + 1, 1] = f / (n + 1)
 
 
+def _jax_rhs(t, u, params):
+    """The rhs in jax.numpy (the diffrax peers)."""
+    import jax.numpy as jnp
+
+    x, v = u[0], u[1]
+    force = params[_C] * jnp.cos(params[_W] * t)
+    return jnp.stack([v, -params[_R] * v - params[_A] * x - params[_B] * x * x * x + force])
+
+
 class _Duffing(Problem):
     """Shared kernels; subclasses fix (a, b, r, c, w) through ``coefficients``."""
 
     rhs = staticmethod(_rhs)
+    jax_rhs = staticmethod(_jax_rhs)
     jac = staticmethod(_jac)
     taylor = staticmethod(_taylor)
 

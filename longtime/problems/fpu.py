@@ -70,6 +70,19 @@ def _frequencies(params, out):
         out[m + i] = params[0]
 
 
+def _jax_rhs(t, u, params):
+    """The rhs in jax.numpy (the diffrax peers): the soft springs' d_k padded with the fixed ends."""
+    import jax.numpy as jnp
+
+    n = u.size // 2
+    m = n // 2
+    x0 = jnp.pad(u[:m], 1)
+    x1 = jnp.pad(u[m:n], 1)
+    d3 = (x0[1:] - x1[1:] - x0[:-1] - x1[:-1]) ** 3  # d_0 .. d_m
+    grad_v = jnp.concatenate([d3[:-1] - d3[1:], -d3[:-1] - d3[1:] + params[0] * params[0] * u[m:n]])
+    return jnp.concatenate([u[n:], -grad_v])
+
+
 class FPU(Problem):
     name = "fpu"
     summary = "Fermi-Pasta-Ulam-Tsingou with stiff springs (HLW I.5): oscillatory energy I near-conserved"
@@ -90,6 +103,7 @@ class FPU(Problem):
     sweep_t_final = 1000.0
 
     rhs = staticmethod(separable_rhs(_grad_T, _grad_V))
+    jax_rhs = staticmethod(_jax_rhs)
     grad_T = staticmethod(_grad_T)
     grad_V = staticmethod(_grad_V)
     frequencies = staticmethod(_frequencies)

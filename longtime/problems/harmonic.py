@@ -34,6 +34,13 @@ def _grad_V(q, params, out):
     out[0] = params[0] * params[0] * q[0]
 
 
+def _jax_rhs(t, u, params):
+    """The rhs in jax.numpy (the diffrax peers)."""
+    import jax.numpy as jnp
+
+    return jnp.stack([u[1], -params[0] * params[0] * u[0]])
+
+
 class Harmonic(Problem):
     name = "harmonic"
     summary = "harmonic oscillator, exact solution"
@@ -48,6 +55,7 @@ class Harmonic(Problem):
     sweep_t_final = 200.0
 
     rhs = staticmethod(_rhs)
+    jax_rhs = staticmethod(_jax_rhs)
     grad_T = staticmethod(_grad_T)
     grad_V = staticmethod(_grad_V)
     taylor = staticmethod(_taylor)

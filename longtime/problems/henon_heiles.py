@@ -32,6 +32,14 @@ def potential(x, y):
     return 0.5 * (x * x + y * y) + x * x * y - y**3 / 3
 
 
+def _jax_rhs(t, u, params):
+    """The rhs in jax.numpy (the diffrax peers)."""
+    import jax.numpy as jnp
+
+    x, y, px, py = u[0], u[1], u[2], u[3]
+    return jnp.stack([px, py, -(x + 2.0 * x * y), -(y + x * x - y * y)])
+
+
 class HenonHeiles(Problem):
     name = "henon-heiles"
     summary = "Henon-Heiles potential near the escape energy 1/6 (default orbit regular; chaotic sea from y0 = 0)"
@@ -50,6 +58,7 @@ class HenonHeiles(Problem):
     long_t_final = 10_000.0  # over 10^3 oscillation periods, for the schemes that can afford it
 
     rhs = staticmethod(separable_rhs(_grad_T, _grad_V))
+    jax_rhs = staticmethod(_jax_rhs)
     grad_T = staticmethod(_grad_T)
     grad_V = staticmethod(_grad_V)
 

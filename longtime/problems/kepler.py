@@ -95,6 +95,15 @@ def kepler_orbit(u0: np.ndarray, tau: np.ndarray) -> np.ndarray:
                      cw * vxf - sw * vyf, sw * vxf + cw * vyf], axis=1).astype(float)
 
 
+def _jax_rhs(t, u, params):
+    """The rhs in jax.numpy (the diffrax peers)."""
+    import jax.numpy as jnp
+
+    q, p = u[:2], u[2:]
+    r2 = q[0] * q[0] + q[1] * q[1]
+    return jnp.concatenate([p, -q / (r2 * jnp.sqrt(r2))])
+
+
 class Kepler(Problem):
     name = "kepler"
     summary = "Kepler orbit of eccentricity e (e = 0.9 is the hard case), exact solution"
@@ -106,6 +115,7 @@ class Kepler(Problem):
     long_t_final = 2000 * np.pi  # 10^3 periods, for the schemes that can afford it
 
     rhs = staticmethod(separable_rhs(_grad_T, _grad_V))
+    jax_rhs = staticmethod(_jax_rhs)
     grad_T = staticmethod(_grad_T)
     grad_V = staticmethod(_grad_V)
     taylor = staticmethod(_taylor)

@@ -33,6 +33,13 @@ def _taylor(t0, u, params, coeffs, work):
         coeffs[k + 1, 1] = (b * x + a * y) / (k + 1)
 
 
+def _jax_rhs(t, u, params):
+    """The rhs in jax.numpy (the diffrax peers)."""
+    import jax.numpy as jnp
+
+    return jnp.stack([params[0] * u[0] - params[1] * u[1], params[1] * u[0] + params[0] * u[1]])
+
+
 class LinearTest(Problem):
     """Dahlquist's test equation u' = lambda u as a real 2x2 system (u = x + i y)."""
 
@@ -49,6 +56,7 @@ class LinearTest(Problem):
     in_default_matrix = False  # a diagnostic: `longtime list --stability` uses it
 
     rhs = staticmethod(_rhs)
+    jax_rhs = staticmethod(_jax_rhs)
     jac = staticmethod(_jac)
     taylor = staticmethod(_taylor)
 

@@ -41,6 +41,13 @@ def _taylor(t0, u, params, coeffs, work):
         coeffs[n + 1, 1] = (coeffs[n, 1] - uv) / (n + 1)
 
 
+def _jax_rhs(t, u, params):
+    """The rhs in jax.numpy (the diffrax peers)."""
+    import jax.numpy as jnp
+
+    return jnp.stack([u[0] * (u[1] - 2.0), u[1] * (1.0 - u[0])])
+
+
 class LotkaVolterra(Problem):
     name = "lotka-volterra"
     summary = "Lotka-Volterra u' = u(v - 2), v' = v(1 - u): a Poisson system (HLW I.1), first integral H"
@@ -55,6 +62,7 @@ class LotkaVolterra(Problem):
     long_t_final = 10_000.0
 
     rhs = staticmethod(_rhs)
+    jax_rhs = staticmethod(_jax_rhs)
     jac = staticmethod(_jac)
     taylor = staticmethod(_taylor)
 

@@ -87,6 +87,14 @@ def rigid_body_orbit(inertia, m0, t) -> np.ndarray:
     return out
 
 
+def _jax_rhs(t, u, params):
+    """The rhs in jax.numpy (the diffrax peers)."""
+    import jax.numpy as jnp
+
+    a1, a2, a3 = params[0], params[1], params[2]
+    return jnp.stack([(a3 - a2) * u[1] * u[2], (a1 - a3) * u[2] * u[0], (a2 - a1) * u[0] * u[1]])
+
+
 class RigidBody(Problem):
     name = "rigid-body"
     summary = "free rigid body (Euler's equations, HLW IV.1): Casimir |m|^2 and energy, exact solution"
@@ -103,6 +111,7 @@ class RigidBody(Problem):
     long_t_final = 10_000.0  # about 10^3 periods of the tumbling
 
     rhs = staticmethod(_rhs)
+    jax_rhs = staticmethod(_jax_rhs)
     jac = staticmethod(_jac)
 
     def initial_state(self):

@@ -69,6 +69,16 @@ def _taylor(t0, u, params, coeffs, work):
 LAX_CHUNK_BYTES = 64 * 2**20
 
 
+def _jax_rhs(t, u, params):
+    """The rhs in jax.numpy (the diffrax peers): dV/dq_k = e_k - e_{k-1}, e_k = exp(q_k - q_{k+1})."""
+    import jax.numpy as jnp
+
+    d = u.size // 2
+    q, p = u[:d], u[d:]
+    e = jnp.exp(q - jnp.roll(q, -1))
+    return jnp.concatenate([p, jnp.roll(e, 1) - e])
+
+
 class Toda(Problem):
     name = "toda"
     summary = "periodic Toda lattice (integrable; H and Lax eigenvalues conserved)"
@@ -81,6 +91,7 @@ class Toda(Problem):
     long_t_final = 5000.0  # the paper's, for the schemes that can afford it
 
     rhs = staticmethod(_rhs)
+    jax_rhs = staticmethod(_jax_rhs)
     grad_T = staticmethod(_grad_T)
     grad_V = staticmethod(_grad_V)
     taylor = staticmethod(_taylor)

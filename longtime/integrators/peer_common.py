@@ -1,0 +1,121 @@
+"""What the library peers share (scipy's ``solve_ivp`` family, SUNDIALS' CVODE, diffrax): the
+message naming the extra to install, the trajectory built from the steps a library recorded,
+and the per-call overhead measured once on a trivial right-hand side.
+
+A peer's row carries ``peer_overhead_s`` (docs/metrics.md): the CPU seconds a step of the
+same method and settings costs on u' = 0 of the problem's dimension, stepped at a fixed step
+(first and largest step h = 1/OVERHEAD_STEPS over [0, 1]). It is the library's boundary and
+step machinery without the work of a right-hand side, measured once per (scheme, settings,
+dimension) in a process, outside the timing, so that a reader can tell the method's cost
+from its Python boundary.
+"""
+from __future__ import annotations
+
+import importlib
+import time
+from typing import Any, Callable
+
+import numba
+import numpy as np
+
+from longtime.core.integrator import Trajectory
+from longtime.core.jitcache import Unfreezable, cacheable, fingerprint
+from longtime.core.problem import BLOWUP_MESSAGE
+
+OVERHEAD_STEPS = 200  # steps of the trivial run that measures the per-step overhead
+DEADLINE_EVERY = 256  # steps between two looks at the cell's deadline
+
+_OVERHEAD: dict[tuple, float] = {}
+# compiled wrappers of a problem's functions, by the fingerprint of their closure
+_WRAPPERS: dict[str, object] = {}
+
+
+def compiled(closure):
+    """``closure`` (a compiled wrapper around a problem's rhs or jac) from numba's disk cache
+    (jitcache.cacheable), built once per process and kernel."""
+    try:
+        key = fingerprint(closure)
+    except Unfreezable:
+        return closure
+    if key not in _WRAPPERS:
+        _WRAPPERS[key] = cacheable(closure)
+    return _WRAPPERS[key]
+
+
+@numba.njit(cache=True)
+def zero_rhs(t, u, params, out):
+    """The trivial right-hand side u' = 0 the per-step overhead is measured on."""
+    out[:] = 0.0
+
+
+@numba.njit(cache=True)
+def zero_jac(t, u, params, out):
+    """Its Jacobian."""
+    out[:, :] = 0.0
+
+
+def installed(*modules: str) -> bool:
+    """Whether every module imports (the peer's library is installed)."""
+    for module in modules:
+        try:
+            importlib.import_module(module)
+        except ImportError:
+            return False
+    return True
+
+
+def missing(scheme: str, package: str, extra: str) -> str:
+    """The skip reason of a peer whose library is not installed: the extra to install."""
+    return f'{scheme} needs the package {package}: pip install "longtime[{extra}]"'
+
+
+def per_step_overhead(key: tuple, measure: Callable[[], tuple[float, int]]) -> float:
+    """The seconds a step costs on the trivial rhs, from ``measure()`` -> (cpu seconds, steps),
+    measured once per ``key`` in this process."""
+    found = _OVERHEAD.get(key)
+    if found is None:
+        measure()  # the first run pays the library's imports and caches, not the step
+        cpu, steps = measure()
+        found = _OVERHEAD[key] = cpu / max(steps, 1)
+    return found
+
+
+def timed(run: Callable[[], Any]) -> tuple[Any, float, float]:
+    """(run(), CPU seconds, wall seconds)."""
+    c0, w0 = time.process_time(), time.perf_counter()
+    out = run()
+    return out, time.process_time() - c0, time.perf_counter() - w0
+
+
+def thin(t: np.ndarray, u: np.ndarray, max_samples: int) -> tuple[np.ndarray, np.ndarray]:
+    """Every stride-th sample and the last, at most ``max_samples`` of them."""
+    if t.size <= max_samples:
+        return t, u
+    stride = -(-(t.size - 1) // (max_samples - 1))
+    keep = np.r_[np.arange(0, t.size - 1, stride), t.size - 1]
+    return t[keep], u[keep]
+
+
+def trajectory(problem, library: str, t: np.ndarray, u: np.ndarray, cpu: float, wall: float,
+               counters: dict[str, int], max_samples: int, failure: str | None = None,
+               timed_out: bool = False, extra: dict[str, Any] | None = None) -> Trajectory:
+    """The row's trajectory from the accepted steps (t, u) a library recorded: cut at a
+    blow-up, else ``timeout`` (stopped at the cell's deadline) or ``failed`` (the library's
+    ``failure`` message), thinned evenly to ``max_samples``; ``counters['steps']`` is set from
+    the steps recorded."""
+    status, message = "ok", ""
+    first = problem.first_blowup(u)
+    if first is not None:
+        t, u = t[:first + 1], u[:first + 1]
+        status, message = "diverged", BLOWUP_MESSAGE.format(t=t[-1])
+    elif timed_out:
+        status, message = "timeout", f"stopped at t={t[-1]:.6g}: past the cell's time limit"
+    elif failure is not None:
+        status, message = "failed", f"{library}: {failure} (t={t[-1]:.6g})"
+    steps = t.size - 1
+    dts = np.diff(t)
+    t, u = thin(t, u, max_samples)
+    return Trajectory(status=status, message=message, t=np.ascontiguousarray(t), u=np.ascontiguousarray(u),
+                      cpu_s=cpu, wall_s=wall, counters={"steps": int(steps), **counters},
+                      min_dt=float(dts.min()) if steps else None, max_dt=float(dts.max()) if steps else None,
+                      extra=dict(extra or {}))

@@ -1,0 +1,206 @@
+"""The library peers: scipy's solve_ivp family, SUNDIALS' CVODE (scikit-sundae) and diffrax,
+checked against heyoka's reference on kepler, with their compile and per-call overhead apart
+from the timing, and skipped with the extra to install where their library is missing."""
+import sys
+
+import numpy as np
+import pytest
+
+from longtime.core import registry
+from longtime.core.params import InputError
+from longtime.execution.cells import expand
+from longtime.integrators import peer_common
+from longtime.measure import reference
+
+SCIPY = ["dop853", "scipy-rk23", "scipy-rk45", "scipy-radau", "scipy-bdf", "scipy-lsoda"]
+CVODE = ["cvode-adams", "cvode-bdf"]
+DIFFRAX = ["diffrax-tsit5", "diffrax-dopri5", "diffrax-dopri8", "diffrax-kvaerno5", "diffrax-reversible-heun"]
+has_sundials = peer_common.installed("sksundae")
+has_diffrax = peer_common.installed("jax", "diffrax")
+needs_sundials = pytest.mark.skipif(not has_sundials, reason='needs pip install "longtime[sundials]"')
+needs_diffrax = pytest.mark.skipif(not has_diffrax, reason='needs pip install "longtime[diffrax]"')
+TOL = 1e-8
+# kepler's pericentre passage (e = 0.6), where the steps are shortest: over a whole period the
+# global error of every 5th-order pair, our rk45 included, is 100 to 900 times the tolerance
+SPAN = 1.0
+
+
+def test_the_peers_are_registered_by_library():
+    found = registry.integrators()
+    for names, library in ((SCIPY, "scipy"), (CVODE, "sundials"), (DIFFRAX + ["diffrax-semi-implicit-euler"],
+                                                                      "diffrax")):
+        for name in names:
+            assert found[name].library == library and found[name].kind == "external", name
+    assert found["rk45"].library == "longtime" and found["heyoka"].library == "heyoka"
+
+
+def test_longtime_list_shows_the_six_scipy_methods(capsys):
+    import json
+
+    from longtime.commands.cli import main
+
+    assert main(["list", "--format", "json"]) == 0
+    listed = {s["name"]: s for s in json.loads(capsys.readouterr().out)["integrators"]}
+    assert set(SCIPY) <= set(listed) and all(listed[n]["kind"] == "external" for n in SCIPY)
+    # the other peers are listed too; without their extras their rows are skipped (below)
+    assert set(CVODE + DIFFRAX) <= set(listed) and listed["diffrax-tsit5"]["requires"] == ["jax_rhs"]
+
+
+@pytest.fixture(scope="module")
+def kepler():
+    return registry.problem_class("kepler")()
+
+
+@pytest.fixture(scope="module")
+def heyoka_kepler(kepler):
+    """heyoka's states on kepler at the given times."""
+    def at(times):
+        return reference._propagate(kepler, np.asarray(times), "double")[0]
+    return at
+
+
+def _error_against_heyoka(name, kepler, heyoka_kepler, t_final=SPAN):
+    traj = registry.integrator_class(name)(tol=TOL).integrate(kepler, t_final, max_samples=2001)
+    assert traj.status == "ok", traj.message
+    ref = heyoka_kepler(traj.t)
+    return np.max(np.linalg.norm(traj.u - ref, axis=1) / np.linalg.norm(ref, axis=1)), traj
+
+
+@pytest.mark.parametrize("name", SCIPY)
+def test_scipy_against_heyoka_on_kepler(name, kepler, heyoka_kepler):
+    error, traj = _error_against_heyoka(name, kepler, heyoka_kepler)
+    assert error < 100 * TOL, f"{name}: {error:.3g}"
+    assert traj.steps > 5 and traj.counters["rhs_evals"] >= traj.steps
+    overhead = traj.extra["peer_overhead_s"]
+    # the library's own cost of a step on u' = 0: positive, and less than a step with the work
+    assert 0 < overhead < 50 * traj.cpu_s / traj.steps
+
+
+@needs_sundials
+@pytest.mark.parametrize("name", CVODE)
+def test_cvode_against_heyoka_on_kepler(name, kepler, heyoka_kepler):
+    error, traj = _error_against_heyoka(name, kepler, heyoka_kepler)
+    assert error < 100 * TOL, f"{name}: {error:.3g}"
+    assert traj.steps > 5 and 0 < traj.extra["peer_overhead_s"]
+
+
+@needs_diffrax
+@pytest.mark.parametrize("name", [n if n == "diffrax-tsit5" else pytest.param(n, marks=pytest.mark.slow)
+                                  for n in DIFFRAX])  # each compiles for about 10 s on a loaded machine
+def test_diffrax_against_heyoka_on_kepler(name, kepler, heyoka_kepler):
+    error, traj = _error_against_heyoka(name, kepler, heyoka_kepler)
+    assert error < 100 * TOL, f"{name}: {error:.3g}"
+    assert traj.steps > 5 and 0 < traj.extra["peer_overhead_s"]
+
+
+@needs_diffrax
+def test_diffrax_semi_implicit_euler_is_symplectic_euler(kepler):
+    # the same steps as our symplectic Euler B (q first from p_n, then p from q_{n+1}) at the
+    # same dt: the same final state up to the order in which the sums round
+    dt = 1e-3
+    ours = registry.integrator_class("symplectic-euler-b")(dt=dt).integrate(kepler, 1.0, max_samples=11)
+    theirs = registry.integrator_class("diffrax-semi-implicit-euler")(dt=dt).integrate(kepler, 1.0, max_samples=11)
+    assert theirs.status == "ok" and theirs.steps == 1000
+    assert np.max(np.abs(theirs.u[-1] - ours.u[-1])) < 1e-10
+
+
+@needs_diffrax
+def test_diffrax_compile_time_is_reported_apart_from_cpu_s():
+    from longtime.integrators import diffrax_ode
+
+    jax = diffrax_ode._jax()
+    problem = registry.problem_class("henon-heiles")()
+    scheme = registry.integrator_class("diffrax-tsit5")(tol=1e-7)
+    diffrax_ode._COMPILED.clear()
+    jax.config.update("jax_enable_compilation_cache", False)  # a true compile, not a load
+    try:
+        first = scheme.integrate(problem, 10.0)  # compiles
+    finally:
+        jax.config.update("jax_enable_compilation_cache", True)
+    again = scheme.integrate(problem, 10.0)  # reuses the compiled solve
+    compile_s = first.extra["compile_s"]
+    assert compile_s > 0.05  # XLA compiles a diffeqsolve in about a second
+    assert first.cpu_s < compile_s / 5, (first.cpu_s, compile_s)
+    # the run that compiled costs what the run that did not costs: the compile is not in it
+    assert first.cpu_s < 3 * again.cpu_s + 0.01, (first.cpu_s, again.cpu_s)
+    assert again.extra["compile_s"] == compile_s and np.array_equal(first.u, again.u)
+
+
+@needs_diffrax
+@pytest.mark.parametrize("name", sorted(n for n, c in registry.problems().items() if c.jax_rhs is not None))
+def test_jax_rhs_is_the_rhs(name):
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    problem = registry.problem_class(name)()
+    rng = np.random.default_rng(5)
+    for u in (problem.u0, problem.u0 * (1 + 0.1 * rng.standard_normal(problem.dim))):
+        out = np.empty(problem.dim)
+        problem.rhs(0.7, u, problem.params, out)
+        given = np.asarray(problem.jax_rhs(0.7, jax.numpy.asarray(u), jax.numpy.asarray(problem.params)))
+        assert np.allclose(given, out, rtol=1e-12, atol=1e-12 * np.max(np.abs(out))), name
+
+
+def test_a_problem_without_jax_rhs_is_skipped_for_diffrax():
+    (cell,) = expand(["kdv"], ["diffrax-tsit5"], sets={"tol": 1e-6}, t_final=1.0)
+    assert cell.skip_reason == "diffrax-tsit5 needs jax_rhs, which kdv does not provide"
+
+
+@pytest.mark.parametrize("names, hidden, extra", [
+    (CVODE, ["sksundae"], "sundials"),
+    (DIFFRAX, ["diffrax"], "diffrax"),
+    (DIFFRAX, ["jax"], "diffrax"),
+])
+def test_without_the_extra_the_rows_are_skipped_naming_it(monkeypatch, names, hidden, extra):
+    for module in list(sys.modules):
+        if module.split(".")[0] in hidden:
+            monkeypatch.delitem(sys.modules, module)
+    for module in hidden:
+        monkeypatch.setitem(sys.modules, module, None)  # import raises ImportError
+    cells = expand(["kepler"], names, sets={"tol": 1e-6}, t_final=1.0)
+    assert [c.skip_reason for c in cells] == [
+        f'{n} needs the package {"scikit-sundae" if extra == "sundials" else "diffrax"}: '
+        f'pip install "longtime[{extra}]"' for n in names]
+    with pytest.raises(InputError, match=rf'longtime\[{extra}\]'):
+        registry.integrator_class(names[0])(tol=1e-6).integrate(registry.problem_class("kepler")(), 1.0)
+
+
+def test_the_peers_default_sweep_is_short_and_budgeted():
+    from longtime.execution import budget
+
+    for name in SCIPY[1:] + CVODE + DIFFRAX:
+        cls = registry.integrator_class(name)
+        assert len(cls.sweep["tol"]) == 2 and cls.cell_budget_s < budget.CELL_BUDGET_S
+    assert registry.integrator_class("dop853").cell_budget_s is None  # its sweep and budget as before
+    assert budget.cell_budget("scipy-radau") == registry.integrator_class("scipy-radau").cell_budget_s
+    assert budget.cell_budget("rk4") == budget.CELL_BUDGET_S
+
+
+@needs_sundials
+def test_cvode_takes_a_problem_with_many_params():
+    # kdv's params are an array of many values: scikit-sundae gets them in a 1-tuple
+    problem = registry.problem_class("kdv")(d=32)
+    assert problem.params.size > 1
+    traj = registry.integrator_class("cvode-bdf")(tol=1e-6).integrate(problem, 0.05)
+    assert traj.status == "ok" and traj.steps >= 2, traj.message
+
+
+@pytest.mark.slow
+def test_one_method_of_each_library_runs_ok_on_the_issue_problems(tmp_path):
+    import json
+    import subprocess
+
+    schemes = ["scipy-rk45", "scipy-radau"] + (["cvode-bdf"] if has_sundials else []) + \
+        (["diffrax-tsit5"] if has_diffrax else [])
+    out = subprocess.run([sys.executable, "-m", "longtime", "run", "-p", "kepler,toda,henon-heiles,kdv",
+                          "-i", ",".join(schemes), "--tol", "1e-6", "--t-final", "0.5", "--no-store",
+                          "--format", "json"], capture_output=True, text=True, timeout=300,
+                         env={**__import__("os").environ, "LONGTIME_DB": str(tmp_path / "db.sqlite")})
+    assert out.returncode == 0, out.stderr[-2000:]
+    rows = {(r["problem"], r["integrator"]): r for r in json.loads(out.stdout)}
+    for (problem, scheme), row in rows.items():
+        expected = "skipped" if scheme.startswith("diffrax") and problem == "kdv" else "ok"
+        assert row["status"] == expected, (problem, scheme, row["message"])
+        if expected == "ok":
+            assert row["peer_overhead_s"] > 0 and row["l2_error"] < 1e-3, (problem, scheme)
+    assert len(rows) == 4 * len(schemes)
