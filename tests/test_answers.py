@@ -65,7 +65,9 @@ def test_the_answer_holds_at_the_horizon(stores, problem, error, horizon):
     best = rec.decision.best
     measured = _run(best, horizon)
     assert measured["l2_error"] <= 3 * error, (str(rec), measured["l2_error"])
-    assert measured["l2_error"] == pytest.approx(rec.predicted_error, rel=2.0)  # within x3 of the prediction
+    # the prediction itself, extrapolated up to 100 times past the longest run, within a decade
+    # (the main job's checks hold it to x3 where the horizon is nearer)
+    assert rec.predicted_error / 10 <= measured["l2_error"] <= 10 * rec.predicted_error, (str(rec), measured)
     rivals = [r for r in [rec.decision.runner_up, *rec.decision.open] if r is not None]
     for rival in rivals:
         row = _run(rival, horizon)
