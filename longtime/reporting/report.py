@@ -406,6 +406,11 @@ def _pairs_text(pairs: list[tuple[str, str]], limit: int = 2 * WIDTH - 40) -> st
     parts, shown = [], 0
     for schemes, problems in sorted(sets.items(), key=lambda kv: (-len(kv[0]) * len(kv[1]), kv[0])):
         part = f"{', '.join(schemes)} on {', '.join(problems)}"
+        if not parts and len(part) > limit:  # the largest set alone is too long: counted
+            part = f"{', '.join(schemes)} on {len(problems)} problems"
+            if len(part) > limit:
+                part = f"{len(schemes)} schemes on {', '.join(problems)}" if len(problems) == 1 else \
+                    f"{len(schemes)} schemes on {len(problems)} problems"
         if parts and sum(map(len, parts)) + len(part) > limit:
             rest = len(set(pairs)) - shown
             parts.append(f"{rest} more pair{'s' if rest != 1 else ''} (`--full`)")
@@ -413,6 +418,18 @@ def _pairs_text(pairs: list[tuple[str, str]], limit: int = 2 * WIDTH - 40) -> st
         parts.append(part)
         shown += len(schemes) * len(problems)
     return "; ".join(parts)
+
+
+# the pairs named after a count on the first screen: about one line of them, the rest counted
+ONE_LINE = WIDTH
+
+
+def _need(why: str) -> str:
+    """A skip reason's short form: 'needs separable, which the problem does not provide' ->
+    'needs separable'; 'needs the package diffrax: pip install ...' kept whole (it says the fix)."""
+    import re
+
+    return why if "pip install" in why else re.split(r" \(|, which", why)[0]
 
 
 def count_lines(rows: list[dict[str, Any]], orders: bool = True) -> list[str]:
@@ -432,8 +449,11 @@ def count_lines(rows: list[dict[str, Any]], orders: bool = True) -> list[str]:
             why = str(r.get("message") or "no reason stored").removeprefix(f"{r['integrator']} ")
             why = re.sub(rf"\b{re.escape(r['problem'])}\b", "the problem", why)
             skipped.setdefault(why, []).append((r["problem"], r["integrator"]))
-    for why, pairs in sorted(skipped.items(), key=lambda kv: -len(kv[1])):
-        lines += _wrap(f"  skipped {len(pairs)}, does not apply ({why}): {_pairs_text(sorted(set(pairs)))}")
+    if skipped:  # one paragraph: what the schemes need, by count; `--full` names the pairs
+        total = sum(len(p) for p in skipped.values())
+        by_count = sorted(skipped.items(), key=lambda kv: -len(kv[1]))
+        needs = "; ".join(f"{_need(why)} {len(pairs)}" for why, pairs in by_count)
+        lines += _wrap(f"  skipped {total}, does not apply: {needs} (`--full` names the pairs)")
     for status in ("diverged", "failed", "timeout"):
         bad = [r for r in rows if r.get("status") == status]
         reasons: dict[str, list[tuple[str, str]]] = {}
@@ -442,15 +462,15 @@ def count_lines(rows: list[dict[str, Any]], orders: bool = True) -> list[str]:
             first = re.sub(r"\s*\b(at|near|from|to) t ?= ?[-+0-9.e]+", "", first)  # the reason, not where
             reasons.setdefault(first[:90], []).append((r["problem"], r["integrator"]))
         for why, pairs in sorted(reasons.items(), key=lambda kv: -len(kv[1])):
-            lines += _wrap(f"  {status} {len(pairs)} ({why}): {_pairs_text(sorted(set(pairs)))}")
+            lines += _wrap(f"  {status} {len(pairs)} ({why}): {_pairs_text(sorted(set(pairs)), ONE_LINE)}")
     lost = [(r["problem"], r["integrator"]) for r in rows if r.get("status") == "ok" and r.get("solution_lost")]
     if lost:
         lines += _wrap(f"  ok but lost the solution {len(lost)} (error O(1) at the end): "
-                       f"{_pairs_text(sorted(set(lost)))}")
+                       f"{_pairs_text(sorted(set(lost)), ONE_LINE)}")
     moved = notes(rows)
     if moved:
-        lines += _wrap(f"  moved by the default matrix's budget {len(moved)} (a run over its seconds a cell runs "
-                       f"to a shorter t_final; `--full` says each): {_pairs_text(sorted(moved))}")
+        lines += _wrap(f"  moved by the default matrix's budget {len(moved)} (a run over its seconds runs to a "
+                       f"shorter t_final): {_pairs_text(sorted(moved), ONE_LINE)}")
     if orders:
         out = left_out(rows)
         if out:
