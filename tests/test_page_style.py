@@ -79,3 +79,11 @@ def test_the_inline_figures_share_no_id(rows):
     svg = '<svg><defs><path id="m1"/></defs><use xlink:href="#m1"/><g clip-path="url(#m1)"/></svg>'
     once, twice = unique_ids(svg), unique_ids(svg)
     assert once != twice and 'xlink:href="#' in once and re.search(r'id="(f\w+-m1)"', once)
+
+
+def test_winners_of_one_map_whose_colours_are_alike_are_told_apart_by_a_hatch():
+    from longtime.reporting.figures.verdict import HATCHES, hatches
+
+    colours = {"a": "#1f77b4", "b": "#3182bd", "c": "#d62728", "d": "#1f77b4"}  # b and d: blues like a's
+    found = hatches(["a", "b", "c", "d"], colours)
+    assert found == {"a": HATCHES[0], "b": HATCHES[1], "c": HATCHES[0], "d": HATCHES[2]}

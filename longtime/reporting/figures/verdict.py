@@ -24,6 +24,25 @@ def scheme_colours(schemes: list[str]) -> dict[str, Any]:
     return {s: scheme_style(s)["color"] for s in schemes}
 
 
+# two fills closer than this (RGB distance, 0 to sqrt 3) read as one colour in a map
+ALIKE = 0.3
+HATCHES = ("", "//", "\\\\", "..", "xx", "++")
+
+
+def hatches(schemes: list[str], colours: dict[str, Any]) -> dict[str, str]:
+    """A hatch for each scheme of one map: none, unless its colour is alike to that of a
+    scheme before it in ``schemes`` (the palette repeats past its twenty colours), then the
+    first hatch none of those alike has, so that no two winners of the map look the same."""
+    from matplotlib.colors import to_rgb
+
+    out: dict[str, str] = {}
+    for k, s in enumerate(schemes):
+        mine = np.array(to_rgb(colours[s]))
+        taken = {out[o] for o in schemes[:k] if np.linalg.norm(mine - to_rgb(colours[o])) < ALIKE}
+        out[s] = next((h for h in HATCHES if h not in taken), HATCHES[-1])
+    return out
+
+
 def text_colour(fill: Any) -> str:
     """Dark text on a light fill, white on a dark or middle one (luminance below 0.5)."""
     from matplotlib.colors import to_rgb
@@ -55,21 +74,26 @@ def winner_map_svg(v: Verdict) -> str | None:
     horizons = list(v.horizons)
     winners = list(dict.fromkeys(d.best.scheme for d in v.grid.values() if d.best is not None))
     colours = scheme_colours(winners)
+    hatched = hatches(winners, colours)
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(1.0 + 1.7 * len(horizons), 0.8 + 0.4 * len(targets)))
     xe, ye = _edges(horizons), _edges(targets)
-    cells, fills = [], []  # the cells as one collection, the edges between them as two
+    cells, fills, hatch = [], [], []  # the cells as collections (one per hatch), the edges between them as two
     for i, t in enumerate(targets):
         for j, h in enumerate(horizons):
             d = v.grid[(t, h)]
             cells.append([(xe[j], ye[i]), (xe[j + 1], ye[i]), (xe[j + 1], ye[i + 1]), (xe[j], ye[i + 1])])
             fills.append(colours[d.best.scheme] if d.best is not None else (UNDETERMINED if d.open else NONE))
+            hatch.append(hatched[d.best.scheme] if d.best is not None else "")
             if d.best is not None:
                 text = setting(d.best.row) or d.best.scheme
                 # inside its cell, hence inside the axes: the layout need not measure it
                 ax.text(math.sqrt(xe[j] * xe[j + 1]), math.sqrt(ye[i] * ye[i + 1]), text, ha="center",
                         va="center", fontsize=CELL_FONT, color=text_colour(fills[-1])).set_in_layout(False)
-    ax.add_collection(PolyCollection(cells, facecolors=fills, linewidths=0, zorder=1), autolim=False)
+    for h in sorted(set(hatch)):
+        mine = [k for k, x in enumerate(hatch) if x == h]
+        ax.add_collection(PolyCollection([cells[k] for k in mine], facecolors=[fills[k] for k in mine], linewidths=0,
+                                         hatch=h or None, edgecolor="white", zorder=1), autolim=False)
     ax.add_collection(LineCollection([[(x, 0), (x, 1)] for x in xe], colors="white", linewidths=0.6, zorder=2,
                                      transform=ax.get_xaxis_transform()), autolim=False)
     ax.add_collection(LineCollection([[(0, y), (1, y)] for y in ye], colors="white", linewidths=0.6, zorder=2,
@@ -84,7 +108,7 @@ def winner_map_svg(v: Verdict) -> str | None:
     ax.minorticks_off()
     ax.set_xlabel(f"horizon T (dashed: the runs' t_final {v.t_main:.4g})")
     ax.set_ylabel(f"target: {v.measure.field} <=")
-    handles = [Patch(facecolor=colours[s], label=s) for s in winners]
+    handles = [Patch(facecolor=colours[s], hatch=hatched[s] or None, edgecolor="white", label=s) for s in winners]
     handles += [Patch(facecolor=UNDETERMINED, edgecolor="#9e9e9e", label="undetermined: a cheaper law not known"),
                 Patch(facecolor=NONE, edgecolor="#9e9e9e", label="no setting predicted to reach it")]
     checks = [c for c in v.checks if positive(c.get("t_final"))]
