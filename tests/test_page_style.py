@@ -87,3 +87,27 @@ def test_winners_of_one_map_whose_colours_are_alike_are_told_apart_by_a_hatch():
     colours = {"a": "#1f77b4", "b": "#3182bd", "c": "#d62728", "d": "#1f77b4"}  # b and d: blues like a's
     found = hatches(["a", "b", "c", "d"], colours)
     assert found == {"a": HATCHES[0], "b": HATCHES[1], "c": HATCHES[0], "d": HATCHES[2]}
+
+
+def test_the_page_says_which_library_keeps_a_target_cheapest_per_problem():
+    from longtime.reporting.libraries import library_of, library_table
+    from longtime.reporting.page import build_page
+
+    def row(scheme, cpu, err, t_final=10.0, status="ok", lost=False):
+        return {"problem": "kepler", "integrator": scheme, "status": status, "t_final": t_final, "cpu_s": cpu,
+                "l2_error": err, "solution_lost": lost, "dt": 0.01, "tol": None, "wall_s": cpu, "id": 1}
+
+    rows = [row("rk4", 0.5, 1e-7), row("verlet", 0.1, 1e-3), row("gauss4", 0.3, 1e-8),
+            row("scipy-rk45", 0.9, 1e-7), row("scipy-radau", 0.2, 1e-7, t_final=1.0),
+            row("heyoka", 0.05, 1e-12, lost=True), row("heyoka", 0.08, 1e-12)]
+    assert library_of("scipy-rk45") == "scipy" and library_of("gauss4") == "longtime"
+    header, body = library_table(rows)
+    assert header == ["problem", "T", "longtime", "heyoka", "scipy"]
+    (kepler,) = body
+    # the cheapest setting that keeps 1e-6, of each library: gauss4 (not verlet, which misses it);
+    # heyoka's lost run is not counted; scipy's radau ran a shorter T and is not compared
+    assert kepler[2].startswith("gauss4 ") and "0.3 s" in kepler[2]
+    assert kepler[3].startswith("heyoka ") and "0.08 s" in kepler[3]
+    assert kepler[4].startswith("scipy-rk45 ") and "0.9 s" in kepler[4]
+    page = build_page(rows, [], drift=False, stability=False)
+    assert 'id="libraries"' in page and "scipy-rk45" in page[page.index('id="libraries"'):]

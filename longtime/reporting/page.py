@@ -347,6 +347,16 @@ def _verdict_section(p: str, v, mine: list[dict]) -> str:
     return "".join(out)
 
 
+def _libraries_section(rows: list[dict]) -> str:
+    """Which library for each problem: its cheapest measured setting that keeps the target."""
+    from longtime.reporting.libraries import TARGET, library_table
+
+    header, body = library_table(rows)
+    return (f'<h2 id="libraries">Which library</h2><p class="note">Per problem and library, the cheapest ok setting '
+            f"measured to keep l2_error &le; {TARGET:g} over the problem's main run (T: the final time most of its rows "
+            f"ran to), its CPU seconds and its error; measured rows only, no extrapolation.</p>" + table(header, body))
+
+
 def _checks_section(checks: list[dict]) -> str:
     from longtime.reporting.figures.verdict import checks_svg
     from longtime.reporting.verdict import check_counts, check_summary, check_text, failed_first
@@ -489,7 +499,8 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
            f'<p class="lead"><b>{len(rows)} cells</b> ({escape(format_counts(counts))}) of run{"s" if len(runs) != 1 else ""} '
            f'{escape(ids)}. <a href="#about">The run, the machine and its calibration</a> are at the end.</p>',
            "<nav><b>Verdict:</b> " + "".join(f'<a href="#verdict-{slug(p)}">{escape(p)}</a>' for p in problems)
-           + '<br><a href="#checks">checked predictions</a>' + ('<a href="#cards">scheme cards</a>' if cards else "")
+           + '<br><a href="#libraries">which library</a><a href="#checks">checked predictions</a>'
+           + ('<a href="#cards">scheme cards</a>' if cards else "")
            + '<a href="#evidence">evidence</a>' + ('<a href="#history">history</a>' if history else "")
            + '<a href="#capabilities">capability matrix</a><a href="#about">run and machine</a></nav>',
            '<h2 id="verdict">Verdict</h2>'
@@ -501,6 +512,7 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
            "the energy drifts or the slopes still steepen); past its reach, or where its growth is undetermined, a "
            "setting predicts nothing. docs/metrics.md says how a prediction is made and checked.</p>"]
     out += verdict_sections
+    out.append(_libraries_section(rows))
     out.append(checked)
     if cards:
         out.append(cards)
