@@ -15,8 +15,8 @@ omega h <= Y. A scheme with implicit stages has two limits, told apart: the meth
 stability, from the stability function R(z) = 1 + z b^T (I - zA)^-1 1 of its tableau (the
 Gauss methods, midpoint and rk4sym have |R(iy)| = 1 on the whole axis), and the limit of its
 fixed-point stage iteration, which stops converging near h ||A|| |lambda| = 1: its measured
-step fails there (``linear_interval``, ``solver_y``). Beside it, where it differs, the Y up to which the growth stays below 1 %
-per step (``GROWTH_1PCT``, bpl's amplification onset): a truncated series of order
+step fails there (``linear_interval``, ``solver_y``). Beside it, where it differs, the Y up to
+which the growth stays below 1 % per step (``GROWTH_1PCT``, bpl's amplification onset): a truncated series of order
 N = 5, 6 (mod 4) grows by y^(N+2)-small factors from y = 0, so only this bound says
 where its growth becomes fast. It is measured on the rotation q' = p, p' = -q (the ``harmonic`` problem,
 omega = 1, step h = y), which every scheme that needs a separable Hamiltonian can also

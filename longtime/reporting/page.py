@@ -352,9 +352,10 @@ def _libraries_section(rows: list[dict]) -> str:
     from longtime.reporting.libraries import TARGET, library_table
 
     header, body = library_table(rows)
-    return (f'<h2 id="libraries">Which library</h2><p class="note">Per problem and library, the cheapest ok setting '
-            f"measured to keep l2_error &le; {TARGET:g} over the problem's main run (T: the final time most of its rows "
-            f"ran to), its CPU seconds and its error; measured rows only, no extrapolation.</p>" + table(header, body))
+    return (f'<h2 id="libraries">Which library</h2><p class="note">Per problem and library, the cheapest ok '
+            f"setting measured to keep l2_error &le; {TARGET:g} over the problem's main run (T: the final time "
+            f"most of its rows ran to), its CPU seconds and its error; measured rows only, no extrapolation.</p>"
+            + table(header, body))
 
 
 def _checks_section(checks: list[dict]) -> str:
