@@ -72,13 +72,14 @@ def _row(dt, l2, lost, integrator="rk4", cpu=1.0):
 
 
 def test_lost_chaotic_rows_enter_no_order_fit_and_no_pareto_front():
-    rows = [_row(0.01, 1e-4, False), _row(0.005, 6.25e-6, False), _row(0.02, 0.9, True, cpu=0.1)]
+    rows = [_row(0.01, 1e-4, False), _row(0.005, 6.25e-6, False), _row(0.0025, 6.25e-6 / 16, False),
+            _row(0.02, 0.9, True, cpu=0.1)]
     front = pareto(rows, "l2_error")
     assert all(entry["best"]["dt"] != 0.02 for entry in front)
     fits = observed_orders(rows)
     fit = next(f for f in fits if f.get("integrator") == "rk4")
     assert fit["observed_order"] == pytest.approx(4.0, abs=1e-9), fit
-    assert [p[0] for p in fit["order_points"]] == [0.005, 0.01]
+    assert [p[0] for p in fit["order_points"]] == [0.0025, 0.005, 0.01]  # the lost dt 0.02 left out
 
 
 def test_ensemble_tells_euler_from_rk4_on_the_double_pendulum_past_its_horizon():

@@ -282,15 +282,15 @@ def test_a_fixed_step_larger_than_the_span_is_refused(capsys, tmp_path):
 
 
 def test_one_computation_under_several_labels_is_one_point_of_an_order_fit():
-    """Before: dt 1, 5 and 10 over a span of 1 (one step each, one row) were three points."""
+    """dt 1, 5 and 10 over a span of 1 (one step each, the same computation) are one point."""
     from longtime.measure.orders import observed_orders
 
     base = {"status": "ok", "problem": "harmonic", "integrator": "rk4", "t_final": 1.0, "settings": "",
             "run_id": 1, "order": None, "tol": None, "eps_res": None}
-    rows = [{**base, "dt": 0.5, "steps": 2, "mean_dt": 0.5, "l2_error": 0.08 * 0.5**4}]
+    rows = [{**base, "dt": dt, "steps": round(1 / dt), "mean_dt": dt, "l2_error": 0.08 * dt**4} for dt in (0.25, 0.5)]
     rows += [{**base, "dt": dt, "steps": 1, "mean_dt": 1.0, "l2_error": 0.08} for dt in (1.0, 5.0, 10.0)]
     (fit,) = observed_orders(rows)
-    assert [x for x, _ in fit["order_points"]] == [0.5, 1.0]
+    assert [x for x, _ in fit["order_points"]] == [0.25, 0.5, 1.0]
     assert fit["observed_order"] == pytest.approx(4.0)
 
 

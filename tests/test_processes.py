@@ -81,7 +81,7 @@ def test_a_run_with_a_digest_reproduces_it_in_one_process():
 
 @pytest.mark.parametrize("value", [0, -1, "x", "1.5"])
 def test_a_process_count_below_one_is_bad_input(value):
-    with pytest.raises(InputError, match="expected an integer >= 1"):
+    with pytest.raises(InputError, match="expected an integer from 1 to"):
         check_processes(value)
 
 
