@@ -96,7 +96,7 @@ def timed_elsewhere(row: dict[str, Any]) -> bool:
 
 def time_cells(cells: list[Cell], max_samples: int, timing: Timing, time_limit: float | None = None,
                reference: Callable[[], float] | None = None,
-               on_cell: Callable[[int], None] | None = None) -> list[dict[str, Any]]:
+               on_cell: Callable[[int, int], None] | None = None) -> list[dict[str, Any]]:
     """In this process, each cell's integration alone: per cell its ``cpu_s`` (the minimum),
     ``wall_s``, ``cpu_s_samples``, ``samples_digest``, ``status`` and ``pid``; a cell that
     raises gives ``status`` failed and its ``message``.
@@ -114,14 +114,15 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing, time_limit: 
     the caches by up to twice comes and goes within a second or two (docs/performance.md,
     "Two speeds"), so the runs of a small batch, spread over seconds, meet a quiet moment where
     a burst of repeats may not; a large batch spans SPREAD_S in one round and costs one run a
-    cell. Every run must reproduce the first bit for bit. ``on_cell(k)`` is called before the
-    k-th cell is built and before each of its runs (a timing process marks the cell it is in)."""
+    cell. Every run must reproduce the first bit for bit. ``on_cell(k, finished)`` is called
+    before the k-th cell is built and before each of its runs, ``finished`` the number of
+    cells whose timing is done (a timing process marks the cell it is in and how far it is)."""
     prepared: list[tuple[Any, Any, float] | None] = []
     out: list[dict[str, Any]] = []
     for k, cell in enumerate(cells):
         try:
             if on_cell is not None:
-                on_cell(k)
+                on_cell(k, 0)
             problem, integrator = build(cell)
             t_final = problem.default_t_final if cell.t_final is None else cell.t_final
             prepared.append((problem, integrator, t_final))
@@ -146,7 +147,7 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing, time_limit: 
             record = out[k]
             try:
                 if on_cell is not None:
-                    on_cell(k)
+                    on_cell(k, len(cells) - len(active))
                 deadline = time.monotonic() + time_limit if time_limit else None
                 with phases.phase("timing", f"{cells[k].problem} x {cells[k].integrator}"):
                     traj = integrator.integrate(problem, t_final, max_samples=max_samples, timing=Timing(repeats=1),
@@ -322,7 +323,7 @@ def run_children(cells: list[Cell], count: int, max_samples: int, timing: Timing
                 else:
                     still.append((index, folder, proc, deadline))
             if on_progress is not None:  # the cells timed so far: the ended children's and each running one's
-                timed = len(done) * len(cells) + sum(_current_cell(f) or 0 for _, f, _, _ in still)
+                timed = len(done) * len(cells) + sum(_finished_cells(f) for _, f, _, _ in still)
                 if timed > reported:
                     on_progress(timed - reported)
                     reported = timed
@@ -344,12 +345,24 @@ def run_children(cells: list[Cell], count: int, max_samples: int, timing: Timing
     return [done[i] for i in range(count)]
 
 
+def _marks(folder: Path) -> list[int]:
+    """A timing process's ``current`` file: [the cell it is in, the cells whose timing is done]."""
+    try:
+        return [int(x) for x in (folder / "current").read_text().split()]
+    except (OSError, ValueError):
+        return []
+
+
 def _current_cell(folder: Path) -> int | None:
     """The index of the cell a timing process was in when it ended (its ``current`` file)."""
-    try:
-        return int((folder / "current").read_text())
-    except (OSError, ValueError):
-        return None
+    marks = _marks(folder)
+    return marks[0] if marks else None
+
+
+def _finished_cells(folder: Path) -> int:
+    """The cells a running timing process has finished timing (its ``current`` file)."""
+    marks = _marks(folder)
+    return marks[1] if len(marks) > 1 else 0
 
 
 def _without(cells: list[Cell], culprit: int, why: str, max_samples: int, timing: Timing, timeout: float,
@@ -392,8 +405,13 @@ def _child_main(folder: str) -> None:
 
         reference_workload(10, 0.01)  # loaded (or compiled) before the first timed call
         reference = reference_seconds
-    def on_cell(k: int) -> None:  # the parent knows which cell a process that dies was in
-        (path / "current").write_text(str(k))
+    marked = [""]
+
+    def on_cell(k: int, finished: int) -> None:  # the parent knows which cell a process that dies was in
+        text = f"{k} {finished}"
+        if text != marked[0]:  # a cell timed alone is marked once, not before each of its runs
+            (path / "current").write_text(text)
+            marked[0] = text
 
     cells = [Cell.from_dict(c) for c in job["cells"]]
     results = time_cells(cells, job["max_samples"], Timing.from_dict(job["timing"]), job.get("time_limit"), reference,
