@@ -171,7 +171,7 @@ def test_the_peers_default_sweep_is_short_and_budgeted():
     for name in SCIPY[1:] + CVODE + DIFFRAX:
         cls = registry.integrator_class(name)
         assert len(cls.sweep["tol"]) == 2 and cls.cell_budget_s < budget.CELL_BUDGET_S
-    assert registry.integrator_class("dop853").cell_budget_s is None  # its sweep and budget as before
+    assert registry.integrator_class("dop853").cell_budget_s is None  # the matrix's per-cell budget applies to it
     assert budget.cell_budget("scipy-radau") == registry.integrator_class("scipy-radau").cell_budget_s
     assert budget.cell_budget("rk4") == budget.CELL_BUDGET_S
 
