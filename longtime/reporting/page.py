@@ -360,7 +360,7 @@ def _libraries_section(rows: list[dict]) -> str:
 
 def _checks_section(checks: list[dict]) -> str:
     from longtime.reporting.figures.verdict import checks_svg
-    from longtime.reporting.verdict import check_counts, check_summary, check_text, failed_first
+    from longtime.reporting.verdict import check_holds, check_summary, check_text
 
     out = ['<h2 id="checks">Checked predictions</h2>']
     if not checks:
@@ -368,7 +368,7 @@ def _checks_section(checks: list[dict]) -> str:
                    'at the longest horizon its budget affords (<code>--checks N</code>).</p>')
         return "".join(out)
     out.append(f'<p class="answer">{escape(check_summary(checks))}.</p>')
-    failed = [c for c in failed_first(checks) if check_counts([c])["failed"]]
+    failed = [c for c in checks if check_holds(c) is False]
     if failed:  # the checks that failed first, each in a line
         out.append('<p>Failed:</p><ul>' + "".join(f"<li>{escape(check_text(c))}</li>" for c in failed) + "</ul>")
     fig = checks_svg(checks)
