@@ -146,7 +146,7 @@ def _count(valgrind: str, cells: list[Cell], rows: dict[str, dict], max_samples:
             cells = [c for c in cells if c.key not in prepared]
             if not cells:
                 return prepared
-        job.write_text(json.dumps({**json.loads(job.read_text()), "cells": [c.to_dict() for c in cells]}))
+        _set_cells(job, cells)
         limit = STARTUP_SECONDS + sum(PER_CELL_SECONDS + _budget(rows[c.key]) for c in cells)
         # no gdb server: a killed Valgrind leaves no vgdb-pipe files in the temp folder
         argv = [*instructions.command(valgrind, prefix), "--vgdb=no", *worker]
@@ -220,9 +220,8 @@ def _prepare(worker: list[str], env: dict[str, str], folder: Path, cells: list[C
     if trouble and lost is not None and lost + 1 < len(cells):
         # the process ended in cell ``lost``: the cells after it are prepared again without it,
         # so one plugin's crash costs only its own row its count
-        job = folder / "job.json"
         rest = cells[lost + 1:]
-        job.write_text(json.dumps({**json.loads(job.read_text()), "cells": [c.to_dict() for c in rest]}))
+        _set_cells(folder / "job.json", rest)
         out.update(_prepare(worker, env, folder, rest, rows))
         cells = cells[:lost + 1]  # the rest has its answer from the second process
     for i, cell in enumerate(cells):
@@ -233,6 +232,11 @@ def _prepare(worker: list[str], env: dict[str, str], folder: Path, cells: list[C
         elif item.get("reason"):
             out[cell.key] = skipped(item["reason"])
     return out
+
+
+def _set_cells(job: Path, cells: list[Cell]) -> None:
+    """The job file ``job`` with ``cells`` as the cells its worker runs (the rest unchanged)."""
+    job.write_text(json.dumps({**json.loads(job.read_text()), "cells": [c.to_dict() for c in cells]}))
 
 
 def _results(path: Path) -> dict[str, dict]:
