@@ -51,6 +51,7 @@ def test_item15_force_never_writes_through_a_symlink_out_of_dir(tmp_path, capsys
     (["-p", "harmonic", "-i", "rk4", "--t-final", "nan"], "--t-final"),
     (["-p", "harmonic", "-i", "rk4", "--dt", "0"], "--dt"),
     (["-p", "harmonic", "-i", "rk45", "--tol", "-1e-6"], "--tol"),
+    (["-p", "harmonic", "-i", "rk4", "--dt", "5", "--t-final", "1"], "larger than the span"),
 ])
 def test_item16_unknown_names_and_bad_numbers_are_refused(tmp_path, capsys, args, text):
     code, err = _asv_init(capsys, tmp_path, *args)

@@ -223,6 +223,24 @@ def _check_names(folder: Path, problems: list[str], schemes: list[str]) -> None:
     registry.check_names("integrator", [n for n in schemes if n not in own_s])
 
 
+def _check_steps(folder: Path, problems: list[str], schemes: list[str], steps, t_final: float | None) -> None:
+    """Each installed problem x fixed-step scheme is refused a step larger than its span, as
+    ``longtime run`` refuses it, so that the suite written holds no cell ``run`` would refuse
+    (the plugin's own names, perhaps not installed yet, are checked when asv runs them)."""
+    from longtime.core import registry
+    from longtime.execution.cells import check_step
+
+    _, own_p, own_s = declared(folder)
+    problems, schemes = problems or own_p, schemes or own_s
+    known_p = [n for n in problems if n in registry.problems()]
+    known_s = [n for n in schemes if n in registry.integrators()]
+    for problem in known_p:
+        span_end = registry.problem_class(problem).default_t_final if t_final is None else t_final
+        for scheme in known_s:
+            for dt in steps or [None]:
+                check_step(problem, scheme, {} if dt is None else {"dt": dt}, span_end)
+
+
 def _check_numbers(flag: str, values) -> None:
     for v in values or ():
         if not (0 < v < float("inf")):
@@ -237,6 +255,7 @@ def cmd_asv_init(args) -> int:
     _check_numbers("--tol", args.tol)
     _check_numbers("--t-final", [args.t_final] if args.t_final is not None else [])
     _check_names(folder, args.problem or [], args.integrator or [])
+    _check_steps(folder, args.problem or [], args.integrator or [], args.dt, args.t_final)
     settings = {k: v for k, v in (("dt", args.dt), ("tol", args.tol)) if v}
     for key, value in args.set:
         settings[key] = value
