@@ -142,3 +142,10 @@ def test_an_in_memory_class_runs_isolated():
     rows = longtime.sweep("kepler", ApiForestRuth, dt=[0.02, 0.01], t_final=10, executor="isolated", jobs=2,
                           repeats=1)
     assert list(rows["status"]) == ["ok", "ok"] and (rows["l2_error"] > 0).all()
+
+
+def test_an_in_memory_class_on_dask_is_refused_before_any_cell_with_what_to_do():
+    pytest.importorskip("distributed")
+    with pytest.raises(InputError, match=r"api-forest-ruth: defined in this process.*install it as a plugin"):
+        longtime.sweep("kepler", [ApiForestRuth, "verlet"], dt=[0.02], t_final=10, executor="dask", jobs=1,
+                       repeats=1)

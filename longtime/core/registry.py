@@ -166,6 +166,15 @@ def session_payload() -> bytes | None:
     return cloudpickle.dumps(_session)
 
 
+def session_only(names) -> list[str]:
+    """Those of ``names`` (problems or schemes) registered in this process by ``register``
+    and not installed as a plugin: a process that does not inherit this session (a Dask
+    worker) cannot find them."""
+    installed = _load()
+    return [n for n in names if (n in _session["problems"] and n not in installed["problems"])
+            or (n in _session["integrators"] and n not in installed["integrators"])]
+
+
 def restore_session(payload: bytes | None) -> None:
     """Register, in a worker process, the classes of ``session_payload``."""
     if payload:

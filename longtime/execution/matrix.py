@@ -322,6 +322,11 @@ def dask_cluster(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
     ``jobs`` workers); see longtime.execution.dask_executor, imported only when used."""
     from longtime.execution.dask_executor import dask_cluster as run_on_dask
 
+    in_memory = registry.session_only(sorted({n for c in cells for n in (c.problem, c.integrator)}))
+    if in_memory:
+        raise InputError(f"{', '.join(in_memory)}: defined in this process (registered in memory), which Dask "
+                         f"workers cannot load: install it as a plugin on every worker (docs/plugins.md), "
+                         f"or use executor='process'")
     yield from run_on_dask(cells, options)
 
 
