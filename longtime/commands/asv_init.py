@@ -8,6 +8,7 @@ An existing file is left as it is unless ``--force``.
 from __future__ import annotations
 
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -201,6 +202,9 @@ def _check_targets(folder: Path, paths: list[Path]) -> None:
     where a file goes or a file where a folder goes, or a path whose folder leads out of
     DIR through a symbolic link (a link as the file itself is replaced, not written through)."""
     root = folder.resolve()
+    if not os.access(root, os.W_OK):  # a read-only mount, or no permission: before any file
+        raise InputError(f"DIR {folder}: not writable (a read-only file system or no permission): asv-init "
+                         f"writes asv.conf.json and benchmarks/ there; nothing was written")
     for path in paths:
         parent = path.parent
         if parent.exists() and not parent.is_dir():
