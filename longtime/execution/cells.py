@@ -26,7 +26,7 @@ from longtime.execution import limits
 from longtime.execution.tempdirs import disk_full
 from longtime.measure import lyapunov, metrics
 from longtime.measure.metrics import O1_ERROR
-from longtime.measure.reference import ReferenceUnavailable, has_reference, trusted_reference
+from longtime.measure.reference import ReferenceUnavailable, budget_seconds, has_reference, trusted_reference
 
 DEFAULT_MAX_SAMPLES = 100_001
 # a cell stops (a 'timeout' row) after this many seconds unless --time-limit says otherwise
@@ -344,12 +344,21 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
             return row
         ref, trust, note = None, None, ""
         if reference and has_reference(problem):
+            # the reference check is part of the cell: it gets what is left of the time limit
+            full = budget_seconds() if reference_budget_s is None else reference_budget_s
+            left = None if deadline is None else max(deadline - time.monotonic(), 0.0)
+            budget = full if left is None or left >= full else max(left, 1e-3)
             try:
                 with phases.phase("reference", cell.problem):
-                    ref, trust = trusted_reference(problem, traj.t, cell.t_final, reference_budget_s)
+                    ref, trust = trusted_reference(problem, traj.t, cell.t_final, budget)
                 note = trust.message(float(traj.t[-1]))
             except ReferenceUnavailable as exc:
                 note = f"no reference: {exc}"
+            if budget < full and time.monotonic() >= deadline:
+                row.update(status="timeout", message=f"the reference check passed the cell's time limit of "
+                                                     f"{time_limit:g} s (--time-limit) after the integration; "
+                                                     f"no error measured")
+                return row
         if keep is not None:
             keep.update(problem=problem, integrator=integrator, trajectory=traj, reference=ref, trust=trust)
         with phases.phase("metrics"):
