@@ -89,6 +89,18 @@ def test_an_ensemble_whose_step_spins_stops_at_the_hard_limit(monkeypatch):
     assert row["status"] == "timeout" and "did not return within 2.1 s" in row["message"]
 
 
+def test_a_horizon_member_whose_step_spins_stops_at_the_hard_limit_and_is_named(monkeypatch):
+    from longtime.commands import horizon
+
+    monkeypatch.setattr(limits, "GRACE_S", 1.0)
+    registry.register(SpinningStep)
+    started = time.monotonic()
+    with pytest.raises(RuntimeError, match=r"faulty-spinning-step at dt=0.9, y0=.*did not return within 2.1 s"):
+        horizon.study(schemes=["faulty-spinning-step"], dts=[0.9, 0.8], members=2, t_final=50.0, jobs=1,
+                      progress=False, time_limit=1.0)
+    assert time.monotonic() - started < 1 + 1 + 0.1 + 15
+
+
 def test_the_card_of_a_scheme_whose_step_spins_stops_at_the_hard_limit(monkeypatch, tmp_path, capsys):
     from longtime.commands.cli import main
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from longtime.core import cli_args, jsontext
 from longtime.core.params import InputError
-from longtime.execution.cells import MAX_STEPS
+from longtime.execution.cells import DEFAULT_TIME_LIMIT, MAX_STEPS
 from longtime.measure.horizon import estimate, fit_law, judge, local_slopes, verdict_text
 
 PROBLEM = "henon-heiles"
@@ -43,15 +43,21 @@ def member_states(members: int) -> list[float]:
 
 
 def run_member(scheme: str, dt: float, energy: float, y0: float, t_final: float,
-               threshold: float | None) -> tuple[float | None, float]:
+               threshold: float | None, time_limit: float | None = DEFAULT_TIME_LIMIT) -> tuple[float | None, float]:
     """One member: (its breakdown time, or None if it held to t_final; its largest |H - H0|
-    before it)."""
+    before it). Its run is a cell's: under ``time_limit`` and the memory limit of a cell
+    (limits.call_limited), a member past them an error that names it."""
     from longtime.execution.cells import Cell, integrate_cell
+    from longtime.execution.limits import PastLimit, call_limited, default_memory_limit
     from longtime.measure.horizon import breakdown_time
     from longtime.measure.metrics import relative_error
 
-    problem, traj = integrate_cell(Cell(PROBLEM, scheme, {"energy": energy, "y0": y0}, {"dt": dt}, t_final),
-                                   max_samples=MAX_SAMPLES)
+    cell = Cell(PROBLEM, scheme, {"energy": energy, "y0": y0}, {"dt": dt}, t_final)
+    try:
+        problem, traj = call_limited(integrate_cell, cell, MAX_SAMPLES, time_limit=time_limit,
+                                     memory_limit=default_memory_limit())
+    except PastLimit as exc:
+        raise RuntimeError(f"{scheme} at dt={dt}, y0={y0}: {exc} (--time-limit)") from None
     if traj.status == "failed":
         raise RuntimeError(f"{scheme} at dt={dt}, y0={y0}: {traj.message}")
     escaped = traj.t_reached if traj.status == "diverged" else None
@@ -66,8 +72,9 @@ def run_member(scheme: str, dt: float, energy: float, y0: float, t_final: float,
 
 def study(schemes=DEFAULT_SCHEMES, dts=DEFAULT_DTS, members: int = DEFAULT_MEMBERS, t_final: float = DEFAULT_T_FINAL,
           gap: float = DEFAULT_GAP, threshold: float | None = None, jobs: int = 0,
-          progress: bool = True) -> dict[str, Any]:
-    """Every scheme's T*(dt) and the two fits, as one JSON-ready dict."""
+          progress: bool = True, time_limit: float | None = DEFAULT_TIME_LIMIT) -> dict[str, Any]:
+    """Every scheme's T*(dt) and the two fits, as one JSON-ready dict; each member's run under
+    ``time_limit`` seconds (None: none) as a cell's."""
     from longtime.core import registry
     from longtime.execution.pool import run_tasks
 
@@ -86,11 +93,11 @@ def study(schemes=DEFAULT_SCHEMES, dts=DEFAULT_DTS, members: int = DEFAULT_MEMBE
         raise InputError(f"--t-final {t_final:g} with --dt {min(dts):g}: about {t_final / min(dts):.3g} steps a "
                          f"member, over the limit of {MAX_STEPS:.0e}")
     energy = ESCAPE_ENERGY - gap
-    tasks = [(s, float(dt), energy, y0, float(t_final), threshold)
+    tasks = [(s, float(dt), energy, y0, float(t_final), threshold, time_limit)
              for s in schemes for dt in sorted(set(dts), reverse=True) for y0 in member_states(members)]
     found: dict[tuple, tuple[float | None, float]] = {}
     for n, (task, result) in enumerate(run_tasks(run_member, tasks, jobs), 1):
-        found[task] = result
+        found[task[:-1]] = result
         if progress:
             print(f"horizon: {n}/{len(tasks)} runs done", file=sys.stderr, end="\r", flush=True)
     if progress:
@@ -136,7 +143,8 @@ def markdown(result: dict[str, Any]) -> str:
 
 def cmd_horizon(args) -> int:
     result = study(schemes=args.integrator or DEFAULT_SCHEMES, dts=args.dt or DEFAULT_DTS, members=args.members,
-                   t_final=args.t_final, gap=args.gap, threshold=args.threshold, jobs=args.jobs)
+                   t_final=args.t_final, gap=args.gap, threshold=args.threshold, jobs=args.jobs,
+                   time_limit=args.time_limit or None)
     if args.format == "json":
         print(jsontext.dumps(result, default=float))
     else:
@@ -161,6 +169,9 @@ def add_parser(subparsers) -> None:
     p.add_argument("--threshold", type=cli_args.positive_number("--threshold"), default=None,
                    help="a relative energy error that also counts as a breakdown (default: escapes only)")
     p.add_argument("--jobs", type=cli_args.jobs, default=0, help="worker processes (default: one per core)")
+    p.add_argument("--time-limit", type=cli_args.seconds("--time-limit", allow_zero=True),
+                   default=DEFAULT_TIME_LIMIT, metavar="S",
+                   help=f"each member's limit in seconds, as a cell's (default {DEFAULT_TIME_LIMIT:g}; 0: none)")
     p.add_argument("--format", choices=["markdown", "json"], default="markdown")
     p.set_defaults(func=cmd_horizon)
 
