@@ -446,12 +446,12 @@ def recommend(problem: Any, error: float, horizon: float, rows: Any = None, *, d
               run: Any = None):
     """The cheapest stored setting predicted to keep ``error`` up to ``horizon`` on
     ``problem``, as ``longtime recommend`` answers it (a
-    longtime.reporting.verdict.Recommendation: ``scheme``, ``setting``, ``predicted_error``,
+    longtime.reporting.recommend.Recommendation: ``scheme``, ``setting``, ``predicted_error``,
     ``predicted_cpu_s``, ``runner_up``, ``evidence``; ``str()`` gives the command's lines).
     From ``rows`` (a DataFrame from ``sweep``, or row dicts) where given, else from the store
     ``db`` (default: $LONGTIME_DB or longtime.sqlite), its run ``run`` (default: every run).
     What cannot be decided raises InputError naming the run that would decide it."""
-    from longtime.reporting.verdict import recommend as decide
+    from longtime.reporting.recommend import recommend as decide
 
     name, _ = resolve(problem, "problem")
     if rows is not None:
@@ -465,7 +465,7 @@ def _stored_recommendation(problem: str, error: float, horizon: float, db: str |
     from pathlib import Path
 
     from longtime.execution.store import Store, default_path
-    from longtime.reporting.verdict import recommend as decide
+    from longtime.reporting.recommend import recommend as decide
 
     if problem not in registry.problems():
         raise InputError(f"-p {problem}: unknown problem; known: {', '.join(sorted(registry.problems()))}")

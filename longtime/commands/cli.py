@@ -307,11 +307,12 @@ def cmd_matrix(args) -> int:
         if args.resume is not None:  # the rows stored before the interruption, timed and counted
             complete_phases(store, run_id, options)
         if args.checks is None:
-            from longtime.reporting.verdict import CHECKS
+            from longtime.predict.checks import CHECKS
 
             args.checks = CHECKS
         if args.checks:  # a few of the verdicts' predictions re-run past the rows' final times
-            from longtime.reporting.verdict import check_budget, check_summary, run_checks
+            from longtime.execution.checks import run_checks
+            from longtime.predict.checks import check_budget, check_summary
 
             rows = store.rows(run_id)
             try:

@@ -12,7 +12,7 @@ from longtime.execution.store import default_path
 
 def cmd_recommend(args) -> int:
     from longtime.api import recommend
-    from longtime.reporting.verdict import NO_ANSWER_EXIT
+    from longtime.reporting.recommend import NO_ANSWER_EXIT
 
     answer = recommend(args.problem, args.error, args.horizon, db=args.db, run=args.run)
     print(answer)
