@@ -1,6 +1,7 @@
-"""``longtime recommend``'s answer (``recommend``): the cheapest stored setting predicted to
-keep an error up to a horizon on one problem, with its runner-up and evidence, or why the
-store determines no answer and the run that would decide it."""
+"""``longtime recommend``'s answer (``recommend``; from a store, ``stored_recommendation``):
+the cheapest stored setting predicted to keep an error up to a horizon on one problem, with
+its runner-up and evidence, or why the store determines no answer and the run that would
+decide it."""
 from __future__ import annotations
 
 import shlex
@@ -158,3 +159,29 @@ def _statistical_lines(problem: str, ensembles: Iterable[dict[str, Any]], where:
     text = (", ".join(f"{e['integrator']} (distance {e['distance']:.2g}, floor {e['floor']:.2g})" for e in same)
             if same else "none of the measured schemes")
     return [f"  statistically: {text} keep{'s' if len(same) == 1 else ''} the distribution heyoka's ensemble visits"]
+
+
+def stored_recommendation(problem: str, error: float, horizon: float, db: str | None, run: str | None):
+    """The Recommendation from the store ``db`` (its rows of ``run``: an id, 'all', or by
+    default every run), and the checks stored beside them."""
+    from pathlib import Path
+
+    from longtime.core import registry
+    from longtime.execution.store import Store, default_path
+
+    if problem not in registry.problems():
+        raise InputError(f"-p {problem}: unknown problem; known: {', '.join(sorted(registry.problems()))}")
+    path = Path(db or default_path())
+    if not path.exists():
+        raise InputError(f"store {path}: no such file; `longtime matrix -p {problem} --db {path}` measures the cells "
+                         f"to decide")
+    store = Store(path, readonly=True)
+    if run in (None, "all"):
+        rows, checks, ensembles = store.rows(), store.checks(), store.ensembles()
+    else:
+        if not (str(run).isascii() and str(run).isdigit()):
+            raise InputError(f"--run {run!r}: expected a run id (a positive integer) or 'all'")
+        store.run(int(run))
+        rows, checks, ensembles = store.rows(int(run)), store.checks(int(run)), store.ensembles(int(run))
+    return recommend(rows, problem, error, horizon, db=str(store.path) if db else None,
+                     known=registry.problems(), checks=checks, ensembles=ensembles)
