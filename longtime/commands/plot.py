@@ -24,7 +24,8 @@ def add_parser(subparsers) -> None:
     p = subparsers.add_parser("plot", help="figures: work-precision, drift, Toda eigenvalues, Duffing phase, ...",
                               description=__doc__.splitlines()[0])
     p.add_argument("kind", choices=sorted(PLOT_KINDS), help="what to draw")
-    p.add_argument("--out", default="figures", type=cli_args.out_folder("--out"), help="folder for the files (default: figures)")
+    p.add_argument("--out", default="figures", type=cli_args.out_folder("--out"),
+                   help="folder for the files (default: figures)")
     p.add_argument("-p", "--problem", type=cli_args.names, default=None, metavar="PROBLEM[,..]")
     p.add_argument("-i", "--integrator", type=cli_args.names, default=None, metavar="SCHEME[,..]")
     p.add_argument("--dt", type=float, default=None, help="time step of the integrations")
