@@ -111,7 +111,8 @@ print(json.dumps({"seconds": seconds, "top": top[:8], "stages": sorted(own.items
 _MATRIX_CHILD = r"""
 import collections, json, sys, time
 from numba.core import event
-from longtime.commands.cli import build_parser, matrix_cells
+from longtime.commands.cli import build_parser
+from longtime.commands.matrix import matrix_cells
 from longtime.core.integrator import AdaptiveIntegrator, FixedStepIntegrator
 from longtime.execution.cells import build
 cells, _ = matrix_cells(build_parser().parse_args(["matrix"] + sys.argv[1:]))

@@ -37,7 +37,8 @@ def main(argv=None) -> int:
     from longtime.execution.cells import cell_of_row
     from longtime.execution.matrix import ExecOptions, run_matrix
     from longtime.execution.store import Store
-    from longtime.reporting import verdict as V
+    from longtime.predict import decision as D
+    from longtime.predict import settings as S
 
     store = Store(args.db)
     run = args.run if args.run is not None else max(r["id"] for r in store.runs())
@@ -46,11 +47,11 @@ def main(argv=None) -> int:
     opts = ExecOptions(jobs=1, timing=Timing(repeats=1, min_time=0.0), processes=1)
     print("| problem | kind | setting | class | t_f | e(t_f) | " + " | ".join(f"x{f:g}" for f in factors) + " |")
     print("|" + "---|" * (6 + len(factors)))
-    for v in V.verdicts(rows).values():
+    for v in D.verdicts(rows).values():
         chaotic = any(r.get("lyapunov_time") for r in rows if r["problem"] == v.problem)  # no power law there
         if v.measure is None or chaotic or (args.problems and v.problem not in args.problems.split(",")):
             continue
-        for law in V.EXPONENTS:
+        for law in S.EXPONENTS:
             seen, picks = set(), []
             for s in v.candidates:  # cheapest first
                 if s.law != law or s.scheme in seen or (args.kind and s.kind != args.kind) or s.cpu_at(max(factors) * s.span) > args.budget:
@@ -67,7 +68,7 @@ def main(argv=None) -> int:
                     if v.measure.field == "l2_error" and measured is not None and \
                             not (row.get("error_horizon") or 0) >= f * s.span * (1 - 1e-9):
                         measured = None  # the reference stopped short
-                    predicted = s.error * f ** V.EXPONENTS[law]
+                    predicted = s.error * f ** S.EXPONENTS[law]
                     out.append("-" if not measured else f"{measured / predicted:.2g} ({measured:.1e})")
                 print(f"| {v.problem} | {s.kind} | {s.text} | {law} | {s.span:.4g} | {s.error:.2g} | "
                       + " | ".join(out) + " |", flush=True)

@@ -1,8 +1,9 @@
 """longtime from Python (docs/api.md): ``solve`` one cell, ``sweep`` a matrix into a pandas
-DataFrame, ``convergence`` (the observed order of a sweep) and ``work_precision`` (the
-Pareto table). A problem or a scheme is a registered name, a class or an instance: a class
-defined in memory is registered for the session (``registry.register``, checked as an
-entry point is) and found by the process pool's workers too.
+DataFrame, ``convergence`` (the observed order of a sweep), ``work_precision`` (the
+Pareto table) and ``main_job`` (`longtime matrix`'s run, results page and report). A
+problem or a scheme is a registered name, a class or an instance: a class defined in memory
+is registered for the session (``registry.register``, checked as an entry point is) and
+found by the process pool's workers too.
 
 ``longtime run`` is a layer over this module: its cells come from ``cells_for`` and run
 through ``run_cells``, as ``sweep``'s do, and ``solve`` runs a cell with the arguments the
@@ -446,40 +447,30 @@ def recommend(problem: Any, error: float, horizon: float, rows: Any = None, *, d
               run: Any = None):
     """The cheapest stored setting predicted to keep ``error`` up to ``horizon`` on
     ``problem``, as ``longtime recommend`` answers it (a
-    longtime.reporting.verdict.Recommendation: ``scheme``, ``setting``, ``predicted_error``,
+    longtime.reporting.recommend.Recommendation: ``scheme``, ``setting``, ``predicted_error``,
     ``predicted_cpu_s``, ``runner_up``, ``evidence``; ``str()`` gives the command's lines).
     From ``rows`` (a DataFrame from ``sweep``, or row dicts) where given, else from the store
     ``db`` (default: $LONGTIME_DB or longtime.sqlite), its run ``run`` (default: every run).
     What cannot be decided raises InputError naming the run that would decide it."""
-    from longtime.reporting.verdict import recommend as decide
+    from longtime.reporting.recommend import recommend as decide
+    from longtime.reporting.recommend import stored_recommendation
 
     name, _ = resolve(problem, "problem")
     if rows is not None:
         return decide(records(rows), name, error, horizon, known=registry.problems())
-    return _stored_recommendation(name, error, horizon, db, None if run is None else str(run))
+    return stored_recommendation(name, error, horizon, db, None if run is None else str(run))
 
 
-def _stored_recommendation(problem: str, error: float, horizon: float, db: str | None, run: str | None):
-    """The Recommendation from the store ``db`` (its rows of ``run``: an id, 'all', or by
-    default every run), and the checks stored beside them."""
-    from pathlib import Path
+# ------------------------------------------------------------------ the main job
+def main_job(spec: Any = None, *, html: Any = None, page: bool = True, full: bool = False):
+    """Run the main job ``spec`` (a longtime.execution.main_job.MainJobSpec; default: every
+    default problem x every scheme over the default sweep), then its results page (into
+    ``html``, default longtime-report/run-RUN_ID beside the store; ``page=False``: none) and
+    its report, as `longtime matrix` does: a longtime.reporting.main_job_report.MainJobReport
+    (``job``: the run id, rows, checks and ensembles; ``page``; ``text``)."""
+    from longtime.execution.main_job import MainJobSpec, run_main_job
+    from longtime.reporting.figures_ahead import FiguresAhead
+    from longtime.reporting.main_job_report import page_and_report
 
-    from longtime.execution.store import Store, default_path
-    from longtime.reporting.verdict import recommend as decide
-
-    if problem not in registry.problems():
-        raise InputError(f"-p {problem}: unknown problem; known: {', '.join(sorted(registry.problems()))}")
-    path = Path(db or default_path())
-    if not path.exists():
-        raise InputError(f"store {path}: no such file; `longtime matrix -p {problem} --db {path}` measures the cells "
-                         f"to decide")
-    store = Store(path, readonly=True)
-    if run in (None, "all"):
-        rows, checks, ensembles = store.rows(), store.checks(), store.ensembles()
-    else:
-        if not (str(run).isascii() and str(run).isdigit()):
-            raise InputError(f"--run {run!r}: expected a run id (a positive integer) or 'all'")
-        store.run(int(run))
-        rows, checks, ensembles = store.rows(int(run)), store.checks(int(run)), store.ensembles(int(run))
-    return decide(rows, problem, error, horizon, db=str(store.path) if db else None,
-                  known=registry.problems(), checks=checks, ensembles=ensembles)
+    job = run_main_job(spec if spec is not None else MainJobSpec(), ahead=FiguresAhead if page else None)
+    return page_and_report(job, html, page=page, full=full)

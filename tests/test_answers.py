@@ -13,7 +13,9 @@ import pytest
 
 from longtime.commands.cli import main
 from longtime.execution.store import Store
-from longtime.reporting import verdict as V
+from longtime.predict import decision as D
+from longtime.predict import settings as S
+from longtime.reporting import recommend as R
 
 pytestmark = pytest.mark.slow  # each store runs its cells and their references
 
@@ -46,9 +48,9 @@ def stores(tmp_path_factory):
     return store
 
 
-def _run(setting: V.Setting, horizon: float) -> dict:
+def _run(setting: S.Setting, horizon: float) -> dict:
     out = io.StringIO()
-    argv = V.run_command(setting, horizon)[1:] + ["--repeats", "1", "--min-time", "0", "--format", "json",
+    argv = D.run_command(setting, horizon)[1:] + ["--repeats", "1", "--min-time", "0", "--format", "json",
                                                   "--no-store"]
     argv[argv.index("--t-final") + 1] = repr(horizon)
     with redirect_stdout(out):
@@ -60,7 +62,7 @@ def _run(setting: V.Setting, horizon: float) -> dict:
 def test_the_answer_holds_at_the_horizon(stores, problem, error, horizon):
     db = stores(problem)
     s = Store(db, readonly=True)
-    rec = V.recommend(s.rows(), problem, error, horizon)
+    rec = R.recommend(s.rows(), problem, error, horizon)
     assert rec.answered, str(rec)
     best = rec.decision.best
     measured = _run(best, horizon)
@@ -81,18 +83,18 @@ def test_double_pendulum_past_its_predictability_horizon_gets_no_pointwise_answe
     with redirect_stdout(out):
         code = main(["recommend", "-p", "double-pendulum", "--error", "1e-5", "--horizon", "1e4", "--db", db])
     text = out.getvalue()
-    assert code == V.NO_ANSWER_EXIT, text
+    assert code == R.NO_ANSWER_EXIT, text
     assert "no double-precision scheme keeps a pointwise error of 1e-05 past t = 2" in text
     rows = Store(db, readonly=True).rows()
     t_lyap = rows[0]["lyapunov_time"]
     assert 0.8 < t_lyap < 1.2
-    limit = V.predictability(rows, 1e-5).horizon
+    limit = D.predictability(rows, 1e-5).horizon
     assert limit == pytest.approx(t_lyap * math.log(1e-5 / 1e-16))
     # the page's headline cell (1e-6 up to 1e3) says the same
-    v = V.problem_verdict("double-pendulum", rows)
+    v = D.problem_verdict("double-pendulum", rows)
     assert v.grid[(1e-6, 1e3)].state == "chaotic"
     # the most accurate setting, run past that horizon, passes the target there
-    most = min(V.settings(rows, V.measure(rows)), key=lambda c: c.error)
+    most = min(S.settings(rows, S.measure(rows)), key=lambda c: c.error)
     row = _run(most, 2 * limit)
     curve = row["error_curve"]
     assert max(curve["error"]) > 1e-5 and min(t for t, e in zip(curve["t"], curve["error"]) if e > 1e-5) \

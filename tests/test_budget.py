@@ -3,7 +3,8 @@ keeps its rows, that --full-sweep runs the sweep as it is, and that the report s
 Only cells are planned here: nothing is integrated."""
 import pytest
 
-from longtime.commands.cli import build_parser, matrix_cells
+from longtime.commands.cli import build_parser
+from longtime.commands.matrix import matrix_cells
 from longtime.core import registry
 from longtime.execution import budget
 from longtime.execution.cells import Cell, base_row, expand

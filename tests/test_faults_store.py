@@ -17,7 +17,7 @@ import pytest
 from _plugins import longtime
 from test_faults import _cli, _permission_prefix
 
-from longtime.commands import cli
+from longtime.commands import listing
 from longtime.execution import batches
 from longtime.commands.cli import main
 from longtime.execution.store import APPLICATION_ID, Store
@@ -324,7 +324,7 @@ def test_an_unexpected_error_is_one_line_and_debug_shows_the_traceback(monkeypat
     def broken(args):
         raise RuntimeError("something broke\nsecond line")
 
-    monkeypatch.setattr(cli, "cmd_list", broken)
+    monkeypatch.setattr(listing, "cmd_list", broken)
     assert main(["list"]) == 1
     line = one_line(capsys.readouterr().err)
     assert line.startswith("longtime list: error: RuntimeError: something broke") and "--debug" in line

@@ -1,4 +1,4 @@
-"""The verdict (longtime.reporting.verdict) on synthetic rows whose laws are known, and
+"""The verdict (longtime.predict, its text longtime.reporting.verdict) on synthetic rows whose laws are known, and
 `longtime recommend` on a store of them: who wins where, what is left undetermined and the
 run that would decide it, and bad input as one line with exit 2."""
 import json
@@ -11,7 +11,12 @@ from longtime.commands import cli
 from longtime.core.params import InputError
 from longtime.execution.cells import Cell
 from longtime.execution.store import Store
-from longtime.reporting import verdict as V
+from longtime.execution import checks as XC
+from longtime.predict import checks as PC
+from longtime.predict import decision as D
+from longtime.predict import settings as S
+from longtime.reporting import recommend as R
+from longtime.reporting import verdict as T
 
 
 def _row(scheme, dt, error, cpu_s, law, alpha, t_final=100.0, problem="harmonic", reason="slopes ..."):
@@ -39,13 +44,13 @@ def _invariant(rows):
 
 def test_the_linear_scheme_wins_short_the_bounded_one_long():
     rows = _invariant([BOUNDED, LINEAR, OPEN])
-    cands = V.settings(rows, V.measure(rows))
-    short = V.decide(cands, 1e-3, 1e3)
+    cands = S.settings(rows, S.measure(rows))
+    short = D.decide(cands, 1e-3, 1e3)
     assert short.best.scheme == "rk4" and short.runner_up.scheme == "verlet"
     # rk4's error at T is its error at its t_final times (T / t_final)^1, the class's exponent
     assert short.best.error_at(1e3) == pytest.approx(1e-5) and short.best.cpu_at(1e3) == pytest.approx(0.05)
     assert short.best.error_at(1e5) == pytest.approx(1e-3)
-    long = V.decide(cands, 5e-4, 1e5)  # rk4 predicts 1e-3 there: the bounded scheme is the only one
+    long = D.decide(cands, 5e-4, 1e5)  # rk4 predicts 1e-3 there: the bounded scheme is the only one
     assert long.best.scheme == "verlet" and long.runner_up is None
     assert long.best.error_at(1e5) == pytest.approx(1e-4) and long.best.cpu_at(1e5) == pytest.approx(10.0)
 
@@ -53,27 +58,27 @@ def test_the_linear_scheme_wins_short_the_bounded_one_long():
 def test_a_class_is_trusted_only_to_its_reach():
     # an invariant's classes: 1000 times the run; past it, undetermined with the deciding run
     inv = _invariant([BOUNDED, LINEAR, OPEN])
-    verlet, rk4 = (next(s for s in V.settings(inv, V.measure(inv)) if s.scheme == k) for k in ("verlet", "rk4"))
-    assert verlet.reach == 100.0 * V.TRUST_FACTORS["invariant"]["bounded"] == 1e5
+    verlet, rk4 = (next(s for s in S.settings(inv, S.measure(inv)) if s.scheme == k) for k in ("verlet", "rk4"))
+    assert verlet.reach == 100.0 * S.TRUST_FACTORS["invariant"]["bounded"] == 1e5
     assert verlet.error_at(1e5) == 1e-4 and verlet.state_at(1e5) == "predicted"
     assert verlet.error_at(1.01e5) is None and verlet.state_at(1.01e5) == "undetermined"
-    d = V.decide(V.settings(inv, V.measure(inv)), 1e-3, 1e6)
+    d = D.decide(S.settings(inv, S.measure(inv)), 1e-3, 1e6)
     assert d.best is None and {s.scheme for s in d.open} == {"verlet", "rk4", "gauss4"}
     assert "not determined past t = 1e+05 (1000 times its run)" in verlet.undetermined_text(1e6)
     # a solution error classed bounded is not extrapolated past its run at all
     sol = [{**BOUNDED}, LINEAR]
-    bounded = next(s for s in V.settings(sol, V.measure(sol)) if s.scheme == "verlet")
-    assert V.TRUST_FACTORS["solution"]["bounded"] == 1.0 and not bounded.extrapolates
+    bounded = next(s for s in S.settings(sol, S.measure(sol)) if s.scheme == "verlet")
+    assert S.TRUST_FACTORS["solution"]["bounded"] == 1.0 and not bounded.extrapolates
     assert bounded.error_at(100.0) == 1e-4 and bounded.error_at(101.0) is None
     assert "not trusted past its run" in bounded.law_text()
-    d = V.decide(V.settings(sol, V.measure(sol)), 1e-3, 1e4)  # verlet would have predicted 1e-4 flat
+    d = D.decide(S.settings(sol, S.measure(sol)), 1e-3, 1e4)  # verlet would have predicted 1e-4 flat
     assert d.best.scheme == "rk4" and d.runner_up is None
-    rec = V.recommend(sol, "harmonic", 2e-4, 1e5)  # rk4 predicts 1e-3 there: no answer, the run that decides
+    rec = R.recommend(sol, "harmonic", 2e-4, 1e5)  # rk4 predicts 1e-3 there: no answer, the run that decides
     assert not rec.answered and rec.scheme is None
     assert re.search(r"verlet dt=0.1 keeps it to t = 100 but its growth is bounded: flat, not trusted past its run.*"
                      r"`longtime run -p harmonic -i verlet --dt 0.1 --t-final 100000`", str(rec))
     # every horizon of the map past 1000 times the runs is undetermined
-    v = V.problem_verdict("harmonic", ROWS)
+    v = D.problem_verdict("harmonic", ROWS)
     assert all(v.grid[(t, h)].best is None for t in v.targets for h in v.horizons if h > 1e5)
 
 
@@ -81,69 +86,69 @@ def test_a_solution_error_is_trusted_less_where_an_invariant_drifts_or_its_slope
     # rk4's energy drifts linearly: its linear solution error (t^1, 1 < 1 + 1) is trusted
     # ten times its run
     drifting = {**LINEAR, "H.growth_class": "linear", "H.growth": 1.0}
-    s = V.settings([drifting], V.measure([drifting]))[0]
-    assert s.kind == "drifting" and s.reach == 100.0 * V.TRUST_FACTORS["drifting"]["linear"] == 1e3
+    s = S.settings([drifting], S.measure([drifting]))[0]
+    assert s.kind == "drifting" and s.reach == 100.0 * S.TRUST_FACTORS["drifting"]["linear"] == 1e3
     assert s.error_at(1e3) == pytest.approx(1e-5) and s.error_at(1.01e3) is None
     assert "trusted to t = 1000, the energy drifts" in s.law_text()
     # a quadratic solution error of a linear energy drift already grows like t^(1 + 1)
     quad = {**drifting, "error.growth_class": "quadratic"}
-    assert V.settings([quad], V.measure([quad]))[0].kind == "solution"
+    assert S.settings([quad], S.measure([quad]))[0].kind == "solution"
     rising = {**LINEAR, "H.growth_class": "undetermined", "H.growth_windows": [0.45, 0.69, 0.88]}
-    assert V.settings([rising], V.measure([rising]))[0].kind == "drifting"  # the energy still steepening
+    assert S.settings([rising], S.measure([rising]))[0].kind == "drifting"  # the energy still steepening
     level = {**LINEAR, "H.growth_class": "undetermined", "H.growth_windows": [0.3, 0.1, 0.2]}
-    assert V.settings([level], V.measure([level]))[0].kind == "solution"
+    assert S.settings([level], S.measure([level]))[0].kind == "solution"
     other = {**LINEAR, "L.growth_class": "linear"}  # another invariant's drift (a precession) does not count
-    assert V.settings([other], V.measure([other]))[0].kind == "solution"
+    assert S.settings([other], S.measure([other]))[0].kind == "solution"
     # window slopes rising past the class's exponent: not extrapolated
     steep = {**LINEAR, "error.growth_windows": [1.16, 1.28, 1.46]}
-    s = V.settings([steep], V.measure([steep]))[0]
+    s = S.settings([steep], S.measure([steep]))[0]
     assert s.steepening and not s.extrapolates and s.error_at(101.0) is None
     assert "window slopes 1.16, 1.28, 1.46 rise past t^1" in s.law_text()
     # slopes that fall toward the class: trusted, at most as far as the latest slope (1.2)
     # would move the prediction by 3: 3^(1 / 0.2) = 243 times the run
     falling = {**LINEAR, "error.growth_windows": [1.43, 1.40, 1.2]}
-    s = V.settings([falling], V.measure([falling]))[0]
+    s = S.settings([falling], S.measure([falling]))[0]
     assert not s.steepening and s.factor == pytest.approx(3 ** 5)
     near = {**LINEAR, "error.growth_windows": [1.43, 1.40, 1.06]}
-    assert V.settings([near], V.measure([near]))[0].factor == 1000.0
+    assert S.settings([near], S.measure([near]))[0].factor == 1000.0
 
 
 def test_a_predicted_error_of_o1_is_lost():
     coarse = _row("euler", 0.1, 1e-3, 1e-4, "linear", 1.0)  # 1 at 1000 times its run
-    s = V.settings([coarse], V.measure([coarse]))[0]
+    s = S.settings([coarse], S.measure([coarse]))[0]
     assert s.state_at(1e4) == "predicted" and s.error_at(1e4) == pytest.approx(0.1)
     assert s.state_at(5e4) == "lost" and s.error_at(5e4) is None  # 0.5: O(1)
     assert s.state_at(1e5) == "lost"
-    d = V.decide([s], 0.9, 1e5)
+    d = D.decide([s], 0.9, 1e5)
     assert d.best is None and d.open == [] and d.state == "none"
-    rec = V.recommend([coarse], "harmonic", 0.9, 1e5)
+    rec = R.recommend([coarse], "harmonic", 0.9, 1e5)
     assert not rec.answered and "1 setting predicted lost there (error >= 0.5)" in str(rec)
 
 
 def test_undetermined_predicts_nothing_past_its_run_and_names_the_run_that_decides():
-    cands = V.settings(ROWS, V.measure(ROWS))
+    cands = S.settings(ROWS, S.measure(ROWS))
     gauss = next(s for s in cands if s.scheme == "gauss4")
     assert gauss.error_at(100.0) == 1e-8 and gauss.error_at(50.0) == 1e-8  # its own run: measured
     assert gauss.error_at(101.0) is None and not gauss.extrapolates
-    d = V.decide(cands, 1e-2, 1e5)
+    d = D.decide(cands, 1e-2, 1e5)
     assert d.best.scheme == "rk4" and [s.scheme for s in d.open] == ["gauss4"]  # cheaper than rk4, law unknown
-    assert V.decide(cands, 1e-3, 100.0).best.scheme == "gauss4"  # within its run it is measured
+    assert D.decide(cands, 1e-3, 100.0).best.scheme == "gauss4"  # within its run it is measured
     # a target only gauss4 keeps over its run: undetermined, not a winner
-    d = V.decide(cands, 1e-7, 1e4)
+    d = D.decide(cands, 1e-7, 1e4)
     assert d.best is None and d.state == "undetermined"
-    assert V.deciding_run(gauss, 1e4) == "longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 10000"
-    assert V.deciding_run(gauss, 10.0).endswith("--t-final 1000")  # at least a decade past its run
-    assert V.decide(cands, 1e-12, 1e4).state == "none"
+    assert D.deciding_run(gauss, 1e4) == "longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 10000"
+    assert D.deciding_run(gauss, 10.0).endswith("--t-final 1000")  # at least a decade past its run
+    assert D.decide(cands, 1e-12, 1e4).state == "none"
 
 
 def test_winner_map_spans_the_horizons_past_the_runs():
-    v = V.problem_verdict("harmonic", ROWS)
+    v = D.problem_verdict("harmonic", ROWS)
     assert v.horizons[0] == 100.0 and v.horizons[-1] == 1e8
     assert v.grid[(1e-3, 1e3)].best.scheme == "rk4" and v.grid[(1e-3, 1e5)].best.scheme == "rk4"
     assert v.grid[(1e-4, 1e4)].best.scheme == "rk4" and v.grid[(1e-4, 1e5)].state == "undetermined"
     # the targets some setting reaches, and one decade finer
     assert v.targets[0] == 1e-1 and v.targets[-1] == 1e-9
-    text = "\n".join(V.verdict_lines(v))
+    text = "\n".join(T.verdict_lines(v))
     assert "rk4 dt=0.1" in text
     assert "`longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 1000`" in text
     assert ("trusted: solution error: bounded x1, sqrt x1, linear x1000, quadratic x1000; the energy drifting: "
@@ -155,15 +160,15 @@ def test_winner_map_spans_the_horizons_past_the_runs():
 
 def test_rows_without_a_reference_are_judged_by_the_energy_error():
     rows = _invariant([BOUNDED, LINEAR, OPEN])
-    m = V.measure(rows)
+    m = S.measure(rows)
     assert (m.field, m.law) == ("H.max", "H") and "no reference" in m.text
-    assert V.decide(V.settings(rows, m), 5e-4, 1e5).best.scheme == "verlet"
+    assert D.decide(S.settings(rows, m), 5e-4, 1e5).best.scheme == "verlet"
 
 
 def test_a_lost_or_saturated_row_is_no_candidate():
     lost = {**LINEAR, "integrator": "euler", "solution_lost": True}
     saturated = {**LINEAR, "integrator": "midpoint", "error.growth_class": "saturated"}
-    assert {s.scheme for s in V.settings([lost, saturated, *ROWS], V.measure(ROWS))} == {"verlet", "rk4", "gauss4"}
+    assert {s.scheme for s in S.settings([lost, saturated, *ROWS], S.measure(ROWS))} == {"verlet", "rk4", "gauss4"}
 
 
 def test_checks_are_planned_as_groups_that_test_the_rank_within_budget():
@@ -171,60 +176,60 @@ def test_checks_are_planned_as_groups_that_test_the_rank_within_budget():
     # rival (gauss4) at the farthest horizon whose predicted CPU (1e-4 + 5e-5 + 1e-5 s per
     # unit time) fits the budget: 1e4 within 2 s, 1e5 not
     free = lambda v: 0.0  # no reference to pay for  # noqa: E731
-    plan = V.plan_checks(ROWS, limit=6, budget_s=2.0, reference_rate=free, total_s=1e9)
+    plan = XC.plan_checks(ROWS, limit=6, budget_s=2.0, reference_rate=free, total_s=1e9)
     assert {(c.setting.scheme, c.role, c.horizon) for c in plan} == {
         ("rk4", "best", 1e4), ("verlet", "runner-up", 1e4), ("gauss4", "open", 1e4)}
     assert len({c.group for c in plan}) == 1 and plan[0].kind == "splitting"  # verlet needs a separable H
     assert all(c.horizon <= c.setting.reach for c in plan if c.role == "best")
-    wide = V.plan_checks(ROWS, limit=6, budget_s=1e3, reference_rate=free, total_s=1e9)
+    wide = XC.plan_checks(ROWS, limit=6, budget_s=1e3, reference_rate=free, total_s=1e9)
     assert {c.horizon for c in wide} == {1e5}  # not past rk4's reach (1e5)
     # the total time bounds the checks: TIMED_RUNS x the predicted CPU, plus the reference's;
     # a group that does not fit is planned at a nearer horizon where rk4 still wins past its run
-    near = V.plan_checks(ROWS, budget_s=2.0, reference_rate=free, total_s=1.0)
-    assert {c.horizon for c in near} == {1e3} and V.TIMED_RUNS * sum(c.predicted_cpu() for c in near) <= 1.0
-    assert V.plan_checks(ROWS, budget_s=2.0, reference_rate=free, total_s=0.1) == []
-    assert V.plan_checks(ROWS, budget_s=1e-4, reference_rate=free) == []
-    slow = V.plan_checks(ROWS, limit=6, budget_s=2.0, reference_rate=lambda v: 1e-3, total_s=1e9)
+    near = XC.plan_checks(ROWS, budget_s=2.0, reference_rate=free, total_s=1.0)
+    assert {c.horizon for c in near} == {1e3} and XC.TIMED_RUNS * sum(c.predicted_cpu() for c in near) <= 1.0
+    assert XC.plan_checks(ROWS, budget_s=2.0, reference_rate=free, total_s=0.1) == []
+    assert XC.plan_checks(ROWS, budget_s=1e-4, reference_rate=free) == []
+    slow = XC.plan_checks(ROWS, limit=6, budget_s=2.0, reference_rate=lambda v: 1e-3, total_s=1e9)
     assert {c.horizon for c in slow} == {1e3}  # its reference would take 10 s to 1e4: past half of CHECK_REFERENCE_S
-    assert V.plan_checks(ROWS, budget_s=2.0, reference_rate=lambda v: float("inf"), total_s=1e9) == []
+    assert XC.plan_checks(ROWS, budget_s=2.0, reference_rate=lambda v: float("inf"), total_s=1e9) == []
     # a bounded solution error is not extrapolated, so never checked past its run
-    assert V.plan_checks([BOUNDED], budget_s=1e3, reference_rate=free) == []
+    assert XC.plan_checks([BOUNDED], budget_s=1e3, reference_rate=free) == []
     best = next(c for c in plan if c.role == "best")
     row = {**LINEAR, "t_final": 1e4, "l2_error": 2.5e-4, "cpu_s": 0.6, "error_horizon": 1e4}
-    assert V.check_row(best, {**row, "error_horizon": 5e3})["measured_error"] is None  # the reference stopped short
-    c = V.check_row(best, row)
+    assert XC.check_row(best, {**row, "error_horizon": 5e3})["measured_error"] is None  # the reference stopped short
+    c = XC.check_row(best, row)
     assert c["predicted_error"] == pytest.approx(1e-4) and c["predicted_cpu_s"] == pytest.approx(0.5)
     assert c["check_role"] == "best" and c["check_target"] == best.target
-    assert V.check_holds(c) is True  # within x3 and x1.5
-    assert V.check_holds({**c, "measured_error": 4e-4}) is False
-    assert V.check_holds({**c, "cpu_s": 0.8}) is False
-    assert V.check_holds({**c, "measured_error": None}) is None
+    assert PC.check_holds(c) is True  # within x3 and x1.5
+    assert PC.check_holds({**c, "measured_error": 4e-4}) is False
+    assert PC.check_holds({**c, "cpu_s": 0.8}) is False
+    assert PC.check_holds({**c, "measured_error": None}) is None
     # the rule: error within [1/3, 3] of the predicted, CPU at most x1.5 the predicted
-    assert (V.CHECK_ERROR_FACTOR, V.CHECK_COST_FACTOR) == (3.0, 1.5)
+    assert (PC.CHECK_ERROR_FACTOR, PC.CHECK_COST_FACTOR) == (3.0, 1.5)
     p = {**c, "predicted_error": 1e-4, "predicted_cpu_s": 0.5}
-    assert V.check_holds({**p, "measured_error": 2.99e-4, "cpu_s": 0.7499}) is True
-    assert V.check_holds({**p, "measured_error": 1e-4 / 3.01}) is False
-    assert V.check_holds({**p, "cpu_s": 0.7501}) is False
+    assert PC.check_holds({**p, "measured_error": 2.99e-4, "cpu_s": 0.7499}) is True
+    assert PC.check_holds({**p, "measured_error": 1e-4 / 3.01}) is False
+    assert PC.check_holds({**p, "cpu_s": 0.7501}) is False
     # the rank: an open rival that kept the target at less than 1 / 1.5 of the winner's CPU fails it
     opener = next(x for x in plan if x.role == "open")
-    cheap = V.check_row(opener, {**OPEN, "t_final": 1e4, "l2_error": best.target / 2, "cpu_s": 0.3,
+    cheap = XC.check_row(opener, {**OPEN, "t_final": 1e4, "l2_error": best.target / 2, "cpu_s": 0.3,
                                  "error_horizon": 1e4})
     dear = {**cheap, "cpu_s": 0.5}
     records = [dict(c), cheap]
-    V.judge_ranks(records)
-    assert records[0]["rank_held"] is False and V.check_holds(records[0]) is False and V.check_holds(cheap) is None
+    PC.judge_ranks(records)
+    assert records[0]["rank_held"] is False and PC.check_holds(records[0]) is False and PC.check_holds(cheap) is None
     records = [dict(c), dear]
-    V.judge_ranks(records)
-    assert records[0]["rank_held"] is True and V.check_holds(records[0]) is True
+    PC.judge_ranks(records)
+    assert records[0]["rank_held"] is True and PC.check_holds(records[0]) is True
     missed = {**cheap, "l2_error": best.target * 2, "measured_error": best.target * 2}  # it did not keep the target
     records = [dict(c), missed]
-    V.judge_ranks(records)
-    assert records[0]["rank_held"] is None and V.check_holds(records[0]) is True
+    PC.judge_ranks(records)
+    assert records[0]["rank_held"] is None and PC.check_holds(records[0]) is True
     failed = {**c, "measured_error": 4e-4}
-    assert V.check_counts([c, failed, cheap]) == {"held": 1, "failed": 1, "unjudged": 1}
-    assert V.failed_first([c, cheap, failed]) == [failed, cheap, c]
-    assert V.check_summary([c, failed]).startswith("1 of 2 checked predictions held")
-    assert "; 1 failed" in V.check_summary([c, failed])
+    assert PC.check_counts([c, failed, cheap]) == {"held": 1, "failed": 1, "unjudged": 1}
+    assert T.failed_first([c, cheap, failed]) == [failed, cheap, c]
+    assert PC.check_summary([c, failed]).startswith("1 of 2 checked predictions held")
+    assert "; 1 failed" in PC.check_summary([c, failed])
 
 
 @pytest.fixture
@@ -290,7 +295,7 @@ def test_recommend_bad_input_is_one_line_exit_2(store, capsys, args, message):
     (["-p", "harmonic", "--error", "1e-12", "--horizon", "1e4"], "no stored setting keeps l2_error <= 1e-12"),
 ])
 def test_recommend_without_a_determined_answer_says_why_exit_3(store, capsys, args, message):
-    assert cli.main(["recommend", *args, "--db", store]) == V.NO_ANSWER_EXIT == 3
+    assert cli.main(["recommend", *args, "--db", store]) == R.NO_ANSWER_EXIT == 3
     out = capsys.readouterr()
     assert message in out.out and out.out.startswith(f"{args[1]}: no answer for ") and out.err == ""
 
@@ -303,7 +308,7 @@ def test_recommend_without_a_store_names_the_command(tmp_path, capsys):
 
 
 def test_recommend_on_a_store_of_no_verdict_names_the_command(tmp_path):
-    rec = V.recommend([{**LINEAR, "status": "diverged"}], "harmonic", 1e-3, 1e3)
+    rec = R.recommend([{**LINEAR, "status": "diverged"}], "harmonic", 1e-3, 1e3)
     assert not rec.answered
     assert re.search(r"no ok row of harmonic with an error.*`longtime matrix -p harmonic`", str(rec))
 
@@ -331,12 +336,12 @@ def test_checks_of_a_real_run_hold_and_are_stored(tmp_path):
     store = Store(db)
     rows = store.rows(1)
     assert store.checks(1) == [] and all(r["error.growth_class"] == "linear" for r in rows)
-    planned = {(c.setting.row["dt"], c.horizon) for c in V.plan_checks(rows, budget_s=0.05)}  # from the rows' CPU
-    checks = V.run_checks(store, 1, rows, budget_s=0.05)
+    planned = {(c.setting.row["dt"], c.horizon) for c in XC.plan_checks(rows, budget_s=0.05)}  # from the rows' CPU
+    checks = XC.run_checks(store, 1, rows, budget_s=0.05)
     assert {(c["dt"], c["t_final"]) for c in checks} == planned and len(planned) == 2
     assert all(c["t_final"] >= 10 * c["from_t_final"] for c in checks)  # well past the run
     for c in checks:
-        assert V.check_holds(c) is not None
+        assert PC.check_holds(c) is not None
         assert c["measured_error"] == pytest.approx(c["predicted_error"], rel=0.5)  # the law holds that far
         assert c["check_field"] == "l2_error" and c["from_t_final"] == 50.0
     assert store.checks(1) == [{"run_id": 1, **c} for c in checks] and len(store.rows(1)) == 2
@@ -358,10 +363,10 @@ def test_a_checks_reference_cost_is_known_before_it_runs():
     harmonic = build(Cell("harmonic", "rk4", {}, {"dt": 0.1}, 10.0))[0]
     rate = check_seconds_per_t(harmonic, 100.0)
     assert 0 < rate < float("inf")
-    v = V.problem_verdict("harmonic", ROWS)
-    assert V.reference_seconds_per_t(v) > 0
+    v = D.problem_verdict("harmonic", ROWS)
+    assert XC.reference_seconds_per_t(v) > 0
     inv = _invariant(ROWS)
-    assert V.reference_seconds_per_t(V.problem_verdict("harmonic", inv)) == 0.0  # no reference needed
+    assert XC.reference_seconds_per_t(D.problem_verdict("harmonic", inv)) == 0.0  # no reference needed
 
 
 def test_a_horizon_within_the_run_reads_the_error_reached_there():
@@ -369,13 +374,13 @@ def test_a_horizon_within_the_run_reads_the_error_reached_there():
     curve = {"curve": "solution", "t": [1.0, 10.0, 50.0, 100.0], "error": [1e-8, 1e-7, 5e-7, 1e-6],
              "l2": [1e-8, 1e-7, 5e-7, 1e-6]}
     row = {**LINEAR, "error_curve": curve}
-    s = V.settings([row], V.measure([row]))[0]
+    s = S.settings([row], S.measure([row]))[0]
     assert s.error_at(10.0) == pytest.approx(1e-7)  # not the run's 1e-6 over [0, 100]
     assert s.error_at(30.0) == pytest.approx(5e-7)  # between two points: the larger
     assert s.error_at(100.0) == 1e-6 and s.error_at(1e3) == pytest.approx(1e-5)  # past the run: the law
     # a target the run keeps to t = 10 but not over its whole span wins at 10, not at 100
-    assert V.decide([s], 2e-7, 10.0).best is s and V.decide([s], 2e-7, 100.0).best is None
-    bare = V.settings([LINEAR], V.measure([LINEAR]))[0]  # a row stored without a curve: the run's error
+    assert D.decide([s], 2e-7, 10.0).best is s and D.decide([s], 2e-7, 100.0).best is None
+    bare = S.settings([LINEAR], S.measure([LINEAR]))[0]  # a row stored without a curve: the run's error
     assert bare.error_at(10.0) == 1e-6
 
 
@@ -384,18 +389,18 @@ def test_the_cost_model_has_fixed_and_per_time_parts_from_runs_of_two_lengths():
     short = {**LINEAR, "integrator": "heyoka", "dt": None, "tol": 1e-12, "t_final": 1e3, "cpu_s": 0.0024,
              "l2_error": 1e-7}
     long = {**short, "t_final": 1e4, "cpu_s": 0.0114, "l2_error": 1e-6}
-    s = V.settings([short, long], V.measure([short, long]))
+    s = S.settings([short, long], S.measure([short, long]))
     assert len(s) == 1 and s[0].span == 1e4  # one setting: its longest run
     m = s[0].cost
     assert m.basis == "fixed + per-time" and m.fixed == pytest.approx(0.0014) and m.per_t == pytest.approx(1e-6)
     assert s[0].cpu_at(1e5) == pytest.approx(0.1014)  # a per-time model from the long run alone: 0.114
     assert "0.0014 s fixed + 1e-06 s per unit time, fitted on runs to t = 1000, 1e+04" in m.text()
-    one = V.settings([long], V.measure([long]))[0].cost
+    one = S.settings([long], S.measure([long]))[0].cost
     assert one.basis == "per-time" and one.at(1e5) == pytest.approx(0.114) and "one run to t = 1e+04" in one.text()
     # a fit with a negative fixed part (timing noise) falls back to per-time from the longest run
-    noisy = V.cost_model([(1e3, 0.0020), (1e4, 0.0300)])
+    noisy = S.cost_model([(1e3, 0.0020), (1e4, 0.0300)])
     assert noisy.basis == "per-time" and noisy.at(1e4) == pytest.approx(0.03)
-    assert V.cost_model([(1e3, 0.001), (1.5e3, 0.0012)]).basis == "per-time"  # lengths too close
+    assert S.cost_model([(1e3, 0.001), (1.5e3, 0.0012)]).basis == "per-time"  # lengths too close
 
 
 def _chaotic(rows, t_lyap=0.99, ref_horizon=None):
@@ -406,13 +411,13 @@ def _chaotic(rows, t_lyap=0.99, ref_horizon=None):
 def test_no_pointwise_prediction_past_the_predictability_horizon():
     rows = _chaotic([_row("gauss6", 0.004, 8e-12, 0.002, "quadratic", 2.0, t_final=10.0),
                      _row("rk4", 0.004, 1e-4, 0.0005, "linear", 1.0, t_final=10.0)])
-    p = V.predictability(rows, 1e-5)
+    p = D.predictability(rows, 1e-5)
     assert p.horizon == pytest.approx(0.99 * math.log(1e-5 / 1e-16)) and p.lyapunov_time == 0.99
-    assert V.predictability([LINEAR], 1e-5) is None  # not chaotic
+    assert D.predictability([LINEAR], 1e-5) is None  # not chaotic
     # the reference's trusted horizon caps it where a row's check ended before its run
     capped = _chaotic([{**rows[0], "t_final": 40.0}], ref_horizon=20.0)
-    assert V.predictability(capped, 1e-5).horizon == 20.0
-    rec = V.recommend(rows, "double-pendulum", 1e-5, 1e4)
+    assert D.predictability(capped, 1e-5).horizon == 20.0
+    rec = R.recommend(rows, "double-pendulum", 1e-5, 1e4)
     assert not rec.answered and rec.scheme is None and rec.decision.state == "chaotic"
     text = str(rec)
     assert "no double-precision scheme keeps a pointwise error of 1e-05 past t = 25.08 (" in text
@@ -420,36 +425,36 @@ def test_no_pointwise_prediction_past_the_predictability_horizon():
     # a statistical answer where the store holds ensembles
     ens = [{"problem": "double-pendulum", "integrator": "gauss6", "status": "ok", "distance": 0.01, "floor": 0.01},
            {"problem": "double-pendulum", "integrator": "rk4", "status": "ok", "distance": 0.5, "floor": 0.01}]
-    rec = V.recommend(rows, "double-pendulum", 1e-5, 1e4, ensembles=ens)
+    rec = R.recommend(rows, "double-pendulum", 1e-5, 1e4, ensembles=ens)
     assert "statistically: gauss6 (distance 0.01, floor 0.01) keeps the distribution" in str(rec)
     # below the horizon, a chaotic solution error is not extrapolated past its run
-    s = next(c for c in V.settings(rows, V.measure(rows)) if c.scheme == "gauss6")
+    s = next(c for c in S.settings(rows, S.measure(rows)) if c.scheme == "gauss6")
     assert s.kind == "chaotic" and not s.extrapolates and s.error_at(20.0) is None
     assert "a chaotic problem: Lyapunov time 0.99" in s.law_text()
-    assert V.recommend(rows, "double-pendulum", 1e-5, 10.0).scheme == "gauss6"  # measured over its run
+    assert R.recommend(rows, "double-pendulum", 1e-5, 10.0).scheme == "gauss6"  # measured over its run
     # the map: every cell past the horizon says so; the page's headline cell included
-    v = V.problem_verdict("double-pendulum", rows)
+    v = D.problem_verdict("double-pendulum", rows)
     d = v.grid[(1e-6, 1e3)]
     assert d.state == "chaotic" and d.best is None and "past t = 22.8 (" in d.limit.text()
-    assert V.decision_text(d) == "no pointwise answer past t = 22.8 (chaos; a finer target: sooner)"
+    assert T.decision_text(d) == "no pointwise answer past t = 22.8 (chaos; a finer target: sooner)"
 
 
 def test_a_chaos_check_is_planned_and_judged():
     rows = _chaotic([_row("gauss6", 0.004, 8e-12, 0.002, "quadratic", 2.0, t_final=10.0)])
-    plan = V.plan_checks(rows, budget_s=1.0, reference_rate=lambda v: 0.0)
+    plan = XC.plan_checks(rows, budget_s=1.0, reference_rate=lambda v: 0.0)
     assert [(c.role, c.kind, c.target) for c in plan] == [("chaos", "chaotic", 1e-10)]
     # the finest target 10 times above its error whose horizon lies past its run, 5 t_L past it
     assert plan[0].horizon == pytest.approx(0.99 * math.log(1e-10 / 1e-16) + 5 * 0.99)
-    c = V.check_row(plan[0], {**rows[0], "t_final": plan[0].horizon, "l2_error": 3e-9,
+    c = XC.check_row(plan[0], {**rows[0], "t_final": plan[0].horizon, "l2_error": 3e-9,
                               "error_horizon": plan[0].horizon})
-    assert V.check_holds(c) is True and V.check_holds({**c, "measured_error": 5e-11}) is False
-    assert "error above 1e-10 predicted" in V.check_text(c)
+    assert PC.check_holds(c) is True and PC.check_holds({**c, "measured_error": 5e-11}) is False
+    assert "error above 1e-10 predicted" in T.check_text(c)
 
 
 def test_a_longer_run_that_lost_the_solution_makes_the_setting_lost_from_there():
     short = {**LINEAR, "t_final": 100.0}
     lost = {**LINEAR, "t_final": 1e4, "l2_error": 0.9, "solution_lost": True}
-    s = V.settings([short, lost], V.measure([short]))
+    s = S.settings([short, lost], S.measure([short]))
     assert len(s) == 1 and s[0].span == 100.0 and s[0].lost_at == 1e4
     assert s[0].error_at(1e3) == pytest.approx(1e-5) and s[0].state_at(1e4) == "lost" and s[0].error_at(2e4) is None
 
@@ -457,25 +462,25 @@ def test_a_longer_run_that_lost_the_solution_makes_the_setting_lost_from_there()
 def test_an_undetermined_law_whose_slopes_do_not_rise_is_bounded_by_its_steepest_for_a_decade():
     # heyoka on kepler to 1e4 periods: slopes 2.25, 1.36, 2.21 (round-off and a phase error in turn)
     row = {**OPEN, "error.growth_windows": [2.25, 1.36, 2.21], "l2_error": 5e-8, "t_final": 100.0}
-    s = V.settings([row], V.measure([row]))[0]
+    s = S.settings([row], S.measure([row]))[0]
     assert s.bound_exponent == 2.25 and s.reach == 1e3 and s.extrapolates
     assert s.error_at(200.0) == pytest.approx(5e-8 * 2 ** 2.25) and s.error_at(1.1e3) is None
     assert "at most t^2.25 (its steepest window" in s.law_text()
     # slopes that rise are no bound (the law is still steepening); a solution error's bound is at least t^1
-    rising = V.settings([{**row, "error.growth_windows": [0.2, 0.6, 1.1]}], V.measure([row]))[0]
+    rising = S.settings([{**row, "error.growth_windows": [0.2, 0.6, 1.1]}], S.measure([row]))[0]
     assert rising.bound_exponent is None and not rising.extrapolates
-    flat = V.settings([{**row, "error.growth_windows": [0.3, 0.1, 0.2]}], V.measure([row]))[0]
+    flat = S.settings([{**row, "error.growth_windows": [0.3, 0.1, 0.2]}], S.measure([row]))[0]
     assert flat.bound_exponent == 1.0
 
 
 def test_a_drift_dominated_problem_is_a_class_the_checks_cover():
     free = lambda v: 0.0  # noqa: E731
     drifting = [{**r, "drifting_components": 1} for r in ROWS]
-    plan = V.plan_checks(drifting, budget_s=2.0, reference_rate=free, total_s=1e9)
+    plan = XC.plan_checks(drifting, budget_s=2.0, reference_rate=free, total_s=1e9)
     assert plan and {c.kind for c in plan} == {"drifting"}
     # with a chaotic problem beside it, each class gets a group before any gets a second
     chaotic = _chaotic([_row("gauss6", 0.004, 8e-12, 0.002, "quadratic", 2.0, t_final=10.0)])
-    both = V.plan_checks(drifting + chaotic, limit=2, budget_s=2.0, reference_rate=free, total_s=1e9)
+    both = XC.plan_checks(drifting + chaotic, limit=2, budget_s=2.0, reference_rate=free, total_s=1e9)
     assert {c.kind for c in both} == {"drifting", "chaotic"}
 
 
@@ -484,14 +489,14 @@ def test_the_page_and_the_report_show_checks_of_every_role():
     from longtime.reporting.report import summary
 
     rows = _chaotic([_row("gauss6", 0.004, 8e-12, 0.002, "quadratic", 2.0, t_final=10.0)])
-    chaos = V.plan_checks(rows, budget_s=1.0, reference_rate=lambda v: 0.0)[0]
-    unmeasured = V.check_row(chaos, {**rows[0], "t_final": chaos.horizon, "l2_error": None, "error_horizon": 5.0})
-    plan = V.plan_checks(ROWS, budget_s=2.0, reference_rate=lambda v: 0.0, total_s=1e9)
-    records = [V.check_row(c, {**c.setting.row, "t_final": c.horizon, "l2_error": 1e3 * c.setting.error,
+    chaos = XC.plan_checks(rows, budget_s=1.0, reference_rate=lambda v: 0.0)[0]
+    unmeasured = XC.check_row(chaos, {**rows[0], "t_final": chaos.horizon, "l2_error": None, "error_horizon": 5.0})
+    plan = XC.plan_checks(ROWS, budget_s=2.0, reference_rate=lambda v: 0.0, total_s=1e9)
+    records = [XC.check_row(c, {**c.setting.row, "t_final": c.horizon, "l2_error": 1e3 * c.setting.error,
                                "error_horizon": c.horizon}) for c in plan]
-    V.judge_ranks(records)
+    PC.judge_ranks(records)
     checks = [unmeasured, *records]
-    assert V.check_counts(checks)["unjudged"] >= 2  # the unmeasured chaos check, the open rival
+    assert PC.check_counts(checks)["unjudged"] >= 2  # the unmeasured chaos check, the open rival
     text = summary(rows + ROWS, checks=checks)
     assert "checks: " in text and "failed" in text
     page = build_page(rows + ROWS, [], drift=False, stability=False, checks=checks)
@@ -502,12 +507,12 @@ def test_the_page_puts_failed_checks_first_and_says_no_pointwise_answer_past_cha
     from longtime.reporting.page import build_page
 
     rows = _chaotic([_row("gauss6", 0.004, 8e-12, 0.002, "quadratic", 2.0, t_final=10.0)])
-    plan = V.plan_checks(ROWS, budget_s=2.0, reference_rate=lambda v: 0.0, total_s=1e9)
+    plan = XC.plan_checks(ROWS, budget_s=2.0, reference_rate=lambda v: 0.0, total_s=1e9)
     # every winner measured 1e3 times its predicted error: each best's check fails
-    records = [V.check_row(c, {**c.setting.row, "t_final": c.horizon, "l2_error": 1e3 * c.setting.error,
+    records = [XC.check_row(c, {**c.setting.row, "t_final": c.horizon, "l2_error": 1e3 * c.setting.error,
                                "error_horizon": c.horizon}) for c in plan]
-    V.judge_ranks(records)
-    assert V.check_counts(records)["failed"] >= 1
+    PC.judge_ranks(records)
+    assert PC.check_counts(records)["failed"] >= 1
     page = build_page(rows + ROWS, [], drift=False, stability=False, checks=records)
     section = page[page.index('id="checks"'):]
     assert "Failed:</p><ul><li>" in section and "failed" in section

@@ -1,5 +1,5 @@
 """``longtime recommend``: the cheapest stored setting predicted to keep an error up to a
-horizon on a problem, with the runner-up and the evidence (longtime.reporting.verdict).
+horizon on a problem, with the runner-up and the evidence (longtime.reporting.recommend).
 
 Exit codes: 0 an answer; 3 (``NO_ANSWER_EXIT``) no answer the store determines (no setting
 predicted to keep the target, or a horizon past a chaotic problem's predictability horizon):
@@ -12,7 +12,7 @@ from longtime.execution.store import default_path
 
 def cmd_recommend(args) -> int:
     from longtime.api import recommend
-    from longtime.reporting.verdict import NO_ANSWER_EXIT
+    from longtime.reporting.recommend import NO_ANSWER_EXIT
 
     answer = recommend(args.problem, args.error, args.horizon, db=args.db, run=args.run)
     print(answer)

@@ -73,10 +73,10 @@ def warmup(cells: list[Cell], jobs: int = 0) -> list[dict[str, Any]]:
 
 
 def cmd_warmup(args) -> int:
-    from longtime.commands.cli import _warn_broken
+    from longtime.commands.common import warn_broken
     from longtime.core import registry
 
-    _warn_broken()
+    warn_broken()
     problems = args.problem or registry.default_problems()
     schemes = args.integrator or sorted(registry.integrators())
     sets, sweeps = cli_args.settings(args.set)

@@ -402,7 +402,7 @@ class Store:
         return [json.loads(text) for (text,) in fetched]
 
     def add_check(self, run_id: int, cell: Cell, check: dict[str, Any]) -> None:
-        """Store a checked prediction (longtime.reporting.verdict.check_row): the row of a
+        """Store a checked prediction (longtime.execution.checks.check_row): the row of a
         re-run at a horizon past the stored rows, with the predicted error and CPU time beside
         the measured. Checks are kept apart from the run's rows: they are no cell of its
         matrix (a report, an order fit or a resume never sees them as one)."""

@@ -8,7 +8,7 @@ from __future__ import annotations
 from typing import Any
 
 from longtime.core.fmt import positive
-from longtime.reporting.rowtext import main_t_final, setting
+from longtime.core.rowtext import main_t_final, setting
 
 # the error the table asks of each library's settings (l2_error, relative to the motion)
 TARGET = 1e-6

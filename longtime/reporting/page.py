@@ -138,7 +138,7 @@ def _chaos_table(rows: list[dict]) -> str | None:
     """A chaotic problem's rows read in Lyapunov times: the Lyapunov time of its initial
     state, and per scheme and setting the time its solution error reached O(1) (its
     predictability horizon), in time and in Lyapunov times."""
-    from longtime.reporting.rowtext import setting
+    from longtime.core.rowtext import setting
 
     chaotic = [r for r in rows if "predictability_t" in r and r.get("status") == "ok"]
     if not chaotic:
@@ -163,7 +163,7 @@ def _ensemble_table(records: list[dict]) -> str | None:
     distance, the floor and whether the two are told apart, or the status that left it
     without a distance."""
     from longtime.measure.ensemble import FLOOR_FACTOR
-    from longtime.reporting.rowtext import setting
+    from longtime.core.rowtext import setting
 
     if not records:
         return None
@@ -280,9 +280,10 @@ def _fold(summary: str, body: str, open_: bool = False) -> str:
 def _verdict_section(p: str, v, mine: list[dict]) -> str:
     """One problem's verdict: an example answer, the winner map, the winners as a table
     (folded) and the settings whose law does not extrapolate, each with its deciding run."""
+    from longtime.predict.checks import check_counts, check_summary
+    from longtime.predict.decision import deciding_run
     from longtime.reporting.figures.verdict import winner_map_svg
-    from longtime.reporting.verdict import (check_counts, check_summary, check_text, deciding_run, decision_text,
-                                            failed_first, horizon_groups)
+    from longtime.reporting.verdict import check_text, decision_text, failed_first, horizon_groups
 
     head = f'<h3 id="verdict-{slug(p)}">{escape(p)}</h3>'
     if v.measure is None or not v.candidates:
@@ -359,8 +360,9 @@ def _libraries_section(rows: list[dict]) -> str:
 
 
 def _checks_section(checks: list[dict]) -> str:
+    from longtime.predict.checks import check_holds, check_summary
     from longtime.reporting.figures.verdict import checks_svg
-    from longtime.reporting.verdict import check_holds, check_summary, check_text
+    from longtime.reporting.verdict import check_text
 
     out = ['<h2 id="checks">Checked predictions</h2>']
     if not checks:
@@ -470,7 +472,7 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
     section (longtime.reporting.history.page_section). ``writer``: the command that wrote
     the page, named in its footer. ``ensembles``: the stored ensemble distances of the
     chaotic problems (each in its problem's evidence)."""
-    from longtime.reporting.verdict import verdicts
+    from longtime.predict.decision import verdicts
 
     ensembles = list(ensembles)
     problems = sorted({r["problem"] for r in rows})

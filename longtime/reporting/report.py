@@ -14,9 +14,10 @@ from longtime.core import jsontext
 from longtime.core.files import write_atomic
 from longtime.core.fmt import number, positive
 from longtime.core.roles import ROW_PARAMETERS, row_columns
+from longtime.core.rowtext import main_t_final, setting  # noqa: F401 (their home; read from here too)
 from longtime.measure.lyapunov import past_predictability
-from longtime.reporting.rowtext import main_t_final, setting  # noqa: F401 (their home; read from here too)
-from longtime.reporting.verdict import verdict_lines, verdicts
+from longtime.predict.decision import verdicts
+from longtime.reporting.verdict import verdict_lines
 
 # the JSON contract (README.md, `--format json`): every row carries these keys (null where not applicable)
 CONTRACT_FIELDS = ("problem", "integrator", "status", "message", *ROW_PARAMETERS,
@@ -355,7 +356,8 @@ def answer_rows(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = (
     of ANSWER_TARGETS' errors up to its horizon: {"problem", "field", "t_main", "answers":
     [text per target]}. A chaotic problem's target no setting keeps, once its rows lost the
     solution, is NO_POINTWISE (its ensembles say what holds)."""
-    from longtime.reporting.verdict import decide, decision_text
+    from longtime.predict.decision import decide
+    from longtime.reporting.verdict import decision_text
 
     out = []
     for problem, v in verdicts(rows, checks).items():
@@ -543,7 +545,7 @@ def first_screen(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = 
         lines += problem_line(problem, mine, [f for f in fits if f["problem"] == problem], chaos.get(problem))
     lines.append("")
     if checks:
-        from longtime.reporting.verdict import check_summary
+        from longtime.predict.checks import check_summary
 
         lines += _wrap(f"checks: {check_summary(checks)}")
     lines += _wrap("a prediction extrapolates a setting's growth law up to a multiple of its run's span, never "

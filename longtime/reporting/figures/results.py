@@ -282,7 +282,7 @@ def figure_inputs(rows: list[dict[str, Any]], style: dict, drift: bool = True) -
     scheme's style, its setting and the curves it keeps (a row that keeps none is run again:
     the whole row), so a row's CPU time measured again leaves the drift figures as drawn
     unless it changes which setting represents a scheme."""
-    from longtime.reporting.rowtext import setting as setting_text
+    from longtime.core.rowtext import setting as setting_text
 
     def drawn(row):
         if "drift_curve" not in row:

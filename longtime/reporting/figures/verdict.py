@@ -10,10 +10,11 @@ from typing import Any
 import numpy as np
 
 from longtime.core.fmt import positive
+from longtime.core.rowtext import setting
+from longtime.predict.checks import CHECK_COST_FACTOR, CHECK_ERROR_FACTOR, check_holds
+from longtime.predict.decision import Verdict
 from longtime.reporting.figures import pyplot
 from longtime.reporting.figures.style import legend_columns, scheme_style, svg
-from longtime.reporting.rowtext import setting
-from longtime.reporting.verdict import CHECK_COST_FACTOR, CHECK_ERROR_FACTOR, Verdict, check_holds
 
 UNDETERMINED = "#d9d9d9"
 NONE = "#ffffff"

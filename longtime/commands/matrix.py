@@ -1,0 +1,100 @@
+"""``longtime matrix``: the main job (longtime.execution.main_job) of a selection, or an
+interrupted run resumed, then its results page and report (longtime.reporting.main_job_report),
+and with --baseline its comparison with a stored run (exit 1 on a regression)."""
+from __future__ import annotations
+
+import sys
+
+from longtime.commands.common import add_selection, exec_options, selection, warn_broken, wrapped
+from longtime.core import cli_args, phases
+from longtime.core.progress import Progress
+from longtime.execution import budget
+from longtime.execution.calibration import drift_text
+from longtime.execution.lifecycle import command_line
+from longtime.execution.main_job import MainJobSpec, Selection, plan, run_main_job
+from longtime.predict.checks import CHECKS
+
+
+def add_parser(subparsers) -> None:
+    p = subparsers.add_parser("matrix", help="every scheme on every problem over the default sweep")
+    add_selection(p, required=False)
+    p.add_argument("--resume", type=int, nargs="?", const=0, default=None, metavar="RUN_ID",
+                   help="finish an interrupted run (default: the newest incomplete run of matrix or run)")
+    p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--no-report", action="store_true", help="do not print the report at the end")
+    p.add_argument("--full", action="store_true", help="the full per-cell tables after the summary")
+    p.add_argument("--html", default=None, type=cli_args.out_folder("--html"), metavar="DIR",
+                   help="folder of the results page (default: longtime-report/run-RUN_ID beside the store)")
+    p.add_argument("--no-html", action="store_true", help="do not write the results page")
+    p.add_argument("--full-sweep", action="store_true",
+                   help=f"run the default sweep as it is: without it, a pair whose default cells are "
+                        f"estimated above {budget.CELL_BUDGET_S:g} s a run runs them over a shorter horizon, "
+                        f"and a long-time cell above {budget.LONG_CELL_BUDGET_S:g} s is left out (the "
+                        f"report names each move)")
+    p.add_argument("--checks", type=cli_args.integer("--checks", 0), default=None, metavar="N",
+                   help="re-run N of the verdicts' predictions past the rows' final times and store predicted "
+                        "against measured error and cost (default 6; 0: none)")
+    p.add_argument("--no-ensemble", action="store_true",
+                   help="do not measure the chaotic problems' ensemble distances (each scheme's late-time "
+                        "distribution against heyoka's: henon-heiles, figure-eight-perturbed; docs/metrics.md)")
+    p.add_argument("--baseline", type=cli_args.integer("--baseline", 1), default=None, metavar="RUN",
+                   help="end with `longtime compare RUN` against this run (same store) and exit 1 on a regression")
+    p.set_defaults(func=cmd_matrix)
+
+
+def matrix_selection(args) -> Selection:
+    """The cells ``longtime matrix``'s flags select (default: every default problem x every
+    scheme over the default sweep)."""
+    flags = selection(args)
+    return Selection(problems=tuple(args.problem) if args.problem else None,
+                     schemes=tuple(args.integrator) if args.integrator else None,
+                     sweeps=flags["sweeps"], sets=flags["sets"],
+                     t_final=tuple(args.t_final) if args.t_final is not None else None,
+                     full_sweep=args.full_sweep, allow_large=args.allow_large)
+
+
+def matrix_cells(args) -> tuple[list, list]:
+    """The cells of ``longtime matrix``'s selection, within the budget unless --full-sweep
+    (longtime.execution.budget), sized (--allow-large aside), and what the budget moved."""
+    return plan(matrix_selection(args), exec_options(args, args.executor or "process"))
+
+
+def cmd_matrix(args) -> int:
+    phases.since_process_start("startup")  # the interpreter, the imports, the plugins
+    warn_broken()
+    executor = args.executor or "process"
+    options = exec_options(args, executor)
+    shown = Progress(on=not args.no_progress)
+    page_wanted = not args.no_report and not args.no_html
+    spec = MainJobSpec(selection=matrix_selection(args) if args.resume is None else Selection(), resume=args.resume,
+                       executor=executor, options=options, db=args.db, command=command_line(args),
+                       baseline=args.baseline, checks=CHECKS if args.checks is None else args.checks,
+                       ensembles=not args.no_ensemble,
+                       writable=(("--html", args.html),) if args.html and page_wanted else ())
+    ahead = None
+    if page_wanted:  # the page's figures, drawn on the pool's idle workers
+        from longtime.reporting.figures_ahead import FiguresAhead as ahead
+    job = run_main_job(spec, progress=shown, ahead=ahead)
+    if not job.ran:  # a resumed run whose cells were all stored: marked done
+        return 0
+    page_error = None
+    if not args.no_report:
+        from longtime.reporting.main_job_report import page_and_report
+
+        out = page_and_report(job, args.html, page=not args.no_html, full=args.full, progress=shown)
+        page_error = out.page_error
+        print(out.text)
+        print("\n" + wrapped(f"calibration: {drift_text(job.store.calibrations(job.run_id))}"))
+        if out.page is not None and args.full:  # the first screen names it; the full text ends with it
+            print(f"\nresults page: {out.page}")
+    code = 0
+    if args.baseline is not None:  # CI's gate: this run against the baseline, exit 1 on a regression
+        from longtime.reporting import compare
+
+        print(f"\n== compared with run {args.baseline} (longtime compare {args.baseline} {job.run_id}) ==")
+        code = compare.report(compare.run_compare(job.store.path, str(args.baseline), job.store.path,
+                                                  str(job.run_id)))
+    if page_error:  # the rows are stored and reported; the page the command owes is not there
+        print(f"longtime matrix: error: {page_error}", file=sys.stderr)
+        return max(code, 1)
+    return code

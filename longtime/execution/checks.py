@@ -1,0 +1,226 @@
+"""The checks of the verdict's predictions: the main job re-runs groups of them, a winner
+with its runner-up and open rivals so that the rank is tested, covering every class of
+problem it ran (``plan_checks``, ``run_checks``), and stores the predicted beside the
+measured error and cost (``Store.add_check``). What a check must meet is
+longtime.predict.checks's."""
+from __future__ import annotations
+
+import contextlib
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+from longtime.core.fmt import positive
+from longtime.predict.checks import CHECK_BUDGET_S, CHECK_REFERENCE_S, CHECKS, judge_ranks
+from longtime.predict.decision import TARGETS, Verdict, predictability, verdicts
+from longtime.predict.settings import Measure, Setting
+
+
+@dataclass
+class PlannedCheck:
+    """One run of a check: ``setting`` re-run to ``horizon``. ``role``: "best" (the decision's
+    winner: its predicted error and cost, and its rank), "runner-up" (its prediction), "open"
+    (a cheaper setting whose law is undetermined: measured, so that the rank is tested) or
+    "chaos" (the most accurate setting past the predictability horizon of ``target``: its
+    error must exceed ``target`` there). ``group`` names the decision the runs test and
+    ``kind`` the class of problem it covers (CHECK_KINDS)."""
+    setting: Setting
+    horizon: float
+    measure: Measure
+    role: str
+    target: float
+    group: str
+    kind: str
+
+    def predicted_cpu(self) -> float:
+        return self.setting.cpu_at(self.horizon)
+
+
+# the classes of problem the checks cover, each before a second check of any: a chaotic
+# problem (its predictability horizon), a drift-dominated one (a state component that drifts,
+# ``drifting_components``, or a solution error whose energy drifts), an adaptive
+# scheme (heyoka, a tolerance), a splitting (a scheme that needs a separable H), the rest
+CHECK_KINDS = ("chaotic", "drifting", "adaptive", "splitting", "other")
+# the checks' total wall-time estimate (seconds): each run's predicted CPU times TIMED_RUNS
+# (its warm-up and timed repeats) plus its reference's time to the horizon
+CHECKS_TOTAL_S = 6.0
+TIMED_RUNS = 4
+# a chaos check runs past the predictability horizon by this many Lyapunov times (e^5: the
+# pointwise error grows 150 times past the target)
+CHAOS_MARGIN_LYAPUNOV = 5.0
+
+
+def _group_kind(v: Verdict, runs: list[Setting]) -> str:
+    from longtime.core import registry
+
+    if any(s.kind == "drifting" or (s.row.get("drifting_components") or 0) > 0 for s in runs):
+        return "drifting"  # an energy that drifts, or a state with a drifting component
+    if any(positive(s.row.get("tol")) for s in runs):
+        return "adaptive"
+    for s in runs:
+        with contextlib.suppress(Exception):
+            if "separable" in getattr(registry.integrator_class(s.scheme), "requires", ()):
+                return "splitting"
+    return "other"
+
+
+def _chaos_group(v: Verdict, rows: list[dict[str, Any]], budget_s: float) -> list[PlannedCheck]:
+    """A check of a chaotic problem's predictability horizon: its most accurate setting, at
+    the finest map target E that it keeps over its run and whose horizon lies past its run,
+    re-run CHAOS_MARGIN_LYAPUNOV Lyapunov times past that horizon (within ``budget_s``)."""
+    mine = [r for r in rows if r.get("problem") == v.problem]
+    if v.measure is None or v.measure.field != "l2_error" or not v.candidates:
+        return []
+    s = min(v.candidates, key=lambda c: (c.error, c.cpu_per_t))
+    for target in sorted(TARGETS):
+        limit = predictability(mine, target)
+        if limit is None or limit.lyapunov_time is None or target < 10 * s.error or limit.horizon <= s.span:
+            continue
+        h = limit.horizon + CHAOS_MARGIN_LYAPUNOV * limit.lyapunov_time
+        if s.cpu_at(h) > budget_s:
+            return []
+        return [PlannedCheck(s, h, v.measure, "chaos", target, f"{v.problem} {target:g} chaos", "chaotic")]
+    return []
+
+
+def _decision_groups(v: Verdict, budget_s: float) -> list[list[list[PlannedCheck]]]:
+    """Per setting the map names as the winner past its run (within its reach), its groups:
+    at each horizon where it wins, the winner, its runner-up and its open rivals (at most
+    two), within ``budget_s`` of predicted CPU together; the farthest horizon first (the
+    planner takes the first that fits the checks' time)."""
+    best: dict[int, list[list[PlannedCheck]]] = {}
+    # at each horizon the decision with the most rivals first (the rank tested against most)
+    for d in sorted(v.grid.values(), key=lambda d: (-d.horizon, -(d.runner_up is not None) - len(d.open[:2]),
+                                                    d.target)):
+        b = d.best
+        if b is None or d.horizon <= b.span * (1 + 1e-9):
+            continue
+        if any(g[0].horizon == d.horizon for g in best.get(id(b), [])):
+            continue
+        runs = [(b, "best")] + ([(d.runner_up, "runner-up")] if d.runner_up else []) + [(o, "open") for o in d.open[:2]]
+        if sum(x.cpu_at(d.horizon) for x, _ in runs) > budget_s:
+            continue
+        group = f"{v.problem} {d.target:g} T={d.horizon:g}"
+        kind = _group_kind(v, [x for x, _ in runs])
+        best.setdefault(id(b), []).append([PlannedCheck(x, d.horizon, v.measure, role, d.target, group, kind)
+                                           for x, role in runs])
+    return sorted(best.values(), key=lambda gs: (-gs[0][0].horizon / gs[0][0].setting.span, gs[0][0].setting.text))
+
+
+def plan_checks(rows: list[dict[str, Any]], limit: int = CHECKS, budget_s: float = CHECK_BUDGET_S,
+                reference_rate=None, total_s: float = CHECKS_TOTAL_S) -> list[PlannedCheck]:
+    """The checks to run, as groups of runs (PlannedCheck): per problem, a chaos check where
+    it is chaotic (``_chaos_group``) and its decisions' groups (``_decision_groups``: the
+    winner with its runner-up and open rivals, each group's predicted CPU within
+    ``budget_s``); at most ``limit`` groups whose estimated wall time (TIMED_RUNS times the
+    predicted CPU, plus the reference: ``reference_rate(verdict)`` wall seconds per unit of
+    t, default ``reference_seconds_per_t``) totals at most ``total_s``. Each class of
+    problem (CHECK_KINDS) present gets a group before any class gets a second."""
+    rate_of = reference_seconds_per_t if reference_rate is None else reference_rate
+    pool: dict[str, list[list[PlannedCheck]]] = {k: [] for k in CHECK_KINDS}
+    found = verdicts(rows)
+    per_problem = []
+    for v in found.values():
+        if v.measure is None:
+            continue
+        groups = ([[g]] if (g := _chaos_group(v, rows, budget_s)) else []) + _decision_groups(v, budget_s)
+        per_problem.append((v, groups))
+    # round-robin over problems within each kind, so one problem does not take a kind's turns
+    depth = max((len(g) for _, g in per_problem), default=0)
+    for k in range(depth):
+        for v, groups in per_problem:
+            if k < len(groups):
+                pool[groups[k][0][0].kind].append(groups[k])
+    rates: dict[str, float] = {}
+    out: list[PlannedCheck] = []
+    chosen, spent = 0, 0.0
+    while chosen < limit and any(pool.values()):
+        for kind in CHECK_KINDS:
+            if not pool[kind] or chosen >= limit:
+                continue
+            alternatives = pool[kind].pop(0)
+            v = found[alternatives[0][0].setting.row["problem"]]
+            if v.problem not in rates:
+                started = time.perf_counter()
+                rates[v.problem] = rate_of(v)
+                spent += time.perf_counter() - started  # timing the reference is part of the checks' time
+            for group in alternatives:  # the farthest horizon whose runs and reference fit
+                reference = rates[v.problem] * group[0].horizon
+                cost = TIMED_RUNS * sum(c.predicted_cpu() for c in group) + reference
+                if math.isfinite(cost) and spent + cost <= total_s and reference <= CHECK_REFERENCE_S / 2:
+                    out += group
+                    chosen += 1
+                    spent += cost
+                    break
+    return out
+
+
+def reference_seconds_per_t(v: Verdict) -> float:
+    """The wall seconds per unit of t that a check of ``v``'s problem spends on its
+    reference: 0 for an invariant's error (no reference), else the reference check's
+    heyoka runs timed over ten times the problem's main final time
+    (longtime.measure.reference.check_seconds_per_t)."""
+    if v.measure is None or v.measure.field != "l2_error":
+        return 0.0
+    from longtime.execution.cells import build, cell_of_row
+    from longtime.measure.reference import ReferenceUnavailable, check_seconds_per_t
+
+    row = next(s.row for s in v.candidates)
+    problem = build(cell_of_row(row))[0]
+    try:
+        return check_seconds_per_t(problem, 10 * v.t_main, budget_s=CHECK_REFERENCE_S / 10)
+    except ReferenceUnavailable:
+        return math.inf  # its reference cannot be run here: no check of it is planned
+
+
+def check_row(c: PlannedCheck, row: dict[str, Any]) -> dict[str, Any]:
+    """A check's stored record: the re-run's row with the prediction beside it (a rival with
+    no prediction, an "open" one, has predicted_error null)."""
+    s, horizon, m = c.setting, c.horizon, c.measure
+    measured = row.get(m.field) if row.get("status") == "ok" else None
+    if m.field == "l2_error" and measured is not None and not (row.get("error_horizon") or 0) >= horizon * (1 - 1e-9):
+        measured = None  # the reference stopped short of the horizon: an error over less than the prediction's span
+    from longtime.execution.cells import cell_of_row
+
+    predicted = s.error_at(horizon) if c.role in ("best", "runner-up") else None
+    return {**row, "check_of": cell_of_row(s.row).key, "check_of_run": s.row.get("run_id"), "check_field": m.field,
+            "check_law": s.law_text() if c.role != "chaos" else f"chaotic: error above {c.target:g} past t = "
+                                                                 f"{horizon:.4g}",
+            "check_role": c.role, "check_group": c.group, "check_kind": c.kind, "check_target": c.target,
+            "predicted_error": predicted, "predicted_cpu_s": s.cpu_at(horizon),
+            "predicted_cpu_model": s.cost.text() if s.cost else "per-time",
+            "measured_error": measured if positive(measured) else None,
+            "from_t_final": s.span, "from_error": s.error}
+
+
+def run_checks(store, run_id: int, rows: list[dict[str, Any]], options=None,
+               limit: int = CHECKS, budget_s: float = CHECK_BUDGET_S,
+               reference_s: float = CHECK_REFERENCE_S, total_s: float = CHECKS_TOTAL_S) -> list[dict[str, Any]]:
+    """Run ``plan_checks``'s checks of ``rows`` (each a cell at its horizon, one at a time in
+    this process, under ``options``' time limit, timed by at most TIMED_RUNS - 1 runs after
+    its warm-up, its reference given
+    ``reference_s`` wall seconds), judge each group's rank (``judge_ranks``) and store each
+    with its prediction (``Store.add_check``); returns the stored checks."""
+    from longtime.core.integrator import Timing
+    from longtime.execution.cells import cell_of_row, run_cell
+    from longtime.execution.matrix import ExecOptions
+
+    plan = plan_checks(rows, limit, budget_s, total_s=total_s)
+    if not plan:
+        return []
+    options = options or ExecOptions()
+    # the warm-up and TIMED_RUNS - 1 timed runs at most (the checks' time estimate), no minimum time
+    timing = Timing(repeats=min(options.timing.repeats, TIMED_RUNS - 1), min_time=0.0)
+    records, cells = [], []
+    for c in plan:
+        cell = cell_of_row(c.setting.row, t_final=c.horizon)
+        row = run_cell(cell, options.max_samples, timing=timing, time_limit=options.time_limit,
+                       reference_budget_s=reference_s)
+        records.append(check_row(c, row))
+        cells.append(cell)
+    judge_ranks(records)
+    if store is not None:
+        for cell, record in zip(cells, records):
+            store.add_check(run_id, cell, record)
+    return records
