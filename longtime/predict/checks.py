@@ -26,9 +26,10 @@ def check_holds(c: dict[str, Any]) -> bool | None:
     """Whether a stored check confirms its prediction. A "chaos" check: its measured error
     exceeds its target (no pointwise error is kept past the predictability horizon). A
     prediction ("best", "runner-up", or a check stored without a role): the measured error
-    within CHECK_ERROR_FACTOR of the predicted and the measured CPU at most CHECK_COST_FACTOR
-    times the predicted, and for the best its rank (``rank_held`` not False). None where the
-    check measured no error, or made no prediction (an "open" rival)."""
+    within CHECK_ERROR_FACTOR of the predicted (a bound, ``predicted_bound``, an "at most":
+    the measured error at most CHECK_ERROR_FACTOR times it) and the measured CPU at most
+    CHECK_COST_FACTOR times the predicted, and for the best its rank (``rank_held`` not
+    False). None where the check measured no error, or made no prediction (an "open" rival)."""
     role = c.get("check_role")
     me = c.get("measured_error")
     if role == "chaos":
@@ -38,7 +39,8 @@ def check_holds(c: dict[str, Any]) -> bool | None:
     pe, pc, mc = (c.get(k) for k in ("predicted_error", "predicted_cpu_s", "cpu_s"))
     if not (positive(pe) and positive(me) and positive(pc) and positive(mc)):
         return None
-    held = (1 / CHECK_ERROR_FACTOR <= me / pe <= CHECK_ERROR_FACTOR) and mc <= CHECK_COST_FACTOR * pc
+    low = 0.0 if c.get("predicted_bound") else 1 / CHECK_ERROR_FACTOR
+    held = (low <= me / pe <= CHECK_ERROR_FACTOR) and mc <= CHECK_COST_FACTOR * pc
     return held and c.get("rank_held") is not False
 
 

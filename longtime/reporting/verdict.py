@@ -26,7 +26,9 @@ def check_text(c: dict[str, Any]) -> str:
     if role == "chaos":
         error = f"error above {c['check_target']:g} predicted, {'-' if me is None else f'{me:.2g}'} measured"
     else:
-        error = f"error {'-' if pe is None else f'{pe:.2g}'} predicted, {'-' if me is None else f'{me:.2g}'} measured"
+        at_most = "at most " if c.get("predicted_bound") and pe is not None else ""
+        error = (f"error {at_most}{'-' if pe is None else f'{pe:.2g}'} predicted, "
+                 f"{'-' if me is None else f'{me:.2g}'} measured")
     rank = ""
     if c.get("rank_held") is not None:
         rank = f"; rank {'held' if c['rank_held'] else 'MISSED'} against {', '.join(c.get('rank_rivals') or [])}"
