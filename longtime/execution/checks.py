@@ -44,10 +44,9 @@ class PlannedCheck:
 CHECK_KINDS = ("chaotic", "drifting", "adaptive", "splitting", "other")
 # the checks' total wall-time estimate (seconds): each run's predicted CPU times TIMED_RUNS
 # (its warm-up and timed repeats) plus its reference's time to the horizon, and the timing of
-# each problem's reference rate. 6 s for the chaotic, adaptive and splitting classes, and 4 s
-# for a drift-dominated problem's group (charged-particle's at T = 1e4 in the default
-# matrix: its reference rate timed in about 1.1 s, its reference to 1e4 about 2.1 s, its four
-# runs about 0.4 s)
+# each problem's reference rate: 6 s for the chaotic, adaptive and splitting classes, and 4 s
+# for a drift-dominated problem's group (charged-particle's at T = 1e4 in the default matrix:
+# the timing of its reference rate, its reference to 1e4 and its four runs)
 CHECKS_TOTAL_S = 10.0
 TIMED_RUNS = 4
 # a chaos check runs past the predictability horizon by this many Lyapunov times (e^5: the
