@@ -54,14 +54,17 @@ def check_budget(rows: list[dict[str, Any]], limit: int = CHECKS) -> float:
 def judge_ranks(records: list[dict[str, Any]]) -> None:
     """Set ``rank_held`` on each group's "best" record: whether its measured CPU is at most
     CHECK_COST_FACTOR times that of every rival of its group (runner-up, open) whose measured
-    error keeps the target (None: no rival measured one that keeps it)."""
+    error keeps the target (None: no rival measured one that keeps it); ``rank_lost_to`` names
+    the rivals it lost to, with their role and measured CPU."""
     for best in (r for r in records if r.get("check_role") == "best"):
         rivals = [r for r in records if r.get("check_group") == best["check_group"] and r is not best
                   and positive(r.get("measured_error")) and r["measured_error"] <= r["check_target"]
                   and positive(r.get("cpu_s"))]
         best["rank_rivals"] = [f"{r['integrator']} {setting(r)}" for r in rivals]
-        best["rank_held"] = (all(best.get("cpu_s", math.inf) <= CHECK_COST_FACTOR * r["cpu_s"] for r in rivals)
-                             if rivals else None)
+        beaten_by = [r for r in rivals if not best.get("cpu_s", math.inf) <= CHECK_COST_FACTOR * r["cpu_s"]]
+        best["rank_lost_to"] = [f"{r['integrator']} {setting(r)} ({r.get('check_role')}, {r['cpu_s']:.3g} s)"
+                                for r in beaten_by]
+        best["rank_held"] = not beaten_by if rivals else None
 
 
 def check_counts(checks: list[dict[str, Any]]) -> dict[str, int]:
