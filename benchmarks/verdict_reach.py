@@ -8,7 +8,9 @@ For every problem that is not chaotic (no row with a Lyapunov time), and every g
 extrapolates, the cheapest settings of distinct schemes whose run at the largest factor
 costs at most ``--budget`` predicted CPU seconds are re-run (one repeat: the errors, not
 the times, are compared) at each factor f, and the line says measured / predicted error
-with the prediction e(t_f) f^k of the class's exponent k, uncapped. The reference gets
+with the prediction e(t_f) f^k of the class's exponent k, uncapped ("lost" where that
+prediction is O(1), ``LOST`` or more; "-" where the reference did not reach), and the
+setting's trust factor (how many times its run the verdict extrapolates it). The reference gets
 $LONGTIME_REFERENCE_SECONDS (default here 60 s) per run. The table in docs/metrics.md
 ("How far a class is trusted") is its output; the reach factors of the verdict
 (``TRUST_FACTORS``) are read from it.
@@ -45,8 +47,9 @@ def main(argv=None) -> int:
     rows = store.rows(run)
     factors = [float(f) for f in args.factors.split(",")]
     opts = ExecOptions(jobs=1, timing=Timing(repeats=1, min_time=0.0), processes=1)
-    print("| problem | kind | setting | class | t_f | e(t_f) | " + " | ".join(f"x{f:g}" for f in factors) + " |")
-    print("|" + "---|" * (6 + len(factors)))
+    print("| problem | kind | setting | class | t_f | e(t_f) | " + " | ".join(f"x{f:g}" for f in factors)
+          + " | trusted |")
+    print("|" + "---|" * (7 + len(factors)))
     for v in D.verdicts(rows).values():
         chaotic = any(r.get("lyapunov_time") for r in rows if r["problem"] == v.problem)  # no power law there
         if v.measure is None or chaotic or (args.problems and v.problem not in args.problems.split(",")):
@@ -69,9 +72,15 @@ def main(argv=None) -> int:
                             not (row.get("error_horizon") or 0) >= f * s.span * (1 - 1e-9):
                         measured = None  # the reference stopped short
                     predicted = s.error * f ** S.EXPONENTS[law]
-                    out.append("-" if not measured else f"{measured / predicted:.2g} ({measured:.1e})")
+                    if not measured:
+                        out.append("-")
+                    elif predicted >= S.LOST:  # an O(1) prediction: lost, not a number
+                        out.append(f"lost ({measured:.1e})")
+                    else:
+                        out.append(f"{measured / predicted:.2g} ({measured:.1e})")
+                trusted = f"{s.factor:.3g}" + (" (steepening)" if s.steepening else "")
                 print(f"| {v.problem} | {s.kind} | {s.text} | {law} | {s.span:.4g} | {s.error:.2g} | "
-                      + " | ".join(out) + " |", flush=True)
+                      + " | ".join(out) + f" | {trusted} |", flush=True)
     return 0
 
 

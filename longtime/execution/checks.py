@@ -43,8 +43,11 @@ class PlannedCheck:
 # scheme (heyoka, a tolerance), a splitting (a scheme that needs a separable H), the rest
 CHECK_KINDS = ("chaotic", "drifting", "adaptive", "splitting", "other")
 # the checks' total wall-time estimate (seconds): each run's predicted CPU times TIMED_RUNS
-# (its warm-up and timed repeats) plus its reference's time to the horizon
-CHECKS_TOTAL_S = 6.0
+# (its warm-up and timed repeats) plus its reference's time to the horizon, and the timing of
+# each problem's reference rate: 6 s for the chaotic, adaptive and splitting classes, and 4 s
+# for a drift-dominated problem's group (charged-particle's at T = 1e4 in the default matrix:
+# the timing of its reference rate, its reference to 1e4 and its four runs)
+CHECKS_TOTAL_S = 10.0
 TIMED_RUNS = 4
 # a chaos check runs past the predictability horizon by this many Lyapunov times (e^5: the
 # pointwise error grows 150 times past the target)
@@ -116,7 +119,10 @@ def plan_checks(rows: list[dict[str, Any]], limit: int = CHECKS, budget_s: float
     ``budget_s``); at most ``limit`` groups whose estimated wall time (TIMED_RUNS times the
     predicted CPU, plus the reference: ``reference_rate(verdict)`` wall seconds per unit of
     t, default ``reference_seconds_per_t``) totals at most ``total_s``. Each class of
-    problem (CHECK_KINDS) present gets a group before any class gets a second."""
+    problem (CHECK_KINDS) present gets a group before any class gets a second: a class's turn
+    goes to its first group that fits among those of problems whose reference is timed and of
+    one more problem, and among the drifting class's groups those of a drift-dominated
+    problem (a drifting state component) come first."""
     rate_of = reference_seconds_per_t if reference_rate is None else reference_rate
     pool: dict[str, list[list[PlannedCheck]]] = {k: [] for k in CHECK_KINDS}
     found = verdicts(rows)
@@ -132,28 +138,54 @@ def plan_checks(rows: list[dict[str, Any]], limit: int = CHECKS, budget_s: float
         for v, groups in per_problem:
             if k < len(groups):
                 pool[groups[k][0][0].kind].append(groups[k])
+    pool["drifting"].sort(key=lambda alternatives: not _drift_dominated(alternatives[0]))  # stable: depth order kept
     rates: dict[str, float] = {}
     out: list[PlannedCheck] = []
     chosen, spent = 0, 0.0
     while chosen < limit and any(pool.values()):
         for kind in CHECK_KINDS:
-            if not pool[kind] or chosen >= limit:
-                continue
-            alternatives = pool[kind].pop(0)
-            v = found[alternatives[0][0].setting.row["problem"]]
-            if v.problem not in rates:
-                started = time.perf_counter()
-                rates[v.problem] = rate_of(v)
-                spent += time.perf_counter() - started  # timing the reference is part of the checks' time
-            for group in alternatives:  # the farthest horizon whose runs and reference fit
-                reference = rates[v.problem] * group[0].horizon
-                cost = TIMED_RUNS * sum(c.predicted_cpu() for c in group) + reference
-                if math.isfinite(cost) and spent + cost <= total_s and reference <= CHECK_REFERENCE_S / 2:
+            if chosen >= limit:
+                break
+            # the kind's turn: its first group that fits among those of the problems whose reference
+            # is timed and of one more (the spent time only grows: a group that does not fit is dropped)
+            timed, kept = False, []
+            for k, alternatives in enumerate(pool[kind]):
+                v = found[alternatives[0][0].setting.row["problem"]]
+                if v.problem not in rates:
+                    if timed:
+                        kept.append(alternatives)
+                        continue
+                    timed = True
+                    started = time.perf_counter()
+                    rates[v.problem] = rate_of(v)
+                    spent += time.perf_counter() - started  # timing the reference is part of the checks' time
+                group = next((g for g in alternatives if _fits(g, rates[v.problem], spent, total_s)), None)
+                if group is not None:  # the farthest horizon whose runs and reference fit
                     out += group
                     chosen += 1
-                    spent += cost
+                    spent += _cost(group, rates[v.problem])
+                    kept += pool[kind][k + 1:]
                     break
+            pool[kind] = kept
     return out
+
+
+def _cost(group: list[PlannedCheck], rate: float) -> float:
+    """A group's estimated wall seconds: TIMED_RUNS times its runs' predicted CPU, plus its
+    reference's ``rate`` seconds per unit of t to its horizon."""
+    return TIMED_RUNS * sum(c.predicted_cpu() for c in group) + rate * group[0].horizon
+
+
+def _fits(group: list[PlannedCheck], rate: float, spent: float, total_s: float) -> bool:
+    """Whether a group fits the checks' time left and its reference half of CHECK_REFERENCE_S."""
+    cost = _cost(group, rate)
+    return math.isfinite(cost) and spent + cost <= total_s and rate * group[0].horizon <= CHECK_REFERENCE_S / 2
+
+
+def _drift_dominated(group: list[PlannedCheck]) -> bool:
+    """Whether a group's runs are of a problem with a drifting state component
+    (``drifting_components``, charged-particle's x3 = 0.1 + 0.2 t)."""
+    return any((c.setting.row.get("drifting_components") or 0) > 0 for c in group)
 
 
 def reference_seconds_per_t(v: Verdict) -> float:
@@ -176,7 +208,8 @@ def reference_seconds_per_t(v: Verdict) -> float:
 
 def check_row(c: PlannedCheck, row: dict[str, Any]) -> dict[str, Any]:
     """A check's stored record: the re-run's row with the prediction beside it (a rival with
-    no prediction, an "open" one, has predicted_error null)."""
+    no prediction, an "open" one, has predicted_error null; ``predicted_bound`` true where the
+    prediction is an upper bound, an undetermined law's steepest window extrapolated)."""
     s, horizon, m = c.setting, c.horizon, c.measure
     measured = row.get(m.field) if row.get("status") == "ok" else None
     if m.field == "l2_error" and measured is not None and not (row.get("error_horizon") or 0) >= horizon * (1 - 1e-9):
@@ -184,11 +217,13 @@ def check_row(c: PlannedCheck, row: dict[str, Any]) -> dict[str, Any]:
     from longtime.execution.cells import cell_of_row
 
     predicted = s.error_at(horizon) if c.role in ("best", "runner-up") else None
+    # an undetermined law's prediction past the run is its steepest window's: an upper bound
+    bound = predicted is not None and s.bound_exponent is not None and horizon > s.span * (1 + 1e-9)
     return {**row, "check_of": cell_of_row(s.row).key, "check_of_run": s.row.get("run_id"), "check_field": m.field,
             "check_law": s.law_text() if c.role != "chaos" else f"chaotic: error above {c.target:g} past t = "
                                                                  f"{horizon:.4g}",
             "check_role": c.role, "check_group": c.group, "check_kind": c.kind, "check_target": c.target,
-            "predicted_error": predicted, "predicted_cpu_s": s.cpu_at(horizon),
+            "predicted_error": predicted, "predicted_bound": bound, "predicted_cpu_s": s.cpu_at(horizon),
             "predicted_cpu_model": s.cost.text() if s.cost else "per-time",
             "measured_error": measured if positive(measured) else None,
             "from_t_final": s.span, "from_error": s.error}

@@ -26,9 +26,10 @@ def check_holds(c: dict[str, Any]) -> bool | None:
     """Whether a stored check confirms its prediction. A "chaos" check: its measured error
     exceeds its target (no pointwise error is kept past the predictability horizon). A
     prediction ("best", "runner-up", or a check stored without a role): the measured error
-    within CHECK_ERROR_FACTOR of the predicted and the measured CPU at most CHECK_COST_FACTOR
-    times the predicted, and for the best its rank (``rank_held`` not False). None where the
-    check measured no error, or made no prediction (an "open" rival)."""
+    within CHECK_ERROR_FACTOR of the predicted (a bound, ``predicted_bound``, an "at most":
+    the measured error at most CHECK_ERROR_FACTOR times it) and the measured CPU at most
+    CHECK_COST_FACTOR times the predicted, and for the best its rank (``rank_held`` not
+    False). None where the check measured no error, or made no prediction (an "open" rival)."""
     role = c.get("check_role")
     me = c.get("measured_error")
     if role == "chaos":
@@ -38,7 +39,8 @@ def check_holds(c: dict[str, Any]) -> bool | None:
     pe, pc, mc = (c.get(k) for k in ("predicted_error", "predicted_cpu_s", "cpu_s"))
     if not (positive(pe) and positive(me) and positive(pc) and positive(mc)):
         return None
-    held = (1 / CHECK_ERROR_FACTOR <= me / pe <= CHECK_ERROR_FACTOR) and mc <= CHECK_COST_FACTOR * pc
+    low = 0.0 if c.get("predicted_bound") else 1 / CHECK_ERROR_FACTOR
+    held = (low <= me / pe <= CHECK_ERROR_FACTOR) and mc <= CHECK_COST_FACTOR * pc
     return held and c.get("rank_held") is not False
 
 
@@ -52,14 +54,17 @@ def check_budget(rows: list[dict[str, Any]], limit: int = CHECKS) -> float:
 def judge_ranks(records: list[dict[str, Any]]) -> None:
     """Set ``rank_held`` on each group's "best" record: whether its measured CPU is at most
     CHECK_COST_FACTOR times that of every rival of its group (runner-up, open) whose measured
-    error keeps the target (None: no rival measured one that keeps it)."""
+    error keeps the target (None: no rival measured one that keeps it); ``rank_lost_to`` names
+    the rivals it lost to, with their role and measured CPU."""
     for best in (r for r in records if r.get("check_role") == "best"):
         rivals = [r for r in records if r.get("check_group") == best["check_group"] and r is not best
                   and positive(r.get("measured_error")) and r["measured_error"] <= r["check_target"]
                   and positive(r.get("cpu_s"))]
         best["rank_rivals"] = [f"{r['integrator']} {setting(r)}" for r in rivals]
-        best["rank_held"] = (all(best.get("cpu_s", math.inf) <= CHECK_COST_FACTOR * r["cpu_s"] for r in rivals)
-                             if rivals else None)
+        beaten_by = [r for r in rivals if not best.get("cpu_s", math.inf) <= CHECK_COST_FACTOR * r["cpu_s"]]
+        best["rank_lost_to"] = [f"{r['integrator']} {setting(r)} ({r.get('check_role')}, {r['cpu_s']:.3g} s)"
+                                for r in beaten_by]
+        best["rank_held"] = not beaten_by if rivals else None
 
 
 def check_counts(checks: list[dict[str, Any]]) -> dict[str, int]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from longtime.core.rowtext import setting
-from longtime.predict.checks import check_holds, check_summary
+from longtime.predict.checks import CHECK_COST_FACTOR, check_holds, check_summary
 from longtime.predict.decision import Decision, Verdict, deciding_run
 from longtime.predict.settings import LOST, TRUST_FACTORS
 
@@ -26,10 +26,14 @@ def check_text(c: dict[str, Any]) -> str:
     if role == "chaos":
         error = f"error above {c['check_target']:g} predicted, {'-' if me is None else f'{me:.2g}'} measured"
     else:
-        error = f"error {'-' if pe is None else f'{pe:.2g}'} predicted, {'-' if me is None else f'{me:.2g}'} measured"
+        at_most = "at most " if c.get("predicted_bound") and pe is not None else ""
+        error = (f"error {at_most}{'-' if pe is None else f'{pe:.2g}'} predicted, "
+                 f"{'-' if me is None else f'{me:.2g}'} measured")
     rank = ""
     if c.get("rank_held") is not None:
         rank = f"; rank {'held' if c['rank_held'] else 'MISSED'} against {', '.join(c.get('rank_rivals') or [])}"
+        if c.get("rank_lost_to"):
+            rank += f" (cheaper by more than x{CHECK_COST_FACTOR:g}: {', '.join(c['rank_lost_to'])})"
     return (f"{c['integrator']} {setting(c)} to t = {c['t_final']:.4g} ({role + '; ' if role else ''}"
             f"{c.get('check_law')}): {error}; CPU {c['predicted_cpu_s']:.3g} s predicted, "
             f"{c.get('cpu_s') or float('nan'):.3g} s measured{rank}: {verdict}")
