@@ -4,8 +4,8 @@ minute of CPU; loading a cell's kernels from the cache, a few seconds).
 
 ``instruction_fields(pairs, ...)`` is the parent's side: it decides which cells can be
 counted, writes them to a job file (longtime.execution.child), runs ``python -m
-longtime.execution.valgrind FOLDER`` under Valgrind (longtime.measure.instructions.command) and reads the counts back. The
-``main`` of this module is the worker's side: per cell it builds the problem and the
+longtime.execution.valgrind FOLDER`` under Valgrind (longtime.measure.instructions.command)
+and reads the counts back. The ``main`` of this module is the worker's side: per cell it builds the problem and the
 scheme, loads and warms up the kernel uncounted, then counts only the calls into the
 compiled loop (longtime.measure.instructions.counting), in one chunk.
 
