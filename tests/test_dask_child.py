@@ -1,6 +1,6 @@
 """Dask workers' long-lived children (longtime.execution.child.Resident): batches run one after
 the other in the same child; a spinning cell ends at its hard limit as a timeout row and the
-child is replaced; no child outlives its cluster or a killed worker."""
+child is replaced; no child (nor its folder) outlives its cluster or a killed worker."""
 import json
 import subprocess
 import sys
@@ -65,8 +65,10 @@ def test_a_worker_keeps_its_child_until_a_cell_passes_its_limit_and_no_child_out
         env, tmp_path):  # noqa: F811
     probe = tmp_path / "probe.py"
     probe.write_text(PROBE)
-    done = subprocess.run([sys.executable, str(probe)], env=_spin_env(env, tmp_path), capture_output=True, text=True,
-                          timeout=600)
+    temp = tmp_path / "temp"
+    temp.mkdir()
+    done = subprocess.run([sys.executable, str(probe)], env={**_spin_env(env, tmp_path), "TMPDIR": str(temp)},
+                          capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
     out = json.loads(done.stdout.strip().splitlines()[-1])
     rows = out["rows"]
@@ -81,3 +83,4 @@ def test_a_worker_keeps_its_child_until_a_cell_passes_its_limit_and_no_child_out
     # the killed worker's child died with it; the cluster closed took the last one
     assert not _gone(out["after_spin"]), "a child outlived its killed worker"
     assert not _gone(out["new_worker"]), "a child outlived its closed cluster"
+    assert not list(temp.glob("longtime-*")), "a child's folder was left behind"
