@@ -188,6 +188,7 @@ def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_sample
     (longtime.execution.processes: this one and ``processes - 1`` fresh ones).
     ``cost="instructions"`` also counts the integration under Valgrind (``--cost
     instructions``: the row's ``instructions`` and ``instructions_per_step``)."""
+    from longtime.execution.child import RunSpec
     from longtime.execution.matrix import check_cost
     from longtime.execution.processes import across_processes, check_processes, default_processes
     from longtime.reporting.report import complete
@@ -212,7 +213,7 @@ def solve(problem: Any, scheme: Any, *, t_final: float | None = None, max_sample
     if not cells[0].skip_reason:
         here.cell(row, t0, time.time())
         calibration.take_points(row)  # the calibrations themselves belong to a stored run
-    across_processes([(cells[0], row)], processes, max_samples, timing, time_limit=time_limit or None)
+    across_processes([(cells[0], row)], processes, RunSpec(max_samples, timing, time_limit or None, None))
     if cost == "instructions":  # after the timed runs: Valgrind's process times nothing
         from longtime.execution.valgrind import instruction_fields
 

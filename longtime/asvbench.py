@@ -249,14 +249,15 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
     def speed_cache(self):
         from longtime.core.integrator import Timing
         from longtime.execution.cells import DEFAULT_MAX_SAMPLES
+        from longtime.execution.child import RunSpec
         from longtime.execution.processes import DEFAULT_PROCESSES, START_S, SPREAD_S, run_children
 
         cells, labels = [], []
         for cell, label in runnable():
             cells.append(cell)
             labels.append(label)
-        results = run_children(cells, DEFAULT_PROCESSES, DEFAULT_MAX_SAMPLES, Timing(repeats=3), 1,
-                               START_S + 60 * SPREAD_S, None, None, paired=True)
+        spec = RunSpec(DEFAULT_MAX_SAMPLES, Timing(repeats=3), time_limit=None)
+        results = run_children(cells, DEFAULT_PROCESSES, spec, 1, START_S + 60 * SPREAD_S, paired=True)
         out = {}
         for k, label in enumerate(labels):
             records = [res[k] for res, _ in results if res is not None and res[k].get("status") == "ok"]

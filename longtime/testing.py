@@ -264,6 +264,7 @@ def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float 
     deterministic cost, which a loaded CI machine does not move. Returns the row."""
     from longtime.core.integrator import Timing, run_digest, same_run
     from longtime.execution.cells import run_cell
+    from longtime.execution.child import RunSpec
     from longtime.execution.matrix import check_cost
     from longtime.execution.processes import check_processes, default_processes, run_children
     from longtime.reporting.report import complete
@@ -287,8 +288,8 @@ def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float 
     if processes > 1:
         digest = run_digest(first)
         minima = [row["cpu_s"]]
-        for results, why in run_children(cells, processes - 1, 100_001, Timing().per_process(processes), 1, 600.0,
-                                         None, None):
+        spec = RunSpec(100_001, Timing().per_process(processes), time_limit=None)
+        for results, why in run_children(cells, processes - 1, spec, 1, 600.0):
             if results is None:
                 raise AssertionError(f"{integ.name} on {prob.name}: a timing process gave no result: {why}")
             (res,) = results

@@ -10,8 +10,10 @@ from _procs import children
 
 from longtime.core.integrator import Timing
 from longtime.integrators.explicit_rk import RK4
+from longtime.execution import child as child_processes
 from longtime.execution import isolation, processes
 from longtime.execution.cells import Cell
+from longtime.execution.child import RunSpec
 from longtime.execution.matrix import ExecOptions, run_matrix
 from longtime.execution.processes import merge, time_cells
 
@@ -24,18 +26,16 @@ def test_timing_round_trips_through_its_dict_with_min_runs():
 
 def test_an_isolated_child_gets_the_timing_whole_min_runs_included(monkeypatch):
     written = {}
-    real = isolation._spawn
+    real = child_processes.write_job
 
-    def spy(cell, max_samples, timeout, timing, time_limit, memory_limit):
-        child = real(cell, max_samples, timeout, timing, time_limit, memory_limit)
-        import json
-        written.update(json.loads((child.folder / "cell.json").read_text()))
-        return child
+    def spy(folder, kind, cells, spec, **options):
+        real(folder, kind, cells, spec, **options)
+        written.update(child_processes.read_job(folder).spec.to_dict())
 
-    monkeypatch.setattr(isolation, "_spawn", spy)
+    monkeypatch.setattr(child_processes, "write_job", spy)
     timing = Timing(repeats=3, min_time=0.0, min_runs=1)
-    row = isolation.run_cell_isolated(Cell("harmonic", "verlet", {}, {"dt": 0.05}, 5.0), 1000, timeout=60,
-                                      timing=timing)
+    row = isolation.run_cell_isolated(Cell("harmonic", "verlet", {}, {"dt": 0.05}, 5.0), RunSpec(1000, timing),
+                                      timeout=60)
     assert row["status"] == "ok", row["message"]
     assert Timing.from_dict(written["timing"]) == timing
     # min_runs 1 and no time budget: one run after the warm-up (at least 3 if min_runs were dropped)

@@ -7,6 +7,11 @@ between tasks), and the scheduler's per-task cost is paid per batch, not per cel
 come back to the client, which yields them to ``run_matrix``: workers never touch the
 store, so a store on the client's disk serves any cluster.
 
+Under a time or memory limit (the default has one), a worker runs its batches in a child
+process that lives from batch to batch (``run_batch_limited``): a cell that hangs is killed
+with the child at its hard limit, a new child takes the next cell, and the worker itself is
+never held.
+
 A worker that dies (killed, out of memory, a crashing cell) loses only its running batch:
 Dask reschedules the batch on another worker, up to the scheduler's
 ``distributed.scheduler.allowed-failures`` (default 3); a batch that kills that many workers
@@ -22,6 +27,7 @@ from typing import Iterator
 
 from longtime.core.params import InputError
 from longtime.execution.cells import Cell, base_row, run_cell
+from longtime.execution.child import RunSpec, resident
 from longtime.execution.limits import hard_limit
 
 
@@ -121,8 +127,9 @@ def _connect(options, n_cells: int):
 def dask_cluster(cells: list[Cell], options) -> Iterator[tuple[Cell, dict]]:
     """Cells as tasks on a Dask cluster: ``options.scheduler`` is its address (without one, a
     local cluster of ``options.jobs`` single-threaded worker processes). Workers need longtime
-    and the plugins installed. With ``cell_timeout`` each cell is its own task, run in a child
-    process of the worker (longtime.execution.isolation), so a hung cell cannot hold a worker."""
+    and the plugins installed. Under a time or memory limit each worker runs its batches in a
+    long-lived child process (``run_batch_limited``); with ``cell_timeout`` each cell is its
+    own task, run in a fresh child process of the worker (longtime.execution.isolation)."""
     from distributed import as_completed  # _connect has checked that it is installed
 
     from longtime.execution.batches import run_batch
@@ -135,19 +142,19 @@ def dask_cluster(cells: list[Cell], options) -> Iterator[tuple[Cell, dict]]:
     if not runnable:
         return
     client, cluster = _connect(options, len(runnable))
+    spec = options.run_spec()
     try:
         if options.cell_timeout:
-            futures = {client.submit(run_cell_isolated, c, options.max_samples, options.cell_timeout,
-                                     timing=options.timing, time_limit=options.time_limit, pure=False): [c]
+            futures = {client.submit(run_cell_isolated, c, spec, options.cell_timeout, pure=False): [c]
                        for c in runnable}
         else:
             workers = max(1, len(client.scheduler_info().get("workers", {})))
-            limited = hard_limit(options.time_limit) is not None or options.memory_limit
-            task = run_batch_limited if limited else run_batch
-            extra = {"memory_limit": options.memory_limit} if limited else {}
-            futures = {client.submit(task, batch, options.max_samples, options.timing,
-                                     time_limit=options.time_limit, pure=False, **extra): batch
-                       for batch in batches(runnable, workers)}
+            if hard_limit(options.time_limit) is not None or options.memory_limit:
+                futures = {client.submit(run_batch_limited, batch, spec, pure=False): batch
+                           for batch in batches(runnable, workers)}
+            else:
+                futures = {client.submit(run_batch, batch, spec.max_samples, spec.timing, time_limit=spec.time_limit,
+                                         pure=False): batch for batch in batches(runnable, workers)}
         left = len(runnable)
         for fut in as_completed(futures):
             batch = futures[fut]
@@ -173,19 +180,15 @@ def dask_cluster(cells: list[Cell], options) -> Iterator[tuple[Cell, dict]]:
         _close(client, cluster)
 
 
-def run_batch_limited(cells: list[Cell], max_samples: int, timing, time_limit: float | None = None,
-                      memory_limit: int | None = None) -> list[dict]:
-    """A batch's rows on a Dask worker under the process pool's limits: each cell in a child
-    process of the worker (longtime.execution.isolation), killed past the hard limit of
-    ``time_limit`` (a ``timeout`` row), under ``memory_limit`` (``failed: memory limit``),
-    and dying with the worker (PR_SET_PDEATHSIG), so no process of the task outlives it. The
-    children load the kernels the first one compiled from the disk cache."""
-    from longtime.execution.isolation import run_isolated
-
-    rows = dict((c.key, row) for c, row in run_isolated(cells, max_samples, hard_limit(time_limit), jobs=1,
-                                                         timing=timing, time_limit=time_limit,
-                                                         memory_limit=memory_limit))
-    return [rows[c.key] for c in cells]
+def run_batch_limited(cells: list[Cell], spec: RunSpec) -> list[dict]:
+    """A batch's rows on a Dask worker under the process pool's limits, run in the worker's
+    long-lived child process (longtime.execution.child.Resident, one per worker thread),
+    which keeps its compiled kernels from batch to batch: a cell past the hard limit of
+    ``spec.time_limit`` is killed with the child (a ``timeout`` row) and the child replaced,
+    a cell past ``spec.memory_limit`` fails (``failed: memory limit``) and the child is
+    replaced after the batch. The child dies with its worker (PR_SET_PDEATHSIG, and the end
+    of its stdin), so no process of the task outlives it."""
+    return resident().run(cells, spec)
 
 
 def _close(client, cluster) -> None:

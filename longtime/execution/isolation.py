@@ -5,9 +5,9 @@ code, out of memory) must become a row, not stop the matrix. Each cell runs in a
 child interpreter (``python -m longtime.execution.isolation``) started with ``subprocess``, not
 ``multiprocessing``: the child then also works from daemonic processes such as Dask's
 workers, which may not have multiprocessing children. The child reads the cell from a
-JSON file and writes its row to another; the parent kills the child's whole process
-group when the time limit passes (a ``timeout`` row) and reads a dead child's exit code
-or signal and the end of its stderr (a ``failed`` row).
+job file and writes its row as its result (longtime.execution.child); the parent kills the
+child's whole process group when the time limit passes (a ``timeout`` row) and reads a dead
+child's exit code or signal and the end of its stderr (a ``failed`` row).
 
 The price is one interpreter start and one kernel compilation per cell (about a second):
 use this executor for untrusted or unstable plugins and time limits, the process pool for
@@ -15,154 +15,95 @@ speed.
 """
 from __future__ import annotations
 
-import json
+import dataclasses
 import os
 import shutil
-import signal
-import subprocess
 import sys
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Iterator
 
-from longtime.core import registry
 from longtime.core.cache import no_space
-from longtime.core.integrator import Timing
+from longtime.execution import child as children
 from longtime.execution import tempdirs
-from longtime.execution.cells import (
-    DEFAULT_MAX_SAMPLES,
-    DEFAULT_TIME_LIMIT,
-    Cell,
-    base_row,
-    run_cell,
-)
-from longtime.execution.limits import die_with_parent, set_memory_limit
+from longtime.execution.cells import Cell, base_row, run_cell
+from longtime.execution.child import Child, RunSpec
 
 POLL_S = 0.05
 # a child's start-up (Python, numpy, numba, the plugins) before its cell begins: its time limit
 # counts from the cell's start, as the pool's watchdog counts it, and this bounds the start-up
 STARTUP_S = 120.0
-STDERR_TAIL = 600  # characters of a dead child's stderr kept in its row's message
-
-
-def _signal_name(code: int) -> str:
-    try:
-        return signal.Signals(code).name
-    except ValueError:
-        return f"signal {code}"
 
 
 @dataclass
-class _Child:
+class _Cell:
+    """A cell running in its child."""
+
     cell: Cell
-    folder: Path
-    proc: subprocess.Popen
+    child: Child
     deadline: float
     started: float = field(default_factory=time.perf_counter)
     begun: bool = False  # the child has begun its cell (running_since)
 
-    @property
-    def out_path(self) -> Path:
-        return self.folder / "row.json"
-
-    @property
-    def err_path(self) -> Path:
-        return self.folder / "stderr.txt"
-
     def running_since(self, timeout: float | None) -> None:
-        """Once the child has begun its cell (its ``started`` file), the time limit counts from
-        then; before, from its start plus STARTUP_S."""
-        if timeout and not self.begun and (self.folder / "started").exists():
+        """Once the child has begun its cell (its mark), the time limit counts from then;
+        before, from its start plus STARTUP_S."""
+        if timeout and not self.begun and self.child.marks():
             self.begun = True
             self.deadline = time.perf_counter() + timeout
 
 
-def _start(cell: Cell, max_samples: int, timeout: float | None, timing: Timing,
-           time_limit: float | None = DEFAULT_TIME_LIMIT, memory_limit: int | None = None) -> _Child:
+def _start(cell: Cell, spec: RunSpec, timeout: float | None) -> _Cell:
+    folder = None
     try:
-        return _spawn(cell, max_samples, timeout, timing, time_limit, memory_limit)
+        folder = tempdirs.make("cell")
+        children.write_job(folder, "cell", [cell], spec)
+        # no preexec_fn: this may be a Dask worker's thread; the child asks to die with it itself
+        child = children.start(folder, "longtime.execution.isolation", dies_at_start=False)
     except OSError as exc:
+        if folder is not None:
+            shutil.rmtree(folder, ignore_errors=True)
         if no_space(exc):
             raise tempdirs.disk_full(exc, f"writing the files of {cell.problem} x {cell.integrator}") from None
         raise
-
-
-def _spawn(cell: Cell, max_samples: int, timeout: float | None, timing: Timing,
-           time_limit: float | None, memory_limit: int | None) -> _Child:
-    folder = tempdirs.make("cell")
-    job = {"cell": cell.to_dict(), "max_samples": max_samples, "parent": os.getpid(), "time_limit": time_limit,
-           "timing": timing.to_dict(), "memory_limit": memory_limit}
-    (folder / "cell.json").write_text(json.dumps(job))
-    write_session(folder)
-    with open(folder / "stderr.txt", "wb") as err:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "longtime.execution.isolation", str(folder)],
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err,
-            start_new_session=True)  # its own process group: a kill reaches its children too
     deadline = time.perf_counter() + timeout + STARTUP_S if timeout else float("inf")
-    return _Child(cell, folder, proc, deadline)
+    return _Cell(cell, child, deadline)
 
 
-def write_session(folder: Path) -> None:
-    """The classes registered from Python in this process (pickled by value) and where their
-    modules import from, for a child interpreter started on ``folder`` (``restore_session``)."""
-    session = registry.session_payload()
-    if session is not None:
-        (folder / "session.pkl").write_bytes(session)
-        (folder / "sys_path.json").write_text(json.dumps(sys.path))
-
-
-def restore_session(folder: Path) -> None:
-    """In the child: register what ``write_session`` saved in ``folder``."""
-    if (folder / "session.pkl").exists():
-        sys.path[:0] = [p for p in json.loads((folder / "sys_path.json").read_text()) if p not in sys.path]
-        registry.restore_session((folder / "session.pkl").read_bytes())
-
-
-def kill_group(proc: subprocess.Popen) -> None:
-    """Kill a child started with ``start_new_session`` and its children."""
-    try:
-        os.killpg(proc.pid, signal.SIGKILL)
-    except (ProcessLookupError, PermissionError):
-        proc.kill()
-    proc.wait()
-
-
-def _finish(child: _Child, timed_out: bool, timeout: float | None) -> dict:
+def _finish(running: _Cell, timed_out: bool, timeout: float | None) -> dict:
     """The row of a child that has ended (or was killed)."""
+    child = running.child
     try:
-        if child.out_path.exists():  # written atomically: a whole row
-            return json.loads(child.out_path.read_text())
-        row = base_row(child.cell)
-        elapsed = time.perf_counter() - child.started
+        row = child.result()
+        if row is not None:
+            return row
+        row = base_row(running.cell)
+        elapsed = time.perf_counter() - running.started
         if timed_out:
             row.update(status="timeout",
                        message=f"cell exceeded its time limit of {timeout:g} s (process killed after "
                                f"{elapsed:.1f} s, its start-up included)")
             return row
-        code = child.proc.returncode
-        if code == tempdirs.NO_SPACE_EXIT:  # the child found no space for its row: not the cell's fault
-            tail = child.err_path.read_text(errors="replace").strip().splitlines() if child.err_path.exists() else []
+        if child.proc.returncode == tempdirs.NO_SPACE_EXIT:  # no space for its row: not the cell's fault
+            tail = child.stderr().strip().splitlines()
             raise tempdirs.DiskFull(tail[-1] if tail else f"no space left on the disk for the row of "
-                                    f"{child.cell.problem} x {child.cell.integrator}")
-        how = f"killed by {_signal_name(-code)}" if code < 0 else f"exited with code {code}"
-        tail = child.err_path.read_text(errors="replace").strip()[-STDERR_TAIL:] if child.err_path.exists() else ""
-        row.update(status="failed",
-                   message=f"cell process {how} without a result" + (f"; stderr: {tail}" if tail else ""))
+                                    f"{running.cell.problem} x {running.cell.integrator}")
+        row.update(status="failed", message=child.failure("cell process"))
         return row
     finally:
-        for p in child.folder.iterdir():
-            p.unlink()
-        child.folder.rmdir()
+        child.remove()
 
 
-def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, timeout: float | None = None,
-                 jobs: int = 1, timing: Timing | None = None, time_limit: float | None = DEFAULT_TIME_LIMIT,
-                 memory_limit: int | None = None) -> Iterator[tuple[Cell, dict]]:
-    """Rows of ``cells``, each run in its own child process, ``jobs`` at a time, as they end."""
+def run_isolated(cells: list[Cell], spec: RunSpec, timeout: float | None = None,
+                 jobs: int = 1) -> Iterator[tuple[Cell, dict]]:
+    """Rows of ``cells``, each run in its own child process, ``jobs`` at a time, as they end;
+    a child is killed ``timeout`` seconds after its cell began (None: never)."""
     queue = list(cells)
-    running: list[_Child] = []
+    running: list[_Cell] = []
+    # the cell stops itself at its time limit, keeping what it reached; under a hard timeout,
+    # early enough to report ahead of the kill
+    limit = min(x for x in (spec.time_limit, 0.8 * (timeout or 0), float("inf")) if x)
+    spec = dataclasses.replace(spec, time_limit=None if limit == float("inf") else limit)
     try:
         while queue or running:
             while queue and len(running) < max(1, jobs):
@@ -170,56 +111,44 @@ def run_isolated(cells: list[Cell], max_samples: int = DEFAULT_MAX_SAMPLES, time
                 if cell.skip_reason:  # nothing to run: no process needed
                     yield cell, run_cell(cell)
                     continue
-                # the cell stops itself at its time limit, keeping what it reached; under a hard
-                # timeout, early enough to report ahead of the kill
-                limit = min(x for x in (time_limit, 0.8 * (timeout or 0), float("inf")) if x)
-                running.append(_start(cell, max_samples, timeout, timing or Timing(),
-                                      None if limit == float("inf") else limit, memory_limit))
+                running.append(_start(cell, spec, timeout))
             still = []
-            for child in running:
-                child.running_since(timeout)
-                if child.proc.poll() is not None:
-                    yield child.cell, _finish(child, False, timeout)
-                elif time.perf_counter() > child.deadline:
-                    kill_group(child.proc)
-                    yield child.cell, _finish(child, True, timeout)
+            for one in running:
+                one.running_since(timeout)
+                if one.child.ended():
+                    yield one.cell, _finish(one, False, timeout)
+                elif time.perf_counter() > one.deadline:
+                    one.child.kill()
+                    yield one.cell, _finish(one, True, timeout)
                 else:
-                    still.append(child)
+                    still.append(one)
             if len(still) == len(running) and running:
                 time.sleep(POLL_S)
             running = still
     finally:  # interrupted: no orphan keeps computing, no folder stays
-        for child in running:
-            if child.proc.poll() is None:
-                kill_group(child.proc)
-            shutil.rmtree(child.folder, ignore_errors=True)
+        for one in running:
+            one.child.remove()
 
 
-def run_cell_isolated(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, timeout: float | None = None,
-                      timing: Timing | None = None, time_limit: float | None = DEFAULT_TIME_LIMIT) -> dict:
-    """One cell's row, run in a child process with a time limit (for remote executors)."""
-    for _, row in run_isolated([cell], max_samples, timeout, jobs=1, timing=timing, time_limit=time_limit):
+def run_cell_isolated(cell: Cell, spec: RunSpec, timeout: float | None = None) -> dict:
+    """One cell's row, run in a child process killed ``timeout`` seconds after its cell began
+    (for remote executors)."""
+    for _, row in run_isolated([cell], spec, timeout, jobs=1):
         return row
     raise AssertionError("unreachable")
 
 
 def _child_main(folder: str) -> None:
-    path = Path(folder)
-    job = json.loads((path / "cell.json").read_text())
-    die_with_parent(job["parent"])
-    restore_session(path)
-    set_memory_limit(job.get("memory_limit"))
+    job = children.read_job(folder)
+    children.enter(folder, job)
+    (cell,) = job.cells
     try:
-        (path / "started").touch()  # the parent's time limit counts from here
-        row = run_cell(Cell.from_dict(job["cell"]), job["max_samples"], timing=Timing.from_dict(job["timing"]),
-                       time_limit=job.get("time_limit"))
-        tmp = path / "row.json.part"
-        tmp.write_text(json.dumps(row))
-        tmp.replace(path / "row.json")  # atomic: the parent never reads half a row
+        children.mark(folder, 0, 0)  # the parent's time limit counts from here
+        row = run_cell(cell, job.spec.max_samples, timing=job.spec.timing, time_limit=job.spec.time_limit)
+        children.write_result(folder, row)
     except (OSError, tempdirs.DiskFull) as exc:
         if not (no_space(exc) or isinstance(exc, tempdirs.DiskFull)):
             raise
-        (path / "row.json.part").unlink(missing_ok=True)
         print(tempdirs.disk_full(exc, "writing the row"), file=sys.stderr)
         sys.stderr.flush()
         os._exit(tempdirs.NO_SPACE_EXIT)

@@ -49,6 +49,14 @@ def grace(time_limit: float) -> float:
     return GRACE_S + GRACE_SHARE * time_limit
 
 
+def timeout_message(time_limit: float, elapsed: float) -> str:
+    """The message of a cell whose process was killed past the hard limit of ``time_limit``
+    after ``elapsed`` seconds."""
+    return (f"cell exceeded its hard time limit of {hard_limit(time_limit):g} s (--time-limit {time_limit:g} s "
+            f"+ grace {grace(time_limit):g} s) where the integration could not stop itself; "
+            f"its process was killed after {elapsed:.1f} s")
+
+
 def machine_memory() -> int:
     """Bytes of physical memory (0 where the platform does not say)."""
     try:

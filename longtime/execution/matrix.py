@@ -32,14 +32,15 @@ from longtime.execution.cells import (
     base_row,
     run_cell,
 )
+from longtime.execution.child import RunSpec
 from longtime.execution.isolation import run_isolated
 from longtime.execution.limits import (
     Watchdog,
     default_memory_limit,
-    grace,
     hard_limit,
     memory_limited,
     signal_relay,
+    timeout_message,
     worker_init,
 )
 from longtime.execution.pool import spawn_pool
@@ -76,6 +77,10 @@ class ExecOptions:
 
     def workers(self) -> int:
         return pool_workers(self.jobs)
+
+    def run_spec(self) -> RunSpec:
+        """How each cell runs, as a child process receives it."""
+        return RunSpec(self.max_samples, self.timing, self.time_limit, self.memory_limit)
 
 
 Executor = Callable[[list[Cell], ExecOptions], Iterator[tuple[Cell, dict]]]
@@ -205,11 +210,7 @@ def _record_timeout(folder: str, time_limit: float) -> Callable[[dict, float], N
         path = Path(folder, f"row-{_digest(cell.key)}.json")
         if path.exists():  # it ended just ahead of the kill: its own row stands
             return
-        limit = hard_limit(time_limit)
-        row = {**base_row(cell), "status": "timeout",
-               "message": f"cell exceeded its hard time limit of {limit:g} s (--time-limit {time_limit:g} s "
-                          f"+ grace {grace(time_limit):g} s) where the integration could not stop itself; "
-                          f"its process was killed after {elapsed:.1f} s"}
+        row = {**base_row(cell), "status": "timeout", "message": timeout_message(time_limit, elapsed)}
         _write(path, {"cell": cell.to_dict(), "row": row})
 
     return record
@@ -297,8 +298,7 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
                     path.unlink()
                 if not suspects:  # broken outside any cell: one process per cell, no endless retries
                     suspects = [c for c in remaining if c.key not in done]
-                for cell, row in run_isolated(suspects, options.max_samples, limit, workers, timing=options.timing,
-                                              time_limit=options.time_limit, memory_limit=options.memory_limit):
+                for cell, row in run_isolated(suspects, options.run_spec(), limit, workers):
                     done.add(cell.key)
                     yield cell, row
                 remaining = [c for c in remaining if c.key not in done]
@@ -313,8 +313,7 @@ def isolated(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, di
     from longtime.execution.isolation import run_isolated
 
     timeout = options.cell_timeout or hard_limit(options.time_limit)
-    yield from run_isolated(cells, options.max_samples, timeout, options.workers(),
-                            timing=options.timing, time_limit=options.time_limit, memory_limit=options.memory_limit)
+    yield from run_isolated(cells, options.run_spec(), timeout, options.workers())
 
 
 def dask_cluster(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
@@ -409,8 +408,7 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
                                detail=f"{len(again)} cells timed again in each of {processes - 1} fresh processes") \
         if again else contextlib.nullcontext()
     with timing_phase:
-        across_processes(found, processes, options.max_samples, options.timing, options.workers(),
-                         options.time_limit, options.memory_limit, on_progress=shown.advance)
+        across_processes(found, processes, options.run_spec(), options.workers(), on_progress=shown.advance)
     for cell, row in found:
         phase_done(row, PROCESSES_PHASE)
         if storing:
@@ -482,8 +480,8 @@ def complete_phases(store: Store, run_id: int, options: ExecOptions) -> int:
         return 0
     timed = [(c, r) for c, r in incomplete if PROCESSES_PHASE in r[PHASES_FIELD]]
     if timed:
-        across_processes(timed, options.processes, options.max_samples, options.timing.per_process(options.processes),
-                         options.workers(), options.time_limit, options.memory_limit)
+        spec = dataclasses.replace(options.run_spec(), timing=options.timing.per_process(options.processes))
+        across_processes(timed, options.processes, spec, options.workers())
         for cell, row in timed:
             phase_done(row, PROCESSES_PHASE)
             store.update_row(run_id, cell, row)

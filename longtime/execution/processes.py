@@ -29,21 +29,19 @@ is not timed again.
 """
 from __future__ import annotations
 
-import json
 import math
 import os
-import subprocess
 import sys
 import time
-from pathlib import Path
 from typing import Any, Callable, Iterable
 
 from longtime.core import phases
 from longtime.core.integrator import Timing
 from longtime.core.params import InputError
+from longtime.execution import child as children
 from longtime.execution import tempdirs
 from longtime.execution.cells import Cell, build
-from longtime.execution.limits import kill_with_parent
+from longtime.execution.child import Child, RunSpec
 
 DEFAULT_PROCESSES = 3
 # $LONGTIME_PROCESSES sets the default of --processes (a test session sets 1)
@@ -253,14 +251,13 @@ def one_process(row: dict[str, Any]) -> None:
         row.setdefault("cpu_s_process_spread", None)
 
 
-def across_processes(pairs: Iterable[tuple[Cell, dict[str, Any]]], processes: int, max_samples: int,
-                     timing: Timing, jobs: int = 1, time_limit: float | None = None,
-                     memory_limit: int | None = None,
+def across_processes(pairs: Iterable[tuple[Cell, dict[str, Any]]], processes: int, spec: RunSpec, jobs: int = 1,
                      on_progress: Callable[[int], None] | None = None) -> list[Cell]:
     """Time the cells of ``pairs`` (cell, its row as measured) in ``processes - 1`` fresh
-    processes, ``jobs`` at a time, and fold their times into the rows (``merge``); rows not
-    timed elsewhere get their own process's fields. Returns the cells whose rows changed.
-    ``on_progress(k)``: k more cells timed, summed over the processes (a progress display)."""
+    processes, ``jobs`` at a time, each cell run as ``spec`` says, and fold their times into
+    the rows (``merge``); rows not timed elsewhere get their own process's fields. Returns the
+    cells whose rows changed. ``on_progress(k)``: k more cells timed, summed over the
+    processes (a progress display)."""
     pairs = list(pairs)
     todo = [(c, r) for c, r in pairs if processes > 1 and timed_elsewhere(r)]
     chosen = {id(r) for _, r in todo}
@@ -272,58 +269,51 @@ def across_processes(pairs: Iterable[tuple[Cell, dict[str, Any]]], processes: in
     cells = [c for c, _ in todo]
     budget = START_S + 10 * sum(float(r["wall_s"]) * len(r.get("cpu_s_samples") or [1]) for _, r in todo)
     with phases.phase("timing processes"):  # this process while they run
-        results = run_children(cells, processes - 1, max_samples, timing, jobs, budget, time_limit, memory_limit,
-                               on_progress=on_progress)
+        results = run_children(cells, processes - 1, spec, jobs, budget, on_progress=on_progress)
     for k, (cell, row) in enumerate(todo):
         merge(row, [res[k] if res is not None else {"status": "failed", "message": err}
                     for res, err in results], processes)
     return cells
 
 
-def run_children(cells: list[Cell], count: int, max_samples: int, timing: Timing, jobs: int, timeout: float,
-                 time_limit: float | None, memory_limit: int | None, paired: bool = False,
+def run_children(cells: list[Cell], count: int, spec: RunSpec, jobs: int, timeout: float, paired: bool = False,
                  on_progress: Callable[[int], None] | None = None) -> list[tuple[list[dict] | None, str]]:
     """``count`` fresh interpreters, ``jobs`` at a time, each timing every cell of ``cells``
-    (``time_cells``; ``paired``: each run followed by one of the calibration's reference
-    workload, ``calibration.reference_seconds``): per child (its results, "") or (None, why
-    it gave none). ``on_progress(k)``: k more cells timed (each child's ``current`` cell
-    counts the cells before it as done), called as the count grows."""
-    from longtime.execution.isolation import kill_group, write_session
-
-    job = {"cells": [c.to_dict() for c in cells], "max_samples": max_samples, "parent": os.getpid(),
-           "timing": timing.to_dict(),
-           "time_limit": time_limit, "memory_limit": memory_limit, "paired": paired}
+    (``time_cells``, as ``spec`` says; ``paired``: each run followed by one of the
+    calibration's reference workload, ``calibration.reference_seconds``), each stopped past
+    ``timeout`` seconds: per child (its results, "") or (None, why it gave none).
+    ``on_progress(k)``: k more cells timed (each child's mark counts the cells it has
+    finished), called as the count grows."""
     waiting, running, done = list(range(count)), [], {}
-    folders, culprits = [], {}
+    started: list[Child] = []
+    culprits = {}
     reported = 0
     try:
         while waiting or running:
             while waiting and len(running) < max(1, jobs):
                 index = waiting.pop(0)
                 folder = tempdirs.make("timing")
-                folders.append(folder)
-                (folder / "job.json").write_text(json.dumps(job))
-                write_session(folder)
-                with open(folder / "stderr.txt", "wb") as err:
-                    proc = subprocess.Popen([sys.executable, "-m", "longtime.execution.processes", str(folder)],
-                                            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err,
-                                            start_new_session=True, preexec_fn=kill_with_parent)
-                running.append((index, folder, proc, time.monotonic() + timeout))
+                children.write_job(folder, "time", cells, spec, paired=paired)
+                child = children.start(folder, "longtime.execution.processes")
+                started.append(child)
+                running.append((index, child, time.monotonic() + timeout))
             still = []
-            for index, folder, proc, deadline in running:
-                if proc.poll() is not None:
-                    done[index] = _result(folder, proc)
-                    if done[index][0] is None and len(cells) > 1:
-                        culprits[index] = _current_cell(folder)
+            for index, child, deadline in running:
+                if child.ended():
+                    result = child.result()
+                    done[index] = (result, "") if result is not None else \
+                        (None, child.failure("the timing process"))
+                    if result is None and len(cells) > 1:
+                        culprits[index] = child.current_cell()
                 elif time.monotonic() > deadline:
-                    kill_group(proc)
+                    child.kill()
                     done[index] = (None, f"the timing process passed {timeout:.0f} s and was stopped")
                     if len(cells) > 1:
-                        culprits[index] = _current_cell(folder)
+                        culprits[index] = child.current_cell()
                 else:
-                    still.append((index, folder, proc, deadline))
+                    still.append((index, child, deadline))
             if on_progress is not None:  # the cells timed so far: the ended children's and each running one's
-                timed = len(done) * len(cells) + sum(_finished_cells(f) for _, f, _, _ in still)
+                timed = len(done) * len(cells) + sum(_finished_cells(c) for _, c, _ in still)
                 if timed > reported:
                     on_progress(timed - reported)
                     reported = timed
@@ -331,76 +321,39 @@ def run_children(cells: list[Cell], count: int, max_samples: int, timing: Timing
                 time.sleep(POLL_S)
             running = still
     finally:
-        for _, _, proc, _ in running:
-            if proc.poll() is None:
-                kill_group(proc)
-        for folder in folders:
-            for p in folder.iterdir():
-                p.unlink()
-            folder.rmdir()
+        for child in started:
+            child.remove()
     for index, culprit in culprits.items():
         if culprit is not None:
-            done[index] = _without(cells, culprit, done[index][1], max_samples, timing, timeout, time_limit,
-                                   memory_limit, paired)
+            done[index] = _without(cells, culprit, done[index][1], spec, timeout, paired)
     return [done[i] for i in range(count)]
 
 
-def _marks(folder: Path) -> list[int]:
-    """A timing process's ``current`` file: [the cell it is in, the cells whose timing is done]."""
-    try:
-        return [int(x) for x in (folder / "current").read_text().split()]
-    except (OSError, ValueError):
-        return []
-
-
-def _current_cell(folder: Path) -> int | None:
-    """The index of the cell a timing process was in when it ended (its ``current`` file)."""
-    marks = _marks(folder)
-    return marks[0] if marks else None
-
-
-def _finished_cells(folder: Path) -> int:
-    """The cells a running timing process has finished timing (its ``current`` file)."""
-    marks = _marks(folder)
+def _finished_cells(child: Child) -> int:
+    """The cells a running timing process has finished timing (its mark)."""
+    marks = child.marks()
     return marks[1] if len(marks) > 1 else 0
 
 
-def _without(cells: list[Cell], culprit: int, why: str, max_samples: int, timing: Timing, timeout: float,
-             time_limit: float | None, memory_limit: int | None, paired: bool) -> tuple[list[dict] | None, str]:
+def _without(cells: list[Cell], culprit: int, why: str, spec: RunSpec, timeout: float,
+             paired: bool) -> tuple[list[dict] | None, str]:
     """The results of a timing process that ended in cell ``culprit`` without a result: the
     other cells timed again in a fresh process without it, and the culprit's record naming
     ``why`` (one plugin's crash costs the other cells of its batch nothing)."""
     rest = [c for i, c in enumerate(cells) if i != culprit]
-    ((results, again),) = run_children(rest, 1, max_samples, timing, 1, timeout, time_limit, memory_limit, paired)
+    ((results, again),) = run_children(rest, 1, spec, 1, timeout, paired)
     if results is None:
         return None, again
     results.insert(culprit, {"status": "failed", "message": f"{why}, in this cell", "pid": None})
     return results, ""
 
 
-def _result(folder: Path, proc: subprocess.Popen) -> tuple[list[dict] | None, str]:
-    out = folder / "result.json"
-    if out.exists():
-        return json.loads(out.read_text()), ""
-    tail = (folder / "stderr.txt").read_text(errors="replace").strip()[-300:]
-    return None, f"the timing process exited with code {proc.returncode}" + (f" ({tail})" if tail else "")
-
-
 def _child_main(folder: str) -> None:
-    from longtime.execution.isolation import restore_session
-    from longtime.execution.limits import die_with_parent, set_memory_limit
-
     phases.since_process_start("timing start")  # an interpreter and its imports
-    path = Path(folder)
-    job = json.loads((path / "job.json").read_text())
-    die_with_parent(job["parent"])
-    try:
-        restore_session(path)
-    except Exception as exc:  # a registered class that cannot be rebuilt here: its cells fail alone
-        print(f"longtime: the session's registered classes could not be restored: {exc!r}", file=sys.stderr)
-    set_memory_limit(job.get("memory_limit"))
+    job = children.read_job(folder)
+    children.enter(folder, job)  # a registered class that cannot be restored: its cells fail alone
     reference = None
-    if job.get("paired"):
+    if job.options.get("paired"):
         from longtime.execution.calibration import reference_seconds, reference_workload
 
         reference_workload(10, 0.01)  # loaded (or compiled) before the first timed call
@@ -410,15 +363,11 @@ def _child_main(folder: str) -> None:
     def on_cell(k: int, finished: int) -> None:  # the parent knows which cell a process that dies was in
         text = f"{k} {finished}"
         if text != marked[0]:  # a cell timed alone is marked once, not before each of its runs
-            (path / "current").write_text(text)
+            children.mark(folder, k, finished)
             marked[0] = text
 
-    cells = [Cell.from_dict(c) for c in job["cells"]]
-    results = time_cells(cells, job["max_samples"], Timing.from_dict(job["timing"]), job.get("time_limit"), reference,
-                         on_cell)
-    tmp = path / "result.json.part"
-    tmp.write_text(json.dumps(results))
-    tmp.replace(path / "result.json")  # atomic: the parent never reads half a result
+    results = time_cells(job.cells, job.spec.max_samples, job.spec.timing, job.spec.time_limit, reference, on_cell)
+    children.write_result(folder, results)
     sys.stderr.flush()
     os._exit(0)  # skip interpreter teardown (numba's and LLVM's)
 

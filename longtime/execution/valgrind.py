@@ -3,9 +3,9 @@ all cells of a run in one Valgrind process (importing numba under Valgrind costs
 minute of CPU; loading a cell's kernels from the cache, a few seconds).
 
 ``instruction_fields(pairs, ...)`` is the parent's side: it decides which cells can be
-counted, writes them to a job file, runs ``python -m longtime.execution.valgrind JOB``
-under Valgrind (longtime.measure.instructions.command) and reads the counts back. The
-``main`` of this module is the worker's side: per cell it builds the problem and the
+counted, writes them to a job file (longtime.execution.child), runs ``python -m
+longtime.execution.valgrind FOLDER`` under Valgrind (longtime.measure.instructions.command)
+and reads the counts back. The ``main`` of this module is the worker's side: per cell it builds the problem and the
 scheme, loads and warms up the kernel uncounted, then counts only the calls into the
 compiled loop (longtime.measure.instructions.counting), in one chunk.
 
@@ -26,11 +26,9 @@ cell has no count; null when it has one).
 """
 from __future__ import annotations
 
-import json
 import re
 import shutil
 import signal
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -38,8 +36,10 @@ from typing import Any, Iterable
 
 from longtime.core import registry
 from longtime.core.integrator import AdaptiveIntegrator, FixedStepIntegrator
+from longtime.execution import child as children
+from longtime.execution import tempdirs
 from longtime.execution.cells import Cell, build
-from longtime.execution.limits import kill_with_parent
+from longtime.execution.child import RunSpec
 from longtime.measure import instructions
 
 FIELDS = ("instructions", "instructions_per_step", "instructions_tool", "instructions_target", "instructions_versions",
@@ -123,43 +123,32 @@ def instruction_fields(pairs: Iterable[tuple[Cell, dict[str, Any]]], max_samples
 
 def _count(valgrind: str, cells: list[Cell], rows: dict[str, dict], max_samples: int) -> dict[str, dict]:
     """Count ``cells`` in one Valgrind process; a cell it did not finish gets a reason."""
-    from longtime.execution import tempdirs
-
     folder = tempdirs.make("valgrind")
     try:
-        job = folder / "job.json"
-        session = registry.session_payload()
-        if session is not None:
-            (folder / "session.pickle").write_bytes(session)
-        job.write_text(json.dumps({"cells": [c.to_dict() for c in cells], "max_samples": max_samples,
-                                   "session": str(folder / "session.pickle") if session else None,
-                                   # the modules this process imports (a plugin in development,
-                                   # a scheme defined beside a test) are importable there too
-                                   "sys_path": [p for p in sys.path if p],
-                                   "results": str(folder / "results.jsonl")}))
-        prefix = folder / "callgrind.out"
         env = {**instructions.counting_environment(), "LONGTIME_PROGRESS": "0",
                "PYTHONHASHSEED": "0"}  # the same dict layouts in every run: the same dispatch path
-        worker = [sys.executable, "-m", "longtime.execution.valgrind", str(job)]
-        prepared = _prepare(worker, env, folder, cells, rows)
+        prepared = _prepare(env, folder, cells, rows, max_samples)
         if prepared:
             cells = [c for c in cells if c.key not in prepared]
             if not cells:
                 return prepared
-        _set_cells(job, cells)
+        children.write_job(folder, "count", cells, RunSpec(max_samples, time_limit=None))
         limit = STARTUP_SECONDS + sum(PER_CELL_SECONDS + _budget(rows[c.key]) for c in cells)
+        prefix = folder / "callgrind.out"
         # no gdb server: a killed Valgrind leaves no vgdb-pipe files in the temp folder
-        argv = [*instructions.command(valgrind, prefix), "--vgdb=no", *worker]
+        child = children.start(folder, "longtime.execution.valgrind", prefix=[*instructions.command(valgrind, prefix),
+                                                                              "--vgdb=no"], env=env)
         started = time.monotonic()
         try:
-            proc = subprocess.run(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                                  timeout=limit, preexec_fn=kill_with_parent)  # no orphan counting on
-            trouble = "" if proc.returncode == 0 else instructions.failure_text(proc.returncode,
-                                                                                _last_line(proc.stderr))
-        except subprocess.TimeoutExpired:
-            trouble = f"the Valgrind process was stopped after {time.monotonic() - started:.0f} s (its limit)"
+            if child.wait(limit):
+                code = child.proc.returncode
+                trouble = "" if code == 0 else instructions.failure_text(code, _last_line(child.stderr()))
+            else:
+                trouble = f"the Valgrind process was stopped after {time.monotonic() - started:.0f} s (its limit)"
+        finally:
+            child.kill()  # an interruption here: no Valgrind counts on
         counts = instructions.read_dumps(prefix)
-        done = _results(folder / "results.jsonl")
+        done = child.records()
         # the kernels counted are compiled for the fixed target: another target's count is another tool's
         tool = f"{instructions.tool_version()} ({instructions.COUNT_TARGET} kernels)"
         out = dict(prepared)
@@ -194,35 +183,37 @@ def _count(valgrind: str, cells: list[Cell], rows: dict[str, dict], max_samples:
         shutil.rmtree(folder, ignore_errors=True)
 
 
-def _prepare(worker: list[str], env: dict[str, str], folder: Path, cells: list[Cell],
-             rows: dict[str, dict]) -> dict[str, dict]:
+def _prepare(env: dict[str, str], folder: Path, cells: list[Cell], rows: dict[str, dict],
+             max_samples: int) -> dict[str, dict]:
     """Run ``cells`` once outside Valgrind with the counting environment: their kernels,
     compiled for the fixed target, land in its cache, where the Valgrind process loads them
     (compiling them under Valgrind would take minutes each). Returns the skipped fields of
     the cells that cannot be counted (every cell when this process fails)."""
     limit = STARTUP_SECONDS + sum(PER_CELL_SECONDS + 2 * _budget(rows[c.key]) / instructions.SLOWDOWN for c in cells)
     what = f"compiling the kernels for {instructions.COUNT_TARGET} (outside Valgrind)"
+    (folder / children.RECORDS_FILE).unlink(missing_ok=True)
+    children.write_job(folder, "count", cells, RunSpec(max_samples, time_limit=None), prepare=True)
+    child = children.start(folder, "longtime.execution.valgrind", env=env)
     try:
-        proc = subprocess.run([*worker, "--prepare"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                              text=True, timeout=limit, preexec_fn=kill_with_parent)
-        if proc.returncode == -signal.SIGILL:  # natively: this CPU lacks an instruction of the target
+        if not child.wait(limit):
+            trouble = f"{what} was stopped after {limit:.0f} s (its limit)"
+        elif child.proc.returncode == -signal.SIGILL:  # natively: this CPU lacks an instruction of the target
             trouble = (f"{what}: its process was killed by SIGILL: this CPU cannot run {instructions.COUNT_TARGET} "
                        f"code (AVX2, FMA, BMI2): counting needs an x86-64 CPU of Haswell's generation or newer")
         else:
-            trouble = "" if proc.returncode == 0 else \
-                f"{what}: {instructions.failure_text(proc.returncode, _last_line(proc.stderr), 'its process')}"
-    except subprocess.TimeoutExpired:
-        trouble = f"{what} was stopped after {limit:.0f} s (its limit)"
-    done = _results(folder / "results.jsonl")
-    (folder / "results.jsonl").unlink(missing_ok=True)
+            code = child.proc.returncode
+            trouble = "" if code == 0 else \
+                f"{what}: {instructions.failure_text(code, _last_line(child.stderr()), 'its process')}"
+    finally:
+        child.kill()
+    done = child.records()
+    (folder / children.RECORDS_FILE).unlink(missing_ok=True)
     out = {}
     lost = next((i for i, c in enumerate(cells) if c.key not in done), None)
     if trouble and lost is not None and lost + 1 < len(cells):
         # the process ended in cell ``lost``: the cells after it are prepared again without it,
         # so one plugin's crash costs only its own row its count
-        rest = cells[lost + 1:]
-        _set_cells(folder / "job.json", rest)
-        out.update(_prepare(worker, env, folder, rest, rows))
+        out.update(_prepare(env, folder, cells[lost + 1:], rows, max_samples))
         cells = cells[:lost + 1]  # the rest has its answer from the second process
     for i, cell in enumerate(cells):
         item = done.get(cell.key)
@@ -232,17 +223,6 @@ def _prepare(worker: list[str], env: dict[str, str], folder: Path, cells: list[C
         elif item.get("reason"):
             out[cell.key] = skipped(item["reason"])
     return out
-
-
-def _set_cells(job: Path, cells: list[Cell]) -> None:
-    """The job file ``job`` with ``cells`` as the cells its worker runs (the rest unchanged)."""
-    job.write_text(json.dumps({**json.loads(job.read_text()), "cells": [c.to_dict() for c in cells]}))
-
-
-def _results(path: Path) -> dict[str, dict]:
-    """The worker's record of each cell (by cell key) in the results file ``path``."""
-    lines = path.read_text().splitlines() if path.exists() else []
-    return {item["key"]: item for item in map(json.loads, lines)}
 
 
 _VALGRIND_PREFIX = re.compile(r"^==\d+==\s*")
@@ -302,33 +282,29 @@ def _run_one(cell: Cell, max_samples: int, where: str) -> dict[str, Any]:
 
 
 def main(argv: list[str]) -> int:
-    """Count the cells of the job file ``argv[0]`` (under Valgrind); with ``--prepare``,
-    run them once outside it to compile and cache their kernels."""
+    """Count the cells of the job in the folder ``argv[0]`` (under Valgrind); for a job with
+    ``prepare``, run them once outside it to compile and cache their kernels."""
     from longtime.core import integrator as core_integrator
 
-    job = json.loads(Path(argv[0]).read_text())
-    preparing = "--prepare" in argv[1:]
+    folder = argv[0]
+    job = children.read_job(folder)
+    preparing = bool(job.options.get("prepare"))
     where = f"compiled for {instructions.COUNT_TARGET}" if preparing else "under Valgrind"
-    sys.path.extend(p for p in job.get("sys_path", []) if p not in sys.path)
-    if job.get("session"):
-        registry.restore_session(Path(job["session"]).read_bytes())
+    children.enter(folder, job)
     # one call into the compiled loop per run: the chunks that let a timed run see its
     # deadline would each add a call's dispatch to the count, and their number follows the
     # wall clock
     core_integrator.FIRST_CHUNK = 2**62
     if not preparing:
         instructions.running()  # the request function is compiled before any cell
-    with open(job["results"], "a") as results:
-        for i, data in enumerate(job["cells"]):
-            cell = Cell.from_dict(data)
-            try:
-                item = _run_one(cell, job["max_samples"], where)
-            except Exception as exc:  # a cell that fails here has no count, the others go on
-                item = {"reason": f"the run {where} failed: {type(exc).__name__}: {exc}"}
-            if not preparing:
-                instructions.dump(f"cell {i}")  # the count since the warm-up (zero for a failed cell)
-            results.write(json.dumps({"key": cell.key, **item}) + "\n")
-            results.flush()
+    for i, cell in enumerate(job.cells):
+        try:
+            item = _run_one(cell, job.spec.max_samples, where)
+        except Exception as exc:  # a cell that fails here has no count, the others go on
+            item = {"reason": f"the run {where} failed: {type(exc).__name__}: {exc}"}
+        if not preparing:
+            instructions.dump(f"cell {i}")  # the count since the warm-up (zero for a failed cell)
+        children.add_record(folder, cell.key, item)
     return 0
 
 

@@ -1,0 +1,436 @@
+"""Child processes: one way to hand cells to a fresh interpreter and to read what it did.
+
+The parent side (``write_job``, ``start``, ``Child``) and the child side (``read_job``,
+``enter``, ``mark``, ``write_result``, ``add_record``) meet in one temporary folder of the
+parent (``tempdirs``), which the parent removes when the child is done:
+
+- ``job.json``: what to run, the only file of this kind (``write_job``): its format's
+  ``version``, its ``kind`` (``time``, ``cell``, ``count``, ``batches``), the parent's
+  process id, the cells, the run options (``RunSpec``) and options of the kind;
+- ``session.pkl`` and ``sys_path.json``: the classes registered from Python in the parent
+  (pickled by value) and where their modules import from;
+- ``stderr.txt``: the child's stderr, whose end names a child that ended without a result;
+- ``current``: the child's mark (``mark``): the index of the cell it is in and how many it
+  has finished, so that a child that dies or hangs is named on the cell it was in;
+- ``result.json``: the result, written whole or not at all (``write_result``);
+  ``records.jsonl``: one line per cell as each ends (``add_record``), for a child whose
+  results must survive its own death (Valgrind's).
+
+A child dies with the thread that started it (``PR_SET_PDEATHSIG``, ``limits``), runs in
+its own process group (a kill reaches whatever it started), and ends on ``os._exit``, which
+skips the interpreter's teardown (numba's, LLVM's, a thread a plugin left running).
+
+``Resident`` is a child that lives on and runs batch after batch of cells (a Dask worker's):
+it keeps its compiled kernels, and is replaced only when a cell passes its time limit (it is
+killed), ends the process, or runs into the memory limit. Run as ``python -m
+longtime.execution.child FOLDER``, this module is that child.
+"""
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import select
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from longtime.core import registry
+from longtime.core.integrator import Timing
+from longtime.execution import tempdirs
+from longtime.execution.cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, Cell, base_row
+from longtime.execution.limits import (
+    Watchdog,
+    die_with_parent,
+    hard_limit,
+    kill_with_parent,
+    set_memory_limit,
+    timeout_message,
+)
+
+JOB_VERSION = 1
+JOB_FILE = "job.json"
+SESSION_FILE = "session.pkl"
+SYS_PATH_FILE = "sys_path.json"
+STDERR_FILE = "stderr.txt"
+MARK_FILE = "current"
+RESULT_FILE = "result.json"
+RECORDS_FILE = "records.jsonl"
+STDERR_TAIL = 600  # characters of a dead child's stderr kept in the message that names it
+POLL_S = 0.05
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """How each cell runs, wherever cells cross a module or a process: at most
+    ``max_samples`` samples, timed as ``timing`` says, stopped by the integration itself past
+    ``time_limit`` seconds (None: never; the hard limit follows from it, ``limits.hard_limit``),
+    its process under ``memory_limit`` bytes of data (None: no limit)."""
+
+    max_samples: int = DEFAULT_MAX_SAMPLES
+    timing: Timing = field(default_factory=Timing)
+    time_limit: float | None = DEFAULT_TIME_LIMIT
+    memory_limit: int | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"max_samples": int(self.max_samples), "timing": self.timing.to_dict(),
+                "time_limit": None if self.time_limit is None else float(self.time_limit),
+                "memory_limit": None if self.memory_limit is None else int(self.memory_limit)}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "RunSpec":
+        return cls(max_samples=data["max_samples"], timing=Timing.from_dict(data["timing"]),
+                   time_limit=data.get("time_limit"), memory_limit=data.get("memory_limit"))
+
+
+@dataclass(frozen=True)
+class Job:
+    """A child's job as it reads it (``read_job``)."""
+
+    kind: str
+    parent: int
+    cells: list[Cell]
+    spec: RunSpec
+    options: dict[str, Any]
+
+
+class JobVersionError(RuntimeError):
+    """A job file of another format version (a child of another longtime than its parent's)."""
+
+
+# ------------------------------------------------------------------ the parent's side
+def write_job(folder: Path, kind: str, cells: list[Cell], spec: RunSpec, **options: Any) -> None:
+    """The job of a child started on ``folder``: the one writer of a child's job file
+    (atomically: a child never reads half a job), with the session beside it."""
+    data = {"version": JOB_VERSION, "kind": kind, "parent": os.getpid(), "cells": [c.to_dict() for c in cells],
+            "spec": spec.to_dict(), "options": options}
+    _write_atomic(folder / JOB_FILE, json.dumps(data))
+    session = registry.session_payload()
+    if session is not None:
+        (folder / SESSION_FILE).write_bytes(session)
+    # the modules this process imports (a plugin in development, a scheme beside a test) are
+    # importable in the child too
+    (folder / SYS_PATH_FILE).write_text(json.dumps([p for p in sys.path if p]))
+
+
+def signal_name(code: int) -> str:
+    try:
+        return signal.Signals(code).name
+    except ValueError:
+        return f"signal {code}"
+
+
+def how_it_ended(returncode: int) -> str:
+    """``exited with code N`` or ``killed by SIGNAME``."""
+    return f"killed by {signal_name(-returncode)}" if returncode < 0 else f"exited with code {returncode}"
+
+
+@dataclass
+class Child:
+    """A started child (``start``): its folder, its process, when it started."""
+
+    folder: Path
+    proc: subprocess.Popen
+    started: float = field(default_factory=time.monotonic)
+
+    @property
+    def pid(self) -> int:
+        return self.proc.pid
+
+    def ended(self) -> bool:
+        return self.proc.poll() is not None
+
+    def wait(self, seconds: float | None) -> bool:
+        """Wait for the child to end, at most ``seconds`` (None: for ever); past them it is
+        killed with its process group. Whether it ended on its own."""
+        try:
+            self.proc.wait(timeout=seconds)
+            return True
+        except subprocess.TimeoutExpired:
+            self.kill()
+            return False
+
+    def kill(self) -> None:
+        """Kill the child and the processes it started (its process group)."""
+        if self.proc.poll() is None:
+            try:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
+                self.proc.kill()
+        self.proc.wait()
+
+    def result(self) -> Any | None:
+        """What the child wrote with ``write_result`` (None where it wrote nothing)."""
+        path = self.folder / RESULT_FILE
+        return json.loads(path.read_text()) if path.exists() else None
+
+    def records(self) -> dict[str, dict]:
+        """The child's ``add_record`` lines, by cell key."""
+        path = self.folder / RECORDS_FILE
+        lines = path.read_text().splitlines() if path.exists() else []
+        return {item["key"]: item for item in map(json.loads, lines)}
+
+    def marks(self) -> list[int]:
+        """The child's mark: [the index of the cell it is in, the cells it has finished]."""
+        try:
+            return [int(x) for x in (self.folder / MARK_FILE).read_text().split()]
+        except (OSError, ValueError):
+            return []
+
+    def current_cell(self) -> int | None:
+        """The index of the cell the child was in (its mark), None before its first."""
+        marks = self.marks()
+        return marks[0] if marks else None
+
+    def stderr(self) -> str:
+        path = self.folder / STDERR_FILE
+        return path.read_text(errors="replace") if path.exists() else ""
+
+    def failure(self, what: str) -> str:
+        """Why a child that ended gave no result: ``what`` (the child, named) exited with code
+        N or was killed by a named signal, and the end of its stderr."""
+        tail = self.stderr().strip()[-STDERR_TAIL:]
+        return f"{what} {how_it_ended(self.proc.returncode)} without a result" + (f"; stderr: {tail}" if tail else "")
+
+    def clear(self) -> None:
+        """Remove what the last job left in the folder (its result, records, mark, a batch's
+        row files and markers)."""
+        for name in (RESULT_FILE, RECORDS_FILE, MARK_FILE):
+            (self.folder / name).unlink(missing_ok=True)
+        for pattern in ("row-*", "running-*", "killed-*"):
+            for path in self.folder.glob(pattern):
+                path.unlink(missing_ok=True)
+
+    def remove(self) -> None:
+        """Kill the child if it runs and remove its folder: it leaves no file."""
+        self.kill()
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def start(folder: Path, module: str, *args: str, prefix: tuple[str, ...] | list[str] = (),
+          env: dict[str, str] | None = None, pipes: bool = False, dies_at_start: bool = True) -> Child:
+    """Start ``python -m module FOLDER args`` (under ``prefix``, such as Valgrind's command)
+    on the job written in ``folder``: its own process group, stdin and stdout closed (or,
+    with ``pipes``, pipes to this process), stderr into the folder. ``dies_at_start``: the
+    child dies with the thread that starts it from before its first instruction (a
+    ``preexec_fn``, unsafe where other threads may hold locks, as on a Dask worker; without
+    it the child asks for it itself in ``enter``)."""
+    argv = [*prefix, sys.executable, "-m", module, str(folder), *args]
+    stream = subprocess.PIPE if pipes else subprocess.DEVNULL
+    with open(folder / STDERR_FILE, "wb") as err:
+        proc = subprocess.Popen(argv, stdin=stream, stdout=stream, stderr=err, env=env, start_new_session=True,
+                                preexec_fn=kill_with_parent if dies_at_start else None)
+    return Child(folder, proc)
+
+
+# ------------------------------------------------------------------ the child's side
+def read_job(folder: str | Path) -> Job:
+    """The job in ``folder`` (JobVersionError for a job of another format)."""
+    data = json.loads((Path(folder) / JOB_FILE).read_text())
+    if data.get("version") != JOB_VERSION:
+        raise JobVersionError(f"job file {Path(folder) / JOB_FILE} has format version {data.get('version')!r}; "
+                              f"this longtime reads version {JOB_VERSION}")
+    return Job(kind=data["kind"], parent=data["parent"], cells=[Cell.from_dict(c) for c in data["cells"]],
+               spec=RunSpec.from_dict(data["spec"]), options=data.get("options") or {})
+
+
+def enter(folder: str | Path, job: Job) -> None:
+    """What a child does before its first cell: die with its parent (and exit at once if it
+    is gone), register the parent's session classes, run under the job's memory limit. A
+    session that cannot be restored is said on stderr: the cells that need it fail alone."""
+    path = Path(folder)
+    die_with_parent(job.parent)
+    if (path / SYS_PATH_FILE).exists():
+        sys.path[:0] = [p for p in json.loads((path / SYS_PATH_FILE).read_text()) if p not in sys.path]
+    if (path / SESSION_FILE).exists():
+        try:
+            registry.restore_session((path / SESSION_FILE).read_bytes())
+        except Exception as exc:
+            print(f"longtime: the session's registered classes could not be restored: {exc!r}", file=sys.stderr)
+    set_memory_limit(job.spec.memory_limit)
+
+
+def mark(folder: str | Path, cell: int, finished: int) -> None:
+    """The child is in cell ``cell`` and has finished ``finished`` cells (``Child.marks``)."""
+    (Path(folder) / MARK_FILE).write_text(f"{cell} {finished}")
+
+
+def write_result(folder: str | Path, result: Any) -> None:
+    """The child's result, atomically: the parent never reads half a result."""
+    _write_atomic(Path(folder) / RESULT_FILE, json.dumps(result))
+
+
+def add_record(folder: str | Path, key: str, item: dict[str, Any]) -> None:
+    """One cell's record, on disk at once (``Child.records``)."""
+    with open(Path(folder) / RECORDS_FILE, "a") as records:
+        records.write(json.dumps({"key": key, **item}) + "\n")
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".part")
+    tmp.write_text(text)
+    tmp.replace(path)
+
+
+# ------------------------------------------------------------------ a child that runs batch after batch
+class Resident:
+    """A long-lived child that runs batches of cells (``run``) as a pool worker does,
+    keeping its compiled kernels between them. A cell that passes the hard limit of its
+    time limit is killed with the child (a ``timeout`` row), a cell that ends the child gets
+    a ``failed`` row naming how, and the batch's other cells run on in a fresh child; a cell
+    that runs into the memory limit has its row, and the child is replaced after the batch
+    (its heap may stay fragmented near the limit). The child dies with the thread that
+    started it: use one ``Resident`` per thread."""
+
+    # a child's start-up and a batch's work outside any cell (the calibration) may take this
+    # long before the child is taken for hung
+    STARTUP_S = 120.0
+
+    def __init__(self) -> None:
+        self.child: Child | None = None
+        self.memory_limit: int | None = None
+
+    def run(self, cells: list[Cell], spec: RunSpec) -> list[dict]:
+        rows: dict[str, dict] = {}
+        todo = list(cells)
+        while todo:
+            child = self._child(spec)
+            child.clear()
+            write_job(child.folder, "batches", todo, spec)
+            rows.update(self._batch(child, todo, spec))
+            todo = [c for c in todo if c.key not in rows]
+        if any(str(r.get("message") or "").startswith("memory limit") for r in rows.values()):
+            self.close()
+        return [rows[c.key] for c in cells]
+
+    def _child(self, spec: RunSpec) -> Child:
+        if self.child is not None and (self.child.ended() or self.memory_limit != spec.memory_limit):
+            self.close()
+        if self.child is None:
+            folder = tempdirs.make("cell")
+            write_job(folder, "batches", [], spec)
+            self.child = start(folder, "longtime.execution.child", pipes=True, dies_at_start=False)
+            self.memory_limit = spec.memory_limit
+        return self.child
+
+    def _batch(self, child: Child, cells: list[Cell], spec: RunSpec) -> dict[str, dict]:
+        """The rows of ``cells`` run in ``child``: all of them when the batch ends whole; else
+        those finished and the row of the cell the child ended in (or, where it ended outside
+        any cell, of the first cell not finished), and the child is gone."""
+        killed: list[tuple[dict, float]] = []
+        limit = hard_limit(spec.time_limit)
+        watchdog = Watchdog(child.folder, limit, lambda cell, elapsed: killed.append((cell, elapsed))) \
+            if limit else None
+        try:
+            if watchdog is not None:
+                watchdog.start()
+            line = self._ask(child, limit)
+        finally:
+            if watchdog is not None:
+                watchdog.stop()  # joined: a kill it made is in ``killed``
+        if line == b"done":
+            return dict(zip((c.key for c in cells), child.result()))
+        child.kill()
+        done = {}
+        for path in child.folder.glob("row-*.json"):
+            data = json.loads(path.read_text())
+            done[Cell.from_dict(data["cell"]).key] = data["row"]
+        running = [Cell.from_dict(json.loads(p.read_text())) for p in child.folder.glob("running-*")
+                   if not p.name.endswith(".part")]
+        if killed:
+            cell = Cell.from_dict(killed[0][0])
+            if cell.key not in done:  # else it ended just ahead of the kill: its own row stands
+                done[cell.key] = {**base_row(cell), "status": "timeout",
+                                  "message": timeout_message(spec.time_limit, killed[0][1])}
+        elif any(c.key not in done for c in cells):
+            why = child.failure("cell process") if line is not None else \
+                f"the cell process did not answer within {self.STARTUP_S:g} s of its start or its last cell"
+            cell = next((c for c in running if c.key not in done), None) or \
+                next(c for c in cells if c.key not in done)  # ended outside any cell: the next one fails
+            done[cell.key] = {**base_row(cell), "status": "failed", "message": why}
+        self.close()
+        return done
+
+    def _ask(self, child: Child, limit: float | None) -> bytes | None:
+        """Send the child its job and wait for its answer: ``b"done"``, ``b""`` when it ended,
+        None when no cell began within STARTUP_S (the child hangs outside any cell)."""
+        try:
+            child.proc.stdin.write(b"go\n")
+            child.proc.stdin.flush()
+        except (BrokenPipeError, OSError):
+            child.proc.wait()
+            return b""
+        quiet_since = time.monotonic()
+        fd = child.proc.stdout.fileno()
+        while True:
+            if select.select([fd], [], [], POLL_S)[0]:
+                return child.proc.stdout.readline().strip()
+            if any(child.folder.glob("running-*")):
+                quiet_since = time.monotonic()
+            elif time.monotonic() - quiet_since > self.STARTUP_S + (limit or 0):
+                return None
+
+    def close(self) -> None:
+        """Stop the child and remove its folder."""
+        if self.child is not None:
+            self.child.remove()
+            self.child = None
+
+
+_RESIDENTS: dict[int, Resident] = {}
+_RESIDENTS_LOCK = threading.Lock()
+
+
+def resident() -> Resident:
+    """This thread's resident child (made on first use; all are stopped at exit)."""
+    with _RESIDENTS_LOCK:
+        if not _RESIDENTS:
+            import atexit
+
+            atexit.register(close_residents)
+        return _RESIDENTS.setdefault(threading.get_ident(), Resident())
+
+
+def resident_pids() -> list[int]:
+    """The process ids of this process's resident children that run."""
+    with _RESIDENTS_LOCK:
+        return [one.child.pid for one in _RESIDENTS.values() if one.child is not None and not one.child.ended()]
+
+
+def close_residents() -> None:
+    """Stop every resident child of this process and remove their folders."""
+    with _RESIDENTS_LOCK:
+        for one in _RESIDENTS.values():
+            with contextlib.suppress(Exception):
+                one.close()
+        _RESIDENTS.clear()
+
+
+def _serve(folder: str) -> None:
+    """The resident child: a batch for each line on stdin (the job file says which cells),
+    ``done`` on the answer channel when its rows are written; ends at end of file."""
+    from longtime.core import phases
+    from longtime.execution.batches import run_batch
+
+    phases.since_process_start("worker start")
+    answers = os.fdopen(os.dup(1), "wb")
+    os.dup2(2, 1)  # what a plugin prints goes to stderr, never into the answers
+    enter(folder, read_job(folder))
+    for _ in sys.stdin.buffer:
+        job = read_job(folder)
+        rows = run_batch(job.cells, job.spec.max_samples, job.spec.timing, folder, job.spec.time_limit)
+        write_result(folder, rows)
+        answers.write(b"done\n")
+        answers.flush()
+    sys.stderr.flush()
+    os._exit(0)
+
+
+if __name__ == "__main__":
+    _serve(sys.argv[1])

@@ -1,0 +1,72 @@
+"""Child processes started one way (longtime.execution.child): a versioned job file with the run
+options whole, and the timing of a cell arriving in an isolated child as it was sent."""
+import json
+import os
+
+import pytest
+
+from longtime.core import registry
+from longtime.core.integrator import Timing
+from longtime.execution import child as children
+from longtime.execution import tempdirs
+from longtime.execution.cells import Cell
+from longtime.execution.child import JOB_FILE, JobVersionError, RunSpec
+from longtime.execution.isolation import run_cell_isolated
+from longtime.integrators.splitting import Verlet
+
+
+class TimingSeen(Verlet):
+    """Verlet that writes the timing it is given where $CHILD_TIMING_FILE says."""
+
+    name = "child-timing-seen"
+    summary = "Verlet that records the timing it receives"
+
+    def integrate(self, problem, t_final, max_samples=100_001, timing=None, deadline=None):
+        with open(os.environ["CHILD_TIMING_FILE"], "w") as f:
+            json.dump({"timing": timing.to_dict(), "pid": os.getpid()}, f)
+        return super().integrate(problem, t_final, max_samples=max_samples, timing=timing, deadline=deadline)
+
+
+def test_a_job_file_carries_its_version_the_cells_and_the_run_options_whole(tmp_path):
+    cells = [Cell("harmonic", "verlet", {}, {"dt": 0.05}, 5.0), Cell("kepler", "rk4", {}, {"dt": 0.01}, 2.0)]
+    spec = RunSpec(1234, Timing().per_process(3), 7.5, 2**30)
+    children.write_job(tmp_path, "time", cells, spec, paired=True)
+    job = children.read_job(tmp_path)
+    assert job.kind == "time" and job.parent == os.getpid() and job.options == {"paired": True}
+    assert [c.key for c in job.cells] == [c.key for c in cells]
+    assert job.spec == spec and job.spec.timing.least_runs == 1
+    data = json.loads((tmp_path / JOB_FILE).read_text())
+    data["version"] = children.JOB_VERSION + 1
+    (tmp_path / JOB_FILE).write_text(json.dumps(data))
+    with pytest.raises(JobVersionError, match="format version"):
+        children.read_job(tmp_path)
+
+
+def test_a_child_that_dies_is_named_by_its_signal_and_leaves_no_file(tmp_path):
+    folder = tempdirs.make("cell")
+    children.write_job(folder, "cell", [], RunSpec())
+    child = children.start(folder, "longtime.execution.no_such_module_here")
+    assert child.wait(60)
+    assert child.result() is None
+    assert child.failure("the child").startswith("the child exited with code 1 without a result; stderr: ")
+    assert "No module named" in child.failure("the child")
+    child.remove()
+    assert not folder.exists()
+    assert children.how_it_ended(-9) == "killed by SIGKILL"
+
+
+def test_timing_per_process_arrives_in_an_isolated_child_whole(tmp_path, monkeypatch):
+    """Timing().per_process(3) asks at least 1 run; the isolated child must read at least 1,
+    not the default 3 (a job that carried only repeats and min_time would lose min_runs)."""
+    registry.register(TimingSeen)
+    seen = tmp_path / "timing.json"
+    monkeypatch.setenv("CHILD_TIMING_FILE", str(seen))
+    timing = Timing().per_process(3)
+    assert timing.least_runs == 1 and Timing(repeats=timing.repeats, min_time=timing.min_time).least_runs == 3
+    row = run_cell_isolated(Cell("harmonic", "child-timing-seen", {}, {"dt": 0.05}, 5.0),
+                            RunSpec(1000, timing, 60.0), timeout=120)
+    assert row["status"] == "ok", row["message"]
+    received = json.loads(seen.read_text())
+    assert received["pid"] != os.getpid()  # read in the child
+    assert Timing.from_dict(received["timing"]) == timing
+    assert Timing.from_dict(received["timing"]).least_runs == 1
