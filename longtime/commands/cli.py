@@ -40,7 +40,7 @@ from longtime.measure.reference import budget_seconds
 from longtime.reporting.report import render
 
 # modules that add subcommands: each defines add_parser(subparsers) and sets func
-COMMAND_MODULES: tuple[str, ...] = ("longtime.commands.asv_init", "longtime.commands.cache_cmd", "longtime.commands.card", "longtime.reporting.compare", "longtime.reporting.history",
+COMMAND_MODULES: tuple[str, ...] = ("longtime.commands.asv_init", "longtime.commands.cache_cmd", "longtime.commands.card", "longtime.commands.compare", "longtime.commands.history",
                                    "longtime.commands.horizon", "longtime.commands.ensemble", "longtime.commands.matched", "longtime.plot",
                                    "longtime.commands.recommend", "longtime.commands.reproduce", "longtime.commands.roundoff",
                                    "longtime.commands.warmup",
