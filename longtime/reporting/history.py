@@ -83,7 +83,7 @@ def levels(values: list[float | None], factor: float, min_runs: int) -> list[dic
     if len(set(present)) == 1:  # one value throughout (an error, bit for bit): one level
         pieces = [[0, len(values)]]
     else:
-        pieces = [[l, r] for l, r, *_ in detect_steps([v if v is not None and math.isfinite(v) else None
+        pieces = [[left, right] for left, right, *_ in detect_steps([v if v is not None and math.isfinite(v) else None
                                                        for v in values])]
     limit = math.log(factor)
 
@@ -114,7 +114,7 @@ def levels(values: list[float | None], factor: float, min_runs: int) -> list[dic
                 pieces[i - 1:i + 2] = [[pieces[i - 1][0], pieces[i + 1][1]]]
                 changed = True
                 break
-    return [{"start": l, "end": r, "value": value([l, r])} for l, r in pieces]
+    return [{"start": left, "end": right, "value": value([left, right])} for left, right in pieces]
 
 
 def steps(values: list[float | None], factor: float, min_runs: int, floor: float = 0.0) -> list[dict[str, Any]]:
