@@ -169,6 +169,7 @@ def test_identical_code_beside_memory_hogs_neither_regresses_nor_improves(tmp_pa
     for a, b in itertools.combinations(range(1, 5), 2):
         code = cli.main(["compare", str(a), str(b), "--db", str(db), "--format", "json"])
         result = json.loads(capsys.readouterr().out)
+        assert result["machine"]["bandwidth_ratio"] is not None  # every run streamed at its calibrations
         verdicts[(a, b)] = (code, result["regressed"], result["improved"],
                             [(c["problem"], c["integrator"], c["dt"], round(c.get("time_ratio") or 0, 3),
                               c["time_verdict"], c.get("bandwidth_ratio") and round(c["bandwidth_ratio"], 3))
