@@ -115,7 +115,7 @@ def integration_core_s(rows: list[dict]) -> float:
 def process_times(rows: list[dict]) -> dict[tuple, list[float]]:
     """Each ok cell timed in several processes, by the key `longtime compare` matches rows by:
     its processes' minima, the row's own first."""
-    from longtime.reporting.compare import cell_key
+    from longtime.reporting.compare_cells import cell_key
 
     out = {}
     for r in rows:

@@ -198,7 +198,8 @@ def assert_no_regression(store: Any, baseline_run: int, run: int | None = None, 
     no longer ok, no observed order changed and no scheme newly left out of the order table.
     ``store_b`` holds ``run`` when it is another store. Returns compare's result."""
     from longtime.execution.store import Store
-    from longtime.reporting.compare import TIME_FACTOR, compare
+    from longtime.reporting.compare import compare
+    from longtime.reporting.compare_cells import TIME_FACTOR
 
     factor = TIME_FACTOR if factor is None else factor
     a = store if isinstance(store, Store) else Store(store, readonly=True)

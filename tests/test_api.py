@@ -102,7 +102,8 @@ def test_convergence_names_why_a_scheme_has_no_order():
 
     records = as_records(rows)
     assert "left out of the order table: euler (every point above 0.1)" in summary(records)
-    from longtime.reporting.compare import compare, render
+    from longtime.reporting.compare import compare
+    from longtime.reporting.compare_text import render
     from longtime.reporting.page import build_page
 
     text = render(compare(records, records))

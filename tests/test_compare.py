@@ -6,7 +6,9 @@ import sqlite3
 import pytest
 
 from longtime.commands import cli
-from longtime.reporting.compare import compare, order_changes, render, slower_p
+from longtime.reporting.compare import compare, order_changes
+from longtime.reporting.compare_cells import slower_p
+from longtime.reporting.compare_text import render
 
 
 @pytest.fixture(scope="module")
@@ -127,7 +129,8 @@ def test_counts_once_under_each_heading_and_orders_and_machine():
     cals = ([{"t": 0.0, "cpu_s": 3e-3, "cpu_s_max": 3.1e-3}], [{"t": 9.0, "cpu_s": 3.6e-3, "cpu_s_max": 3.7e-3}])
     result = compare(a, b, calibrations=cals)
     counts = result["counts"]
-    assert counts["time"] == {"slower": 3, "faster": 0, "within": 15, "too short": 0, "not compared": 0}
+    assert counts["time"] == {"slower": 3, "faster": 0, "within": 15, "too short": 0, "not comparable": 0,
+                              "not compared": 0}
     assert counts["accuracy"]["more accurate"] == 3 and counts["accuracy"]["less accurate"] == 2
     assert result["regressed"] == 5 and result["improved"] == 3
     assert sum(counts["time"].values()) == sum(counts["accuracy"].values()) == len(result["cells"])
@@ -168,7 +171,7 @@ def test_rank_test_and_round_off_floor():
 def test_same_instructions_hold_the_time_verdict_to_the_cell_factor():
     """Identical code (the same instruction count) slowed x1.57 by a neighbour's load is
     not slower; x2.1 is; more instructions with x1.3 is slower on both counts."""
-    from longtime.reporting.compare import compare_rows
+    from longtime.reporting.compare_cells import compare_rows
 
     def row(cpu, spread, count):
         return {"problem": "toda", "integrator": "gauss4", "status": "ok", "cpu_s": cpu, "t_final": 500.0,

@@ -15,7 +15,8 @@ import pytest
 from longtime.core import registry
 from longtime.core.integrator import Timing
 from longtime.execution.cells import expand, run_cell
-from longtime.reporting.compare import INSTRUCTION_FACTOR, compare
+from longtime.reporting.compare import compare
+from longtime.reporting.compare_cells import INSTRUCTION_FACTOR
 
 import _slowed
 

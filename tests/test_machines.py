@@ -92,13 +92,15 @@ def test_compare_shows_the_cross_machine_table(merged, capsys):
 
 def test_counts_of_another_target_are_not_compared(stores, tmp_path, capsys):
     store = Store(stores["b"], readonly=True)
-    from longtime.reporting import compare, machines
+    from longtime.reporting import machines
+    from longtime.reporting.compare_cells import cell_key
+    from longtime.reporting.compare_text import label
 
     rows = Store(stores["a"], readonly=True).rows() + [{**r, "run_id": 9, "instructions_target": "znver4",
                                                         "instructions_tool": "callgrind 3.19.0 (znver4 kernels)"}
                                                        for r in store.rows()]
     runs = Store(stores["a"], readonly=True).runs() + [{**r, "id": 9} for r in store.runs()]
-    table = machines.cross_machine(rows, runs, lambda i: [], compare.cell_key, compare.label)
+    table = machines.cross_machine(rows, runs, lambda i: [], cell_key, label)
     why = {c["instructions_agree"]["why"] for c in table["cells"]}
     assert why == {"counted for another target, Valgrind or versions"}
 

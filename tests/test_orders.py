@@ -256,7 +256,8 @@ def test_perturbed_composition_is_undetermined_then_order_two():
 
 
 def test_report_and_compare_name_an_undetermined_order_with_its_slopes_and_flag_nothing():
-    from longtime.reporting.compare import compare, render
+    from longtime.reporting.compare import compare
+    from longtime.reporting.compare_text import render
     from longtime.reporting.report import summary
 
     dts = [0.02, 0.01, 0.005, 0.0025]

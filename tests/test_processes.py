@@ -13,8 +13,9 @@ from longtime.execution import processes
 from longtime.execution.processes import MAX_ROUNDS, check_processes, merge, time_cells
 from longtime.core.integrator import Timing
 from longtime.core.params import InputError
-from longtime.reporting.compare import compare_rows
-from longtime.reporting.history import label, process_factor, series_specs
+from longtime.reporting.compare_cells import compare_rows
+from longtime.reporting.compare_text import label
+from longtime.reporting.history import process_factor, series_specs
 
 
 def test_n_processes_give_n_minima_and_cpu_s_is_their_minimum():

@@ -13,11 +13,12 @@ import sys
 from longtime.commands import guard, listing, matrix, report, run
 
 # modules that add subcommands: each defines add_parser(subparsers) and sets func
-COMMAND_MODULES: tuple[str, ...] = ("longtime.commands.asv_init", "longtime.commands.cache_cmd", "longtime.commands.card", "longtime.reporting.compare", "longtime.reporting.history",
-                                   "longtime.commands.horizon", "longtime.commands.ensemble",
-                                   "longtime.commands.matched", "longtime.commands.plot", "longtime.commands.recommend",
-                                   "longtime.commands.reproduce", "longtime.commands.roundoff",
-                                   "longtime.commands.warmup", "longtime.commands.merge")
+COMMAND_MODULES: tuple[str, ...] = (
+    "longtime.commands.asv_init", "longtime.commands.cache_cmd", "longtime.commands.card",
+    "longtime.commands.compare", "longtime.commands.history", "longtime.commands.horizon",
+    "longtime.commands.ensemble", "longtime.commands.matched", "longtime.commands.plot",
+    "longtime.commands.recommend", "longtime.commands.reproduce", "longtime.commands.roundoff",
+    "longtime.commands.warmup", "longtime.commands.merge")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -30,6 +30,15 @@ calibrated by it (``cpu_s_calibrated`` in units of the memory workload,
 ``calibration_workload`` = ``memory``), every other row by the reference workload
 (``compute``). compare divides calibrated times only where both rows used the same one.
 
+Neither workload sees a neighbour that streams memory: the reference workload never leaves
+its registers and the memory workload stays within the shared cache. So each calibration
+also *streams* memory: ``STREAM_REPEATS`` passes of the same triad over arrays of
+``stream_bytes()`` (beyond the last-level cache, so that every pass goes to memory and
+shares its bandwidth with whatever else streams), each timed alone, and keeps the minimum
+(``stream_cpu_s``). It calibrates no row: compare and history read a run's median of it
+(``stream_median``) to tell whether two runs had the same memory bandwidth
+(longtime.reporting.compare_machine), and give no time verdict where they did not.
+
 The kernels are compiled once and cached on disk (numba's cache): a process loads them.
 """
 from __future__ import annotations
@@ -57,6 +66,14 @@ MEMORY_REPEATS = 2
 # a row whose working set passes this (beyond a core's share of the last-level cache) is
 # calibrated by the memory workload
 MEMORY_BOUND_BYTES = 4 * 2**20
+# the streaming workload's two arrays together: twice the last-level cache (a pass over
+# twice the cache finds none of its data there, whatever the cache's replacement), at least
+# STREAM_MIN_BYTES (above the last-level cache of a desktop or a server's core complex) where
+# the cache's size is not known, at most STREAM_MAX_BYTES (allocated at each calibration)
+STREAM_MIN_BYTES = 64 * 2**20
+STREAM_MAX_BYTES = 512 * 2**20
+STREAM_REPEATS = 5
+CACHE_DIR = "/sys/devices/system/cpu/cpu0/cache"
 
 
 @numba.njit(cache=True, nogil=True)
@@ -104,11 +121,54 @@ def _memory_arrays(nbytes: int) -> tuple[np.ndarray, np.ndarray]:
     return _ARRAYS[0], _ARRAYS[1]
 
 
+def last_level_cache_bytes(cache_dir: str = CACHE_DIR) -> int | None:
+    """The size of the last level of cache of the first CPU (as Linux's /sys reports it), None
+    where it is not known."""
+    from pathlib import Path
+
+    sizes = {}
+    for index in Path(cache_dir).glob("index*"):
+        try:
+            level = int((index / "level").read_text())
+            text = (index / "size").read_text().strip().upper()
+            unit = {"K": 2**10, "M": 2**20, "G": 2**30}.get(text[-1:], 1)
+            sizes[level] = int(text.rstrip("KMG")) * unit
+        except (OSError, ValueError):
+            continue
+    return sizes[max(sizes)] if sizes else None
+
+
+def stream_bytes() -> int:
+    """The streaming workload's two arrays together: twice the last-level cache, within
+    STREAM_MIN_BYTES .. STREAM_MAX_BYTES."""
+    cache = last_level_cache_bytes() or 0
+    return int(min(STREAM_MAX_BYTES, max(STREAM_MIN_BYTES, 2 * cache)))
+
+
+def stream_seconds(nbytes: int, repeats: int = STREAM_REPEATS) -> list[float] | None:
+    """CPU seconds of ``repeats`` passes of the memory workload's triad over two arrays of
+    ``nbytes`` together, each pass timed alone, after an untimed pass that maps every page
+    (None where this process may not allocate them: a memory limit)."""
+    try:
+        a, b = np.ones(nbytes // 16), np.zeros(nbytes // 16)
+    except MemoryError:
+        return None
+    memory_workload(a, b, 1)
+    passes = []
+    for _ in range(repeats):
+        c0 = time.process_time()
+        memory_workload(a, b, 1)
+        passes.append(time.process_time() - c0)
+    return passes
+
+
 def measure(phase: str = "batch", repeats: int = REPEATS, steps: int = STEPS,
-            memory_bytes: int = MEMORY_BYTES, memory_repeats: int = MEMORY_REPEATS) -> dict[str, Any]:
+            memory_bytes: int = MEMORY_BYTES, memory_repeats: int = MEMORY_REPEATS,
+            streamed_bytes: int | None = None, stream_repeats: int = STREAM_REPEATS) -> dict[str, Any]:
     """One calibration: the reference workload timed ``repeats`` times (after a call that
     loads or compiles it), then the memory workload ``memory_repeats`` times over
-    ``memory_bytes`` (0: not timed)."""
+    ``memory_bytes`` (0: not timed), then the streaming workload ``stream_repeats`` times over
+    ``streamed_bytes`` (default ``stream_bytes()``; 0: not timed)."""
     reference_workload(10, 0.01)
     t = time.time()
     samples = [reference_seconds(steps) for _ in range(repeats)]
@@ -124,6 +184,10 @@ def measure(phase: str = "batch", repeats: int = REPEATS, steps: int = STEPS,
             memory_workload(a, b, MEMORY_PASSES)
             passes.append(time.process_time() - c0)
         point.update(memory_bytes=memory_bytes, memory_cpu_s=min(passes), memory_cpu_s_samples=passes)
+    streamed_bytes = stream_bytes() if streamed_bytes is None else streamed_bytes
+    streamed = stream_seconds(streamed_bytes, stream_repeats) if streamed_bytes and stream_repeats else None
+    if streamed:
+        point.update(stream_bytes=streamed_bytes, stream_cpu_s=min(streamed), stream_cpu_s_samples=streamed)
     return point
 
 
@@ -235,17 +299,37 @@ def take_points(row: dict[str, Any]) -> list[dict[str, Any]]:
 def drift(points: list[dict[str, Any]]) -> dict[str, Any] | None:
     """A run's calibration in brief: the reference workload's CPU seconds (median over the
     calibrations of their minima), its range and its change from the first to the last
-    calibration, and the spread within a calibration (median of max / min - 1)."""
+    calibration, the spread within a calibration (median of max / min - 1), and the
+    streaming workload's CPU seconds (``stream_cpu_s``: ``stream_median``; None for a run
+    calibrated without it) and the bytes it streamed."""
     if not points:
         return None
     ordered = sorted(points, key=lambda p: p["t"])
     values = [p["cpu_s"] for p in ordered]
     within = [p["cpu_s_max"] / p["cpu_s"] - 1 for p in ordered if p["cpu_s"] > 0]
+    streamed = stream_median(ordered)
     return {"calibrations": len(values), "reference_cpu_s": float(np.median(values)),
             "min": min(values), "max": max(values), "range": max(values) / min(values) - 1 if min(values) > 0 else None,
             "first_to_last": values[-1] / values[0] if values[0] > 0 else None,
             "within": float(np.median(within)) if within else None,
-            "span_s": ordered[-1]["t"] - ordered[0]["t"]}
+            "span_s": ordered[-1]["t"] - ordered[0]["t"],
+            "stream_cpu_s": streamed and streamed[0], "stream_bytes": streamed and streamed[1]}
+
+
+def stream_median(points: list[dict[str, Any]]) -> tuple[float, int] | None:
+    """The streaming workload's CPU seconds over a run's calibrations (the median of their
+    minima, over those that streamed the most common size) and that size; None where no
+    calibration streamed."""
+    sizes = [p["stream_bytes"] for p in points if _positive(p.get("stream_cpu_s")) and p.get("stream_bytes")]
+    if not sizes:
+        return None
+    size = max(set(sizes), key=sizes.count)
+    return float(np.median([p["stream_cpu_s"] for p in points if p.get("stream_bytes") == size
+                            and _positive(p.get("stream_cpu_s"))])), size
+
+
+def _positive(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and x > 0
 
 
 def drift_text(points: list[dict[str, Any]]) -> str:
@@ -261,4 +345,6 @@ def drift_text(points: list[dict[str, Any]]) -> str:
                  f"last/first x{d['first_to_last']:.3g}")
     if d["within"] is not None:
         text += f"; slowest repeat +{100 * d['within']:.1f} % over the fastest"
+    if d["stream_cpu_s"] is not None:
+        text += f"; memory streamed {d['stream_bytes'] / 2**20:.0f} MiB in {1e3 * d['stream_cpu_s']:.3g} ms"
     return text + ")"

@@ -11,21 +11,28 @@ its regression reports), then read as a benchmark suite reads them:
 - neighbouring pieces closer than the factor are one level. For time the factor is the
   series' spread between processes (the median over its runs of ``cpu_s_process_spread``:
   how far one cell's time moves from one process to the next, longtime.execution.processes)
-  and at least ``compare.TIME_FACTOR``; runs timed in one process only leave it at
-  ``compare.TIME_FACTOR``; the repeats within one process never set it. Errors:
+  and at least ``compare_cells.TIME_FACTOR``; runs timed in one process only leave it at
+  ``compare_cells.TIME_FACTOR``; the repeats within one process never set it. Errors:
   ``ERROR_FACTOR``;
 - for time, a level held by fewer than ``MIN_RUNS`` runs between two levels that agree is a
   run's chance (one batch of cells keeps one speed in its process: README, "compare"),
   not a step, unless it is the latest run; errors are deterministic, so every level counts;
 - a step is where one level ends and the next begins: the run (and commit) that first has
   the new level, its ratio to the level before, and whether that is slower / faster or
-  less / more accurate. Errors at round-off (below ``compare.ROUND_OFF`` on both sides)
+  less / more accurate. Errors at round-off (below ``compare_cells.ROUND_OFF`` on both sides)
   make no step.
+
+Where runs calibrated with the streaming workload (longtime.execution.calibration), each
+run's memory bandwidth (its streaming, the median over its calibrations) is set against the
+cell's other runs of its machine
+(``mark_bandwidth``): a run whose streaming differed beyond the time factor, either way, had
+a neighbour that streamed memory (or lost one), and its time takes no part in the time
+series' steps (the table says so); its errors and instruction count still do.
 
 Each series is one entry of ``series_specs``: its field, how its factor is found and how
 its steps are named. Where runs counted instructions (``--cost instructions``),
 ``instructions`` is a series too: deterministic, so every level counts, and neighbouring
-levels within ``compare.INSTRUCTION_FACTOR`` are one level.
+levels within ``compare_cells.INSTRUCTION_FACTOR`` are one level.
 A store that holds runs of several machines (``longtime merge``) gives each run its
 machine (``machine``: M1, M2, ..., longtime.reporting.machines); a time step is looked for
 only between runs of one machine, an instruction step only between counts of one target,
@@ -40,20 +47,19 @@ import json
 import math
 from typing import Any
 
-from longtime.core import jsontext
-from longtime.core.params import InputError
 from longtime.core.roles import ROW_PARAMETERS
+from longtime.execution.calibration import stream_median
 from longtime.reporting import machines
-from longtime.reporting.compare import (
+from longtime.reporting.compare import cross_machine_table
+from longtime.reporting.compare_cells import (
     INSTRUCTION_FACTOR,
     MATCH_KEYS,
     ROUND_OFF,
     TIME_FACTOR,
     cell_key,
-    cross_machine_table,
     error_fields,
-    label,
 )
+from longtime.reporting.compare_text import label
 
 TIME_FIELD = "cpu_s_calibrated"
 SPREAD_FIELD = "cpu_s_process_spread"
@@ -77,7 +83,7 @@ def levels(values: list[float | None], factor: float, min_runs: int) -> list[dic
     if len(set(present)) == 1:  # one value throughout (an error, bit for bit): one level
         pieces = [[0, len(values)]]
     else:
-        pieces = [[l, r] for l, r, *_ in detect_steps([v if v is not None and math.isfinite(v) else None
+        pieces = [[left, right] for left, right, *_ in detect_steps([v if v is not None and math.isfinite(v) else None
                                                        for v in values])]
     limit = math.log(factor)
 
@@ -108,7 +114,7 @@ def levels(values: list[float | None], factor: float, min_runs: int) -> list[dic
                 pieces[i - 1:i + 2] = [[pieces[i - 1][0], pieces[i + 1][1]]]
                 changed = True
                 break
-    return [{"start": l, "end": r, "value": value([l, r])} for l, r in pieces]
+    return [{"start": left, "end": right, "value": value([left, right])} for left, right in pieces]
 
 
 def steps(values: list[float | None], factor: float, min_runs: int, floor: float = 0.0) -> list[dict[str, Any]]:
@@ -125,7 +131,7 @@ def steps(values: list[float | None], factor: float, min_runs: int, floor: float
     return out
 
 
-def _selected(row: dict, problems, schemes, sets: dict[str, str]) -> bool:
+def selected(row: dict, problems, schemes, sets: dict[str, str]) -> bool:
     if problems and row.get("problem") not in problems:
         return False
     if schemes and row.get("integrator") not in schemes:
@@ -153,9 +159,7 @@ def process_factor(points: list[dict[str, Any]], factor: float) -> float:
                      if p.get("status") == "ok" and isinstance(p.get(SPREAD_FIELD), (int, float)))
     if not spreads:
         return factor
-    n = len(spreads)
-    median = spreads[n // 2] if n % 2 else math.sqrt(spreads[n // 2 - 1] * spreads[n // 2])
-    return max(factor, median)
+    return max(factor, _median(spreads))
 
 
 def series_specs(points: list[dict[str, Any]], errors: list[str], factor: float,
@@ -189,10 +193,11 @@ def history(store, problems=None, schemes=None, sets: dict[str, str] | None = No
 
     runs = {r["id"]: r for r in store.runs()}
     machine_of = machines.machines(list(runs.values()), store.calibrations)
+    streams = {rid: _streamed(store.calibrations(rid)) for rid in runs}
     only = fields
     cells: dict[tuple, dict[int, dict]] = {}
     for row in store.rows():
-        if _selected(row, problems, schemes, sets or {}):
+        if selected(row, problems, schemes, sets or {}):
             cells.setdefault(cell_key(row), {})[row["run_id"]] = row
     out = []
     for by_run in cells.values():
@@ -209,15 +214,17 @@ def history(store, problems=None, schemes=None, sets: dict[str, str] | None = No
                            INSTRUCTIONS_FIELD: r.get(INSTRUCTIONS_FIELD),
                            "machine": machine_of[rid]["label"] if rid in machine_of else None,
                            "instructions_counted_by": json.dumps([r.get("instructions_tool"),
-                                                                  r.get("instructions_versions")])})
+                                                                  r.get("instructions_versions")]),
+                           **streams.get(rid, _streamed([]))})
         found = []
         specs = series_specs(points, errors, factor, error_factor)
+        mark_bandwidth(points, specs[0]["factor"])
         for spec in specs:
             field = spec["field"]
             if only is not None and field not in only:
                 continue
-            values = [p[field] if p["status"] == "ok" and isinstance(p.get(field), (int, float)) else None
-                      for p in points]
+            values = [p[field] if p["status"] == "ok" and isinstance(p.get(field), (int, float))
+                      and not (field == TIME_FIELD and p.get("not_comparable")) else None for p in points]
             for s in _steps_apart(values, points, field, spec):
                 p = points[s["index"]]
                 kind = spec["kinds"][0] if s["ratio"] > 1 else spec["kinds"][1]
@@ -227,6 +234,42 @@ def history(store, problems=None, schemes=None, sets: dict[str, str] | None = No
         out.append({"cell": {k: first.get(k) for k in MATCH_KEYS}, "runs": points,
                     "time_factor": specs[0]["factor"], "time_factor_basis": specs[0]["basis"], "steps": found})
     return out
+
+
+def _streamed(points: list[dict]) -> dict[str, Any]:
+    """A run's streaming workload (the median over its calibrations, ``stream_cpu_s``) and
+    the size it streamed (None: calibrated without it)."""
+    median = stream_median(points)
+    return {"stream_cpu_s": median and median[0], "stream_bytes": median and median[1]}
+
+
+def mark_bandwidth(points: list[dict[str, Any]], factor: float) -> None:
+    """Each run's memory bandwidth against the cell's other runs of its machine that streamed
+    the same size: ``bandwidth_ratio``, the run's streaming workload over the median of those
+    runs'; beyond ``factor`` either way, ``not_comparable`` says why and the run's time takes
+    no part in the time series' steps (its errors and instruction count still do). Needs two
+    such runs; a run without the streaming workload is judged as it is."""
+    groups: dict[tuple, list[dict[str, Any]]] = {}
+    for p in points:
+        p.update(bandwidth_ratio=None, not_comparable=None)
+        if p["stream_cpu_s"] and p["status"] == "ok":
+            groups.setdefault((p.get("machine"), p["stream_bytes"]), []).append(p)
+    for members in groups.values():
+        if len(members) < 2:
+            continue
+        usual = _median([p["stream_cpu_s"] for p in members])
+        for p in members:
+            ratio = p["bandwidth_ratio"] = p["stream_cpu_s"] / usual
+            if not 1 / factor <= ratio <= factor:
+                p["not_comparable"] = (f"memory bandwidth differed x{max(ratio, 1 / ratio):.3g} from the cell's other "
+                                       f"runs (streaming {'slower' if ratio > 1 else 'faster'}; beyond x{factor:.3g})")
+
+
+def _median(values: list[float]) -> float:
+    """The median; of an even count, the geometric mean of the middle two."""
+    v = sorted(values)
+    n = len(v)
+    return v[n // 2] if n % 2 else math.sqrt(v[n // 2 - 1] * v[n // 2])
 
 
 def _steps_apart(values: list, points: list[dict[str, Any]], field: str, spec: dict) -> list[dict[str, Any]]:
@@ -251,23 +294,34 @@ def _code(code: list[dict] | None) -> str:
     return ",".join(f"{_short(c.get('commit'))}{'+dirty' if c.get('dirty') else ''}" for c in code or []) or "-"
 
 
+def _bandwidth(point: dict[str, Any]) -> str:
+    """A run's streaming workload beside the cell against the cell's other runs ('-': not measured)."""
+    ratio = point.get("bandwidth_ratio")
+    if ratio is None:
+        return "-"
+    return f"x{ratio:.3g}" + (" (not comparable)" if point.get("not_comparable") else "")
+
+
 def render(found: list[dict[str, Any]]) -> str:
     from longtime.core.fmt import number
 
     parts = []
     for c in found:
         shown = [f for f in (*SHOWN_ERRORS, INSTRUCTIONS_FIELD) if any(p.get(f) is not None for p in c["runs"])]
+        streamed = any(p.get("bandwidth_ratio") is not None for p in c["runs"])
         header = ["run", "machine", "commit", "code", "date", "status", "time (calibrated)", "cpu_s", "processes",
-                  "spread", *shown]
+                  "spread", *(["memory streaming"] if streamed else []), *shown]
         body = [[str(p["run_id"]), str(p.get("machine") or "-"), _short(p["commit"]), _code(p.get("code")),
                  (p["date"] or "-")[:19], str(p["status"]),
                  number(p[TIME_FIELD]), number(p["cpu_s"]), str(len(p.get("cpu_s_processes") or []) or "-"),
                  f"x{p[SPREAD_FIELD]:.3g}" if isinstance(p.get(SPREAD_FIELD), (int, float)) else "-",
-                 *(number(p.get(f)) for f in shown)] for p in c["runs"]]
+                 *([_bandwidth(p)] if streamed else []), *(number(p.get(f)) for f in shown)] for p in c["runs"]]
         widths = [max(len(h), *(len(r[i]) for r in body)) for i, h in enumerate(header)]
         lines = [f"== {label(c['cell'])}: {len(c['runs'])} run{'s' if len(c['runs']) != 1 else ''}; a time "
                  f"step passes x{c['time_factor']:.3g} ({c['time_factor_basis']}) =="]
         lines += ["  " + "  ".join(x.ljust(w) for x, w in zip(row, widths)) for row in [header, *body]]
+        lines += [f"  run {p['run_id']}: time not compared: {p['not_comparable']}" for p in c["runs"]
+                  if p.get("not_comparable")]
         for s in c["steps"]:
             name = "time" if s["field"] == TIME_FIELD else s["field"]
             lines.append(f"  STEP {name} x{s['ratio']:.3g} ({s['kind']}: {number(s['before'])} -> "
@@ -276,40 +330,6 @@ def render(found: list[dict[str, Any]]) -> str:
             lines.append("  no step")
         parts.append("\n".join(lines))
     return "\n\n".join(parts) if parts else "no stored cell matches"
-
-
-def cmd_history(args) -> int:
-    from longtime.execution.store import Store
-
-    store = Store(args.db, readonly=True)
-    sets = dict(args.set)
-    from longtime.core.progress import Progress
-
-    with Progress().phase("history", detail="every stored run's rows of the selection", announce=False):
-        found = history(store, args.problem, args.integrator, sets)
-    if not found:
-        raise InputError(f"no stored cell in {store.path} matches -p/-i/--set")
-    if args.format == "json":  # each run's point names its machine
-        print(jsontext.dumps(found))
-        return 0
-    table = cross_machine_table(store, [r for r in store.rows() if _selected(r, args.problem, args.integrator, sets)])
-    print(render(found) + (f"\n\n{machines.text(table)}" if table else ""))
-    return 0
-
-
-def add_parser(subparsers) -> None:
-    from longtime.core import cli_args
-
-    p = subparsers.add_parser("history", help="each cell's calibrated time and errors over every stored run, "
-                                              "with the steps marked",
-                              description=__doc__.split("\n\n")[0])
-    p.add_argument("-p", "--problem", type=cli_args.names, default=None, metavar="PROBLEM[,..]")
-    p.add_argument("-i", "--integrator", type=cli_args.names, default=None, metavar="SCHEME[,..]")
-    p.add_argument("--set", type=cli_args.key_value, action="append", default=[], metavar="KEY=VALUE",
-                   help="only cells with this setting (dt, tol, eps_res, order or any --set parameter)")
-    p.add_argument("--db", default=None, help="the store (default: $LONGTIME_DB or longtime.sqlite)")
-    p.add_argument("--format", choices=["table", "json"], default="table")
-    p.set_defaults(func=cmd_history)
 
 
 # ------------------------------------------------------------------ the results page
@@ -343,7 +363,8 @@ def page_section(store, rows: list[dict], style: dict) -> str | None:
         marked = sum(s["field"] in (TIME_FIELD, _main_error(c)) for c in mine for s in c["steps"])
         out.append(f'<h3 id="history-{slug(problem)}">{escape(problem)}</h3><figure class="plot">{fig}<figcaption>'
                    f"{len(mine)} cell{'s' if len(mine) != 1 else ''}, {marked} step{'s' if marked != 1 else ''} "
-                   f"marked (<code>longtime history -p {escape(problem)}</code> lists every field's).</figcaption></figure>")
+                   f"marked (<code>longtime history -p {escape(problem)}</code> lists every field's)."
+                   "</figcaption></figure>")
     return "\n".join(out)
 
 
