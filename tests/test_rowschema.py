@@ -113,13 +113,13 @@ def test_a_run_stores_and_reads_back_declared_rows(tmp_path, capsys):
 def _documented() -> str:
     text = METRICS.read_text()
     found = re.search(r"<!-- row fields: from longtime.core.rowschema -->\n(.*?)\n<!-- end of row fields -->",
-                      text, re.S)
+                      text, re.DOTALL)
     assert found, "docs/metrics.md has no list of row fields between its markers"
     return found.group(1)
 
 
 def test_docs_list_every_declared_field_and_no_other():
-    documented = re.findall(r"^\| `([^`]+)` \|", _documented(), re.M)
+    documented = re.findall(r"^\| `([^`]+)` \|", _documented(), re.MULTILINE)
     declared = [f.name for f in (*rowschema.FIELDS, *rowschema.FAMILIES)]
     assert sorted(set(declared) - set(documented)) == [], "declared but not documented in docs/metrics.md"
     assert sorted(set(documented) - set(declared)) == [], "documented in docs/metrics.md but not declared"

@@ -217,7 +217,7 @@ def field(name: str, counters: Iterable[str] = ()) -> Field | None:
         return _BY_NAME[name]
     if name in counters:
         return Field(name, "int", "", _COUNTER)
-    head, dot, suffix = name.rpartition(".")
+    head, _, suffix = name.rpartition(".")
     if not head:
         return None
     if head.startswith("diag."):

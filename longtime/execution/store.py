@@ -25,8 +25,17 @@ from longtime.core.roles import ROW_PARAMETERS
 from longtime.execution.cells import Cell
 from longtime.execution.run_environment import environment
 from longtime.execution.store_records import RunRecords
-from longtime.execution.store_schema import (APPLICATION_ID, SCHEMA, SCHEMA_VERSION, StoreError, check_identity,
-                                             check_path, default_path, now, open_readonly)
+from longtime.execution.store_schema import (
+    APPLICATION_ID,
+    SCHEMA,
+    SCHEMA_VERSION,
+    StoreError,
+    check_identity,
+    check_path,
+    default_path,
+    now,
+    open_readonly,
+)
 
 __all__ = ["APPLICATION_ID", "INTERRUPTED", "SCHEMA", "SCHEMA_VERSION", "Store", "StoreError", "bad_row",
            "default_path", "environment"]
