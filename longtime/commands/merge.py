@@ -1,6 +1,6 @@
 """``longtime merge A.sqlite B.sqlite ... --into C.sqlite``: the runs of several stores (of
 several machines, usually) in one store, each run with its own machine, versions and
-calibrations (longtime.execution.store.merge_stores): rows of two machines are never pooled
+calibrations (longtime.execution.store_merge.merge_stores): rows of two machines are never pooled
 as if measured in one place. ``report``, ``compare``, ``history`` and the results page of
 the merged store show the cross-machine table (longtime.reporting.machines).
 
@@ -15,7 +15,7 @@ import sys
 
 
 def cmd_merge(args) -> int:
-    from longtime.execution.store import merge_stores
+    from longtime.execution.store_merge import merge_stores
 
     merged = merge_stores(args.stores, args.into)
     if args.format == "json":

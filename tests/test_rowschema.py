@@ -1,0 +1,127 @@
+"""The declared row: one registry of fields (longtime.core.rowschema) that the store checks
+every row it adds against, and that docs/metrics.md's list of row fields is."""
+import re
+from pathlib import Path
+
+import pytest
+
+from longtime.commands.cli import main
+from longtime.core import rowschema
+from longtime.core.roles import ROW_PARAMETERS
+from longtime.execution.cells import Cell, run_cell
+from longtime.execution.store import Store, StoreError
+
+CELL = Cell("harmonic", "rk4", {}, {"dt": 0.1}, 1.0)
+ROW = {"problem": "harmonic", "integrator": "rk4", "status": "ok", "message": "", "dt": 0.1, "t_final": 1.0,
+       "steps": 10, "cpu_s": 1e-4, "H.max": 1e-9, "H.growth_ci": [0.9, 1.1], "settings": ""}
+METRICS = Path(__file__).resolve().parents[1] / "docs" / "metrics.md"
+
+
+def _stored(store):
+    return [{k: v for k, v in r.items() if k != "run_id"} for r in store.rows()]
+
+
+@pytest.mark.parametrize("bad, field", [
+    ({"stpes": 10}, "stpes"),  # an undeclared field
+    ({"H.maximum": 1e-9}, "H.maximum"),  # a family's NAME with a suffix it does not have
+    ({"steps": "10"}, "steps"),  # a wrong type: text for an integer
+    ({"cpu_s": True}, "cpu_s"),  # a bool is no number
+    ({"solution_lost": 0}, "solution_lost"),
+    ({"H.growth_ci": [0.9, "1.1"]}, "H.growth_ci"),
+    ({"order": 4.5}, "order"),  # an order is an integer
+    ({"status": ""}, "status"),  # a required field empty
+    ({"_calibrations": [{"t": 1.0, "cpu_s": 1e-3}]}, "_calibrations"),  # the run's, never stored on a row
+])
+def test_store_refuses_a_row_with_an_undeclared_field_or_a_wrong_type(tmp_path, bad, field):
+    store = Store(tmp_path / "s.sqlite")
+    run_id = store.begin_run("test", [CELL])
+    with pytest.raises(StoreError, match=re.escape(field) + r"\b") as refused:
+        store.add_row(run_id, CELL, {**ROW, **bad})
+    assert "refused the row of harmonic x rk4" in str(refused.value)
+    assert store.rows() == []  # nothing written
+    store.add_row(run_id, CELL, ROW)
+    with pytest.raises(StoreError, match=re.escape(field)):
+        store.update_row(run_id, CELL, {**ROW, **bad})
+    assert _stored(store) == [ROW]  # the stored row is kept as it was
+
+
+def test_a_row_without_a_required_field_is_refused():
+    row = {k: v for k, v in ROW.items() if k != "integrator"}
+    with pytest.raises(rowschema.RowError, match="integrator: required"):
+        rowschema.check(row)
+    with pytest.raises(rowschema.RowError, match="a mapping"):
+        rowschema.check([("problem", "harmonic")])
+
+
+def test_families_and_a_schemes_own_counters():
+    for name in ("H.max", "eig3.t_50pct", "constraint.final", "error.growth_windows", "diag.r_min.max"):
+        assert rowschema.field(name) is not None, name
+    for name in ("H.maximum", "diag.max_", "diag.r_min.mean", ".max", "my_count", "error"):
+        assert rowschema.field(name) is None, name
+    row = {**ROW, "my_count": 3}
+    assert rowschema.problems(row) == ["my_count: not a declared row field (longtime.core.rowschema)"]
+    assert rowschema.problems(row, counters=("my_count",)) == []
+    assert rowschema.problems({**row, "my_count": 3.5}, counters=("my_count",)) == [
+        "my_count: float 3.5, not an integer"]
+
+
+def test_row_parameters_are_declared_from_roles():
+    """ROW_PARAMETERS is the one home of the parameters with a row field: each is a declared
+    field, an integer for the order role and a number for the rest."""
+    for name, (role, _) in ROW_PARAMETERS.items():
+        declared = rowschema.field(name)
+        assert declared is not None and declared.kind == ("int" if role == "order" else "float"), name
+        assert declared.optional and declared.holds(None)
+
+
+def test_formatters():
+    assert rowschema.field("cpu_s").format(1.23456e-5) == "1.235e-05"
+    assert rowschema.field("steps").format(120) == "120"
+    assert rowschema.field("solution_lost").format(True) == "yes"
+    assert rowschema.field("H.growth_ci").format([0.5, 1.25]) == "0.5, 1.25"
+    assert rowschema.field("l2_error").format(None) == "-" and rowschema.field("l2_error").format(float("nan")) == "-"
+
+
+@pytest.mark.parametrize("cell", [
+    CELL,
+    Cell("kepler", "verlet", {"e": 0.5}, {"dt": 0.05}, 2.0),  # settings, invariants, a reference
+    Cell("harmonic", "rk4", {}, {}, 1.0, skip_reason="rk4 needs nothing it lacks (a test's skip)"),
+    Cell("no-such-problem", "rk4", {}, {}, 1.0),  # a failed row
+])
+def test_rows_of_real_cells_hold(cell):
+    row = run_cell(cell)
+    assert row["status"] == ("skipped" if cell.skip_reason else "failed" if cell.problem == "no-such-problem" else "ok")
+    assert rowschema.problems(row) == []
+
+
+def test_a_timed_out_row_holds():
+    row = run_cell(Cell("harmonic", "rk4", {}, {"dt": 1e-5}, 1e3), time_limit=1e-6)
+    assert row["status"] == "timeout" and rowschema.problems(row) == []
+
+
+def test_a_run_stores_and_reads_back_declared_rows(tmp_path, capsys):
+    db = tmp_path / "r.sqlite"
+    argv = ["run", "-p", "harmonic,kepler", "-i", "rk4,verlet", "--t-final", "2", "--db", str(db), "--format", "json"]
+    assert main(argv) == 0
+    capsys.readouterr()
+    rows = Store(db).rows()
+    assert len(rows) == 4 and {r["status"] for r in rows} == {"ok"}
+    for row in rows:
+        assert rowschema.problems(row) == [], row["problem"]
+
+
+def _documented() -> str:
+    text = METRICS.read_text()
+    found = re.search(r"<!-- row fields: from longtime.core.rowschema -->\n(.*?)\n<!-- end of row fields -->",
+                      text, re.DOTALL)
+    assert found, "docs/metrics.md has no list of row fields between its markers"
+    return found.group(1)
+
+
+def test_docs_list_every_declared_field_and_no_other():
+    documented = re.findall(r"^\| `([^`]+)` \|", _documented(), re.MULTILINE)
+    declared = [f.name for f in (*rowschema.FIELDS, *rowschema.FAMILIES)]
+    assert sorted(set(declared) - set(documented)) == [], "declared but not documented in docs/metrics.md"
+    assert sorted(set(documented) - set(declared)) == [], "documented in docs/metrics.md but not declared"
+    # the whole table as the registry writes it (python -m longtime.core.rowschema prints it)
+    assert _documented() == rowschema.markdown()
