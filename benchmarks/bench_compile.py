@@ -112,7 +112,7 @@ _MATRIX_CHILD = r"""
 import collections, json, sys, time
 from numba.core import event
 from longtime.commands.cli import build_parser, matrix_cells
-from longtime.core.integrator import AdaptiveIntegrator, FixedStepIntegrator
+from longtime.core.stepping import AdaptiveIntegrator, FixedStepIntegrator
 from longtime.execution.cells import build
 cells, _ = matrix_cells(build_parser().parse_args(["matrix"] + sys.argv[1:]))
 by_pair, count, depth, start, pair = collections.Counter(), collections.Counter(), [0], [0.0], [None]

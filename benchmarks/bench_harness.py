@@ -101,7 +101,7 @@ def after_the_cells(rows: list[dict]) -> dict[str, float]:
     import os
 
     from longtime.reporting.page import build_page
-    from longtime.reporting.report import report_text
+    from longtime.reporting.screen import report_text
 
     start = time.perf_counter()
     report_text(rows, "table")

@@ -89,7 +89,7 @@ def test_no_two_running_batches_share_code_that_is_not_compiled_yet():
                         ("toda", "bpl"), ("kepler", "bpl-exp")])
     assert "longtime.problems.kdv" in shared_code(batches[0])
     assert "longtime.integrators.bpl" in shared_code(batches[5])  # bpl-exp inherits bpl's Pade
-    assert not any(m.startswith("longtime.core.integrator") and "." not in m[9:] for b in batches for m in shared_code(b))
+    assert not any(m.startswith("longtime.core.") for b in batches for m in shared_code(b))  # the base classes'
     order = CompileOnce(batches)
     first, second = order.take(), order.take()
     assert (first[0].problem, second[0].problem) == ("kdv", "harmonic")  # not kdv twice, not rk4 twice

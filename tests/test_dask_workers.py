@@ -30,9 +30,9 @@ def test_batches_hold_one_pair_each_and_keep_every_worker_busy():
 KILL_PROBE = r"""
 import json, os, signal
 from distributed import Client, LocalCluster
+from longtime.core.timing import Timing
 from longtime.execution.cells import expand
 from longtime.execution.dask_executor import dask_cluster
-from longtime.core.integrator import Timing
 from longtime.execution.matrix import ExecOptions
 
 if __name__ == "__main__":

@@ -404,10 +404,10 @@ def test_unmeasured_metrics_are_null_and_defaults_are_stored():
     """Before: a run that blew up in its first step (toda --dt 1) reported H.max 0.0."""
     import numpy as np
 
-    from longtime.measure import metrics
-    from longtime.execution.cells import Cell, run_cell
-    from longtime.core.integrator import Trajectory
     from longtime.core.registry import problem_class
+    from longtime.core.trajectory import Trajectory
+    from longtime.execution.cells import Cell, run_cell
+    from longtime.measure import metrics
 
     problem = problem_class("harmonic")()
     traj = Trajectory("diverged", "blew up", t=np.array([0.0, 1.0]),

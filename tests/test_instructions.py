@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from longtime.core import registry
-from longtime.core.integrator import Timing
+from longtime.core.timing import Timing
 from longtime.execution.cells import expand, run_cell
 from longtime.reporting.compare import INSTRUCTION_FACTOR, compare
 

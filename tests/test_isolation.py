@@ -24,7 +24,7 @@ import os
 import signal
 import time
 
-from longtime.core.integrator import FixedStepIntegrator
+from longtime.core.stepping import FixedStepIntegrator
 
 
 class _Misbehaving(FixedStepIntegrator):

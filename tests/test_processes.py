@@ -6,13 +6,13 @@ import subprocess
 import pytest
 
 from longtime.commands import cli
+from longtime.core.params import InputError
+from longtime.core.timing import Timing
 from longtime.execution import provenance
+from longtime.execution import processes
 from longtime.execution.cells import Cell, run_cell
 from longtime.execution.matrix import ExecOptions, run_matrix
-from longtime.execution import processes
 from longtime.execution.processes import MAX_ROUNDS, check_processes, merge, time_cells
-from longtime.core.integrator import Timing
-from longtime.core.params import InputError
 from longtime.reporting.compare import compare_rows
 from longtime.reporting.history import label, process_factor, series_specs
 

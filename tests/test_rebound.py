@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from longtime.core import registry
+from longtime.core.timing import Timing
 from longtime.execution.cells import expand, run_cell
-from longtime.core.integrator import Timing
 from longtime.problems.nbody import NBody
 
 from longtime.integrators.rebound_nbody import _rebound

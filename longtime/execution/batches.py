@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 from longtime.core import phases
-from longtime.core.integrator import Timing
+from longtime.core.timing import Timing
 from longtime.execution import calibration
 from longtime.execution.cells import DEFAULT_TIME_LIMIT, Cell, cell_size, run_cell
 

@@ -28,7 +28,7 @@ from typing import Any, Iterable
 
 from longtime.core import registry
 from longtime.core.fmt import number
-from longtime.core.integrator import FixedStepIntegrator
+from longtime.core.stepping import FixedStepIntegrator
 from longtime.execution.cells import Cell, cell_size
 
 # seconds a compiled RK4 step costs per state component (measured: 20 to 30 ns on the main

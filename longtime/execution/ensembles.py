@@ -39,8 +39,8 @@ from typing import Any, Iterable
 import numpy as np
 
 from longtime.core import registry
-from longtime.core.integrator import FixedStepIntegrator
 from longtime.core.roles import ROW_PARAMETERS
+from longtime.core.stepping import FixedStepIntegrator
 from longtime.measure import ensemble, lyapunov
 
 MEMBERS = 8

@@ -28,7 +28,7 @@ from typing import Iterator
 
 from longtime.core import registry
 from longtime.core.cache import no_space
-from longtime.core.integrator import Timing
+from longtime.core.timing import Timing
 from longtime.execution import tempdirs
 from longtime.execution.cells import (
     DEFAULT_MAX_SAMPLES,

@@ -21,8 +21,8 @@ from typing import Any, Callable, Iterator
 
 from longtime.core import phases, registry
 from longtime.core.cache import no_space
-from longtime.core.integrator import Timing
 from longtime.core.params import InputError, check_choice
+from longtime.core.timing import Timing
 from longtime.execution import calibration, tempdirs
 from longtime.execution.batches import _calibrated, _digest, _write, batches_by_pair, run_batch
 from longtime.execution.cells import (
@@ -120,7 +120,7 @@ def shared_code(batch: list[Cell]) -> frozenset[str]:
 
 def _family_module(module: str) -> bool:
     """A module of problems or schemes (longtime's own, or a plugin's); the base classes'
-    modules (longtime.core.integrator, abc, builtins) are every batch's, so never a key."""
+    modules (longtime.core's, abc, builtins) are every batch's, so never a key."""
     return module.startswith(_FAMILY_PACKAGES) or module.split(".")[0] not in ("longtime", "abc", "builtins")
 
 

@@ -39,8 +39,8 @@ from pathlib import Path
 from typing import Any, Callable, Iterable
 
 from longtime.core import phases
-from longtime.core.integrator import Timing
 from longtime.core.params import InputError
+from longtime.core.timing import Timing
 from longtime.execution import tempdirs
 from longtime.execution.cells import Cell, build
 from longtime.execution.limits import kill_with_parent

@@ -950,7 +950,7 @@ def run_checks(store, run_id: int, rows: list[dict[str, Any]], options=None,
     its warm-up, its reference given
     ``reference_s`` wall seconds), judge each group's rank (``judge_ranks``) and store each
     with its prediction (``Store.add_check``); returns the stored checks."""
-    from longtime.core.integrator import Timing
+    from longtime.core.timing import Timing
     from longtime.execution.cells import cell_of_row, run_cell
     from longtime.execution.matrix import ExecOptions
 
