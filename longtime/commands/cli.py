@@ -16,10 +16,10 @@ from longtime.commands import guard
 from longtime.core import cli_args, jsontext, phases, registry
 from longtime.core.cache import check_cache_root
 from longtime.core.files import write_atomic
-from longtime.core.integrator import Timing
 from longtime.core.params import InputError
 from longtime.core.progress import Progress
 from longtime.core.roles import ROW_PARAMETERS, flag
+from longtime.core.timing import Timing
 from longtime.execution import budget, limits
 from longtime.execution.calibration import drift_text
 from longtime.execution.cells import DEFAULT_TIME_LIMIT, check_size, expand
@@ -333,7 +333,7 @@ def cmd_matrix(args) -> int:
     page_error = None
     if not args.no_report:
         from longtime.reporting.page import write_html
-        from longtime.reporting.report import report_text
+        from longtime.reporting.screen import report_text
 
         rows = store.rows(run_id)
         page = None
@@ -405,7 +405,7 @@ def _wrapped(text: str) -> str:
     """A line of the report's text wrapped at the report's width, continued indented."""
     import textwrap
 
-    from longtime.reporting.report import WIDTH
+    from longtime.reporting.screen import WIDTH
 
     return "\n".join(textwrap.wrap(text, width=WIDTH, subsequent_indent="  ", break_on_hyphens=False))
 
@@ -436,7 +436,8 @@ def cmd_report(args) -> int:
         ensembles = [e for e in ensembles if e["problem"] in args.problem]
     _notices(r["integrator"] for r in rows)
     from longtime.reporting.page import write_html
-    from longtime.reporting.report import report_text, to_parquet
+    from longtime.reporting.report import to_parquet
+    from longtime.reporting.screen import report_text
 
     page = None
     if args.html:
