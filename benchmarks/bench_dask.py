@@ -1,6 +1,6 @@
 """Does Dask pay? Throughput of a 2,000-cell sweep on a local Dask cluster against the process pool.
 
-Issue 12's goal: on this 2-core machine, a LocalCluster of 2 workers reaches at least 80 % of
+The goal: on a 2-core machine, a LocalCluster of 2 workers reaches at least 80 % of
 the process pool's throughput (cells per wall second) on the same sweep of short cells, so
 that a cluster run costs nothing on one machine and scales past it. The sweep is Toda's
 lattice with d = 3, 4, ... (one problem instance per d) x six fixed-step schemes x 34 steps

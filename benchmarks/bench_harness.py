@@ -1,6 +1,6 @@
 """Where does a warm matrix spend its time? Integration against everything around it.
 
-Issue 12's goal: in a warm `longtime matrix` (kernels and references cached), the timed
+The goal: in a warm `longtime matrix` (kernels and references cached), the timed
 integration (every timed repeat of every cell) is at least 60 % of the core-seconds. This
 script runs a matrix's cells in one process, as a pool worker would, and splits that
 process's time into

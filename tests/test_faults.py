@@ -1,4 +1,4 @@
-"""Fault injection (issue 14): crashing, hanging and NaN-returning plugins, foreign and
+"""Fault injection: crashing, hanging and NaN-returning plugins, foreign and
 corrupt stores, bad input, Ctrl-C and SIGKILL. Nothing finished may be lost, no traceback,
 no hang, nothing silently wrong. Plugins are pip-installed as tests/_plugins.py describes."""
 import json
@@ -378,8 +378,8 @@ def test_time_limit_gives_a_timeout_row(tmp_path, capsys):
 def test_ctrl_c_stops_a_long_compiled_loop(tmp_path):
     """Before: SIGINT was ignored for the whole fixed-step integration (10^10 steps)."""
     env = {**os.environ, "LONGTIME_DB": str(tmp_path / "int.sqlite")}
-    # the kernel compiled first (into the disk caches): a SIGINT during a cold compile was
-    # honoured by the old code too, and passed this test
+    # the kernel compiled first (into the disk caches): the SIGINT reaches the compiled loop,
+    # not a cold compile (which Python interrupts between bytecodes anyway)
     warm = longtime(env, "run", "-p", "harmonic", "-i", "rk4", "--dt", "1e-6", "--t-final", "0.01",
                     "--repeats", "1", "--no-store")
     assert warm.returncode == 0, warm.stderr
@@ -548,7 +548,7 @@ def test_a_matrix_rejected_as_it_starts_leaves_no_run(tmp_path, capsys, monkeypa
     assert Store(db).runs() == []
 
 
-# --- items whose first tests did not fail on the code before issue 14 ------------------------
+# --- faults of privileges, foreign files and bad numbers ------------------------------------
 
 def _unprivileged():
     """A command prefix under which file permissions hold: root ignores them, so as root the

@@ -1,6 +1,6 @@
 """Fault injection, continued: hard time and memory limits of a cell, stdout that carries only
-the contract, bad input refused up front, names that are identifiers. Each test failed on
-the code before these limits. Plugins are pip-installed as tests/_plugins.py describes."""
+the contract, bad input refused up front, names that are identifiers. Each test's docstring
+says the fault it guards against. Plugins are pip-installed as tests/_plugins.py describes."""
 import json
 import os
 import signal

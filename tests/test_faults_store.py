@@ -1,7 +1,7 @@
 """Faults around the store and the command's end: a lost Dask scheduler, foreign and empty
 stores, a full disk, SIGTERM and SIGHUP, leftover temp folders, errors in one line.
 
-Each test states what the code before it did wrong."""
+Each test's docstring says the fault it guards against."""
 import hashlib
 import os
 import resource

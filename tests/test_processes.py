@@ -110,7 +110,7 @@ def test_the_cell_verdict_judges_the_spread_between_processes():
     assert c["time_verdict"] == "slower" and c["time_threshold"] == 1.2 and "between processes" in c["regressions"][0]
     # a wide spread raises the threshold above --factor
     assert compare_rows(_row(1.0, 1.6), _row(1.5, 1.1))["time_threshold"] == 1.6
-    # rows timed in one process: the old single-cell factor (x2)
+    # rows timed in one process: the single-process factor (x2)
     c = compare_rows(_row(1.0, None), _row(1.5, None))
     assert c["time_verdict"] == "within" and c["time_threshold"] == 2.0 and c["process_spread"] is None
     # the repeats within a process do not enter: a wide spread of samples changes nothing

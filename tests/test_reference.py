@@ -61,8 +61,8 @@ def _pericentre_errors(p, states, orbits=16):
 
 
 def test_kepler_exact_solution_is_the_orbit_of_the_rounded_state():
-    # e = 0.99: the rounded u0 has a period 1.5e-14 shorter than the formula's 2 pi; the old
-    # formula was 1.06e-9 off at the 16th pericentre, the elements of u0 itself 6e-13
+    # e = 0.99: the rounded u0 has a period 1.5e-14 shorter than the formula's 2 pi; the formula's
+    # orbit is 1.06e-9 off at the 16th pericentre, the orbit of the elements of u0 itself 6e-13
     p = Kepler(e=0.99)
 
     def states(t, precision):
