@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from longtime.core import heyoka_build, registry
 
@@ -46,6 +47,7 @@ def _two_processes(tmp_path, scheme, *problems):
     return run(), run()
 
 
+@pytest.mark.slow
 def test_dop853_rhs_comes_from_the_disk_cache(tmp_path):
     # a closure rhs (nbody) and a separable one
     (compiled, _), (again, _) = _two_processes(tmp_path, "dop853", "figure-eight", "kepler")
@@ -53,6 +55,7 @@ def test_dop853_rhs_comes_from_the_disk_cache(tmp_path):
     assert again == []  # a second process finds everything in the cache
 
 
+@pytest.mark.slow
 def test_bpl_kernels_call_the_pade_compiled_once(tmp_path):
     """bpl's robust Pade is a cfunc the kernels call by symbol: a kernel loaded from the cache
     in a new process finds it (registered before any kernel loads) and runs bitwise alike."""

@@ -55,6 +55,7 @@ if __name__ == "__main__":
 """
 
 
+@pytest.mark.slow
 def test_a_killed_worker_loses_nothing(tmp_path):
     probe = tmp_path / "kill_probe.py"
     probe.write_text(KILL_PROBE)

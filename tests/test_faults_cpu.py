@@ -59,6 +59,7 @@ def test_a_slope_about_zero_prints_as_zero():
     assert "-0.00" not in reason and "slopes 0.00, 0.00, 0.03" in reason
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(platform.machine() not in ("x86_64", "AMD64"), reason="x86-64 SIMD dispatch")
 def test_golden_rows_hold_with_simd_dispatch_limited(tmp_path):
     """Rows rebuilt with numpy at its baseline SIMD, OpenBLAS as a pre-AVX CPU and glibc's

@@ -15,6 +15,8 @@ from test_faults_limits import _spin_env, env  # noqa: F401  (the plugins' fixtu
 from longtime.execution.limits import SIGNAL_GRACE_S, hard_limit
 from longtime.execution.store import Store
 
+pytestmark = pytest.mark.slow  # every test here starts processes, clusters or long runs
+
 
 def _cli(environ, *args, **kwargs):
     return subprocess.Popen([sys.executable, "-m", "longtime.commands.cli", *args], env=environ,

@@ -60,6 +60,7 @@ def _runs(db):
                 con.execute("SELECT status, row FROM rows").fetchall())
 
 
+@pytest.mark.slow
 def test_full_temp_folder_interrupts_the_run_and_resume_completes_it(full_disk, tmp_path):
     if full_disk is None:
         pytest.skip("no tmpfs can be mounted here (the simulated case is the next test)")
@@ -80,6 +81,7 @@ def test_full_temp_folder_interrupts_the_run_and_resume_completes_it(full_disk, 
     assert runs == [(1, "done")] and sorted(s for s, _ in rows) == ["ok", "ok"]
 
 
+@pytest.mark.slow
 def test_no_space_in_a_cell_is_not_stored_as_a_failed_row(tmp_path, monkeypatch, capsys):
     """Simulated ENOSPC inside the cell (serial executor, this process): exit 1, no row, the
     run interrupted; resumed, the cells run."""
@@ -105,6 +107,7 @@ def test_no_space_in_a_cell_is_not_stored_as_a_failed_row(tmp_path, monkeypatch,
     assert runs == [(1, "done")] and [s for s, _ in rows] == ["ok", "ok"]
 
 
+@pytest.mark.slow
 def test_full_cache_folder_is_skipped_with_a_warning(full_disk, tmp_path):
     if full_disk is None:
         pytest.skip("no tmpfs can be mounted here (the simulated case is the next test)")

@@ -62,6 +62,7 @@ def counted(tmp_path_factory):
     return {(c.integrator, c.t_final): {**row, **fields[c.key]} for c, row in pairs}
 
 
+@pytest.mark.slow
 @needs_valgrind
 def test_count_covers_the_integration_only(counted):
     short, long = counted[("rk4", T)], counted[("rk4", 2 * T)]
@@ -77,6 +78,7 @@ def test_count_covers_the_integration_only(counted):
     assert external["instructions"] is None and "cannot be counted apart" in external["instructions_skipped"]
 
 
+@pytest.mark.slow
 @needs_valgrind
 def test_five_percent_more_work_a_step_is_flagged(counted):
     plain, heavier = counted[("instr-plain", 100.0)], counted[("instr-heavier", 100.0)]
@@ -94,6 +96,7 @@ def test_five_percent_more_work_a_step_is_flagged(counted):
     assert INSTRUCTION_FACTOR < ratio
 
 
+@pytest.mark.slow
 @needs_valgrind
 def test_counts_agree_beside_a_cpu_bound_process(counted):
     from longtime.execution.valgrind import instruction_fields
@@ -109,6 +112,7 @@ def test_counts_agree_beside_a_cpu_bound_process(counted):
     assert abs(again["instructions"] / first - 1) < 1e-3
 
 
+@pytest.mark.slow
 def test_missing_valgrind_is_one_line(tmp_path):
     env = {**os.environ, "PATH": str(tmp_path)}  # no valgrind (nor anything else) on PATH
     res = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "run", "-p", "kepler", "-i", "rk4",
@@ -154,6 +158,7 @@ def test_history_marks_a_step_in_the_count_and_none_in_its_noise(tmp_path):
     assert "STEP instructions x1.05" in render(found)
 
 
+@pytest.mark.slow
 def test_benchmark_cell_puts_the_count_in_extra_info(monkeypatch):
     from longtime.execution import valgrind
     from longtime.testing import benchmark_cell

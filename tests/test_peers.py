@@ -55,7 +55,7 @@ def kepler():
 def heyoka_kepler(kepler):
     """heyoka's states on kepler at the given times."""
     def at(times):
-        return reference._propagate(kepler, np.asarray(times), "double")[0]
+        return reference.propagate(kepler, np.asarray(times), "double")[0]
     return at
 
 

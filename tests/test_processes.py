@@ -17,6 +17,7 @@ from longtime.reporting.compare import compare_rows
 from longtime.reporting.history import label, process_factor, series_specs
 
 
+@pytest.mark.slow
 def test_n_processes_give_n_minima_and_cpu_s_is_their_minimum():
     cells = [Cell("kepler", "rk4", {}, {"dt": 0.01}, 20.0), Cell("harmonic", "verlet", {}, {"dt": 0.05}, 20.0)]
     rows = run_matrix(cells, None, None, "serial", ExecOptions(processes=3, timing=Timing(repeats=6, min_time=0)))
@@ -183,6 +184,7 @@ def test_provenance_finds_the_commit_and_dirty_flag_of_the_code_under_test(tmp_p
     assert entry["repository"] is None and "no git repository" in entry["reason"]
 
 
+@pytest.mark.slow
 def test_a_stored_run_records_the_code_under_test(tmp_path, monkeypatch, capsys):
     from longtime.core import registry
     from longtime.execution.store import Store
@@ -228,6 +230,7 @@ def _measure_author_runs(tmp_path, head, capsys):
     assert head[:10] in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_benchmark_cell_times_in_processes_and_asv_runs_in_processes():
     from longtime.asvbench import benchmarks
     from longtime.execution.processes import DEFAULT_PROCESSES

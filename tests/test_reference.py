@@ -66,7 +66,7 @@ def test_kepler_exact_solution_is_the_orbit_of_the_rounded_state():
     p = Kepler(e=0.99)
 
     def states(t, precision):
-        return reference._propagate(p, t, precision)[0]
+        return reference.propagate(p, t, precision)[0]
 
     vs_long_double, vs_real128 = _pericentre_errors(p, states)
     assert vs_real128 < 2e-12
@@ -99,7 +99,7 @@ def test_a_cached_check_is_reused(fresh_cache, monkeypatch):
         raise AssertionError("the check ran again")
 
     monkeypatch.setattr(reference, "_stepped_run", no_heyoka)
-    monkeypatch.setattr(reference, "_propagate", no_heyoka)
+    monkeypatch.setattr(reference, "propagate", no_heyoka)
     start = time.perf_counter()
     assert reference.reference_check(p, 300.0) == first
     assert time.perf_counter() - start < max(0.1, elapsed / 2)
