@@ -24,7 +24,7 @@ from longtime.core.cache import no_space
 from longtime.core.params import InputError, check_choice
 from longtime.core.timing import Timing
 from longtime.execution import calibration, tempdirs
-from longtime.execution.batches import _calibrated, _digest, _write, batches_by_pair, run_batch
+from longtime.execution.batches import batches_by_pair, calibrated_row, key_digest, run_batch, write_json
 from longtime.execution.cells import (
     DEFAULT_MAX_SAMPLES,
     DEFAULT_TIME_LIMIT,
@@ -95,7 +95,7 @@ def serial(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict
             # the cell runs in this process (a script's, a notebook's): under the memory limit a
             # worker has, lifted again before the row is handed on
             with memory_limited(options.memory_limit):
-                row = _calibrated(here, cell, options.max_samples, options.timing, options.time_limit)
+                row = calibrated_row(here, cell, options.max_samples, options.timing, options.time_limit)
             yield cell, row
 
 
@@ -202,7 +202,7 @@ def _record_timeout(folder: str, time_limit: float) -> Callable[[dict, float], N
 
     def record(cell_dict: dict, elapsed: float) -> None:
         cell = Cell.from_dict(cell_dict)
-        path = Path(folder, f"row-{_digest(cell.key)}.json")
+        path = Path(folder, f"row-{key_digest(cell.key)}.json")
         if path.exists():  # it ended just ahead of the kill: its own row stands
             return
         limit = hard_limit(time_limit)
@@ -210,7 +210,7 @@ def _record_timeout(folder: str, time_limit: float) -> Callable[[dict, float], N
                "message": f"cell exceeded its hard time limit of {limit:g} s (--time-limit {time_limit:g} s "
                           f"+ grace {grace(time_limit):g} s) where the integration could not stop itself; "
                           f"its process was killed after {elapsed:.1f} s"}
-        _write(path, {"cell": cell.to_dict(), "row": row})
+        write_json(path, {"cell": cell.to_dict(), "row": row})
 
     return record
 

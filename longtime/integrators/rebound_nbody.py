@@ -90,7 +90,7 @@ class Rebound(Integrator):
         sim = _rebound().Simulation()
         sim.G = float(problem.G)
         sim.t = float(problem.t0)
-        m, q, p = problem._split(problem.u0[None, :])
+        m, q, p = problem.split_state(problem.u0[None, :])
         s = problem.space_dim
         for k, mass in enumerate(m):
             x, v = np.zeros(3), np.zeros(3)
