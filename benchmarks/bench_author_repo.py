@@ -303,10 +303,10 @@ def tune() -> int:
 
     import cloudpickle
 
-    from longtime.core import registry
-    from longtime.core.integrator import Timing
-    from longtime.execution.cells import run_cell
     from longtime.api import cells_for
+    from longtime.core import registry
+    from longtime.core.timing import Timing
+    from longtime.execution.cells import run_cell
 
     tmp = Path(tempfile.mkdtemp())
     rows = {}

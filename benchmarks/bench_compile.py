@@ -1,7 +1,7 @@
 """Compile time of each scheme family's kernel: cold (empty caches) and warm (a cache hit).
 
-numba compilation, not integration, dominated the first main job's wall time (issue 12): a
-fresh process spent about 7 s compiling toda/rk4 and 19 s compiling bpl. This script and
+numba compilation, not integration, can dominate a cold main job's wall time (a fresh process
+compiles every kernel it runs; docs/performance.md gives the figures). This script and
 its asv twin (``CompileTime.track_cold_s`` / ``track_warm_s``, in seconds) keep that cost
 in the history, so a compile regression shows like a speed regression.
 
@@ -113,7 +113,7 @@ import collections, json, sys, time
 from numba.core import event
 from longtime.commands.cli import build_parser
 from longtime.commands.matrix import matrix_cells
-from longtime.core.integrator import AdaptiveIntegrator, FixedStepIntegrator
+from longtime.core.stepping import AdaptiveIntegrator, FixedStepIntegrator
 from longtime.execution.cells import build
 cells, _ = matrix_cells(build_parser().parse_args(["matrix"] + sys.argv[1:]))
 by_pair, count, depth, start, pair = collections.Counter(), collections.Counter(), [0], [0.0], [None]

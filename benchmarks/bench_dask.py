@@ -40,7 +40,7 @@ def sweep(cells: int):
 
 def throughput(cells, executor: str, jobs: int) -> tuple[float, float]:
     """(cells per wall second, wall seconds) of one pass; every row must come back ok."""
-    from longtime.core.integrator import Timing
+    from longtime.core.timing import Timing
     from longtime.execution.matrix import ExecOptions, run_matrix
 
     options = ExecOptions(jobs=jobs, timing=Timing(repeats=3, min_time=0.0), max_samples=2001, processes=1)

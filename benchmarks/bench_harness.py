@@ -1,6 +1,6 @@
 """Where does a warm matrix spend its time? Integration against everything around it.
 
-Issue 12's goal: in a warm `longtime matrix` (kernels and references cached), the timed
+The goal: in a warm `longtime matrix` (kernels and references cached), the timed
 integration (every timed repeat of every cell) is at least 60 % of the core-seconds. This
 script runs a matrix's cells in one process, as a pool worker would, and splits that
 process's time into
@@ -101,7 +101,7 @@ def after_the_cells(rows: list[dict]) -> dict[str, float]:
     import os
 
     from longtime.reporting.page import build_page
-    from longtime.reporting.report import report_text
+    from longtime.reporting.screen import report_text
 
     start = time.perf_counter()
     report_text(rows, "table")

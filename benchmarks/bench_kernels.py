@@ -1,6 +1,6 @@
 """The suite's compiled kernels against hand-written, allocation-free numba loops.
 
-Issue 12's goal (issue 2's was 1.5x): a fixed-step kernel of the suite costs at most 1.2x
+The goal: a fixed-step kernel of the suite costs at most 1.2x
 a hand-written loop of the same scheme on the same problem. The hand-written loops below are what one would
 write for that one problem and scheme: the right-hand side spelled out, scratch allocated
 once, no sample storage. The suite's side runs through ``Integrator.integrate`` with

@@ -61,7 +61,7 @@ IDLE_GOAL = 1.15  # the cold run's wall / ((compile + integration + references c
 WORK_LINES = ("compile: kernels (cells)", "compile: references (heyoka)", "compile: stability intervals",
               "compile: figures, metrics, other", "integration (every run of a cell)", "references")
 TOP_COMPILES = 15  # the costliest compiles listed
-HOLD = 1.15  # the cost issue's hold of a cell's cpu_s across invocations (max / min)
+HOLD = 1.15  # the hold of a cell's cpu_s across invocations (max / min) that the goal asks
 # the hold table's bands: a cell's fastest cpu_s over the runs, seconds
 HOLD_BANDS = ((0.0, 0.01), (0.01, 0.067), (0.067, 0.25), (0.25, 1.0))
 # the breakdown's lines: (label, the phases it sums); "idle workers" is computed

@@ -27,7 +27,7 @@ HOG = "import numpy as np; a = np.ones(8 << 20); b = np.empty_like(a)\nwhile Tru
 
 def main() -> int:
     from longtime.core import registry
-    from longtime.core.integrator import Timing
+    from longtime.core.timing import Timing
     from longtime.execution import calibration
     from longtime.execution.cells import working_set
 

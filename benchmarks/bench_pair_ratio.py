@@ -37,7 +37,7 @@ def child(version: int) -> None:
 
     from longtime.api import cells_for
     from longtime.core import registry
-    from longtime.core.integrator import Timing
+    from longtime.core.timing import Timing
     from longtime.execution.calibration import reference_seconds, reference_workload
     from longtime.execution.processes import time_cells
 

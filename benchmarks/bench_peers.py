@@ -24,10 +24,9 @@ from __future__ import annotations
 import argparse
 import math
 
-import numpy as np
 
 from longtime.core import registry
-from longtime.core.integrator import Timing
+from longtime.core.timing import Timing
 from longtime.measure.metrics import evaluate
 from longtime.measure.reference import reference_states
 

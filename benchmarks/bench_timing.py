@@ -9,7 +9,7 @@ that compare and history judge a change against.
 
     python benchmarks/bench_timing.py                 # the table, exit 1 past the goal
     python benchmarks/bench_timing.py --runs 3        # fewer invocations
-    python benchmarks/bench_timing.py --processes 1   # the old timing: one process per cell
+    python benchmarks/bench_timing.py --processes 1   # one timing process per cell
 
 Each invocation is a fresh process (its own warm-up, references from the shared cache), so
 the figure includes what differs between runs: process placement, what the machine does

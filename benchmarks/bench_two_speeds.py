@@ -62,7 +62,7 @@ def _best(fn, *args, repeats=7):
 
 def _worker(conn):
     from longtime.core import registry
-    from longtime.core.integrator import Timing
+    from longtime.core.timing import Timing
     from longtime.execution import calibration
 
     problem = registry.problem_class("kepler")()

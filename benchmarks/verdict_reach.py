@@ -35,7 +35,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     os.environ.setdefault("LONGTIME_REFERENCE_SECONDS", "60")
 
-    from longtime.core.integrator import Timing
+    from longtime.core.timing import Timing
     from longtime.execution.cells import cell_of_row
     from longtime.execution.matrix import ExecOptions, run_matrix
     from longtime.execution.store import Store

@@ -12,8 +12,8 @@ __all__ = ["AdaptiveIntegrator", "FixedStepIntegrator", "InputError", "Integrato
 _API = ("Order", "Result", "card", "convergence", "recommend", "solve", "sweep", "work_precision")
 # the base classes, imported on first use too (numpy and numba load with them): the command's
 # entry point (longtime.commands.entry) is running, and catches Ctrl-C, before they load
-_CORE = {"AdaptiveIntegrator": "integrator", "FixedStepIntegrator": "integrator", "Integrator": "integrator",
-         "Trajectory": "integrator", "InputError": "params", "Param": "params", "Problem": "problem"}
+_CORE = {"AdaptiveIntegrator": "stepping", "FixedStepIntegrator": "stepping", "Integrator": "integrator",
+         "Trajectory": "trajectory", "InputError": "params", "Param": "params", "Problem": "problem"}
 # submodules on top of the API, imported on first use as longtime.plot, longtime.testing
 _SUBMODULES = ("plot", "testing", "api", "asvbench")
 

@@ -15,15 +15,16 @@ from __future__ import annotations
 import shlex
 import time
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
 from longtime.core import registry
-from longtime.core.integrator import Integrator, Timing
+from longtime.core.integrator import Integrator
 from longtime.core.params import InputError, check_number, check_values
 from longtime.core.problem import Problem
 from longtime.core.roles import ROW_PARAMETERS
+from longtime.core.timing import Timing
 from longtime.execution import calibration, limits
 from longtime.execution.cells import (
     DEFAULT_MAX_SAMPLES,

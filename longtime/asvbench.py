@@ -63,7 +63,9 @@ from __future__ import annotations
 
 import itertools
 import math
-from typing import Any, Sequence
+import time
+from dataclasses import dataclass
+from typing import Any, ClassVar, Sequence
 
 ALL = "default"  # the label of the setting when no parameter is given
 # a growth class as a number for asv (worse is larger); undetermined is not tracked (n/a)
@@ -96,102 +98,120 @@ def _first_invariant(row: dict[str, Any]) -> str | None:
     return curve.get("invariant") if isinstance(curve, dict) else None
 
 
-def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: float | None = None,
-               prefix: str = "", **settings: Any) -> dict[str, type]:
-    """{class name: asv benchmark class} for problems x schemes x settings; put them into
-    the benchmark module's namespace (``globals().update(...)``): asv looks a class up by
-    its name there."""
-    from longtime.api import resolve
-    from longtime.core.params import check_values
+@dataclass(frozen=True)
+class Selection:
+    """The cells of a suite: registered problem and scheme names, the settings as (label,
+    point) pairs, the final time (None: each problem's default)."""
 
-    pnames = [resolve(p, "problem")[0] for p in check_values("problems", problems)]
-    inames = [resolve(s, "scheme")[0] for s in check_values("schemes", schemes)]
-    combos = _combinations(settings)
-    points = dict(combos)
-    params = [pnames, inames, [label for label, _ in combos]]
-    names = ["problem", "scheme", "setting"]
+    problems: tuple[str, ...]
+    schemes: tuple[str, ...]
+    combos: tuple[tuple[str, dict[str, Any]], ...]
+    t_final: float | None = None
+
+    @property
+    def params(self) -> list[list[str]]:
+        """asv's parameters: problems, schemes, setting labels."""
+        return [list(self.problems), list(self.schemes), [label for label, _ in self.combos]]
+
+    def cell(self, problem: str, scheme: str, setting: str):
+        """The cell of one parameter combination (NotImplementedError, asv's skip, where the
+        scheme cannot run the problem)."""
+        return _cell(problem, scheme, dict(self.combos)[setting], self.t_final)
+
+    def runnable(self):
+        """(cell, "problem|scheme|setting") of each parameter combination a scheme can run."""
+        for p, s, (label, point) in itertools.product(self.problems, self.schemes, self.combos):
+            try:
+                cell = _cell(p, s, point, self.t_final)
+            except NotImplementedError:
+                continue
+            yield cell, f"{p}|{s}|{label}"
+
+
+class _Suite:
+    """What the four benchmark classes share: the selection ``benchmarks`` binds and asv's
+    parameters over it."""
+
+    selection: ClassVar[Selection]
+    params: ClassVar[list[list[str]]]
+    param_names = ["problem", "scheme", "setting"]
+
+
+class Integration(_Suite):
+    """The integration of each cell alone (its kernel compiled in setup)."""
+
+    timer = time.process_time
 
     def setup(self, problem, scheme, setting):
         from longtime.execution.cells import build
 
-        cell = _cell(problem, scheme, points[setting], t_final)
+        cell = self.selection.cell(problem, scheme, setting)
         self.problem, self.integrator = build(cell)
         self.t_final = self.problem.default_t_final if cell.t_final is None else cell.t_final
         # compiled here, not in the timing: ten default steps (the loop is the same for any span)
         self.integrator.integrate(self.problem, self.problem.t0 + 10 * float(self.problem.default_dt), max_samples=16)
 
     def time_integrate(self, problem, scheme, setting):
+        """CPU seconds of the whole call integrator.integrate(problem, t_final): the compiled step loop and the
+        Python work on its samples (output arrays, the invariant's growth, the samples' digest), the median of
+        asv's samples. track_cpu_s is the loop alone, the minimum of runs spread over seconds: for a run of a
+        millisecond the Python work and the machine's load make this one several times that one."""
         self.integrator.integrate(self.problem, self.t_final)
 
-    time_integrate.__doc__ = ("CPU seconds of the whole call integrator.integrate(problem, t_final): the compiled "
-                              "step loop and the Python work on its samples (output arrays, the invariant's "
-                              "growth, the samples' digest), the median of asv's samples. track_cpu_s is the "
-                              "loop alone, the minimum of runs spread over seconds: for a run of a millisecond "
-                              "the Python work and the machine's load make this one several times that one.")
-
     def track_cpu_s(self, problem, scheme, setting):
-        from longtime.core.integrator import Timing
+        """CPU seconds of the integration's compiled step loop alone (a row's cpu_s): the minimum of its runs
+        spread over longtime's SPREAD_S seconds (longtime.execution.processes.time_cells), so that a slow
+        moment of the machine does not make the figure. time_integrate adds the Python work on the samples and
+        takes asv's median: on a short run it is several times this one."""
+        from longtime.core.timing import Timing
         from longtime.execution.processes import time_cells
 
-        cell = _cell(problem, scheme, points[setting], t_final)
+        cell = self.selection.cell(problem, scheme, setting)
         record = time_cells([cell], 100_001, Timing(repeats=3))[0]
         return float(record["cpu_s"]) if record.get("status") == "ok" else math.nan
 
     track_cpu_s.unit = "seconds"
-    track_cpu_s.__doc__ = ("CPU seconds of the integration's compiled step loop alone (a row's cpu_s): the "
-                           "minimum of its runs spread over longtime's SPREAD_S seconds "
-                           "(longtime.execution.processes.time_cells), so that a slow moment of the machine does "
-                           "not make the figure. time_integrate adds the Python work on the samples and takes "
-                           "asv's median: on a short run it is several times this one.")
 
-    import time
 
-    from longtime.execution.processes import DEFAULT_PROCESSES
+class Accuracy(_Suite):
+    """Accuracy of each cell, from one untimed run."""
 
-    integration = type(f"{prefix}Integration", (), {
-        "params": params, "param_names": names, "setup": setup, "time_integrate": time_integrate,
-        "track_cpu_s": track_cpu_s,
-        "processes": DEFAULT_PROCESSES, "timer": time.process_time,
-        "__doc__": "The integration of each cell alone (its kernel compiled in setup)."})
-
-    def runnable():
-        """(cell, "problem|scheme|setting") of each parameter combination a scheme can run."""
-        for p, s, (label, point) in itertools.product(pnames, inames, combos):
-            try:
-                cell = _cell(p, s, point, t_final)
-            except NotImplementedError:
-                continue
-            yield cell, f"{p}|{s}|{label}"
+    timeout = 900
 
     def setup_cache(self):
-        from longtime.core.integrator import Timing
+        from longtime.core.timing import Timing
         from longtime.execution.cells import run_cell
         from longtime.testing import accuracy_fields
 
         rows = {}
-        for cell, label in runnable():
+        for cell, label in self.selection.runnable():
             row = run_cell(cell, timing=Timing(repeats=1))
             rows[label] = {**accuracy_fields(row), "invariant": _first_invariant(row), "message": row.get("message")}
         return rows
 
-    def acc_setup(self, rows, problem, scheme, setting):
+    def setup(self, rows, problem, scheme, setting):
         if f"{problem}|{scheme}|{setting}" not in rows:
             raise NotImplementedError(f"{scheme} cannot run {problem}")
 
-    def field(rows, problem, scheme, setting, name):
+    @staticmethod
+    def _field(rows, problem, scheme, setting, name):
         row = rows[f"{problem}|{scheme}|{setting}"]
         if row.get("status") != "ok" or name is None or row.get(name) is None:
             return math.nan  # shown as n/a: a failed or diverged run has nothing to track
         return float(row[name])
 
     def track_l2_error(self, rows, problem, scheme, setting):
-        return field(rows, problem, scheme, setting, "l2_error")
+        """Relative L2 error against the exact solution or the trusted reference."""
+        return self._field(rows, problem, scheme, setting, "l2_error")
 
     def track_drift(self, rows, problem, scheme, setting):
+        """max_t |I(t) - I(0)| / |I(0)| of the problem's first invariant (H where there is one)."""
         inv = rows[f"{problem}|{scheme}|{setting}"].get("invariant")
-        return field(rows, problem, scheme, setting, inv and f"{inv}.max")
+        return self._field(rows, problem, scheme, setting, inv and f"{inv}.max")
 
     def track_growth_class(self, rows, problem, scheme, setting):
+        """The growth class of the first invariant's error, e_I(t) ~ C t^alpha, as a number (1 bounded, 2 sqrt,
+        3 linear, 4 quadratic, 5 faster, 6 saturated, 7 diverged; undetermined: n/a)."""
         row = rows[f"{problem}|{scheme}|{setting}"]
         inv = row.get("invariant")
         if row.get("status") != "ok" or inv is None:
@@ -201,24 +221,21 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
     track_l2_error.unit = "relative error"
     track_drift.unit = "relative error"
     track_growth_class.unit = "growth class (1 bounded .. 7 diverged)"
-    track_l2_error.__doc__ = "Relative L2 error against the exact solution or the trusted reference."
-    track_drift.__doc__ = "max_t |I(t) - I(0)| / |I(0)| of the problem's first invariant (H where there is one)."
-    track_growth_class.__doc__ = ("The growth class of the first invariant's error, e_I(t) ~ C t^alpha, as a number "
-                                  "(1 bounded, 2 sqrt, 3 linear, 4 quadratic, 5 faster, 6 saturated, 7 diverged; "
-                                  "undetermined: n/a).")
-    accuracy = type(f"{prefix}Accuracy", (), {
-        "params": params, "param_names": names, "setup_cache": setup_cache, "setup": acc_setup,
-        "track_l2_error": track_l2_error, "track_drift": track_drift, "track_growth_class": track_growth_class,
-        "timeout": 900, "__doc__": "Accuracy of each cell, from one untimed run."})
 
-    def cost_cache(self):
-        from longtime.core.integrator import Timing
+
+class Cost(_Suite):
+    """Instructions of each cell's integration, all cells counted in one Valgrind process."""
+
+    timeout = 3600
+
+    def setup_cache(self):
         from longtime.core.params import InputError
+        from longtime.core.timing import Timing
         from longtime.execution.cells import DEFAULT_MAX_SAMPLES, run_cell
         from longtime.execution.valgrind import instruction_fields
 
         pairs, labels = [], {}
-        for cell, label in runnable():
+        for cell, label in self.selection.runnable():
             pairs.append((cell, run_cell(cell, timing=Timing(repeats=1))))  # fills the kernel cache
             labels[cell.key] = label
         try:
@@ -227,7 +244,7 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
             return {labels[c.key]: {"instructions": None, "instructions_skipped": str(exc)} for c, _ in pairs}
         return {labels[c.key]: fields[c.key] for c, _ in pairs}
 
-    def cost_setup(self, counts, problem, scheme, setting):
+    def setup(self, counts, problem, scheme, setting):
         found = counts.get(f"{problem}|{scheme}|{setting}")
         if found is None:
             raise NotImplementedError(f"{scheme} cannot run {problem}")
@@ -235,25 +252,27 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
             raise NotImplementedError(found.get("instructions_skipped") or "not counted")
 
     def track_instructions(self, counts, problem, scheme, setting):
+        """Instructions of the integration alone, counted by Valgrind's Callgrind with the kernels compiled for
+        one fixed target (x86-64-v3, docs/machines.md) whatever the host: the same code gives the same count on
+        a loaded machine and on another x86-64 machine with the same Python, numba, llvmlite and numpy."""
         return counts[f"{problem}|{scheme}|{setting}"]["instructions"]
 
     track_instructions.unit = "instructions"
-    track_instructions.__doc__ = ("Instructions of the integration alone, counted by Valgrind's Callgrind with the "
-                                  "kernels compiled for one fixed target (x86-64-v3, docs/machines.md) whatever the "
-                                  "host: the same code gives the same count on a loaded machine and on another "
-                                  "x86-64 machine with the same Python, numba, llvmlite and numpy.")
-    cost = type(f"{prefix}Cost", (), {
-        "params": params, "param_names": names, "setup_cache": cost_cache, "setup": cost_setup,
-        "track_instructions": track_instructions, "timeout": 3600,
-        "__doc__": "Instructions of each cell's integration, all cells counted in one Valgrind process."})
-    def speed_cache(self):
-        from longtime.core.integrator import Timing
+
+
+class Speed(_Suite):
+    """The integration's CPU time against a reference workload timed beside it, in fresh processes."""
+
+    timeout = 1800
+
+    def setup_cache(self):
+        from longtime.core.timing import Timing
         from longtime.execution.cells import DEFAULT_MAX_SAMPLES
         from longtime.execution.child import RunSpec
         from longtime.execution.processes import DEFAULT_PROCESSES, START_S, SPREAD_S, run_children
 
         cells, labels = [], []
-        for cell, label in runnable():
+        for cell, label in self.selection.runnable():
             cells.append(cell)
             labels.append(label)
         spec = RunSpec(DEFAULT_MAX_SAMPLES, Timing(repeats=3), time_limit=None)
@@ -268,7 +287,7 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
             out[label] = {"cpu_ratio": min(ratios) if ratios else None, "processes": ratios, "why": why}
         return out
 
-    def speed_setup(self, ratios, problem, scheme, setting):
+    def setup(self, ratios, problem, scheme, setting):
         found = ratios.get(f"{problem}|{scheme}|{setting}")
         if found is None:
             raise NotImplementedError(f"{scheme} cannot run {problem}")
@@ -276,19 +295,38 @@ def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: floa
             raise NotImplementedError(found["why"] or "not timed")
 
     def track_cpu_ratio(self, ratios, problem, scheme, setting):
+        """CPU time of the integration in units of the calibration's reference workload, timed in pairs (one run
+        of the integration, then one of the reference) over longtime's SPREAD_S seconds in each of
+        DEFAULT_PROCESSES fresh processes: each process's ratio of the minima, the smallest over the processes
+        (longtime.execution.processes.paired_ratio). The time to judge a change of speed by: the load and the
+        core's speed between two commits' runs divide out, and a slow moment of the machine has to cover every
+        process's seconds to move it."""
         return ratios[f"{problem}|{scheme}|{setting}"]["cpu_ratio"]
 
     track_cpu_ratio.unit = "x reference"
-    track_cpu_ratio.__doc__ = (
-        "CPU time of the integration in units of the calibration's reference workload, timed in pairs "
-        "(one run of the integration, then one of the reference) over longtime's SPREAD_S seconds in each of "
-        "DEFAULT_PROCESSES fresh processes: each process's ratio of the minima, the smallest over the processes "
-        "(longtime.execution.processes.paired_ratio). The time to judge a change of speed by: the load and the "
-        "core's speed between two commits' runs divide out, and a slow moment of the machine has to cover "
-        "every process's seconds to move it.")
-    speed = type(f"{prefix}Speed", (), {
-        "params": params, "param_names": names, "setup_cache": speed_cache, "setup": speed_setup,
-        "track_cpu_ratio": track_cpu_ratio, "timeout": 1800,
-        "__doc__": "The integration's CPU time against a reference workload timed beside it, in fresh processes."})
-    return {integration.__name__: integration, accuracy.__name__: accuracy, cost.__name__: cost,
-            speed.__name__: speed}
+
+
+SUITES = (Integration, Accuracy, Cost, Speed)
+
+
+def benchmarks(problems: Sequence[Any], schemes: Sequence[Any], *, t_final: float | None = None,
+               prefix: str = "", **settings: Any) -> dict[str, type]:
+    """{class name: asv benchmark class} for problems x schemes x settings; put them into
+    the benchmark module's namespace (``globals().update(...)``): asv looks a class up by
+    its name there. Each class is a subclass of ``Integration``, ``Accuracy``, ``Cost`` or
+    ``Speed`` named ``prefix`` + its name, bound to the selection."""
+    from longtime.api import resolve
+    from longtime.core.params import check_values
+    from longtime.execution.processes import DEFAULT_PROCESSES
+
+    selection = Selection(problems=tuple(resolve(p, "problem")[0] for p in check_values("problems", problems)),
+                          schemes=tuple(resolve(s, "scheme")[0] for s in check_values("schemes", schemes)),
+                          combos=tuple(_combinations(settings)), t_final=t_final)
+    out = {}
+    for suite in SUITES:
+        bound = {"selection": selection, "params": selection.params, "__doc__": suite.__doc__}
+        if suite is Integration:
+            # asv's own attribute: its samples pool every process's (longtime's timing processes likewise)
+            bound["processes"] = DEFAULT_PROCESSES
+        out[f"{prefix}{suite.__name__}"] = type(f"{prefix}{suite.__name__}", (suite,), bound)
+    return out

@@ -263,7 +263,8 @@ def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float 
     integration under Valgrind (``--cost instructions``) and puts ``instructions``,
     ``instructions_per_step`` (or ``instructions_skipped``, the reason) there too: a
     deterministic cost, which a loaded CI machine does not move. Returns the row."""
-    from longtime.core.integrator import Timing, run_digest, same_run
+    from longtime.core.timing import Timing
+    from longtime.core.trajectory import run_digest, same_run
     from longtime.execution.cells import run_cell
     from longtime.execution.child import RunSpec
     from longtime.execution.matrix import check_cost

@@ -1,7 +1,17 @@
-"""Test session setup: private cache and store, nothing written to the working folder."""
+"""Test session setup: private cache and store, nothing written to the working folder.
+
+The slow tests (fault injection in subprocesses, Valgrind, Dask clusters, fresh interpreters,
+ensembles and long integrations) carry ``@pytest.mark.slow`` where they are (or
+``pytestmark`` in a module whose every test is slow). The default run (README's test
+command) leaves them out; `python -m pytest -m slow` runs them, and CI runs both. At the end
+of a session, a test not marked slow that took over ``SLOW_UNMARKED_S`` seconds is named in
+the terminal summary."""
 import os
 
 import pytest
+
+SLOW_UNMARKED_S = 30.0  # a test not marked slow over this many seconds is listed at the end
+MARKED_SLOW = pytest.StashKey[set]()  # the node ids of the tests marked slow in this session
 
 
 @pytest.fixture(scope="session", autouse=True)
@@ -15,36 +25,25 @@ def _private_state(tmp_path_factory):
     yield
 
 
-# The slow tests: fault injection in subprocesses, Valgrind, Dask clusters, fresh interpreters,
-# ensembles and long integrations. The default run (README's test command) leaves them out;
-# `python -m pytest -m slow` runs them, and CI runs both.
-SLOW_MODULES = {
-    "test_faults.py", "test_faults_limits.py", "test_faults_store.py", "test_faults_disk.py",
-    "test_faults_dask_signals.py", "test_faults_cpu.py", "test_dask.py", "test_dask_workers.py",
-    "test_instructions.py", "test_isolation.py", "test_kernel_cache.py", "test_compile_once.py",
-    "test_history.py", "test_processes.py", "test_chaos.py",
-}
-SLOW_TESTS = {
-    "test_horizon.py::test_verlet_breakdown_time_grows_exponentially_in_one_over_dt",
-    "test_duffing.py::test_a_run_past_the_growing_bound_is_diverged_and_an_o1_error_is_flagged",
-    "test_store.py::test_killed_matrix_keeps_finished_cells",
-    "test_audit.py::test_corrupt_kernel_module_and_bytecode_are_discarded_and_rebuilt",
-    "test_plugins.py::test_plugin_joins_the_matrix",
-    "test_card.py::test_card_command_and_its_bad_input",
-    "test_examples.py::test_a_plugin_that_breaks_the_contract_is_listed_broken_with_one_line",
-    "test_examples.py::test_example_plugin_lists_and_runs",
-    "test_report_html.py::test_main_job_page_takes_the_figures_its_workers_drew",
-    "test_fpu.py::test_oscillatory_energy_over_5000",
-    "test_bpl.py::test_bpl_exp_on_kdv_steps_past_bpls_cap",
-    "test_api_input.py::test_a_script_without_main_guard_runs_its_sweep",
-    "test_bench_author.py::test_versions_change_only_what_they_claim",
-    "test_asvbench.py::test_speed_tracks_a_ratio_per_cell_from_fresh_processes",
-}
+def slow_unmarked(reports, marked_slow) -> list[tuple[str, float]]:
+    """(node id, seconds) of each test whose setup, call and teardown together took over
+    SLOW_UNMARKED_S seconds and that is not in ``marked_slow``, the slowest first."""
+    took: dict[str, float] = {}
+    for report in reports:
+        took[report.nodeid] = took.get(report.nodeid, 0.0) + report.duration
+    return sorted(((node, s) for node, s in took.items() if s > SLOW_UNMARKED_S and node not in marked_slow),
+                  key=lambda item: -item[1])
 
 
 def pytest_collection_modifyitems(config, items):
-    for item in items:
-        module = item.nodeid.split("::")[0].rsplit("/", 1)[-1]
-        name = f"{module}::{item.originalname}"
-        if module in SLOW_MODULES or name in SLOW_TESTS:
-            item.add_marker(pytest.mark.slow)
+    config.stash[MARKED_SLOW] = {item.nodeid for item in items if item.get_closest_marker("slow")}
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    reports = [r for key in ("passed", "failed", "error", "skipped", "") for r in terminalreporter.stats.get(key, [])
+               if hasattr(r, "duration") and hasattr(r, "nodeid")]
+    found = slow_unmarked(reports, config.stash.get(MARKED_SLOW, set()))
+    if found:
+        terminalreporter.write_sep("-", f"tests not marked slow that took over {SLOW_UNMARKED_S:g} s")
+        for node, seconds in found:
+            terminalreporter.write_line(f"{seconds:.1f} s  {node}  (mark it @pytest.mark.slow)")

@@ -277,6 +277,7 @@ def test_solve_and_sweep_take_the_memory_limit(tmp_path):
     assert len(lines) == 3 and all(line.startswith("failed | memory limit: the cell may use") for line in lines), lines
 
 
+@pytest.mark.slow
 def test_a_script_without_main_guard_runs_its_sweep(tmp_path):
     script = tmp_path / "noguard.py"
     script.write_text(textwrap.dedent('''

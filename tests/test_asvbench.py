@@ -148,7 +148,7 @@ def _fake_cells(monkeypatch, runs, log):
 
 
 def test_paired_timing_alternates_cell_and_reference_and_takes_the_ratio_of_minima(monkeypatch):
-    from longtime.core.integrator import Timing
+    from longtime.core.timing import Timing
     from longtime.execution import processes
 
     log = []
@@ -196,7 +196,7 @@ def test_twice_the_reference_work_has_a_ratio_of_about_two(monkeypatch):
     2 (the same instructions in registers; loose bounds: the machine may be loaded)."""
     import time
 
-    from longtime.core.integrator import Timing
+    from longtime.core.timing import Timing
     from longtime.execution import calibration, processes
 
     calibration.reference_workload(10, 0.01)
@@ -214,6 +214,7 @@ def test_twice_the_reference_work_has_a_ratio_of_about_two(monkeypatch):
     assert 1.6 < record["cpu_ratio"] < 2.5, record
 
 
+@pytest.mark.slow
 def test_speed_tracks_a_ratio_per_cell_from_fresh_processes(monkeypatch):
     from longtime.execution import processes
 

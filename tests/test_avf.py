@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from longtime.core import registry
+from longtime.core.timing import Timing
 from longtime.execution.cells import Cell, run_cell
-from longtime.core.integrator import Timing
 from longtime.integrators.avf import gauss_legendre
 from longtime.measure.orders import observed_orders
 

@@ -5,6 +5,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import bench_author_repo as bench  # noqa: E402
@@ -46,6 +47,7 @@ def test_flags_are_checked_both_ways():
     assert bench.check({"track_cpu_ratio ratio": "1.01"}, {}, "track_l2_error", accuracy) == []
 
 
+@pytest.mark.slow
 def test_versions_change_only_what_they_claim(tmp_path):
     """Commits 1 to 3 compute the same states bit for bit (a refactoring, then repeated work
     into scratch); commit 4 loses accuracy beyond compare's x2 on both problems; commit 3
@@ -53,7 +55,7 @@ def test_versions_change_only_what_they_claim(tmp_path):
     import importlib.util
 
     from longtime.core import registry
-    from longtime.core.integrator import Timing
+    from longtime.core.timing import Timing
 
     classes = []
     for k, (_, text) in enumerate(bench.VERSIONS, 1):

@@ -1,4 +1,5 @@
-"""Borel-Pade-Laplace: accuracy, the hard cases of issue 3, and the paper's Toda figure."""
+"""Borel-Pade-Laplace: accuracy, its hard cases (a Borel pole on the positive axis, a rank-deficient
+Toeplitz block, a quadrature that fails, a growing state, a blow-up), and the paper's Toda figure."""
 from __future__ import annotations
 
 import math
@@ -317,6 +318,7 @@ def test_interaction_coefficients_remove_the_linear_flow():
     assert np.all(np.abs(coeffs[1:]).max(axis=1) < 1e-14 * np.maximum(1.0, scale[1:]) * 10)
 
 
+@pytest.mark.slow
 def test_bpl_exp_on_kdv_steps_past_bpls_cap():
     """KdV d = 128, one period: pure bpl's step is held near 3.7 / omega_max whatever
     eps_res; with the rotation exact, bpl-exp steps several times longer at the same

@@ -24,7 +24,7 @@ def test_pythagorean_data_and_energy():
     # at rest: H = -(3*4/5 + 3*5/4 + 4*5/3), L = P = 0
     assert inv["H"][0] == pytest.approx(-(12 / 5 + 15 / 4 + 20 / 3), rel=1e-15)
     assert inv["L"][0] == 0 and np.all(inv["P"] == 0)
-    _, q, _ = problem._split(problem.u0[None, :])
+    _, q, _ = problem.split_state(problem.u0[None, :])
     sides = sorted(np.hypot(*(q[0, k] - q[0, l])) for k, l in ((0, 1), (0, 2), (1, 2)))
     assert sides == [3.0, 4.0, 5.0]
 
@@ -78,7 +78,7 @@ def test_ias15_and_heyoka_get_through_the_close_encounters(scheme, settings):
     L = problem.invariants(traj.t, traj.u)["L"]
     assert np.abs(L).max() < 1e-9
     # the escape: the lightest body (3) leaves towards +y, the others as a binary towards -y
-    _, q, _ = problem._split(traj.u[-1:])
+    _, q, _ = problem.split_state(traj.u[-1:])
     assert q[0, 0, 1] > 15 and q[0, 1, 1] < -5 and q[0, 2, 1] < -5
     assert np.hypot(*(q[0, 1] - q[0, 2])) < 1.0
 

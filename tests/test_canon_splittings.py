@@ -11,9 +11,9 @@ import pytest
 from scipy.linalg import expm
 
 from longtime.core import registry
-from longtime.measure import stability
+from longtime.core.timing import Timing
 from longtime.execution.cells import Cell, run_cell
-from longtime.core.integrator import Timing
+from longtime.measure import stability
 from longtime.measure.orders import observed_orders
 
 # scheme, order, force evaluations per step, kepler steps per unit of time 2 (asymptotic range)

@@ -65,6 +65,7 @@ def _cli(*args):
     return subprocess.run([sys.executable, "-m", "longtime", "card", *args], capture_output=True, text=True)
 
 
+@pytest.mark.slow
 def test_card_command_and_its_bad_input(tmp_path):
     db = tmp_path / "s.sqlite"
     longtime.sweep("harmonic", "verlet", dt=[0.2, 0.1, 0.05], t_final=20, executor="serial", repeats=1, store=str(db))

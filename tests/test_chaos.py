@@ -1,7 +1,6 @@
 """Chaos measured as chaos: the Lyapunov time of the chaotic problems from the reference, each
 row's predictability horizon in Lyapunov times, and lost solutions kept out of orders and
 Pareto fronts."""
-import math
 
 import numpy as np
 import pytest
@@ -14,6 +13,7 @@ from longtime.reporting.report import pareto
 pytest.importorskip("heyoka")
 
 
+@pytest.mark.slow
 def test_double_pendulum_is_chaotic_with_a_lyapunov_time_near_one():
     """The double pendulum (released from rest, far from equilibrium) separates nearby
     states at lambda ~ 1 per unit time: about 100 e-foldings over t = 100."""
@@ -23,6 +23,7 @@ def test_double_pendulum_is_chaotic_with_a_lyapunov_time_near_one():
     assert found["lyapunov_time"] == pytest.approx(1 / found["lyapunov_exponent"])
 
 
+@pytest.mark.slow
 def test_forced_duffing_at_c_half_is_chaotic():
     found = lyapunov.measure(registry.problem_class("duffing-forced")())
     assert found["lyapunov_time"] is not None and 4 < found["lyapunov_time"] < 30, found
@@ -49,6 +50,7 @@ def test_summary_of_synthetic_separations():
     assert regular["lyapunov_time"] is None
 
 
+@pytest.mark.slow
 def test_chaotic_rows_carry_the_lyapunov_time_and_predictability_horizon():
     from longtime import solve
 
@@ -71,6 +73,7 @@ def _row(dt, l2, lost, integrator="rk4", cpu=1.0):
             "eps_res": None, "settings": "", "steps": int(30 / dt)}
 
 
+@pytest.mark.slow
 def test_lost_chaotic_rows_enter_no_order_fit_and_no_pareto_front():
     rows = [_row(0.01, 1e-4, False), _row(0.005, 6.25e-6, False), _row(0.0025, 6.25e-6 / 16, False),
             _row(0.02, 0.9, True, cpu=0.1)]
@@ -82,6 +85,7 @@ def test_lost_chaotic_rows_enter_no_order_fit_and_no_pareto_front():
     assert [p[0] for p in fit["order_points"]] == [0.0025, 0.005, 0.01]  # the lost dt 0.02 left out
 
 
+@pytest.mark.slow
 def test_ensemble_tells_euler_from_rk4_on_the_double_pendulum_past_its_horizon():
     """Past 100 Lyapunov times pointwise errors are O(1) for every scheme, but the distribution
     of the first coordinate over the last half of the run is heyoka's for rk4 (within twice
@@ -108,6 +112,7 @@ def test_ensemble_refuses_a_regular_problem_and_bad_sizes():
         study(["double-pendulum"], ["rk4"], size=0.0)
 
 
+@pytest.mark.slow
 def test_a_chaotic_figure_is_given_with_its_round_off_spread(capsys):
     """Past its predictability horizon the double pendulum's H.max under rk4 depends on
     round-off: perturbing u0 by a relative 1e-14 moves it, and the spread brackets a range."""
@@ -141,10 +146,12 @@ def _chaotic_problems():
                   if cls.chaotic and cls.__module__.startswith("longtime.problems."))
 
 
+@pytest.mark.slow
 def test_every_chaotic_problem_is_measured_from_its_default_state():
     assert _chaotic_problems() == sorted(FROM_THE_DEFAULT_STATE)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(FROM_THE_DEFAULT_STATE))
 def test_which_chaotic_problems_are_chaotic_from_their_default_state(name):
     cls = registry.problem_class(name)
@@ -162,6 +169,7 @@ def test_which_chaotic_problems_are_chaotic_from_their_default_state(name):
         assert cls.chaotic_settings is None, name
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, lam", [("henon-heiles", (0.101, 0.136)), ("figure-eight-perturbed", (0.0443, 0.109))])
 def test_the_chaotic_settings_are_chaotic(name, lam):
     """Henon-Heiles from y0 = 0 (the chaotic sea at E = 1/6 - 1e-3; measured lambda 0.118

@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from longtime.core import heyoka_build, registry
 
@@ -46,6 +47,7 @@ def _two_processes(tmp_path, scheme, *problems):
     return run(), run()
 
 
+@pytest.mark.slow
 def test_dop853_rhs_comes_from_the_disk_cache(tmp_path):
     # a closure rhs (nbody) and a separable one
     (compiled, _), (again, _) = _two_processes(tmp_path, "dop853", "figure-eight", "kepler")
@@ -53,6 +55,7 @@ def test_dop853_rhs_comes_from_the_disk_cache(tmp_path):
     assert again == []  # a second process finds everything in the cache
 
 
+@pytest.mark.slow
 def test_bpl_kernels_call_the_pade_compiled_once(tmp_path):
     """bpl's robust Pade is a cfunc the kernels call by symbol: a kernel loaded from the cache
     in a new process finds it (registered before any kernel loads) and runs bitwise alike."""
@@ -89,7 +92,7 @@ def test_no_two_running_batches_share_code_that_is_not_compiled_yet():
                         ("toda", "bpl"), ("kepler", "bpl-exp")])
     assert "longtime.problems.kdv" in shared_code(batches[0])
     assert "longtime.integrators.bpl" in shared_code(batches[5])  # bpl-exp inherits bpl's Pade
-    assert not any(m.startswith("longtime.core.integrator") and "." not in m[9:] for b in batches for m in shared_code(b))
+    assert not any(m.startswith("longtime.core.") for b in batches for m in shared_code(b))  # the base classes'
     order = CompileOnce(batches)
     first, second = order.take(), order.take()
     assert (first[0].problem, second[0].problem) == ("kdv", "harmonic")  # not kdv twice, not rk4 twice

@@ -8,7 +8,7 @@ import sys
 
 
 from longtime.core import registry
-from longtime.core.integrator import Timing
+from longtime.core.timing import Timing
 from longtime.execution import valgrind
 from longtime.execution.cells import Cell, run_cell
 from longtime.integrators.explicit_rk import RK4

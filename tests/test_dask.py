@@ -7,6 +7,8 @@ from longtime.execution.cells import expand
 from longtime.commands.cli import build_parser
 from longtime.execution.matrix import ExecOptions, run_matrix
 
+pytestmark = pytest.mark.slow  # every test here starts processes, clusters or long runs
+
 distributed = pytest.importorskip("distributed")
 
 # fields that do not depend on timing

@@ -30,9 +30,9 @@ def test_batches_hold_one_pair_each_and_keep_every_worker_busy():
 KILL_PROBE = r"""
 import json, os, signal
 from distributed import Client, LocalCluster
+from longtime.core.timing import Timing
 from longtime.execution.cells import expand
 from longtime.execution.dask_executor import dask_cluster
-from longtime.core.integrator import Timing
 from longtime.execution.matrix import ExecOptions
 
 if __name__ == "__main__":
@@ -55,6 +55,7 @@ if __name__ == "__main__":
 """
 
 
+@pytest.mark.slow
 def test_a_killed_worker_loses_nothing(tmp_path):
     probe = tmp_path / "kill_probe.py"
     probe.write_text(KILL_PROBE)

@@ -71,10 +71,10 @@ def test_a_diverged_member_is_a_status_never_a_number(henon_heiles):
 
 
 def test_the_page_and_the_report_show_the_distances(henon_heiles):
-    from longtime.reporting.page import _ensemble_table
+    from longtime.reporting.page_tables import ensemble_table
 
     _, _, by = henon_heiles
-    html = _ensemble_table(list(by.values()))
+    html = ensemble_table(list(by.values()))
     for text in ("verlet", "rk4", "as heyoka", "told apart", "diverged", "chaotic state", "floor", "--no-ensemble"):
         assert text in html, text
     line = ensembles.summary(list(by.values()))["henon-heiles"]

@@ -37,6 +37,7 @@ def test_readme_points_to_the_example():
     assert block.strip() and block.strip() in toml
 
 
+@pytest.mark.slow
 def test_example_plugin_lists_and_runs(example_env):
     res = longtime(example_env, "list", "--format", "json")
     assert res.returncode == 0, res.stderr
@@ -88,6 +89,7 @@ class NoKicks(Splitting):
 '''
 
 
+@pytest.mark.slow
 def test_a_plugin_that_breaks_the_contract_is_listed_broken_with_one_line(tmp_path):
     from _plugins import install_plugin
 

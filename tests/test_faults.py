@@ -1,4 +1,4 @@
-"""Fault injection (issue 14): crashing, hanging and NaN-returning plugins, foreign and
+"""Fault injection: crashing, hanging and NaN-returning plugins, foreign and
 corrupt stores, bad input, Ctrl-C and SIGKILL. Nothing finished may be lost, no traceback,
 no hang, nothing silently wrong. Plugins are pip-installed as tests/_plugins.py describes."""
 import json
@@ -129,6 +129,7 @@ def stored(db):
 
 # --- lost or wrong stored results -----------------------------------------------------------
 
+@pytest.mark.slow
 def test_crashing_worker_fails_only_its_cell_and_the_others_run(fault_env, tmp_path):
     """A segfault and an os.abort() in the process pool: before, the broken pool failed every
     cell still pending (21 of 24) and --resume found nothing left."""
@@ -150,6 +151,7 @@ def test_crashing_worker_fails_only_its_cell_and_the_others_run(fault_env, tmp_p
     assert Store(db).runs()[-1]["status"] == "done"
 
 
+@pytest.mark.slow
 def test_serial_run_survives_sys_exit(fault_env, tmp_path):
     """A plugin's sys.exit(3) ended the whole `run` (rc 3) with no row."""
     db = tmp_path / "exit.sqlite"
@@ -162,6 +164,7 @@ def test_serial_run_survives_sys_exit(fault_env, tmp_path):
     assert len(stored(db)) == 2 and Store(db).runs()[-1]["status"] == "done"
 
 
+@pytest.mark.slow
 def test_repeated_names_and_values_are_one_cell(tmp_path, capsys):
     db = tmp_path / "dup.sqlite"
     assert main(["run", "-p", "harmonic,harmonic", "-i", "verlet,verlet", "--dt", "0.1,0.1",
@@ -176,6 +179,7 @@ def _foreign(path):
     return path.read_bytes()
 
 
+@pytest.mark.slow
 def test_foreign_and_newer_sqlite_files_are_refused_untouched(tmp_path, capsys):
     """Before, longtime added its tables to another program's file and then crashed."""
     foreign = tmp_path / "other.sqlite"
@@ -194,6 +198,7 @@ def test_foreign_and_newer_sqlite_files_are_refused_untouched(tmp_path, capsys):
     assert "newer" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["text", "truncated", "directory", "devnull", "under-file", "missing"])
 def test_bad_store_paths_are_one_line_errors(tmp_path, capsys, kind):
     path = tmp_path / "s.sqlite"
@@ -234,6 +239,7 @@ def _read_only_store(tmp_path, capsys) -> Path:
     return db
 
 
+@pytest.mark.slow
 def test_report_on_a_read_only_store(tmp_path, capsys):
     db = _read_only_store(tmp_path, capsys)
     try:
@@ -278,6 +284,7 @@ def test_run_ids_are_checked(tmp_path, capsys):
     assert len(Store(db).runs()) == 1
 
 
+@pytest.mark.slow
 def test_name_clash_with_a_builtin_is_reported(fault_env):
     res = longtime(fault_env, "list", "--format", "json")
     assert res.returncode == 0, res.stderr
@@ -315,6 +322,7 @@ def _stuck_matrix(fault_env, tmp_path):
     return proc, int(stuck_file.read_text().split()[0])
 
 
+@pytest.mark.slow
 def test_ctrl_c_with_a_stuck_worker_exits_promptly(fault_env, tmp_path):
     """Before: 'interrupted' was printed and the process had not exited 60 s later."""
     proc, worker = _stuck_matrix(fault_env, tmp_path)
@@ -327,6 +335,7 @@ def test_ctrl_c_with_a_stuck_worker_exits_promptly(fault_env, tmp_path):
     assert not _alive(worker)
 
 
+@pytest.mark.slow
 def test_pool_workers_die_with_a_killed_parent(fault_env, tmp_path):
     """Before: after SIGKILL of the parent, pool workers lived on."""
     proc, worker = _stuck_matrix(fault_env, tmp_path)
@@ -358,11 +367,13 @@ def test_oversized_cells_are_refused_up_front(argv, text, capsys, tmp_path):
     assert not db.exists()  # nothing recorded
 
 
+@pytest.mark.slow
 def test_sample_memory_is_estimated_up_front(capsys):
     assert main(["run", "-p", "kdv", "-i", "rk4", "--set", "d=1048576", "--no-store"]) == 2
     assert "GiB" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_time_limit_gives_a_timeout_row(tmp_path, capsys):
     """Every cell has a time limit (default DEFAULT_TIME_LIMIT): a 10^8-step run stops there,
     keeping what it reached."""
@@ -375,11 +386,12 @@ def test_time_limit_gives_a_timeout_row(tmp_path, capsys):
     assert 0 < row["t_reached"] < 1000 and row["steps"] > 0
 
 
+@pytest.mark.slow
 def test_ctrl_c_stops_a_long_compiled_loop(tmp_path):
     """Before: SIGINT was ignored for the whole fixed-step integration (10^10 steps)."""
     env = {**os.environ, "LONGTIME_DB": str(tmp_path / "int.sqlite")}
-    # the kernel compiled first (into the disk caches): a SIGINT during a cold compile was
-    # honoured by the old code too, and passed this test
+    # the kernel compiled first (into the disk caches): the SIGINT reaches the compiled loop,
+    # not a cold compile (which Python interrupts between bytecodes anyway)
     warm = longtime(env, "run", "-p", "harmonic", "-i", "rk4", "--dt", "1e-6", "--t-final", "0.01",
                     "--repeats", "1", "--no-store")
     assert warm.returncode == 0, warm.stderr
@@ -400,14 +412,15 @@ def test_ctrl_c_stops_a_long_compiled_loop(tmp_path):
 
 # --- silent wrong results ----------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_unmeasured_metrics_are_null_and_defaults_are_stored():
     """Before: a run that blew up in its first step (toda --dt 1) reported H.max 0.0."""
     import numpy as np
 
-    from longtime.measure import metrics
-    from longtime.execution.cells import Cell, run_cell
-    from longtime.core.integrator import Trajectory
     from longtime.core.registry import problem_class
+    from longtime.core.trajectory import Trajectory
+    from longtime.execution.cells import Cell, run_cell
+    from longtime.measure import metrics
 
     problem = problem_class("harmonic")()
     traj = Trajectory("diverged", "blew up", t=np.array([0.0, 1.0]),
@@ -421,6 +434,7 @@ def test_unmeasured_metrics_are_null_and_defaults_are_stored():
     assert json.loads(rk45["parameters"])["tol"] == rk45["tol"]
 
 
+@pytest.mark.slow
 def test_nan_invariant_of_a_plugin_is_flagged(fault_env):
     res = longtime(fault_env, "run", "-p", "plug-nan-invariant", "-i", "verlet", "--dt", "0.1",
                    "--t-final", "2", "--no-store", "--format", "json")
@@ -429,6 +443,7 @@ def test_nan_invariant_of_a_plugin_is_flagged(fault_env):
     assert "is not finite from t = 1" in row["message"]
 
 
+@pytest.mark.slow
 def test_nan_rhs_is_named_as_such(fault_env):
     """Before: rk45 on a NaN rhs said 'nonlinear solve did not converge'."""
     res = longtime(fault_env, "run", "-p", "plug-nan-rhs", "-i", "rk45", "--t-final", "2", "--no-store",
@@ -439,6 +454,7 @@ def test_nan_rhs_is_named_as_such(fault_env):
     assert "nonlinear" not in row["message"]
 
 
+@pytest.mark.slow
 def test_bad_reference_budget_variable_is_an_input_error(fault_env):
     res = longtime({**fault_env, "LONGTIME_REFERENCE_SECONDS": "abc"}, "run", "-p", "harmonic", "-i",
                    "verlet", "--no-store")
@@ -466,6 +482,7 @@ def test_corrupt_reference_cache_is_discarded_and_rebuilt(tmp_path, monkeypatch)
     assert all(f.stat().st_size > 100 for f in files if f.exists())
 
 
+@pytest.mark.slow
 def test_serial_run_killed_by_a_plugin_names_the_cell_and_resumes(fault_env, tmp_path):
     """Before: os.abort() in a serial `run` left the run 'running' with no trace of the cell,
     and --resume said there was no matrix run. Now the store knows the cell it died in; the
@@ -487,6 +504,7 @@ def test_serial_run_killed_by_a_plugin_names_the_cell_and_resumes(fault_env, tmp
     assert Store(db).runs()[-1]["status"] == "done"
 
 
+@pytest.mark.slow
 def test_an_order_one_error_does_not_read_as_a_plain_ok():
     from longtime.execution.cells import Cell, run_cell
 
@@ -497,6 +515,7 @@ def test_an_order_one_error_does_not_read_as_a_plain_ok():
     assert good["status"] == "ok" and "O(1)" not in good["message"]
 
 
+@pytest.mark.slow
 def test_corrupt_numba_cache_files_are_discarded_and_rebuilt(tmp_path):
     """Before: a truncated numba cache file failed the row ('pickle data was truncated') on
     every rerun, naming no file."""
@@ -527,6 +546,7 @@ def test_out_that_is_a_file_is_an_input_error(command, tmp_path, capsys):
     assert target.read_text() == "x"
 
 
+@pytest.mark.slow
 def test_a_matrix_rejected_as_it_starts_leaves_no_run(tmp_path, capsys, monkeypatch):
     """Before: a matrix rejected for bad input (found as the executor started) was recorded
     as a resumable run."""
@@ -548,7 +568,7 @@ def test_a_matrix_rejected_as_it_starts_leaves_no_run(tmp_path, capsys, monkeypa
     assert Store(db).runs() == []
 
 
-# --- items whose first tests did not fail on the code before issue 14 ------------------------
+# --- faults of privileges, foreign files and bad numbers ------------------------------------
 
 def _unprivileged():
     """A command prefix under which file permissions hold: root ignores them, so as root the
@@ -573,6 +593,7 @@ def _permission_prefix():
     return prefix
 
 
+@pytest.mark.slow
 def test_report_on_a_read_only_store_as_a_user_who_cannot_write_it(tmp_path, capsys):
     """test_report_on_a_read_only_store runs as root in CI containers, where the permission
     bits do not hold and the old report (CREATE TABLE, WAL switch) passed it. Here the report
@@ -591,6 +612,7 @@ def test_report_on_a_read_only_store_as_a_user_who_cannot_write_it(tmp_path, cap
         os.chmod(db, 0o644)
 
 
+@pytest.mark.slow
 def test_unreadable_store_is_a_one_line_error(tmp_path, capsys):
     prefix = _permission_prefix()
     db = tmp_path / "u.sqlite"
@@ -612,6 +634,7 @@ def test_unreadable_store_is_a_one_line_error(tmp_path, capsys):
     assert db.read_bytes() == content and sorted(p.name for p in tmp_path.iterdir()) == listing
 
 
+@pytest.mark.slow
 def test_unreachable_scheduler_is_an_input_error(tmp_path):
     """Before: an OSError traceback after 30 s (and a run left to resume)."""
     pytest.importorskip("distributed")
@@ -629,6 +652,7 @@ def test_unreachable_scheduler_is_an_input_error(tmp_path):
     assert not db.exists() or Store(db).runs() == []  # nothing to resume
 
 
+@pytest.mark.slow
 def test_a_growing_solution_is_not_called_diverged():
     """duffing-1's solution grows like exp(2t/3): the bound on the initial state's size called
     an accurate rk45 run diverged at t = 34.9 (its 1-norm passes 1e10 there)."""
@@ -642,6 +666,7 @@ def test_a_growing_solution_is_not_called_diverged():
     assert traj.t[-1] == 40.0 and np.abs(traj.u[-1]).sum() > 1e11
 
 
+@pytest.mark.slow
 def test_nan_exact_solution_of_a_plugin_is_named(fault_env):
     """Before: a NaN exact solution became a null error on an ok row with no message."""
     res = longtime(fault_env, "run", "-p", "plug-nan-exact", "-i", "verlet", "--dt", "0.1",
@@ -652,6 +677,7 @@ def test_nan_exact_solution_of_a_plugin_is_named(fault_env):
     assert "not finite at t = 1" in row["message"], row["message"]
 
 
+@pytest.mark.slow
 def test_report_of_a_killed_run_says_it_is_incomplete(fault_env, tmp_path):
     """Before: the report of a SIGKILLed run read like a finished one."""
     db = tmp_path / "killed.sqlite"

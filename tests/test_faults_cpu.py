@@ -25,7 +25,7 @@ def _matches(got, want):
                for k in got.keys() | want.keys())
 
 
-def test_item0_cpu_round_off_in_golden_fields_is_tolerated():
+def test_cpu_round_off_in_golden_fields_is_tolerated():
     """The differences another CPU makes (an ulp in libm and LAPACK, amplified) pass."""
     want = _stored_row()
     got = copy.deepcopy(want)
@@ -46,21 +46,22 @@ def test_item0_cpu_round_off_in_golden_fields_is_tolerated():
     ("eig1.growth_reason", lambda r: r["eig1.growth_reason"] + " "),
     ("H.growth", lambda r: r["H.growth"] + 1e-3),
 ])
-def test_item0_changes_beyond_round_off_still_fail(field, change):
+def test_changes_beyond_round_off_still_fail(field, change):
     want = _stored_row()
     got = copy.deepcopy(want)
     got[field] = change(got)
     assert not _matches(got, want)
 
 
-def test_item0_a_slope_about_zero_prints_as_zero():
+def test_a_slope_about_zero_prints_as_zero():
     from longtime.measure.growth import _verdict
     _, reason = _verdict(1e-31, [(-1.5e-31, 0.0), (1e-31, 0.0), (0.03, 0.01)], 1e-3, None)
     assert "-0.00" not in reason and "slopes 0.00, 0.00, 0.03" in reason
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(platform.machine() not in ("x86_64", "AMD64"), reason="x86-64 SIMD dispatch")
-def test_item0_golden_rows_hold_with_simd_dispatch_limited(tmp_path):
+def test_golden_rows_hold_with_simd_dispatch_limited(tmp_path):
     """Rows rebuilt with numpy at its baseline SIMD, OpenBLAS as a pre-AVX CPU and glibc's
     non-FMA libm (the Toda selection calls exp) match the stored ones."""
     env = dict(os.environ, NPY_DISABLE_CPU_FEATURES="X86_V3 X86_V4 AVX512_ICL AVX512_SPR",

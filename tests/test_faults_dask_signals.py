@@ -15,6 +15,8 @@ from test_faults_limits import _spin_env, env  # noqa: F401  (the plugins' fixtu
 from longtime.execution.limits import SIGNAL_GRACE_S, hard_limit
 from longtime.execution.store import Store
 
+pytestmark = pytest.mark.slow  # every test here starts processes, clusters or long runs
+
 
 def _cli(environ, *args, **kwargs):
     return subprocess.Popen([sys.executable, "-m", "longtime.commands.cli", *args], env=environ,
@@ -36,7 +38,7 @@ def _wait_for(path, seconds=180):
     return [int(x) for x in path.read_text().split()]
 
 
-def test_item3_a_spinning_dask_cell_ends_as_a_timeout_row(env, tmp_path):  # noqa: F811
+def test_a_spinning_dask_cell_ends_as_a_timeout_row(env, tmp_path):  # noqa: F811
     pytest.importorskip("distributed")
     proc = _cli(_spin_env(env, tmp_path), "run", "-p", "harmonic", "-i", "plug-spin,verlet", "--dt", "0.1",
                 "--t-final", "1", "--time-limit", "1", "--executor", "dask", "--jobs", "1", "--no-store",
@@ -50,7 +52,7 @@ def test_item3_a_spinning_dask_cell_ends_as_a_timeout_row(env, tmp_path):  # noq
         assert not _alive(pid)
 
 
-def test_item3_a_dask_cell_past_the_memory_limit_fails_with_the_limit(env):  # noqa: F811
+def test_a_dask_cell_past_the_memory_limit_fails_with_the_limit(env):  # noqa: F811
     pytest.importorskip("distributed")
     proc = _cli(env, "run", "-p", "harmonic", "-i", "plug-hog,verlet", "--dt", "0.1", "--t-final", "1",
                 "--memory-limit", "1", "--executor", "dask", "--jobs", "1", "--no-store", "--format", "json")
@@ -61,7 +63,7 @@ def test_item3_a_dask_cell_past_the_memory_limit_fails_with_the_limit(env):  # n
     assert rows["verlet"]["status"] == "ok"
 
 
-def test_item4_no_process_of_a_dask_task_outlives_its_client(env, tmp_path):  # noqa: F811
+def test_no_process_of_a_dask_task_outlives_its_client(env, tmp_path):  # noqa: F811
     """The client (with its local cluster) killed outright while a cell spins without a time
     limit: the cell's process dies with its worker, the worker with the client."""
     pytest.importorskip("distributed")
@@ -79,7 +81,7 @@ def test_item4_no_process_of_a_dask_task_outlives_its_client(env, tmp_path):  # 
     assert not alive, "the spinning cell outlived its client by 60 s"
 
 
-def test_item5_a_scheduler_address_that_is_not_dask_ends_in_bounded_time(tmp_path):
+def test_a_scheduler_address_that_is_not_dask_ends_in_bounded_time(tmp_path):
     pytest.importorskip("distributed")
     server = subprocess.Popen([sys.executable, "-m", "http.server", "0", "--bind", "127.0.0.1"],
                               stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
@@ -111,7 +113,7 @@ def _stuck_serial(env, tmp_path):  # noqa: F811
     return proc, db
 
 
-def test_item6_sigterm_ends_a_serial_run_stuck_in_a_compiled_step(env, tmp_path):  # noqa: F811
+def test_sigterm_ends_a_serial_run_stuck_in_a_compiled_step(env, tmp_path):  # noqa: F811
     proc, db = _stuck_serial(env, tmp_path)
     os.kill(proc.pid, signal.SIGTERM)
     start = time.monotonic()
@@ -125,7 +127,7 @@ def test_item6_sigterm_ends_a_serial_run_stuck_in_a_compiled_step(env, tmp_path)
     assert [c.integrator for c in died] == ["plug-spin"]  # the store knows the cell it was in
 
 
-def test_item6_a_second_signal_ends_it_at_once(env, tmp_path):  # noqa: F811
+def test_a_second_signal_ends_a_stuck_serial_run_at_once(env, tmp_path):  # noqa: F811
     proc, _ = _stuck_serial(env, tmp_path)
     os.kill(proc.pid, signal.SIGINT)
     time.sleep(0.5)

@@ -60,7 +60,8 @@ def _runs(db):
                 con.execute("SELECT status, row FROM rows").fetchall())
 
 
-def test_item1_full_temp_folder_interrupts_the_run_and_resume_completes_it(full_disk, tmp_path):
+@pytest.mark.slow
+def test_full_temp_folder_interrupts_the_run_and_resume_completes_it(full_disk, tmp_path):
     if full_disk is None:
         pytest.skip("no tmpfs can be mounted here (the simulated case is the next test)")
     db = tmp_path / "s.sqlite"
@@ -80,7 +81,8 @@ def test_item1_full_temp_folder_interrupts_the_run_and_resume_completes_it(full_
     assert runs == [(1, "done")] and sorted(s for s, _ in rows) == ["ok", "ok"]
 
 
-def test_item1_no_space_in_a_cell_is_not_stored_as_a_failed_row(tmp_path, monkeypatch, capsys):
+@pytest.mark.slow
+def test_no_space_in_a_cell_is_not_stored_as_a_failed_row(tmp_path, monkeypatch, capsys):
     """Simulated ENOSPC inside the cell (serial executor, this process): exit 1, no row, the
     run interrupted; resumed, the cells run."""
     from longtime.execution import cells
@@ -105,7 +107,8 @@ def test_item1_no_space_in_a_cell_is_not_stored_as_a_failed_row(tmp_path, monkey
     assert runs == [(1, "done")] and [s for s, _ in rows] == ["ok", "ok"]
 
 
-def test_item2_full_cache_folder_is_skipped_with_a_warning(full_disk, tmp_path):
+@pytest.mark.slow
+def test_full_cache_folder_is_skipped_with_a_warning(full_disk, tmp_path):
     if full_disk is None:
         pytest.skip("no tmpfs can be mounted here (the simulated case is the next test)")
     env = {**os.environ, "LONGTIME_CACHE_DIR": str(full_disk / "cache"),
@@ -118,7 +121,7 @@ def test_item2_full_cache_folder_is_skipped_with_a_warning(full_disk, tmp_path):
     assert Store(tmp_path / "s.sqlite").runs()[0]["status"] == "done"
 
 
-def test_item2_cache_write_without_space_warns_and_goes_on(tmp_path, monkeypatch):
+def test_cache_write_without_space_warns_and_goes_on(tmp_path, monkeypatch):
     from longtime.core import cache, files
 
     def full(fd, data):
@@ -138,7 +141,7 @@ def test_item2_cache_write_without_space_warns_and_goes_on(tmp_path, monkeypatch
         cache.write_atomic(tmp_path / "kernel.py", b"x")
 
 
-def test_item2_numba_cache_without_space_warns_and_runs(tmp_path, monkeypatch):
+def test_numba_cache_without_space_warns_and_runs(tmp_path, monkeypatch):
     import numba
     from numba.core import caching
 
@@ -159,7 +162,7 @@ def test_item2_numba_cache_without_space_warns_and_runs(tmp_path, monkeypatch):
         assert mod_item2.twice(21) == 42
 
 
-def test_item13_resume_marks_a_complete_run_done(tmp_path, monkeypatch, capsys):
+def test_resume_marks_a_complete_run_done(tmp_path, monkeypatch, capsys):
     """All rows stored, the end mark lost to a full disk (SQLite: database or disk is full):
     exit 1 naming the run; --resume sees nothing missing and marks it done, running nothing."""
     db = tmp_path / "s.sqlite"

@@ -1,6 +1,6 @@
 """Fault injection, continued: hard time and memory limits of a cell, stdout that carries only
-the contract, bad input refused up front, names that are identifiers. Each test failed on
-the code before these limits. Plugins are pip-installed as tests/_plugins.py describes."""
+the contract, bad input refused up front, names that are identifiers. Each test's docstring
+says the fault it guards against. Plugins are pip-installed as tests/_plugins.py describes."""
 import json
 import os
 import signal
@@ -125,6 +125,7 @@ def _spin_env(env, tmp_path):
 
 # --- hard time limit -------------------------------------------------------------------------
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheme", ["plug-spin", "plug-sleep"])
 def test_a_stuck_cell_of_run_ends_as_a_timeout_row(env, tmp_path, scheme):
     """Before: a compiled step that spins (or a plugin's Python that never returns) hung
@@ -143,6 +144,7 @@ def test_a_stuck_cell_of_run_ends_as_a_timeout_row(env, tmp_path, scheme):
     assert elapsed > hard_limit(1.0)  # the limit is what ended it
 
 
+@pytest.mark.slow
 def test_a_spinning_cell_of_the_default_matrix_ends_as_a_timeout_row(env, tmp_path):
     db = tmp_path / "m.sqlite"
     res = longtime(_spin_env(env, tmp_path), "matrix", "-p", "harmonic", "-i", "plug-spin,verlet,euler",
@@ -159,6 +161,7 @@ def test_a_spinning_cell_of_the_default_matrix_ends_as_a_timeout_row(env, tmp_pa
     assert status == "done"
 
 
+@pytest.mark.slow
 def test_ctrl_c_ends_a_run_stuck_in_a_compiled_step(env, tmp_path):
     """Before: SIGINT did not end a `run` whose cell spun in compiled code."""
     spin = _spin_env(env, tmp_path)
@@ -211,6 +214,7 @@ def test_the_estimate_counts_the_metrics_and_the_memory_limit(capsys):
                memory_limit=2**30)  # fits in 1 GiB: the eigenvalues go in chunks
 
 
+@pytest.mark.slow
 def test_toda_d5000_ends_within_its_limit(tmp_path):
     """The issue's command ran for minutes at 9.1 GB; SIGINT did not end it."""
     from longtime.execution.limits import hard_limit
@@ -230,6 +234,7 @@ def test_toda_d5000_ends_within_its_limit(tmp_path):
 
 # --- memory limit ----------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_a_cell_past_the_memory_limit_fails_alone(env):
     """Before: nothing limited a cell's memory (a plugin could invite the OOM killer)."""
     res = longtime(env, "run", "-p", "harmonic", "-i", "plug-hog,verlet", "--dt", "0.1", "--t-final", "1",
@@ -258,6 +263,7 @@ def test_bad_memory_limit_is_an_input_error(value, capsys):
 
 # --- stdout carries only the contract --------------------------------------------------------
 
+@pytest.mark.slow
 @pytest.mark.parametrize("extra", [[], ["--time-limit", "0"]])
 def test_plugin_output_does_not_corrupt_json(env, extra):
     """Before: a scheme's print (Python, numba, or to fd 1) went into the JSON on stdout.
@@ -304,6 +310,7 @@ def _unprivileged():
     return None
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["file", "read-only", "under-file"])
 def test_an_unusable_cache_folder_is_refused_up_front(tmp_path, kind):
     """Before: every cell failed on its own with PermissionError or NotADirectoryError."""
@@ -333,6 +340,7 @@ def test_an_unusable_cache_folder_is_refused_up_front(tmp_path, kind):
     assert len(res.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_a_stored_order_that_is_not_a_number_does_not_break_the_report(tmp_path, capsys):
     import sqlite3
 
@@ -350,6 +358,7 @@ def test_a_stored_order_that_is_not_a_number_does_not_break_the_report(tmp_path,
 
 # --- names are identifiers -------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_names_that_break_the_rule_are_broken_plugins(env):
     """Before: a scheme registered as ../../../../tmp/x was loaded (its name built cache file
     names), and 'a=b' failed with an AttributeError."""
@@ -380,6 +389,7 @@ def test_every_builtin_name_follows_the_rule():
         assert name_error("invariant", name) is None
 
 
+@pytest.mark.slow
 def test_an_invariant_name_that_breaks_the_rule_fails_its_cell(env):
     res = longtime(env, "run", "-p", "plug-dollar-invariant", "-i", "verlet", "--dt", "0.1", "--t-final", "1",
                    "--no-store", "--format", "json")

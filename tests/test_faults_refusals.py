@@ -3,10 +3,8 @@ runs; Ctrl-C while the command is still importing ends it without a traceback.""
 import json
 import os
 import shutil
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -25,7 +23,7 @@ def store_with_run(tmp_path):
     return db
 
 
-def test_item8_baseline_without_common_cells_is_refused_before_the_first_cell(store_with_run, capsys, monkeypatch):
+def test_baseline_without_common_cells_is_refused_before_the_first_cell(store_with_run, capsys, monkeypatch):
     from longtime.execution import matrix
 
     ran = []
@@ -39,7 +37,7 @@ def test_item8_baseline_without_common_cells_is_refused_before_the_first_cell(st
     assert not ran
 
 
-def test_item8_baseline_without_rows_is_refused_before_the_first_cell(store_with_run, capsys):
+def test_baseline_without_rows_is_refused_before_the_first_cell(store_with_run, capsys):
     store = Store(store_with_run)
     empty = store.begin_run("matrix -p harmonic", [Cell("harmonic", "verlet", {}, {"dt": 0.1}, 1.0)])
     store.finish_run(empty, "interrupted")
@@ -53,7 +51,7 @@ def test_item8_baseline_without_rows_is_refused_before_the_first_cell(store_with
 
 @pytest.mark.parametrize("value, text", [("1e-12", "below the smallest limit"), ("1e-300%", "below the smallest limit"),
                                          ("1e308", "beyond any machine's memory")])
-def test_item9_memory_limit_that_rounds_to_nothing_or_overflows_is_refused(value, text, capsys):
+def test_memory_limit_that_rounds_to_nothing_or_overflows_is_refused(value, text, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["run", "-p", "harmonic", "-i", "verlet", "--memory-limit", value, "--no-store"])
     err = capsys.readouterr().err
@@ -68,7 +66,7 @@ def _unprivileged():
     return None
 
 
-def test_item10_read_only_folders_are_refused_up_front(store_with_run, tmp_path):
+def test_read_only_folders_are_refused_up_front(store_with_run, tmp_path):
     prefix = _unprivileged()
     if prefix is None:
         pytest.skip("running as root without user namespaces: file permissions cannot be enforced")
@@ -108,7 +106,7 @@ sys.exit(main())
 """
 
 
-def test_item11_ctrl_c_during_imports_prints_no_traceback():
+def test_ctrl_c_during_imports_prints_no_traceback():
     """Ctrl-C in the command's imports (the first second) is exit 130 and one line. (Python's
     own start-up, before any of longtime's code runs, is the interpreter's: not covered.)"""
     res = subprocess.run([sys.executable, "-c", INTERRUPT_IMPORT], capture_output=True, text=True, timeout=120)
@@ -116,7 +114,7 @@ def test_item11_ctrl_c_during_imports_prints_no_traceback():
     assert res.stderr.strip() == "longtime: interrupted by SIGINT"
 
 
-def test_item11_the_console_script_enters_through_the_guarded_entry_point():
+def test_the_console_script_enters_through_the_guarded_entry_point():
     text = (Path(__file__).parents[1] / "pyproject.toml").read_text()
     assert 'longtime = "longtime.commands.entry:main"' in text
     script = Path(sys.executable).with_name("longtime")
@@ -124,7 +122,7 @@ def test_item11_the_console_script_enters_through_the_guarded_entry_point():
         assert "longtime.commands.entry" in script.read_text()
 
 
-def test_item12_rk45_tolerance_below_double_precision_is_refused(capsys):
+def test_rk45_tolerance_below_double_precision_is_refused(capsys):
     code = main(["run", "-p", "kepler", "-i", "rk45", "--tol", "1e-300", "--t-final", "1", "--no-store"])
     err = capsys.readouterr().err
     assert code == 2 and "below what double precision can meet" in err and "nonlinear" not in err, err

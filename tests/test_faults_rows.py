@@ -42,7 +42,7 @@ def _spoil(path, kind):
 
 
 @pytest.mark.parametrize("kind", list(BAD))
-def test_item7_one_bad_row_is_skipped_by_report_compare_html_and_history(kind, good_store, tmp_path, capsys):
+def test_one_bad_row_is_skipped_by_report_compare_html_and_history(kind, good_store, tmp_path, capsys):
     db = tmp_path / "s.sqlite"
     db.write_bytes(good_store)
     row_id = _spoil(db, kind)

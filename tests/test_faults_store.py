@@ -1,7 +1,7 @@
 """Faults around the store and the command's end: a lost Dask scheduler, foreign and empty
 stores, a full disk, SIGTERM and SIGHUP, leftover temp folders, errors in one line.
 
-Each test states what the code before it did wrong."""
+Each test's docstring says the fault it guards against."""
 import hashlib
 import os
 import resource
@@ -119,6 +119,7 @@ def test_empty_db_path_is_an_input_error(tmp_path, monkeypatch, capsys):
 
 # --- resume -----------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_resume_without_an_id_takes_the_newest_incomplete_run(tmp_path, monkeypatch, capsys):
     """Before: it took the newest run, complete or not ("0 cells left"), and the interrupt
     message said RUN_ID instead of the run's id."""
@@ -174,6 +175,7 @@ def _stored_rows(db) -> int:
         return 0
 
 
+@pytest.mark.slow
 def test_lost_dask_scheduler_is_an_interruption_not_failed_rows(tmp_path, capsys):
     """Before: killing the scheduler stored the unfinished cells as failed
     ("FutureCancelledError"), marked the run done, exited 0, and --resume found 0 cells."""
@@ -219,6 +221,7 @@ def test_lost_dask_scheduler_is_an_interruption_not_failed_rows(tmp_path, capsys
     assert statuses(db) == ["ok"] * 8 and runs(db) == [(1, "done")]
 
 
+@pytest.mark.slow
 def test_a_scheduler_that_is_not_an_address_is_one_line_and_leaves_no_run(tmp_path):
     """Before: a ValueError traceback, and an empty run left in the store to resume."""
     pytest.importorskip("distributed")
@@ -238,6 +241,7 @@ def _file_size_limit(limit: int):
     return set_limit
 
 
+@pytest.mark.slow
 def test_a_full_disk_is_one_line_and_resume_completes(tmp_path, capsys):
     """Before: a double traceback (the row, then marking the run) and the run left
     'running'. RLIMIT_FSIZE stands for the full disk: a write past it fails."""
@@ -285,6 +289,7 @@ def _error_line(argv, capsys) -> str:
     return one_line(capsys.readouterr().err)
 
 
+@pytest.mark.slow
 def test_report_outputs_that_cannot_be_written_are_one_line(one_run, tmp_path, capsys):
     """Before: tracebacks (NotADirectoryError, FileExistsError), exit 1."""
     (tmp_path / "a-file").write_text("x")
@@ -296,6 +301,7 @@ def test_report_outputs_that_cannot_be_written_are_one_line(one_run, tmp_path, c
     assert (tmp_path / "a-file").read_text() == "x"
 
 
+@pytest.mark.slow
 def test_report_out_into_a_folder_that_cannot_be_written(one_run, tmp_path):
     prefix = _permission_prefix()
     locked = tmp_path / "locked"
@@ -309,6 +315,7 @@ def test_report_out_into_a_folder_that_cannot_be_written(one_run, tmp_path):
     assert list(locked.iterdir()) == []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("run", ["¹", "٣", "1.0", "-1"])
 def test_a_run_id_is_an_ascii_number(one_run, capsys, run):
     """Before: `--run ¹` passed isdigit() and failed in int() with a traceback."""
@@ -333,6 +340,7 @@ def test_an_unexpected_error_is_one_line_and_debug_shows_the_traceback(monkeypat
     assert "Traceback" in err and err.strip().splitlines()[-1].startswith("longtime list: error: RuntimeError")
 
 
+@pytest.mark.slow
 def test_a_closed_stdout_is_quiet():
     """Before: `longtime list | head` printed a BrokenPipeError traceback."""
     proc = subprocess.Popen([sys.executable, "-m", "longtime.commands.cli", "list"], stdout=subprocess.PIPE,
@@ -369,6 +377,7 @@ def _pool_matrix(tmp_path, *extra):
     return proc, db, tmp
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGHUP, 129)])
 def test_sigterm_and_sighup_are_handled_like_ctrl_c(tmp_path, sig, code):
     """Before: SIGTERM exited 143 but left the run 'running' and its pool folder, with row
@@ -384,6 +393,7 @@ def test_sigterm_and_sighup_are_handled_like_ctrl_c(tmp_path, sig, code):
     assert _pool_folders(tmp) == []
 
 
+@pytest.mark.slow
 def test_a_later_run_removes_the_folders_of_killed_processes(tmp_path):
     """Before: every kill -9 of a matrix left its pool folder in the temp folder for good."""
     proc, _, tmp = _pool_matrix(tmp_path)

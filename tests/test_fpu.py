@@ -71,6 +71,7 @@ def max_deviation_of_I(p, t, U):
     return float(np.max(np.abs(I - I[0])))
 
 
+@pytest.mark.slow
 def test_oscillatory_energy_over_5000():
     """Measured (100,001 samples): the reference (heyoka) 0.0820, verlet 0.0900, mollified
     impulse 0.0762, rk4 0.977."""

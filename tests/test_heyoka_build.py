@@ -54,7 +54,7 @@ def test_heyoka_scheme_within_its_limit_is_timed_without_the_guard():
 
 
 def test_large_systems_compile_in_compact_mode(no_heyoka_cache):
-    # toda d = 200 took 326 s to compile as straight-line code on this machine
+    # toda d = 200 as straight-line code takes minutes to compile (docs/performance.md)
     problem = registry.problems()["toda"](d=200)
     assert heyoka_build.compact_mode(problem)
     assert not heyoka_build.compact_mode(registry.problems()["toda"](d=3))
@@ -66,7 +66,7 @@ def test_large_systems_compile_in_compact_mode(no_heyoka_cache):
 
 
 def test_a_compile_past_its_time_is_given_up(no_heyoka_cache):
-    # toda d = 40 as straight-line code compiles in about 5 s
+    # toda d = 40 as straight-line code compiles for longer than the time given below
     problem = registry.problems()["toda"](d=40)
     start = time.perf_counter()
     with pytest.raises(heyoka_build.CompileTimeout, match="toda"):

@@ -5,6 +5,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from longtime.commands import cli
 from longtime.reporting.history import levels, steps
 
@@ -30,6 +32,7 @@ def _git(repo, *args):
     return subprocess.run(["git", *args], cwd=repo, check=True, capture_output=True, text=True).stdout.strip()
 
 
+@pytest.mark.slow
 def test_five_commits_slower_at_3_less_accurate_at_4(tmp_path, capsys):
     """A scheme's repository of five commits, each measured into one store: commit 3 repeats
     its stages 1.2 times a step (1.5x the time of this cell), commit 4 adds a bias that costs
@@ -80,13 +83,14 @@ def test_five_commits_slower_at_3_less_accurate_at_4(tmp_path, capsys):
     text = capsys.readouterr().out
     timed = noise < cell["time_factor"]  # the time step is told from the noise (above)
     assert ("STEP time x" in text and f"at run 3, commit {commits[2][:10]}" in text) or not timed
-    assert f"STEP l2_error x" in text and f"at run 4, commit {commits[3][:10]}" in text
+    assert "STEP l2_error x" in text and f"at run 4, commit {commits[3][:10]}" in text
     # the results page of the latest run gains the history: one panel, the steps marked
     assert cli.main(["report", "--db", str(db), "--html", str(tmp_path / "page")]) == 0
     page = (tmp_path / "page" / "index.html").read_text()
     assert 'id="history-harmonic"' in page and ("1 cell, 2 steps marked" in page or not timed)
 
 
+@pytest.mark.slow
 def test_bad_selection_is_one_line(tmp_path, capsys):
     db = tmp_path / "empty.sqlite"
     assert cli.main(["run", "-p", "harmonic", "-i", "verlet", "--t-final", "1", "--db", str(db)]) == 0

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from longtime.core import registry
-from longtime.core.integrator import Timing
+from longtime.core.timing import Timing
 from longtime.execution.cells import expand, run_cell
 from longtime.reporting.compare import compare
 from longtime.reporting.compare_cells import INSTRUCTION_FACTOR
@@ -63,6 +63,7 @@ def counted(tmp_path_factory):
     return {(c.integrator, c.t_final): {**row, **fields[c.key]} for c, row in pairs}
 
 
+@pytest.mark.slow
 @needs_valgrind
 def test_count_covers_the_integration_only(counted):
     short, long = counted[("rk4", T)], counted[("rk4", 2 * T)]
@@ -78,6 +79,7 @@ def test_count_covers_the_integration_only(counted):
     assert external["instructions"] is None and "cannot be counted apart" in external["instructions_skipped"]
 
 
+@pytest.mark.slow
 @needs_valgrind
 def test_five_percent_more_work_a_step_is_flagged(counted):
     plain, heavier = counted[("instr-plain", 100.0)], counted[("instr-heavier", 100.0)]
@@ -95,6 +97,7 @@ def test_five_percent_more_work_a_step_is_flagged(counted):
     assert INSTRUCTION_FACTOR < ratio
 
 
+@pytest.mark.slow
 @needs_valgrind
 def test_counts_agree_beside_a_cpu_bound_process(counted):
     from longtime.execution.valgrind import instruction_fields
@@ -110,6 +113,7 @@ def test_counts_agree_beside_a_cpu_bound_process(counted):
     assert abs(again["instructions"] / first - 1) < 1e-3
 
 
+@pytest.mark.slow
 def test_missing_valgrind_is_one_line(tmp_path):
     env = {**os.environ, "PATH": str(tmp_path)}  # no valgrind (nor anything else) on PATH
     res = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "run", "-p", "kepler", "-i", "rk4",
@@ -155,6 +159,7 @@ def test_history_marks_a_step_in_the_count_and_none_in_its_noise(tmp_path):
     assert "STEP instructions x1.05" in render(found)
 
 
+@pytest.mark.slow
 def test_benchmark_cell_puts_the_count_in_extra_info(monkeypatch):
     from longtime.execution import valgrind
     from longtime.testing import benchmark_cell

@@ -24,7 +24,7 @@ import os
 import signal
 import time
 
-from longtime.core.integrator import FixedStepIntegrator
+from longtime.core.stepping import FixedStepIntegrator
 
 
 class _Misbehaving(FixedStepIntegrator):
@@ -75,6 +75,7 @@ def plugin(tmp_path, monkeypatch):
     registry.reload()
 
 
+@pytest.mark.slow
 def test_hang_and_crashes_become_rows_and_the_matrix_goes_on(plugin, tmp_path):
     assert {"test-hang", "test-exit", "test-segfault"} <= set(registry.integrators())
     cells = expand(["harmonic"], ["test-hang", "test-exit", "test-segfault", "verlet"], t_final=1.0)
@@ -103,6 +104,7 @@ def test_hang_and_crashes_become_rows_and_the_matrix_goes_on(plugin, tmp_path):
     assert elapsed < timeout + 60  # the hung cell was killed, not waited for
 
 
+@pytest.mark.slow
 def test_cli_matrix_with_cell_timeout_completes_with_a_timeout_row(plugin, tmp_path, capsys):
     db = tmp_path / "cli.sqlite"
     code = main(["matrix", "-p", "harmonic", "-i", "test-hang,test-exit", "--t-final", "1",

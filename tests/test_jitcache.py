@@ -10,10 +10,10 @@ from longtime.core import drivers, jitcache, registry
 
 PROBE = textwrap.dedent('''
     from longtime.core import registry
-    from longtime.core.integrator import _LOOPS
+    from longtime.core.kernel_cache import LOOPS
     p = registry.problem_class("toda")()
     traj = registry.integrator_class("rk4sym")(dt=0.1).integrate(p, 5.0)
-    (loop,) = _LOOPS.values()
+    (loop,) = LOOPS.values()
     print(sum(loop.stats.cache_hits.values()), traj.u[-1][0].hex())
 ''')
 

@@ -9,6 +9,7 @@ import textwrap
 
 import numba
 import numpy as np
+import pytest
 from _plugins import install_plugin, longtime
 
 from longtime import FixedStepIntegrator
@@ -99,6 +100,7 @@ TODA_PROBE = textwrap.dedent(f'''
 ''')
 
 
+@pytest.mark.slow
 def test_toda_d3_then_d4_in_one_process_matches_fresh_processes_bitwise(tmp_path):
     env = _private_cache(tmp_path, os.environ)
 
@@ -142,6 +144,7 @@ class Spring(Problem):
 '''
 
 
+@pytest.mark.slow
 def test_an_edited_plugin_rhs_runs_the_new_code(tmp_path):
     plugin_env, site = install_plugin(tmp_path / "plugin", "longtime-spring",
                                       {"problems": {"spring": "longtime_spring:Spring"}},
@@ -170,6 +173,7 @@ def test_an_edited_plugin_rhs_runs_the_new_code(tmp_path):
         assert set(kernels.glob("longtime_kernel_*.py")) - modules  # a new kernel module
 
 
+@pytest.mark.slow
 def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
     # a private numba cache too: clear removes its entries of generated kernels
     env = {**_private_cache(tmp_path, os.environ), "NUMBA_CACHE_DIR": str(tmp_path / "numba")}

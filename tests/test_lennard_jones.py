@@ -4,10 +4,10 @@ verlet's bounded energy error, the heyoka reference and the schemes' orders agai
 import numpy as np
 import pytest
 
+from longtime.core import registry
+from longtime.core.timing import Timing
 from longtime.execution import cells
 from longtime.measure import metrics
-from longtime.core import registry
-from longtime.core.integrator import Timing
 from longtime.measure.reference import reference_check
 
 

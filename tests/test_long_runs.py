@@ -5,10 +5,10 @@ import time
 
 import numpy as np
 
-from longtime.core import integrator as integrator_module
+from longtime.core import stepping
 from longtime.core.drivers import sample_steps
-from longtime.core.integrator import Timing
 from longtime.core.registry import integrator_class, problem_class
+from longtime.core.timing import Timing
 
 
 def test_samples_are_evenly_and_log_spaced_and_bounded():
@@ -26,16 +26,16 @@ def test_chunks_do_not_change_a_single_bit(monkeypatch):
     problem = problem_class("toda")()
     scheme = integrator_class("rk4")(dt=0.1)
     whole = scheme.integrate(problem, 500.0, max_samples=1001)
-    monkeypatch.setattr(integrator_module, "FIRST_CHUNK", 7)
-    monkeypatch.setattr(integrator_module, "CHUNK_SECONDS", 0.0)  # every chunk 7 steps
+    monkeypatch.setattr(stepping, "FIRST_CHUNK", 7)
+    monkeypatch.setattr(stepping, "CHUNK_SECONDS", 0.0)  # every chunk 7 steps
     pieces = scheme.integrate(problem, 500.0, max_samples=1001)
     assert whole.steps == pieces.steps == 5000
     assert np.array_equal(whole.t, pieces.t) and np.array_equal(whole.u, pieces.u)
 
 
 def test_a_deadline_stops_a_run_between_chunks(monkeypatch):
-    monkeypatch.setattr(integrator_module, "FIRST_CHUNK", 1000)
-    monkeypatch.setattr(integrator_module, "CHUNK_SECONDS", 0.0)
+    monkeypatch.setattr(stepping, "FIRST_CHUNK", 1000)
+    monkeypatch.setattr(stepping, "CHUNK_SECONDS", 0.0)
     problem = problem_class("toda")()
     scheme = integrator_class("rk4")(dt=0.1)
     scheme.integrate(problem, 1.0)  # compiled

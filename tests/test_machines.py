@@ -6,7 +6,7 @@ import json
 import pytest
 
 from longtime.commands import cli
-from longtime.core.integrator import Timing
+from longtime.core.timing import Timing
 from longtime.execution.cells import expand, run_cell
 from longtime.execution.store import Store
 

@@ -63,7 +63,7 @@ def test_l2_error_against_exact_solution_decreases_with_dt():
 
 
 def test_errors_cover_only_the_samples_up_to_the_reference_horizon():
-    from longtime.core.integrator import Trajectory
+    from longtime.core.trajectory import Trajectory
     from longtime.measure.metrics import evaluate
     from longtime.measure.reference import Trust
 

@@ -54,14 +54,14 @@ def test_a_crowded_figure_greys_the_schemes_off_the_front():
 
 
 def test_the_capability_matrix_flags_a_lost_solution():
-    from longtime.reporting.page import _capability_matrix
+    from longtime.reporting.page_tables import capability_matrix
 
     rows = [{"problem": "kepler", "integrator": "euler", "status": "ok", "solution_lost": True},
             {"problem": "kepler", "integrator": "euler", "status": "ok", "solution_lost": True},
             {"problem": "kepler", "integrator": "rk4", "status": "ok", "solution_lost": False},
             {"problem": "fpu", "integrator": "rk4", "status": "ok", "solution_lost": True},
             {"problem": "fpu", "integrator": "rk4", "status": "ok"}]
-    html = _capability_matrix(rows)
+    html = capability_matrix(rows)
     cells = re.findall(r'<td class="(\w+) cap"[^>]*>([^<]*)</td>', html)
     # schemes by name, problems by name: euler (fpu: not in the run), rk4 on fpu, rk4 on kepler
     assert cells == [("lost", "lost"), ("lost", "lost 1/2"), ("ok", "ok")]

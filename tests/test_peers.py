@@ -55,7 +55,7 @@ def kepler():
 def heyoka_kepler(kepler):
     """heyoka's states on kepler at the given times."""
     def at(times):
-        return reference._propagate(kepler, np.asarray(times), "double")[0]
+        return reference.propagate(kepler, np.asarray(times), "double")[0]
     return at
 
 
@@ -86,7 +86,7 @@ def test_cvode_against_heyoka_on_kepler(name, kepler, heyoka_kepler):
 
 @needs_diffrax
 @pytest.mark.parametrize("name", [n if n == "diffrax-tsit5" else pytest.param(n, marks=pytest.mark.slow)
-                                  for n in DIFFRAX])  # each compiles for about 10 s on a loaded machine
+                                  for n in DIFFRAX])  # each compiles jax code first: slow
 def test_diffrax_against_heyoka_on_kepler(name, kepler, heyoka_kepler):
     error, traj = _error_against_heyoka(name, kepler, heyoka_kepler)
     assert error < 100 * TOL, f"{name}: {error:.3g}"

@@ -75,6 +75,7 @@ def test_plugin_is_listed_and_broken_plugin_reported(plugin_env):
     assert "rk4" in {i["name"] for i in data["integrators"]}  # the rest go on
 
 
+@pytest.mark.slow
 def test_plugin_joins_the_matrix(plugin_env, tmp_path):
     db = tmp_path / "plugin.sqlite"
     res = longtime(plugin_env, "matrix", "-p", "plug-pendulum,harmonic", "-i", "plug-heun,plug-exploding,rk4,verlet",

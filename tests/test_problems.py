@@ -1,4 +1,4 @@
-"""Problems of issue 2 (and docs/problems.md 6): initial data, invariants, references, bad settings."""
+"""The problems of docs/problems.md: initial data, invariants, references, bad settings."""
 import numpy as np
 import pytest
 

@@ -6,18 +6,19 @@ import subprocess
 import pytest
 
 from longtime.commands import cli
+from longtime.core.params import InputError
+from longtime.core.timing import Timing
 from longtime.execution import provenance
+from longtime.execution import processes
 from longtime.execution.cells import Cell, run_cell
 from longtime.execution.matrix import ExecOptions, run_matrix
-from longtime.execution import processes
 from longtime.execution.processes import MAX_ROUNDS, check_processes, merge, time_cells
-from longtime.core.integrator import Timing
-from longtime.core.params import InputError
 from longtime.reporting.compare_cells import compare_rows
 from longtime.reporting.compare_text import label
 from longtime.reporting.history import process_factor, series_specs
 
 
+@pytest.mark.slow
 def test_n_processes_give_n_minima_and_cpu_s_is_their_minimum():
     cells = [Cell("kepler", "rk4", {}, {"dt": 0.01}, 20.0), Cell("harmonic", "verlet", {}, {"dt": 0.05}, 20.0)]
     rows = run_matrix(cells, None, None, "serial", ExecOptions(processes=3, timing=Timing(repeats=6, min_time=0)))
@@ -111,7 +112,7 @@ def test_the_cell_verdict_judges_the_spread_between_processes():
     assert c["time_verdict"] == "slower" and c["time_threshold"] == 1.2 and "between processes" in c["regressions"][0]
     # a wide spread raises the threshold above --factor
     assert compare_rows(_row(1.0, 1.6), _row(1.5, 1.1))["time_threshold"] == 1.6
-    # rows timed in one process: the old single-cell factor (x2)
+    # rows timed in one process: the single-process factor (x2)
     c = compare_rows(_row(1.0, None), _row(1.5, None))
     assert c["time_verdict"] == "within" and c["time_threshold"] == 2.0 and c["process_spread"] is None
     # the repeats within a process do not enter: a wide spread of samples changes nothing
@@ -184,9 +185,9 @@ def test_provenance_finds_the_commit_and_dirty_flag_of_the_code_under_test(tmp_p
     assert entry["repository"] is None and "no git repository" in entry["reason"]
 
 
+@pytest.mark.slow
 def test_a_stored_run_records_the_code_under_test(tmp_path, monkeypatch, capsys):
     from longtime.core import registry
-    from longtime.execution.store import Store
 
     repo = tmp_path / "author"
     repo.mkdir()
@@ -229,6 +230,7 @@ def _measure_author_runs(tmp_path, head, capsys):
     assert head[:10] in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_benchmark_cell_times_in_processes_and_asv_runs_in_processes():
     from longtime.asvbench import benchmarks
     from longtime.execution.processes import DEFAULT_PROCESSES

@@ -61,12 +61,12 @@ def _pericentre_errors(p, states, orbits=16):
 
 
 def test_kepler_exact_solution_is_the_orbit_of_the_rounded_state():
-    # e = 0.99: the rounded u0 has a period 1.5e-14 shorter than the formula's 2 pi; the old
-    # formula was 1.06e-9 off at the 16th pericentre, the elements of u0 itself 6e-13
+    # e = 0.99: the rounded u0 has a period 1.5e-14 shorter than the formula's 2 pi; the formula's
+    # orbit is 1.06e-9 off at the 16th pericentre, the orbit of the elements of u0 itself 6e-13
     p = Kepler(e=0.99)
 
     def states(t, precision):
-        return reference._propagate(p, t, precision)[0]
+        return reference.propagate(p, t, precision)[0]
 
     vs_long_double, vs_real128 = _pericentre_errors(p, states)
     assert vs_real128 < 2e-12
@@ -99,7 +99,7 @@ def test_a_cached_check_is_reused(fresh_cache, monkeypatch):
         raise AssertionError("the check ran again")
 
     monkeypatch.setattr(reference, "_stepped_run", no_heyoka)
-    monkeypatch.setattr(reference, "_propagate", no_heyoka)
+    monkeypatch.setattr(reference, "propagate", no_heyoka)
     start = time.perf_counter()
     assert reference.reference_check(p, 300.0) == first
     assert time.perf_counter() - start < max(0.1, elapsed / 2)

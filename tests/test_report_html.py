@@ -142,6 +142,7 @@ def test_drift_figure_comes_from_the_rows_without_running_anything(page, monkeyp
     assert figure and "<path" in figure and not notes
 
 
+@pytest.mark.slow
 def test_main_job_page_takes_the_figures_its_workers_drew(tmp_path, monkeypatch):
     """`longtime matrix` on the process pool: each problem's figures are drawn by a worker
     with no cell left (figures_ahead.FiguresAhead), and the page uses them as drawn; the
@@ -242,11 +243,11 @@ def test_drift_figures_drawn_ahead_outlive_a_new_cpu_time_unless_it_changes_the_
     assert groups == ("drift",)  # the work-precision figures wait for the final CPU times
     drift_figs = {f: f"<{f}>" for f in FIGURE_GROUPS["drift"]}
     done(drift_figs)
-    # verlet's rows now cheaper than rk4's, each scheme's order by cost kept
+    # verlet's rows retimed cheaper than rk4's, each scheme's order by cost kept
     retimed = [{**r, "cpu_s": r["cpu_s"] * (0.1 if r["integrator"] == "verlet" else 1.0),
                 "cpu_s_processes": [r["cpu_s"]]} for r in rows]
     assert ahead.figures("harmonic", retimed, style, drift) == drift_figs
-    # rk4 at dt 0.02 now cheaper than at 0.05: its median setting is another row
+    # rk4 at dt 0.02 made cheaper than at 0.05: its median setting is another row
     moved = [{**r, "cpu_s": 1e-4} if r["integrator"] == "rk4" and r["dt"] == 0.02 else r for r in rows]
     assert ahead.figures("harmonic", moved, style, drift) is None
     other_curve = [{**r, "drift_curves": [curve(7.0)]} if r["integrator"] == "verlet" else r for r in rows]

@@ -6,7 +6,7 @@ import sys
 import pytest
 
 import longtime
-from longtime.reporting.report import NO_POINTWISE, answer_rows, count_lines, first_screen, report_text
+from longtime.reporting.screen import NO_POINTWISE, answer_rows, count_lines, first_screen, report_text
 
 PROBLEMS = ["harmonic", "kepler", "henon-heiles", "duffing-1"]
 

@@ -8,6 +8,7 @@ import pytest
 
 from longtime.core import registry
 from longtime.commands import reproduce as rep
+from longtime.commands import reproduce_sections
 from longtime.commands.cli import main
 
 
@@ -20,7 +21,7 @@ def _row(report: str, first_cells: str) -> list[str]:
 
 def test_toda_section_beside_the_paper(tmp_path, monkeypatch):
     # BPL rows need a search: the table's other rows are the subject here
-    monkeypatch.setattr(rep, "PAPER_TODA_BPL", {})
+    monkeypatch.setattr(reproduce_sections, "PAPER_TODA_BPL", {})
     path, failed = rep.reproduce(tmp_path, quick=True, figures=False, executor="serial", sections=["toda"])
     text = path.read_text()
     assert failed == []

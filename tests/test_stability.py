@@ -80,20 +80,20 @@ def test_one_step_runs_the_loop_a_run_compiled(name):
     run's argument types: after a run on the harmonic oscillator one_step takes the same
     compiled loop and adds no signature to it (a cold main job loads, not compiles, it)."""
     from longtime.core import registry
-    from longtime.core.integrator import _PAIRS
+    from longtime.core.kernel_cache import PAIRS
     from longtime.problems.harmonic import Harmonic
 
     problem = Harmonic()
     run = registry.integrator_class(name)()
     run.integrate(problem, 1.0, max_samples=3)
-    loop = _PAIRS[run][id(problem)][1]
+    loop = PAIRS[run][id(problem)][1]
     signatures = list(loop.signatures)
     measured = stability._scheme(name)
     step = stability.one_step(measured, problem)
     u = np.array([1.0, 0.0])
     assert step(u, problem.params, 0.5)
     assert abs(math.hypot(*u) - 1.0) < 1e-2  # one step of a rotation keeps |u| near 1
-    assert _PAIRS[measured][id(problem)][1] is loop
+    assert PAIRS[measured][id(problem)][1] is loop
     assert list(loop.signatures) == signatures
 
 

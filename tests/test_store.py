@@ -54,6 +54,7 @@ def test_ctrl_c_keeps_finished_cells_and_resume_completes(tmp_path, monkeypatch,
     assert "resuming run 1: 7 cells left" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_killed_matrix_keeps_finished_cells(tmp_path):
     db = tmp_path / "killed.sqlite"
     env = {**os.environ, "LONGTIME_DB": str(db)}

@@ -2,9 +2,11 @@
 import numpy as np
 import pytest
 
-from longtime.execution.cells import Cell, run_cell
-from longtime.core.integrator import Integrator, Timing, Trajectory, same_run
+from longtime.core.integrator import Integrator
 from longtime.core.params import InputError
+from longtime.core.timing import Timing
+from longtime.core.trajectory import Trajectory, same_run
+from longtime.execution.cells import Cell, run_cell
 from longtime.problems.harmonic import Harmonic
 
 

@@ -8,14 +8,14 @@ import time
 import pytest
 from _procs import children
 
-from longtime.core.integrator import Timing
-from longtime.integrators.explicit_rk import RK4
+from longtime.core.timing import Timing
 from longtime.execution import child as child_processes
-from longtime.execution import isolation, processes
+from longtime.execution import isolation
 from longtime.execution.cells import Cell
 from longtime.execution.child import RunSpec
 from longtime.execution.matrix import ExecOptions, run_matrix
 from longtime.execution.processes import merge, time_cells
+from longtime.integrators.explicit_rk import RK4
 
 
 def test_timing_round_trips_through_its_dict_with_min_runs():
@@ -124,7 +124,7 @@ def test_a_plugin_that_kills_its_timing_process_is_named_on_its_own_row_only():
 
 @pytest.mark.parametrize("executor", ["serial", "process"])
 def test_rows_of_one_process_are_stored_with_the_process_fields_they_print(tmp_path, executor):
-    from longtime.core.integrator import Timing
+    from longtime.core.timing import Timing
     from longtime.execution.cells import Cell
     from longtime.execution.matrix import ExecOptions, run_matrix
     from longtime.execution.store import Store

@@ -8,7 +8,6 @@ import re
 import pytest
 
 from longtime.commands import cli
-from longtime.core.params import InputError
 from longtime.execution.cells import Cell
 from longtime.execution.store import Store
 from longtime.execution import checks as XC
@@ -256,7 +255,7 @@ def test_recommend_answers_in_a_few_lines(store, capsys):
     out = capsys.readouterr().out
     assert "use      rk4 dt=0.1: error 0.001 at T (linear: t^1, alpha 1.30 [1.25, 1.35] fitted, trusted to t = 1e+05" in out
     assert "runner-up verlet dt=0.1: error 0.1 at T" in out
-    assert f"open     gauss4 dt=0.1" in out and "--t-final 100000 --db" in out
+    assert "open     gauss4 dt=0.1" in out and "--t-final 100000 --db" in out
     # past every setting's reach nothing is predicted: no answer (exit 3), naming the run that decides
     assert cli.main(["recommend", "-p", "harmonic", "--error", "0.2", "--horizon", "1e6", "--db", store]) == 3
     assert "`longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 1e+06" in capsys.readouterr().out

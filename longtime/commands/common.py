@@ -156,6 +156,6 @@ def wrapped(text: str) -> str:
     """A line of the report's text wrapped at the report's width, continued indented."""
     import textwrap
 
-    from longtime.reporting.report import WIDTH
+    from longtime.reporting.screen import WIDTH
 
     return "\n".join(textwrap.wrap(text, width=WIDTH, subsequent_indent="  ", break_on_hyphens=False))

@@ -21,7 +21,7 @@ def study(problems: list[str], schemes: list[str], dt: float | None = None, t_fi
     together) runs under ``time_limit`` and ``memory_limit`` as a cell does (limits.call_limited):
     past them its row is ``timeout`` or ``failed``."""
     from longtime.core import registry
-    from longtime.core.integrator import FixedStepIntegrator
+    from longtime.core.stepping import FixedStepIntegrator
     from longtime.execution.cells import Cell, build
     from longtime.measure import lyapunov
 

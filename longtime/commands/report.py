@@ -53,7 +53,8 @@ def cmd_report(args) -> int:
         ensembles = [e for e in ensembles if e["problem"] in args.problem]
     notices(r["integrator"] for r in rows)
     from longtime.reporting.page import write_html
-    from longtime.reporting.report import report_text, to_parquet
+    from longtime.reporting.report import to_parquet
+    from longtime.reporting.screen import report_text
 
     page = None
     if args.html:

@@ -137,7 +137,7 @@ def heyoka_row(problem_name: str, invariant: str, times: np.ndarray) -> dict[str
     schemes' span, sampled at their times; a row like the schemes' (no ensemble)."""
     from longtime.core import registry
     from longtime.measure.metrics import relative_error
-    from longtime.measure.reference import ReferenceUnavailable, _propagate
+    from longtime.measure.reference import ReferenceUnavailable, propagate
 
     problem = registry.problem_class(problem_name)()
     row: dict[str, Any] = {"problem": problem_name, "invariant": invariant, "scheme": "heyoka",
@@ -149,7 +149,7 @@ def heyoka_row(problem_name: str, invariant: str, times: np.ndarray) -> dict[str
         return row
     c0 = time.process_time()
     try:
-        states, stopped = _propagate(problem, np.asarray(times, dtype=float), "double", budget_s=600.0)
+        states, stopped = propagate(problem, np.asarray(times, dtype=float), "double", budget_s=600.0)
     except ReferenceUnavailable as exc:
         row.update(status="failed", message=str(exc))
         return row

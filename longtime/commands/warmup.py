@@ -15,7 +15,8 @@ import time
 from typing import Any
 
 from longtime.core import cli_args, registry, roles
-from longtime.core.integrator import FixedStepIntegrator, Timing
+from longtime.core.stepping import FixedStepIntegrator
+from longtime.core.timing import Timing
 from longtime.execution.cells import Cell, build, expand
 from longtime.execution.pool import spawn_pool
 from longtime.execution.pool import workers as pool_workers

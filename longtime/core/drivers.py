@@ -128,7 +128,7 @@ def fixed_step_loop(step):
     def loop(u, t0, t_final, dt, k_start, k_stop, nsteps, sample_at, j, n_out, params, work,
              out_t, out_u, counters, blowup):
         t = t0 + k_start * dt
-        next_sample = sample_at[j]  # compared once per step, like the old countdown
+        next_sample = sample_at[j]  # the next sampled step, compared once per step
         for k in range(k_start, k_stop):
             t = t0 + k * dt
             h = dt if k < nsteps - 1 else t_final - t

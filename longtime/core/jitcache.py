@@ -17,7 +17,7 @@ function reachable from it and of every value it closes over, and of the package
 version. Editing any of them (a plugin's rhs, a coefficient, a captured dimension) gives
 another module text, hence another module and a fresh compilation: a cached kernel is
 never stale. The same fingerprint keys the compiled loops shared within a process
-(``longtime.core.integrator.cached_kernel``).
+(``longtime.core.kernel_cache.cached_kernel``).
 """
 from __future__ import annotations
 

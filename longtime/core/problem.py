@@ -88,6 +88,36 @@ def separable_rhs(grad_T: Callable, grad_V: Callable) -> Callable:
 
 
 class Problem(ABC):
+    """Base class of every problem: the contract a new problem implements.
+
+    A problem is a subclass registered under the entry-point group ``longtime.problems``
+    (docs/plugins.md is the whole contract as a checklist; ``longtime.core.contract`` checks
+    it when the class is defined, so a class that breaks it fails at import).
+
+    A subclass must provide:
+
+    - ``initial_state()``: the state u0 at ``t0``, a finite float64 vector (its size is
+      ``dim``);
+    - ``rhs(t, u, params, out)``: u' = f(t, u), a numba-compiled function attached as a
+      ``staticmethod`` that writes into ``out`` and never allocates.
+
+    It may provide:
+
+    - the capabilities of the module docstring (``grad_T`` and ``grad_V``, ``jac``,
+      ``taylor``, ``frequencies`` and ``grad_U``, ``field_B`` and ``field_E``,
+      ``constraints``, ``jax_rhs``, ``heyoka_system``, ``exact``, ...): each is ``None`` here
+      and provided by defining it; ``capabilities()`` reads them off, and a scheme's
+      ``requires`` is matched against that set;
+    - ``invariants``, ``violations`` and ``diagnostics``: quantities over the samples,
+      vectorised (``U`` of shape (n, dim));
+    - ``parameters``: ``{name: Param}``, the settings it takes (``self.settings`` holds them
+      resolved), and ``setup()`` and ``kernel_params()`` to derive the float64 ``params``
+      array the compiled functions receive;
+    - the class attributes below: ``name`` and ``summary``, ``t0``, ``default_t_final`` and
+      ``default_dt``, the default matrix's sweep, ``chaotic``, ``autonomous`` and the
+      divergence bound (``blowup_factor``, or ``size_bound`` for a solution that grows).
+    """
+
     name: ClassVar[str] = ""  # the registry sets it from the entry point when empty
     summary: ClassVar[str] = ""
     parameters: ClassVar[dict[str, Param]] = {}

@@ -8,6 +8,9 @@ time), redrawn every ``TERMINAL_SECONDS`` even when no unit ends. Elsewhere (a p
 log, ``| tee``, a terminal that reports 0 columns) each phase is plain lines, one line per
 message, newline-terminated: one when the phase starts, one every ``PLAIN_SECONDS``, one
 when it ends. ``$LONGTIME_PROGRESS_SECONDS`` sets both intervals.
+
+A single run of a scheme that goes on for more than ``RUN_SECONDS`` prints a ``RunProgress``
+line on stderr every ``RUN_SECONDS`` (``$LONGTIME_PROGRESS=0`` turns these lines off).
 """
 from __future__ import annotations
 
@@ -21,6 +24,7 @@ from typing import Any, Iterator, TextIO
 ENV_SECONDS = "LONGTIME_PROGRESS_SECONDS"
 TERMINAL_SECONDS = 5.0  # a redraw of the bar: a terminal sees something at least this often
 PLAIN_SECONDS = 30.0  # a line in a log: at least this often
+RUN_SECONDS = 10.0  # a run still going after this many wall seconds says where it is, this often
 
 
 def is_terminal(stream: Any) -> bool:
@@ -162,3 +166,28 @@ class Progress:
 
 
 OFF = Progress(on=False)
+
+
+class RunProgress:
+    """A line on stderr now and then while a long run goes on (never for short ones): the
+    run ``label`` (problem x scheme), its time against ``t_final`` from ``t0``."""
+
+    def __init__(self, label: str, t0: float, t_final: float) -> None:
+        self.label = label
+        self.t0, self.t_final = t0, t_final
+        self.start = self.last = time.monotonic()
+        self.on = os.environ.get("LONGTIME_PROGRESS", "1") != "0"
+        self.shown = False
+
+    def update(self, t: float) -> None:
+        now = time.monotonic()
+        if self.on and now - self.last >= RUN_SECONDS:
+            self.last, self.shown = now, True
+            done = (t - self.t0) / (self.t_final - self.t0)
+            print(f"longtime: {self.label}: t = {t:.6g} of {self.t_final:.6g} ({100 * done:.0f} %, "
+                  f"{now - self.start:.0f} s)", file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        if self.shown:
+            print(f"longtime: {self.label}: done in {time.monotonic() - self.start:.0f} s",
+                  file=sys.stderr, flush=True)

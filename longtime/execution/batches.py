@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 from longtime.core import phases
-from longtime.core.integrator import Timing
+from longtime.core.timing import Timing
 from longtime.execution import calibration
 from longtime.execution.cells import DEFAULT_TIME_LIMIT, Cell, cell_size, run_cell
 
@@ -37,7 +37,7 @@ def estimated_work(cell: Cell, dims: dict[str, int]) -> float:
         return 0.0
 
 
-def _calibrated(here: calibration.Calibrator, cell: Cell, max_samples: int, timing: Timing,
+def calibrated_row(here: calibration.Calibrator, cell: Cell, max_samples: int, timing: Timing,
                 time_limit: float | None) -> dict:
     """run_cell's row with the machine's speed beside it (longtime.execution.calibration)."""
     t0 = time.time()
@@ -57,21 +57,21 @@ def run_batch(cells: list[Cell], max_samples: int, timing: Timing, folder: str |
     for c in cells:
         marker = Path(folder, f"running-{os.getpid()}") if folder else None
         if marker is not None:
-            _write(marker, c.to_dict())
-        row = _calibrated(here, c, max_samples, timing, time_limit)
+            write_json(marker, c.to_dict())
+        row = calibrated_row(here, c, max_samples, timing, time_limit)
         if marker is not None:
-            _write(Path(folder, f"row-{_digest(c.key)}.json"), {"cell": c.to_dict(), "row": row})
+            write_json(Path(folder, f"row-{key_digest(c.key)}.json"), {"cell": c.to_dict(), "row": row})
             marker.unlink(missing_ok=True)  # gone when the watchdog has claimed it
         rows.append(row)
     here.finish()
     return rows
 
 
-def _digest(text: str) -> str:
+def key_digest(text: str) -> str:
     return hashlib.sha1(text.encode()).hexdigest()
 
 
-def _write(path: Path, data) -> None:
+def write_json(path: Path, data) -> None:
     tmp = path.with_name(path.name + ".part")
     tmp.write_text(json.dumps(data))
     tmp.replace(path)  # atomic: a reader never sees half a file

@@ -28,11 +28,11 @@ from typing import Any, Iterable
 
 from longtime.core import registry
 from longtime.core.fmt import number
-from longtime.core.integrator import FixedStepIntegrator
+from longtime.core.stepping import FixedStepIntegrator
 from longtime.execution.cells import Cell, cell_size
 
-# seconds a compiled RK4 step costs per state component (measured: 20 to 30 ns on the main
-# job's problems, docs/performance.md)
+# seconds a compiled RK4 step costs per state component (measured on the main job's problems:
+# docs/performance.md)
 COMPONENT_STEP_S = 3e-8
 # the estimated seconds of one run of a default cell (its timed repeats come on top)
 CELL_BUDGET_S = 5.0

@@ -17,11 +17,14 @@ from typing import Any, Iterable, Mapping
 
 from longtime.core import contract, phases, registry, roles
 from longtime.core.cache import no_space
-from longtime.core.integrator import FixedStepIntegrator, Integrator, Timing, Trajectory
+from longtime.core.integrator import Integrator
 from longtime.core.outputs import to_stderr
 from longtime.core.params import InputError, check_time_span, unknown_parameter
 from longtime.core.problem import Problem
 from longtime.core.roles import ROW_PARAMETERS
+from longtime.core.stepping import FixedStepIntegrator
+from longtime.core.timing import Timing
+from longtime.core.trajectory import Trajectory
 from longtime.execution import limits
 from longtime.execution.tempdirs import disk_full
 from longtime.measure import lyapunov, metrics

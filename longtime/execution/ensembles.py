@@ -39,7 +39,6 @@ from typing import Any, Iterable
 import numpy as np
 
 from longtime.core import registry
-from longtime.core.integrator import FixedStepIntegrator
 from longtime.core.roles import ROW_PARAMETERS
 from longtime.measure import ensemble, lyapunov
 

@@ -21,10 +21,10 @@ from typing import Any, Callable, Iterator
 
 from longtime.core import phases, registry
 from longtime.core.cache import no_space
-from longtime.core.integrator import Timing
 from longtime.core.params import InputError, check_choice
+from longtime.core.timing import Timing
 from longtime.execution import calibration, tempdirs
-from longtime.execution.batches import _calibrated, _digest, _write, batches_by_pair, run_batch
+from longtime.execution.batches import batches_by_pair, calibrated_row, key_digest, run_batch, write_json
 from longtime.execution.cells import (
     DEFAULT_MAX_SAMPLES,
     DEFAULT_TIME_LIMIT,
@@ -100,7 +100,7 @@ def serial(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict
             # the cell runs in this process (a script's, a notebook's): under the memory limit a
             # worker has, lifted again before the row is handed on
             with memory_limited(options.memory_limit):
-                row = _calibrated(here, cell, options.max_samples, options.timing, options.time_limit)
+                row = calibrated_row(here, cell, options.max_samples, options.timing, options.time_limit)
             yield cell, row
 
 
@@ -125,7 +125,7 @@ def shared_code(batch: list[Cell]) -> frozenset[str]:
 
 def _family_module(module: str) -> bool:
     """A module of problems or schemes (longtime's own, or a plugin's); the base classes'
-    modules (longtime.core.integrator, abc, builtins) are every batch's, so never a key."""
+    modules (longtime.core's, abc, builtins) are every batch's, so never a key."""
     return module.startswith(_FAMILY_PACKAGES) or module.split(".")[0] not in ("longtime", "abc", "builtins")
 
 
@@ -207,11 +207,11 @@ def _record_timeout(folder: str, time_limit: float) -> Callable[[dict, float], N
 
     def record(cell_dict: dict, elapsed: float) -> None:
         cell = Cell.from_dict(cell_dict)
-        path = Path(folder, f"row-{_digest(cell.key)}.json")
+        path = Path(folder, f"row-{key_digest(cell.key)}.json")
         if path.exists():  # it ended just ahead of the kill: its own row stands
             return
         row = {**base_row(cell), "status": "timeout", "message": timeout_message(time_limit, elapsed)}
-        _write(path, {"cell": cell.to_dict(), "row": row})
+        write_json(path, {"cell": cell.to_dict(), "row": row})
 
     return record
 

@@ -36,8 +36,8 @@ import time
 from typing import Any, Callable, Iterable
 
 from longtime.core import phases
-from longtime.core.integrator import Timing
 from longtime.core.params import InputError
+from longtime.core.timing import Timing
 from longtime.execution import child as children
 from longtime.execution import tempdirs
 from longtime.execution.cells import Cell, build

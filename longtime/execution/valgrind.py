@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from longtime.core import registry
-from longtime.core.integrator import AdaptiveIntegrator, FixedStepIntegrator
+from longtime.core.stepping import AdaptiveIntegrator, FixedStepIntegrator
 from longtime.execution import child as children
 from longtime.execution import tempdirs
 from longtime.execution.cells import Cell, build
@@ -284,7 +284,7 @@ def _run_one(cell: Cell, max_samples: int, where: str) -> dict[str, Any]:
 def main(argv: list[str]) -> int:
     """Count the cells of the job in the folder ``argv[0]`` (under Valgrind); for a job with
     ``prepare``, run them once outside it to compile and cache their kernels."""
-    from longtime.core import integrator as core_integrator
+    from longtime.core import stepping
 
     folder = argv[0]
     job = children.read_job(folder)
@@ -294,7 +294,7 @@ def main(argv: list[str]) -> int:
     # one call into the compiled loop per run: the chunks that let a timed run see its
     # deadline would each add a call's dispatch to the count, and their number follows the
     # wall clock
-    core_integrator.FIRST_CHUNK = 2**62
+    stepping.FIRST_CHUNK = 2**62
     if not preparing:
         instructions.running()  # the request function is compiled before any cell
     for i, cell in enumerate(job.cells):

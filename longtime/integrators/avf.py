@@ -24,8 +24,8 @@ import numba
 import numpy as np
 
 from longtime.core.drivers import FAILED, NL_ITERS, OK, RHS_EVALS, state_scale, track_increment
-from longtime.core.integrator import FixedStepIntegrator
 from longtime.core.params import Param
+from longtime.core.stepping import FixedStepIntegrator
 from longtime.integrators.implicit_rk import ImplicitRungeKutta, iteration_done
 
 

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numba
 
 from longtime.core.drivers import OK, RHS_EVALS
-from longtime.core.integrator import FixedStepIntegrator
+from longtime.core.stepping import FixedStepIntegrator
 
 # rows of ``work``: B and E at the current positions (valid unless the run just started)
 B_ROW, E_ROW = 0, 1

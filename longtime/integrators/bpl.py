@@ -54,8 +54,8 @@ import numba
 import numpy as np
 
 from longtime.core.drivers import EXTRA1, EXTRA2, FALLBACKS, RHS_EVALS
-from longtime.core.integrator import AdaptiveIntegrator
 from longtime.core.params import InputError, Param
+from longtime.core.stepping import AdaptiveIntegrator
 from longtime.numerics.pade import DEFAULT_TOL, polynomial_and_derivative, robust_pade, scratch_size
 from longtime.numerics.series import header_view
 

@@ -27,8 +27,9 @@ import numpy as np
 
 from longtime.core import phases
 from longtime.core.cache import cache_dir
-from longtime.core.integrator import Integrator, Trajectory
+from longtime.core.integrator import Integrator
 from longtime.core.params import Param
+from longtime.core.trajectory import Trajectory
 from longtime.integrators import peer_common
 
 EXTRA = "diffrax"  # pip install "longtime[diffrax]"

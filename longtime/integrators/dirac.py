@@ -38,9 +38,9 @@ from longtime.core.drivers import (
     state_scale,
     track_increment,
 )
-from longtime.core.integrator import FixedStepIntegrator
 from longtime.core.params import InputError, Param
 from longtime.core.problem import Problem
+from longtime.core.stepping import FixedStepIntegrator
 
 
 @numba.njit(cache=True)

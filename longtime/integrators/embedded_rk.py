@@ -21,8 +21,8 @@ import numba
 import numpy as np
 
 from longtime.core.drivers import RHS_EVALS
-from longtime.core.integrator import AdaptiveIntegrator
 from longtime.core.params import Param
+from longtime.core.stepping import AdaptiveIntegrator
 from longtime.integrators.tableau import checked_on_definition
 
 SAFETY, FAC_MIN, FAC_MAX, PI_BETA = 0.9, 0.2, 10.0, 0.04

@@ -31,7 +31,7 @@ import numba
 
 from longtime.core.contract import pairs_incompatibility
 from longtime.core.drivers import OK, RHS_EVALS
-from longtime.core.integrator import FixedStepIntegrator
+from longtime.core.stepping import FixedStepIntegrator
 
 CONTOUR_POINTS = 64
 # rows of the work array (each of length dim, complex quantities as (Re, Im) pairs)

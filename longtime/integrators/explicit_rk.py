@@ -5,7 +5,7 @@ import numba
 import numpy as np
 
 from longtime.core.drivers import OK, RHS_EVALS
-from longtime.core.integrator import COMPENSATED, FixedStepIntegrator
+from longtime.core.stepping import COMPENSATED, FixedStepIntegrator
 from longtime.integrators.tableau import add_weighted_slopes, checked_on_definition
 
 

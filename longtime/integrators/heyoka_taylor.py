@@ -21,9 +21,10 @@ import time
 import numpy as np
 
 from longtime.core import heyoka_build
-from longtime.core.integrator import Integrator, Trajectory
+from longtime.core.integrator import Integrator
 from longtime.core.params import Param
 from longtime.core.problem import BLOWUP_MESSAGE
+from longtime.core.trajectory import Trajectory
 
 # compiled taylor_adaptive objects, by (problem identity, tol, high_accuracy)
 _COMPILED: dict[tuple, object] = {}

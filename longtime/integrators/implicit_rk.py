@@ -29,8 +29,8 @@ from longtime.core.drivers import (
     state_scale,
     track_increment,
 )
-from longtime.core.integrator import COMPENSATED, FixedStepIntegrator
 from longtime.core.params import Param
+from longtime.core.stepping import COMPENSATED, FixedStepIntegrator
 from longtime.integrators.tableau import add_weighted_slopes, checked_on_definition
 
 

@@ -18,9 +18,9 @@ from typing import Any, Callable
 import numba
 import numpy as np
 
-from longtime.core.integrator import Trajectory
 from longtime.core.jitcache import Unfreezable, cacheable, fingerprint
 from longtime.core.problem import BLOWUP_MESSAGE
+from longtime.core.trajectory import Trajectory
 
 OVERHEAD_STEPS = 200  # steps of the trivial run that measures the per-step overhead
 DEADLINE_EVERY = 256  # steps between two looks at the cell's deadline

@@ -36,9 +36,11 @@ import warnings
 
 import numpy as np
 
-from longtime.core.integrator import Integrator, Trajectory, _sample_steps
+from longtime.core.integrator import Integrator
 from longtime.core.params import Param
 from longtime.core.problem import BLOWUP_MESSAGE
+from longtime.core.stepping import cached_sample_steps
+from longtime.core.trajectory import Trajectory
 
 EXTRA = "rebound"  # pip install "longtime[rebound]"
 SAMPLES = 10_001  # the fixed-step schemes' sample budget, heyoka's (docs/metrics.md)
@@ -88,7 +90,7 @@ class Rebound(Integrator):
         sim = _rebound().Simulation()
         sim.G = float(problem.G)
         sim.t = float(problem.t0)
-        m, q, p = problem._split(problem.u0[None, :])
+        m, q, p = problem.split_state(problem.u0[None, :])
         s = problem.space_dim
         for k, mass in enumerate(m):
             x, v = np.zeros(3), np.zeros(3)
@@ -186,7 +188,7 @@ class ReboundFixed(Rebound):
     def _sampled(self, problem, t_final, max_samples):
         dt, nsteps, last = self._plan(problem, t_final)
         sim = self.simulation(problem)
-        at = _sample_steps(nsteps, min(max_samples, SAMPLES))[:-1]  # without the sentinel
+        at = cached_sample_steps(nsteps, min(max_samples, SAMPLES))[:-1]  # without the sentinel
         xyz, v = np.zeros((at.size + 1, sim.N, 3)), np.zeros((at.size + 1, sim.N, 3))
         ts = [problem.t0]
         cpu = wall = 0.0

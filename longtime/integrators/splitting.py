@@ -12,7 +12,7 @@ import numpy as np
 
 from longtime.core.contract import check_splitting
 from longtime.core.drivers import OK, RHS_EVALS, compensated_add
-from longtime.core.integrator import COMPENSATED, FixedStepIntegrator
+from longtime.core.stepping import COMPENSATED, FixedStepIntegrator
 
 
 def compose(gammas) -> tuple[np.ndarray, np.ndarray]:

@@ -27,8 +27,8 @@ import numba
 import numpy as np
 
 from longtime.core.drivers import EXTRA1, OK
-from longtime.core.integrator import AdaptiveIntegrator, FixedStepIntegrator
 from longtime.core.params import Param
+from longtime.core.stepping import AdaptiveIntegrator, FixedStepIntegrator
 from longtime.numerics.series import header_view, horner
 
 # header of the flat work array, written by prepare_work and read by the compiled step

@@ -25,7 +25,7 @@ from typing import Callable
 import numba
 
 from longtime.core.drivers import OK, RHS_EVALS
-from longtime.core.integrator import FixedStepIntegrator
+from longtime.core.stepping import FixedStepIntegrator
 
 # rows of the work array, each of length n = dim/2
 COS, SIN_OVER, OMEGA_SIN, PSI, PSI0, PSI1, PHI, FREQ, FORCE, FILTERED, META = range(11)

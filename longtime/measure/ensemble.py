@@ -66,13 +66,13 @@ def _late(t: np.ndarray, values: np.ndarray, t0: float, t_final: float, window: 
 
 def _reference_pool(problem: Problem, states: list[np.ndarray], t_final: float, window: float,
                     budget_s: float | None = None) -> np.ndarray:
-    from longtime.measure.reference import _propagate
+    from longtime.measure.reference import propagate
 
     grid = np.linspace(problem.t0, t_final, GRID)
     pool = []
     for state in states:
         with _started_at(problem, state):
-            U, stopped = _propagate(problem, grid, "double", budget_s)
+            U, stopped = propagate(problem, grid, "double", budget_s)
         if stopped is not None:
             raise RuntimeError(f"heyoka's ensemble run stopped at t = {stopped:.6g} (its time budget)")
         pool.append(_late(grid, observable(problem, grid, U)[1], problem.t0, t_final, window))
@@ -88,13 +88,13 @@ def reference_pools(problem: Problem, t_final: float, members: int, size: float,
     from longtime.measure import reference
 
     key = repr((float(t_final), members, size, seed, window, GRID, others))
-    path = reference._cache_path(problem, "ensemble", key)
-    found = reference._load(path, lambda: _read_pools(path))
+    path = reference.cache_path(problem, "ensemble", key)
+    found = reference.load_cached(path, lambda: _read_pools(path))
     if found is not None:
         return found
     pools = [_reference_pool(problem, initial_states(problem, members, size, seed + k), t_final, window, budget_s)
              for k in range(others + 1)]
-    reference._save(path, **{f"pool{k}": pool for k, pool in enumerate(pools)})
+    reference.save_cached(path, **{f"pool{k}": pool for k, pool in enumerate(pools)})
     return pools[0], pools[1:]
 
 

@@ -59,12 +59,12 @@ def measure(problem: Problem, t_span: float | None = None, budget_s: float = 60.
 def _measure(problem: Problem, t_span: float, budget_s: float) -> dict[str, Any]:
     from longtime.measure import reference
 
-    path = reference._cache_path(problem, "lyapunov", repr(t_span), repr((SEPARATION, INTERVALS, BLOCKS)),
+    path = reference.cache_path(problem, "lyapunov", repr(t_span), repr((SEPARATION, INTERVALS, BLOCKS)),
                                  suffix=".npy")
-    logs = reference._load(path, lambda: np.load(path))
+    logs = reference.load_cached(path, lambda: np.load(path))
     if logs is None:
         logs = _separations(problem, t_span, budget_s)
-        reference._save(path, logs)
+        reference.save_cached(path, logs)
     return summarise(logs, t_span / INTERVALS, t_span)
 
 
@@ -82,7 +82,7 @@ def _separations(problem: Problem, t_span: float, budget_s: float) -> np.ndarray
     deadline = time.perf_counter() + budget_s
     # the reference's own integrator (double, tolerance eps), compiled once per process for the
     # reference and copied here: measuring the exponent compiles nothing more
-    base = reference._start(problem, "double", deadline)
+    base = reference.start_integrator(problem, "double", deadline)
     ta_u, ta_v = copy.deepcopy(base), copy.deepcopy(base)
     ta_u.state[:] = u0
     ta_v.state[:] = u0 + d0 * w / np.linalg.norm(w)

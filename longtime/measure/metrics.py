@@ -34,8 +34,8 @@ from typing import Any
 import numpy as np
 
 from longtime.core.contract import check_name
-from longtime.core.integrator import Trajectory
 from longtime.core.problem import Problem
+from longtime.core.trajectory import Trajectory
 from longtime.measure.growth import growth_fields
 from longtime.measure.lyapunov import predictability
 from longtime.measure.reference import Trust, trust_fields

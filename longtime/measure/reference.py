@@ -154,14 +154,14 @@ def reference_states(problem: Problem, times: np.ndarray, precision: str = "doub
     if problem.heyoka_system is None:
         raise InputError(f"problem '{problem.name}' has neither an exact solution nor a heyoka system")
     _fp(precision)  # validates
-    path = _cache_path(problem, "states", precision, times.tobytes(), suffix=".npy")
+    path = cache_path(problem, "states", precision, times.tobytes(), suffix=".npy")
     def read():
         states = np.load(path)
         if states.shape != (times.size, problem.dim) or not np.isfinite(states).all():
             raise ValueError(f"holds {states.shape} states, expected {(times.size, problem.dim)}, all finite")
         return states
 
-    cached = _load(path, read)
+    cached = load_cached(path, read)
     if cached is not None:
         return cached
     # propagate_grid wants a strictly increasing grid that starts at the current time
@@ -171,12 +171,12 @@ def reference_states(problem: Problem, times: np.ndarray, precision: str = "doub
     starts_later = grid[0] > problem.t0
     if starts_later:
         grid = np.r_[problem.t0, grid]
-    states, stopped = _propagate(problem, grid, precision, budget_s)
+    states, stopped = propagate(problem, grid, precision, budget_s)
     if stopped is not None:
         raise ReferenceUnavailable(f"heyoka {precision} reference for {problem.name} passed its time "
                                    f"budget at t = {stopped:.6g} (LONGTIME_REFERENCE_SECONDS)")
     states = states[int(starts_later):][inverse]
-    _save(path, states)
+    save_cached(path, states)
     return states
 
 
@@ -227,11 +227,11 @@ def check_seconds_per_t(problem: Problem, span: float, budget_s: float = 5.0) ->
         return 0.0
     compiled = time.perf_counter() + budget_seconds()
     for precision in ladder[:2]:
-        _start(problem, precision, compiled)  # the compile, once a process: not the rate
+        start_integrator(problem, precision, compiled)  # the compile, once a process: not the rate
     start = time.perf_counter()
     deadline = start + budget_s
     times, _, stopped = _stepped_run(problem, problem.t0 + span, budget_s)
-    _, stopped_hi = _propagate(problem, times, ladder[1], max(deadline - time.perf_counter(), 0.0))
+    _, stopped_hi = propagate(problem, times, ladder[1], max(deadline - time.perf_counter(), 0.0))
     reached = min(t for t in (stopped, stopped_hi, times[-1]) if t is not None) - problem.t0
     return (time.perf_counter() - start) / reached if reached > 0 else math.inf
 
@@ -256,7 +256,7 @@ def _check_runs(problem: Problem, t_final: float, ladder: list[str],
     for runs that passed their budget."""
     budget = budget_seconds() if budget_s is None else budget_s
     parts = ("check", repr(t_final), str(CHECK_POINTS), repr(REFERENCE_RTOL), ",".join(ladder))
-    paths = [_cache_path(problem, *parts), _cache_path(problem, *parts, f"budget={budget!r}")]
+    paths = [cache_path(problem, *parts), cache_path(problem, *parts, f"budget={budget!r}")]
     for path in paths:
         if str(path) in _CHECKS:
             return _CHECKS[str(path)]
@@ -266,14 +266,14 @@ def _check_runs(problem: Problem, t_final: float, ladder: list[str],
                 runs["stopped"] = json.loads(str(data["stopped"]))
             return runs
 
-        runs = _load(path, read)
+        runs = load_cached(path, read)
         if runs is not None:
             _CHECKS[str(path)] = runs
             return runs
     times, low, stopped = _stepped_run(problem, t_final, budget)
     runs: dict[str, Any] = {"times": times, ladder[0]: low}
     stops = {ladder[0]: stopped} if stopped is not None else {}
-    hi, stopped = _propagate(problem, times, ladder[1], budget)
+    hi, stopped = propagate(problem, times, ladder[1], budget)
     runs[ladder[1]] = hi
     if stopped is not None:
         stops[ladder[1]] = stopped
@@ -282,12 +282,12 @@ def _check_runs(problem: Problem, t_final: float, ladder: list[str],
         def found_out(rows: np.ndarray) -> bool:
             return bool(np.any(~(_relative(hi[:len(rows)], rows) <= REFERENCE_RTOL)))
 
-        runs[ladder[2]], stopped = _propagate(problem, times[:len(hi)], ladder[2], budget, found_out)
+        runs[ladder[2]], stopped = propagate(problem, times[:len(hi)], ladder[2], budget, found_out)
         if stopped is not None:
             stops[ladder[2]] = stopped
     runs["stopped"] = stops
     path = paths[1] if stops else paths[0]  # a partial check holds only for its budget
-    _save(path, **{k: v for k, v in runs.items() if k != "stopped"}, stopped=np.array(json.dumps(stops)))
+    save_cached(path, **{k: v for k, v in runs.items() if k != "stopped"}, stopped=np.array(json.dumps(stops)))
     _CHECKS[str(path)] = runs
     return runs
 
@@ -299,7 +299,7 @@ def _stepped_run(problem: Problem, t_final: float, budget_s: float) -> tuple[np.
     import heyoka as hy
 
     deadline = time.perf_counter() + budget_s  # the compile counts against the budget
-    ta = _start(problem, "double", deadline)
+    ta = start_integrator(problem, "double", deadline)
     times, states, stride, count = [problem.t0], [problem.u0.copy()], 1, 0
 
     def record(ta) -> bool:
@@ -323,7 +323,7 @@ def _stepped_run(problem: Problem, t_final: float, budget_s: float) -> tuple[np.
     return np.array(times, dtype=float), np.array(states, dtype=float), stopped
 
 
-def _propagate(problem: Problem, grid: np.ndarray, precision: str, budget_s: float | None = None,
+def propagate(problem: Problem, grid: np.ndarray, precision: str, budget_s: float | None = None,
                found_out: Callable[[np.ndarray], bool] | None = None) -> tuple[np.ndarray, float | None]:
     """float64 states at the increasing ``grid`` (grid[0] = t0) by heyoka in ``precision``,
     and the time where the budget stopped it (None: it did not; then fewer rows). With
@@ -332,7 +332,7 @@ def _propagate(problem: Problem, grid: np.ndarray, precision: str, budget_s: flo
 
     fp = _fp(precision)
     deadline = time.perf_counter() + (budget_seconds() if budget_s is None else budget_s)
-    ta = _start(problem, precision, deadline)  # its compile counts against the budget
+    ta = start_integrator(problem, precision, deadline)  # its compile counts against the budget
     pieces = _PIECES if found_out is not None else 1
     bounds = np.unique(np.linspace(0, grid.size - 1, pieces + 1).round().astype(int))
     if bounds.size == 1:  # a grid of one time
@@ -375,7 +375,7 @@ def _ladder() -> list[str]:
     return ladder
 
 
-def _start(problem: Problem, precision: str, deadline: float):
+def start_integrator(problem: Problem, precision: str, deadline: float):
     """The problem's heyoka integrator in ``precision``, set to (t0, u0); its compile counts
     against the run's budget (``deadline``, a perf_counter time)."""
     ident = (problem.identity(), precision)
@@ -401,7 +401,7 @@ def _problem_chunks(problem: Problem) -> tuple[str | bytes, ...]:
     return problem.identity(), problem.u0.tobytes(), repr(problem.t0), problem.params.tobytes()
 
 
-def _cache_path(problem: Problem, *parts: str | bytes, suffix: str = ".npz") -> Path:
+def cache_path(problem: Problem, *parts: str | bytes, suffix: str = ".npz") -> Path:
     """The cache file of ``parts`` for ``problem``. Its key covers all that decides the
     content: the problem (name, settings, initial state, t0, kernel parameters), its ODE as
     heyoka reads it (an edited right-hand side or coefficient is another file), ``parts``,
@@ -420,9 +420,9 @@ def _cache_path(problem: Problem, *parts: str | bytes, suffix: str = ".npz") -> 
 _TRAILER = b"\nlongtime-sha256:"
 
 
-def _load(path: Path, read: Callable[[], Any]) -> Any:
+def load_cached(path: Path, read: Callable[[], Any]) -> Any:
     """``read()`` of a cache file, or None when there is none. The file is trusted only when
-    its bytes match the checksum ``_save`` appended; one that does not (truncated, corrupt,
+    its bytes match the checksum ``save_cached`` appended; one that does not (truncated, corrupt,
     written without it) or that ``read`` rejects is deleted with a warning naming it, so it
     is recomputed instead of failing, or being believed, on every rerun."""
     if not path.exists():
@@ -440,7 +440,7 @@ def _load(path: Path, read: Callable[[], Any]) -> Any:
         return None
 
 
-def _save(path: Path, array: np.ndarray | None = None, **arrays: np.ndarray) -> None:
+def save_cached(path: Path, array: np.ndarray | None = None, **arrays: np.ndarray) -> None:
     """Write the file with its checksum, atomically: workers that compute the same
     reference at once both write whole files."""
     buffer = io.BytesIO()

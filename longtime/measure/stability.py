@@ -62,7 +62,7 @@ def one_step(scheme, problem) -> Callable[[np.ndarray, np.ndarray, float], bool]
     Accepted: the step returned OK (a non-finite result included: its growth is inf); an
     adaptive step must also have been taken whole, at once (error control off)."""
     from longtime.core import drivers
-    from longtime.core.integrator import AdaptiveIntegrator, FixedStepIntegrator
+    from longtime.core.stepping import AdaptiveIntegrator, FixedStepIntegrator
 
     reason = scheme.incompatibility(problem)
     if reason:
@@ -111,7 +111,7 @@ def _scheme(name: str, order: int | None = None):
         settings.update({k: order for k in roles.with_role([cls], "order")})
     if "tol" in settings and name.startswith("taylor"):
         raise Unmeasurable(f"{name} chooses its order from tol: the fixed-order 'taylor' is measured")
-    from longtime.core.integrator import AdaptiveIntegrator, FixedStepIntegrator
+    from longtime.core.stepping import AdaptiveIntegrator, FixedStepIntegrator
 
     if not issubclass(cls, (FixedStepIntegrator, AdaptiveIntegrator)):
         raise Unmeasurable(f"{name} is {_kind(cls.kind)} integrator: no step kernel to measure")

@@ -225,7 +225,7 @@ def _read(path) -> Structure | None:
 
 
 def _measure(name: str, instance, problem, step, h: float) -> Structure:
-    from longtime.core.integrator import FixedStepIntegrator
+    from longtime.core.stepping import FixedStepIntegrator
 
     params, u0 = problem.params, np.array(problem.u0, dtype=float)
     n = u0.size // 2

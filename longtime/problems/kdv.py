@@ -196,10 +196,10 @@ class KdV(Problem):
                          str, choices=("3/2", "2/3"), role="option"),
     }
     default_t_final = SOLITON_PERIOD
-    # explicit schemes are stability-limited: max |omega_m| = 428 at d = 128 (the "about 476" of an
-    # earlier note adds |c0 w M| to |beta w^3 M^3| instead of subtracting it; RK4 needs dt < 6.6e-3).
+    # explicit schemes are stability-limited: max |omega_m| = 428 at d = 128 (|c0 w M| subtracted from
+    # |beta w^3 M^3|; adding them gives about 476); RK4 needs dt < 6.6e-3.
     # The matrix sweep stays at d = 128 over half a period (the soliton is exact at every t):
-    # every scheme's cells take a few CPU seconds at most. The soliton is exact to about
+    # every scheme's cells stay short. The soliton is exact to about
     # 3e-7 on the periodic grid (``exact_rtol``), so tighter tolerances are not swept.
     default_dt = 1e-3
     sweep_dt = (2e-3, 1e-3)

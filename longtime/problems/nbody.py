@@ -132,7 +132,7 @@ class NBody(Problem):
     def inverse_masses(self):
         return np.repeat(1.0 / self.masses(), self.space_dim)
 
-    def _split(self, U):
+    def split_state(self, U):
         m = self.masses()
         n, s = m.size, self.space_dim
         q = U[:, : n * s].reshape(-1, n, s)
@@ -140,7 +140,7 @@ class NBody(Problem):
         return m, q, p
 
     def invariants(self, t, U):
-        m, q, p = self._split(U)
+        m, q, p = self.split_state(U)
         kinetic = np.sum(np.sum(p**2, axis=2) / (2 * m), axis=1)
         potential = np.zeros(U.shape[0])
         # each body's positions contiguous, each distance an einsum: faster than strided

@@ -36,6 +36,6 @@ class PythagoreanThreeBody(NBody):
         return [1.0, 3.0, -2.0, -1.0, 1.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
 
     def diagnostics(self, t, U):
-        _, q, _ = self._split(U)
+        _, q, _ = self.split_state(U)
         d = [np.hypot(*(q[:, k] - q[:, l]).T) for k, l in ((0, 1), (0, 2), (1, 2))]
         return {"r_min": np.minimum(np.minimum(d[0], d[1]), d[2])}

@@ -10,7 +10,7 @@ from longtime.core import phases
 from longtime.core.progress import Progress
 from longtime.execution.main_job import MainJobResult
 from longtime.reporting.page import write_html
-from longtime.reporting.report import report_text
+from longtime.reporting.screen import report_text
 
 
 @dataclass(frozen=True)

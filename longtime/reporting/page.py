@@ -29,17 +29,16 @@ from longtime.reporting.figures.results import figures_drawing
 from longtime.reporting.figures.style import styles
 from longtime.reporting.figures_ahead import FiguresAhead, stability_schemes
 from longtime.reporting.markup import CSS, SCRIPT, escape, num, slug, table
-from longtime.reporting.report import (
-    _not_ok,
-    format_counts,
-    main_t_final,
-    pareto,
-    pareto_field,
-    pareto_groups,
-    setting,
-    status_counts,
-    target_text,
+from longtime.reporting.page_tables import (
+    capability_matrix,
+    chaos_table,
+    ensemble_table,
+    growth_table,
+    orders_table,
+    pareto_table,
+    stability_table,
 )
+from longtime.reporting.report import format_counts, not_ok, status_counts
 
 PAGE_NAME = "index.html"
 
@@ -74,202 +73,6 @@ def _meta(runs: list[dict]) -> str:
             body.append(["calibration", drift_text(r["calibrations"])])
     rows = "".join(f"<tr><td>{escape(a)}</td><td>{escape(b)}</td></tr>" for a, b in body)
     return f'<table class="meta">{rows}</table>'
-
-
-def _pareto_table(rows: list[dict]) -> str:
-    field = pareto_field(rows)
-    front = pareto(rows, field) if field else []
-    if not front:
-        return '<p class="note">No ok row with an error and a CPU time.</p>'
-    body = [[target_text(p), p["best"]["integrator"], setting(p["best"]), num(p["best"]["cpu_s"]),
-             (f"{p['next']['integrator']} ({setting(p['next'])})" if p["next"] else "none"),
-             (f"x{p['slower']:.3g}" if p["slower"] else "-")] for p in pareto_groups(front)]
-    return (f'<p class="note">For each target, the fastest ok row whose {escape(field)} meets it over t_final = '
-            f'{main_t_final(rows):.6g} (CPU: the minimum of the repeats) and the fastest other scheme meeting it.</p>'
-            + table([f"{field} <=", "fastest scheme", "setting", "CPU s", "next best scheme", "next is slower"],
-                     body))
-
-
-def _growth_cell(row: dict, name: str) -> str:
-    """One growth law as a table cell: the class; alpha, its interval and what the class
-    rests on as its title (a tooltip); an undetermined class opens on a click to its reason."""
-    cls = row.get(f"{name}.growth_class")
-    if not cls:
-        return "<td>-</td>"
-    alpha, ci = row.get(f"{name}.growth"), row.get(f"{name}.growth_ci")
-    fit = f"alpha {alpha:.2f}" if isinstance(alpha, (int, float)) else ""  # exponents: two decimals
-    if fit and isinstance(ci, list) and len(ci) == 2 and all(isinstance(c, (int, float)) for c in ci):
-        fit += f" [{ci[0]:.2f}, {ci[1]:.2f}]"
-    if cls == "saturated" and row.get(f"{name}.saturated_t") is not None:
-        fit += f" (before t = {num(row[f'{name}.saturated_t'])})"
-    reason = row.get(f"{name}.growth_reason") or ""
-    title = "; ".join(x for x in (fit, reason) if x)
-    if cls == "undetermined":
-        return (f'<td class="undetermined"><details><summary title="{escape(title)}">undetermined</summary>'
-                f'<span class="note">{escape(title)}</span></details></td>')
-    return f'<td class="law" title="{escape(title)}">{escape(cls)}</td>'
-
-
-def _growth_table(rows: list[dict]) -> str | None:
-    """One line per scheme and setting (the longest run first): per invariant and the
-    solution error, the growth class, the fitted exponent and its interval."""
-    from longtime.reporting.report import growth_names, growth_settings
-
-    names = growth_names(rows)
-    if not names:
-        return None
-    body = []
-    for scheme in sorted({r["integrator"] for r in rows}):
-        for text, mine in growth_settings([r for r in rows if r["integrator"] == scheme]):
-            cells = [f"<td>{escape(scheme)}</td>", f"<td>{escape(text or '-')}</td>"]
-            body.append(cells + [_growth_cell(mine[0], n) for n in names])
-    if not body:
-        return None
-    return ('<p class="note">Growth law of each drift (and of the solution error) fitted over time, per setting: '
-            'the class, the exponent alpha of e ~ t^alpha on the last two decades and its interval (it spans the '
-            'slopes on three windows of a decade). A class stands only where the windows agree on it (or the '
-            'error is at round-off); otherwise it is undetermined (docs/metrics.md). Hover a class for its '
-            'exponent, interval and window slopes; click an undetermined one for its reason.</p>'
-            + table(["scheme", "setting", *[f"{'solution error' if n == 'error' else n}" for n in names]], body,
-                     raw=True))
-
-
-def _chaos_table(rows: list[dict]) -> str | None:
-    """A chaotic problem's rows read in Lyapunov times: the Lyapunov time of its initial
-    state, and per scheme and setting the time its solution error reached O(1) (its
-    predictability horizon), in time and in Lyapunov times."""
-    from longtime.core.rowtext import setting
-
-    chaotic = [r for r in rows if "predictability_t" in r and r.get("status") == "ok"]
-    if not chaotic:
-        return None
-    first = next((r for r in chaotic if r.get("lyapunov_note")), chaotic[0])
-    t_lyap = first.get("lyapunov_time")
-    head = (f"Lyapunov time {num(t_lyap)} ({escape(first.get('lyapunov_note') or '')})" if t_lyap else
-            f"No Lyapunov time: {escape(first.get('lyapunov_note') or 'not measured')}")
-    body = [[r["integrator"], setting(r) or "-", num(r.get("t_final")), num(r.get("predictability_t")),
-             num(r.get("predictability_lyapunov")), r.get("predictability_note") or ""]
-            for r in sorted(chaotic, key=lambda r: (r["integrator"], r.get("t_final") or 0, str(setting(r))))]
-    return (f'<p class="note">{head}. Past its predictability horizon (the first time its solution error '
-            "reaches 0.5) a row's L2 error measures a lost solution: it enters no order fit and no Pareto front; "
-            "what can still be right is a distribution (<code>longtime ensemble</code>, docs/metrics.md, "
-            '"Chaos").</p>' + table(["scheme", "setting", "t_final", "error O(1) at t", "in Lyapunov times", "note"],
-                                     body))
-
-
-def _ensemble_table(records: list[dict]) -> str | None:
-    """A chaotic problem's stored ensemble distances (longtime.execution.ensembles): what was
-    measured (members, size, state, span, observable, floor), then per scheme its setting, its
-    distance, the floor and whether the two are told apart, or the status that left it
-    without a distance."""
-    from longtime.measure.ensemble import FLOOR_FACTOR
-    from longtime.core.rowtext import setting
-
-    if not records:
-        return None
-    first = next((r for r in records if r.get("floor") is not None), records[0])
-    state = ", ".join(f"{k} = {v:g}" if isinstance(v, (int, float)) else f"{k} = {v}"
-                      for k, v in (first.get("problem_settings") or {}).items())
-    state = (f"the problem's chaotic state {state} (not the rows' state: their Lyapunov time above is that of the "
-             f"default state)" if state else "the problem's initial state")
-    if first.get("floor") is None:
-        return f'<p class="note">No ensemble distance from {escape(state)}: {escape(first.get("note") or "")}.</p>'
-    floor = first["floor"]
-    head = (f"{first['members']} members from {escape(state)}, perturbed by a seeded relative {first['size']:g}, "
-            f"integrated to t = {num(first.get('t_final'), 4)} ({num(first.get('span_lyapunov'))} Lyapunov times "
-            f"of that state, one is {num(first.get('lyapunov_time'))}) by each scheme at the setting shown (its "
-            f"row's nearest the default) and by heyoka. Observable: <code>{escape(first.get('observable') or '')}"
-            f"</code>, pooled over the members and the last {first['window']:.0%} of the span. Distance: the "
-            f"1-Wasserstein distance between the scheme's and heyoka's pools over the standard deviation of "
-            f"heyoka's (0: the same distribution, 1: a shift by a standard deviation). Floor: the same between "
-            f"two heyoka ensembles of other seeds ({num(floor)}), what a finite ensemble shows by itself. Told "
-            f"apart: a distance above {FLOOR_FACTOR:g} x the floor. A scheme one of whose members diverged, "
-            f"failed or passed the step's deadline has that status and no distance "
-            f"(<code>longtime matrix --no-ensemble</code> skips the step; docs/metrics.md, \"Chaos\").")
-    ok = sorted((r for r in records if r.get("status") == "ok" and r.get("distance") is not None),
-                key=lambda r: r["distance"])
-    rest = sorted((r for r in records if r not in ok), key=lambda r: (r.get("status") or "", r["integrator"]))
-    body = []
-    for r in ok:
-        apart = r["distance"] > FLOOR_FACTOR * floor
-        body.append([f"<td>{escape(r['integrator'])}</td>", f"<td>{escape(setting(r) or '-')}</td>",
-                     f'<td class="num">{num(r["distance"])}</td>', f'<td class="num">{num(floor)}</td>',
-                     f'<td class="num">{num(r["distance"] / floor) if floor > 0 else "-"}</td>',
-                     f'<td class="{"flag" if apart else "ok"}">{"told apart" if apart else "as heyoka"}</td>'])
-    for r in rest:
-        body.append([f"<td>{escape(r['integrator'])}</td>", f"<td>{escape(setting(r) or '-')}</td>",
-                     f'<td class="{escape(r.get("status") or "")}" colspan="4">{escape(r.get("status") or "")}: '
-                     f'{escape(r.get("note") or "")}</td>'])
-    return (f'<p class="note">{head}</p>'
-            + table(["scheme", "setting", "distance", "floor", "distance / floor", "vs the floor"], body, raw=True))
-
-
-def _orders_table(fits: list[dict]) -> str | None:
-    if not fits:
-        return None
-    body, with_n = [], any(f["order"] is not None for f in fits)
-    for f in fits:
-        ci = f["observed_order_ci"]
-        flag = '<span class="flag">misses declared</span>' if f["order_flag"] else ""
-        body.append(["<td>" + escape(f["integrator"]) + "</td>",
-                     *(["<td>" + escape("-" if f["order"] is None else f"N={f['order']}") + "</td>"] if with_n else []),
-                     f'<td class="num">{escape(f["declared_order"] if f["declared_order"] is not None else "-")}</td>',
-                     f'<td class="num">{f["observed_order"]:.2f}</td>',
-                     f'<td class="num">{"-" if ci is None else f"+- {ci:.2f}"}</td>',
-                     "<td>" + escape(f"{len(f['order_points'])} ({f['order_error_field']} vs {f['order_variable']}: "
-                                 f"{num(f['order_points'][0][0])} .. {num(f['order_points'][-1][0])})") + "</td>",
-                     f"<td>{flag}</td>"])
-    return table(["scheme", *(["N"] if with_n else []), "declared", "observed", "95 % interval", "points used", ""],
-                  body, raw=True)
-
-
-ABBREVIATIONS = {"ok": "ok", "skipped": "-", "diverged": "div", "failed": "fail", "timeout": "t/o"}
-
-
-def _capability_matrix(rows: list[dict]) -> str:
-    """Schemes x problems, each cell its worst status, abbreviated (the counts and the reason
-    of a skip in its title); the problems' names set vertically so that the matrix fits."""
-    problems = sorted({r["problem"] for r in rows})
-    schemes = sorted({r["integrator"] for r in rows})
-    body = []
-    for s in schemes:
-        cells = [f"<td>{escape(s)}</td>"]
-        for p in problems:
-            mine = [r for r in rows if r["problem"] == p and r["integrator"] == s]
-            if not mine:
-                cells.append('<td class="skipped" title="not in this run"></td>')
-                continue
-            counts = status_counts(mine)
-            worst = next(st for st in ("failed", "timeout", "diverged", "skipped", "ok") if counts.get(st))
-            title = format_counts(counts)
-            text = ABBREVIATIONS[worst]
-            lost = sum(1 for r in mine if r.get("status") == "ok" and r.get("solution_lost"))
-            if worst == "skipped":
-                title = "skipped: " + str(mine[0].get("message") or "").removeprefix(s + " ")
-            elif worst != "ok":
-                text += f" {counts[worst]}/{len(mine)}"
-            elif lost:  # ran to the end, but the error reached O(1): not an ok answer
-                worst, text = "lost", "lost" if lost == len(mine) else f"lost {lost}/{len(mine)}"
-                title += f"; {lost} of them lost the solution (error O(1) at the end)"
-            cells.append(f'<td class="{worst} cap" title="{escape(title)}">{escape(text)}</td>')
-        body.append(cells)
-    head = "".join(f'<th class="rot"><span>{escape(p)}</span></th>' for p in problems)
-    rows_html = "".join("<tr>" + "".join(c) + "</tr>" for c in body)
-    return ('<p class="note">Each cell: the worst outcome of the scheme on the problem (ok; lost: ran to the end '
-            'with an error of O(1), the solution not followed; - skipped: does not apply; div diverged; fail failed; '
-            't/o timeout; blank: not in this run), with the counts and the reason of a skip in its title.</p>'
-            f'<table class="capabilities"><tr><th>scheme \\ problem</th>{head}</tr>{rows_html}</table>')
-
-
-def _stability_table(found: dict[str, str]) -> str | None:
-    """The table of the interval texts ``found`` (scheme -> text)."""
-    if not found:
-        return None
-    body = [[s, txt] for s, txt in sorted(found.items())]
-    return ('<p class="note">Imaginary-axis stability interval: the y with |R(iy)| <= 1 (to 1e-9), R measured '
-            'from one step of each scheme on the rotation q\' = p, p\' = -q (<code>longtime list --stability</code>, '
-            '<code>longtime plot stability</code>); a step h on a mode of frequency omega is stable while '
-            'omega h is in it.</p>' + table(["scheme", "interval of y"], body))
 
 
 def _fold(summary: str, body: str, open_: bool = False) -> str:
@@ -397,7 +200,7 @@ def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: l
     """One problem's evidence, each piece folded: the Pareto front, work-precision, orders,
     growth classes, drift and diagnostics; what did not run to the end stays open."""
     out = [f'<h3 id="{slug(p)}">{escape(p)}</h3><p>{escape(format_counts(status_counts(mine)))}</p>']
-    folded = _not_ok(mine)
+    folded = not_ok(mine)
     if folded:  # open where something failed, diverged or lost the solution; skips alone stay folded
         failed = sorted(k for k in folded if not k.startswith("skipped"))
         skipped = sum(len(v) for k, v in folded.items() if k.startswith("skipped"))
@@ -407,7 +210,7 @@ def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: l
             f"<li>{escape(why)}: {escape(', '.join(s))}</li>" for why, s in sorted(folded.items(),
                                                                                   key=lambda kv: kv[0].startswith("skipped")))
             + "</ul>", bool(failed)))
-    out.append(_fold("Fastest scheme per accuracy at the runs' t_final (Pareto front)", _pareto_table(mine)))
+    out.append(_fold("Fastest scheme per accuracy at the runs' t_final (Pareto front)", pareto_table(mine)))
     fig = figs["work_precision"]
     if fig:
         out.append(_fold("Work-precision figure", f'<figure class="plot">{fig}<figcaption>{escape(figs["field"])} '
@@ -419,7 +222,7 @@ def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: l
                          f"{escape(figs['field'])} against the instructions of the integration, counted under "
                          f"Valgrind (--cost instructions): a deterministic cost, blind to cache misses and "
                          f"memory stalls; cells without a count are left out.</figcaption></figure>"))
-    orders = _orders_table([f for f in fits if f["problem"] == p])
+    orders = orders_table([f for f in fits if f["problem"] == p])
     mine_missing = [m for m in missing if m["problem"] == p]
     if orders or mine_missing:
         body = ('<p class="note">Least-squares slope of log error against log step over the asymptotic range '
@@ -430,13 +233,13 @@ def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: l
             body += "<p>Left out of the order table:</p><ul>" + "".join(
                 f"<li>{escape(m['integrator'])}: {escape(m['reason'])}</li>" for m in mine_missing) + "</ul>"
         out.append(_fold("Observed order", body))
-    growth = _growth_table(mine)
+    growth = growth_table(mine)
     if growth:
         out.append(_fold("Growth classes", growth))
-    chaos = _chaos_table(mine)
+    chaos = chaos_table(mine)
     if chaos:
         out.append(_fold("Chaos: Lyapunov time and predictability horizons", chaos))
-    spread = _ensemble_table([e for e in ensembles if e.get("problem") == p])
+    spread = ensemble_table([e for e in ensembles if e.get("problem") == p])
     if spread:
         ok = [e for e in ensembles if e.get("problem") == p and e.get("status") == "ok"]
         told = sum(1 for e in ok if e.get("distinguishable"))
@@ -525,8 +328,8 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
         out.append(_evidence(p, by_problem[p], figures[p], fits, missing, drift, ensembles))
     if history:
         out.append(history)
-    out.append('<h2 id="capabilities">Capability matrix</h2>' + _capability_matrix(rows))
-    stab = _stability_table({**interval_texts(plugins), **intervals}) if stability else None
+    out.append('<h2 id="capabilities">Capability matrix</h2>' + capability_matrix(rows))
+    stab = stability_table({**interval_texts(plugins), **intervals}) if stability else None
     if stab:
         out.append('<h2 id="stability">Linear stability</h2>' + stab)
     out.append('<h2 id="about">The run and the machine</h2>' + _meta(runs))

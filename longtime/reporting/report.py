@@ -1,6 +1,7 @@
-"""Reports of stored rows (pandas): the summary a person reads first (status counts and,
-per problem, the Pareto front of accuracy against cost, with the fitted orders and growth
-classes), and the full per-cell tables (``--full``, csv, json, markdown, parquet).
+"""Reports of stored rows (pandas): the full per-cell tables (``--full``, csv, json,
+markdown, parquet) and the summary per problem (status counts, the verdict, the Pareto front
+of accuracy against cost, the fitted orders and growth classes); the first screen the
+report prints by default is longtime.reporting.screen.
 
 In Python: ``frame(Store("longtime.sqlite").rows())`` is one pandas row per cell."""
 from __future__ import annotations
@@ -73,7 +74,6 @@ def render(rows: list[dict[str, Any]], fmt: str = "table") -> str:
     if not rows:
         return "[]" if fmt == "json" else "no rows"
     if fmt == "json":
-        import json
 
         return jsontext.dumps([complete(r) for r in rows])
     if fmt == "csv":
@@ -269,7 +269,7 @@ def summary(rows: list[dict[str, Any]], orders: bool = True, full: bool = False,
         mine = [r for r in rows if r["problem"] == problem]
         lines = [f"== {problem}: {format_counts(status_counts(mine))} =="]
         lines += verdict_lines(found[problem], full)
-        failed = [f"  {why}: {', '.join(schemes)}" for why, schemes in sorted(_not_ok(mine).items())]
+        failed = [f"  {why}: {', '.join(schemes)}" for why, schemes in sorted(not_ok(mine).items())]
         lines += failed  # what failed comes right after the verdict: it never falls to the cut below
         if problem in chaos:
             lines.append(f"  ensemble distance to heyoka's (W1 / std, late window): {chaos[problem]}")
@@ -305,7 +305,7 @@ def summary(rows: list[dict[str, Any]], orders: bool = True, full: bool = False,
 LOST = "ok but error O(1), the solution not followed"
 
 
-def _not_ok(rows: list[dict[str, Any]]) -> dict[str, list[str]]:
+def not_ok(rows: list[dict[str, Any]]) -> dict[str, list[str]]:
     """Rows that did not run to the end, or lost the solution, folded: 'skipped (needs
     constraints, which toda does not provide)' -> schemes; 'diverged' -> ['rk4 (2 of 3)', ...]."""
     kinds = [(s, lambda r, s=s: r.get("status") == s) for s in ("skipped", "diverged", "failed", "timeout")]
@@ -323,242 +323,7 @@ def _not_ok(rows: list[dict[str, Any]]) -> dict[str, list[str]]:
     return out
 
 
-# ------------------------------------------------------------------ the first screen
-# the answer table's columns: (target error, horizon in units of the run's final time)
-ANSWER_TARGETS = ((1e-3, 100.0), (1e-6, 1.0), (1e-10, 1.0))
-NO_POINTWISE = "no pointwise answer"
-# the default report's width: no line past it (a long list wraps, indented)
-WIDTH = 100
-ANSWER_CELL = 23
-
-
-def _cell_text(text: str, width: int = ANSWER_CELL) -> str:
-    return text if len(text) <= width else text[:width - 3] + "..."
-
-
-def _wrap(text: str, indent: str = "    ", width: int = WIDTH) -> list[str]:
-    import textwrap
-
-    return textwrap.wrap(text, width=width, subsequent_indent=indent, break_on_hyphens=False) or [""]
-
-
-def _chaotic(problem: str, rows: list[dict[str, Any]]) -> bool:
-    """A problem declared chaotic some of whose rows lost the solution (their error reached
-    O(1) within the run): a pointwise error past its predictability horizon answers nothing."""
-    from longtime.core import registry
-
-    cls = registry.problems().get(problem)
-    return bool(getattr(cls, "chaotic", False)) and any(past_predictability(r) for r in rows)
-
-
-def answer_rows(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = ()) -> list[dict[str, Any]]:
-    """Per problem, the cheapest setting predicted (longtime.reporting.verdict) to keep each
-    of ANSWER_TARGETS' errors up to its horizon: {"problem", "field", "t_main", "answers":
-    [text per target]}. A chaotic problem's target no setting keeps, once its rows lost the
-    solution, is NO_POINTWISE (its ensembles say what holds)."""
-    from longtime.predict.decision import decide
-    from longtime.reporting.verdict import decision_text
-
-    out = []
-    for problem, v in verdicts(rows, checks).items():
-        mine = [r for r in rows if r.get("problem") == problem]
-        chaotic = _chaotic(problem, mine)
-        answers = []
-        for error, factor in ANSWER_TARGETS:
-            if v.measure is None or not v.candidates or v.t_main is None:
-                answers.append(NO_POINTWISE if chaotic else "nothing measured")
-                continue
-            d = decide(v.candidates, error, v.t_main * factor)
-            if d.best is None and chaotic:
-                answers.append(NO_POINTWISE)
-            elif d.best is None and not d.open:
-                answers.append("none measured")
-            else:
-                answers.append(decision_text(d))
-        out.append({"problem": problem, "field": v.measure.field if v.measure else None, "t_main": v.t_main,
-                    "answers": answers, "chaotic": chaotic})
-    return out
-
-
-def answer_table(answers: list[dict[str, Any]]) -> list[str]:
-    """The cross-problem table of ``answer_rows``: a line per problem."""
-    width = max([len("problem")] + [len(a["problem"]) + (4 if a["field"] not in (None, "l2_error") else 0)
-                                   for a in answers])
-    head = [f"{e:.0e} to {'T' if f == 1 else f'{f:g} T'}" for e, f in ANSWER_TARGETS]
-    lines = [(f"{'problem':<{width}}  {'T':>8}  " + "  ".join(f"{h:<{ANSWER_CELL}}" for h in head)).rstrip()]
-    for a in answers:
-        name = a["problem"] + (f" ({a['field'].removesuffix('.max')})" if a["field"] not in (None, "l2_error") else "")
-        t = f"{a['t_main']:.4g}" if a["t_main"] else "-"
-        cells = [_cell_text(x) for x in a["answers"]]
-        if all(x == NO_POINTWISE for x in a["answers"]):
-            cells = [f"{NO_POINTWISE} (chaotic: the solution is lost within the run)"]
-        lines.append((f"{name:<{width}}  {t:>8}  " + "  ".join(f"{c:<{ANSWER_CELL}}" for c in cells)).rstrip())
-    return lines
-
-
-def _pairs_text(pairs: list[tuple[str, str]], limit: int = 2 * WIDTH - 40) -> str:
-    """'verlet, yoshida6 on duffing-1, toda; rk4 on kepler': the problems of each set of
-    schemes, the largest sets first; past ``limit`` characters the rest counted."""
-    by: dict[str, list[str]] = {}
-    for problem, scheme in sorted(set(pairs)):
-        by.setdefault(problem, []).append(scheme)
-    sets: dict[tuple[str, ...], list[str]] = {}
-    for problem, schemes in by.items():
-        sets.setdefault(tuple(schemes), []).append(problem)
-    parts, shown = [], 0
-    for schemes, problems in sorted(sets.items(), key=lambda kv: (-len(kv[0]) * len(kv[1]), kv[0])):
-        part = f"{', '.join(schemes)} on {', '.join(problems)}"
-        if not parts and len(part) > limit:  # the largest set alone is too long: counted
-            part = f"{', '.join(schemes)} on {len(problems)} problems"
-            if len(part) > limit:
-                part = f"{len(schemes)} schemes on {', '.join(problems)}" if len(problems) == 1 else \
-                    f"{len(schemes)} schemes on {len(problems)} problems"
-        if parts and sum(map(len, parts)) + len(part) > limit:
-            rest = len(set(pairs)) - shown
-            parts.append(f"{rest} more pair{'s' if rest != 1 else ''} (`--full`)")
-            break
-        parts.append(part)
-        shown += len(schemes) * len(problems)
-    return "; ".join(parts)
-
-
-# the pairs named after a count on the first screen: about one line of them, the rest counted
-ONE_LINE = WIDTH
-
-
-def _need(why: str) -> str:
-    """A skip reason's short form: 'needs separable, which the problem does not provide' ->
-    'needs separable'; 'needs the package diffrax: pip install ...' kept whole (it says the fix)."""
-    import re
-
-    return why if "pip install" in why else re.split(r" \(|, which", why)[0]
-
-
-def count_lines(rows: list[dict[str, Any]], orders: bool = True) -> list[str]:
-    """The counts of the rows, each count that is not ok with its reason: skipped pairs by
-    what the scheme needs (once, not per problem), rows that did not run to the end by
-    status and first reason, rows that lost the solution, the orders left out, the settings
-    the budget moved."""
-    import re
-
-    from longtime.execution.budget import notes
-    from longtime.measure.orders import left_out
-
-    lines = [f"{len(rows)} cells: {format_counts(status_counts(rows))}"]
-    skipped: dict[str, list[tuple[str, str]]] = {}
-    for r in rows:
-        if r.get("status") == "skipped":
-            why = str(r.get("message") or "no reason stored").removeprefix(f"{r['integrator']} ")
-            why = re.sub(rf"\b{re.escape(r['problem'])}\b", "the problem", why)
-            skipped.setdefault(why, []).append((r["problem"], r["integrator"]))
-    if skipped:  # one paragraph: what the schemes need, by count; `--full` names the pairs
-        total = sum(len(p) for p in skipped.values())
-        by_count = sorted(skipped.items(), key=lambda kv: -len(kv[1]))
-        needs = "; ".join(f"{_need(why)} {len(pairs)}" for why, pairs in by_count)
-        lines += _wrap(f"  skipped {total}, does not apply: {needs} (`--full` names the pairs)")
-    for status in ("diverged", "failed", "timeout"):
-        bad = [r for r in rows if r.get("status") == status]
-        reasons: dict[str, list[tuple[str, str]]] = {}
-        for r in bad:
-            first = str(r.get("message") or "no message stored").split(";")[0].strip()
-            first = re.sub(r"\s*\b(at|near|from|to) t ?= ?[-+0-9.e]+", "", first)  # the reason, not where
-            reasons.setdefault(first[:90], []).append((r["problem"], r["integrator"]))
-        for why, pairs in sorted(reasons.items(), key=lambda kv: -len(kv[1])):
-            lines += _wrap(f"  {status} {len(pairs)} ({why}): {_pairs_text(sorted(set(pairs)), ONE_LINE)}")
-    lost = [(r["problem"], r["integrator"]) for r in rows if r.get("status") == "ok" and r.get("solution_lost")]
-    if lost:
-        lines += _wrap(f"  ok but lost the solution {len(lost)} (error O(1) at the end): "
-                       f"{_pairs_text(sorted(set(lost)), ONE_LINE)}")
-    moved = notes(rows)
-    if moved:
-        lines += _wrap(f"  moved by the default matrix's budget {len(moved)} (a run over its seconds runs to a "
-                       f"shorter t_final): {_pairs_text(sorted(moved), ONE_LINE)}")
-    if orders:
-        out = left_out(rows)
-        if out:
-            kinds: dict[str, list[tuple[str, str]]] = {}
-            for m in out:
-                why = re.sub(r"\s*\(.*", "", str(m["reason"]).split(":")[0]).strip()
-                why = "too few points left" if re.match(r"\d+ of \d+ points left", why) else why
-                kinds.setdefault(why, []).append(
-                    (m["problem"], m["integrator"]))
-            lines += _wrap(f"  left out of the order fits {len(out)}: " + ", ".join(
-                f"{why} {len(pairs)}" for why, pairs in sorted(kinds.items(), key=lambda kv: -len(kv[1])))
-                + " (`--full` names each)")
-    return lines
-
-
-def problem_line(problem: str, rows: list[dict[str, Any]], fits: list[dict[str, Any]], chaos: str | None) -> list[str]:
-    """One problem in a line or two: the fastest scheme per accuracy at the run's final
-    time (each scheme down to the finest decade it is fastest at; its settings in --full),
-    the orders that miss the declared one, the ensembles of a chaotic one."""
-    field = pareto_field(rows)
-    front: list[dict[str, Any]] = []
-    for p in pareto(rows, field) if field else []:  # consecutive decades of the same fastest row folded
-        if front and front[-1]["best"] is p["best"]:
-            front[-1]["finest"] = p["target"]
-        else:
-            front.append({**p, "finest": p["target"]})
-    parts = []
-    if front:
-        reach: list[list] = []  # [scheme, its finest decade] of consecutive decades a scheme is fastest at
-        for p in front:
-            if reach and reach[-1][0] == p["best"]["integrator"]:
-                reach[-1][1] = p["finest"]
-            else:
-                reach.append([p["best"]["integrator"], p["finest"]])
-        parts.append(f"fastest ({field} <=): " + ", ".join(f"{scheme} to {finest:.0e}" for scheme, finest in reach))
-    else:
-        parts.append("no ok row with an error and a CPU time")
-    misses = [f["integrator"] for f in fits if f["order_flag"]]
-    if misses:
-        parts.append("misses its order: " + ", ".join(sorted(set(misses))))
-    lines = _wrap(f"{problem}: " + "; ".join(parts))
-    if chaos:
-        lines += _wrap(f"    ensemble distance to heyoka's (W1 / std): {chaos.split(';')[0]}")
-    return lines
-
-
-def first_screen(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = (),
-                 ensembles: Iterable[dict[str, Any]] = (), page: str | None = None) -> str:
-    """The default report (``longtime report``, the end of ``longtime matrix``): the answer
-    table across problems, the counts with their reasons, a line or two per problem, the
-    notes said once, where the rest is. At most about 80 lines at WIDTH columns for a main
-    job's store; ``--full`` prints ``summary(full=True)`` and every row."""
-    from longtime.execution.ensembles import summary as ensemble_summary
-    from longtime.measure.orders import observed_orders
-
-    if not rows:
-        return "no rows"
-    checks = list(checks)
-    answers = answer_rows(rows, checks)
-    lines = _wrap("cheapest setting predicted to keep the error up to T (T: the run's final time; the error: the "
-                  "solution's, the energy's where marked (H)); `longtime recommend -p P --error E --horizon T`:", "  ")
-    lines += answer_table(answers)
-    lines.append("")
-    lines += count_lines(rows)
-    lines.append("")
-    fits = observed_orders(rows)
-    chaos = ensemble_summary(list(ensembles))
-    for problem in sorted({r["problem"] for r in rows}):
-        mine = [r for r in rows if r["problem"] == problem]
-        lines += problem_line(problem, mine, [f for f in fits if f["problem"] == problem], chaos.get(problem))
-    lines.append("")
-    if checks:
-        from longtime.predict.checks import check_summary
-
-        lines += _wrap(f"checks: {check_summary(checks)}")
-    lines += _wrap("a prediction extrapolates a setting's growth law up to a multiple of its run's span, never "
-                   "past an error of O(1) (docs/metrics.md, \"How far a class is trusted\"); undetermined (S): "
-                   "S might keep it but no law reaches that far, `longtime recommend` names the run that decides it",
-                   "  ")
-    more = "`longtime report --full`: each problem's verdict per horizon, Pareto front, orders, growth and every row"
-    lines += _wrap(more, "  ")
-    lines.append(f"results page: {page}" if page else "results page: `longtime report --html DIR` writes it")
-    return "\n".join(lines)
-
-
-# ------------------------------------------------------------------ the report command
+# ------------------------------------------------------------------ the tables as a file
 def to_parquet(rows: list[dict[str, Any]], path) -> None:
     """Every row as one parquet table (list values, such as confidence intervals, as JSON text)."""
     df = _object_frame(rows).infer_objects()  # typed columns: a float column stays float64
@@ -571,17 +336,3 @@ def to_parquet(rows: list[dict[str, Any]], path) -> None:
         raise InputError(f"--format parquet needs a parquet engine: pip install pyarrow "
                          f"(the extra longtime[parquet]); {str(exc).splitlines()[0]}") from None
     write_atomic(path, buffer.getvalue())
-
-
-def report_text(rows: list[dict[str, Any]], fmt: str = "table", full: bool = False,
-                checks: Iterable[dict[str, Any]] = (), ensembles: Iterable[dict[str, Any]] = (),
-                page: str | None = None) -> str:
-    """What ``longtime report`` prints: the first screen (format table: ``first_screen``;
-    ``checks``: the stored checks of the verdicts' predictions; ``page``: the results page's
-    path, named at its end); with ``full`` every line of the summary per problem and the
-    full per-cell tables instead; csv, json and markdown are the full tables."""
-    if fmt != "table":
-        return render(rows, fmt)
-    if not full:
-        return first_screen(rows, checks=checks, ensembles=ensembles, page=page)
-    return summary(rows, full=True, checks=checks, ensembles=ensembles) + "\n\n" + render(rows, "table")

@@ -1,7 +1,7 @@
-"""Audit of issue 14's last classes: every flag reaches every scheme that declares it, every
-machine output format keeps full precision, and every cache is verified before it is
-trusted. The scheme tests go over the registry, so a new scheme that ignores a parameter it
-declares fails here without anyone listing it."""
+"""Every flag reaches every scheme that declares it, every machine output format keeps full
+precision, and every cache is verified before it is trusted. The scheme tests go over the
+registry, so a new scheme that ignores a parameter it declares fails here without anyone
+listing it."""
 import csv
 import io
 import json
@@ -18,8 +18,9 @@ import pytest
 from longtime import FixedStepIntegrator
 from longtime.commands.cli import main
 from longtime.core import registry
-from longtime.core.integrator import Timing, same_run
 from longtime.core.roles import ROW_PARAMETERS
+from longtime.core.timing import Timing
+from longtime.core.trajectory import same_run
 from longtime.execution import cells as cells_module
 from longtime.execution.cells import Cell, run_cell
 
@@ -170,9 +171,9 @@ def _cli(capsys, *argv):
 
 
 @pytest.mark.parametrize("argv,words", [
-    # a flag and --set giving one parameter: the flag used to win silently
+    # a flag and --set giving one parameter: refused, neither wins silently
     (["-i", "rk4", "--dt", "0.2", "--set", "dt=0.1"], ["--dt and --set dt= both give dt"]),
-    # --jobs with the serial executor used to be ignored (and --jobs -2 meant 'one per core')
+    # --jobs with the serial executor is refused, not ignored; a negative --jobs is refused
     (["-i", "rk4", "--jobs", "2", "--executor", "serial"], ["--jobs 2", "serial"]),
     (["-i", "rk4", "--jobs", "-2", "--executor", "process"], ["--jobs", ">= 0"]),
     (["-i", "rk4", "--repeats", "0"], ["--repeats", ">= 1"]),
@@ -301,7 +302,7 @@ def test_human_formats_round_but_never_show_a_tiny_value_as_zero(fmt):
             {"problem": "p", "integrator": "b", "status": "failed", "message": "x"}]
     text = render(rows, fmt)
     assert "3.000e-17" in text and "1.000e-300" in text and "1.500e-06" in text
-    assert "12345678901" in text  # a count is not rounded (it was 1.235e+10 beside a null)
+    assert "12345678901" in text  # a count is not rounded, even beside a null (not 1.235e+10)
     line = next(line for line in text.splitlines() if " a " in f" {line} " or "| a " in line)
     assert " 0 " not in line and " 0.0 " not in line and "| 0 |" not in line
 
@@ -340,18 +341,18 @@ def test_reference_cache_file_with_flipped_bits_is_not_believed(tmp_path, monkey
     monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))
     path = tmp_path / "states.npy"
     states = np.linspace(0.0, 1.0, 64).reshape(32, 2)
-    reference._save(path, states)
-    assert np.array_equal(reference._load(path, lambda: np.load(path)), states)
+    reference.save_cached(path, states)
+    assert np.array_equal(reference.load_cached(path, lambda: np.load(path)), states)
     data = bytearray(path.read_bytes())
     data[-100] ^= 0x01  # in the last state: a finite value, a little off
     path.write_bytes(bytes(data))
     assert np.isfinite(np.load(path)).all()
     with pytest.warns(UserWarning, match=f"discarding the unreadable reference cache file {path}"):
-        assert reference._load(path, lambda: np.load(path)) is None
+        assert reference.load_cached(path, lambda: np.load(path)) is None
     assert not path.exists()
     np.save(path, states)  # a file without a checksum (another writer, an older version)
     with pytest.warns(UserWarning, match="no checksum"):
-        assert reference._load(path, lambda: np.load(path)) is None
+        assert reference.load_cached(path, lambda: np.load(path)) is None
 
 
 def test_reference_cache_key_covers_the_equations(monkeypatch, tmp_path):
@@ -362,7 +363,7 @@ def test_reference_cache_key_covers_the_equations(monkeypatch, tmp_path):
 
     monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))
     problem = registry.problem_class("harmonic")()
-    before = reference._cache_path(problem, "states", "double")
+    before = reference.cache_path(problem, "states", "double")
     system = problem.heyoka_system
 
     def edited():
@@ -370,7 +371,7 @@ def test_reference_cache_key_covers_the_equations(monkeypatch, tmp_path):
         return variables, [rhs[0], 1.0000000000000002 * rhs[1]]
 
     monkeypatch.setattr(problem, "heyoka_system", edited)
-    assert reference._cache_path(problem, "states", "double") != before
+    assert reference.cache_path(problem, "states", "double") != before
 
 
 def _longtime_run(env, *argv):
@@ -378,6 +379,7 @@ def _longtime_run(env, *argv):
                           capture_output=True, text=True, timeout=300)
 
 
+@pytest.mark.slow
 def test_corrupt_kernel_module_and_bytecode_are_discarded_and_rebuilt(tmp_path):
     """Before: a generated kernel module with bytes that are not UTF-8 failed the row
     ('UnicodeDecodeError') on every rerun, naming no file; a damaged .pyc of it, 'bad
@@ -419,7 +421,7 @@ print(caller())
 
 def test_numba_cache_of_a_function_whose_callee_changed_is_not_used(tmp_path):
     """numba keys a cached function by its own bytecode and its own file: a callee edited in
-    another file used to leave the caller's cache valid, and the old code ran. The cache
+    another file leaves numba's key of the caller unchanged, so its stale code would run. The cache
     guard adds the fingerprint of everything the function reaches to the key."""
     (tmp_path / "caller.py").write_text("import longtime.core.jitcache\n" + CALLER)
     callee = tmp_path / "callee.py"
