@@ -37,3 +37,10 @@ def test_asv_init_on_a_read_only_folder_is_refused_in_one_line(read_only, capsys
     code, err = _main(capsys, "asv-init", read_only, "-p", "harmonic", "-i", "rk4")
     assert code == 2 and "not writable" in err and "nothing was written" in err, err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_run_with_a_new_store_on_a_read_only_folder_is_refused_before_any_cell(read_only, capsys):
+    code, err = _main(capsys, "run", "-p", "harmonic", "-i", "rk4", "--t-final", "5", "--db",
+                      read_only / "new.sqlite")
+    assert code == 2 and "cannot create it" in err and "not writable" in err and "--no-store" in err, err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err

@@ -111,6 +111,9 @@ def check_path(path: Path, must_exist: bool) -> bool:
         if parent.exists():
             if not parent.is_dir():
                 raise InputError(f"store {path}: {parent} is a file, not a folder")
+            if not must_exist and not os.access(parent, os.W_OK | os.X_OK):  # a read-only mount too
+                raise InputError(f"store {path}: cannot create it, {parent} is not writable (a read-only file "
+                                 f"system or no permission); pass --db a writable path, or --no-store")
             break
     if must_exist:
         raise InputError(f"store {path}: no such file (nothing was created)")
