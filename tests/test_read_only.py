@@ -42,5 +42,5 @@ def test_asv_init_on_a_read_only_folder_is_refused_in_one_line(read_only, capsys
 def test_run_with_a_new_store_on_a_read_only_folder_is_refused_before_any_cell(read_only, capsys):
     code, err = _main(capsys, "run", "-p", "harmonic", "-i", "rk4", "--t-final", "5", "--db",
                       read_only / "new.sqlite")
-    assert code == 2 and "cannot create it" in err and "not writable" in err and "--no-store" in err, err
+    assert code == 2 and "cannot write it" in err and "not writable" in err and "--no-store" in err, err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err

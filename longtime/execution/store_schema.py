@@ -112,7 +112,7 @@ def check_path(path: Path, must_exist: bool) -> bool:
             if not parent.is_dir():
                 raise InputError(f"store {path}: {parent} is a file, not a folder")
             if not must_exist and not os.access(parent, os.W_OK | os.X_OK):  # a read-only mount too
-                raise InputError(f"store {path}: cannot create it, {parent} is not writable (a read-only file "
+                raise InputError(f"store {path}: cannot write it: {parent} is not writable (a read-only file "
                                  f"system or no permission); pass --db a writable path, or --no-store")
             break
     if must_exist:
