@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from longtime.core import registry
-from longtime.execution.cells import Cell, run_cell
-from longtime.integrators.bpl import BorelPadeLaplace
 from longtime.core.params import InputError
 from longtime.core.problem import Problem
+from longtime.execution.cells import Cell, run_cell
+from longtime.integrators.bpl import BorelPadeLaplace
 
 
 # ---------------------------------------------------------------- tiny test problems

@@ -1,14 +1,13 @@
 """Constrained mechanics: the Cartesian double pendulum, dirac-1/2/midpoint and RATTLE."""
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
 from longtime.core import registry
 from longtime.core.params import InputError
-from longtime.problems.double_pendulum import DoublePendulum
 from longtime.measure.reference import reference_states
+from longtime.problems.double_pendulum import DoublePendulum
 
 CONSTRAINED = ("dirac-1", "dirac-2", "dirac-midpoint", "rattle")
 

@@ -185,8 +185,8 @@ def test_ctrl_c_ends_a_run_stuck_in_a_compiled_step(env, tmp_path):
 def test_toda_invariants_are_bounded_in_memory():
     """Before: every sample's Lax matrix was built at once (d = 80, 62500 samples: 3.2 GB,
     5.9 GB with eigvalsh's copy). In chunks the eigenvalues are the same, bitwise."""
-    from longtime.problems import toda
     from longtime.core.registry import problem_class
+    from longtime.problems import toda
 
     problem = problem_class("toda")(d=6)
     rng = np.random.default_rng(1)

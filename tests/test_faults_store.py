@@ -18,8 +18,8 @@ from _plugins import longtime
 from test_faults import _cli, _permission_prefix
 
 from longtime.commands import listing
-from longtime.execution import batches
 from longtime.commands.cli import main
+from longtime.execution import batches
 from longtime.execution.store import APPLICATION_ID, Store
 
 QUICK = ["-p", "harmonic", "-i", "verlet", "--dt", "0.1", "--t-final", "1"]

@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import _slowed
 import pytest
 
 from longtime.core import registry
@@ -17,8 +18,6 @@ from longtime.core.timing import Timing
 from longtime.execution.cells import expand, run_cell
 from longtime.reporting.compare import compare
 from longtime.reporting.compare_cells import INSTRUCTION_FACTOR
-
-import _slowed
 
 # CI installs Valgrind and sets LONGTIME_REQUIRE_VALGRIND: there these tests fail instead of skipping
 needs_valgrind = pytest.mark.skipif(shutil.which("valgrind") is None and not os.environ.get("LONGTIME_REQUIRE_VALGRIND"),

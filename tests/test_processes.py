@@ -8,8 +8,7 @@ import pytest
 from longtime.commands import cli
 from longtime.core.params import InputError
 from longtime.core.timing import Timing
-from longtime.execution import provenance
-from longtime.execution import processes
+from longtime.execution import processes, provenance
 from longtime.execution.cells import Cell, run_cell
 from longtime.execution.matrix import ExecOptions, run_matrix
 from longtime.execution.processes import MAX_ROUNDS, check_processes, merge, time_cells

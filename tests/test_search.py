@@ -3,7 +3,9 @@ accuracy parameter is called ``rtol``: found from its declared role, swept and m
 import json
 import math
 
-from _rtol_scheme import NAME as RTOL, register
+from _rtol_scheme import NAME as RTOL
+from _rtol_scheme import register
+
 from longtime.commands.cli import main
 from longtime.execution.search import CLOSE_ENOUGH, accuracy_parameter
 

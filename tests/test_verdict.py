@@ -8,9 +8,9 @@ import re
 import pytest
 
 from longtime.commands import cli
+from longtime.execution import checks as XC
 from longtime.execution.cells import Cell
 from longtime.execution.store import Store
-from longtime.execution import checks as XC
 from longtime.predict import checks as PC
 from longtime.predict import decision as D
 from longtime.predict import settings as S

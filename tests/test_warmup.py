@@ -3,8 +3,8 @@ import os
 import subprocess
 import sys
 
-from longtime.execution.cells import expand
 from longtime.commands.warmup import distinct_kernels
+from longtime.execution.cells import expand
 
 
 def test_cells_that_differ_only_in_run_time_values_share_one_kernel():

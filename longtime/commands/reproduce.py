@@ -32,8 +32,6 @@ from longtime.execution.matrix import EXECUTORS, ExecOptions
 from longtime.execution.store import Store, environment
 
 
-
-
 def reproduce(out: str | Path = "reproduction", quick: bool = False, figures: bool = True,
               executor: str = "process", options: ExecOptions | None = None, store: Store | None = None,
               sections: list[str] | None = None, command: str = "reproduce",
