@@ -38,7 +38,7 @@ def _g_coeff(coeffs, params, n):
 
 @numba.njit(cache=True)
 def _scalar_taylor(t0, u, params, coeffs, work):
-    a, b, c = params[0], params[1], params[2]
+    c = params[2]
     N = coeffs.shape[0] - 1
     coeffs[0, 0] = u[0]
     if c == 0.0:
