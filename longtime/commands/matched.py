@@ -235,10 +235,12 @@ def add_parser(subparsers) -> None:
     p.add_argument("--repeat", type=int, default=3, help="timing runs of each matched point (best kept)")
     p.add_argument("--max-evals", type=int, default=14, help="search runs allowed per scheme")
     p.add_argument("--scaling", action="store_true", help="also run the sizes and the BPL orders")
-    p.add_argument("--sizes", type=cli_args.ints("--sizes"), default=[64, 128, 256, 512], help="values of d for --scaling")
+    p.add_argument("--sizes", type=cli_args.ints("--sizes"), default=[64, 128, 256, 512],
+                   help="values of d for --scaling")
     p.add_argument("--orders", type=cli_args.ints("--orders"), default=list(range(4, 15)),
                    help="BPL series orders for --scaling (e.g. 4..14 or 4,6,8)")
-    p.add_argument("--out", default="figures", type=cli_args.out_folder("--out"), help="folder of the scaling figure (PNG and SVG)")
+    p.add_argument("--out", default="figures", type=cli_args.out_folder("--out"),
+                   help="folder of the scaling figure (PNG and SVG)")
     p.add_argument("--no-figure", action="store_true")
     p.add_argument("--format", choices=["table", "json"], default="table")
     p.add_argument("--db", default=None, help=f"SQLite store (default: $LONGTIME_DB or {default_path()})")

@@ -98,8 +98,10 @@ def cmd_reproduce(args) -> int:
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser("reproduce", help="the paper's tables and figures beside ours, in one Markdown report",
                               description=__doc__.splitlines()[0])
-    p.add_argument("--out", default="reproduction", type=cli_args.out_folder("--out"), help="folder of report.md and its figures (default: reproduction)")
-    p.add_argument("--quick", action="store_true", help="shortened final times (a couple of minutes; stated in the report)")
+    p.add_argument("--out", default="reproduction", type=cli_args.out_folder("--out"),
+                   help="folder of report.md and its figures (default: reproduction)")
+    p.add_argument("--quick", action="store_true",
+                   help="shortened final times (a couple of minutes; stated in the report)")
     p.add_argument("--section", type=cli_args.names, default=None,
                    metavar="NAME[,..]", help="only these sections: " + ", ".join(
                        f.__name__.removeprefix("section_") for _, f in SECTIONS))
