@@ -164,8 +164,9 @@ def add_parser(subparsers) -> None:
                    help="runs per scheme and step")
     p.add_argument("--t-final", type=cli_args.positive_number("--t-final"), default=DEFAULT_T_FINAL, metavar="T",
                    help=f"how long each member runs (default {DEFAULT_T_FINAL:g})")
-    p.add_argument("--gap", type=cli_args.positive_number("--gap"), default=DEFAULT_GAP, help="the energy's distance below the escape "
-                                                                   f"energy 1/6 (default {DEFAULT_GAP:g})")
+    p.add_argument("--gap", type=cli_args.positive_number("--gap"), default=DEFAULT_GAP,
+                   help="the energy's distance below the escape "
+                        f"energy 1/6 (default {DEFAULT_GAP:g})")
     p.add_argument("--threshold", type=cli_args.positive_number("--threshold"), default=None,
                    help="a relative energy error that also counts as a breakdown (default: escapes only)")
     p.add_argument("--jobs", type=cli_args.jobs, default=0, help="worker processes (default: one per core)")

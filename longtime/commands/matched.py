@@ -59,7 +59,8 @@ def match_table(rows: list[dict], problem: str, settings: dict, metric: str, tar
             f"{r['integrator']:14s} {param:>18s} {column(r.get('mean_dt'), '10.3e')} "
             f"{column(_shown(r, metric), '11.3e')} {column(r.get('cpu_s'), '9.4f')} {column(r.get('steps'), '8d')} "
             f"{column(r.get('rhs_evals'), '9d')} | "
-            + (f"{p[0]:9.4g} {p[1]:9.3g} {p[2]:9.3g} {column(ratio, '10.3g')}" if p else f"{'-':>9s} " * 3 + f"{'-':>10s}"))
+            + (f"{p[0]:9.4g} {p[1]:9.3g} {p[2]:9.3g} {column(ratio, '10.3g')}" if p
+               else f"{'-':>9s} " * 3 + f"{'-':>10s}"))
         if r["status"] != "ok":
             lines.append(f"    {r['status']}: {r.get('message')}")
         if r.get("match_note"):

@@ -50,7 +50,8 @@ def reproduce(out: str | Path = "reproduction", quick: bool = False, figures: bo
         "# longtime: reproduction of Razafindralandy, Salnikov, Hamdouni, Deeb (2019)", "",
         f"Generated {datetime.now(timezone.utc).isoformat(timespec='seconds')} by `longtime {command}`"
         f"{' (**quick**: shortened final times, stated per section)' if quick else ''}; git "
-        f"{env['git_commit'] or 'unknown'}; " + ", ".join(f"{k} {v}" for k, v in env["versions"].items() if v and isinstance(v, str))
+        f"{env['git_commit'] or 'unknown'}; "
+        + ", ".join(f"{k} {v}" for k, v in env["versions"].items() if v and isinstance(v, str))
         + f"; {env['machine']['cpus']} CPUs.", "",
         "Paper's numbers: quoted from docs/paper.md (its own code and machine). Ours: measured in this run "
         "(CPU = process time of the compiled integration alone). 'ours / paper' is the ratio of the two.", ""]

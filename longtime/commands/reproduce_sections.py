@@ -190,7 +190,8 @@ def section_toda(ctx: Context) -> str:
                 diff = abs(r["H.mean"] / pe - 1)
                 explain.append(f"- {s} at dt = {dt:g}: ours / paper = {r['H.mean'] / pe:.4f} ("
                                + ("agrees within 1 %" if diff < 0.01 else
-                                  "the paper's figure for this run is approximate ('about')" if (s, dt) == ("rk4", 0.0275)
+                                  "the paper's figure for this run is approximate ('about')"
+                                  if (s, dt) == ("rk4", 0.0275)
                                   else f"differs by {100 * diff:.1f} %") + ").")
     if matched.get("H.mean") and sym.get("H.mean"):
         close = 0.5 < matched["H.mean"] / sym["H.mean"] < 2.0

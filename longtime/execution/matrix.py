@@ -259,7 +259,8 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
                 broken = False
                 pool = spawn_pool(min(workers, len(remaining)), _worker_init,
                                   (os.getpid(), options.memory_limit, registry.session_payload()))
-                watchdog = Watchdog(folder, limit, _record_timeout(folder, options.time_limit)).start() if limit else None
+                watchdog = (Watchdog(folder, limit, _record_timeout(folder, options.time_limit)).start() if limit
+                            else None)
                 try:
                     for batch, fut in scheduled(pool, workers, batches_by_pair(remaining), run_batch,
                                                 options.max_samples, options.timing, folder, options.time_limit,
