@@ -6,7 +6,8 @@ a numerical orbit escapes (and then runs off to infinity: a diverged run) only o
 energy it conserves has drifted past the saddles. Each scheme runs an ensemble of members
 (initial y0 spread evenly over [-0.25, 0.35], x = 0, py = 0, px from the energy) at each
 step dt up to t_final; a member's breakdown is its escape, or with ``--threshold`` the first
-time its relative energy error reaches that (longtime.measure.horizon). T*(dt) is the inverse breakdown rate over the ensemble, and
+time its relative energy error reaches that (longtime.measure.horizon). T*(dt) is the inverse
+breakdown rate over the ensemble, and
 ln T* is fitted against 1/dt (the exponential law of backward error analysis) and ln dt (a
 power law). The members run as tasks on a process pool, as the round-off study's do.
 """

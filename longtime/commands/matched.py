@@ -1,7 +1,8 @@
 """``longtime match``: schemes compared at matched accuracy, and how their cost scales.
 
 For each scheme, the parameter that sets its accuracy (its declared ``accuracy`` parameter:
-``eps_res`` for BPL, ``tol`` for adaptive schemes, a plugin's own; else its step ``dt``) is searched, by bracketing in decades and
+``eps_res`` for BPL, ``tol`` for adaptive schemes, a plugin's own; else its step ``dt``) is
+searched, by bracketing in decades and
 then bisection on its logarithm, for an error at t_final near ``--target`` (default 1e-5;
 the error is ``final_error``, for KdV the relative L2 norm in x at t = T, since its state
 is orthonormal Fourier coefficients). The evaluated point nearest the target (in log) is
