@@ -133,8 +133,9 @@ def test_a_stuck_cell_of_run_ends_as_a_timeout_row(env, tmp_path, scheme):
     from longtime.execution.limits import hard_limit
 
     start = time.monotonic()
-    res = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "run", "-p", "harmonic", "-i", f"{scheme},verlet",
-                          "--dt", "0.1", "--t-final", "1", "--time-limit", "1", "--no-store", "--format", "json"],
+    res = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "run", "-p", "harmonic",
+                          "-i", f"{scheme},verlet", "--dt", "0.1", "--t-final", "1",
+                          "--time-limit", "1", "--no-store", "--format", "json"],
                          env=_spin_env(env, tmp_path), capture_output=True, text=True, timeout=120)
     elapsed = time.monotonic() - start
     rows = {r["integrator"]: r for r in json.loads(res.stdout)}
@@ -328,8 +329,8 @@ def test_an_unusable_cache_folder_is_refused_up_front(tmp_path, kind):
         cache.mkdir()
         os.chmod(cache, 0o555)
     try:
-        res = subprocess.run([*prefix, sys.executable, "-m", "longtime.commands.cli", "run", "-p", "harmonic", "-i", "verlet",
-                              "--dt", "0.1", "--t-final", "1", "--no-store"],
+        res = subprocess.run([*prefix, sys.executable, "-m", "longtime.commands.cli", "run", "-p", "harmonic",
+                              "-i", "verlet", "--dt", "0.1", "--t-final", "1", "--no-store"],
                              env={**os.environ, "LONGTIME_CACHE_DIR": str(cache)}, capture_output=True, text=True,
                              timeout=120)
     finally:

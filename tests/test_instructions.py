@@ -20,7 +20,8 @@ from longtime.reporting.compare import compare
 from longtime.reporting.compare_cells import INSTRUCTION_FACTOR
 
 # CI installs Valgrind and sets LONGTIME_REQUIRE_VALGRIND: there these tests fail instead of skipping
-needs_valgrind = pytest.mark.skipif(shutil.which("valgrind") is None and not os.environ.get("LONGTIME_REQUIRE_VALGRIND"),
+needs_valgrind = pytest.mark.skipif(shutil.which("valgrind") is None
+                                    and not os.environ.get("LONGTIME_REQUIRE_VALGRIND"),
                                     reason="valgrind is not installed (Debian package valgrind)")
 
 # kepler rk4 over T and 2T: the count doubles with the steps; harmonic with the plain scheme

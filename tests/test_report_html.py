@@ -119,7 +119,8 @@ def test_whole_store_as_parquet_and_csv(page, tmp_path):
     assert cli.main(["report", "--db", db, "--run", "all", "--format", "csv", "--out", str(tmp_path / "r.csv")]) == 0
     assert len(pd.read_csv(tmp_path / "r.csv")) == 14
     pytest.importorskip("pyarrow", reason="parquet needs pyarrow (the extra longtime[parquet])")
-    assert cli.main(["report", "--db", db, "--run", "all", "--format", "parquet", "--out", str(tmp_path / "r.parquet")]) == 0
+    assert cli.main(["report", "--db", db, "--run", "all", "--format", "parquet",
+                     "--out", str(tmp_path / "r.parquet")]) == 0
     df = pd.read_parquet(tmp_path / "r.parquet")
     assert len(df) == 14 and (df["status"] == "ok").sum() == 12
 
