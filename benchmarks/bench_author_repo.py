@@ -291,7 +291,8 @@ def expected_asv(scheme: str, k: int) -> dict[str, str]:
 def expected_history(scheme: str, k: int, counted: bool) -> dict[str, str]:
     if scheme != "author-rk4":
         return {}
-    more, fewer = ({"instructions": "more instructions"}, {"instructions": "fewer instructions"}) if counted else ({}, {})
+    more, fewer = (({"instructions": "more instructions"}, {"instructions": "fewer instructions"}) if counted
+                   else ({}, {}))
     return {SLOWER: {"cpu_s_calibrated": "slower", **more},
             LESS_ACCURATE: {"l2_error": "less accurate"},
             REVERT: {"cpu_s_calibrated": "faster", "l2_error": "more accurate", **fewer}}.get(k, {})
@@ -393,7 +394,8 @@ def main() -> int:
         runs = cell["runs"]
         for p, sha in zip(runs, commits):
             code = [x for x in p.get("code") or []]
-            if scheme == "author-rk4" and not (len(code) == 1 and code[0].get("commit") == sha and code[0].get("dirty") is False):
+            if scheme == "author-rk4" and not (len(code) == 1 and code[0].get("commit") == sha
+                                               and code[0].get("dirty") is False):
                 print(f"  {problem} {scheme}: run {p['run_id']} names {code}, not {sha}")
                 bad += 1
         if len(runs) != 5:

@@ -38,8 +38,8 @@ GOAL = 0.60
 @contextmanager
 def accounting():
     """Patch the phases' entry points with timers; yields the per-phase totals (seconds)."""
-    from longtime.execution import cells
     from longtime.core import integrator
+    from longtime.execution import cells
     from longtime.measure import metrics
 
     totals: dict[str, float] = defaultdict(float)

@@ -72,7 +72,8 @@ def run_phase(db: str, name: str, repeat: float) -> None:
                              options=ExecOptions(cost="instructions"))
     bad = [r for r in rows if r.get("status") != "ok" or not isinstance(r.get("instructions"), int)]
     for r in bad:
-        print(f"{r['problem']} {r['integrator']}: {r.get('status')} {r.get('message') or r.get('instructions_skipped')}",
+        print(f"{r['problem']} {r['integrator']}: {r.get('status')} "
+              f"{r.get('message') or r.get('instructions_skipped')}",
               file=sys.stderr)
     print(json.dumps({"run_id": run_id, "bad": len(bad)}))
 

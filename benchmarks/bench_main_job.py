@@ -39,8 +39,8 @@ taken at a similar integration, or their wall / integration.
 
 The goals (cold <= 400 s, warm <= 100 s on a quiet 2-core machine, and no idle core while work
 remains: the cold run's wall <= 1.15 x (compile + integration + references) / cores, those
-phases' CPU seconds) are judged for the default matrix only (no arguments after ``--``); the exit status is 1 when one is
-missed. Nothing here is asserted in CI. On a machine that other work loads, the wall times
+phases' CPU seconds) are judged for the default matrix only (no arguments after ``--``); the exit
+status is 1 when one is missed. Nothing here is asserted in CI. On a machine that other work loads, the wall times
 are inflated: compare the ratios, and the phases' shares.
 """
 from __future__ import annotations
@@ -144,7 +144,8 @@ def hold_table(runs: list[dict[tuple, list[float]]]) -> list[str]:
         line = f"{f'{lo:g} to {hi:g} s':16s} {len(keys):5d}"
         for _, way in ways:
             spread = np.array([max(way(r[k]) for r in runs) / min(way(r[k]) for r in runs) for k in keys])
-            line += f"  {f'x{np.median(spread):.2f}  x{np.quantile(spread, 0.9):.2f}  {np.mean(spread > HOLD):6.0%}':>30s}"
+            cell = f"x{np.median(spread):.2f}  x{np.quantile(spread, 0.9):.2f}  {np.mean(spread > HOLD):6.0%}"
+            line += f"  {cell:>30s}"
         lines.append(line)
     return lines
 
@@ -267,7 +268,8 @@ def main(argv: list[str] | None = None) -> int:
     for label in labels:
         print(f"{label:40s}" + "".join(f"{r['phases'].get(label, 0.0):12.1f}" + (
             f"{r['cpu'][label]:7.1f}" if label in r["cpu"] else f"{'':7s}") for _, r in runs))
-    print(f"{'timed integration (rows cpu_s_samples)':40s}" + "".join(f"{'':12s}{r['integration']:7.1f}" for _, r in runs))
+    print(f"{'timed integration (rows cpu_s_samples)':40s}"
+          + "".join(f"{'':12s}{r['integration']:7.1f}" for _, r in runs))
     for name, r in runs[:1]:  # the costliest compiles of the first run (the cold one, unless --no-cold)
         top = sorted(r["compiles"].items(), key=lambda kv: -kv[1])[:TOP_COMPILES]
         if top:

@@ -63,7 +63,8 @@ def main() -> int:
         a, b = res[(name, "alone")], res[(name, "hogs")]
         size = sizes.get(name)
         which = calibration.workload_for({"working_set_bytes": size}) if size is not None else "-"
-        print(f"{name:34s} {f'{size / 2**20:.2f} MiB' if size else '-':>12s} {1e3 * min(a):8.3f}ms {1e3 * min(b):8.3f}ms "
+        print(f"{name:34s} {f'{size / 2**20:.2f} MiB' if size else '-':>12s} "
+              f"{1e3 * min(a):8.3f}ms {1e3 * min(b):8.3f}ms "
               f"{min(b) / min(a):6.2f} ({statistics.median(b) / statistics.median(a):.2f})  {which}")
     return 0
 

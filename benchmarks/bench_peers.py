@@ -24,7 +24,6 @@ from __future__ import annotations
 import argparse
 import math
 
-
 from longtime.core import registry
 from longtime.core.timing import Timing
 from longtime.measure.metrics import evaluate

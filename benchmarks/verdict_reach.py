@@ -57,7 +57,8 @@ def main(argv=None) -> int:
         for law in S.EXPONENTS:
             seen, picks = set(), []
             for s in v.candidates:  # cheapest first
-                if s.law != law or s.scheme in seen or (args.kind and s.kind != args.kind) or s.cpu_at(max(factors) * s.span) > args.budget:
+                if (s.law != law or s.scheme in seen or (args.kind and s.kind != args.kind)
+                        or s.cpu_at(max(factors) * s.span) > args.budget):
                     continue
                 seen.add(s.scheme)
                 picks.append(s)

@@ -5,8 +5,8 @@ Importing the package compiles nothing: numba kernels compile on first use.
 from longtime.core.version import __version__
 
 __all__ = ["AdaptiveIntegrator", "FixedStepIntegrator", "InputError", "Integrator", "Order", "Param",
-           "Problem", "Result", "Trajectory", "__version__", "card", "convergence", "plot", "recommend", "solve", "sweep", "testing",
-           "work_precision"]
+           "Problem", "Result", "Trajectory", "__version__", "card", "convergence", "plot", "recommend", "solve",
+           "sweep", "testing", "work_precision"]
 
 # the Python API (docs/api.md), imported on first use: `import longtime` stays light
 _API = ("Order", "Result", "card", "convergence", "recommend", "solve", "sweep", "work_precision")

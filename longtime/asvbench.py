@@ -269,7 +269,7 @@ class Speed(_Suite):
         from longtime.core.timing import Timing
         from longtime.execution.cells import DEFAULT_MAX_SAMPLES
         from longtime.execution.child import RunSpec
-        from longtime.execution.processes import DEFAULT_PROCESSES, START_S, SPREAD_S, run_children
+        from longtime.execution.processes import DEFAULT_PROCESSES, SPREAD_S, START_S, run_children
 
         cells, labels = [], []
         for cell, label in self.selection.runnable():

@@ -184,7 +184,8 @@ def assert_growth(scheme: Any, problem: Any, invariant: str, allowed_classes: It
         alpha, ci = result.row.get(f"{invariant}.growth"), result.row.get(f"{invariant}.growth_ci")
         raise AssertionError(
             f"{_label(scheme, problem)} to t={t_final:g} ({_settings(result)}): error of {invariant} grows as "
-            f"t^{_g(alpha)} (95 % interval {_interval(ci)}), class {got!r}; expected {' or '.join(map(repr, allowed))}; "
+            f"t^{_g(alpha)} (95 % interval {_interval(ci)}), class {got!r}; "
+            f"expected {' or '.join(map(repr, allowed))}; "
             f"max {_g(result.row.get(invariant + '.max'))}, fitted over the last two decades of t")
     return result
 

@@ -11,7 +11,6 @@ import sys
 import textwrap
 from pathlib import Path
 
-
 PYPROJECT = """\
 [build-system]
 requires = ["setuptools>=61"]

@@ -2,8 +2,8 @@
 5(4) under another name for its tolerance), registered for one test by ``register``."""
 from longtime.core import registry
 from longtime.core.contract import check_registered
-from longtime.integrators.embedded_rk import DormandPrince45
 from longtime.core.params import Param
+from longtime.integrators.embedded_rk import DormandPrince45
 
 NAME = "test-rtol"
 

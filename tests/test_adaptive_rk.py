@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from longtime.core.drivers import new_counters
+from longtime.core.params import InputError
 from longtime.integrators.embedded_rk import AdaptiveRK4, DormandPrince45
 from longtime.integrators.scipy_ivp import DOP853
-from longtime.core.params import InputError
 from longtime.problems.harmonic import Harmonic
 from longtime.problems.kepler import Kepler
 

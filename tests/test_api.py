@@ -29,8 +29,9 @@ TIMING = ("cpu_s", "wall_s", "cpu_s_median", "cpu_s_max", "wall_s_median", "wall
 
 
 def test_solve_row_is_the_cli_json_row():
-    res = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "run", "-p", "kepler", "-i", "verlet", "--dt", "0.01",
-                          "--t-final", "30", "--set", "e=0.5", "--repeats", "1", "--no-store", "--format", "json"],
+    res = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "run", "-p", "kepler", "-i", "verlet",
+                          "--dt", "0.01", "--t-final", "30", "--set", "e=0.5", "--repeats", "1", "--no-store",
+                          "--format", "json"],
                          capture_output=True, text=True, timeout=300, env=os.environ)
     assert res.returncode == 0, res.stderr
     cli = json.loads(res.stdout)[0]

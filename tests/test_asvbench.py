@@ -23,7 +23,8 @@ def test_benchmarks_time_and_track_every_cell():
     classes = benchmarks(["kepler", "linear-test"], ["verlet", AsvVerletCopy, "rk4"], dt=[0.02, 0.01], t_final=10)
     integration, accuracy = classes["Integration"], classes["Accuracy"]
     assert integration.__name__ == "Integration" and accuracy.__name__ == "Accuracy"
-    assert integration.params == [["kepler", "linear-test"], ["verlet", "asv-verlet-copy", "rk4"], ["dt=0.02", "dt=0.01"]]
+    assert integration.params == [["kepler", "linear-test"], ["verlet", "asv-verlet-copy", "rk4"],
+                                  ["dt=0.02", "dt=0.01"]]
     assert accuracy.track_l2_error.unit == accuracy.track_drift.unit == "relative error"
     assert accuracy.track_growth_class.unit.startswith("growth class")
     assert not hasattr(accuracy, "track_growth")  # an exponent near 0: its ratio judges nothing

@@ -18,7 +18,7 @@ TABLE = """
 | +        | 4.4M                 | 5.9M                |    1.34 | bench_longtime.Cost.track_instructions('harmonic', 'author-rk4', 'dt=0.01')        |
 | -        | 2.84e-06             | 4.81e-08            |    0.02 | bench_longtime.Accuracy.track_l2_error('duffing-2', 'author-rk4', 'dt=0.01')       |
 |          | n/a                  | n/a                 |     n/a | bench_longtime.Accuracy.track_growth_class('duffing-2', 'verlet', 'dt=0.01')       |
-"""
+"""  # noqa: E501 (asv compare's table, verbatim)
 
 
 def test_asv_compare_table_is_read_per_cell():

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from longtime.core import registry
-from longtime.execution.cells import Cell, run_cell
-from longtime.integrators.bpl import BorelPadeLaplace
 from longtime.core.params import InputError
 from longtime.core.problem import Problem
+from longtime.execution.cells import Cell, run_cell
+from longtime.integrators.bpl import BorelPadeLaplace
 
 
 # ---------------------------------------------------------------- tiny test problems
@@ -38,7 +38,7 @@ def _g_coeff(coeffs, params, n):
 
 @numba.njit(cache=True)
 def _scalar_taylor(t0, u, params, coeffs, work):
-    a, b, c = params[0], params[1], params[2]
+    c = params[2]
     N = coeffs.shape[0] - 1
     coeffs[0, 0] = u[0]
     if c == 0.0:

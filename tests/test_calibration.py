@@ -5,8 +5,8 @@ import sqlite3
 
 import pytest
 
-from longtime.execution import calibration
 from longtime.commands import cli
+from longtime.execution import calibration
 from longtime.execution.calibration import Calibrator, annotate, drift, drift_text, measure
 from longtime.execution.store import SCHEMA_VERSION, Store
 

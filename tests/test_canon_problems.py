@@ -129,7 +129,9 @@ def test_charged_particle_field_is_the_curl_of_its_potential():
     J = np.array([(A(x + d * e) - A(x - d * e)) / (2 * d) for e in np.eye(3)]).T  # J[i, j] = dA_i/dx_j
     curl = np.array([J[2, 1] - J[1, 2], J[0, 2] - J[2, 0], J[1, 0] - J[0, 1]])
     assert np.allclose(curl, B, atol=1e-9)
-    U = lambda y: 0.01 / math.hypot(y[0], y[1])
+    def U(y):
+        return 0.01 / math.hypot(y[0], y[1])
+
     grad = np.array([(U(x + d * e) - U(x - d * e)) / (2 * d) for e in np.eye(3)])
     assert np.allclose(E, -grad, atol=1e-9)
     H0 = problem.invariants(np.zeros(1), problem.u0[None, :])["H"][0]

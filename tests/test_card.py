@@ -75,7 +75,8 @@ def test_card_command_and_its_bad_input(tmp_path):
     assert c["scheme"] == "verlet" and c["problems"][0]["problem"] == "harmonic"
     assert abs(c["problems"][0]["orders"][0]["observed"] - 2) < 0.05 and c["rows_from"].startswith("every run of")
     table = _cli("verlet", "--db", str(db))
-    assert table.returncode == 0 and table.stdout.startswith("verlet: ") and "== harmonic: 3 of 3 cells ok ==" in table.stdout
+    assert table.returncode == 0 and table.stdout.startswith("verlet: ")
+    assert "== harmonic: 3 of 3 cells ok ==" in table.stdout
     assert _cli("verlet", "--db", str(db), "--format", "markdown").stdout.startswith("### verlet")
     for bad, says in ((("nope", "--db", str(db)), "unknown integrator 'nope'"),
                       (("verlet", "--db", str(db), "--run", "9"), "run 9 is not in"),

@@ -1,10 +1,11 @@
 """Cells of the matrix (longtime.execution.cells.expand): any declared parameter sweeps, and the final
 time; bad sweeps are input errors. Nothing here integrates."""
 import pytest
+from _rtol_scheme import NAME as RTOL
+from _rtol_scheme import register
 
-from _rtol_scheme import NAME as RTOL, register
-from longtime.execution.cells import expand
 from longtime.core.params import InputError
+from longtime.execution.cells import expand
 
 
 def test_problem_parameter_and_final_time_sweep():

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from longtime import Problem
-from longtime.core import registry
 from longtime.commands.cli import main
+from longtime.core import registry
 from longtime.core.params import InputError
 
 

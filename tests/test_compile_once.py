@@ -59,8 +59,8 @@ def test_dop853_rhs_comes_from_the_disk_cache(tmp_path):
 def test_bpl_kernels_call_the_pade_compiled_once(tmp_path):
     """bpl's robust Pade is a cfunc the kernels call by symbol: a kernel loaded from the cache
     in a new process finds it (registered before any kernel loads) and runs bitwise alike."""
-    from longtime.integrators import bpl
     from longtime.core.jitcache import _names_used
+    from longtime.integrators import bpl
 
     called = _names_used(bpl.make_try_step.__code__)  # the names its nested kernels read
     assert "_prepare_pade_shared" in called and "_prepare_pade" not in called  # not linked in

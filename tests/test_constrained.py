@@ -1,14 +1,13 @@
 """Constrained mechanics: the Cartesian double pendulum, dirac-1/2/midpoint and RATTLE."""
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
 from longtime.core import registry
 from longtime.core.params import InputError
-from longtime.problems.double_pendulum import DoublePendulum
 from longtime.measure.reference import reference_states
+from longtime.problems.double_pendulum import DoublePendulum
 
 CONSTRAINED = ("dirac-1", "dirac-2", "dirac-midpoint", "rattle")
 
@@ -193,7 +192,9 @@ def test_index1_rhs_keeps_the_constraints_to_second_order():
     v, a = f[:4], f[4:] / mass
     G = np.zeros((2, 4))
     problem.constraints.grad_phi(u[:4].copy(), problem.params, G)
-    phi = lambda q: problem.constraint_values(np.r_[q, u[4:]])[0][0]
+    def phi(q):
+        return problem.constraint_values(np.r_[q, u[4:]])[0][0]
+
     # phi is quadratic: phi(q + d) = phi(q) + G d + Q(d), and phi'' = G a + 2 Q(v)
     second = G @ a + 2 * (phi(u[:4] + v) - phi(u[:4]) - G @ v)
     assert np.max(np.abs(second)) < 1e-12 * np.max(np.abs(G @ a))

@@ -6,7 +6,6 @@ numbers: what is tested is the bookkeeping, not Callgrind."""
 import os
 import sys
 
-
 from longtime.core import registry
 from longtime.core.timing import Timing
 from longtime.execution import valgrind

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import pytest
 
-from longtime.execution.cells import expand
 from longtime.commands.cli import build_parser
+from longtime.execution.cells import expand
 from longtime.execution.matrix import ExecOptions, run_matrix
 
 pytestmark = pytest.mark.slow  # every test here starts processes, clusters or long runs

@@ -7,11 +7,11 @@ import json
 import numpy as np
 import pytest
 
-from longtime.core import registry
 from longtime.commands.cli import main
-from longtime.reporting.page import build_page
+from longtime.core import registry
 from longtime.reporting.figures.results import drift_svg
 from longtime.reporting.figures.style import styles
+from longtime.reporting.page import build_page
 
 
 def _rows(capsys, tmp_path, *args):

@@ -114,8 +114,8 @@ def test_duffing1_bound_follows_the_growing_solution():
 
 @pytest.mark.slow
 def test_a_run_past_the_growing_bound_is_diverged_and_an_o1_error_is_flagged(monkeypatch):
-    from longtime.measure import reference
     from longtime.execution.cells import Cell, run_cell
+    from longtime.measure import reference
     from longtime.reporting.report import LOST, not_ok
 
     # past t = 35 double leaves long double, so the full ladder would also run real128, which

@@ -464,8 +464,8 @@ def test_bad_reference_budget_variable_is_an_input_error(fault_env):
 
 
 def test_corrupt_reference_cache_is_discarded_and_rebuilt(tmp_path, monkeypatch):
-    from longtime.measure import reference
     from longtime.core.registry import problem_class
+    from longtime.measure import reference
 
     monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(reference, "_CHECKS", {})
@@ -550,8 +550,8 @@ def test_out_that_is_a_file_is_an_input_error(command, tmp_path, capsys):
 def test_a_matrix_rejected_as_it_starts_leaves_no_run(tmp_path, capsys, monkeypatch):
     """Before: a matrix rejected for bad input (found as the executor started) was recorded
     as a resumable run."""
-    from longtime.execution import matrix
     from longtime.core.params import InputError
+    from longtime.execution import matrix
 
     def rejecting(cells, options):
         raise InputError("--scheduler tcp://nowhere:1: cannot connect")

@@ -46,7 +46,8 @@ def test_a_spinning_dask_cell_ends_as_a_timeout_row(env, tmp_path):  # noqa: F81
     out, err = proc.communicate(timeout=300)
     rows = {r["integrator"]: r for r in json.loads(out)}
     assert rows["plug-spin"]["status"] == "timeout", (rows["plug-spin"], err[-2000:])
-    assert "killed" in rows["plug-spin"]["message"] and str(hard_limit(1.0)).rstrip("0").rstrip(".") in rows["plug-spin"]["message"]
+    assert "killed" in rows["plug-spin"]["message"]
+    assert str(hard_limit(1.0)).rstrip("0").rstrip(".") in rows["plug-spin"]["message"]
     assert rows["verlet"]["status"] == "ok"
     for pid in _wait_for(tmp_path / "spin.txt"):
         assert not _alive(pid)

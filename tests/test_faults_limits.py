@@ -133,8 +133,9 @@ def test_a_stuck_cell_of_run_ends_as_a_timeout_row(env, tmp_path, scheme):
     from longtime.execution.limits import hard_limit
 
     start = time.monotonic()
-    res = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "run", "-p", "harmonic", "-i", f"{scheme},verlet",
-                          "--dt", "0.1", "--t-final", "1", "--time-limit", "1", "--no-store", "--format", "json"],
+    res = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "run", "-p", "harmonic",
+                          "-i", f"{scheme},verlet", "--dt", "0.1", "--t-final", "1",
+                          "--time-limit", "1", "--no-store", "--format", "json"],
                          env=_spin_env(env, tmp_path), capture_output=True, text=True, timeout=120)
     elapsed = time.monotonic() - start
     rows = {r["integrator"]: r for r in json.loads(res.stdout)}
@@ -185,8 +186,8 @@ def test_ctrl_c_ends_a_run_stuck_in_a_compiled_step(env, tmp_path):
 def test_toda_invariants_are_bounded_in_memory():
     """Before: every sample's Lax matrix was built at once (d = 80, 62500 samples: 3.2 GB,
     5.9 GB with eigvalsh's copy). In chunks the eigenvalues are the same, bitwise."""
-    from longtime.problems import toda
     from longtime.core.registry import problem_class
+    from longtime.problems import toda
 
     problem = problem_class("toda")(d=6)
     rng = np.random.default_rng(1)
@@ -328,8 +329,8 @@ def test_an_unusable_cache_folder_is_refused_up_front(tmp_path, kind):
         cache.mkdir()
         os.chmod(cache, 0o555)
     try:
-        res = subprocess.run([*prefix, sys.executable, "-m", "longtime.commands.cli", "run", "-p", "harmonic", "-i", "verlet",
-                              "--dt", "0.1", "--t-final", "1", "--no-store"],
+        res = subprocess.run([*prefix, sys.executable, "-m", "longtime.commands.cli", "run", "-p", "harmonic",
+                              "-i", "verlet", "--dt", "0.1", "--t-final", "1", "--no-store"],
                              env={**os.environ, "LONGTIME_CACHE_DIR": str(cache)}, capture_output=True, text=True,
                              timeout=120)
     finally:

@@ -19,7 +19,8 @@ FAST = ["--repeats", "1", "--min-time", "0", "--no-progress", "--no-html", "--no
 @pytest.fixture
 def store_with_run(tmp_path):
     db = tmp_path / "s.sqlite"
-    assert main(["matrix", "-p", "harmonic", "-i", "verlet", "--dt", "0.1", "--t-final", "1", "--db", str(db), *FAST]) == 0
+    assert main(["matrix", "-p", "harmonic", "-i", "verlet", "--dt", "0.1", "--t-final", "1", "--db", str(db),
+                 *FAST]) == 0
     return db
 
 
@@ -42,8 +43,8 @@ def test_baseline_without_rows_is_refused_before_the_first_cell(store_with_run, 
     empty = store.begin_run("matrix -p harmonic", [Cell("harmonic", "verlet", {}, {"dt": 0.1}, 1.0)])
     store.finish_run(empty, "interrupted")
     capsys.readouterr()
-    code = main(["matrix", "-p", "harmonic", "-i", "verlet", "--dt", "0.1", "--t-final", "1", "--db", str(store_with_run),
-                 "--baseline", str(empty), *FAST])
+    code = main(["matrix", "-p", "harmonic", "-i", "verlet", "--dt", "0.1", "--t-final", "1",
+                 "--db", str(store_with_run), "--baseline", str(empty), *FAST])
     err = capsys.readouterr().err
     assert code == 2 and f"run {empty} has no stored row" in err, err
     assert len(Store(store_with_run).runs()) == 2
@@ -80,7 +81,8 @@ def test_read_only_folders_are_refused_up_front(store_with_run, tmp_path):
 
         res = cli("report", "--db", str(store_with_run), "--html", str(locked / "page"))
         assert res.returncode == 2 and "--html" in res.stderr and "cannot write there" in res.stderr, res.stderr
-        res = cli("run", "-p", "harmonic", "-i", "verlet", "--dt", "0.1", "--t-final", "1", "--db", str(locked / "s.sqlite"))
+        res = cli("run", "-p", "harmonic", "-i", "verlet", "--dt", "0.1", "--t-final", "1",
+                  "--db", str(locked / "s.sqlite"))
         assert res.returncode == 2 and "cannot write it" in res.stderr, res.stderr
         assert not list(locked.iterdir())
     finally:

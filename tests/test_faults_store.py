@@ -18,8 +18,8 @@ from _plugins import longtime
 from test_faults import _cli, _permission_prefix
 
 from longtime.commands import listing
-from longtime.execution import batches
 from longtime.commands.cli import main
+from longtime.execution import batches
 from longtime.execution.store import APPLICATION_ID, Store
 
 QUICK = ["-p", "harmonic", "-i", "verlet", "--dt", "0.1", "--t-final", "1"]
@@ -195,8 +195,8 @@ def test_lost_dask_scheduler_is_an_interruption_not_failed_rows(tmp_path, capsys
     try:
         _wait_for(lambda: "Registered to" in (logs / "worker.txt").read_text(), 60, "the Dask worker")
         # 8 cells in 4 tasks of 2 on the one worker; each cell repeats its timed run for 0.5 s
-        proc = subprocess.Popen([sys.executable, "-m", "longtime.commands.cli", "matrix", "-p", "harmonic", "-i", "verlet",
-                                 "--dt", "0.01,0.02,0.03,0.04,0.05,0.06,0.07,0.08", "--t-final", "10",
+        proc = subprocess.Popen([sys.executable, "-m", "longtime.commands.cli", "matrix", "-p", "harmonic",
+                                 "-i", "verlet", "--dt", "0.01,0.02,0.03,0.04,0.05,0.06,0.07,0.08", "--t-final", "10",
                                  "--repeats", "1000", "--min-time", "0.5", "--scheduler", address, "--db", str(db),
                                  "--no-progress", "--no-report"],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -251,8 +251,8 @@ def test_a_full_disk_is_one_line_and_resume_completes(tmp_path, capsys):
     capsys.readouterr()
 
     def limited(db, limit):
-        return subprocess.run([sys.executable, "-m", "longtime.commands.cli", *cells, "--db", str(db)], capture_output=True,
-                              text=True, timeout=300, preexec_fn=_file_size_limit(limit))
+        return subprocess.run([sys.executable, "-m", "longtime.commands.cli", *cells, "--db", str(db)],
+                              capture_output=True, text=True, timeout=300, preexec_fn=_file_size_limit(limit))
 
     start = tmp_path / "start.sqlite"  # full at the start: no store can be made
     res = limited(start, 16_000)
@@ -366,8 +366,8 @@ def _pool_matrix(tmp_path, *extra):
     def default_hup():  # a test runner started under nohup ignores SIGHUP: the child must not
         signal.signal(signal.SIGHUP, signal.SIG_DFL)
 
-    proc = subprocess.Popen([sys.executable, "-m", "longtime.commands.cli", "matrix", "-p", "harmonic", "-i", "rk4,verlet",
-                             "--dt", "1e-6", "--t-final", "900", "--repeats", "1", "--jobs", "2",
+    proc = subprocess.Popen([sys.executable, "-m", "longtime.commands.cli", "matrix", "-p", "harmonic",
+                             "-i", "rk4,verlet", "--dt", "1e-6", "--t-final", "900", "--repeats", "1", "--jobs", "2",
                              "--executor", "process", "--db", str(db), "--no-progress", "--no-report", *extra],
                             env={**os.environ, "TMPDIR": str(tmp)}, stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True, preexec_fn=default_hup)

@@ -4,8 +4,8 @@ schemes keep it as the true solution does, rk4 loses most of it."""
 import numpy as np
 import pytest
 
-from longtime.measure import metrics
 from longtime.core import registry
+from longtime.measure import metrics
 from longtime.measure.reference import reference_states
 
 T_FINAL, DT = 5000.0, 0.005

@@ -46,7 +46,8 @@ def test_five_commits_slower_at_3_less_accurate_at_4(tmp_path, capsys):
     _git(repo, "config", "user.name", "test")
     tests = Path(__file__).parent
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(tests), os.environ.get("PYTHONPATH")]))}
-    done = subprocess.run([sys.executable, "-c", f"import _slowed; _slowed.measure_commits({str(repo)!r}, {str(db)!r})"],
+    done = subprocess.run([sys.executable, "-c",
+                           f"import _slowed; _slowed.measure_commits({str(repo)!r}, {str(db)!r})"],
                           env=env, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
     commits = json.loads(done.stdout)

@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import _slowed
 import pytest
 
 from longtime.core import registry
@@ -18,10 +19,9 @@ from longtime.execution.cells import expand, run_cell
 from longtime.reporting.compare import compare
 from longtime.reporting.compare_cells import INSTRUCTION_FACTOR
 
-import _slowed
-
 # CI installs Valgrind and sets LONGTIME_REQUIRE_VALGRIND: there these tests fail instead of skipping
-needs_valgrind = pytest.mark.skipif(shutil.which("valgrind") is None and not os.environ.get("LONGTIME_REQUIRE_VALGRIND"),
+needs_valgrind = pytest.mark.skipif(shutil.which("valgrind") is None
+                                    and not os.environ.get("LONGTIME_REQUIRE_VALGRIND"),
                                     reason="valgrind is not installed (Debian package valgrind)")
 
 # kepler rk4 over T and 2T: the count doubles with the steps; harmonic with the plain scheme

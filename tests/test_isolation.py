@@ -12,9 +12,9 @@ import time
 
 import pytest
 
+from longtime.commands.cli import main
 from longtime.core import registry
 from longtime.execution.cells import expand, run_cell
-from longtime.commands.cli import main
 from longtime.execution.matrix import ExecOptions, run_matrix
 from longtime.execution.store import Store
 

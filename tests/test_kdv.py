@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 import scipy.fft
 
-from longtime.integrators.etdrk4 import E, E2, F1, F2, F3, LAM, META, Q, ETDRK4, _phi_coefficients
 from longtime.core.params import InputError
+from longtime.integrators.etdrk4 import E2, ETDRK4, F1, F2, F3, LAM, META, E, Q, _phi_coefficients
 from longtime.problems import kdv as K
-from longtime.problems.kdv import KdV, SOLITON_PERIOD
+from longtime.problems.kdv import SOLITON_PERIOD, KdV
 
 
 def galerkin_rhs(problem, u):
@@ -191,8 +191,8 @@ def test_etdrk4_skips_problems_without_linear_part():
 
 def test_matcher_finds_the_target_step(capsys):
     """`longtime match` machinery: the bisection lands near the target error."""
-    from longtime.execution.cells import Cell
     from longtime.commands.matched import Matcher, match_table
+    from longtime.execution.cells import Cell
 
     matcher = Matcher(None, None, "final_error", 1e-3, repeat=1, max_evals=14, verbose=False)
     row = matcher.match(Cell("kdv", "etdrk4", {"d": 32}, {}, SOLITON_PERIOD))

@@ -13,8 +13,8 @@ import pytest
 from _plugins import install_plugin, longtime
 
 from longtime import FixedStepIntegrator
-from longtime.core import drivers
 from longtime.commands.cli import main
+from longtime.core import drivers
 from longtime.problems.toda import Toda
 
 

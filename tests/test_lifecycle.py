@@ -4,10 +4,10 @@ import sys
 
 import pytest
 
-from longtime.execution.cells import Cell
 from longtime.commands.cli import main
-from longtime.execution.lifecycle import recorded_run
 from longtime.core.params import InputError
+from longtime.execution.cells import Cell
+from longtime.execution.lifecycle import recorded_run
 from longtime.execution.store import Store
 
 CELL = Cell("harmonic", "rk4", {}, {"dt": 0.1}, 1.0)

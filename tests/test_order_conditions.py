@@ -8,7 +8,12 @@ import pytest
 from longtime.core import registry
 from longtime.integrators import Splitting, compose
 from longtime.numerics.order_conditions import (
-    bracket, lyndon_words, scheme_conditions, splitting_conditions, tableau_conditions, trees,
+    bracket,
+    lyndon_words,
+    scheme_conditions,
+    splitting_conditions,
+    tableau_conditions,
+    trees,
 )
 from longtime.testing import assert_order
 

@@ -6,10 +6,14 @@ import math
 import numpy as np
 import pytest
 
-from longtime.numerics.pade import (
-    _jacobi_singular_values, pade, rational_and_derivative, robust_pade, scratch_size,
-)
 from longtime.core.params import InputError
+from longtime.numerics.pade import (
+    _jacobi_singular_values,
+    pade,
+    rational_and_derivative,
+    robust_pade,
+    scratch_size,
+)
 
 
 def exp_pade(m, n):

@@ -4,8 +4,8 @@ import json
 import numpy as np
 import pytest
 
-from longtime.core import registry
 from longtime.commands.cli import main
+from longtime.core import registry
 from longtime.measure.metrics import relative_error
 
 PAPER_H_MEAN = {"rk4": 3.7902e-1, "rk4sym": 2.261e-3}

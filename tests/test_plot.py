@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import pytest
 
-from longtime.core import registry
 from longtime.commands.cli import main
+from longtime.core import registry
 from longtime.core.params import InputError
-from longtime.reporting.figures.work_precision import work_precision
 from longtime.plot import PLOT_KINDS, draw, kind_function
+from longtime.reporting.figures.work_precision import work_precision
 
 
 def _png_ok(path):

@@ -10,9 +10,9 @@ import pytest
 import longtime
 from longtime import InputError
 from longtime.core import registry
+from longtime.execution import limits
 from longtime.integrators.explicit_rk import RK4
 from longtime.problems.harmonic import Harmonic
-from longtime.execution import limits
 
 
 class SpinningInvariants(Harmonic):

@@ -43,7 +43,8 @@ def rows(*argv: str) -> list[dict]:
 
 def test_initial_energies_and_invariants():
     quoted(f"H0 = {float(initial('toda'))!r}")  # the shortest repr (the page pads it with a 0)
-    quoted("(**corrected** scaling: " + ", ".join(f"{initial('toda', f'eig{k}'):.9g}" for k in (1, 2, 3)) + " initially)")
+    quoted("(**corrected** scaling: " + ", ".join(f"{initial('toda', f'eig{k}'):.9g}" for k in (1, 2, 3))
+           + " initially)")
     quoted(f"H0 = {initial('figure-eight'):.16f}.")
     quoted(f"u[3m]); H0 = {initial('fpu'):.8f}.")
     quoted(f"H0 = {initial('lennard-jones'):,.2f} (")

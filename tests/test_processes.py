@@ -8,8 +8,7 @@ import pytest
 from longtime.commands import cli
 from longtime.core.params import InputError
 from longtime.core.timing import Timing
-from longtime.execution import provenance
-from longtime.execution import processes
+from longtime.execution import processes, provenance
 from longtime.execution.cells import Cell, run_cell
 from longtime.execution.matrix import ExecOptions, run_matrix
 from longtime.execution.processes import MAX_ROUNDS, check_processes, merge, time_cells
@@ -62,7 +61,8 @@ def test_one_process_keeps_its_own_minimum():
 def test_a_process_that_does_not_reproduce_the_run_fails_the_row():
     row = {"status": "ok", "message": "", "cpu_s": 1.0, "wall_s": 1.0, "cpu_s_samples": [1.0], "samples_digest": "a"}
     merge(row, [{"status": "ok", "cpu_s": 0.9, "wall_s": 0.9, "cpu_s_samples": [0.9], "samples_digest": "a"},
-                {"status": "ok", "cpu_s": 0.8, "wall_s": 0.8, "cpu_s_samples": [0.8], "samples_digest": "b", "pid": 7}], 3)
+                {"status": "ok", "cpu_s": 0.8, "wall_s": 0.8, "cpu_s_samples": [0.8], "samples_digest": "b",
+                 "pid": 7}], 3)
     assert row["status"] == "failed" and "non-deterministic" in row["message"] and "pid 7" in row["message"]
     ok = {"status": "ok", "message": "", "cpu_s": 1.0, "wall_s": 1.0, "cpu_s_samples": [1.0], "samples_digest": "a"}
     merge(ok, [{"status": "ok", "cpu_s": 1.5, "wall_s": 1.5, "cpu_s_samples": [1.5, 1.6], "samples_digest": "a"},

@@ -56,7 +56,6 @@ def _gaps(stamps, start, end):
 
 @pytest.mark.slow
 def test_a_matrix_in_a_pipe_prints_a_line_at_least_every_interval(tmp_path):
-    start = time.monotonic()
     proc = subprocess.Popen([sys.executable, *MATRIX, "--db", str(tmp_path / "p.sqlite")], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=_env(tmp_path, LONGTIME_PROGRESS_SECONDS="1"),
                             cwd=tmp_path)

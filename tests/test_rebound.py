@@ -12,9 +12,8 @@ import pytest
 from longtime.core import registry
 from longtime.core.timing import Timing
 from longtime.execution.cells import expand, run_cell
-from longtime.problems.nbody import NBody
-
 from longtime.integrators.rebound_nbody import _rebound
+from longtime.problems.nbody import NBody
 
 # rebound is in the test extra; without it the rows are skipped (tested below, either way)
 needs_rebound = pytest.mark.skipif(_rebound() is None, reason="rebound is not installed")

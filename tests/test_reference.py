@@ -7,9 +7,9 @@ import time
 import numpy as np
 import pytest
 
-from longtime.measure import reference
 from longtime.core import registry
 from longtime.execution.cells import Cell, run_cell
+from longtime.measure import reference
 from longtime.problems.kepler import Kepler
 
 
@@ -132,8 +132,8 @@ def test_exact_states_are_evaluated_once_per_grid_and_setting(monkeypatch):
     problem share their sample times. Another grid or another setting is evaluated anew."""
     import numpy as np
 
-    from longtime.measure import reference
     from longtime.core import registry
+    from longtime.measure import reference
 
     calls = []
     kepler_cls = registry.problems()["kepler"]

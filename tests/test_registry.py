@@ -8,8 +8,8 @@ import pytest
 
 from longtime import InputError
 from longtime.core import registry
-from longtime.problems.harmonic import Harmonic
 from longtime.integrators.splitting import Verlet
+from longtime.problems.harmonic import Harmonic
 
 
 @dataclass

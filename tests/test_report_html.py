@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from longtime.commands import cli
-from longtime.reporting.report import pareto, summary
 from longtime.execution.store import Store
+from longtime.reporting.report import pareto, summary
 
 ARTEFACTS = Path(os.environ.get("LONGTIME_TEST_ARTEFACTS", Path(__file__).resolve().parents[1] / "test-artefacts"))
 BROWSERS = ("chromium", "chromium-browser", "google-chrome", "chrome")
@@ -119,7 +119,8 @@ def test_whole_store_as_parquet_and_csv(page, tmp_path):
     assert cli.main(["report", "--db", db, "--run", "all", "--format", "csv", "--out", str(tmp_path / "r.csv")]) == 0
     assert len(pd.read_csv(tmp_path / "r.csv")) == 14
     pytest.importorskip("pyarrow", reason="parquet needs pyarrow (the extra longtime[parquet])")
-    assert cli.main(["report", "--db", db, "--run", "all", "--format", "parquet", "--out", str(tmp_path / "r.parquet")]) == 0
+    assert cli.main(["report", "--db", db, "--run", "all", "--format", "parquet",
+                     "--out", str(tmp_path / "r.parquet")]) == 0
     df = pd.read_parquet(tmp_path / "r.parquet")
     assert len(df) == 14 and (df["status"] == "ok").sum() == 12
 
@@ -147,8 +148,8 @@ def test_main_job_page_takes_the_figures_its_workers_drew(tmp_path, monkeypatch)
     """`longtime matrix` on the process pool: each problem's figures are drawn by a worker
     with no cell left (figures_ahead.FiguresAhead), and the page uses them as drawn; the
     stability intervals too, measured there into an empty cache."""
-    from longtime.reporting import figures_ahead
     from longtime.measure import stability
+    from longtime.reporting import figures_ahead
 
     monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path / "cache"))  # the pool's workers inherit it
     taken = []

@@ -6,10 +6,10 @@ import re
 
 import pytest
 
-from longtime.core import registry
 from longtime.commands import reproduce as rep
 from longtime.commands import reproduce_sections
 from longtime.commands.cli import main
+from longtime.core import registry
 
 
 def _row(report: str, first_cells: str) -> list[str]:

@@ -3,8 +3,8 @@ under midpoint, the Gauss schemes and rk4 (docs/problems.md)."""
 import numpy as np
 import pytest
 
-from longtime.measure import metrics
 from longtime.core import registry
+from longtime.measure import metrics
 
 
 def rigid_body(**settings):

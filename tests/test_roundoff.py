@@ -7,9 +7,9 @@ import numba
 import numpy as np
 import pytest
 
+from longtime.commands.roundoff import Config, markdown, run_member, study
 from longtime.core.drivers import compensated_add
 from longtime.core.registry import integrator_class, problem_class
-from longtime.commands.roundoff import Config, markdown, run_member, study
 
 
 @numba.njit

@@ -3,7 +3,9 @@ accuracy parameter is called ``rtol``: found from its declared role, swept and m
 import json
 import math
 
-from _rtol_scheme import NAME as RTOL, register
+from _rtol_scheme import NAME as RTOL
+from _rtol_scheme import register
+
 from longtime.commands.cli import main
 from longtime.execution.search import CLOSE_ENOUGH, accuracy_parameter
 
@@ -18,8 +20,8 @@ def test_accuracy_parameter_from_roles(monkeypatch):
 
 def test_plugin_rtol_sweeps_from_the_command_line(monkeypatch, capsys):
     register(monkeypatch)
-    code = main(["run", "--executor", "serial", "-p", "harmonic", "-i", RTOL, "--set", "rtol=1e-4,1e-8", "--t-final", "20",
-                 "--format", "json", "--no-store", "--repeats", "1", "--min-time", "0"])
+    code = main(["run", "--executor", "serial", "-p", "harmonic", "-i", RTOL, "--set", "rtol=1e-4,1e-8",
+                 "--t-final", "20", "--format", "json", "--no-store", "--repeats", "1", "--min-time", "0"])
     rows = json.loads(capsys.readouterr().out)
     assert code == 0 and [json.loads(r["settings"]) for r in rows] == [{"rtol": 1e-4}, {"rtol": 1e-8}]
     assert [json.loads(r["parameters"])["rtol"] for r in rows] == [1e-4, 1e-8]

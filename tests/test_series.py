@@ -211,8 +211,8 @@ def test_equilibrium_does_not_break_the_taylor_schemes():
 
 
 def test_taylor_order_is_reported_and_validated():
-    from longtime.execution.cells import Cell, run_cell
     from longtime.core.params import InputError
+    from longtime.execution.cells import Cell, run_cell
 
     row = run_cell(Cell("harmonic", "taylor", {}, {"dt": 0.1}, 10.0))
     assert row["status"] == "ok" and row["order"] == 10

@@ -9,8 +9,8 @@ import time
 
 import pytest
 
-from longtime.execution import batches
 from longtime.commands.cli import main
+from longtime.execution import batches
 from longtime.execution.store import Store
 
 

@@ -34,7 +34,8 @@ def test_symplectic_schemes_pass(scheme):
 
 @pytest.mark.parametrize("scheme", ["rk4", PerturbedGauss4])
 def test_non_symplectic_schemes_fail(scheme):
-    with pytest.raises(AssertionError, match=r"symplecticity defect \|\|M\^T J M - J\|\| = \d\.\d+e-0[45], expected at most"):
+    with pytest.raises(AssertionError,
+                       match=r"symplecticity defect \|\|M\^T J M - J\|\| = \d\.\d+e-0[45], expected at most"):
         assert_symplectic(scheme)
 
 

@@ -9,7 +9,11 @@ import pytest
 from longtime import InputError
 from longtime.integrators import Splitting, compose
 from longtime.testing import (
-    assert_bounded, assert_growth, assert_no_regression, assert_order, benchmark_cell,
+    assert_bounded,
+    assert_growth,
+    assert_no_regression,
+    assert_order,
+    benchmark_cell,
 )
 
 G = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
@@ -60,8 +64,8 @@ def test_assert_growth_tells_bounded_from_linear():
 
 
 def test_assert_no_regression_flags_a_less_accurate_run(tmp_path):
-    from longtime.core import registry
     from longtime import sweep
+    from longtime.core import registry
 
     db = str(tmp_path / "s.sqlite")
     for _ in range(2):

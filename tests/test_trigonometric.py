@@ -4,8 +4,8 @@ fails (docs/schemes.md)."""
 import numpy as np
 import pytest
 
-from longtime.measure import metrics
 from longtime.core import registry
+from longtime.measure import metrics
 from longtime.measure.reference import reference_states
 
 

@@ -8,9 +8,9 @@ import re
 import pytest
 
 from longtime.commands import cli
+from longtime.execution import checks as XC
 from longtime.execution.cells import Cell
 from longtime.execution.store import Store
-from longtime.execution import checks as XC
 from longtime.predict import checks as PC
 from longtime.predict import decision as D
 from longtime.predict import settings as S
@@ -253,7 +253,8 @@ def test_recommend_answers_in_a_few_lines(store, capsys):
     assert lines[-1].startswith("  evidence: 3 settings (2 with a growth law that extrapolates)")
     assert cli.main(["recommend", "-p", "harmonic", "--error", "0.2", "--horizon", "1e5", "--db", store]) == 0
     out = capsys.readouterr().out
-    assert "use      rk4 dt=0.1: error 0.001 at T (linear: t^1, alpha 1.30 [1.25, 1.35] fitted, trusted to t = 1e+05" in out
+    assert ("use      rk4 dt=0.1: error 0.001 at T (linear: t^1, alpha 1.30 [1.25, 1.35] fitted, "
+            "trusted to t = 1e+05") in out
     assert "runner-up verlet dt=0.1: error 0.1 at T" in out
     assert "open     gauss4 dt=0.1" in out and "--t-final 100000 --db" in out
     # past every setting's reach nothing is predicted: no answer (exit 3), naming the run that decides
@@ -303,7 +304,8 @@ def test_recommend_without_a_store_names_the_command(tmp_path, capsys):
     missing = str(tmp_path / "none.sqlite")
     assert cli.main(["recommend", "-p", "kepler", "--error", "1e-6", "--horizon", "1e5", "--db", missing]) == 2
     err = capsys.readouterr().err
-    assert f"no such file; `longtime matrix -p kepler --db {missing}`" in err and not (tmp_path / "none.sqlite").exists()
+    assert f"no such file; `longtime matrix -p kepler --db {missing}`" in err
+    assert not (tmp_path / "none.sqlite").exists()
 
 
 def test_recommend_on_a_store_of_no_verdict_names_the_command(tmp_path):

@@ -3,8 +3,8 @@ import os
 import subprocess
 import sys
 
-from longtime.execution.cells import expand
 from longtime.commands.warmup import distinct_kernels
+from longtime.execution.cells import expand
 
 
 def test_cells_that_differ_only_in_run_time_values_share_one_kernel():
@@ -19,8 +19,8 @@ def test_cells_that_differ_only_in_run_time_values_share_one_kernel():
 def test_warmup_fills_the_cache_that_a_later_process_loads(tmp_path):
     env = {**os.environ, "LONGTIME_CACHE_DIR": str(tmp_path / "cache"), "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
     env.pop("LONGTIME_NO_KERNEL_CACHE", None)
-    done = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "warmup", "-p", "harmonic", "-i", "rk4,verlet",
-                           "--jobs", "1"], env=env, capture_output=True, text=True, timeout=600)
+    done = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "warmup", "-p", "harmonic",
+                           "-i", "rk4,verlet", "--jobs", "1"], env=env, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
     assert "warmed 2 kernels" in done.stderr
     kernels = list((tmp_path / "cache" / "kernels").glob("longtime_kernel_*.py"))

@@ -114,7 +114,8 @@ def add_parser(subparsers) -> None:
                               description=__doc__.splitlines()[0])
     p.add_argument("-p", "--problem", type=cli_args.names, required=True, metavar="PROBLEM[,..]")
     p.add_argument("-i", "--integrator", type=cli_args.names, required=True, metavar="SCHEME[,..]")
-    p.add_argument("--dt", type=cli_args.floats("--dt"), default=None, metavar="X", help="the step of fixed-step schemes")
+    p.add_argument("--dt", type=cli_args.floats("--dt"), default=None, metavar="X",
+                   help="the step of fixed-step schemes")
     p.add_argument("--t-final", type=cli_args.floats("--t-final"), default=None, metavar="T")
     p.add_argument("--members", type=cli_args.members("--members", 2), default=ensemble.DEFAULT_MEMBERS, metavar="K")
     p.add_argument("--size", type=cli_args.bounded("--size", cli_args.MIN_SIZE, 1.0), default=ensemble.DEFAULT_SIZE,

@@ -6,7 +6,8 @@ a numerical orbit escapes (and then runs off to infinity: a diverged run) only o
 energy it conserves has drifted past the saddles. Each scheme runs an ensemble of members
 (initial y0 spread evenly over [-0.25, 0.35], x = 0, py = 0, px from the energy) at each
 step dt up to t_final; a member's breakdown is its escape, or with ``--threshold`` the first
-time its relative energy error reaches that (longtime.measure.horizon). T*(dt) is the inverse breakdown rate over the ensemble, and
+time its relative energy error reaches that (longtime.measure.horizon). T*(dt) is the inverse
+breakdown rate over the ensemble, and
 ln T* is fitted against 1/dt (the exponential law of backward error analysis) and ln dt (a
 power law). The members run as tasks on a process pool, as the round-off study's do.
 """
@@ -164,8 +165,9 @@ def add_parser(subparsers) -> None:
                    help="runs per scheme and step")
     p.add_argument("--t-final", type=cli_args.positive_number("--t-final"), default=DEFAULT_T_FINAL, metavar="T",
                    help=f"how long each member runs (default {DEFAULT_T_FINAL:g})")
-    p.add_argument("--gap", type=cli_args.positive_number("--gap"), default=DEFAULT_GAP, help="the energy's distance below the escape "
-                                                                   f"energy 1/6 (default {DEFAULT_GAP:g})")
+    p.add_argument("--gap", type=cli_args.positive_number("--gap"), default=DEFAULT_GAP,
+                   help="the energy's distance below the escape "
+                        f"energy 1/6 (default {DEFAULT_GAP:g})")
     p.add_argument("--threshold", type=cli_args.positive_number("--threshold"), default=None,
                    help="a relative energy error that also counts as a breakdown (default: escapes only)")
     p.add_argument("--jobs", type=cli_args.jobs, default=0, help="worker processes (default: one per core)")

@@ -1,7 +1,8 @@
 """``longtime match``: schemes compared at matched accuracy, and how their cost scales.
 
 For each scheme, the parameter that sets its accuracy (its declared ``accuracy`` parameter:
-``eps_res`` for BPL, ``tol`` for adaptive schemes, a plugin's own; else its step ``dt``) is searched, by bracketing in decades and
+``eps_res`` for BPL, ``tol`` for adaptive schemes, a plugin's own; else its step ``dt``) is
+searched, by bracketing in decades and
 then bisection on its logarithm, for an error at t_final near ``--target`` (default 1e-5;
 the error is ``final_error``, for KdV the relative L2 norm in x at t = T, since its state
 is orthonormal Fourier coefficients). The evaluated point nearest the target (in log) is
@@ -59,7 +60,8 @@ def match_table(rows: list[dict], problem: str, settings: dict, metric: str, tar
             f"{r['integrator']:14s} {param:>18s} {column(r.get('mean_dt'), '10.3e')} "
             f"{column(_shown(r, metric), '11.3e')} {column(r.get('cpu_s'), '9.4f')} {column(r.get('steps'), '8d')} "
             f"{column(r.get('rhs_evals'), '9d')} | "
-            + (f"{p[0]:9.4g} {p[1]:9.3g} {p[2]:9.3g} {column(ratio, '10.3g')}" if p else f"{'-':>9s} " * 3 + f"{'-':>10s}"))
+            + (f"{p[0]:9.4g} {p[1]:9.3g} {p[2]:9.3g} {column(ratio, '10.3g')}" if p
+               else f"{'-':>9s} " * 3 + f"{'-':>10s}"))
         if r["status"] != "ok":
             lines.append(f"    {r['status']}: {r.get('message')}")
         if r.get("match_note"):
@@ -235,10 +237,12 @@ def add_parser(subparsers) -> None:
     p.add_argument("--repeat", type=int, default=3, help="timing runs of each matched point (best kept)")
     p.add_argument("--max-evals", type=int, default=14, help="search runs allowed per scheme")
     p.add_argument("--scaling", action="store_true", help="also run the sizes and the BPL orders")
-    p.add_argument("--sizes", type=cli_args.ints("--sizes"), default=[64, 128, 256, 512], help="values of d for --scaling")
+    p.add_argument("--sizes", type=cli_args.ints("--sizes"), default=[64, 128, 256, 512],
+                   help="values of d for --scaling")
     p.add_argument("--orders", type=cli_args.ints("--orders"), default=list(range(4, 15)),
                    help="BPL series orders for --scaling (e.g. 4..14 or 4,6,8)")
-    p.add_argument("--out", default="figures", type=cli_args.out_folder("--out"), help="folder of the scaling figure (PNG and SVG)")
+    p.add_argument("--out", default="figures", type=cli_args.out_folder("--out"),
+                   help="folder of the scaling figure (PNG and SVG)")
     p.add_argument("--no-figure", action="store_true")
     p.add_argument("--format", choices=["table", "json"], default="table")
     p.add_argument("--db", default=None, help=f"SQLite store (default: $LONGTIME_DB or {default_path()})")

@@ -32,8 +32,6 @@ from longtime.execution.matrix import EXECUTORS, ExecOptions
 from longtime.execution.store import Store, environment
 
 
-
-
 def reproduce(out: str | Path = "reproduction", quick: bool = False, figures: bool = True,
               executor: str = "process", options: ExecOptions | None = None, store: Store | None = None,
               sections: list[str] | None = None, command: str = "reproduce",
@@ -52,7 +50,8 @@ def reproduce(out: str | Path = "reproduction", quick: bool = False, figures: bo
         "# longtime: reproduction of Razafindralandy, Salnikov, Hamdouni, Deeb (2019)", "",
         f"Generated {datetime.now(timezone.utc).isoformat(timespec='seconds')} by `longtime {command}`"
         f"{' (**quick**: shortened final times, stated per section)' if quick else ''}; git "
-        f"{env['git_commit'] or 'unknown'}; " + ", ".join(f"{k} {v}" for k, v in env["versions"].items() if v and isinstance(v, str))
+        f"{env['git_commit'] or 'unknown'}; "
+        + ", ".join(f"{k} {v}" for k, v in env["versions"].items() if v and isinstance(v, str))
         + f"; {env['machine']['cpus']} CPUs.", "",
         "Paper's numbers: quoted from docs/paper.md (its own code and machine). Ours: measured in this run "
         "(CPU = process time of the compiled integration alone). 'ours / paper' is the ratio of the two.", ""]
@@ -100,8 +99,10 @@ def cmd_reproduce(args) -> int:
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser("reproduce", help="the paper's tables and figures beside ours, in one Markdown report",
                               description=__doc__.splitlines()[0])
-    p.add_argument("--out", default="reproduction", type=cli_args.out_folder("--out"), help="folder of report.md and its figures (default: reproduction)")
-    p.add_argument("--quick", action="store_true", help="shortened final times (a couple of minutes; stated in the report)")
+    p.add_argument("--out", default="reproduction", type=cli_args.out_folder("--out"),
+                   help="folder of report.md and its figures (default: reproduction)")
+    p.add_argument("--quick", action="store_true",
+                   help="shortened final times (a couple of minutes; stated in the report)")
     p.add_argument("--section", type=cli_args.names, default=None,
                    metavar="NAME[,..]", help="only these sections: " + ", ".join(
                        f.__name__.removeprefix("section_") for _, f in SECTIONS))

@@ -191,7 +191,8 @@ def explain(rows: list[dict], steps: int, ensemble: int, seed: int) -> str:
     sqrt = [f"{r['scheme']} ({r['settings']}) on {r['problem']}" for r in rows
             if r.get("scheme") != "heyoka" and (r.get("rms_law") or r.get("law")) == "sqrt"]
     linear = [f"{r['scheme']} ({r['settings']}) on {r['problem']}" for r in rows
-              if r.get("scheme") != "heyoka" and (r.get("rms_law") or r.get("law")) in ("linear", "quadratic", "faster")]
+              if r.get("scheme") != "heyoka"
+              and (r.get("rms_law") or r.get("law")) in ("linear", "quadratic", "faster")]
     return "\n".join([
         f"{steps:.3g} steps of dt = {DT} per run; ensemble of {ensemble} initial states perturbed by a relative "
         f"{PERTURBATION:g} (seed {seed}); alpha of e ~ C t^alpha fitted on the running maximum over the last "

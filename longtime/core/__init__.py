@@ -1,1 +1,2 @@
-"""The plugin contract and what runs a scheme: declared parameters, the problem and scheme bases, the compiled drivers, the kernel cache, the registry of entry points."""
+"""The plugin contract and what runs a scheme: declared parameters, the problem and scheme bases,
+the compiled drivers, the kernel cache, the registry of entry points."""

@@ -189,8 +189,8 @@ class AdaptiveIntegrator(Integrator):
             if not np.isfinite(f).all():
                 message = f"step failed at t={t:.6g}: the right-hand side is not finite there (NaN or inf)"
             elif not np.isfinite(u_new).all():
-                message = (f"step failed at t={t:.6g}: the steps tried from there gave a non-finite state (a right-hand "
-                           f"side that is not finite within the step, or a diverging iteration)")
+                message = (f"step failed at t={t:.6g}: the steps tried from there gave a non-finite state "
+                           f"(a right-hand side that is not finite within the step, or a diverging iteration)")
         return Trajectory(
             status=STATUS_NAMES[status], message=message, t=np.concatenate(ts),
             u=np.concatenate(us), cpu_s=cpu, wall_s=wall, counters=self._counters(counters),

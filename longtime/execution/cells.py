@@ -311,7 +311,8 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
     """Run one cell, timed by ``timing`` (default: ``Timing()``, the repeated timing of
     every row); every outcome is a row, nothing raises. Its heyoka reference gets
     ``reference_budget_s`` wall seconds (default: longtime.measure.reference.budget_seconds).
-    Past ``time_limit`` seconds (None: no limit) the integration stops where it got: a ``timeout`` row. ``keep``, a dict,
+    Past ``time_limit`` seconds (None: no limit) the integration stops where it got: a ``timeout`` row.
+    ``keep``, a dict,
     receives what the row was measured from (``problem``, ``integrator``, ``trajectory``,
     ``reference``: the trusted reference states, ``trust``), for ``longtime.solve``."""
     row = base_row(cell)

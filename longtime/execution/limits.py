@@ -92,7 +92,8 @@ def memory_argument(text: str) -> int | None:
         nbytes = value * 2**30
     if not nbytes >= MIN_MEMORY_LIMIT:
         raise argparse.ArgumentTypeError(f"--memory-limit {text} is {nbytes:.3g} bytes, below the smallest limit "
-                                         f"taken, 1 MiB (no worker process starts in it); give GiB (e.g. 8), or 0 for no limit")
+                                         f"taken, 1 MiB (no worker process starts in it); give GiB (e.g. 8), "
+                                         f"or 0 for no limit")
     if not nbytes <= MAX_MEMORY_LIMIT:
         raise argparse.ArgumentTypeError(f"--memory-limit {text} is beyond any machine's memory "
                                          f"({gib(MAX_MEMORY_LIMIT)}); give GiB (e.g. 8), or 0 for no limit")

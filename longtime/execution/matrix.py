@@ -22,6 +22,7 @@ from typing import Any, Callable, Iterator
 from longtime.core import phases, registry
 from longtime.core.cache import no_space
 from longtime.core.params import InputError, check_choice
+from longtime.core.progress import Progress
 from longtime.core.timing import Timing
 from longtime.execution import calibration, tempdirs
 from longtime.execution.batches import batches_by_pair, calibrated_row, key_digest, run_batch, write_json
@@ -44,9 +45,8 @@ from longtime.execution.limits import (
     worker_init,
 )
 from longtime.execution.pool import spawn_pool
-from longtime.core.progress import Progress
-from longtime.execution.processes import across_processes, default_processes, timed_elsewhere
 from longtime.execution.pool import workers as pool_workers
+from longtime.execution.processes import across_processes, default_processes, timed_elsewhere
 from longtime.execution.store import Store
 from longtime.execution.tempdirs import DiskFull, disk_full
 
@@ -259,7 +259,8 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
                 broken = False
                 pool = spawn_pool(min(workers, len(remaining)), _worker_init,
                                   (os.getpid(), options.memory_limit, registry.session_payload()))
-                watchdog = Watchdog(folder, limit, _record_timeout(folder, options.time_limit)).start() if limit else None
+                watchdog = (Watchdog(folder, limit, _record_timeout(folder, options.time_limit)).start() if limit
+                            else None)
                 try:
                     for batch, fut in scheduled(pool, workers, batches_by_pair(remaining), run_batch,
                                                 options.max_samples, options.timing, folder, options.time_limit,

@@ -9,7 +9,8 @@ is ``bpl``). The adaptive variant sizes each step a priori from the last two coe
 
 so that the next terms of the series, whose size those two coefficients predict, stay
 below eps. By default N follows tol as in Jorba-Zou and heyoka (N = ceil(-ln(tol)/2 + 1)),
-which keeps the step near the series' radius of convergence for every tol. Every step is accepted; where all coefficients beyond u_0 vanish (an
+which keeps the step near the series' radius of convergence for every tol. Every step is
+accepted; where all coefficients beyond u_0 vanish (an
 equilibrium) nothing limits the step and it is the largest allowed, h_max.
 
 The scratch array is flat: a header (N, the tolerance, the step's safety factor, where

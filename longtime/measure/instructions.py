@@ -61,8 +61,8 @@ def require() -> str:
     """The valgrind executable, or InputError (one line naming the Debian package)."""
     path = valgrind_path()
     if path is None:
-        raise InputError(f"counting instructions (--cost instructions) needs Valgrind, which is not on PATH: install the Debian package "
-                         f"'{DEBIAN_PACKAGE}' (apt-get install {DEBIAN_PACKAGE})")
+        raise InputError(f"counting instructions (--cost instructions) needs Valgrind, which is not on PATH: "
+                         f"install the Debian package '{DEBIAN_PACKAGE}' (apt-get install {DEBIAN_PACKAGE})")
     if platform.machine() not in ("x86_64", "AMD64"):
         raise InputError(f"--cost instructions counts with Valgrind client requests written for x86-64 (amd64); "
                          f"this machine is {platform.machine()}: count on an x86-64 machine (the count is the same "

@@ -35,9 +35,9 @@ from typing import Any, Callable, Iterable, Sequence
 import numpy as np
 
 from longtime.core import roles
-from longtime.core.phases import phase as breakdown_phase
 from longtime.core.cache import discard, write_atomic
 from longtime.core.params import InputError
+from longtime.core.phases import phase as breakdown_phase
 from longtime.problems.linear_test import LinearTest
 
 TOL = 1e-9  # |R| above 1 + TOL is growth (round-off in |R| is ~1e-15)

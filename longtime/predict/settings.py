@@ -36,6 +36,7 @@ from functools import cached_property
 from typing import Any, Iterable
 
 import numpy as np
+
 from longtime.core.fmt import positive
 from longtime.core.rowtext import setting
 from longtime.measure.growth import SATURATION

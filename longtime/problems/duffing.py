@@ -144,7 +144,8 @@ class Duffing1(_Duffing):
 class Duffing2(_Duffing):
     name = "duffing-2"
     summary = "conservative Duffing u'' + u + u^3 = 0 (separable H, exact cn solution)"
-    parameters = {"amplitude": Param(1.0, "initial displacement u(0) (u'(0) = 0)", float, positive=True, role="physical")}
+    parameters = {"amplitude": Param(1.0, "initial displacement u(0) (u'(0) = 0)",
+                                     float, positive=True, role="physical")}
     default_t_final = 1000.0
     default_dt = 0.1  # the paper's RK4 step
     sweep_dt = (0.1, 0.05, 0.025)
@@ -184,7 +185,8 @@ class DuffingForced(_Duffing):
     name = "duffing-forced"
     summary = "forced damped Duffing (a=-1, b=1, r=0.3, w=1.2), forcing amplitude c (0.5: chaotic)"
     chaotic = True
-    parameters = {"c": Param(0.5, "forcing amplitude (paper: 0.20, 0.28, 0.29, 0.37, 0.50, 0.65)", float, role="physical")}
+    parameters = {"c": Param(0.5, "forcing amplitude (paper: 0.20, 0.28, 0.29, 0.37, 0.50, 0.65)",
+                             float, role="physical")}
     autonomous = False
     default_t_final = 1000.0
     default_dt = 0.01

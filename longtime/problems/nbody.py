@@ -218,7 +218,8 @@ class FigureEightPerturbed(FigureEight):
                "shift, chaotic break-up for shift <= 32)")
     chaotic = True
     chaotic_settings = {"shift": 10.0}
-    parameters = {"shift": Param(80.0, "body 3 moved to t = T/shift on the orbit", float, positive=True, role="physical")}
+    parameters = {"shift": Param(80.0, "body 3 moved to t = T/shift on the orbit",
+                                 float, positive=True, role="physical")}
     default_t_final = 200 * FIGURE_EIGHT_PERIOD
     sweep_t_final = 20 * FIGURE_EIGHT_PERIOD
     long_t_final = 2200 * FIGURE_EIGHT_PERIOD  # the paper's, for the schemes that can afford it

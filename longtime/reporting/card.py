@@ -192,7 +192,8 @@ def _pareto_text(entries: list[dict]) -> str:
     for e in entries:
         kind = "fastest" if e["is_fastest"] else ("not met" if e["ratio"] is None else "ratio")
         last = groups[-1] if groups else None
-        same = kind != "ratio" or (f"{last[3]:.3g}" == f"{e['ratio']:.3g}" and last[4] == e["fastest"]) if last else False
+        same = ((kind != "ratio" or (f"{last[3]:.3g}" == f"{e['ratio']:.3g}" and last[4] == e["fastest"]))
+                if last else False)
         if last and last[0] == kind and same:
             last[2] = e["target"]
         else:
@@ -208,7 +209,8 @@ def _pareto_text(entries: list[dict]) -> str:
 def _per_step_text(p: dict) -> str:
     rhs = p["rhs_evals_per_step"]
     ins = p["instructions_per_step"]
-    return (f"rhs evaluations per step {rhs:.3g}" if rhs is not None else f"rhs evaluations per step {NOT_MEASURED}") + \
+    return (f"rhs evaluations per step {rhs:.3g}" if rhs is not None
+            else f"rhs evaluations per step {NOT_MEASURED}") + \
         (f", instructions per step {ins:.4g}" if ins is not None else f", instructions per step {NOT_MEASURED}")
 
 
@@ -283,7 +285,8 @@ def card_html(c: dict, notes: Iterable[tuple[str, str]] = ()) -> str:
         f"; measured {'symplectic' if s['symplectic'] else 'not symplectic'}"
         + ("" if s["reversible"] is None else f", {'reversible' if s['reversible'] else 'not reversible'}"))
     flagged = [p["problem"] for p in c["problems"] if any(o["flag"] for o in p["orders"])]
-    head = (f"<b>{escape(c['scheme'])}</b> order {escape(c['declared_order'] if c['declared_order'] is not None else '-')}"
+    declared = c['declared_order'] if c['declared_order'] is not None else '-'
+    head = (f"<b>{escape(c['scheme'])}</b> order {escape(declared)}"
             + escape(struct)
             + (f"; fastest somewhere on {escape(', '.join(fastest))}" if fastest else "")
             + (f' <span class="flag">misses its order on {escape(", ".join(flagged))}</span>' if flagged else ""))

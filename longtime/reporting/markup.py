@@ -29,7 +29,8 @@ h3{margin-top:1.4em}.footer{margin-top:2em}
 """
 
 # records errors and checks that every figure has a drawn size (folded ones opened for the
-# measurement, then folded again); a browser test reads the result from <body data-figures="..." data-errors="..."> (no network, no external script)
+# measurement, then folded again); a browser test reads the result from
+# <body data-figures="..." data-errors="..."> (no network, no external script)
 SCRIPT = """
 (function(){var errs=[];
 window.addEventListener('error',function(e){errs.push(String(e.message));document.body.dataset.errors=errs.join('|');});

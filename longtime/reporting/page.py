@@ -120,7 +120,8 @@ def _verdict_section(p: str, v, mine: list[dict]) -> str:
         out.append(f'<figure class="plot">{fig}<figcaption>Winner map: for each target ({escape(v.measure.text)}) '
                    f"and horizon T, the scheme of the cheapest setting predicted to keep it (its setting written "
                    f"in the cell), from each setting's measured CPU time per unit of simulated time and its growth "
-                   f"class, each class trusted up to a stated multiple of its run's span; grey: undetermined (a cheaper setting's law is not determined that far); "
+                   f"class, each class trusted up to a stated multiple of its run's span; grey: undetermined "
+                   f"(a cheaper setting's law is not determined that far); "
                    f"circles and crosses: predictions re-run and checked.</figcaption></figure>")
     body = []
     for h in v.horizons:
@@ -139,11 +140,12 @@ def _verdict_section(p: str, v, mine: list[dict]) -> str:
                                            "predicted CPU s", "growth law", "runner-up (its CPU)"], body)))
     stuck = sorted((s_ for s_ in v.candidates if not s_.extrapolates), key=lambda s_: s_.cpu_per_t)
     if stuck:
-        items = "".join(f"<li>{escape(s_.text)}: {escape(s_.law_text())}; <code>{escape(deciding_run(s_, 10 * s_.span))}"
-                        f"</code></li>" for s_ in stuck[:12])
+        items = "".join(f"<li>{escape(s_.text)}: {escape(s_.law_text())}; "
+                        f"<code>{escape(deciding_run(s_, 10 * s_.span))}</code></li>" for s_ in stuck[:12])
         more = f"<li>and {len(stuck) - 12} more</li>" if len(stuck) > 12 else ""
-        out.append(_fold(f"Not extrapolated: {len(stuck)} of {len(v.candidates)} settings (growth undetermined, faster, "
-                         f"or a class not trusted past the run), with the run that would decide each", f"<ul>{items}{more}</ul>"))
+        out.append(_fold(f"Not extrapolated: {len(stuck)} of {len(v.candidates)} settings (growth undetermined, "
+                         f"faster, or a class not trusted past the run), with the run that would decide each",
+                         f"<ul>{items}{more}</ul>"))
     if v.checks:
         out.append(_fold(f"Checks: {escape(check_summary(v.checks))}",
                          "<ul>" + "".join(f"<li>{escape(check_text(c))}</li>" for c in failed_first(v.checks))
@@ -207,8 +209,8 @@ def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: l
         what = "; ".join([f"{k.split(' (')[0].split(',')[0]}: {len(folded[k])} schemes" for k in failed]
                          + ([f"skipped: {skipped} schemes"] if skipped else []))
         out.append(_fold(f"Not run to the end, or the solution lost ({escape(what)})", "<ul>" + "".join(
-            f"<li>{escape(why)}: {escape(', '.join(s))}</li>" for why, s in sorted(folded.items(),
-                                                                                  key=lambda kv: kv[0].startswith("skipped")))
+            f"<li>{escape(why)}: {escape(', '.join(s))}</li>"
+            for why, s in sorted(folded.items(), key=lambda kv: kv[0].startswith("skipped")))
             + "</ul>", bool(failed)))
     out.append(_fold("Fastest scheme per accuracy at the runs' t_final (Pareto front)", pareto_table(mine)))
     fig = figs["work_precision"]
@@ -302,7 +304,8 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
            '<meta name="viewport" content="width=device-width, initial-scale=1">',
            "<title>longtime results</title>", f"<style>{CSS}</style>", "</head><body>",
            "<h1>longtime: which scheme for this problem, horizon and accuracy</h1>",
-           f'<p class="lead"><b>{len(rows)} cells</b> ({escape(format_counts(counts))}) of run{"s" if len(runs) != 1 else ""} '
+           f'<p class="lead"><b>{len(rows)} cells</b> ({escape(format_counts(counts))}) '
+           f'of run{"s" if len(runs) != 1 else ""} '
            f'{escape(ids)}. <a href="#about">The run, the machine and its calibration</a> are at the end.</p>',
            "<nav><b>Verdict:</b> " + "".join(f'<a href="#verdict-{slug(p)}">{escape(p)}</a>' for p in problems)
            + '<br><a href="#libraries">which library</a><a href="#checks">checked predictions</a>'
@@ -310,7 +313,8 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
            + '<a href="#evidence">evidence</a>' + ('<a href="#history">history</a>' if history else "")
            + '<a href="#capabilities">capability matrix</a><a href="#about">run and machine</a></nav>',
            '<h2 id="verdict">Verdict</h2>'
-           '<p class="note">Per problem, the cheapest stored setting predicted to keep a target error up to a horizon T: '
+           '<p class="note">Per problem, the cheapest stored setting predicted to keep a target error '
+           'up to a horizon T: '
            "its error at T from its measured error and growth class (bounded: flat; sqrt, linear, quadratic: "
            "t^(1/2, 1, 2) from its run's final time), its CPU time from its measured CPU time per unit of simulated "
            "time. A class predicts only as far as it was measured to hold (its reach: a solution error classed "

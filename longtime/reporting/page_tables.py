@@ -102,8 +102,8 @@ def ensemble_table(records: list[dict]) -> str | None:
     measured (members, size, state, span, observable, floor), then per scheme its setting, its
     distance, the floor and whether the two are told apart, or the status that left it
     without a distance."""
-    from longtime.measure.ensemble import FLOOR_FACTOR
     from longtime.core.rowtext import setting
+    from longtime.measure.ensemble import FLOOR_FACTOR
 
     if not records:
         return None

@@ -103,7 +103,8 @@ def verdict_lines(v: Verdict, full: bool = False) -> list[str]:
     if stuck:
         first = sorted(stuck, key=lambda s: s.cpu_per_t)[0]
         lines.append(f"  not extrapolated: {len(stuck)} of {len(v.candidates)} settings (growth undetermined, faster, "
-                     f"or a class not trusted past the run); the cheapest, {first.text} ({first.law_text()}), is decided by "
+                     f"or a class not trusted past the run); the cheapest, {first.text} ({first.law_text()}), "
+                     f"is decided by "
                      f"`{deciding_run(first, 10 * first.span)}`")
     if v.checks:
         lines.append(f"  checks: {check_summary(v.checks)}")

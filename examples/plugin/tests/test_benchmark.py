@@ -1,8 +1,8 @@
 """pytest-benchmark: the integration of one cell timed, its accuracy in extra_info
 (``pytest --benchmark-json=bench.json`` keeps both)."""
-from longtime.testing import benchmark_cell
-
 from longtime_example.schemes import ForestRuth
+
+from longtime.testing import benchmark_cell
 
 
 def test_forest_ruth_on_kepler(benchmark):

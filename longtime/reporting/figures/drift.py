@@ -20,7 +20,6 @@ def drift(out: Path, formats: Sequence[str] = ("png", "svg"), problems: list[str
     name draws its change the same way."""
     from longtime.core import registry
     from longtime.measure.metrics import relative_error
-
     from longtime.reporting.figures.style import styles
 
     problems = problems or ["toda"]

@@ -393,7 +393,8 @@ def calibration_svg(points: list[dict[str, Any]]) -> str | None:
         y = np.array([1e3 * p["cpu_s"] for p in mine])
         top = np.array([1e3 * p["cpu_s_max"] for p in mine])
         ax.errorbar(x, y, yerr=[np.zeros_like(y), top - y], marker="o", ms=3, lw=0.8, capsize=0,
-                    label=f"process {pid}" + (" (this run's own)" if k == 0 and mine[0].get("phase") == "before" else ""))
+                    label=f"process {pid}"
+                    + (" (this run's own)" if k == 0 and mine[0].get("phase") == "before" else ""))
     ax.set_xlabel("seconds since the first calibration")
     ax.set_ylabel("reference workload, ms")
     ax.grid(True, alpha=0.3)

@@ -81,7 +81,8 @@ def stability_regions(out: str | Path = "stability", formats: Sequence[str] = ("
             try:
                 growth = imaginary_growth(scheme, axis, order)
                 interval = format_interval(imaginary_interval(scheme, order))
-                right.semilogy(axis, np.where(np.isfinite(growth), growth, np.nan), color=colour, ls=ls, lw=1.1, label=f"{label}: {interval}")
+                right.semilogy(axis, np.where(np.isfinite(growth), growth, np.nan),
+                               color=colour, ls=ls, lw=1.1, label=f"{label}: {interval}")
             except Unmeasurable as exc:
                 notes.append(f"{label}: {exc}")
     left.axhline(0, color="0.5", lw=0.6)

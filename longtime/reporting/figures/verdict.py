@@ -126,7 +126,8 @@ def winner_map_svg(v: Verdict) -> str | None:
 
         handles += [Line2D([], [], marker="o", mfc="none", mec="#111", mew=1.6, ls="none",
                            label="checked: held (at the measured error)"),
-                    Line2D([], [], marker="X", mfc="#b71c1c", mec="#b71c1c", ls="none", label="checked: missed (on the edge: off the map)")]
+                    Line2D([], [], marker="X", mfc="#b71c1c", mec="#b71c1c", ls="none",
+                           label="checked: missed (on the edge: off the map)")]
     # below the map, so that the figure is no wider than the map and the page shows it at full size
     below = 0.7 / (0.4 * len(targets))  # inches under the axes for the tick labels and the axis label
     ax.legend(handles=handles, fontsize=9, loc="upper center", bbox_to_anchor=(0.5, -below), borderaxespad=0.0,
