@@ -348,9 +348,11 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
             return row
         ref, trust, note = None, None, ""
         if reference and has_reference(problem):
-            # the reference check is part of the cell: it gets what is left of the time limit
+            # the reference check is part of the cell: it gets what is left of the cell's hard
+            # limit (the time limit and its grace, where the pool's watchdog would kill the cell)
             full = budget_seconds() if reference_budget_s is None else reference_budget_s
-            left = None if deadline is None else max(deadline - time.monotonic(), 0.0)
+            hard = None if deadline is None else deadline + limits.grace(time_limit)
+            left = None if hard is None else max(hard - time.monotonic(), 0.0)
             budget = full if left is None or left >= full else max(left, 1e-3)
             try:
                 with phases.phase("reference", cell.problem):
@@ -358,11 +360,11 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
                 note = trust.message(float(traj.t[-1]))
             except ReferenceUnavailable as exc:
                 note = f"no reference: {exc}"
-            if budget < full and time.monotonic() >= deadline:
-                row.update(status="timeout", message=f"the reference check passed the cell's time limit of "
-                                                     f"{time_limit:g} s (--time-limit) after the integration; "
-                                                     f"no error measured")
-                return row
+            if budget < full and time.monotonic() >= hard and traj.status != "timeout":
+                traj.status = "timeout"
+                traj.message = "; ".join(m for m in (traj.message, (
+                    f"the reference check passed the cell's hard time limit of {limits.hard_limit(time_limit):g} s "
+                    f"(--time-limit {time_limit:g} s + grace) after the integration")) if m)
         if keep is not None:
             keep.update(problem=problem, integrator=integrator, trajectory=traj, reference=ref, trust=trust)
         with phases.phase("metrics"):
