@@ -2,9 +2,12 @@
 the serial one and the API's included, and the row says so."""
 import time
 
+import pytest
+
 import longtime
 
 
+@pytest.mark.slow  # runs to its hard limit: 2 s + 10 s of grace, and heyoka's compile
 def test_a_long_reference_check_ends_at_the_cells_time_limit_on_the_serial_executor():
     start = time.monotonic()
     rows = longtime.sweep("kepler", "rk4", dt=[0.5], t_final=2e6, executor="serial", time_limit=2, repeats=1)
