@@ -71,7 +71,8 @@ def test_compare_reads_the_streaming_beside_each_cell_from_the_calibrations():
     slowed = compare(rows_a, [_row(0.2, 1.05, dt=dt) for dt in (0.1, 0.05)],
                      calibrations=(_points(0.010), _points(0.0102)))
     assert slowed["regressed"] == 2 and slowed["counts"]["time"]["slower"] == 2
-    # a run calibrated without the streaming workload is judged as before, and says so
+    # a run calibrated without the streaming workload is judged by its compute calibration alone,
+    # and says it lacks the streaming one
     old = compare(rows_a, [_row(0.2, 1.05, dt=dt) for dt in (0.1, 0.05)],
                   calibrations=(_points(None), _points(0.017)))
     assert old["regressed"] == 2 and old["machine"]["bandwidth_ratio"] is None

@@ -10,7 +10,7 @@ import argparse
 import importlib
 import sys
 
-from longtime.commands import guard, listing, matrix, report, run
+from longtime.commands import guard, listing, matrix, report, run_cmd
 
 # modules that add subcommands: each defines add_parser(subparsers) and sets func
 COMMAND_MODULES: tuple[str, ...] = (
@@ -26,7 +26,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true",
                         help="an error's traceback too, not only its one-line message")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for module in (listing, run, matrix, report):
+    for module in (listing, run_cmd, matrix, report):
         module.add_parser(sub)
     for name in COMMAND_MODULES:
         importlib.import_module(name).add_parser(sub)
