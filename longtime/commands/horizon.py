@@ -98,7 +98,7 @@ def study(schemes=DEFAULT_SCHEMES, dts=DEFAULT_DTS, members: int = DEFAULT_MEMBE
              for s in schemes for dt in sorted(set(dts), reverse=True) for y0 in member_states(members)]
     found: dict[tuple, tuple[float | None, float]] = {}
     for n, (task, result) in enumerate(run_tasks(run_member, tasks, jobs), 1):
-        found[task[:-1]] = result
+        found[task] = result
         if progress:
             print(f"horizon: {n}/{len(tasks)} runs done", file=sys.stderr, end="\r", flush=True)
     if progress:
@@ -108,7 +108,8 @@ def study(schemes=DEFAULT_SCHEMES, dts=DEFAULT_DTS, members: int = DEFAULT_MEMBE
     for s in schemes:
         points = []
         for dt in sorted(set(dts), reverse=True):
-            results = [found[(s, float(dt), energy, y0, float(t_final), threshold)] for y0 in member_states(members)]
+            results = [found[(s, float(dt), energy, y0, float(t_final), threshold, time_limit)]
+                       for y0 in member_states(members)]
             points.append(estimate(dt, [r[0] for r in results], float(t_final), swings=[r[1] for r in results]))
         exp_fit, power_fit = fit_law(points, "exponential"), fit_law(points, "power")
         held = [p.held_swing for p in points if p.held_swing is not None]
