@@ -194,10 +194,11 @@ def test_lost_dask_scheduler_is_an_interruption_not_failed_rows(tmp_path, capsys
     db = tmp_path / "dask.sqlite"
     try:
         _wait_for(lambda: "Registered to" in (logs / "worker.txt").read_text(), 60, "the Dask worker")
-        # 8 cells in 4 tasks of 2 on the one worker; each cell repeats its timed run for 0.5 s
+        # 8 cells in 4 tasks of 2 on the one worker; each cell is 10^7 steps or more, timed at
+        # least 3 times (a timing stops early once settled, so the length is in the steps)
         proc = subprocess.Popen([sys.executable, "-m", "longtime.commands.cli", "matrix", "-p", "harmonic",
-                                 "-i", "verlet", "--dt", "0.01,0.02,0.03,0.04,0.05,0.06,0.07,0.08", "--t-final", "10",
-                                 "--repeats", "1000", "--min-time", "0.5", "--scheduler", address, "--db", str(db),
+                                 "-i", "verlet", "--dt", "0.01,0.0101,0.0102,0.0103,0.0104,0.0105,0.0106,0.0107",
+                                 "--t-final", "100000", "--repeats", "3", "--scheduler", address, "--db", str(db),
                                  "--no-progress", "--no-report"],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         _wait_for(lambda: _stored_rows(db) > 0 or proc.poll() is not None, 120, "the first row")
