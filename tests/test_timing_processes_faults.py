@@ -6,7 +6,6 @@ import threading
 import time
 
 import pytest
-from _procs import children
 
 from longtime.core.timing import Timing
 from longtime.execution import child as child_processes
@@ -64,36 +63,60 @@ def test_a_run_past_the_time_limit_within_a_timing_process_ends_its_timing_not_i
     assert row["status"] == "ok" and "timed in 1 of 2 processes" in row["message"]
 
 
-@pytest.mark.slow
-def test_a_deterministic_cell_paused_in_its_timing_process_is_not_failed():
-    """The timing processes are stopped (SIGSTOP) for longer than the time limit, as a host's
-    preemption does: the row stays ok, missing that process's sample."""
-    stop = threading.Event()
-    paused = set()
+class PausedWhenTimedElsewhere(RK4):
+    """RK4 that, in a timing process, writes its pid to ``$PAUSE_PID_FILE`` once its first run
+    has begun and waits there, so that the test pauses it (SIGSTOP) inside that run."""
+    name = "paused-in-timing"
+    summary = "paused inside its run in a timing process"
 
-    def pause_children():
+    def _integrate(self, *args, **kwargs):
+        import sys
+        from pathlib import Path
+
+        marker = Path(os.environ.get("PAUSE_PID_FILE", ""))
+        if sys.argv and sys.argv[0].endswith("processes.py") and marker.name and not marker.exists():
+            marker.write_text(str(os.getpid()))
+            time.sleep(1.0)  # the pause lands here, inside the run: its deadline is already set
+        return super()._integrate(*args, **kwargs)
+
+
+@pytest.mark.slow
+def test_a_deterministic_cell_paused_in_its_timing_process_is_not_failed(tmp_path, monkeypatch):
+    """The timing process is stopped (SIGSTOP) inside its run for longer than the time limit,
+    as a host's preemption does: the row stays ok, missing that process's sample."""
+    from longtime.core import registry
+
+    registry.register(PausedWhenTimedElsewhere)
+    marker = tmp_path / "paused.pid"
+    monkeypatch.setenv("PAUSE_PID_FILE", str(marker))
+    stop = threading.Event()
+    paused = []
+
+    def pause_child():
         while not stop.is_set():
-            for pid in children(os.getpid(), "longtime.execution.processes"):
-                if pid in paused:
-                    continue
-                paused.add(pid)
-                time.sleep(4.0)  # its imports done, its cell begun
+            if marker.exists() and marker.read_text():
+                pid = int(marker.read_text())
                 os.kill(pid, signal.SIGSTOP)
+                paused.append(pid)
                 time.sleep(2.5)
                 os.kill(pid, signal.SIGCONT)
-            time.sleep(0.05)
+                return
+            time.sleep(0.02)
 
-    thread = threading.Thread(target=pause_children, daemon=True)
+    thread = threading.Thread(target=pause_child, daemon=True)
     thread.start()
     try:
-        cell = Cell("harmonic", "rk4", {}, {"dt": 0.0005}, 50.0)
+        cell = Cell("harmonic", "paused-in-timing", {}, {"dt": 0.0005}, 50.0)
         rows = run_matrix([cell], None, None, "serial",
                           ExecOptions(processes=2, time_limit=1.0, timing=Timing(repeats=2, min_time=0)))
     finally:
         stop.set()
         thread.join()
-    assert paused, "no timing process was seen"
-    assert rows[0]["status"] == "ok", rows[0]["message"]
+    assert paused, "the timing process never began its run"
+    row = rows[0]
+    assert row["status"] == "ok", row["message"]
+    assert len(row["cpu_s_processes"]) == 1  # the row's own process; the paused one gave no sample
+    assert "timed in 1 of 2 processes" in row["message"] and "passed the time limit" in row["message"]
 
 
 class DiesWhenTimedElsewhere(RK4):
