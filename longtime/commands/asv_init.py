@@ -173,8 +173,10 @@ def next_steps(folder: Path, state: str) -> str:
 
 
 def write(folder: Path, problems: list[str], schemes: list[str], settings: dict, t_final: float | None,
-          force: bool = False) -> list[Path]:
-    name, found_p, found_s = declared(folder)
+          force: bool = False, own: tuple[str, list[str], list[str]] | None = None) -> list[Path]:
+    """Write DIR's asv.conf.json and benchmarks/ (``own``: ``declared(folder)``, read once by
+    the caller, else here); the paths written."""
+    name, found_p, found_s = own or declared(folder)
     problems, schemes = problems or found_p, schemes or found_s
     if not problems or not schemes:
         raise InputError(f"{folder}: no problems or schemes to benchmark: pass -p and -i (its pyproject.toml "
@@ -217,24 +219,24 @@ def _check_targets(folder: Path, paths: list[Path]) -> None:
             raise InputError(f"{path} is a folder, not a file; nothing was written")
 
 
-def _check_names(folder: Path, problems: list[str], schemes: list[str]) -> None:
+def _check_names(own_p: list[str], own_s: list[str], problems: list[str], schemes: list[str]) -> None:
     """-p and -i name problems and schemes that are installed, or that DIR's pyproject.toml
-    declares (the plugin's own, perhaps not installed yet): one error for the unknown ones."""
+    declares (``own_p``, ``own_s``: the plugin's own, perhaps not installed yet): one error for
+    the unknown ones."""
     from longtime.core import registry
 
-    _, own_p, own_s = declared(folder)
     registry.check_names("problem", [n for n in problems if n not in own_p])
     registry.check_names("integrator", [n for n in schemes if n not in own_s])
 
 
-def _check_steps(folder: Path, problems: list[str], schemes: list[str], steps, t_final: float | None) -> None:
+def _check_steps(own_p: list[str], own_s: list[str], problems: list[str], schemes: list[str], steps,
+                 t_final: float | None) -> None:
     """Each installed problem x fixed-step scheme is refused a step larger than its span, as
     ``longtime run`` refuses it, so that the suite written holds no cell ``run`` would refuse
     (the plugin's own names, perhaps not installed yet, are checked when asv runs them)."""
     from longtime.core import registry
     from longtime.execution.cells import check_step
 
-    _, own_p, own_s = declared(folder)
     problems, schemes = problems or own_p, schemes or own_s
     known_p = [n for n in problems if n in registry.problems()]
     known_s = [n for n in schemes if n in registry.integrators()]
@@ -258,12 +260,13 @@ def cmd_asv_init(args) -> int:
     _check_numbers("--dt", args.dt)
     _check_numbers("--tol", args.tol)
     _check_numbers("--t-final", [args.t_final] if args.t_final is not None else [])
-    _check_names(folder, args.problem or [], args.integrator or [])
-    _check_steps(folder, args.problem or [], args.integrator or [], args.dt, args.t_final)
+    own = declared(folder)  # DIR's pyproject.toml, read once
+    _check_names(own[1], own[2], args.problem or [], args.integrator or [])
+    _check_steps(own[1], own[2], args.problem or [], args.integrator or [], args.dt, args.t_final)
     settings = {k: v for k, v in (("dt", args.dt), ("tol", args.tol)) if v}
     for key, value in args.set:
         settings[key] = value
-    for path in write(folder, args.problem or [], args.integrator or [], settings, args.t_final, args.force):
+    for path in write(folder, args.problem or [], args.integrator or [], settings, args.t_final, args.force, own):
         print(path)
     if args.git_commit:
         print(first_commit(folder), file=sys.stderr)
