@@ -98,10 +98,10 @@ def test_a_drift_dominated_problems_group_comes_first_in_the_drifting_class(monk
 def test_a_lost_rank_names_the_rival_it_lost_to():
     # henon-heiles in the default main job: blanes-moan-s6 kept 1e-4 in 0.098 s, its open rival
     # yoshida6 dt 0.1 (law undetermined) in 0.057 s, its runner-up yoshida6 dt 0.05 in 0.114 s
-    best = _check(_setting(_row("blanes-moan-s6", 1.4e-7, "linear", windows=[1.0, 1.0, 1.0])), 5e4, 1.4e-5)
-    runner = _check(_setting(_row("yoshida6", 2.5e-8, "linear", windows=[1.0, 1.0, 1.0])), 5e4, 1.2e-6,
+    best = _check(_setting(_row("blanes-moan-s6", 1.4e-7, "linear", windows=[1.0, 1.0, 1.0])), 1e4, 1.4e-5)
+    runner = _check(_setting(_row("yoshida6", 2.5e-8, "linear", windows=[1.0, 1.0, 1.0])), 1e4, 1.2e-6,
                     role="runner-up")
-    opened = _check(_setting(_row("yoshida6", 8.2e-7, "undetermined", windows=[0.29, 0.51, 0.91])), 5e4, 7.9e-5,
+    opened = _check(_setting(_row("yoshida6", 8.2e-7, "undetermined", windows=[0.29, 0.51, 0.91])), 1e4, 7.9e-5,
                     role="open")
     records = [{**best, "cpu_s": 0.098}, {**runner, "cpu_s": 0.114}, {**opened, "dt": 0.2, "cpu_s": 0.057}]
     for r in records:

@@ -72,13 +72,17 @@ def test_a_class_is_trusted_only_to_its_reach():
     assert "not trusted past its run" in bounded.law_text()
     d = D.decide(S.settings(sol, S.measure(sol)), 1e-3, 1e4)  # verlet would have predicted 1e-4 flat
     assert d.best.scheme == "rk4" and d.runner_up is None
-    rec = R.recommend(sol, "harmonic", 2e-4, 1e5)  # rk4 predicts 1e-3 there: no answer, the run that decides
+    coarser = {**LINEAR, "l2_error": 1e-5, "final_error": 1e-5}  # rk4 predicts 1e-3 at 1e4
+    rec = R.recommend([{**BOUNDED}, coarser], "harmonic", 2e-4, 1e4)  # no answer, the run that decides
     assert not rec.answered and rec.scheme is None
     assert re.search(r"verlet dt=0.1 keeps it to t = 100 but its growth is bounded: flat, not trusted past its run.*"
-                     r"`longtime run -p harmonic -i verlet --dt 0.1 --t-final 100000`", str(rec))
-    # every horizon of the map past 1000 times the runs is undetermined
+                     r"`longtime run -p harmonic -i verlet --dt 0.1 --t-final 10000`", str(rec))
+    # a linear solution error: 100 times its run; every horizon of the map past it is undetermined
+    rk4 = next(s for s in S.settings(ROWS, S.measure(ROWS)) if s.scheme == "rk4")
+    assert rk4.reach == 100.0 * S.TRUST_FACTORS["solution"]["linear"] == 1e4
+    assert "not determined past t = 1e+04 (100 times its run)" in rk4.undetermined_text(1e5)
     v = D.problem_verdict("harmonic", ROWS)
-    assert all(v.grid[(t, h)].best is None for t in v.targets for h in v.horizons if h > 1e5)
+    assert all(v.grid[(t, h)].best is None for t in v.targets for h in v.horizons if h > 1e4)
 
 
 def test_a_solution_error_is_trusted_less_where_an_invariant_drifts_or_its_slopes_steepen():
@@ -103,24 +107,25 @@ def test_a_solution_error_is_trusted_less_where_an_invariant_drifts_or_its_slope
     s = S.settings([steep], S.measure([steep]))[0]
     assert s.steepening and not s.extrapolates and s.error_at(101.0) is None
     assert "window slopes 1.16, 1.28, 1.46 rise past t^1" in s.law_text()
-    # slopes that fall toward the class: trusted, at most as far as the latest slope (1.2)
-    # would move the prediction by 3: 3^(1 / 0.2) = 243 times the run
-    falling = {**LINEAR, "error.growth_windows": [1.43, 1.40, 1.2]}
+    # slopes that fall toward the class: trusted, at most as far as the latest slope (1.3)
+    # would move the prediction by 3: 3^(1 / 0.3) = 38.9 times the run
+    falling = {**LINEAR, "error.growth_windows": [1.43, 1.40, 1.3]}
     s = S.settings([falling], S.measure([falling]))[0]
-    assert not s.steepening and s.factor == pytest.approx(3 ** 5)
+    assert not s.steepening and s.factor == pytest.approx(3 ** (1 / 0.3))
     near = {**LINEAR, "error.growth_windows": [1.43, 1.40, 1.06]}
-    assert S.settings([near], S.measure([near]))[0].factor == 1000.0
+    assert S.settings([near], S.measure([near]))[0].factor == 100.0
 
 
 def test_a_predicted_error_of_o1_is_lost():
-    coarse = _row("euler", 0.1, 1e-3, 1e-4, "linear", 1.0)  # 1 at 1000 times its run
+    coarse = _row("euler", 0.1, 1e-2, 1e-4, "linear", 1.0)  # 1 at 100 times its run
     s = S.settings([coarse], S.measure([coarse]))[0]
-    assert s.state_at(1e4) == "predicted" and s.error_at(1e4) == pytest.approx(0.1)
-    assert s.state_at(5e4) == "lost" and s.error_at(5e4) is None  # 0.5: O(1)
-    assert s.state_at(1e5) == "lost"
-    d = D.decide([s], 0.9, 1e5)
+    assert s.state_at(1e3) == "predicted" and s.error_at(1e3) == pytest.approx(0.1)
+    assert s.state_at(5e3) == "lost" and s.error_at(5e3) is None  # 0.5: O(1)
+    assert s.state_at(1e4) == "lost"
+    assert s.state_at(2e4) == "undetermined"  # past its reach nothing is predicted, not even lost
+    d = D.decide([s], 0.9, 1e4)
     assert d.best is None and d.open == [] and d.state == "none"
-    rec = R.recommend([coarse], "harmonic", 0.9, 1e5)
+    rec = R.recommend([coarse], "harmonic", 0.9, 1e4)
     assert not rec.answered and "1 setting predicted lost there (error >= 0.5)" in str(rec)
 
 
@@ -129,7 +134,7 @@ def test_undetermined_predicts_nothing_past_its_run_and_names_the_run_that_decid
     gauss = next(s for s in cands if s.scheme == "gauss4")
     assert gauss.error_at(100.0) == 1e-8 and gauss.error_at(50.0) == 1e-8  # its own run: measured
     assert gauss.error_at(101.0) is None and not gauss.extrapolates
-    d = D.decide(cands, 1e-2, 1e5)
+    d = D.decide(cands, 1e-2, 1e4)
     assert d.best.scheme == "rk4" and [s.scheme for s in d.open] == ["gauss4"]  # cheaper than rk4, law unknown
     assert D.decide(cands, 1e-3, 100.0).best.scheme == "gauss4"  # within its run it is measured
     # a target only gauss4 keeps over its run: undetermined, not a winner
@@ -143,16 +148,17 @@ def test_undetermined_predicts_nothing_past_its_run_and_names_the_run_that_decid
 def test_winner_map_spans_the_horizons_past_the_runs():
     v = D.problem_verdict("harmonic", ROWS)
     assert v.horizons[0] == 100.0 and v.horizons[-1] == 1e8
-    assert v.grid[(1e-3, 1e3)].best.scheme == "rk4" and v.grid[(1e-3, 1e5)].best.scheme == "rk4"
+    assert v.grid[(1e-3, 1e3)].best.scheme == "rk4" and v.grid[(1e-3, 1e4)].best.scheme == "rk4"
+    assert v.grid[(1e-3, 1e5)].state == "undetermined"  # past rk4's reach
     assert v.grid[(1e-4, 1e4)].best.scheme == "rk4" and v.grid[(1e-4, 1e5)].state == "undetermined"
     # the targets some setting reaches, and one decade finer
     assert v.targets[0] == 1e-1 and v.targets[-1] == 1e-9
     text = "\n".join(T.verdict_lines(v))
     assert "rk4 dt=0.1" in text
     assert "`longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 1000`" in text
-    assert ("trusted: solution error: bounded x1, sqrt x1, linear x1000, quadratic x1000; the energy drifting: "
+    assert ("trusted: solution error: bounded x1, sqrt x1, linear x100, quadratic x1000; the energy drifting: "
             "bounded x1, sqrt x1, linear x10, quadratic x10") in text
-    assert ("not determined past t = 1e+05 (the farthest reach; the most accurate there, rk4 dt=0.1): "
+    assert ("not determined past t = 1e+04 (the farthest reach; the most accurate there, rk4 dt=0.1): "
             "`longtime run -p harmonic -i rk4 "
             "--dt 0.1 --t-final 1e+08` would decide it") in text
 
@@ -181,7 +187,7 @@ def test_checks_are_planned_as_groups_that_test_the_rank_within_budget():
     assert len({c.group for c in plan}) == 1 and plan[0].kind == "splitting"  # verlet needs a separable H
     assert all(c.horizon <= c.setting.reach for c in plan if c.role == "best")
     wide = XC.plan_checks(ROWS, limit=6, budget_s=1e3, reference_rate=free, total_s=1e9)
-    assert {c.horizon for c in wide} == {1e5}  # not past rk4's reach (1e5)
+    assert {c.horizon for c in wide} == {1e4}  # not past rk4's reach (1e4)
     # the total time bounds the checks: TIMED_RUNS x the predicted CPU, plus the reference's;
     # a group that does not fit is planned at a nearer horizon where rk4 still wins past its run
     near = XC.plan_checks(ROWS, budget_s=2.0, reference_rate=free, total_s=1.0)
@@ -251,15 +257,15 @@ def test_recommend_answers_in_a_few_lines(store, capsys):
     assert lines[1].startswith("  use      rk4 dt=0.1: error 1e-05 at T") and "CPU 0.05 s" in lines[1]
     assert lines[2].startswith("  runner-up verlet dt=0.1") and "x2 the CPU" in lines[2]
     assert lines[-1].startswith("  evidence: 3 settings (2 with a growth law that extrapolates)")
-    assert cli.main(["recommend", "-p", "harmonic", "--error", "0.2", "--horizon", "1e5", "--db", store]) == 0
+    assert cli.main(["recommend", "-p", "harmonic", "--error", "0.02", "--horizon", "1e4", "--db", store]) == 0
     out = capsys.readouterr().out
-    assert ("use      rk4 dt=0.1: error 0.001 at T (linear: t^1, alpha 1.30 [1.25, 1.35] fitted, "
-            "trusted to t = 1e+05") in out
-    assert "runner-up verlet dt=0.1: error 0.1 at T" in out
-    assert "open     gauss4 dt=0.1" in out and "--t-final 100000 --db" in out
+    assert ("use      rk4 dt=0.1: error 0.0001 at T (linear: t^1, alpha 1.30 [1.25, 1.35] fitted, "
+            "trusted to t = 1e+04") in out
+    assert "runner-up verlet dt=0.1: error 0.01 at T" in out
+    assert "open     gauss4 dt=0.1" in out and "--t-final 10000 --db" in out
     # past every setting's reach nothing is predicted: no answer (exit 3), naming the run that decides
-    assert cli.main(["recommend", "-p", "harmonic", "--error", "0.2", "--horizon", "1e6", "--db", store]) == 3
-    assert "`longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 1e+06" in capsys.readouterr().out
+    assert cli.main(["recommend", "-p", "harmonic", "--error", "0.02", "--horizon", "1e5", "--db", store]) == 3
+    assert "`longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 100000" in capsys.readouterr().out
 
 
 def test_recommend_from_python_is_the_same_answer(store):
@@ -521,3 +527,18 @@ def test_the_page_puts_failed_checks_first_and_says_no_pointwise_answer_past_cha
     assert "MISSED" in failed_list and ": held" not in failed_list
     # the chaotic problem's headline: no pointwise answer, with the predictability horizon's reason
     assert "No pointwise answer up to T = " in page and "Lyapunov time" in page
+
+
+def test_a_run_short_against_its_problems_horizon_is_not_extrapolated():
+    # harmonic's default horizon is 100: a linear law fitted on a run to t = 5 (under a tenth
+    # of it) is the error's course within an orbit, not its secular growth
+    short = _row("rk4", 0.1, 1e-6, 5e-4, "linear", 1.0, t_final=5.0)
+    s = S.settings([short], S.measure([short]))[0]
+    assert s.default_span == 100.0 and s.short and not s.extrapolates and s.reach == 5.0
+    assert s.error_at(5.0) == 1e-6 and s.error_at(6.0) is None
+    assert "under 0.1 of the problem's default horizon 100" in s.law_text()
+    long = _row("rk4", 0.1, 1e-6, 1e-3, "linear", 1.0, t_final=10.0)  # a tenth: extrapolated
+    assert S.settings([long], S.measure([long]))[0].reach == 1e3
+    # a problem not installed here: no horizon to judge by, the class's factor alone
+    elsewhere = {**short, "problem": "not-installed-here"}
+    assert S.settings([elsewhere], S.measure([elsewhere]))[0].reach == 500.0

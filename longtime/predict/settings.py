@@ -13,7 +13,8 @@ with k the exponent of the class, not the fitted alpha: the law is the class, wh
 agree on it, not the digits of a fit that still carries the run's transient. A class is
 trusted only up to ``TRUST_FACTORS[kind][class]`` times that run's span (its ``reach``;
 kind: a solution error, one whose energy drift will steepen it, a chaotic problem's, or an
-invariant's error), not past the run where its windows' slopes are steepening, and at most
+invariant's error), not past the run where its windows' slopes are steepening or the run
+spans under SHORT_RUN of its problem's default horizon, and at most
 as far as its latest window's slope would move the prediction by CHECK_ERROR_FACTOR. An
 undetermined law whose windows' slopes do not rise is bounded by its steepest slope for
 BOUND_FACTOR times its run. Past its reach a setting predicts nothing. A predicted error of
@@ -49,18 +50,21 @@ FLAT = ("bounded",)
 # how far each class is trusted, for a solution error and for an invariant's: up to this
 # many times its run's span (t_final - t0), read from settings re-run at 10, 100 and 1000
 # times their span (benchmarks/verdict_reach.py; the table is in docs/metrics.md, "How far a
-# class is trusted"). A power law held within x3 up to 1000 times the run wherever its
-# prediction stayed below LOST. A solution error classed bounded or sqrt can be the transient
+# class is trusted"). A solution error's power law held within x3 up to 100 times the run
+# wherever its prediction stayed below LOST; at 1000 times a quadratic one held, a linear one
+# did not (taylor N=10 on Lotka-Volterra, 13 times its prediction: the phase error turns
+# faster once the invariant's slow drift tells), so linear is trusted 100 times its run,
+# quadratic 1000. A solution error classed bounded or sqrt can be the transient
 # before a phase error grows (at least linearly; round-off's phase walks like t^1.5): some
 # held to 100 times the run, others were off by 3 to 40 at 10 times, so neither class of a
-# solution error is extrapolated. An invariant's bounded or sqrt error held to 1000 times.
+# solution error is extrapolated. An invariant's error of every class held to 1000 times.
 # A solution error growing like t^k whose setting lets the energy drift like t^a with
 # k < 1 + a is trusted ten times its run only: a drifting energy moves the frequencies, and
 # the phase error then turns to t^(1 + a) (the quadratic growth of a non-symplectic method's
 # error on an integrable system) at a time its run need not show (rk4 on the rigid body:
 # linear to t = 1e3, off by 2.1 at 1e4 and by 14 at 1e5).
 TRUST_FACTORS = {
-    "solution": {"bounded": 1.0, "sqrt": 1.0, "linear": 1000.0, "quadratic": 1000.0},
+    "solution": {"bounded": 1.0, "sqrt": 1.0, "linear": 100.0, "quadratic": 1000.0},
     "drifting": {"bounded": 1.0, "sqrt": 1.0, "linear": 10.0, "quadratic": 10.0},
     "invariant": {"bounded": 1000.0, "sqrt": 1000.0, "linear": 1000.0, "quadratic": 1000.0},
     # a solution error on a problem with a measured Lyapunov time grows exponentially: no
@@ -81,6 +85,12 @@ STEEPENING = 0.1
 BOUND_FACTOR = 10.0
 # a predicted relative error this large is O(1) (the growth fit's saturation): lost
 LOST = SATURATION
+# a run shorter than this fraction of its problem's default horizon (``default_t_final``,
+# which spans many of the problem's periods: kepler's 20 orbits) is not extrapolated: a law
+# fitted within a few periods is the error's course along one orbit, not its secular growth
+# (scipy-lsoda on kepler, its run cut by the budget to t = 2.5, 0.4 of an orbit: linear over
+# the run, 9.5 times that prediction at ten times its run)
+SHORT_RUN = 0.1
 
 
 @dataclass
@@ -130,6 +140,7 @@ class Setting:
     curve: tuple[tuple[float, float], ...] = ()
     cost: "CostModel | None" = None  # CPU seconds against T (default: per-time, from this run)
     lost_at: float = math.inf  # the span of a longer run of the same setting that lost the solution
+    default_span: float | None = None  # its problem's default horizon (None: the problem is not installed)
 
     @property
     def scheme(self) -> str:
@@ -153,6 +164,8 @@ class Setting:
         class's TRUST_FACTORS, 1 where its slopes are steepening, and at most the factor
         over which its latest window's slope would move the prediction by
         CHECK_ERROR_FACTOR."""
+        if self.short:
+            return 1.0
         if self.bound_exponent is not None:
             return BOUND_FACTOR
         base = TRUST_FACTORS[self.kind].get(self.law, 1.0)
@@ -164,6 +177,11 @@ class Setting:
         if off * math.log(base) <= math.log(CHECK_ERROR_FACTOR):
             return base
         return math.exp(math.log(CHECK_ERROR_FACTOR) / off)
+
+    @property
+    def short(self) -> bool:
+        """Whether its run spans less than SHORT_RUN of its problem's default horizon."""
+        return self.default_span is not None and self.span < SHORT_RUN * self.default_span
 
     @cached_property
     def bound_exponent(self) -> float | None:
@@ -229,6 +247,9 @@ class Setting:
     def law_text(self) -> str:
         if self.extrapolates:
             reach = f", trusted to t = {self.reach:.4g}" + (", the energy drifts" if self.kind == "drifting" else "")
+        elif self.short and self.exponent is not None:
+            reach = (f", not trusted past its run (t = {self.span:.4g}, under {SHORT_RUN:g} of the problem's "
+                     f"default horizon {self.default_span:.4g}: too short to show a secular law)")
         elif self.steepening:
             reach = (f", not trusted past its run (window slopes {', '.join(f'{w:.2f}' for w in self.windows)} "
                      f"rise past t^{EXPONENTS[self.law]:g})")
@@ -352,8 +373,18 @@ def settings(rows: Iterable[dict[str, Any]], m: Measure) -> list[Setting]:
                            _kind(r, m, str(law)),
                            tuple(float(w) for w in windows) if isinstance(windows, list)
                            and all(isinstance(w, (int, float)) for w in windows) else (),
-                           _curve(r, m), costs[key], lost_at))
+                           _curve(r, m), costs[key], lost_at, _default_span(r["problem"])))
     return sorted(out, key=lambda s: (s.cpu_per_t, s.text))
+
+
+def _default_span(problem: str) -> float | None:
+    """The problem's default horizon, None where it is not installed here."""
+    from longtime.core import registry
+
+    try:
+        return float(registry.problem_class(problem).default_t_final)
+    except Exception:  # a store's problem that is not installed here: no such rule
+        return None
 
 
 def _rising(windows) -> bool:

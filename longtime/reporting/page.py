@@ -318,8 +318,9 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
            "its error at T from its measured error and growth class (bounded: flat; sqrt, linear, quadratic: "
            "t^(1/2, 1, 2) from its run's final time), its CPU time from its measured CPU time per unit of simulated "
            "time. A class predicts only as far as it was measured to hold (its reach: a solution error classed "
-           "bounded or sqrt not past its run, a power law or an invariant's error up to 1000 times it, less where "
-           "the energy drifts or the slopes still steepen); past its reach, or where its growth is undetermined, a "
+           "bounded or sqrt not past its run, a linear one up to 100 times it, a quadratic one or an invariant's "
+           "error up to 1000 times, less where the energy drifts, the slopes still steepen or the run is short "
+           "against the problem's horizon); past its reach, or where its growth is undetermined, a "
            "setting predicts nothing. docs/metrics.md says how a prediction is made and checked.</p>"]
     out += verdict_sections
     out.append(_libraries_section(rows))
