@@ -113,3 +113,16 @@ def test_a_lost_rank_names_the_rival_it_lost_to():
     records[2]["cpu_s"] = 0.066  # 0.098 <= 1.5 x 0.066: the rank holds
     PC.judge_ranks(records)
     assert records[0]["rank_held"] is True and records[0]["rank_lost_to"] == []
+
+
+def test_the_winner_map_marks_only_judged_checks():
+    from longtime.reporting.figures.verdict import check_marks
+
+    held = _check(_setting(_row("rk4", 1e-6, "linear", windows=[1.0, 1.0, 1.0])), 1e3, 1.1e-5)
+    missed = _check(_setting(_row("verlet", 1e-6, "linear", windows=[1.0, 1.0, 1.0])), 1e3, 1e-3)
+    opened = _check(_setting(_row("gauss4", 1e-8, "undetermined", windows=[0.29, 0.51, 0.91])), 1e3, 0.9,
+                    role="open")
+    assert PC.check_holds(opened) is None  # an open rival predicted nothing: neither held nor missed
+    marks = check_marks([held, missed, opened], (1e-12, 1e-1))
+    assert marks == [(1e3, 1.1e-5, True), (1e3, 1e-3, False)]
+    assert check_marks([{**missed, "measured_error": 5.0}], (1e-12, 1e-1)) == [(1e3, 1e-1, False)]  # on the edge

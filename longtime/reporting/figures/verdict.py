@@ -64,6 +64,20 @@ def _edges(values: list[float]) -> np.ndarray:
     return 10 ** np.r_[v[0] - step / 2, mids, v[-1] + step / 2]
 
 
+def check_marks(checks: list[dict], limits: tuple[float, float]) -> list[tuple[float, float, bool]]:
+    """(horizon, measured error, held) of each judged check, the error clamped to ``limits``
+    (an error off the map sits on its edge). A check judged neither way (an open rival run
+    without a prediction, a check that measured no error) gets no mark: it neither held
+    nor missed."""
+    marks = []
+    for c in checks:
+        held = check_holds(c)
+        if held is None or not positive(c.get("t_final")) or not positive(c.get("measured_error")):
+            continue
+        marks.append((float(c["t_final"]), min(max(float(c["measured_error"]), limits[0]), limits[1]), held))
+    return marks
+
+
 def winner_map_svg(v: Verdict) -> str | None:
     """The winner map of one problem's verdict, as inline SVG (None without a map)."""
     if not v.grid or not v.targets:
@@ -112,16 +126,11 @@ def winner_map_svg(v: Verdict) -> str | None:
     handles = [Patch(facecolor=colours[s], hatch=hatched[s] or None, edgecolor="white", label=s) for s in winners]
     handles += [Patch(facecolor=UNDETERMINED, edgecolor="#9e9e9e", label="undetermined: a cheaper law not known"),
                 Patch(facecolor=NONE, edgecolor="#9e9e9e", label="no setting predicted to reach it")]
-    checks = [c for c in v.checks if positive(c.get("t_final"))]
-    for c in checks:
-        held = check_holds(c)
-        y = c.get("measured_error") if positive(c.get("measured_error")) else c.get("predicted_error")
-        if not positive(y):  # a rival run without a prediction, or a check that measured no error
-            continue
-        y = min(max(y, ye[0] * 1.05), ye[-1] / 1.05)  # a measured error off the map sits on its edge
-        ax.plot([c["t_final"]], [y], marker="o" if held else "X", ms=8, mfc="none" if held else "#b71c1c",
+    marks = check_marks(v.checks, (ye[0] * 1.05, ye[-1] / 1.05))
+    for t, y, held in marks:
+        ax.plot([t], [y], marker="o" if held else "X", ms=8, mfc="none" if held else "#b71c1c",
                 mec="#111" if held else "#b71c1c", mew=1.6, ls="none", zorder=5, clip_on=False)
-    if checks:
+    if marks:
         from matplotlib.lines import Line2D
 
         handles += [Line2D([], [], marker="o", mfc="none", mec="#111", mew=1.6, ls="none",
