@@ -3,10 +3,10 @@
 A fresh timing process (longtime.execution.processes) builds every cell it times, and a
 cell's first build in a process loads its compiled kernel from the kernel cache. This script
 is such a process: it times ``--cells`` cells drawn from the default matrix (seeded) twice,
-as a timing process does (``time_cells``, the default timing split among 3 processes), and
-prints the CPU seconds of each pass and of the timed runs in the first. The first pass less
-the second is what loading the kernels costs; run it over warm caches (a main job's, or this
-script run once before), or the first pass also compiles.
+as a main job's timing process does (``time_cells``, the default samples, the default timing
+split among 3 processes), and prints the CPU seconds of each pass and of the timed runs in
+the first. The first pass less the second is what loading the kernels costs; run it over
+warm caches (a main job's, or this script run once before), or the first pass also compiles.
 
     python benchmarks/bench_kernel_load.py [--cells 120] [--seed 1]
 """
@@ -26,6 +26,7 @@ def main(argv=None) -> int:
     from longtime.commands.cli import build_parser
     from longtime.commands.matrix import matrix_cells
     from longtime.core.timing import Timing
+    from longtime.execution.cells import DEFAULT_MAX_SAMPLES
     from longtime.execution.processes import DEFAULT_PROCESSES, time_cells
 
     cells = [c for c in matrix_cells(build_parser().parse_args(["matrix"]))[0] if not c.skip_reason]
@@ -34,7 +35,7 @@ def main(argv=None) -> int:
     passes = []
     for _ in range(2):
         start = time.process_time()
-        records = time_cells(sample, 10_001, timing)
+        records = time_cells(sample, DEFAULT_MAX_SAMPLES, timing)
         passes.append((time.process_time() - start, sum(sum(r.get("cpu_s_samples") or []) for r in records)))
     (first, timed), (second, _) = passes
     print(f"{len(sample)} cells: first pass {first:.1f} CPU s ({timed:.1f} s of it timed runs), "

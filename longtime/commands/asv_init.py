@@ -260,9 +260,9 @@ def cmd_asv_init(args) -> int:
     _check_numbers("--dt", args.dt)
     _check_numbers("--tol", args.tol)
     _check_numbers("--t-final", [args.t_final] if args.t_final is not None else [])
-    own = declared(folder)  # DIR's pyproject.toml, read once
-    _check_names(own[1], own[2], args.problem or [], args.integrator or [])
-    _check_steps(own[1], own[2], args.problem or [], args.integrator or [], args.dt, args.t_final)
+    own = _, own_p, own_s = declared(folder)  # DIR's pyproject.toml, read once
+    _check_names(own_p, own_s, args.problem or [], args.integrator or [])
+    _check_steps(own_p, own_s, args.problem or [], args.integrator or [], args.dt, args.t_final)
     settings = {k: v for k, v in (("dt", args.dt), ("tol", args.tol)) if v}
     for key, value in args.set:
         settings[key] = value

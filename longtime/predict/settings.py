@@ -380,10 +380,11 @@ def settings(rows: Iterable[dict[str, Any]], m: Measure) -> list[Setting]:
 def _default_span(problem: str) -> float | None:
     """The problem's default horizon, None where it is not installed here."""
     from longtime.core import registry
+    from longtime.core.params import InputError
 
     try:
         return float(registry.problem_class(problem).default_t_final)
-    except Exception:  # a store's problem that is not installed here: no such rule
+    except InputError:  # a store's problem that is not installed here (or broken): no such rule
         return None
 
 
