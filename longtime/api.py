@@ -454,12 +454,14 @@ def recommend(problem: Any, error: float, horizon: float, rows: Any = None, *, d
     From ``rows`` (a DataFrame from ``sweep``, or row dicts) where given, else from the store
     ``db`` (default: $LONGTIME_DB or longtime.sqlite), its run ``run`` (default: every run).
     What cannot be decided raises InputError naming the run that would decide it."""
+    from longtime.reporting.recommend import measured_growth, stored_recommendation
     from longtime.reporting.recommend import recommend as decide
-    from longtime.reporting.recommend import stored_recommendation
 
     name, _ = resolve(problem, "problem")
     if rows is not None:
-        return decide(records(rows), name, error, horizon, known=registry.problems())
+        mine = records(rows)
+        return decide(mine, name, error, horizon, known=registry.problems(),
+                      growth=measured_growth(mine, name, horizon))
     return stored_recommendation(name, error, horizon, db, None if run is None else str(run))
 
 

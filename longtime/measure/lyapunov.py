@@ -57,15 +57,22 @@ def measure(problem: Problem, t_span: float | None = None, budget_s: float = 60.
 
 
 def _measure(problem: Problem, t_span: float, budget_s: float) -> dict[str, Any]:
+    return summarise(separations(problem, t_span, budget_s), t_span / INTERVALS, t_span)
+
+
+def separations(problem: Problem, t_span: float, budget_s: float) -> np.ndarray:
+    """ln(d / d0) of each of the INTERVALS intervals over [t0, t0 + ``t_span``] (NaN from
+    where the budget ran out), cached beside the references: the Lyapunov exponent's data,
+    and summed, the growth of a perturbation (longtime.measure.instability)."""
     from longtime.measure import reference
 
-    path = reference.cache_path(problem, "lyapunov", repr(t_span), repr((SEPARATION, INTERVALS, BLOCKS)),
+    path = reference.cache_path(problem, "lyapunov", repr(float(t_span)), repr((SEPARATION, INTERVALS, BLOCKS)),
                                  suffix=".npy")
     logs = reference.load_cached(path, lambda: np.load(path))
     if logs is None:
         logs = _separations(problem, t_span, budget_s)
         reference.save_cached(path, logs)
-    return summarise(logs, t_span / INTERVALS, t_span)
+    return logs
 
 
 def _separations(problem: Problem, t_span: float, budget_s: float) -> np.ndarray:

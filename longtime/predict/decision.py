@@ -4,11 +4,13 @@ to keep the target (``decide``), over a map of targets and horizons (``problem_v
 Where a setting could have won past its reach, the verdict says "not determined past t = X"
 and names the run that would decide it (``deciding_run``).
 
-On a chaotic problem (rows with a Lyapunov time) no pointwise error is predicted past the
-predictability horizon of the target E, lyapunov_time * ln(E / INITIAL_ROUNDING), at most
-the reference's trusted horizon (``predictability``): the answer there is "no
-double-precision scheme keeps a pointwise error of E past t = X" with the reason, and the
-ensembles' statistical answer where the store has them.
+No pointwise error is predicted past the predictability horizon of the target E
+(``predictability``): on a chaotic problem (rows with a Lyapunov time)
+lyapunov_time * ln(E / INITIAL_ROUNDING); on any problem whose growth of a perturbation was
+measured (longtime.measure.instability), the time a rounding of the state grows to E; at
+most the reference's trusted horizon. The answer there is "no double-precision scheme keeps
+a pointwise error of E past t = X" with the reason, and the ensembles' statistical answer
+where the store has them.
 """
 from __future__ import annotations
 
@@ -20,6 +22,7 @@ from typing import Any, Iterable
 from longtime.core.fmt import positive
 from longtime.core.roles import ROW_PARAMETERS, flag
 from longtime.core.rowtext import main_t_final
+from longtime.measure.instability import INITIAL_ROUNDING, Growth
 from longtime.predict.settings import Measure, Setting, measure, settings
 
 # targets of the winner map: the decades 1e-1 .. 1e-14
@@ -27,9 +30,6 @@ TARGETS = tuple(10.0 ** -k for k in range(1, 15))
 # horizons of the winner map: the problem's main final time times these (integer multiples
 # keep the phase of a periodic orbit, as the check runs do)
 HORIZON_FACTORS = tuple(10**k for k in range(0, 7))
-# the relative rounding of a double initial state: on a chaotic problem it grows e-fold each
-# Lyapunov time, so a pointwise error E is kept at most lyapunov_time * ln(E / INITIAL_ROUNDING)
-INITIAL_ROUNDING = 1e-16
 
 
 @dataclass
@@ -57,17 +57,26 @@ class Decision:
 
 @dataclass(frozen=True)
 class Predictability:
-    """How far a pointwise error ``target`` can be kept on a chaotic problem: ``horizon`` =
-    min(lyapunov_time * ln(target / INITIAL_ROUNDING), the reference's trusted horizon), and
-    the reason in words."""
+    """How far a pointwise error ``target`` can be kept: ``horizon`` = the least of
+    lyapunov_time * ln(target / INITIAL_ROUNDING) on a chaotic problem, the time a rounding
+    of the state measured growing on the reference reaches ``target`` (``growth``, on every
+    problem: longtime.measure.instability) and the reference's trusted horizon, and the
+    reason in words."""
     target: float
     horizon: float
     lyapunov_time: float | None
     reference_horizon: float | None
+    growth: Growth | None = field(default=None, compare=False)
+
+    @property
+    def growth_horizon(self) -> float | None:
+        return self.growth.horizon(self.target) if self.growth is not None else None
 
     @property
     def reason(self) -> str:
         parts = []
+        if self.growth_horizon is not None:
+            parts.append(self.growth.reason(self.target))
         if self.lyapunov_time is not None:
             parts.append(f"Lyapunov time {self.lyapunov_time:.3g}: a rounding of {INITIAL_ROUNDING:g} in the initial "
                          f"state grows e-fold each {self.lyapunov_time:.3g} and reaches {self.target:g} by t = "
@@ -76,29 +85,45 @@ class Predictability:
             parts.append(f"the reference is trusted only up to t = {self.reference_horizon:.4g}")
         return "; ".join(parts)
 
+    @property
+    def by_growth(self) -> bool:
+        """Whether the growth of a rounding (not the reference's end alone) sets the horizon:
+        then no double-precision run of any scheme keeps the target past it."""
+        bounds = [b for b in (self.growth_horizon, self.lyapunov_bound) if b is not None]
+        return bool(bounds) and min(bounds) <= self.horizon * (1 + 1e-9)
+
+    @property
+    def lyapunov_bound(self) -> float | None:
+        if self.lyapunov_time is None:
+            return None
+        return self.lyapunov_time * math.log(self.target / INITIAL_ROUNDING) if self.target > INITIAL_ROUNDING else 0.0
+
     def text(self) -> str:
         return (f"no double-precision scheme keeps a pointwise error of {self.target:g} past t = "
                 f"{self.horizon:.4g} ({self.reason})")
 
 
-def predictability(rows: Iterable[dict[str, Any]], target: float) -> Predictability | None:
-    """The predictability horizon of ``target`` on the problem of ``rows`` (one problem's),
-    where its rows carry a measured Lyapunov time or a chaotic problem's reference horizon
-    (``lyapunov_time`` set, even null): None for a problem that is not chaotic."""
-    mine = [r for r in rows if "lyapunov_time" in r]
-    if not mine:
-        return None
-    times = [float(r["lyapunov_time"]) for r in mine if positive(r.get("lyapunov_time"))]
+def predictability(rows: Iterable[dict[str, Any]], target: float, growth: Growth | None = None) -> Predictability | None:
+    """The predictability horizon of ``target`` on the problem of ``rows`` (one problem's):
+    the least of the Lyapunov bound where its rows carry a measured Lyapunov time, the time
+    the measured ``growth`` of a rounding reaches ``target`` (any problem), and the end of the
+    reference's trusted horizon where a row's check found it before the row's t_final (any
+    problem: an error is measured only as far as its reference is trusted). None where
+    nothing bounds it."""
+    rows = list(rows)
+    times = [float(r["lyapunov_time"]) for r in rows if "lyapunov_time" in r and positive(r.get("lyapunov_time"))]
     t_l = min(times) if times else None
     # the reference's trusted horizon where a row's check found its end before the row's t_final
-    ends = [float(r["reference_horizon"]) for r in mine if positive(r.get("reference_horizon"))
+    ends = [float(r["reference_horizon"]) for r in rows if positive(r.get("reference_horizon"))
             and r["reference_horizon"] < float(r.get("t_final") or 0) * (1 - 1e-9)]
     ref = min(ends) if ends else None
-    bounds = [b for b in ((t_l * math.log(target / INITIAL_ROUNDING)) if t_l is not None and target > INITIAL_ROUNDING
-                          else (0.0 if t_l is not None else None), ref) if b is not None]
+    grown = growth.horizon(target) if growth is not None else None
+    lyap = (t_l * math.log(target / INITIAL_ROUNDING) if target > INITIAL_ROUNDING else 0.0) if t_l is not None \
+        else None
+    bounds = [b for b in (lyap, grown, ref) if b is not None]
     if not bounds:
         return None
-    return Predictability(target, min(bounds), t_l, ref)
+    return Predictability(target, min(bounds), t_l, ref, growth if grown is not None else None)
 
 
 def decide(candidates: list[Setting], target: float, horizon: float,

@@ -108,6 +108,7 @@ class Kepler(Problem):
     name = "kepler"
     summary = "Kepler orbit of eccentricity e (e = 0.9 is the hard case), exact solution"
     parameters = {"e": Param(0.6, "eccentricity, 0 <= e < 1", float, minimum=0.0, maximum=0.99, role="physical")}
+    period = 2 * np.pi  # the semi-major axis is 1 at every e
     default_t_final = 20 * np.pi
     default_dt = 0.01
     sweep_dt = (0.02, 0.01, 0.005)

@@ -12,6 +12,7 @@ from longtime.core.fmt import positive
 from longtime.core.params import InputError
 from longtime.core.rowtext import setting
 from longtime.predict.checks import CHECK_COST_FACTOR, CHECK_ERROR_FACTOR, check_holds
+from longtime.measure.instability import Growth
 from longtime.predict.decision import Decision, decide, deciding_run, predictability
 from longtime.predict.settings import LOST, Measure, Setting, measure, settings
 
@@ -73,14 +74,18 @@ def _pick(s: Setting, horizon: float) -> str:
 
 def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: float,
               db: str | None = None, known: Iterable[str] | None = None,
-              checks: Iterable[dict[str, Any]] = (), ensembles: Iterable[dict[str, Any]] = ()) -> Recommendation:
+              checks: Iterable[dict[str, Any]] = (), ensembles: Iterable[dict[str, Any]] = (),
+              growth: Growth | None = None) -> Recommendation:
     """The cheapest setting predicted to keep ``error`` up to ``horizon`` on ``problem``
     from ``rows`` (a store's), with the runner-up and the evidence. Bad input (an unknown
     problem, a non-positive error or horizon) raises InputError. Rows that determine no
     answer give a Recommendation whose ``answered`` is False and whose lines say why and name
     the command that would decide it: no rows, no setting predicted to keep the target, or a
-    horizon past a chaotic problem's predictability horizon (no pointwise answer; the
-    ensemble distances of ``ensembles`` where the store has them)."""
+    horizon past the problem's predictability horizon (no pointwise answer: the reason, the
+    invariants the rows keep, and on a chaotic problem the ensemble distances of
+    ``ensembles`` where the store has them). ``growth`` (``measured_growth``) is the growth of
+    a perturbation measured on the problem's reference: where a rounding of the state grows to
+    ``error`` before ``horizon``, no pointwise answer exists."""
     known = list(known) if known is not None else None
     where = f" --db {shlex.quote(db)}" if db else ""
     if known is not None and problem not in known:
@@ -102,11 +107,13 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
     if m is None or not cands:
         return unanswered(f"no ok row of {problem} with an error, a growth class and a CPU time in the store; "
                           f"`longtime matrix -p {problem}{where}` measures them", m)
-    limit = predictability(mine, error) if m.field == "l2_error" else None
+    limit = predictability(mine, error, growth) if m.field == "l2_error" else None
     d = decide(cands, error, horizon, limit)
     if d.limit is not None:
         rec = unanswered(d.limit.text(), m, d)
-        rec.lines += _statistical_lines(problem, ensembles, where)
+        rec.lines += _invariant_lines(mine)
+        if any("lyapunov_time" in r for r in mine):
+            rec.lines += _statistical_lines(problem, ensembles, where)
         return rec
     if d.best is None:
         if d.open:
@@ -141,6 +148,41 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
     evidence = {"settings": len(cands), "extrapolating": determined, "runs": runs,
                 "checks": len(mine_checks), "checks_held": len(held)}
     return Recommendation(problem, error, horizon, m, d, evidence, lines)
+
+
+def _invariant_lines(rows: list[dict[str, Any]]) -> list[str]:
+    """What can be said past the predictability horizon without a pointwise error: each
+    invariant's smallest stored relative error (the largest over its run), with its setting and
+    how far it ran."""
+    ok = [r for r in rows if r.get("status") == "ok"]
+    names = sorted({k[: -len(".growth_class")] for r in ok for k in r if k.endswith(".growth_class")
+                    and k != "error.growth_class" and positive(r.get(k[: -len(".growth_class")] + ".max"))})
+    out = []
+    for name in names:
+        best = min((r for r in ok if positive(r.get(f"{name}.max"))), key=lambda r: (r[f"{name}.max"], -r["t_final"]))
+        out.append(f"{name}: {best[f'{name}.max']:.2g} ({best['integrator']} {setting(best)} to t = "
+                   f"{best['t_final']:.4g})")
+    if not out:
+        return ["  what can be said: the invariants (no ok row of the store measured one)"]
+    return ["  what can be said: the invariants (each one's smallest stored relative error, the largest over its "
+            "run): " + "; ".join(out)]
+
+
+def measured_growth(rows: list[dict[str, Any]], problem: str, horizon: float) -> Growth | None:
+    """The growth of a perturbation on ``problem`` (at the settings of its first stored row)
+    up to ``horizon`` (longtime.measure.instability, cached); None where it cannot be measured
+    (no rows, no heyoka system, a compile past its budget)."""
+    from longtime.execution.cells import build, cell_of_row
+    from longtime.measure import instability
+
+    row = next((r for r in rows if r.get("problem") == problem and r.get("status") == "ok"
+                and positive(r.get("l2_error"))), None)
+    if row is None or not positive(horizon):  # no pointwise error to bound
+        return None
+    try:
+        return instability.measure(build(cell_of_row(row))[0], horizon)
+    except Exception:  # no heyoka system, a compile past its budget: nothing bounds the answer
+        return None
 
 
 def _statistical_lines(problem: str, ensembles: Iterable[dict[str, Any]], where: str) -> list[str]:
@@ -184,4 +226,5 @@ def stored_recommendation(problem: str, error: float, horizon: float, db: str | 
         store.run(int(run))
         rows, checks, ensembles = store.rows(int(run)), store.checks(int(run)), store.ensembles(int(run))
     return recommend(rows, problem, error, horizon, db=str(store.path) if db else None,
-                     known=registry.problems(), checks=checks, ensembles=ensembles)
+                     known=registry.problems(), checks=checks, ensembles=ensembles,
+                     growth=measured_growth(rows, problem, horizon))

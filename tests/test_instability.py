@@ -1,0 +1,81 @@
+"""The growth of a perturbation measured on every problem (longtime.measure.instability), and
+the predictability horizon it gives `longtime recommend`: Arenstorf's unstable orbit grows a
+rounding of the state by about a hundred a period, Kepler's regular orbit only linearly; a
+question past the horizon gets no pointwise answer, with the reason."""
+import math
+
+import numpy as np
+import pytest
+
+from longtime.core import registry
+from longtime.measure import instability as I
+from longtime.predict.decision import predictability
+from longtime.reporting import recommend as R
+
+ARENSTORF = 17.0652165601579625588917206249
+TWO_PI = 2 * math.pi
+
+
+def _row(problem, t_final, error, **extra):
+    """A stored row whose linear law predicts ``error`` times the horizon's ratio past its run."""
+    return {"problem": problem, "integrator": "dop853", "tol": 1e-12, "status": "ok", "l2_error": error,
+            "error.growth_class": "linear", "error.growth": 1.0, "error.growth_ci": [0.9, 1.1],
+            "cpu_s": 0.05, "t_final": t_final, "settings": "", "reference": "heyoka double",
+            "reference_horizon": t_final, "run_id": 1, **extra}
+
+
+def test_growth_horizon_reads_the_first_time_a_rounding_reaches_the_target():
+    t = np.arange(1.0, 11.0)
+    g = I.Growth("synthetic", t, np.log(10.0) * t, t0=0.0, period=2.0)  # x10 each unit of t
+    assert g.horizon(1e-6) == pytest.approx(10.0)  # 1e-16 * 10^10
+    assert g.horizon(1e-10) == pytest.approx(6.0)
+    assert g.horizon(1e-3) is None  # not reached over the span measured
+    assert g.per_period(10.0) == pytest.approx(100.0)
+    assert "x100 a period" in g.text(1e-6) and "past t = 10" in g.text(1e-6)
+
+
+def test_growth_span_covers_the_horizon_in_steps_of_the_default_final_time():
+    p = registry.problem_class("kepler")()
+    base = p.default_t_final
+    assert I.growth_span(p, 0.5 * base) == base
+    assert I.growth_span(p, 3 * base) == pytest.approx(5 * base)
+    assert I.growth_span(p, 12566.0) == pytest.approx(200 * base)
+
+
+def test_arenstorf_grows_a_rounding_about_a_hundred_a_period_and_kepler_only_linearly():
+    arenstorf = I.measure(registry.problem_class("restricted-three-body")(), 10 * ARENSTORF)
+    per = arenstorf.per_period(10 * ARENSTORF)
+    assert 30 < per < 3000, per  # unstable: order a hundred each period
+    kepler = I.measure(registry.problem_class("kepler")(), 100 * TWO_PI)
+    # regular: a shear, the growth linear in t (ten times the orbits, about ten times the growth)
+    assert 3 < kepler.factor_at(100 * TWO_PI) / kepler.factor_at(10 * TWO_PI) < 30
+    assert kepler.per_period(100 * TWO_PI) < 1.3
+    assert kepler.horizon(1e-7) is None  # a rounding stays far below 1e-7 over a hundred orbits
+
+
+def test_kepler_keeps_a_rounding_below_1e7_up_to_two_thousand_orbits():
+    g = I.measure(registry.problem_class("kepler")(), 12566.0)
+    assert g.horizon(1e-7) is None
+    rows = [_row("kepler", 100 * TWO_PI, 1e-10)]
+    assert predictability(rows, 1e-7, g) is None  # nothing bounds kepler's answer there
+
+
+def test_recommend_refuses_arenstorf_past_its_horizon_naming_the_growth():
+    rows = [_row("restricted-three-body", ARENSTORF, 1e-9, **{"J.max": 2.5e-12, "J.growth_class": "bounded"})]
+    # without the growth the linear law answers: 1e-8 predicted at ten periods
+    assert R.recommend(rows, "restricted-three-body", 1e-6, 10 * ARENSTORF).answered
+    growth = R.measured_growth(rows, "restricted-three-body", 10 * ARENSTORF)
+    rec = R.recommend(rows, "restricted-three-body", 1e-6, 10 * ARENSTORF, growth=growth)
+    assert not rec.answered
+    text = str(rec)
+    assert "rounding of the state grows" in text and "a period" in text
+    assert rec.decision.limit.horizon < 4 * ARENSTORF
+    assert "what can be said: the invariants" in text and "J: 2.5e-12" in text  # what can be said instead
+    # within the horizon it still answers
+    assert R.recommend(rows, "restricted-three-body", 1e-6, ARENSTORF, growth=growth).answered
+
+
+def test_an_error_is_not_claimed_past_the_reference_horizon_of_any_problem():
+    rows = [_row("pythagorean-three-body", 70.0, 1e-9, reference_horizon=29.8)]
+    rec = R.recommend(rows, "pythagorean-three-body", 1e-6, 70.0)
+    assert not rec.answered and "trusted only up to t = 29.8" in str(rec)
