@@ -103,7 +103,8 @@ class Predictability:
                 f"{self.horizon:.4g} ({self.reason})")
 
 
-def predictability(rows: Iterable[dict[str, Any]], target: float, growth: Growth | None = None) -> Predictability | None:
+def predictability(rows: Iterable[dict[str, Any]], target: float,
+                   growth: Growth | None = None) -> Predictability | None:
     """The predictability horizon of ``target`` on the problem of ``rows`` (one problem's):
     the least of the Lyapunov bound where its rows carry a measured Lyapunov time, the time
     the measured ``growth`` of a rounding reaches ``target`` (any problem), and the end of the

@@ -11,8 +11,8 @@ from typing import Any, Iterable
 from longtime.core.fmt import positive
 from longtime.core.params import InputError
 from longtime.core.rowtext import setting
-from longtime.predict.checks import CHECK_COST_FACTOR, CHECK_ERROR_FACTOR, check_holds
 from longtime.measure.instability import Growth
+from longtime.predict.checks import CHECK_COST_FACTOR, CHECK_ERROR_FACTOR, check_holds
 from longtime.predict.decision import Decision, decide, deciding_run, predictability
 from longtime.predict.settings import LOST, Measure, Setting, measure, settings
 
