@@ -12,6 +12,7 @@ prints (timings aside).
 """
 from __future__ import annotations
 
+import math
 import shlex
 import time
 from dataclasses import dataclass, field
@@ -26,6 +27,7 @@ from longtime.core.problem import Problem
 from longtime.core.roles import ROW_PARAMETERS
 from longtime.core.timing import Timing
 from longtime.execution import calibration, limits
+from longtime.execution.answers import DEFAULT_BUDGET_S
 from longtime.execution.cells import (
     DEFAULT_MAX_SAMPLES,
     DEFAULT_TIME_LIMIT,
@@ -446,23 +448,28 @@ def card(scheme: Any, rows: Any = None, *, structure: bool = True, stability: bo
 
 # ------------------------------------------------------------------ the verdict
 def recommend(problem: Any, error: float, horizon: float, rows: Any = None, *, db: str | None = None,
-              run: Any = None):
+              run: Any = None, budget: float = DEFAULT_BUDGET_S):
     """The cheapest stored setting predicted to keep ``error`` up to ``horizon`` on
     ``problem``, as ``longtime recommend`` answers it (a
     longtime.reporting.recommend.Recommendation: ``scheme``, ``setting``, ``predicted_error``,
     ``predicted_cpu_s``, ``runner_up``, ``evidence``; ``str()`` gives the command's lines).
     From ``rows`` (a DataFrame from ``sweep``, or row dicts) where given, else from the store
     ``db`` (default: $LONGTIME_DB or longtime.sqlite), its run ``run`` (default: every run).
-    What cannot be decided raises InputError naming the run that would decide it."""
+    What cannot be decided raises InputError naming the run that would decide it.
+    ``budget``: the wall seconds (>= 0; 0 runs nothing) for running the best predicted
+    candidates to ``horizon`` where the answer lies beyond the stored runs (``basis``
+    "measured at T", ``measured_error``, ``measured_cpu_s``), as ``longtime recommend --budget``."""
     from longtime.reporting.recommend import measured_growth, stored_recommendation
     from longtime.reporting.recommend import recommend as decide
 
     name, _ = resolve(problem, "problem")
+    if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not 0 <= budget < math.inf:
+        raise InputError(f"budget={budget!r}: expected a finite number of seconds >= 0")
     if rows is not None:
         mine = records(rows)
         return decide(mine, name, error, horizon, known=registry.problems(),
-                      growth=measured_growth(mine, name, horizon))
-    return stored_recommendation(name, error, horizon, db, None if run is None else str(run))
+                      growth=measured_growth(mine, name, horizon), budget=float(budget))
+    return stored_recommendation(name, error, horizon, db, None if run is None else str(run), budget=float(budget))
 
 
 # ------------------------------------------------------------------ the main job

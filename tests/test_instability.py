@@ -79,3 +79,28 @@ def test_an_error_is_not_claimed_past_the_reference_horizon_of_any_problem():
     rows = [_row("pythagorean-three-body", 70.0, 1e-9, reference_horizon=29.8)]
     rec = R.recommend(rows, "pythagorean-three-body", 1e-6, 70.0)
     assert not rec.answered and "trusted only up to t = 29.8" in str(rec)
+
+
+def _harmonic(scheme, dt, error, cpu_s, law, alpha):
+    return {"problem": "harmonic", "integrator": scheme, "status": "ok", "dt": dt, "t_final": 100.0, "settings": "",
+            "cpu_s": cpu_s, "repeats": 3, "l2_error": error, "reference": "exact", "solution_lost": False,
+            "error.growth": alpha, "error.growth_ci": [alpha - 0.05, alpha + 0.05], "error.growth_class": law,
+            "error.growth_reason": "slopes ...", "run_id": 1}
+
+
+# rk4 predicted to keep 1e-3 at T = 1000 by its linear law; gauss4 cheaper but its law undetermined
+HARMONIC = [_harmonic("verlet", 0.1, 1e-4, 0.01, "linear", 1.0), _harmonic("rk4", 0.1, 1e-6, 0.005, "linear", 1.3),
+            _harmonic("gauss4", 0.1, 1e-8, 0.001, "undetermined", 0.6)]
+
+
+def test_recommend_runs_its_candidates_to_the_horizon_and_answers_measured_at_t():
+    predicted = R.recommend(HARMONIC, "harmonic", 1e-3, 1e3)  # no budget: nothing runs
+    assert predicted.basis == "predicted" and predicted.scheme == "rk4"
+    assert "predicted, not run" in str(predicted)
+    assert "`longtime run -p harmonic -i rk4 --dt 0.1 --t-final 1000` runs it to T" in str(predicted)
+    rec = R.recommend(HARMONIC, "harmonic", 1e-3, 1e3, budget=30.0)
+    assert rec.answered and rec.basis == "measured at T", str(rec)
+    assert "measured at T" in rec.lines[0] and "against a reference checked to T" in rec.lines[-1]
+    # gauss4, cheapest predicted, run to T keeps the target: it is the answer, its error measured there
+    assert rec.scheme == "gauss4" and rec.measured_error is not None and rec.measured_error <= 1e-3
+    assert "error" in rec.lines[1] and "measured at T" in rec.lines[1]

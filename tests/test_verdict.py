@@ -250,32 +250,35 @@ def store(tmp_path):
 
 
 def test_recommend_answers_in_a_few_lines(store, capsys):
-    assert cli.main(["recommend", "-p", "harmonic", "--error", "1e-3", "--horizon", "1e3", "--db", store]) == 0
+    assert cli.main(["recommend", "-p", "harmonic", "--error", "1e-3", "--horizon", "1e3", "--db", store,
+                     "--budget", "0"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) <= 6
     assert lines[0].startswith("harmonic: keep l2_error <= 0.001 up to T = 1000")
     assert lines[1].startswith("  use      rk4 dt=0.1: error 1e-05 at T") and "CPU 0.05 s" in lines[1]
     assert lines[2].startswith("  runner-up verlet dt=0.1") and "x2 the CPU" in lines[2]
     assert lines[-1].startswith("  evidence: 3 settings (2 with a growth law that extrapolates)")
-    assert cli.main(["recommend", "-p", "harmonic", "--error", "0.02", "--horizon", "1e4", "--db", store]) == 0
+    assert cli.main(["recommend", "-p", "harmonic", "--error", "0.02", "--horizon", "1e4", "--db", store,
+                     "--budget", "0"]) == 0
     out = capsys.readouterr().out
     assert ("use      rk4 dt=0.1: error 0.0001 at T (linear: t^1, alpha 1.30 [1.25, 1.35] fitted, "
             "trusted to t = 1e+04") in out
     assert "runner-up verlet dt=0.1: error 0.01 at T" in out
     assert "open     gauss4 dt=0.1" in out and "--t-final 10000 --db" in out
     # past every setting's reach nothing is predicted: no answer (exit 3), naming the run that decides
-    assert cli.main(["recommend", "-p", "harmonic", "--error", "0.02", "--horizon", "1e5", "--db", store]) == 3
+    assert cli.main(["recommend", "-p", "harmonic", "--error", "0.02", "--horizon", "1e5", "--db", store,
+                     "--budget", "0"]) == 3
     assert "`longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 100000" in capsys.readouterr().out
 
 
 def test_recommend_from_python_is_the_same_answer(store):
     import longtime
 
-    rec = longtime.recommend("harmonic", 1e-3, 1e3, db=store)
+    rec = longtime.recommend("harmonic", 1e-3, 1e3, db=store, budget=0)
     assert (rec.scheme, rec.setting, rec.runner_up) == ("rk4", "dt=0.1", "verlet dt=0.1")
     assert rec.predicted_error == pytest.approx(1e-5) and rec.predicted_cpu_s == pytest.approx(0.05)
     # from rows in memory: the same answer (the deciding runs name no store)
-    assert longtime.recommend("harmonic", 1e-3, 1e3, rows=ROWS).lines[:3] == rec.lines[:3]
+    assert longtime.recommend("harmonic", 1e-3, 1e3, rows=ROWS, budget=0).lines[:3] == rec.lines[:3]
 
 
 @pytest.mark.parametrize("args, message", [
@@ -301,7 +304,7 @@ def test_recommend_bad_input_is_one_line_exit_2(store, capsys, args, message):
     (["-p", "harmonic", "--error", "1e-12", "--horizon", "1e4"], "no stored setting keeps l2_error <= 1e-12"),
 ])
 def test_recommend_without_a_determined_answer_says_why_exit_3(store, capsys, args, message):
-    assert cli.main(["recommend", *args, "--db", store]) == R.NO_ANSWER_EXIT == 3
+    assert cli.main(["recommend", *args, "--db", store, "--budget", "0"]) == R.NO_ANSWER_EXIT == 3
     out = capsys.readouterr()
     assert message in out.out and out.out.startswith(f"{args[1]}: no answer for ") and out.err == ""
 

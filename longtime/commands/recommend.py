@@ -3,10 +3,13 @@ horizon on a problem, with the runner-up and the evidence (longtime.reporting.re
 
 Exit codes: 0 an answer; 3 (``NO_ANSWER_EXIT``) no answer the store determines (no setting
 predicted to keep the target, or a horizon past a chaotic problem's predictability horizon):
-the lines on stdout say why and name the command that would decide it; 2 bad input."""
+the lines on stdout say why and name the command that would decide it; 2 bad input.
+Where the answer lies beyond the stored runs, its candidates run to the horizon within
+--budget seconds and the answer says "measured at T" (else "predicted, not run")."""
 from __future__ import annotations
 
 from longtime.core import cli_args
+from longtime.execution.answers import DEFAULT_BUDGET_S
 from longtime.execution.store import default_path
 
 
@@ -14,7 +17,7 @@ def cmd_recommend(args) -> int:
     from longtime.api import recommend
     from longtime.reporting.recommend import NO_ANSWER_EXIT
 
-    answer = recommend(args.problem, args.error, args.horizon, db=args.db, run=args.run)
+    answer = recommend(args.problem, args.error, args.horizon, db=args.db, run=args.run, budget=args.budget)
     print(answer)
     return 0 if answer.answered else NO_ANSWER_EXIT
 
@@ -31,4 +34,9 @@ def add_parser(subparsers) -> None:
                    help="the final time the error must hold to")
     p.add_argument("--db", default=None, help=f"SQLite store (default: $LONGTIME_DB or {default_path()})")
     p.add_argument("--run", default=None, help="run id, or 'all' (default: every run of the store)")
+    p.add_argument("--budget", type=cli_args.seconds("--budget", allow_zero=True), default=DEFAULT_BUDGET_S,
+                   metavar="SECONDS",
+                   help="wall seconds for running the best predicted candidates to the horizon where the answer "
+                        "lies beyond the stored runs: the answer is then the cheapest measured, 'measured at T' "
+                        f"(default {DEFAULT_BUDGET_S:g}; 0 runs nothing: 'predicted, not run')")
     p.set_defaults(func=cmd_recommend)

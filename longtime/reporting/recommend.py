@@ -4,6 +4,7 @@ its runner-up and evidence, or why the store determines no answer and the run th
 decide it."""
 from __future__ import annotations
 
+import math
 import shlex
 from dataclasses import dataclass
 from typing import Any, Iterable
@@ -13,7 +14,7 @@ from longtime.core.params import InputError
 from longtime.core.rowtext import setting
 from longtime.measure.instability import Growth
 from longtime.predict.checks import CHECK_COST_FACTOR, CHECK_ERROR_FACTOR, check_holds
-from longtime.predict.decision import Decision, decide, deciding_run, predictability
+from longtime.predict.decision import Decision, decide, predictability, run_command
 from longtime.predict.settings import LOST, Measure, Setting, measure, settings
 
 # ``longtime recommend``'s exit code where the store determines no answer (no setting is
@@ -33,6 +34,11 @@ class Recommendation:
     evidence: dict[str, Any]
     lines: list[str]
     answered: bool = True  # False: the store determines no answer (the lines say why)
+    # "measured at T": the setting was run to the horizon (``measured_error``, ``measured_cpu_s``);
+    # "predicted": read from the stored runs and their laws
+    basis: str = "predicted"
+    measured_error: float | None = None
+    measured_cpu_s: float | None = None
 
     @property
     def scheme(self) -> str | None:
@@ -75,7 +81,7 @@ def _pick(s: Setting, horizon: float) -> str:
 def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: float,
               db: str | None = None, known: Iterable[str] | None = None,
               checks: Iterable[dict[str, Any]] = (), ensembles: Iterable[dict[str, Any]] = (),
-              growth: Growth | None = None) -> Recommendation:
+              growth: Growth | None = None, budget: float = 0.0) -> Recommendation:
     """The cheapest setting predicted to keep ``error`` up to ``horizon`` on ``problem``
     from ``rows`` (a store's), with the runner-up and the evidence. Bad input (an unknown
     problem, a non-positive error or horizon) raises InputError. Rows that determine no
@@ -85,7 +91,12 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
     invariants the rows keep, and on a chaotic problem the ensemble distances of
     ``ensembles`` where the store has them). ``growth`` (``measured_growth``) is the growth of
     a perturbation measured on the problem's reference: where a rounding of the state grows to
-    ``error`` before ``horizon``, no pointwise answer exists."""
+    ``error`` before ``horizon``, no pointwise answer exists. Where the answer lies beyond
+    what the stored runs show (a law extrapolated past its run, a cheaper setting whose law
+    is undetermined there, a reference that stopped short), the best predicted candidates
+    run to ``horizon`` within ``budget`` wall seconds (longtime.execution.answers) and the
+    cheapest that keeps ``error`` there is the answer, "measured at T"; where the budget runs
+    none, the predicted answer says "predicted, not run" and the command that runs them."""
     known = list(known) if known is not None else None
     where = f" --db {shlex.quote(db)}" if db else ""
     if known is not None and problem not in known:
@@ -109,6 +120,13 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
                           f"`longtime matrix -p {problem}{where}` measures them", m)
     limit = predictability(mine, error, growth) if m.field == "l2_error" else None
     d = decide(cands, error, horizon, limit)
+    # a limit set by the stored rows' reference alone is lifted by runs checked against a
+    # reference to T; one set by the growth of a rounding is not
+    free = decide(cands, error, horizon) if d.limit is not None and not d.limit.by_growth else d
+    if free.limit is None and _beyond(free, horizon):
+        run = _measured(problem, error, horizon, m, cands, budget, db)
+        if run is not None:
+            return run
     if d.limit is not None:
         rec = unanswered(d.limit.text(), m, d)
         rec.lines += _invariant_lines(mine)
@@ -119,7 +137,7 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
         if d.open:
             s = d.open[0]
             return unanswered(f"no setting is predicted to keep it; {s.text} keeps it to t = {s.span:.4g} but "
-                              f"{s.undetermined_text(horizon)}; `{deciding_run(s, horizon, db)}` would decide it", m, d)
+                              f"{s.undetermined_text(horizon)}; predicted, not run: {_runs_it(s, horizon, db)}", m, d)
         finest = min(cands, key=lambda s: s.error)
         lost = sum(1 for s in cands if s.state_at(horizon) == "lost")
         lost_text = (f"; {lost} setting{'s' if lost != 1 else ''} predicted lost there (error >= {LOST:g})"
@@ -135,7 +153,10 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
                  if r else "  runner-up: none (no other scheme is predicted to keep the target)")
     for s in d.open[:2]:
         lines.append(f"  open     {s.text} might be cheaper ({s.cpu_at(horizon):.3g} s) but "
-                     f"{s.undetermined_text(horizon)}: `{deciding_run(s, horizon, db)}` decides it")
+                     f"{s.undetermined_text(horizon)}: {_runs_it(s, horizon, db)}")
+    if _beyond(d, horizon):
+        lines.append(f"  predicted, not run: the answer lies past the stored runs and --budget {budget:g} s ran none "
+                     f"of its candidates to T; {_runs_it(b, horizon, db)}")
     runs = sorted({c.row.get("run_id") for c in cands if c.row.get("run_id") is not None})
     mine_checks = [c for c in checks if c.get("problem") == problem]
     held = [c for c in mine_checks if check_holds(c)]
@@ -148,6 +169,70 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
     evidence = {"settings": len(cands), "extrapolating": determined, "runs": runs,
                 "checks": len(mine_checks), "checks_held": len(held)}
     return Recommendation(problem, error, horizon, m, d, evidence, lines)
+
+
+def _beyond(d: Decision, horizon: float) -> bool:
+    """Whether a decision's answer lies beyond what the stored runs show: a winner
+    extrapolated past its run, or a cheaper setting (or, without a winner, any) whose law is
+    undetermined there."""
+    if d.best is None:
+        return bool(d.open)
+    return horizon > d.best.span * (1 + 1e-9) or bool(d.open)
+
+
+def _runs_it(s: Setting, horizon: float, db: str | None) -> str:
+    """The command that runs ``s`` to ``horizon`` (where its predicted CPU is finite and fits
+    a cell's time limit), else why no run of it can finish."""
+    from longtime.execution.cells import DEFAULT_TIME_LIMIT
+
+    cpu = s.cpu_at(horizon)
+    if not cpu < DEFAULT_TIME_LIMIT:
+        return f"a run of {s.text} to T is predicted to take {cpu:.3g} s, past a cell's time limit"
+    return f"`{shlex.join(run_command(s, horizon, db))}` runs it to T (predicted {cpu:.3g} s)"
+
+
+def _measured(problem: str, error: float, horizon: float, m: Measure, cands: list[Setting], budget: float,
+              db: str | None) -> Recommendation | None:
+    """The answer measured at ``horizon``: the candidates (longtime.execution.answers) run
+    within ``budget`` seconds, the cheapest measured that keeps ``error``. None where the
+    budget runs none of them (the predicted answer stands, saying so)."""
+    from longtime.execution import answers
+
+    todo = answers.candidates(cands, error, horizon)
+    if budget <= 0 or not todo:
+        return None
+    done, skipped, spent = answers.measure_at(todo, m.field, error, horizon, budget)
+    if not done:
+        return None
+    keep = sorted((x for x in done if x.keeps), key=lambda x: (x.cpu_s if x.cpu_s is not None else math.inf,
+                                                              x.setting.text))
+    head = f"{problem}: keep {m.field} <= {error:g} up to T = {horizon:g} ({m.text}), measured at T"
+    unrun = len(todo) - len(done) - len(skipped)
+    foot = (f"  measured at T = {horizon:g}: {len(done)} of {len(todo)} candidate{'s' if len(todo) != 1 else ''} run "
+            f"to T against a reference checked to T, in {spent:.3g} s of the --budget {budget:g} s"
+            + (f"; {unrun} not run, predicted over x{answers.RIVAL_FACTOR:g} the winner's CPU" if unrun else ""))
+    rest = [f"  predicted, not run: {s.text} (the budget ran out); {_runs_it(s, horizon, db)}" for s in skipped][:3]
+    evidence = {"measured": len(done), "candidates": len(todo), "spent_s": spent, "budget_s": budget}
+    if not keep:
+        why = "; ".join(x.text() + ("" if x.error is None else f" (misses {error:g})") for x in done)
+        return Recommendation(problem, error, horizon, m, Decision(error, horizon), evidence,
+                              [f"{problem}: no answer for {m.field} <= {error:g} up to T = {horizon:g}, measured at T: "
+                               f"no candidate keeps it ({why})", *rest, foot], answered=False, basis="measured at T")
+    w = keep[0]
+    runner = next((x for x in keep[1:] if x.setting.scheme != w.setting.scheme), None)
+    lines = [head + ":", f"  use      {w.text()}"]
+    if runner is not None:
+        ratio = f", x{runner.cpu_s / w.cpu_s:.3g} the CPU" if runner.cpu_s and w.cpu_s else ""
+        lines.append(f"  runner-up {runner.text()}{ratio}")
+    else:
+        lines.append("  runner-up: none measured (no other scheme's candidate kept the target at T)")
+    for x in done:
+        if x is not w and x is not runner:
+            lines.append(f"  measured {x.text()}" + ("" if x.keeps or x.error is None else f" (misses {error:g})"))
+    lines += rest + [foot]
+    d = Decision(error, horizon, w.setting, runner.setting if runner else None)
+    return Recommendation(problem, error, horizon, m, d, evidence, lines, basis="measured at T",
+                          measured_error=w.error, measured_cpu_s=w.cpu_s)
 
 
 def _invariant_lines(rows: list[dict[str, Any]]) -> list[str]:
@@ -203,9 +288,11 @@ def _statistical_lines(problem: str, ensembles: Iterable[dict[str, Any]], where:
     return [f"  statistically: {text} keep{'s' if len(same) == 1 else ''} the distribution heyoka's ensemble visits"]
 
 
-def stored_recommendation(problem: str, error: float, horizon: float, db: str | None, run: str | None):
+def stored_recommendation(problem: str, error: float, horizon: float, db: str | None, run: str | None,
+                          budget: float = 0.0):
     """The Recommendation from the store ``db`` (its rows of ``run``: an id, 'all', or by
-    default every run), and the checks stored beside them."""
+    default every run), and the checks stored beside them; ``budget`` wall seconds for the
+    runs that measure it at the horizon (``recommend``)."""
     from pathlib import Path
 
     from longtime.core import registry
@@ -227,4 +314,4 @@ def stored_recommendation(problem: str, error: float, horizon: float, db: str | 
         rows, checks, ensembles = store.rows(int(run)), store.checks(int(run)), store.ensembles(int(run))
     return recommend(rows, problem, error, horizon, db=str(store.path) if db else None,
                      known=registry.problems(), checks=checks, ensembles=ensembles,
-                     growth=measured_growth(rows, problem, horizon))
+                     growth=measured_growth(rows, problem, horizon), budget=budget)
