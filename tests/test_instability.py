@@ -78,7 +78,7 @@ def test_recommend_refuses_arenstorf_past_its_horizon_naming_the_growth():
 def test_an_error_is_not_claimed_past_the_reference_horizon_of_any_problem():
     rows = [_row("pythagorean-three-body", 70.0, 1e-9, reference_horizon=29.8)]
     rec = R.recommend(rows, "pythagorean-three-body", 1e-6, 70.0)
-    assert not rec.answered and "trusted only up to t = 29.8" in str(rec)
+    assert not rec.answered and "no error is measured past t = 29.8" in str(rec)
 
 
 def _harmonic(scheme, dt, error, cpu_s, law, alpha):
@@ -104,3 +104,37 @@ def test_recommend_runs_its_candidates_to_the_horizon_and_answers_measured_at_t(
     # gauss4, cheapest predicted, run to T keeps the target: it is the answer, its error measured there
     assert rec.scheme == "gauss4" and rec.measured_error is not None and rec.measured_error <= 1e-3
     assert "error" in rec.lines[1] and "measured at T" in rec.lines[1]
+
+
+def test_the_checks_cover_each_class_of_question_where_answers_went_wrong():
+    from longtime.execution import checks as XC
+    from longtime.predict import checks as PC
+
+    def rows(problem, scale=1.0, t_short=None):
+        """HARMONIC's laws over runs ``scale`` times as long (the same CPU per unit time)."""
+        out = []
+        for r in HARMONIC:
+            r = {**r, "problem": problem, "t_final": r["t_final"] * scale, "cpu_s": r["cpu_s"] * scale}
+            if t_short is not None and r["integrator"] == "gauss4":  # a short run: its law is not extrapolated
+                r.update(t_final=t_short, cpu_s=r["cpu_s"] * t_short / r["t_final"])
+            out.append(r)
+        return out
+
+    unstable = [_row("restricted-three-body", ARENSTORF, 1e-10)]
+    store = unstable + rows("kdv", 0.1) + rows("figure-eight", 20.0) + rows("kepler", t_short=5.0)
+    plan = XC.plan_checks(store, limit=10, budget_s=2.0, reference_rate=lambda v: 0.0, total_s=1e9)
+    kinds = {c.kind for c in plan}
+    assert {"unstable orbit", "discretised PDE", "many-body", "short run"} <= kinds, kinds
+    # the unstable orbit's growth check: its most accurate setting run a period past the time a
+    # rounding of the state grows to the target; it holds when the error there exceeds the target
+    growth = next(c for c in plan if c.role == "growth")
+    assert growth.kind == "unstable orbit" and growth.target >= XC.GROWTH_MIN_TARGET
+    g = I.measure(registry.problem_class("restricted-three-body")(), 10 * ARENSTORF)
+    assert growth.horizon == pytest.approx(g.horizon(growth.target) + ARENSTORF)
+    c = XC.check_row(growth, {**unstable[0], "t_final": growth.horizon, "l2_error": 3e-4,
+                              "error_horizon": growth.horizon})
+    assert PC.check_holds(c) is True and PC.check_holds({**c, "measured_error": growth.target / 10}) is False
+    # a reference that stopped before the growth check's horizon: no growth check (it would not be judged)
+    short_ref = [{**unstable[0], "reference_horizon": 20.0, "t_final": ARENSTORF * 2}]
+    assert not [c for c in XC.plan_checks(short_ref, limit=10, budget_s=2.0, reference_rate=lambda v: 0.0,
+                                          total_s=1e9) if c.role == "growth"]

@@ -145,6 +145,10 @@ class Problem(ABC):
     # motion is measured chaotic; docs/problems.md gives the exponent, its interval and the
     # command. None: the default state itself is measured chaotic
     chaotic_settings: ClassVar[dict[str, Any] | None] = None
+    # the class of question the main job's checks cover this problem as, where it is one whose
+    # answers go wrong in a way of its own (longtime.execution.checks.CHECK_KINDS): "unstable
+    # orbit", "close encounters", "discretised PDE", "many-body"; None: by its runs
+    check_class: ClassVar[str | None] = None
     autonomous: ClassVar[bool] = True
     # |u|_1 above blowup_factor * max(1, |u0|_inf), or a non-finite component, is a
     # divergence (the 1-norm: a branch-free sum in the compiled drivers, which every

@@ -21,9 +21,10 @@ from longtime.predict.settings import Measure, Setting
 class PlannedCheck:
     """One run of a check: ``setting`` re-run to ``horizon``. ``role``: "best" (the decision's
     winner: its predicted error and cost, and its rank), "runner-up" (its prediction), "open"
-    (a cheaper setting whose law is undetermined: measured, so that the rank is tested) or
+    (a cheaper setting whose law is undetermined: measured, so that the rank is tested),
     "chaos" (the most accurate setting past the predictability horizon of ``target``: its
-    error must exceed ``target`` there). ``group`` names the decision the runs test and
+    error must exceed ``target`` there) or "growth" (the same past the horizon the growth of
+    a perturbation sets, ``_growth_group``). ``group`` names the decision the runs test and
     ``kind`` the class of problem it covers (CHECK_KINDS)."""
     setting: Setting
     horizon: float
@@ -38,25 +39,50 @@ class PlannedCheck:
 
 
 # the classes of problem the checks cover, each before a second check of any: a chaotic
-# problem (its predictability horizon), a drift-dominated one (a state component that drifts,
-# ``drifting_components``, or a solution error whose energy drifts), an adaptive
+# problem (its predictability horizon); the classes a problem declares (``check_class``: an
+# unstable orbit and close encounters, each with its growth check, a discretised PDE); a
+# short run (a setting whose run spans under a tenth of its problem's default horizon,
+# ``Setting.short``); a many-body state (declared); a drift-dominated one (a state component
+# that drifts, ``drifting_components``, or a solution error whose energy drifts), an adaptive
 # scheme (heyoka, a tolerance), a splitting (a scheme that needs a separable H), the rest
-CHECK_KINDS = ("chaotic", "drifting", "adaptive", "splitting", "other")
+CHECK_KINDS = ("chaotic", "unstable orbit", "close encounters", "short run", "discretised PDE", "many-body",
+               "drifting", "adaptive", "splitting", "other")
+# the declared classes whose problem gets a growth check (``_growth_group``)
+GROWTH_CLASSES = ("unstable orbit", "close encounters")
+# a growth check's target is at least this (a hundred times the reference's trusted accuracy,
+# longtime.measure.reference.REFERENCE_RTOL: an error above it is measured, not the reference's)
+GROWTH_MIN_TARGET = 1e-6
 # the checks' total wall-time estimate (seconds): each run's predicted CPU times TIMED_RUNS
 # (its warm-up and timed repeats) plus its reference's time to the horizon, and the timing of
-# each problem's reference rate: 6 s for the chaotic, adaptive and splitting classes, and 4 s
-# for a drift-dominated problem's group (charged-particle's at T = 1e4 in the default matrix:
-# the timing of its reference rate, its reference to 1e4 and its four runs)
-CHECKS_TOTAL_S = 10.0
+# each problem's reference rate: 12 s for the other classes' groups, and 4 s for a
+# drift-dominated problem's group (charged-particle's at T = 1e4 in the default matrix: the
+# timing of its reference rate, its reference to 1e4 and its four runs)
+CHECKS_TOTAL_S = 16.0
 TIMED_RUNS = 4
 # a chaos check runs past the predictability horizon by this many Lyapunov times (e^5: the
 # pointwise error grows 150 times past the target)
 CHAOS_MARGIN_LYAPUNOV = 5.0
 
 
+def _declared_class(problem: str) -> str | None:
+    """The class of question a problem declares (``Problem.check_class``), None if none."""
+    from longtime.core import registry
+
+    with contextlib.suppress(Exception):
+        return registry.problem_class(problem).check_class
+    return None
+
+
 def _group_kind(v: Verdict, runs: list[Setting]) -> str:
     from longtime.core import registry
 
+    declared = _declared_class(v.problem)
+    if declared in ("unstable orbit", "close encounters", "discretised PDE"):
+        return declared
+    if any(s.short for s in runs):
+        return "short run"
+    if declared == "many-body":
+        return declared
     if any(s.kind == "drifting" or (s.row.get("drifting_components") or 0) > 0 for s in runs):
         return "drifting"  # an energy that drifts, or a state with a drifting component
     if any(positive(s.row.get("tol")) for s in runs):
@@ -87,6 +113,40 @@ def _chaos_group(v: Verdict, rows: list[dict[str, Any]], budget_s: float) -> lis
     return []
 
 
+def _growth_group(v: Verdict, rows: list[dict[str, Any]], budget_s: float) -> list[PlannedCheck]:
+    """A check of the predictability horizon the growth of a perturbation sets on a problem
+    declaring an unstable orbit or close encounters (GROWTH_CLASSES): its most accurate
+    setting, at the finest map target E (at least GROWTH_MIN_TARGET and ten times its
+    error) whose horizon, the time a rounding of the state grows to E
+    (longtime.measure.instability, over ten times the main final time), lies past its run,
+    re-run a period (without one, a quarter of that horizon) past it: its error must exceed E
+    there. None where a stored row's reference stops before that time (it would not be judged)."""
+    if v.measure is None or v.measure.field != "l2_error" or not v.candidates or v.t_main is None:
+        return []
+    declared = _declared_class(v.problem)
+    if declared not in GROWTH_CLASSES:
+        return []
+    from longtime.execution.cells import build, cell_of_row
+    from longtime.measure import instability
+
+    s = min(v.candidates, key=lambda c: (c.error, c.cpu_per_t))
+    try:
+        growth = instability.measure(build(cell_of_row(s.row))[0], 10 * v.t_main)
+    except Exception:  # no heyoka system, a compile past its budget: no growth check
+        return []
+    ends = [float(r["reference_horizon"]) for r in rows if r.get("problem") == v.problem
+            and positive(r.get("reference_horizon")) and r["reference_horizon"] < float(r.get("t_final") or 0)]
+    for target in sorted(TARGETS):
+        h = growth.horizon(target)
+        if h is None or target < max(GROWTH_MIN_TARGET, 10 * s.error) or h <= s.span:
+            continue
+        horizon = h + (growth.period or 0.25 * h)
+        if s.cpu_at(horizon) > budget_s or any(e < horizon for e in ends):
+            return []
+        return [PlannedCheck(s, horizon, v.measure, "growth", target, f"{v.problem} {target:g} growth", declared)]
+    return []
+
+
 def _decision_groups(v: Verdict, budget_s: float) -> list[list[list[PlannedCheck]]]:
     """Per setting the map names as the winner past its run (within its reach), its groups:
     at each horizon where it wins, the winner, its runner-up and its open rivals (at most
@@ -114,7 +174,8 @@ def _decision_groups(v: Verdict, budget_s: float) -> list[list[list[PlannedCheck
 def plan_checks(rows: list[dict[str, Any]], limit: int = CHECKS, budget_s: float = CHECK_BUDGET_S,
                 reference_rate=None, total_s: float = CHECKS_TOTAL_S) -> list[PlannedCheck]:
     """The checks to run, as groups of runs (PlannedCheck): per problem, a chaos check where
-    it is chaotic (``_chaos_group``) and its decisions' groups (``_decision_groups``: the
+    it is chaotic (``_chaos_group``), a growth check where it declares an unstable orbit or
+    close encounters (``_growth_group``) and its decisions' groups (``_decision_groups``: the
     winner with its runner-up and open rivals, each group's predicted CPU within
     ``budget_s``); at most ``limit`` groups whose estimated wall time (TIMED_RUNS times the
     predicted CPU, plus the reference: ``reference_rate(verdict)`` wall seconds per unit of
@@ -130,7 +191,8 @@ def plan_checks(rows: list[dict[str, Any]], limit: int = CHECKS, budget_s: float
     for v in found.values():
         if v.measure is None:
             continue
-        groups = ([[g]] if (g := _chaos_group(v, rows, budget_s)) else []) + _decision_groups(v, budget_s)
+        groups = ([[g]] if (g := _chaos_group(v, rows, budget_s)) else []) \
+            + ([[g]] if (g := _growth_group(v, rows, budget_s)) else []) + _decision_groups(v, budget_s)
         per_problem.append((v, groups))
     # round-robin over problems within each kind, so one problem does not take a kind's turns
     depth = max((len(g) for _, g in per_problem), default=0)
@@ -220,8 +282,9 @@ def check_row(c: PlannedCheck, row: dict[str, Any]) -> dict[str, Any]:
     # an undetermined law's prediction past the run is its steepest window's: an upper bound
     bound = predicted is not None and s.bound_exponent is not None and horizon > s.span * (1 + 1e-9)
     return {**row, "check_of": cell_of_row(s.row).key, "check_of_run": s.row.get("run_id"), "check_field": m.field,
-            "check_law": s.law_text() if c.role != "chaos" else f"chaotic: error above {c.target:g} past t = "
-                                                                 f"{horizon:.4g}",
+            "check_law": (f"chaotic: error above {c.target:g} past t = {horizon:.4g}" if c.role == "chaos" else
+                          f"unstable: a rounding of the state grows to {c.target:g} before t = {horizon:.4g}"
+                          if c.role == "growth" else s.law_text()),
             "check_role": c.role, "check_group": c.group, "check_kind": c.kind, "check_target": c.target,
             "predicted_error": predicted, "predicted_bound": bound, "predicted_cpu_s": s.cpu_at(horizon),
             "predicted_cpu_model": s.cost.text() if s.cost else "per-time",

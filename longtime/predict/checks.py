@@ -11,7 +11,7 @@ from longtime.core.fmt import positive
 from longtime.core.rowtext import setting
 
 # the predictions the main job re-runs, and each one's predicted CPU budget (seconds)
-CHECKS = 6
+CHECKS = 10
 CHECK_BUDGET_S = 3.0
 # a check's heyoka reference (to a horizon past the runs', so not cached) gets this many
 # seconds of wall time: it is trusted as far as it got, and a check whose reference stops
@@ -23,8 +23,9 @@ CHECK_COST_FACTOR = 1.5
 
 
 def check_holds(c: dict[str, Any]) -> bool | None:
-    """Whether a stored check confirms its prediction. A "chaos" check: its measured error
-    exceeds its target (no pointwise error is kept past the predictability horizon). A
+    """Whether a stored check confirms its prediction. A "chaos" or "growth" check: its
+    measured error exceeds its target (no pointwise error is kept past the predictability
+    horizon). A
     prediction ("best", "runner-up", or a check stored without a role): the measured error
     within CHECK_ERROR_FACTOR of the predicted (a bound, ``predicted_bound``, an "at most":
     the measured error at most CHECK_ERROR_FACTOR times it) and the measured CPU at most
@@ -32,7 +33,7 @@ def check_holds(c: dict[str, Any]) -> bool | None:
     False). None where the check measured no error, or made no prediction (an "open" rival)."""
     role = c.get("check_role")
     me = c.get("measured_error")
-    if role == "chaos":
+    if role in ("chaos", "growth"):
         return None if not positive(me) else bool(me > c["check_target"])
     if role == "open":
         return None

@@ -80,17 +80,15 @@ class Predictability:
         if self.lyapunov_time is not None:
             parts.append(f"Lyapunov time {self.lyapunov_time:.3g}: a rounding of {INITIAL_ROUNDING:g} in the initial "
                          f"state grows e-fold each {self.lyapunov_time:.3g} and reaches {self.target:g} by t = "
-                         f"{self.lyapunov_time * math.log(self.target / INITIAL_ROUNDING):.3g}")
-        if self.reference_horizon is not None:
-            parts.append(f"the reference is trusted only up to t = {self.reference_horizon:.4g}")
+                         f"{self.lyapunov_bound:.3g}")
         return "; ".join(parts)
 
     @property
-    def by_growth(self) -> bool:
-        """Whether the growth of a rounding (not the reference's end alone) sets the horizon:
-        then no double-precision run of any scheme keeps the target past it."""
+    def kept_until(self) -> float | None:
+        """Where the growth of a rounding (measured, or the Lyapunov bound) reaches the
+        target: past it no double-precision run of any scheme keeps it (None: not bounded)."""
         bounds = [b for b in (self.growth_horizon, self.lyapunov_bound) if b is not None]
-        return bool(bounds) and min(bounds) <= self.horizon * (1 + 1e-9)
+        return min(bounds) if bounds else None
 
     @property
     def lyapunov_bound(self) -> float | None:
@@ -99,8 +97,18 @@ class Predictability:
         return self.lyapunov_time * math.log(self.target / INITIAL_ROUNDING) if self.target > INITIAL_ROUNDING else 0.0
 
     def text(self) -> str:
-        return (f"no double-precision scheme keeps a pointwise error of {self.target:g} past t = "
-                f"{self.horizon:.4g} ({self.reason})")
+        """Why no pointwise answer exists past ``horizon``: the growth of a rounding (no
+        double-precision scheme keeps the target past it), and the reference's end where it
+        comes first (no error is measured past it)."""
+        parts = []
+        kept = self.kept_until
+        if kept is not None:
+            parts.append(f"no double-precision scheme keeps a pointwise error of {self.target:g} past t = "
+                         f"{kept:.4g} ({self.reason})")
+        if self.reference_horizon is not None and (kept is None or self.reference_horizon < kept):
+            parts.append(f"no error is measured past t = {self.reference_horizon:.4g}: the reference is trusted only "
+                         f"up to t = {self.reference_horizon:.4g}")
+        return "; ".join(parts)
 
 
 def predictability(rows: Iterable[dict[str, Any]], target: float,

@@ -86,6 +86,7 @@ def _jax_rhs(t, u, params):
 class FPU(Problem):
     name = "fpu"
     summary = "Fermi-Pasta-Ulam-Tsingou with stiff springs (HLW I.5): oscillatory energy I near-conserved"
+    check_class = "many-body"
     chaotic = True
     lyapunov_span = 2000.0
     parameters = {

@@ -188,6 +188,7 @@ def _grid_size(modes: int, dealias: str) -> int:
 class KdV(Problem):
     name = "kdv"
     summary = "Korteweg-de Vries soliton, Fourier-Galerkin (stiff), exact solution"
+    check_class = "discretised PDE"
     parameters = {
         # bounded so that a typo (d=1e8) is an input error, not minutes of setup and gigabytes
         "d": Param(128, "number of Fourier modes d = 2M (2M + 1 real unknowns), even", int, minimum=4,

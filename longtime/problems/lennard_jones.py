@@ -57,6 +57,7 @@ def _grad_T(p, params, out):
 class LennardJones(Problem):
     name = "lennard-jones"
     summary = "frozen argon crystal (HLW I.4): 7 atoms in the plane, Lennard-Jones potential (nm, ns)"
+    check_class = "many-body"
     chaotic = True
     default_t_final = 0.2  # ns
     default_dt = 1e-5  # 10 fs

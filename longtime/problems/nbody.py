@@ -112,6 +112,7 @@ class NBody(Problem):
 
     space_dim: int = 2
     G: float = 1.0
+    check_class = "many-body"
 
     rhs, grad_T, grad_V = (staticmethod(f) for f in _PLANAR)
     taylor = staticmethod(_taylor)

@@ -48,6 +48,7 @@ class RestrictedThreeBody(Problem):
     name = "restricted-three-body"
     summary = ("planar circular restricted three-body problem (rotating frame), Arenstorf's periodic orbit; "
                "Jacobi constant J")
+    check_class = "unstable orbit"
     parameters = {"mu": Param(ARENSTORF_MU, "mass ratio of the smaller primary", float, minimum=0.0,
                               maximum=0.5, role="physical")}
     period = ARENSTORF_PERIOD

@@ -82,6 +82,7 @@ def _jax_rhs(t, u, params):
 class Toda(Problem):
     name = "toda"
     summary = "periodic Toda lattice (integrable; H and Lax eigenvalues conserved)"
+    check_class = "many-body"
     # an upper bound, so that a typo (d=1e9) is an input error, not 16 GB allocated while expanding
     parameters = {"d": Param(3, "number of particles (>= 3)", int, minimum=3, maximum=10**6, role="physical")}
     default_t_final = 5000.0

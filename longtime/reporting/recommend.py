@@ -122,7 +122,8 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
     d = decide(cands, error, horizon, limit)
     # a limit set by the stored rows' reference alone is lifted by runs checked against a
     # reference to T; one set by the growth of a rounding is not
-    free = decide(cands, error, horizon) if d.limit is not None and not d.limit.by_growth else d
+    kept = d.limit.kept_until if d.limit is not None else None
+    free = decide(cands, error, horizon) if d.limit is not None and (kept is None or kept >= horizon) else d
     if free.limit is None and _beyond(free, horizon):
         run = _measured(problem, error, horizon, m, cands, budget, db)
         if run is not None:

@@ -23,7 +23,7 @@ def check_text(c: dict[str, Any]) -> str:
     verdict = {True: "held", False: "MISSED", None: "not judged"}[holds]
     me, pe = c.get("measured_error"), c.get("predicted_error")
     role = c.get("check_role")
-    if role == "chaos":
+    if role in ("chaos", "growth"):
         error = f"error above {c['check_target']:g} predicted, {'-' if me is None else f'{me:.2g}'} measured"
     else:
         at_most = "at most " if c.get("predicted_bound") and pe is not None else ""
