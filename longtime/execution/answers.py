@@ -62,12 +62,32 @@ def candidates(cands: list[Setting], target: float, horizon: float) -> list[Sett
     return sorted(out, key=lambda s: (s.cpu_at(horizon), s.text))
 
 
+def reference_seconds(s: Setting, horizon: float, budget_s: float) -> float:
+    """The wall seconds the reference check to ``horizon`` of ``s``'s problem is estimated to
+    take: 0 where it is cached or runs no heyoka, else its heyoka runs' rate
+    (``check_seconds_per_t``, timed over the problem's default final time within a fifth of
+    ``budget_s``) times the horizon's span; inf where it cannot run."""
+    from longtime.execution.cells import build, cell_of_row
+    from longtime.measure import reference
+
+    try:
+        problem = build(cell_of_row(s.row))[0]
+        if not reference.has_reference(problem) or reference.check_cached(problem, horizon):
+            return 0.0
+        span = min(float(problem.default_t_final), horizon - problem.t0)
+        rate = reference.check_seconds_per_t(problem, span, budget_s=max(budget_s / 5, 0.5))
+    except Exception:  # a reference that cannot run here
+        return math.inf
+    return rate * (horizon - problem.t0)
+
+
 def measure_at(cands: list[Setting], field: str, target: float, horizon: float, budget_s: float,
-               max_samples: int | None = None) -> tuple[list[Measured], list[Setting], float]:
+               max_samples: int | None = None) -> tuple[list[Measured], list[Setting], float, str]:
     """Run ``cands`` (in order, ``candidates``) to ``horizon`` within ``budget_s`` wall seconds:
     the measured ones, the ones the budget could not run (their predicted cost does not fit
-    what is left, or MAX_RUNS were run; not those that cannot win, RIVAL_FACTOR), and the
-    wall seconds spent."""
+    what is left, or MAX_RUNS were run; not those that cannot win, RIVAL_FACTOR), the wall
+    seconds spent, and why nothing ran where the reference check to ``horizon`` alone is
+    estimated past the budget ('' otherwise)."""
     from longtime.core.integrator import Timing
     from longtime.execution.cells import DEFAULT_MAX_SAMPLES, cell_of_row, run_cell
 
@@ -75,6 +95,12 @@ def measure_at(cands: list[Setting], field: str, target: float, horizon: float, 
     timing = Timing(repeats=TIMED_RUNS, min_time=0.0, min_runs=1)
     done: list[Measured] = []
     skipped: list[Setting] = []
+    if cands:
+        ref_s = reference_seconds(cands[0], horizon, budget_s)
+        spent = time.perf_counter() - started
+        if not ref_s < budget_s - spent:
+            return [], list(cands), spent, (f"its reference check to T is estimated at {ref_s:.3g} s, past the "
+                                            f"budget's {budget_s - spent:.3g} s left")
     for s in cands:
         left = budget_s - (time.perf_counter() - started)
         best = min((m.cpu_s for m in done if m.keeps and m.cpu_s is not None), default=math.inf)
@@ -87,7 +113,7 @@ def measure_at(cands: list[Setting], field: str, target: float, horizon: float, 
         row = run_cell(cell_of_row(s.row, t_final=horizon), max_samples or DEFAULT_MAX_SAMPLES, timing=timing,
                        time_limit=max(left, 1.0), reference_budget_s=max(left, 1.0))
         done.append(_judge(s, row, field, target, horizon))
-    return done, skipped, time.perf_counter() - started
+    return done, skipped, time.perf_counter() - started, ""
 
 
 def _judge(s: Setting, row: dict[str, Any], field: str, target: float, horizon: float) -> Measured:

@@ -249,6 +249,14 @@ def _relative(u: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return diff / np.where(norm > 0, norm, 1.0)  # absolute at a zero state
 
 
+def check_cached(problem: Problem, t_final: float) -> bool:
+    """Whether a complete ``reference_check`` of ``problem`` over [t0, t_final] is on disk (or
+    loaded in this process): then the check costs nothing more."""
+    parts = ("check", repr(float(t_final)), str(CHECK_POINTS), repr(REFERENCE_RTOL), ",".join(_ladder()))
+    path = cache_path(problem, *parts)
+    return str(path) in _CHECKS or path.exists()
+
+
 def _check_runs(problem: Problem, t_final: float, ladder: list[str],
                 budget_s: float | None) -> dict[str, Any]:
     """The heyoka runs behind ``reference_check`` on its check grid, cached on disk: "times",

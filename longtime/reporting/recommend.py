@@ -124,10 +124,12 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
     # reference to T; one set by the growth of a rounding is not
     kept = d.limit.kept_until if d.limit is not None else None
     free = decide(cands, error, horizon) if d.limit is not None and (kept is None or kept >= horizon) else d
+    not_run = f"--budget {budget:g} s ran none of its candidates to T"
     if free.limit is None and _beyond(free, horizon):
-        run = _measured(problem, error, horizon, m, cands, budget, db)
+        run, why = _measured(problem, error, horizon, m, cands, budget, db)
         if run is not None:
             return run
+        not_run = f"nothing ran: {why}" if why else not_run
     if d.limit is not None:
         rec = unanswered(d.limit.text(), m, d)
         rec.lines += _invariant_lines(mine)
@@ -138,7 +140,8 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
         if d.open:
             s = d.open[0]
             return unanswered(f"no setting is predicted to keep it; {s.text} keeps it to t = {s.span:.4g} but "
-                              f"{s.undetermined_text(horizon)}; predicted, not run: {_runs_it(s, horizon, db)}", m, d)
+                              f"{s.undetermined_text(horizon)}; predicted, not run ({not_run}): "
+                              f"{_runs_it(s, horizon, db)}", m, d)
         finest = min(cands, key=lambda s: s.error)
         lost = sum(1 for s in cands if s.state_at(horizon) == "lost")
         lost_text = (f"; {lost} setting{'s' if lost != 1 else ''} predicted lost there (error >= {LOST:g})"
@@ -156,8 +159,8 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
         lines.append(f"  open     {s.text} might be cheaper ({s.cpu_at(horizon):.3g} s) but "
                      f"{s.undetermined_text(horizon)}: {_runs_it(s, horizon, db)}")
     if _beyond(d, horizon):
-        lines.append(f"  predicted, not run: the answer lies past the stored runs and --budget {budget:g} s ran none "
-                     f"of its candidates to T; {_runs_it(b, horizon, db)}")
+        lines.append(f"  predicted, not run: the answer lies past the stored runs and {not_run}; "
+                     f"{_runs_it(b, horizon, db)}")
     runs = sorted({c.row.get("run_id") for c in cands if c.row.get("run_id") is not None})
     mine_checks = [c for c in checks if c.get("problem") == problem]
     held = [c for c in mine_checks if check_holds(c)]
@@ -193,18 +196,19 @@ def _runs_it(s: Setting, horizon: float, db: str | None) -> str:
 
 
 def _measured(problem: str, error: float, horizon: float, m: Measure, cands: list[Setting], budget: float,
-              db: str | None) -> Recommendation | None:
+              db: str | None) -> tuple[Recommendation | None, str]:
     """The answer measured at ``horizon``: the candidates (longtime.execution.answers) run
-    within ``budget`` seconds, the cheapest measured that keeps ``error``. None where the
-    budget runs none of them (the predicted answer stands, saying so)."""
+    within ``budget`` seconds, the cheapest measured that keeps ``error``; None where the
+    budget runs none of them (the predicted answer stands, saying so), with the reason where
+    it is not the budget's size alone."""
     from longtime.execution import answers
 
     todo = answers.candidates(cands, error, horizon)
     if budget <= 0 or not todo:
-        return None
-    done, skipped, spent = answers.measure_at(todo, m.field, error, horizon, budget)
+        return None, ""
+    done, skipped, spent, why = answers.measure_at(todo, m.field, error, horizon, budget)
     if not done:
-        return None
+        return None, why
     keep = sorted((x for x in done if x.keeps), key=lambda x: (x.cpu_s if x.cpu_s is not None else math.inf,
                                                               x.setting.text))
     head = f"{problem}: keep {m.field} <= {error:g} up to T = {horizon:g} ({m.text}), measured at T"
@@ -218,7 +222,8 @@ def _measured(problem: str, error: float, horizon: float, m: Measure, cands: lis
         why = "; ".join(x.text() + ("" if x.error is None else f" (misses {error:g})") for x in done)
         return Recommendation(problem, error, horizon, m, Decision(error, horizon), evidence,
                               [f"{problem}: no answer for {m.field} <= {error:g} up to T = {horizon:g}, measured at T: "
-                               f"no candidate keeps it ({why})", *rest, foot], answered=False, basis="measured at T")
+                               f"no candidate keeps it ({why})", *rest, foot], answered=False,
+                              basis="measured at T"), ""
     w = keep[0]
     runner = next((x for x in keep[1:] if x.setting.scheme != w.setting.scheme), None)
     lines = [head + ":", f"  use      {w.text()}"]
@@ -233,7 +238,7 @@ def _measured(problem: str, error: float, horizon: float, m: Measure, cands: lis
     lines += rest + [foot]
     d = Decision(error, horizon, w.setting, runner.setting if runner else None)
     return Recommendation(problem, error, horizon, m, d, evidence, lines, basis="measured at T",
-                          measured_error=w.error, measured_cpu_s=w.cpu_s)
+                          measured_error=w.error, measured_cpu_s=w.cpu_s), ""
 
 
 def _invariant_lines(rows: list[dict[str, Any]]) -> list[str]:
