@@ -131,7 +131,7 @@ def _growth_group(v: Verdict, rows: list[dict[str, Any]], budget_s: float) -> li
 
     s = min(v.candidates, key=lambda c: (c.error, c.cpu_per_t))
     try:
-        growth = instability.measure(build(cell_of_row(s.row))[0], 10 * v.t_main)
+        growth = instability.measure(build(cell_of_row(s.row))[0], 10 * v.t_main, budget_s=CHECK_REFERENCE_S)
     except Exception:  # no heyoka system, a compile past its budget: no growth check
         return []
     ends = [float(r["reference_horizon"]) for r in rows if r.get("problem") == v.problem

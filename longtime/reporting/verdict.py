@@ -59,7 +59,11 @@ def _range(lo: float, hi: float) -> str:
 
 def decision_text(d: Decision) -> str:
     if d.limit is not None:
-        return f"no pointwise answer past t = {d.limit.horizon:.3g} (chaos; a finer target: sooner)"
+        kept = d.limit.kept_until
+        if kept is None or d.limit.horizon < kept * (1 - 1e-9):  # the reference ends first
+            return f"no pointwise answer past t = {d.limit.horizon:.3g} (the reference is trusted only up to there)"
+        why = "chaos" if d.limit.lyapunov_time is not None else "an unstable flow"
+        return f"no pointwise answer past t = {d.limit.horizon:.3g} ({why}; a finer target: sooner)"
     if d.best is not None:
         return d.best.text
     if d.open:
