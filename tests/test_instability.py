@@ -71,6 +71,7 @@ def test_recommend_refuses_arenstorf_past_its_horizon_naming_the_growth():
     assert "rounding of the state grows" in text and "a period" in text
     assert rec.decision.limit.horizon < 4 * ARENSTORF
     assert "what can be said: the invariants" in text and "J: 2.5e-12" in text  # what can be said instead
+    assert "longtime run" not in text  # the growth forbids every run: none is named to decide it
     # within the horizon it still answers
     assert R.recommend(rows, "restricted-three-body", 1e-6, ARENSTORF, growth=growth).answered
 
@@ -138,3 +139,13 @@ def test_the_checks_cover_each_class_of_question_where_answers_went_wrong():
     short_ref = [{**unstable[0], "reference_horizon": 20.0, "t_final": ARENSTORF * 2}]
     assert not [c for c in XC.plan_checks(short_ref, limit=10, budget_s=2.0, reference_rate=lambda v: 0.0,
                                           total_s=1e9) if c.role == "growth"]
+
+
+def test_a_budget_that_cannot_pay_the_reference_to_t_runs_nothing_and_says_so(monkeypatch):
+    from longtime.execution import answers
+
+    monkeypatch.setattr(answers, "reference_seconds", lambda s, horizon, budget_s: 1e3)
+    rec = R.recommend(HARMONIC, "harmonic", 1e-3, 1e3, budget=5.0)
+    assert rec.basis == "predicted" and rec.scheme == "rk4"
+    assert "predicted, not run: the answer lies past the stored runs and nothing ran: its reference check to T is " \
+           "estimated at 1e+03 s" in str(rec)
