@@ -285,6 +285,8 @@ def test_recommend_from_python_is_the_same_answer(store):
     (["-p", "nope", "--error", "1e-3", "--horizon", "1e3"], "-p nope: unknown problem; known:"),
     (["-p", "harmonic", "--error", "0", "--horizon", "1e3"], "--error takes a finite number > 0, got '0'"),
     (["-p", "harmonic", "--error", "1e-3", "--horizon", "-5"], "--horizon takes a finite number > 0, got '-5'"),
+    (["-p", "harmonic", "--error", "1e-3", "--horizon", "1e3", "--budget", "-1"],
+     "--budget takes a finite number of seconds >= 0, got '-1'"),
 ])
 def test_recommend_bad_input_is_one_line_exit_2(store, capsys, args, message):
     try:
