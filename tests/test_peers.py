@@ -165,15 +165,37 @@ def test_without_the_extra_the_rows_are_skipped_naming_it(monkeypatch, names, hi
         registry.integrator_class(names[0])(tol=1e-6).integrate(registry.problem_class("kepler")(), 1.0)
 
 
-def test_the_peers_default_sweep_is_short_and_budgeted():
+def test_the_peers_default_sweep_crosses_the_targets_and_is_budgeted():
     from longtime.execution import budget
 
     for name in SCIPY[1:] + CVODE + DIFFRAX:
         cls = registry.integrator_class(name)
-        assert len(cls.sweep["tol"]) == 2 and cls.cell_budget_s < budget.CELL_BUDGET_S
+        # the table's 1e-6 and the report's 1e-10 at T need tolerances down to about 1e-13
+        assert min(cls.sweep["tol"]) <= 1e-13 and max(cls.sweep["tol"]) >= 1e-7
+        assert cls.cell_budget_s < budget.CELL_BUDGET_S
     assert registry.integrator_class("dop853").cell_budget_s is None  # the matrix's per-cell budget applies to it
     assert budget.cell_budget("scipy-radau") == registry.integrator_class("scipy-radau").cell_budget_s
     assert budget.cell_budget("rk4") == budget.CELL_BUDGET_S
+
+
+def test_a_peer_over_its_budget_runs_fewer_settings_never_a_shorter_horizon():
+    from longtime.execution import budget
+
+    full = expand(["toda", "outer-solar-system", "fpu"], ["scipy-rk23", "scipy-rk45", "cvode-adams"],
+                  default_sweep=True)
+    cells, moves = budget.fit(full)
+    ran = [c for c in cells if not c.skip_reason]
+    mains = {p: registry.problem_class(p).sweep_t_final for p in ("toda", "outer-solar-system", "fpu")}
+    assert ran and all(c.t_final == mains[c.problem] for c in ran)  # the horizon every scheme runs
+    # every pair keeps at least its cheapest setting, the loosest tolerance
+    pairs = {(c.problem, c.integrator) for c in full if not c.skip_reason}
+    assert pairs == {(c.problem, c.integrator) for c in ran}
+    assert moves and all("left out" in m.setting for m in moves)
+    for m in moves:  # what was left out is estimated over the budget, and the cells kept say so
+        kept = [c for c in ran if (c.problem, c.integrator) == (m.problem, m.integrator)]
+        assert all(budget.NOTE in c.note and m.setting in c.note for c in kept)
+    rk23 = [c for c in ran if c.integrator == "scipy-rk23" and c.problem == "fpu"]
+    assert [c.integrator_settings["tol"] for c in rk23] == [max(peer_common.TOLERANCES)]
 
 
 @needs_sundials
