@@ -446,21 +446,22 @@ def card(scheme: Any, rows: Any = None, *, structure: bool = True, stability: bo
 
 # ------------------------------------------------------------------ the verdict
 def recommend(problem: Any, error: float, horizon: float, rows: Any = None, *, db: str | None = None,
-              run: Any = None):
+              run: Any = None, library: str | None = None):
     """The cheapest stored setting predicted to keep ``error`` up to ``horizon`` on
     ``problem``, as ``longtime recommend`` answers it (a
     longtime.reporting.recommend.Recommendation: ``scheme``, ``setting``, ``predicted_error``,
     ``predicted_cpu_s``, ``runner_up``, ``evidence``; ``str()`` gives the command's lines).
     From ``rows`` (a DataFrame from ``sweep``, or row dicts) where given, else from the store
-    ``db`` (default: $LONGTIME_DB or longtime.sqlite), its run ``run`` (default: every run).
+    ``db`` (default: $LONGTIME_DB or longtime.sqlite), its run ``run`` (default: every run);
+    ``library`` (scipy, sundials, diffrax, ...): the cheapest setting of that library's schemes.
     What cannot be decided raises InputError naming the run that would decide it."""
     from longtime.reporting.recommend import recommend as decide
     from longtime.reporting.recommend import stored_recommendation
 
     name, _ = resolve(problem, "problem")
     if rows is not None:
-        return decide(records(rows), name, error, horizon, known=registry.problems())
-    return stored_recommendation(name, error, horizon, db, None if run is None else str(run))
+        return decide(records(rows), name, error, horizon, known=registry.problems(), library=library)
+    return stored_recommendation(name, error, horizon, db, None if run is None else str(run), library=library)
 
 
 # ------------------------------------------------------------------ the main job

@@ -14,7 +14,7 @@ def cmd_recommend(args) -> int:
     from longtime.api import recommend
     from longtime.reporting.recommend import NO_ANSWER_EXIT
 
-    answer = recommend(args.problem, args.error, args.horizon, db=args.db, run=args.run)
+    answer = recommend(args.problem, args.error, args.horizon, db=args.db, run=args.run, library=args.library)
     print(answer)
     return 0 if answer.answered else NO_ANSWER_EXIT
 
@@ -31,4 +31,7 @@ def add_parser(subparsers) -> None:
                    help="the final time the error must hold to")
     p.add_argument("--db", default=None, help=f"SQLite store (default: $LONGTIME_DB or {default_path()})")
     p.add_argument("--run", default=None, help="run id, or 'all' (default: every run of the store)")
+    p.add_argument("--library", default=None, metavar="LIBRARY",
+                   help="only the schemes of this library (longtime, scipy, sundials, diffrax, heyoka, rebound): "
+                        "its cheapest setting")
     p.set_defaults(func=cmd_recommend)

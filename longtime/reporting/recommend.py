@@ -73,14 +73,16 @@ def _pick(s: Setting, horizon: float) -> str:
 
 def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: float,
               db: str | None = None, known: Iterable[str] | None = None,
-              checks: Iterable[dict[str, Any]] = (), ensembles: Iterable[dict[str, Any]] = ()) -> Recommendation:
+              checks: Iterable[dict[str, Any]] = (), ensembles: Iterable[dict[str, Any]] = (),
+              library: str | None = None) -> Recommendation:
     """The cheapest setting predicted to keep ``error`` up to ``horizon`` on ``problem``
     from ``rows`` (a store's), with the runner-up and the evidence. Bad input (an unknown
     problem, a non-positive error or horizon) raises InputError. Rows that determine no
     answer give a Recommendation whose ``answered`` is False and whose lines say why and name
     the command that would decide it: no rows, no setting predicted to keep the target, or a
     horizon past a chaotic problem's predictability horizon (no pointwise answer; the
-    ensemble distances of ``ensembles`` where the store has them)."""
+    ensemble distances of ``ensembles`` where the store has them). ``library`` (scipy,
+    sundials, ...; ``library_of``) limits the candidates to that library's schemes."""
     known = list(known) if known is not None else None
     where = f" --db {shlex.quote(db)}" if db else ""
     if known is not None and problem not in known:
@@ -89,6 +91,11 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
         if not positive(value):
             raise InputError(f"{name} {value}: must be a finite number > 0")
     mine = [r for r in rows if r.get("problem") == problem]
+    if library is not None:
+        mine, why = _of_library(mine, library, problem)
+        if why:
+            return Recommendation(problem, error, horizon, None, Decision(error, horizon), {},
+                                  [f"{problem}: no answer from {library}: {why}"], answered=False)
 
     def unanswered(why: str, m: Measure | None = None, d: Decision | None = None) -> Recommendation:
         return Recommendation(problem, error, horizon, m, d or Decision(error, horizon), {},
@@ -143,6 +150,21 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
     return Recommendation(problem, error, horizon, m, d, evidence, lines)
 
 
+def _of_library(rows: list[dict[str, Any]], library: str, problem: str) -> tuple[list[dict[str, Any]], str]:
+    """The rows of ``library``'s schemes, and why there are none ('' where there are)."""
+    from longtime.core import registry
+    from longtime.reporting.libraries import library_of
+
+    known = {library_of(s) for s in registry.integrators()}
+    if library not in known:
+        raise InputError(f"--library {library}: unknown library; known: {', '.join(sorted(known))}")
+    mine = [r for r in rows if library_of(r.get("integrator", "")) == library]
+    if mine:
+        return mine, ""
+    schemes = sorted(s for s in registry.integrators() if library_of(s) == library)
+    return [], f"no rows of its schemes in the store; `longtime matrix -p {problem} -i {','.join(schemes)}` measures them"
+
+
 def _statistical_lines(problem: str, ensembles: Iterable[dict[str, Any]], where: str) -> list[str]:
     """The statistical answer past the predictability horizon: the schemes whose ensemble
     distance to heyoka's is not told apart from the floor (longtime.measure.ensemble), or the
@@ -161,9 +183,11 @@ def _statistical_lines(problem: str, ensembles: Iterable[dict[str, Any]], where:
     return [f"  statistically: {text} keep{'s' if len(same) == 1 else ''} the distribution heyoka's ensemble visits"]
 
 
-def stored_recommendation(problem: str, error: float, horizon: float, db: str | None, run: str | None):
+def stored_recommendation(problem: str, error: float, horizon: float, db: str | None, run: str | None,
+                          library: str | None = None):
     """The Recommendation from the store ``db`` (its rows of ``run``: an id, 'all', or by
-    default every run), and the checks stored beside them."""
+    default every run), and the checks stored beside them; ``library``: of that library's
+    schemes only."""
     from pathlib import Path
 
     from longtime.core import registry
@@ -184,4 +208,4 @@ def stored_recommendation(problem: str, error: float, horizon: float, db: str | 
         store.run(int(run))
         rows, checks, ensembles = store.rows(int(run)), store.checks(int(run)), store.ensembles(int(run))
     return recommend(rows, problem, error, horizon, db=str(store.path) if db else None,
-                     known=registry.problems(), checks=checks, ensembles=ensembles)
+                     known=registry.problems(), checks=checks, ensembles=ensembles, library=library)
