@@ -2,6 +2,7 @@
 checked against heyoka's reference on kepler, with their compile and per-call overhead apart
 from the timing, and skipped with the extra to install where their library is missing."""
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -233,3 +234,29 @@ def test_one_method_of_each_library_runs_ok_on_the_issue_problems(tmp_path):
             bound = 0.1 if problem == "kdv" else 1e-3
             assert row["peer_overhead_s"] > 0 and row["l2_error"] < bound, (problem, scheme, row["l2_error"])
     assert len(rows) == 4 * len(schemes)
+
+
+def _direct_call_case(name):
+    marks = [pytest.mark.skipif(not has_sundials, reason='needs pip install "longtime[sundials]"')] \
+        if name.startswith("cvode") else []
+    if name.startswith("diffrax"):  # two compiles of jax code (the row's and the direct call's): slow
+        marks = [pytest.mark.skipif(not has_diffrax, reason='needs pip install "longtime[diffrax]"'), pytest.mark.slow]
+    return pytest.param(name, marks=marks)
+
+
+@pytest.mark.parametrize("name", [_direct_call_case(n) for n in
+                                  ("scipy-rk45", "scipy-lsoda", "scipy-radau", "cvode-adams", "cvode-bdf",
+                                   "diffrax-tsit5")])
+def test_a_peer_gives_what_a_direct_call_of_its_library_gives(name, kepler, heyoka_kepler):
+    # the same problem, tolerance and horizon through the library called as its users call it
+    # (benchmarks/bench_peers.py's ``direct``; it also compares the CPU, which a test cannot)
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository's benchmarks/
+    from benchmarks.bench_peers import direct
+
+    t_final = 4 * np.pi  # two orbits of kepler, through two pericentre passages
+    traj = registry.integrator_class(name)(tol=TOL).integrate(kepler, t_final, max_samples=2001)
+    assert traj.status == "ok" and traj.t[-1] == pytest.approx(t_final), traj.message
+    truth = heyoka_kepler(np.array([0.0, t_final]))[-1]
+    row = np.linalg.norm(traj.u[-1] - truth) / np.linalg.norm(truth)
+    mine = np.linalg.norm(direct(name, kepler, TOL, t_final)() - truth) / np.linalg.norm(truth)
+    assert 0.5 <= row / mine <= 2.0, f"{name}: the row's error {row:.3g}, a direct call's {mine:.3g}"
