@@ -260,3 +260,12 @@ def test_a_peer_gives_what_a_direct_call_of_its_library_gives(name, kepler, heyo
     row = np.linalg.norm(traj.u[-1] - truth) / np.linalg.norm(truth)
     mine = np.linalg.norm(direct(name, kepler, TOL, t_final)() - truth) / np.linalg.norm(truth)
     assert 0.5 <= row / mine <= 2.0, f"{name}: the row's error {row:.3g}, a direct call's {mine:.3g}"
+
+
+def test_a_peer_s_tolerances_given_on_the_command_line_are_never_left_out():
+    from longtime.execution.main_job import Selection, plan
+    from longtime.execution.matrix import ExecOptions
+
+    cells, moves = plan(Selection(problems=("fpu",), schemes=("scipy-rk23",), sweeps={"tol": (1e-7, 1e-13)}),
+                        ExecOptions())
+    assert sorted(c.integrator_settings["tol"] for c in cells) == [1e-13, 1e-7] and not moves

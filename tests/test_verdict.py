@@ -275,7 +275,8 @@ def test_recommend_library_is_the_cheapest_setting_of_one_library(store, capsys)
     assert cli.main(["recommend", "-p", "harmonic", "--error", "1e-3", "--horizon", "1e3", "--db", store,
                      "--library", "scipy"]) == R.NO_ANSWER_EXIT
     out = capsys.readouterr().out
-    assert out.startswith("harmonic: no answer from scipy: no rows of its schemes in the store; `longtime matrix -p harmonic -i ")
+    assert out.startswith("harmonic: no answer from scipy: no rows of its schemes in the store; "
+                          "`longtime matrix -p harmonic -i ")
     assert "scipy-rk45" in out
     assert cli.main(["recommend", "-p", "harmonic", "--error", "1e-3", "--horizon", "1e3", "--db", store,
                      "--library", "nope"]) == 2

@@ -79,10 +79,13 @@ def cell_budget(scheme: str) -> float:
     return registry.integrator_class(scheme).cell_budget_s or CELL_BUDGET_S
 
 
-def fit(cells: list[Cell], given_t_final: bool = False) -> tuple[list[Cell], list[Move]]:
+def fit(cells: list[Cell], given_t_final: bool = False,
+        given: frozenset[str] = frozenset()) -> tuple[list[Cell], list[Move]]:
     """The default matrix's ``cells`` (``cells.expand`` with ``default_sweep``) within the
     budget, and what it moved. ``given_t_final``: the final times were given (nothing moves
-    then but the long-time cells, which such a matrix does not have)."""
+    then but the long-time cells, which such a matrix does not have). ``given``: the
+    parameters whose values were given (a peer's settings of a parameter given are never
+    left out)."""
     dims: dict[str, int] = {}
     groups: dict[tuple, list[int]] = {}
     for i, c in enumerate(cells):
@@ -100,7 +103,8 @@ def fit(cells: list[Cell], given_t_final: bool = False) -> tuple[list[Cell], lis
         worst = max((run_seconds(cells[i], dims) for i in sweep), default=0.0)
         budget = cell_budget(scheme)
         if registry.integrator_class(scheme).cell_budget_s is not None:  # a library peer: fewer settings
-            if not given_t_final and worst > budget:
+            swept = set(registry.integrator_class(scheme).sweep)
+            if not given_t_final and not (given & swept) and worst > budget:
                 _fewer_settings(problem, scheme, sweep, cells, out, moves, dims, budget)
         elif not given_t_final and worst > budget and all(cells[i].t_final == main for i in sweep):
             horizon = _shorter_horizon([cells[i] for i in sweep], main, dims)

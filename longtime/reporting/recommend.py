@@ -162,7 +162,8 @@ def _of_library(rows: list[dict[str, Any]], library: str, problem: str) -> tuple
     if mine:
         return mine, ""
     schemes = sorted(s for s in registry.integrators() if library_of(s) == library)
-    return [], f"no rows of its schemes in the store; `longtime matrix -p {problem} -i {','.join(schemes)}` measures them"
+    return [], (f"no rows of its schemes in the store; `longtime matrix -p {problem} -i {','.join(schemes)}` "
+                f"measures them")
 
 
 def _statistical_lines(problem: str, ensembles: Iterable[dict[str, Any]], where: str) -> list[str]:
