@@ -45,8 +45,9 @@ CELL_BUDGET_S = 5.0
 LONG_CELL_BUDGET_S = 30.0
 # the shorter horizons a moved sweep may take, as fractions of the problem's sweep horizon
 HORIZON_FRACTIONS = (0.5, 0.2, 0.1, 0.05, 0.02, 0.01)
-# the tolerance at which an adaptive peer's steps are estimated as the problem's default step's
-PEER_TOL = 1e-8
+# the tolerance at which an adaptive peer's steps are estimated as the problem's default step's (a
+# rough size: its runs of kepler and toda take from a tenth to ten times as many)
+PEER_TOL = 1e-10
 # the start of every note the budget leaves in a row's message (the report finds them by it)
 NOTE = "budget:"
 

@@ -27,7 +27,7 @@ from longtime.core.trajectory import Trajectory
 TOLERANCES = (1e-7, 1e-10, 1e-13)
 # the default matrix's estimated seconds of one run of a peer's cell (longtime.execution.budget):
 # the settings of a sweep estimated above it are left out, never the horizon shortened
-CELL_BUDGET_S = 1.0
+CELL_BUDGET_S = 2.0
 SAMPLES = 10_001  # the samples of a row of a peer that saves at given times: heyoka's count
 OVERHEAD_STEPS = 200  # steps of the trivial run that measures the per-step overhead
 DEADLINE_EVERY = 256  # steps between two looks at the cell's deadline
