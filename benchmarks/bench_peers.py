@@ -28,6 +28,7 @@ be the direct call's (within x2) and its CPU within x1.3 of it.
 
     python benchmarks/bench_peers.py                # the full ladders (a few minutes)
     python benchmarks/bench_peers.py --size small   # short horizons, three rungs each
+    python benchmarks/bench_peers.py --table direct # the direct-call table alone
 """
 from __future__ import annotations
 
@@ -211,7 +212,15 @@ def fmt(x: float | None, spec: str = ".3g") -> str:
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", choices=("small", "full"), default="full")
+    parser.add_argument("--table", choices=("both", "equal", "direct"), default="both")
     args = parser.parse_args(argv)
+    if args.table != "direct":
+        equal_method_table(args)
+    if args.table != "equal":
+        direct_call_table(args)
+
+
+def equal_method_table(args) -> None:
     rungs = 3 if args.size == "small" else 4
     print("| problem | t_final | ours | peer | ours/peer per step | ours/peer at equal error | at error "
           "| peer overhead s/step |")
@@ -231,6 +240,9 @@ def main(argv=None) -> None:
             print(f"| {pname} | {t_final:g} | {mine} | {peer} | {fmt(per_step)} | {fmt(equal)} | {fmt(error, '.2g')} "
                   f"| {fmt(overhead, '.2g')} |")
     print()
+
+
+def direct_call_table(args) -> None:
     print("| problem | t_final | tol | peer | row error at t_final | direct error | row CPU s | direct CPU s "
           "| row/direct CPU |")
     print("|---|---|---|---|---|---|---|---|---|")
