@@ -448,13 +448,14 @@ def card(scheme: Any, rows: Any = None, *, structure: bool = True, stability: bo
 
 # ------------------------------------------------------------------ the verdict
 def recommend(problem: Any, error: float, horizon: float, rows: Any = None, *, db: str | None = None,
-              run: Any = None, budget: float = DEFAULT_BUDGET_S):
+              run: Any = None, budget: float = DEFAULT_BUDGET_S, library: str | None = None):
     """The cheapest stored setting predicted to keep ``error`` up to ``horizon`` on
     ``problem``, as ``longtime recommend`` answers it (a
     longtime.reporting.recommend.Recommendation: ``scheme``, ``setting``, ``predicted_error``,
     ``predicted_cpu_s``, ``runner_up``, ``evidence``; ``str()`` gives the command's lines).
     From ``rows`` (a DataFrame from ``sweep``, or row dicts) where given, else from the store
-    ``db`` (default: $LONGTIME_DB or longtime.sqlite), its run ``run`` (default: every run).
+    ``db`` (default: $LONGTIME_DB or longtime.sqlite), its run ``run`` (default: every run);
+    ``library`` (scipy, sundials, diffrax, ...): the cheapest setting of that library's schemes.
     What cannot be decided raises InputError naming the run that would decide it.
     ``budget``: the wall seconds (>= 0; 0 runs nothing) for running the best predicted
     candidates to ``horizon`` where the answer lies beyond the stored runs (``basis``
@@ -468,8 +469,9 @@ def recommend(problem: Any, error: float, horizon: float, rows: Any = None, *, d
     if rows is not None:
         mine = records(rows)
         return decide(mine, name, error, horizon, known=registry.problems(),
-                      growth=measured_growth(mine, name, horizon), budget=float(budget))
-    return stored_recommendation(name, error, horizon, db, None if run is None else str(run), budget=float(budget))
+                      growth=measured_growth(mine, name, horizon), budget=float(budget), library=library)
+    return stored_recommendation(name, error, horizon, db, None if run is None else str(run), budget=float(budget),
+                                 library=library)
 
 
 # ------------------------------------------------------------------ the main job

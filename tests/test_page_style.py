@@ -111,3 +111,30 @@ def test_the_page_says_which_library_keeps_a_target_cheapest_per_problem():
     assert kepler[4].startswith("scipy-rk45 ") and "0.9 s" in kepler[4]
     page = build_page(rows, [], drift=False, stability=False)
     assert 'id="libraries"' in page and "scipy-rk45" in page[page.index('id="libraries"'):]
+
+
+def test_which_library_gives_the_ratio_to_the_best_and_why_a_library_has_no_entry():
+    from longtime.reporting.libraries import best_of_library, library_table
+
+    def row(scheme, cpu, err, status="ok", t_reached=10.0, tol=None):
+        return {"problem": "toda", "integrator": scheme, "status": status, "t_final": 10.0, "cpu_s": cpu,
+                "l2_error": err, "solution_lost": False, "dt": 0.1, "tol": tol, "wall_s": cpu, "id": 1,
+                "t_reached": t_reached}
+
+    rows = [row("gauss4", 0.2, 1e-8), row("scipy-rk45", 0.5, 1e-7, tol=1e-10),
+            row("cvode-adams", 3.0, None, status="timeout", t_reached=2.5, tol=1e-13),
+            row("cvode-adams", 0.1, 1e-4, tol=1e-7), row("diffrax-tsit5", None, None, status="skipped")]
+    rows[-1]["message"] = 'diffrax-tsit5 needs the package diffrax: pip install "longtime[diffrax]"'
+    header, (toda,) = library_table(rows)
+    assert header == ["problem", "T", "longtime", "diffrax", "scipy", "sundials"]
+    cells = dict(zip(header, toda))
+    assert cells["longtime"].endswith("best") and cells["scipy"].endswith("x2.5")
+    assert cells["diffrax"] == "not installed"
+    # an ok setting that misses the target beside a timeout at the same T: none keeps it, and the
+    # tighter setting was too slow
+    assert cells["sundials"] == ("none keeps it (best 0.0001: cvode-adams tol=1e-07); "
+                                 "too slow: cvode-adams tol=1e-13 ran 3 s for t=2.5 of 10")
+    slow = [r for r in rows if r["status"] == "timeout"]
+    (only,) = library_table(rows[:1] + slow)[1]
+    assert only[3] == "too slow: cvode-adams tol=1e-13 ran 3 s for t=2.5 of 10"
+    assert best_of_library(rows, "scipy") == {"toda": cells["scipy"]} and best_of_library(rows, "nope") == {}

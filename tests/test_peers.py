@@ -2,6 +2,7 @@
 checked against heyoka's reference on kepler, with their compile and per-call overhead apart
 from the timing, and skipped with the extra to install where their library is missing."""
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -165,15 +166,37 @@ def test_without_the_extra_the_rows_are_skipped_naming_it(monkeypatch, names, hi
         registry.integrator_class(names[0])(tol=1e-6).integrate(registry.problem_class("kepler")(), 1.0)
 
 
-def test_the_peers_default_sweep_is_short_and_budgeted():
+def test_the_peers_default_sweep_crosses_the_targets_and_is_budgeted():
     from longtime.execution import budget
 
     for name in SCIPY[1:] + CVODE + DIFFRAX:
         cls = registry.integrator_class(name)
-        assert len(cls.sweep["tol"]) == 2 and cls.cell_budget_s < budget.CELL_BUDGET_S
+        # the table's 1e-6 and the report's 1e-10 at T need tolerances down to about 1e-13
+        assert min(cls.sweep["tol"]) <= 1e-13 and max(cls.sweep["tol"]) >= 1e-7
+        assert cls.cell_budget_s < budget.CELL_BUDGET_S
     assert registry.integrator_class("dop853").cell_budget_s is None  # the matrix's per-cell budget applies to it
     assert budget.cell_budget("scipy-radau") == registry.integrator_class("scipy-radau").cell_budget_s
     assert budget.cell_budget("rk4") == budget.CELL_BUDGET_S
+
+
+def test_a_peer_over_its_budget_runs_fewer_settings_never_a_shorter_horizon():
+    from longtime.execution import budget
+
+    full = expand(["toda", "outer-solar-system", "fpu"], ["scipy-rk23", "scipy-rk45", "cvode-adams"],
+                  default_sweep=True)
+    cells, moves = budget.fit(full)
+    ran = [c for c in cells if not c.skip_reason]
+    mains = {p: registry.problem_class(p).sweep_t_final for p in ("toda", "outer-solar-system", "fpu")}
+    assert ran and all(c.t_final == mains[c.problem] for c in ran)  # the horizon every scheme runs
+    # every pair keeps at least its cheapest setting, the loosest tolerance
+    pairs = {(c.problem, c.integrator) for c in full if not c.skip_reason}
+    assert pairs == {(c.problem, c.integrator) for c in ran}
+    assert moves and all("left out" in m.setting for m in moves)
+    for m in moves:  # what was left out is estimated over the budget, and the cells kept say so
+        kept = [c for c in ran if (c.problem, c.integrator) == (m.problem, m.integrator)]
+        assert all(budget.NOTE in c.note and m.setting in c.note for c in kept)
+    rk23 = [c for c in ran if c.integrator == "scipy-rk23" and c.problem == "fpu"]
+    assert [c.integrator_settings["tol"] for c in rk23] == [max(peer_common.TOLERANCES)]
 
 
 @needs_sundials
@@ -211,3 +234,38 @@ def test_one_method_of_each_library_runs_ok_on_the_issue_problems(tmp_path):
             bound = 0.1 if problem == "kdv" else 1e-3
             assert row["peer_overhead_s"] > 0 and row["l2_error"] < bound, (problem, scheme, row["l2_error"])
     assert len(rows) == 4 * len(schemes)
+
+
+def _direct_call_case(name):
+    marks = [pytest.mark.skipif(not has_sundials, reason='needs pip install "longtime[sundials]"')] \
+        if name.startswith("cvode") else []
+    if name.startswith("diffrax"):  # two compiles of jax code (the row's and the direct call's): slow
+        marks = [pytest.mark.skipif(not has_diffrax, reason='needs pip install "longtime[diffrax]"'), pytest.mark.slow]
+    return pytest.param(name, marks=marks)
+
+
+@pytest.mark.parametrize("name", [_direct_call_case(n) for n in
+                                  ("scipy-rk45", "scipy-lsoda", "scipy-radau", "cvode-adams", "cvode-bdf",
+                                   "diffrax-tsit5")])
+def test_a_peer_gives_what_a_direct_call_of_its_library_gives(name, kepler, heyoka_kepler):
+    # the same problem, tolerance and horizon through the library called as its users call it
+    # (benchmarks/bench_peers.py's ``direct``; it also compares the CPU, which a test cannot)
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository's benchmarks/
+    from benchmarks.bench_peers import direct
+
+    t_final = 4 * np.pi  # two orbits of kepler, through two pericentre passages
+    traj = registry.integrator_class(name)(tol=TOL).integrate(kepler, t_final, max_samples=2001)
+    assert traj.status == "ok" and traj.t[-1] == pytest.approx(t_final), traj.message
+    truth = heyoka_kepler(np.array([0.0, t_final]))[-1]
+    row = np.linalg.norm(traj.u[-1] - truth) / np.linalg.norm(truth)
+    mine = np.linalg.norm(direct(name, kepler, TOL, t_final)() - truth) / np.linalg.norm(truth)
+    assert 0.5 <= row / mine <= 2.0, f"{name}: the row's error {row:.3g}, a direct call's {mine:.3g}"
+
+
+def test_a_peer_s_tolerances_given_on_the_command_line_are_never_left_out():
+    from longtime.execution.main_job import Selection, plan
+    from longtime.execution.matrix import ExecOptions
+
+    cells, moves = plan(Selection(problems=("fpu",), schemes=("scipy-rk23",), sweeps={"tol": (1e-7, 1e-13)}),
+                        ExecOptions())
+    assert sorted(c.integrator_settings["tol"] for c in cells) == [1e-13, 1e-7] and not moves

@@ -271,6 +271,22 @@ def test_recommend_answers_in_a_few_lines(store, capsys):
     assert "`longtime run -p harmonic -i gauss4 --dt 0.1 --t-final 100000" in capsys.readouterr().out
 
 
+def test_recommend_library_is_the_cheapest_setting_of_one_library(store, capsys):
+    import longtime
+
+    assert longtime.recommend("harmonic", 1e-3, 1e3, db=store, library="longtime").scheme == "rk4"
+    assert cli.main(["recommend", "-p", "harmonic", "--error", "1e-3", "--horizon", "1e3", "--db", store,
+                     "--library", "scipy"]) == R.NO_ANSWER_EXIT
+    out = capsys.readouterr().out
+    assert out.startswith("harmonic: no answer from scipy: no rows of its schemes in the store; "
+                          "`longtime matrix -p harmonic -i ")
+    assert "scipy-rk45" in out
+    assert cli.main(["recommend", "-p", "harmonic", "--error", "1e-3", "--horizon", "1e3", "--db", store,
+                     "--library", "nope"]) == 2
+    err = capsys.readouterr().err
+    assert "--library nope: unknown library; known:" in err and len(err.strip().splitlines()) == 1
+
+
 def test_recommend_from_python_is_the_same_answer(store):
     import longtime
 

@@ -29,7 +29,8 @@ def add_parser(subparsers) -> None:
     p.add_argument("--full-sweep", action="store_true",
                    help=f"run the default sweep as it is: without it, a pair whose default cells are "
                         f"estimated above {budget.CELL_BUDGET_S:g} s a run runs them over a shorter horizon, "
-                        f"and a long-time cell above {budget.LONG_CELL_BUDGET_S:g} s is left out (the "
+                        f"a library peer's settings estimated above its own budget are left out (never its "
+                        f"horizon), and a long-time cell above {budget.LONG_CELL_BUDGET_S:g} s is left out (the "
                         f"report names each move)")
     p.add_argument("--checks", type=cli_args.integer("--checks", 0), default=None, metavar="N",
                    help="re-run N of the verdicts' predictions past the rows' final times and store predicted "

@@ -17,7 +17,8 @@ def cmd_recommend(args) -> int:
     from longtime.api import recommend
     from longtime.reporting.recommend import NO_ANSWER_EXIT
 
-    answer = recommend(args.problem, args.error, args.horizon, db=args.db, run=args.run, budget=args.budget)
+    answer = recommend(args.problem, args.error, args.horizon, db=args.db, run=args.run, budget=args.budget,
+                       library=args.library)
     print(answer)
     return 0 if answer.answered else NO_ANSWER_EXIT
 
@@ -39,4 +40,7 @@ def add_parser(subparsers) -> None:
                    help="wall seconds for running the best predicted candidates to the horizon where the answer "
                         "lies beyond the stored runs: the answer is then the cheapest measured, 'measured at T' "
                         f"(default {DEFAULT_BUDGET_S:g}; 0 runs nothing: 'predicted, not run')")
+    p.add_argument("--library", default=None, metavar="LIBRARY",
+                   help="only the schemes of this library (longtime, scipy, sundials, diffrax, heyoka, rebound): "
+                        "its cheapest setting")
     p.set_defaults(func=cmd_recommend)

@@ -8,16 +8,21 @@ of the problem's default step for a scheme that chooses its own), times a cost p
 DOP853: about a tenth of a millisecond a step whatever the problem). It is rough, a factor
 of a few either way, and only decides which pairs move.
 
-What moves: the sweep of a pair whose costliest cell is estimated above its budget (CELL_BUDGET_S,
-or the scheme's shorter ``cell_budget_s``: the library peers, scipy's, SUNDIALS' and diffrax's,
-whose many rows must not lengthen the main job by more than a few percent) runs
-at the longest of the shorter horizons HORIZON_FRACTIONS (and, for a scheme with its own
-budget, SHORT_BUDGET_FRACTIONS) of its problem's sweep horizon at
+What moves: the sweep of a pair whose costliest cell is estimated above CELL_BUDGET_S runs
+at the longest of the shorter horizons HORIZON_FRACTIONS of its problem's sweep horizon at
 which every cell of the sweep fits (never shorter than its largest step); the long-time cell
 of such a pair (a problem's ``long_t_final``) is left out when it is estimated above
 LONG_CELL_BUDGET_S. Every pair keeps its sweep's rows; nothing else changes. Each moved
 cell carries a note (``Cell.note``, kept in its row's message) naming the setting it had,
 and the report lists them; ``longtime matrix --full-sweep`` runs the default sweep as it is.
+
+A scheme with its own ``cell_budget_s`` (the library peers: scipy's, SUNDIALS' and diffrax's,
+whose many rows must not lengthen the main job much) is never moved to a shorter horizon, so
+that it is compared with the other schemes over the same run: the settings of its sweep
+estimated above its budget are left out instead (an adaptive peer's steps are estimated as
+the problem's default step's, times (``PEER_TOL`` / tol) ** (1 / order), order 5 where the
+method's is variable), always keeping its cheapest setting. A kept setting that cannot reach
+the horizon within the cell's time limit is a ``timeout`` row, which says how far it got.
 Horizons and sweeps given on the command line (--t-final, --dt, ...) are never moved.
 """
 from __future__ import annotations
@@ -40,8 +45,9 @@ CELL_BUDGET_S = 5.0
 LONG_CELL_BUDGET_S = 30.0
 # the shorter horizons a moved sweep may take, as fractions of the problem's sweep horizon
 HORIZON_FRACTIONS = (0.5, 0.2, 0.1, 0.05, 0.02, 0.01)
-# the shorter ones a scheme with its own ``cell_budget_s`` may take besides
-SHORT_BUDGET_FRACTIONS = (0.005, 0.002, 0.001)
+# the tolerance at which an adaptive peer's steps are estimated as the problem's default step's (a
+# rough size: its runs of kepler and toda take from a tenth to ten times as many)
+PEER_TOL = 1e-10
 # the start of every note the budget leaves in a row's message (the report finds them by it)
 NOTE = "budget:"
 
@@ -63,6 +69,9 @@ def run_seconds(cell: Cell, dims: dict[str, int] | None = None) -> float:
     """The estimated seconds of one run of ``cell``'s integration (see the module's text)."""
     dim, steps, _ = cell_size(cell, {} if dims is None else dims)
     icls = registry.integrator_class(cell.integrator)
+    tol = cell.integrator_settings.get("tol")
+    if icls.cell_budget_s is not None and tol and "dt" not in cell.integrator_settings:
+        steps *= (PEER_TOL / float(tol)) ** (1.0 / (icls.order or 5))
     return steps * (icls.python_step_s + dim * icls.step_cost * COMPONENT_STEP_S)
 
 
@@ -71,10 +80,13 @@ def cell_budget(scheme: str) -> float:
     return registry.integrator_class(scheme).cell_budget_s or CELL_BUDGET_S
 
 
-def fit(cells: list[Cell], given_t_final: bool = False) -> tuple[list[Cell], list[Move]]:
+def fit(cells: list[Cell], given_t_final: bool = False,
+        given: frozenset[str] = frozenset()) -> tuple[list[Cell], list[Move]]:
     """The default matrix's ``cells`` (``cells.expand`` with ``default_sweep``) within the
     budget, and what it moved. ``given_t_final``: the final times were given (nothing moves
-    then but the long-time cells, which such a matrix does not have)."""
+    then but the long-time cells, which such a matrix does not have). ``given``: the
+    parameters whose values were given (a peer's settings of a parameter given are never
+    left out)."""
     dims: dict[str, int] = {}
     groups: dict[tuple, list[int]] = {}
     for i, c in enumerate(cells):
@@ -91,7 +103,11 @@ def fit(cells: list[Cell], given_t_final: bool = False) -> tuple[list[Cell], lis
         long_ = [i for i in members if i not in sweep]
         worst = max((run_seconds(cells[i], dims) for i in sweep), default=0.0)
         budget = cell_budget(scheme)
-        if not given_t_final and worst > budget and all(cells[i].t_final == main for i in sweep):
+        if registry.integrator_class(scheme).cell_budget_s is not None:  # a library peer: fewer settings
+            swept = set(registry.integrator_class(scheme).sweep)
+            if not given_t_final and not (given & swept) and worst > budget:
+                _fewer_settings(problem, scheme, sweep, cells, out, moves, dims, budget)
+        elif not given_t_final and worst > budget and all(cells[i].t_final == main for i in sweep):
             horizon = _shorter_horizon([cells[i] for i in sweep], main, dims)
             if horizon is not None:
                 setting = f"t_final {number(main)} -> {number(horizon)}"
@@ -111,8 +127,40 @@ def fit(cells: list[Cell], given_t_final: bool = False) -> tuple[list[Cell], lis
                 note = f"{NOTE} {setting} ({reason}; --full-sweep runs it)"
                 for j in sweep:  # the pair's rows say it
                     mine = out[j]
+                    if mine is None:
+                        continue
                     out[j] = dataclasses.replace(mine, note="; ".join(n for n in (mine.note, note) if n))
     return [c for c in out if c is not None], moves
+
+
+def _fewer_settings(problem: str, scheme: str, sweep: list[int], cells: list[Cell], out: list,
+                    moves: list[Move], dims: dict[str, int], budget: float) -> None:
+    """Leave out the cells of a peer's ``sweep`` estimated above ``budget`` (all but the
+    cheapest when none fits); the cells kept say which were left out."""
+    cost = {i: run_seconds(cells[i], dims) for i in sweep}
+    over = [i for i in sweep if cost[i] > budget]
+    if len(over) == len(sweep):
+        over.remove(min(sweep, key=lambda i: cost[i]))
+    if not over:
+        return
+    left = ", ".join(setting_text(cells[i]) for i in over)
+    horizon = number(cells[over[0]].t_final) if cells[over[0]].t_final is not None else "the default"
+    setting = f"{left} left out"
+    reason = (f"about {max(cost[i] for i in over):.3g} s a run at t_final {horizon}, over the "
+              f"{budget:g} s a cell of a library peer")
+    moves.append(Move(problem, scheme, setting, reason))
+    note = f"{NOTE} {setting} ({reason}; --full-sweep runs them)"
+    for i in over:
+        out[i] = None
+    for i in sweep:
+        if out[i] is not None:
+            out[i] = dataclasses.replace(out[i], note="; ".join(n for n in (out[i].note, note) if n))
+
+
+def setting_text(cell: Cell) -> str:
+    """A cell's settings as text: 'tol=1e-13'."""
+    return " ".join(f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}"
+                    for k, v in sorted(cell.integrator_settings.items())) or "the default setting"
 
 
 def _shorter_horizon(sweep: list[Cell], main: float, dims: dict[str, int]) -> float | None:
@@ -123,8 +171,7 @@ def _shorter_horizon(sweep: list[Cell], main: float, dims: dict[str, int]) -> fl
     fixed = issubclass(registry.integrator_class(sweep[0].integrator), FixedStepIntegrator)
     largest_step = max((float(c.integrator_settings.get("dt") or pcls.default_dt) for c in sweep), default=0.0)
     allowed = []
-    own = registry.integrator_class(sweep[0].integrator).cell_budget_s is not None
-    for f in HORIZON_FRACTIONS + (SHORT_BUDGET_FRACTIONS if own else ()):
+    for f in HORIZON_FRACTIONS:
         horizon = pcls.t0 + f * (main - pcls.t0)
         if fixed and horizon - pcls.t0 < largest_step * (1 + 1e-9):
             break

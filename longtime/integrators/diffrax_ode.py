@@ -33,7 +33,7 @@ from longtime.core.trajectory import Trajectory
 from longtime.integrators import peer_common
 
 EXTRA = "diffrax"  # pip install "longtime[diffrax]"
-SAMPLES = 10_001  # the samples of a row: heyoka's count (docs/metrics.md)
+SAMPLES = peer_common.SAMPLES  # the samples of a row: heyoka's count (docs/metrics.md)
 MAX_STEPS = 2**31 - 1  # diffrax's bound on the steps of one solve
 
 # compiled solves by (scheme, settings, problem identity, t0, t_final, samples):
@@ -64,9 +64,9 @@ class Diffrax(Integrator):
         "tol": Param(1e-8, "relative and absolute tolerance of diffrax's PIDController", float, positive=True,
                      role="accuracy"),
     }
-    sweep = {"tol": (1e-6, 1e-9)}
+    sweep = {"tol": peer_common.TOLERANCES}
     python_step_s = 2e-6  # a compiled step (no Python per step); its compile is outside the timing
-    cell_budget_s = 0.03  # the default matrix's estimated seconds of one run (execution.budget)
+    cell_budget_s = peer_common.CELL_BUDGET_S  # the default matrix's budget of a peer (execution.budget)
 
     def incompatibility(self, problem):
         reason = super().incompatibility(problem)
@@ -153,7 +153,7 @@ class Diffrax(Integrator):
         return peer_common.per_step_overhead(key, measure)
 
     def grid(self, problem, t_final, max_samples):
-        return np.linspace(problem.t0, t_final, min(max_samples, SAMPLES))
+        return peer_common.grid(problem.t0, t_final, max_samples)
 
     def _integrate(self, problem, t_final, max_samples):
         grid = self.grid(problem, t_final, max_samples)
@@ -165,6 +165,10 @@ class Diffrax(Integrator):
                               u=problem.u0[None, :].copy(), cpu_s=0.0, wall_s=0.0,
                               extra={"compile_s": compile_s, "peer_overhead_s": overhead})
         u0, params = np.asarray(problem.u0), np.asarray(problem.params)
+        short = problem.t0 + 1e-6 * (t_final - problem.t0)  # the first call of the compiled solve, untimed
+        peer_common.warm_once((self.name, tuple(sorted(self.settings.items())), problem.identity(), grid.size),
+                              lambda: _ready(solve(u0, params, problem.t0, short,
+                                                   np.linspace(problem.t0, short, grid.size))))
         (ys, steps, accepted, rejected, success), cpu, wall = peer_common.timed(
             lambda: _ready(solve(u0, params, problem.t0, t_final, grid)))
         ys = np.asarray(ys, dtype=float)

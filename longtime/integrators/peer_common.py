@@ -22,6 +22,13 @@ from longtime.core.jitcache import Unfreezable, cacheable, fingerprint
 from longtime.core.problem import BLOWUP_MESSAGE
 from longtime.core.trajectory import Trajectory
 
+# the default matrix's tolerances of an adaptive peer: from the table's 1e-6 to the 1e-10 at
+# the horizon that the report asks about (which the peers keep from about 1e-9 to 1e-13)
+TOLERANCES = (1e-7, 1e-10, 1e-13)
+# the default matrix's estimated seconds of one run of a peer's cell (longtime.execution.budget):
+# the settings of a sweep estimated above it are left out, never the horizon shortened
+CELL_BUDGET_S = 2.0
+SAMPLES = 10_001  # the samples of a row of a peer that saves at given times: heyoka's count
 OVERHEAD_STEPS = 200  # steps of the trivial run that measures the per-step overhead
 DEADLINE_EVERY = 256  # steps between two looks at the cell's deadline
 
@@ -78,6 +85,24 @@ def per_step_overhead(key: tuple, measure: Callable[[], tuple[float, int]]) -> f
         cpu, steps = measure()
         found = _OVERHEAD[key] = cpu / max(steps, 1)
     return found
+
+
+def grid(t0: float, t_final: float, max_samples: int) -> np.ndarray:
+    """The sample times of a peer that saves at given times (CVODE, diffrax): SAMPLES evenly
+    spaced, fewer where ``max_samples`` says so."""
+    return np.linspace(t0, t_final, min(max_samples, SAMPLES))
+
+
+_WARMED: set = set()
+
+
+def warm_once(key: tuple, run: Callable[[], Any]) -> None:
+    """``run()`` (a short untimed call of a library) the first time ``key`` is seen in this
+    process: a library's first call pays its lazy imports and the compiles of the wrappers'
+    other signatures, which the timed calls must not."""
+    if key not in _WARMED:
+        run()
+        _WARMED.add(key)
 
 
 def timed(run: Callable[[], Any]) -> tuple[Any, float, float]:

@@ -7,11 +7,14 @@ Each is called as its best users call it: the right-hand side is the problem's c
 (numba) rhs behind one compiled wrapper that returns a new array (solve_ivp's calling
 convention), and the implicit methods (Radau, BDF, LSODA) get the problem's compiled
 Jacobian the same way where the problem has one (else scipy's finite differences). The loop
-is scipy's own Python step loop (``OdeSolver.step``, what solve_ivp runs), written out so
-that the cell's deadline is checked as it goes; every accepted step is recorded (thinned to
-max_samples). CPU time therefore includes scipy's Python overhead per step and per rhs call:
-it measures what a user of scipy pays. ``peer_overhead_s`` (longtime.integrators.peer_common)
-says how much of a step that overhead is.
+is scipy's own Python step loop (``OdeSolver.step``, what solve_ivp runs when it is called
+without ``t_eval``, keeping every accepted step), written out so that the cell's deadline is
+checked as it goes; every accepted step is recorded (thinned to max_samples). Before the
+first timed run in a process, WARM_STEPS untimed steps of the same method on the same problem
+pay scipy's lazy imports and the wrappers' compiles for the arrays scipy passes them. CPU
+time therefore includes scipy's Python overhead per step and per rhs call: it measures what a
+user of scipy pays. ``peer_overhead_s`` (longtime.integrators.peer_common) says how much of a
+step that overhead is.
 """
 from __future__ import annotations
 
@@ -46,6 +49,9 @@ def jac_function(problem_jac):
     return jac
 
 
+WARM_STEPS = 20  # the untimed steps that warm a method on a problem in a process
+
+
 class ScipyIVP(Integrator):
     """A scipy ``OdeSolver`` stepped to t_final (the module's docstring)."""
 
@@ -57,10 +63,9 @@ class ScipyIVP(Integrator):
         "tol": Param(1e-8, "relative tolerance rtol", float, positive=True, role="accuracy"),
         "atol": Param(None, "absolute tolerance (default: tol)", float, positive=True),
     }
-    # the default matrix: two tolerances (the peers' rows are many: their budget is short)
-    sweep = {"tol": (1e-6, 1e-9)}
+    sweep = {"tol": peer_common.TOLERANCES}
     python_step_s = 1e-4  # solve_ivp's step in Python and its Python calls of the rhs
-    cell_budget_s = 0.03  # the default matrix's estimated seconds of one run (execution.budget)
+    cell_budget_s = peer_common.CELL_BUDGET_S  # the default matrix's budget of a peer (execution.budget)
 
     def _functions(self, problem, rhs, jac):
         """solve_ivp's fun(t, y) and jac(t, y) (or None) around compiled rhs and jac."""
@@ -101,6 +106,8 @@ class ScipyIVP(Integrator):
         fun(problem.t0, u0)  # compile outside the timing
         if jac is not None:
             jac(problem.t0, u0)
+        peer_common.warm_once((self.name, tuple(sorted(self.settings.items())), problem.identity()),
+                              lambda: _step_all(self._solver(fun, jac, problem.t0, u0.copy(), t_final), WARM_STEPS))
         overhead = self.overhead(problem)
         deadline = self._deadline
         ts, ys = [problem.t0], [u0.copy()]
@@ -129,10 +136,10 @@ class ScipyIVP(Integrator):
             extra={"peer_overhead_s": overhead})
 
 
-def _step_all(solver) -> int:
-    """Step ``solver`` to its end; the steps taken."""
+def _step_all(solver, most: int | None = None) -> int:
+    """Step ``solver`` to its end (or ``most`` steps); the steps taken."""
     steps = 0
-    while solver.status == "running":
+    while solver.status == "running" and (most is None or steps < most):
         solver.step()
         steps += 1
     return steps

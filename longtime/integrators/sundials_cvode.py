@@ -7,11 +7,17 @@ problem's Jacobian where it has one, else CVODE's difference quotients).
 Called as its best users call it: the right-hand side ``f(t, y, yp, params)`` and the
 Jacobian ``J(t, y, yp, JJ, params)`` are compiled (numba) wrappers around the problem's
 compiled functions, writing into SUNDIALS' own arrays (no allocation per call), with the
-problem's params (in a 1-tuple) as scikit-sundae's ``userdata``. CVODE steps from Python one internal step
-at a time (``step(t_final, method='onestep', tstop=t_final)``), which records every
-accepted step and checks the cell's deadline as it goes; the CPU time includes that call and
-the calls of the wrappers from C. ``peer_overhead_s`` (longtime.integrators.peer_common)
-says how much of a step that boundary is. Without the package the rows are skipped and name
+problem's params (in a 1-tuple) as scikit-sundae's ``userdata``. CVODE runs its own loop
+in one ``solve(tspan, y0)`` call with ``tspan`` at the row's sample times (``SAMPLES`` evenly
+spaced, as diffrax's; CVODE's normal mode, interpolating its steps at each); the CPU time is
+that call's, the calls of the wrappers from C included. The loop cannot be stopped from
+outside: the cell's deadline is looked at after the call (a run past it is ``timeout``,
+and a run past the hard limit is killed as any stuck cell). CVODE does not report its step
+count through ``solve``: the steps are counted once per (settings, problem, horizon) in a
+process by an untimed run of the same solver over the same horizon that saves every internal
+step (``tspan`` of two times), which also warms the library before the first timed call.
+``peer_overhead_s`` (longtime.integrators.peer_common) is a step's cost on u' = 0 stepped one
+step at a time (``method='onestep'``). Without the package the rows are skipped and name
 the extra ``longtime[sundials]``.
 """
 from __future__ import annotations
@@ -23,6 +29,7 @@ import numpy as np
 
 from longtime.core.integrator import Integrator
 from longtime.core.params import Param
+from longtime.core.trajectory import Trajectory
 from longtime.integrators import peer_common
 from longtime.integrators.peer_common import compiled
 
@@ -55,9 +62,9 @@ class CVODE(Integrator):
         "tol": Param(1e-8, "relative tolerance rtol", float, positive=True, role="accuracy"),
         "atol": Param(None, "absolute tolerance (default: tol)", float, positive=True),
     }
-    sweep = {"tol": (1e-6, 1e-9)}
-    python_step_s = 3e-5  # a Python call per step and the wrappers' calls from C
-    cell_budget_s = 0.03  # the default matrix's estimated seconds of one run (execution.budget)
+    sweep = {"tol": peer_common.TOLERANCES}
+    python_step_s = 5e-6  # CVODE's step in C and its calls of the compiled wrappers
+    cell_budget_s = peer_common.CELL_BUDGET_S  # the default matrix's budget of a peer (execution.budget)
 
     def incompatibility(self, problem):
         reason = super().incompatibility(problem)
@@ -92,29 +99,38 @@ class CVODE(Integrator):
 
     def _integrate(self, problem, t_final, max_samples):
         solver = self._solver(problem, problem.rhs, problem.jac)
-        solver.init_step(problem.t0, problem.u0.copy())
-        solver.step(t_final, method="onestep", tstop=t_final)  # compiles the wrappers outside the timing
+        grid = peer_common.grid(problem.t0, t_final, max_samples)
+        key = (self.name, tuple(sorted(self.settings.items())), problem.identity(), float(t_final))
+        if key not in _STEPS:  # untimed: the step count, and the library warmed on this problem
+            counted = solver.solve(np.array([problem.t0, t_final]), problem.u0.copy())
+            _STEPS[key] = len(counted.t) - 1
         overhead = self.overhead(problem)
         deadline = self._deadline
-        solver = self._solver(problem, problem.rhs, problem.jac)
-
-        def run():
-            solver.init_step(problem.t0, problem.u0.copy())
-            return _steps(solver, t_final, deadline)
-
-        (ts, ys, last, timed_out), cpu, wall = peer_common.timed(run)
-        t, u = np.array([problem.t0, *ts]), np.vstack([problem.u0[None, :], *ys]) if ys else problem.u0[None, :]
-        counters = {"rhs_evals": int(last.nfev), "nl_iters": 0, "rejected": 0, "fallbacks": 0,
-                    "jac_evals": int(last.njev)}
-        return peer_common.trajectory(
+        if deadline is not None and time.monotonic() > deadline:
+            return Trajectory(status="timeout", message="time limit reached before the first step", t=grid[:1],
+                              u=problem.u0[None, :].copy(), cpu_s=0.0, wall_s=0.0,
+                              extra={"peer_overhead_s": overhead})
+        result, cpu, wall = peer_common.timed(lambda: solver.solve(grid, problem.u0.copy()))
+        t, u = np.asarray(result.t, dtype=float), np.asarray(result.y, dtype=float)
+        timed_out = deadline is not None and time.monotonic() > deadline
+        counters = {"rhs_evals": int(result.nfev), "nl_iters": 0, "rejected": 0, "fallbacks": 0,
+                    "jac_evals": int(result.njev)}
+        traj = peer_common.trajectory(
             problem, f"CVODE {self.method}", t, u, cpu, wall, counters, max_samples,
-            failure=None if last.success else f"{last.message} (status {last.status})", timed_out=timed_out,
+            failure=None if result.success else f"{result.message} (status {result.status})", timed_out=timed_out,
             extra={"peer_overhead_s": overhead})
+        traj.counters["steps"] = _STEPS[key] if result.success else traj.counters["steps"]
+        traj.min_dt = traj.max_dt = None  # the samples' spacing, not CVODE's steps
+        return traj
+
+
+# CVODE's step counts by (scheme, settings, problem identity, t_final), counted once in a process
+_STEPS: dict[tuple, int] = {}
 
 
 def _steps(solver, t_final: float, deadline: float | None):
-    """Step an initialised CVODE solver to t_final one internal step at a time: (times,
-    states, the last result, whether it stopped at the deadline)."""
+    """Step an initialised CVODE solver to t_final one internal step at a time (the overhead's
+    run): (times, states, the last result, whether it stopped at the deadline)."""
     ts, ys = [], []
     while True:
         result = solver.step(t_final, method="onestep", tstop=t_final)

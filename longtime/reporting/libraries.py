@@ -1,8 +1,11 @@
 """Which library for this problem: per problem, the cheapest measured setting of each library
 (the suite's own kernels, scipy, SUNDIALS, diffrax, heyoka, REBOUND, a plugin's) that keeps a
-target error over the problem's main run. Measured rows only, at the one final time most of
-the problem's rows ran to: no extrapolation, so that the libraries are compared on equal
-terms (a library whose rows the budget moved to a shorter final time is said to be so)."""
+target error over the problem's main run, with its CPU seconds as a multiple of the cheapest
+library's. Measured rows only, at the one final time most of the problem's rows ran to: no
+extrapolation, so that the libraries are compared on equal terms. A library without an entry
+says why: not installed, does not apply, too slow (a ``timeout`` row at that final time: the
+seconds it ran and how far it got), none of its settings keeps the target (its best error),
+or only shorter runs (the budget moved its rows)."""
 from __future__ import annotations
 
 from typing import Any
@@ -25,31 +28,54 @@ def library_of(scheme: str) -> str:
         return "unknown"
 
 
-def _cell(rows: list[dict[str, Any]], t_main: float, target: float) -> str:
+def _cell(rows: list[dict[str, Any]], t_main: float, target: float) -> tuple[str, float | None]:
+    """(the library's cell, the CPU seconds of its entry or None where it has none)."""
     if not rows:
-        return "-"
+        return "not run on this problem", None
     ran = [r for r in rows if r.get("status") == "ok"]
-    if not ran:
+    slow = [r for r in rows if r.get("status") == "timeout" and r.get("t_final") == t_main]
+    if not ran and not slow:
         if all(r.get("status") == "skipped" for r in rows):
-            return "not installed" if any("pip install" in str(r.get("message")) for r in rows) else "does not apply"
-        return "no ok row"
+            if any("pip install" in str(r.get("message")) for r in rows):
+                return "not installed", None
+            return "does not apply", None
+        return "no ok row", None
     main = [r for r in ran if r.get("t_final") == t_main]
+    if not main and slow:
+        return _too_slow(slow, t_main), None
     if not main:
-        return f"only shorter runs (t_final {min(r['t_final'] for r in ran):.3g}: the budget)"
+        return f"only shorter runs (t_final {min(r['t_final'] for r in ran):.3g}: the budget)", None
     kept = [r for r in main if not r.get("solution_lost") and positive(r.get("cpu_s"))
             and r.get("l2_error") is not None and r["l2_error"] <= target]
     if not kept:
-        best = min((r["l2_error"] for r in main if r.get("l2_error") is not None), default=None)
-        return f"none keeps it (best {best:.2g})" if best is not None else "no error measured"
+        measured = [r for r in main if r.get("l2_error") is not None]
+        if not measured:
+            return "no error measured", None
+        r = min(measured, key=lambda r: r["l2_error"])
+        text = f"none keeps it (best {r['l2_error']:.2g}: {r['integrator']} {setting(r)})".replace("  ", " ")
+        return (f"{text}; {_too_slow(slow, t_main)}" if slow else text), None
     r = min(kept, key=lambda r: r["cpu_s"])
-    return f"{r['integrator']} {setting(r)}: {r['cpu_s']:.3g} s ({r['l2_error']:.1g})".replace("  ", " ")
+    text = f"{r['integrator']} {setting(r)}: {r['cpu_s']:.3g} s ({r['l2_error']:.1g})".replace("  ", " ")
+    return text, float(r["cpu_s"])
+
+
+def _too_slow(slow: list[dict[str, Any]], t_main: float) -> str:
+    """'too slow: cvode-bdf tol=1e-13 ran 3.1 s for t=250 of 500' from the timeout rows at T
+    (the one that got furthest)."""
+    r = max(slow, key=lambda r: r.get("t_reached") or 0.0)
+    spent = r.get("cpu_s") if positive(r.get("cpu_s")) else r.get("wall_s")
+    spent_text = f"{spent:.3g} s" if positive(spent) else "its time limit"
+    reached = r.get("t_reached")
+    reached_text = f"t={reached:.3g} of {t_main:.4g}" if reached is not None else f"less than {t_main:.4g}"
+    return f"too slow: {r['integrator']} {setting(r)} ran {spent_text} for {reached_text}".replace("  ", " ")
 
 
 def library_table(rows: list[dict[str, Any]], target: float = TARGET) -> tuple[list[str], list[list[str]]]:
     """(header, body): a row per problem, a column per library present in ``rows``, each cell
     the cheapest ok setting of that library whose ``l2_error`` keeps ``target`` at the
-    problem's main final time (``main_t_final``), with its CPU seconds and error, or why
-    there is none."""
+    problem's main final time (``main_t_final``), with its CPU seconds, its error and its
+    CPU as a multiple of the cheapest library's entry ("best" for that one), or why there is
+    none."""
     by_library: dict[str, set[str]] = {}
     for scheme in sorted({r["integrator"] for r in rows}):
         by_library.setdefault(library_of(scheme), set()).add(scheme)
@@ -60,6 +86,24 @@ def library_table(rows: list[dict[str, Any]], target: float = TARGET) -> tuple[l
         t_main = main_t_final(mine)
         if t_main is None:
             continue
-        cells = [_cell([r for r in mine if r["integrator"] in by_library[lib]], t_main, target) for lib in libraries]
+        found = [_cell([r for r in mine if r["integrator"] in by_library[lib]], t_main, target) for lib in libraries]
+        best = min((cpu for _, cpu in found if cpu is not None), default=None)
+        cells = [text if cpu is None else f"{text} {_ratio(cpu, best)}" for text, cpu in found]
         body.append([problem, f"{t_main:.4g}", *cells])
     return ["problem", "T", *libraries], body
+
+
+def best_of_library(rows: list[dict[str, Any]], library: str, target: float = TARGET) -> dict[str, str]:
+    """problem -> the cell of ``library`` in ``library_table`` (its cheapest setting that keeps
+    ``target``, or why it has none), for the problems ``rows`` cover."""
+    header, body = library_table(rows, target)
+    if library not in header:
+        return {}
+    column = header.index(library)
+    return {line[0]: line[column] for line in body}
+
+
+def _ratio(cpu: float, best: float | None) -> str:
+    if best is None or cpu <= best:
+        return "best"
+    return f"x{cpu / best:.3g}"

@@ -81,7 +81,7 @@ def _pick(s: Setting, horizon: float) -> str:
 def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: float,
               db: str | None = None, known: Iterable[str] | None = None,
               checks: Iterable[dict[str, Any]] = (), ensembles: Iterable[dict[str, Any]] = (),
-              growth: Growth | None = None, budget: float = 0.0) -> Recommendation:
+              growth: Growth | None = None, budget: float = 0.0, library: str | None = None) -> Recommendation:
     """The cheapest setting predicted to keep ``error`` up to ``horizon`` on ``problem``
     from ``rows`` (a store's), with the runner-up and the evidence. Bad input (an unknown
     problem, a non-positive error or horizon) raises InputError. Rows that determine no
@@ -96,7 +96,9 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
     is undetermined there, a reference that stopped short), the best predicted candidates
     run to ``horizon`` within ``budget`` wall seconds (longtime.execution.answers) and the
     cheapest that keeps ``error`` there is the answer, "measured at T"; where the budget runs
-    none, the predicted answer says "predicted, not run" and the command that runs them."""
+    none, the predicted answer says "predicted, not run" and the command that runs them.
+    ``library`` (scipy, sundials, ...; ``library_of``) limits the candidates to that library's
+    schemes."""
     known = list(known) if known is not None else None
     where = f" --db {shlex.quote(db)}" if db else ""
     if known is not None and problem not in known:
@@ -105,6 +107,11 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
         if not positive(value):
             raise InputError(f"{name} {value}: must be a finite number > 0")
     mine = [r for r in rows if r.get("problem") == problem]
+    if library is not None:
+        mine, why = _of_library(mine, library, problem)
+        if why:
+            return Recommendation(problem, error, horizon, None, Decision(error, horizon), {},
+                                  [f"{problem}: no answer from {library}: {why}"], answered=False)
 
     def unanswered(why: str, m: Measure | None = None, d: Decision | None = None) -> Recommendation:
         return Recommendation(problem, error, horizon, m, d or Decision(error, horizon), {},
@@ -276,6 +283,22 @@ def measured_growth(rows: list[dict[str, Any]], problem: str, horizon: float) ->
         return None
 
 
+def _of_library(rows: list[dict[str, Any]], library: str, problem: str) -> tuple[list[dict[str, Any]], str]:
+    """The rows of ``library``'s schemes, and why there are none ('' where there are)."""
+    from longtime.core import registry
+    from longtime.reporting.libraries import library_of
+
+    known = {library_of(s) for s in registry.integrators()}
+    if library not in known:
+        raise InputError(f"--library {library}: unknown library; known: {', '.join(sorted(known))}")
+    mine = [r for r in rows if library_of(r.get("integrator", "")) == library]
+    if mine:
+        return mine, ""
+    schemes = sorted(s for s in registry.integrators() if library_of(s) == library)
+    return [], (f"no rows of its schemes in the store; `longtime matrix -p {problem} -i {','.join(schemes)}` "
+                f"measures them")
+
+
 def _statistical_lines(problem: str, ensembles: Iterable[dict[str, Any]], where: str) -> list[str]:
     """The statistical answer past the predictability horizon: the schemes whose ensemble
     distance to heyoka's is not told apart from the floor (longtime.measure.ensemble), or the
@@ -295,10 +318,11 @@ def _statistical_lines(problem: str, ensembles: Iterable[dict[str, Any]], where:
 
 
 def stored_recommendation(problem: str, error: float, horizon: float, db: str | None, run: str | None,
-                          budget: float = 0.0):
+                          budget: float = 0.0, library: str | None = None):
     """The Recommendation from the store ``db`` (its rows of ``run``: an id, 'all', or by
     default every run), and the checks stored beside them; ``budget`` wall seconds for the
-    runs that measure it at the horizon (``recommend``)."""
+    runs that measure it at the horizon (``recommend``); ``library``: of that library's
+    schemes only."""
     from pathlib import Path
 
     from longtime.core import registry
@@ -320,4 +344,5 @@ def stored_recommendation(problem: str, error: float, horizon: float, db: str | 
         rows, checks, ensembles = store.rows(int(run)), store.checks(int(run)), store.ensembles(int(run))
     return recommend(rows, problem, error, horizon, db=str(store.path) if db else None,
                      known=registry.problems(), checks=checks, ensembles=ensembles,
-                     growth=measured_growth(rows, problem, horizon), budget=budget)
+                     growth=measured_growth(rows, problem, horizon), budget=budget,
+                     library=library)
