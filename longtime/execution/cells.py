@@ -15,7 +15,7 @@ import traceback
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping
 
-from longtime.core import contract, phases, registry, roles
+from longtime.core import contract, phases, registry, roles, rowschema
 from longtime.core.cache import no_space
 from longtime.core.integrator import Integrator
 from longtime.core.outputs import to_stderr
@@ -37,7 +37,7 @@ DEFAULT_TIME_LIMIT = 600.0
 # a cell beyond these is refused up front, unless --allow-large
 MAX_STEPS = 10**9
 # beyond this many steps a run's 64-bit step counters overflow: refused even with --allow-large
-MAX_COUNTED_STEPS = 2**62
+MAX_COUNTED_STEPS = rowschema.MAX_COUNT
 MAX_SAMPLE_BYTES = 4 * 2**30
 
 
@@ -314,7 +314,49 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
     Past ``time_limit`` seconds (None: no limit) the integration stops where it got: a ``timeout`` row.
     ``keep``, a dict,
     receives what the row was measured from (``problem``, ``integrator``, ``trajectory``,
-    ``reference``: the trusted reference states, ``trust``), for ``longtime.solve``."""
+    ``reference``: the trusted reference states, ``trust``), for ``longtime.solve``.
+    A row that does not hold against the declared row (a scheme's undeclared field, a value
+    of the wrong type, a count out of range) is the cell's ``failed`` row naming each wrong
+    field (``declared``): it costs its cell, never the run."""
+    return declared(cell, _measured_row(cell, max_samples, reference, timing, time_limit, keep, reference_budget_s))
+
+
+def declared(cell: Cell, row: dict[str, Any]) -> dict[str, Any]:
+    """``row`` where it holds against the declared row (longtime.core.rowschema.validate_row)
+    and its counts are ones the run could take (``implausible``); else the cell's ``failed``
+    row (its names, parameters and settings) whose message names each wrong field."""
+    wrong = rowschema.validate_row(row) or implausible(cell, row)
+    if not wrong:
+        return row
+    failed = base_row(cell)
+    if isinstance(row.get("parameters"), str):
+        failed["parameters"] = row["parameters"]
+    refused = f"the scheme's row is refused: {'; '.join(wrong)}"
+    failed.update(status=rowschema.FAILED, message="; ".join(m for m in (refused, cell.note) if m))
+    return failed
+
+
+def implausible(cell: Cell, row: Mapping[str, Any]) -> list[str]:
+    """The counts of a row that its run cannot have taken (none: they can): a run that reached
+    past t0 in no step, a fixed-step run of more steps than its span holds at its step."""
+    if row.get("status") in (rowschema.SKIPPED, rowschema.FAILED) or not isinstance(row.get("steps"), int):
+        return []
+    pcls = registry.problem_class(cell.problem)
+    steps, reached = row["steps"], row.get("t_reached")
+    if steps == 0 and isinstance(reached, float) and reached > pcls.t0:
+        return [f"steps: 0 steps reached t = {reached:g} past t0 = {pcls.t0:g}"]
+    dt = row.get("dt")
+    if issubclass(registry.integrator_class(cell.integrator), FixedStepIntegrator) and isinstance(dt, float) \
+            and dt > 0 and isinstance(reached, float):
+        most = math.ceil((reached - pcls.t0) / dt * (1 + 1e-9)) + 1
+        if steps > most:
+            return [f"steps: {steps} steps of dt = {dt:g} over the span {reached - pcls.t0:g} (at most {most})"]
+    return []
+
+
+def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing | None, time_limit: float | None,
+                  keep: dict[str, Any] | None, reference_budget_s: float | None) -> dict[str, Any]:
+    """run_cell's row as measured (before it is checked against the declared row)."""
     row = base_row(cell)
     deadline = time.monotonic() + time_limit if time_limit else None
     if cell.skip_reason:
