@@ -21,7 +21,7 @@ import numpy as np
 
 from longtime.core import registry
 from longtime.core.integrator import Integrator
-from longtime.core.params import InputError, check_number, check_values
+from longtime.core.params import MAX_SECONDS, InputError, check_number, check_values
 from longtime.core.problem import Problem
 from longtime.core.roles import ROW_PARAMETERS
 from longtime.core.timing import Timing
@@ -47,8 +47,8 @@ def check_options(*, max_samples: Any, repeats: Any, min_time: Any, time_limit: 
     returns the memory limit in bytes (None: none)."""
     check_number("max_samples", max_samples, integer=True, minimum=2)
     check_number("repeats", repeats, integer=True, minimum=1)
-    check_number("min_time", min_time, minimum=0)
-    check_number("time_limit", time_limit, minimum=0, none=True)  # 0 or None: no limit
+    check_number("min_time", min_time, minimum=0, maximum=MAX_SECONDS)
+    check_number("time_limit", time_limit, minimum=0, maximum=MAX_SECONDS, none=True)  # 0 or None: no limit
     check_number("jobs", jobs, integer=True, minimum=0)
     for name, value in (("allow_large", allow_large), ("default_sweep", default_sweep)):
         if not isinstance(value, (bool, np.bool_)):
@@ -454,10 +454,14 @@ def recommend(problem: Any, error: float, horizon: float, rows: Any = None, *, d
     From ``rows`` (a DataFrame from ``sweep``, or row dicts) where given, else from the store
     ``db`` (default: $LONGTIME_DB or longtime.sqlite), its run ``run`` (default: every run).
     What cannot be decided raises InputError naming the run that would decide it."""
+    from longtime.execution.cells import check_span
     from longtime.reporting.recommend import recommend as decide
     from longtime.reporting.recommend import stored_recommendation
 
     name, _ = resolve(problem, "problem")
+    check_number("error", error, positive=True)
+    check_number("horizon", horizon, positive=True)
+    check_span(name, horizon, f"horizon={horizon!r}")
     if rows is not None:
         return decide(records(rows), name, error, horizon, known=registry.problems())
     return stored_recommendation(name, error, horizon, db, None if run is None else str(run))

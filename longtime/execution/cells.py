@@ -10,6 +10,7 @@ import itertools
 import json
 import math
 import numbers
+import os
 import time
 import traceback
 from dataclasses import dataclass, field
@@ -260,6 +261,20 @@ def check_step(problem: str, scheme: str, settings: Mapping[str, Any], t_final: 
                          f"a fixed step must be <= the span (pass a smaller --dt or a larger --t-final)")
 
 
+def check_span(problem: str, t_final: float, argument: str) -> None:
+    """A final time a run can reach: one whose span at the problem's default step is more
+    steps than a run can count (MAX_COUNTED_STEPS, which ``check_size`` refuses even with
+    --allow-large) is an InputError naming ``argument`` (how the front end spells it)."""
+    pcls = registry.problem_class(problem)
+    try:
+        steps = (float(t_final) - pcls.t0) / pcls.default_dt
+    except OverflowError:
+        steps = math.inf
+    if not steps <= MAX_COUNTED_STEPS:
+        raise InputError(f"{argument}: about {steps:.3g} steps of {problem}'s step dt={pcls.default_dt:g}, more than "
+                         f"a run can count ({MAX_COUNTED_STEPS:.3g}): no run reaches it")
+
+
 def base_row(cell: Cell) -> dict[str, Any]:
     s = cell.integrator_settings
     row = {"problem": cell.problem, "integrator": cell.integrator, "status": "", "message": "",
@@ -429,6 +444,13 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
             raise disk_full(exc, f"running {cell.problem} x {cell.integrator}") from None
         row["status"] = "failed"
         row["message"] = "".join(traceback.format_exception_only(type(exc), exc)).strip()
+    except OverflowError as exc:  # Python's float arithmetic past double precision (omega=1e308, squared)
+        row["status"] = "failed"
+        where = traceback.extract_tb(exc.__traceback__)[-1]
+        settings = json.dumps({**cell.problem_settings, **cell.integrator_settings}, sort_keys=True, default=str)
+        row["message"] = (f"OverflowError: {exc} in {where.name} ({os.path.basename(where.filename)}:{where.lineno}): "
+                          f"the settings {settings} of {cell.problem} x {cell.integrator} pass the range of "
+                          f"double precision there")
     except (Exception, SystemExit) as exc:  # a failing cell never takes the matrix down
         # (a plugin's sys.exit too; os.abort or a segfault need a process per cell)
         row["status"] = "failed"
