@@ -57,6 +57,11 @@ def test_values_are_checked_and_the_store_reads_past_a_row_of_another_status(tmp
         "status: 'sucess' is not one of ok, diverged, failed, timeout, skipped"]
     assert rowschema.validate_row({**ROW, "steps": 10**30})[0].startswith("steps: 1000")
     assert rowschema.validate_row([1, 2]) == ["a row must be a mapping of fields, not list"]
+    deep: list = []
+    for _ in range(100_000):  # deeper than repr goes: still one line naming the field
+        deep = [deep]
+    assert rowschema.validate_row({**ROW, "settings": deep}) == [
+        "settings: list a list nested too deep to show, not a text"]
     # the store's reader derives its check from the same fields: a stored row of no status it
     # knows is skipped with the reason, the others are read
     store = Store(tmp_path / "s.sqlite")
