@@ -22,7 +22,7 @@ import numpy as np
 
 from longtime.core import registry
 from longtime.core.integrator import Integrator
-from longtime.core.params import InputError, check_number, check_values
+from longtime.core.params import MAX_SECONDS, InputError, check_number, check_values
 from longtime.core.problem import Problem
 from longtime.core.roles import ROW_PARAMETERS
 from longtime.core.timing import Timing
@@ -49,8 +49,8 @@ def check_options(*, max_samples: Any, repeats: Any, min_time: Any, time_limit: 
     returns the memory limit in bytes (None: none)."""
     check_number("max_samples", max_samples, integer=True, minimum=2)
     check_number("repeats", repeats, integer=True, minimum=1)
-    check_number("min_time", min_time, minimum=0)
-    check_number("time_limit", time_limit, minimum=0, none=True)  # 0 or None: no limit
+    check_number("min_time", min_time, minimum=0, maximum=MAX_SECONDS)
+    check_number("time_limit", time_limit, minimum=0, maximum=MAX_SECONDS, none=True)  # 0 or None: no limit
     check_number("jobs", jobs, integer=True, minimum=0)
     for name, value in (("allow_large", allow_large), ("default_sweep", default_sweep)):
         if not isinstance(value, (bool, np.bool_)):
@@ -460,12 +460,15 @@ def recommend(problem: Any, error: float, horizon: float, rows: Any = None, *, d
     ``budget``: the wall seconds (>= 0; 0 runs nothing) for running the best predicted
     candidates to ``horizon`` where the answer lies beyond the stored runs (``basis``
     "measured at T", ``measured_error``, ``measured_cpu_s``), as ``longtime recommend --budget``."""
+    from longtime.execution.cells import check_span
     from longtime.reporting.recommend import measured_growth, stored_recommendation
     from longtime.reporting.recommend import recommend as decide
 
     name, _ = resolve(problem, "problem")
-    if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not 0 <= budget < math.inf:
-        raise InputError(f"budget={budget!r}: expected a finite number of seconds >= 0")
+    check_number("error", error, positive=True)
+    check_number("horizon", horizon, positive=True)
+    check_span(name, horizon, f"horizon={horizon!r}")
+    check_number("budget", budget, minimum=0, maximum=MAX_SECONDS)
     if rows is not None:
         mine = records(rows)
         return decide(mine, name, error, horizon, known=registry.problems(),

@@ -2,6 +2,8 @@
 options whole, and the timing of a cell arriving in an isolated child as it was sent."""
 import json
 import os
+import subprocess
+import sys
 
 import pytest
 
@@ -10,7 +12,7 @@ from longtime.core.integrator import Timing
 from longtime.execution import child as children
 from longtime.execution import tempdirs
 from longtime.execution.cells import Cell
-from longtime.execution.child import JOB_FILE, JobVersionError, RunSpec
+from longtime.execution.child import JOB_FILE, RESULT_FILE, Child, JobVersionError, RunSpec
 from longtime.execution.isolation import run_cell_isolated
 from longtime.integrators.splitting import Verlet
 
@@ -70,3 +72,17 @@ def test_timing_per_process_arrives_in_an_isolated_child_whole(tmp_path, monkeyp
     assert received["pid"] != os.getpid()  # read in the child
     assert Timing.from_dict(received["timing"]) == timing
     assert Timing.from_dict(received["timing"]).least_runs == 1
+
+
+def test_a_result_that_cannot_be_read_is_a_named_failure(tmp_path):
+    """A child whose result file is a folder (or not JSON) gave no result: its failure says
+    why, and the parent goes on."""
+    (tmp_path / RESULT_FILE).mkdir()
+    child = Child(tmp_path, subprocess.Popen([sys.executable, "-c", "pass"]))
+    child.wait(60)
+    assert child.result() is None
+    assert child.failure("the timing process").startswith(
+        f"the timing process exited with code 0 without a result; its {RESULT_FILE} cannot be read (IsADirectoryError")
+    (tmp_path / RESULT_FILE).rmdir()
+    (tmp_path / RESULT_FILE).write_text("{half")
+    assert child.result() is None and "(JSONDecodeError" in child.failure("the timing process")

@@ -39,3 +39,17 @@ def test_scheduler_flag_selects_the_dask_executor():
     assert args.executor == "dask" and args.scheduler == "tcp://127.0.0.1:8786"
     args = build_parser().parse_args(["matrix", "--executor", "process", "--scheduler", "tcp://h:1"])
     assert args.executor == "process"
+
+
+def test_a_local_cluster_leaves_no_scratch_space(tmp_path, monkeypatch):
+    """The local cluster's scratch space (dask-scratch-space, its lock files) goes with it."""
+    import tempfile
+
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    monkeypatch.setenv("TMPDIR", str(tmp))
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp))
+    rows = run_matrix(expand(["harmonic"], ["rk4"], sweeps={"dt": [0.1]}, t_final=1.0), None, None, "dask",
+                      ExecOptions(jobs=1))
+    assert [r["status"] for r in rows] == ["ok"]
+    assert list(tmp.iterdir()) == []

@@ -89,6 +89,25 @@ def test_read_only_folders_are_refused_up_front(store_with_run, tmp_path):
         locked.chmod(0o755)
 
 
+def test_a_matrix_whose_page_cannot_be_written_makes_no_store(tmp_path):
+    prefix = _unprivileged()
+    if prefix is None:
+        pytest.skip("running as root without user namespaces: file permissions cannot be enforced")
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o555)
+    new = tmp_path / "new.sqlite"
+    try:
+        res = subprocess.run([*prefix, sys.executable, "-m", "longtime.commands.cli", "matrix", "-p", "harmonic",
+                              "-i", "verlet", "--dt", "0.1", "--t-final", "1", "--db", str(new),
+                              "--html", str(locked / "page"), "--no-progress"], capture_output=True, text=True,
+                             timeout=300)
+    finally:
+        locked.chmod(0o755)
+    assert res.returncode == 2 and "--html" in res.stderr and "cannot write there" in res.stderr, res.stderr
+    assert not new.exists()  # refused before the store is made
+
+
 INTERRUPT_IMPORT = """
 import sys
 

@@ -1,6 +1,8 @@
 """The declared row: one registry of fields (longtime.core.rowschema) that the store checks
 every row it adds against, and that docs/metrics.md's list of row fields is."""
+import json
 import re
+import sqlite3
 from pathlib import Path
 
 import pytest
@@ -30,6 +32,11 @@ def _stored(store):
     ({"H.growth_ci": [0.9, "1.1"]}, "H.growth_ci"),
     ({"order": 4.5}, "order"),  # an order is an integer
     ({"status": ""}, "status"),  # a required field empty
+    ({"status": "sucess"}, "status"),  # a text outside its field's values
+    ({"H.growth_class": "fast"}, "H.growth_class"),
+    ({"steps": -5}, "steps"),  # a count outside [0, MAX_COUNT]
+    ({"steps": 2**70}, "steps"),
+    ({"cpu_s": -1e-3}, "cpu_s"),  # a time taken is never negative
     ({"_calibrations": [{"t": 1.0, "cpu_s": 1e-3}]}, "_calibrations"),  # the run's, never stored on a row
 ])
 def test_store_refuses_a_row_with_an_undeclared_field_or_a_wrong_type(tmp_path, bad, field):
@@ -43,6 +50,27 @@ def test_store_refuses_a_row_with_an_undeclared_field_or_a_wrong_type(tmp_path, 
     with pytest.raises(StoreError, match=re.escape(field)):
         store.update_row(run_id, CELL, {**ROW, **bad})
     assert _stored(store) == [ROW]  # the stored row is kept as it was
+
+
+def test_values_are_checked_and_the_store_reads_past_a_row_of_another_status(tmp_path, capsys):
+    assert rowschema.problems({**ROW, "status": "sucess", "H.growth_class": "linear"}) == [
+        "status: 'sucess' is not one of ok, diverged, failed, timeout, skipped"]
+    assert rowschema.validate_row({**ROW, "steps": 10**30})[0].startswith("steps: 1000")
+    assert rowschema.validate_row([1, 2]) == ["a row must be a mapping of fields, not list"]
+    deep: list = []
+    for _ in range(100_000):  # deeper than repr goes: still one line naming the field
+        deep = [deep]
+    assert rowschema.validate_row({**ROW, "settings": deep}) == [
+        "settings: list a list nested too deep to show, not a text"]
+    # the store's reader derives its check from the same fields: a stored row of no status it
+    # knows is skipped with the reason, the others are read
+    store = Store(tmp_path / "s.sqlite")
+    run_id = store.begin_run("test", [CELL])
+    store.add_row(run_id, CELL, ROW)
+    with sqlite3.connect(store.path) as con:
+        con.execute("UPDATE rows SET row = ?", (json.dumps({**ROW, "status": "sucess"}),))
+    assert store.rows() == []
+    assert "skipped: status: 'sucess' is not one of ok" in capsys.readouterr().err
 
 
 def test_a_row_without_a_required_field_is_refused():

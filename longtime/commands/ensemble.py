@@ -6,9 +6,9 @@ from __future__ import annotations
 from typing import Any
 
 from longtime.core import cli_args, jsontext
-from longtime.core.params import InputError
+from longtime.core.params import InputError, check_time_span
 from longtime.core.progress import Progress
-from longtime.execution.cells import DEFAULT_TIME_LIMIT, MAX_STEPS
+from longtime.execution.cells import DEFAULT_TIME_LIMIT, MAX_STEPS, check_step
 from longtime.execution.limits import PastLimit, call_limited, default_memory_limit
 from longtime.measure import ensemble
 
@@ -41,6 +41,9 @@ def study(problems: list[str], schemes: list[str], dt: float | None = None, t_fi
         pcls = registry.problem_class(p)
         tf = pcls.default_t_final if t_final is None else t_final
         step = dt if dt is not None else pcls.default_dt
+        check_time_span(pcls.t0, tf, f"problem {p}")
+        for s in schemes:  # a fixed step larger than the span, as run refuses it
+            check_step(p, s, {} if dt is None else {"dt": dt}, tf)
         if step and not (tf - pcls.t0) / step <= MAX_STEPS:
             raise InputError(f"-p {p}: t_final {tf:g} with the step {step:g} is about {(tf - pcls.t0) / step:.3g} "
                              f"steps a member, over the limit of {MAX_STEPS:.0e}")

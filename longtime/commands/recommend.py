@@ -15,8 +15,10 @@ from longtime.execution.store import default_path
 
 def cmd_recommend(args) -> int:
     from longtime.api import recommend
+    from longtime.execution.cells import check_span
     from longtime.reporting.recommend import NO_ANSWER_EXIT
 
+    check_span(args.problem, args.horizon, f"--horizon {args.horizon:g}")  # a horizon run accepts
     answer = recommend(args.problem, args.error, args.horizon, db=args.db, run=args.run, budget=args.budget,
                        library=args.library)
     print(answer)

@@ -11,7 +11,7 @@ import contextlib
 import math
 from typing import Callable, Iterator
 
-from longtime.core.params import InputError
+from longtime.core.params import MAX_SECONDS, InputError
 
 
 def names(text: str) -> list[str]:
@@ -169,17 +169,17 @@ def settings(pairs: list[tuple[str, str]]) -> tuple[dict[str, str], dict[str, li
 
 
 def seconds(flag: str, allow_zero: bool = False) -> Callable[[str], float]:
-    """A finite number of seconds, > 0 (or >= 0 with ``allow_zero``)."""
+    """A number of seconds, > 0 (or >= 0 with ``allow_zero``), up to MAX_SECONDS."""
 
     def parse(text: str) -> float:
         try:
             value = float(text)
         except ValueError:
             value = float("nan")
-        ok = (0 <= value if allow_zero else 0 < value) and value < float("inf")
+        ok = (0 <= value if allow_zero else 0 < value) and value <= MAX_SECONDS
         if not ok:
-            raise argparse.ArgumentTypeError(f"{flag} takes a finite number of seconds "
-                                             f"{'>= 0' if allow_zero else '> 0'}, got {text!r}")
+            raise argparse.ArgumentTypeError(f"{flag} takes a number of seconds {'>= 0' if allow_zero else '> 0'} "
+                                             f"and <= {MAX_SECONDS:g}, got {text!r}")
         return value
 
     return parse

@@ -153,6 +153,11 @@ def check_choices(argument: str, values, allowed) -> None:
     raise InputError(f"unknown {argument}{plural} {', '.join(parts)}; valid {argument}s: {', '.join(allowed)}")
 
 
+# the longest time limit (seconds) taken: about 31 years, where a clock's deadline and the
+# waits on it still count (1e308 s overflows them)
+MAX_SECONDS = 1e9
+
+
 def check_time_span(t0: float, t_final: float, owner: str = "") -> None:
     if t_final is None:
         raise InputError(f"t_final=None is not valid: {owner or 'the problem'} has no default_t_final; "
@@ -177,22 +182,26 @@ def _is_real(value: Any) -> bool:
 
 
 def check_number(name: str, value: Any, *, positive: bool = False, minimum: float | None = None,
-                 integer: bool = False, none: bool = False) -> Any:
+                 maximum: float | None = None, integer: bool = False, none: bool = False) -> Any:
     """``value`` as a finite real number (an integer with ``integer``), > 0 with ``positive``,
-    >= ``minimum``; None passes with ``none``. A bool or a string is not a number here: the
-    API takes Python values, the command line converts its text before it gets here."""
+    >= ``minimum``, <= ``maximum``; None passes with ``none``. A bool or a string is not a
+    number here: the API takes Python values, the command line converts its text before it
+    gets here (the error names a value of another type by its type)."""
     if value is None and none:
         return None
     allowed = "an integer" if integer else "a finite number"
     allowed += " > 0" if positive else (f" >= {minimum:g}" if minimum is not None else "")
+    allowed += f" and <= {maximum:g}" if maximum is not None else ""
     allowed += " or None" if none else ""
     ok = _is_real(value) and math.isfinite(float(value))
     if ok and integer:
         ok = float(value).is_integer() and not isinstance(value, (float, np.floating))
     if ok:
-        ok = not ((positive and not value > 0) or (minimum is not None and value < minimum))
+        ok = not ((positive and not value > 0) or (minimum is not None and value < minimum)
+                  or (maximum is not None and value > maximum))
     if not ok:
-        raise InputError(f"{name}={value!r} is not valid: expected {allowed}")
+        got = "" if _is_real(value) or value is None else f" (got a {type(value).__name__})"
+        raise InputError(f"{name}={value!r} is not valid: expected {allowed}{got}")
     return int(value) if integer else value
 
 

@@ -11,12 +11,23 @@ own counters are its ``extra_counters``.
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Mapping
 
 from longtime.core.fmt import missing, number
 from longtime.core.params import ROLES
 from longtime.core.roles import ROW_PARAMETERS
+
+# the statuses of a row: what became of its cell
+OK, DIVERGED, FAILED, TIMEOUT, SKIPPED = "ok", "diverged", "failed", "timeout", "skipped"
+STATUSES = (OK, DIVERGED, FAILED, TIMEOUT, SKIPPED)
+# the growth classes of an error (longtime.measure.growth): the power law's classes by
+# increasing exponent, then the verdicts that are not a power law
+POWER_CLASSES = ("bounded", "sqrt", "linear", "quadratic", "faster")
+GROWTH_CLASSES = (*POWER_CLASSES, "saturated", "diverged", "undetermined")
+# the largest count a row holds: a 64-bit counter of steps (or evaluations) stays below it
+MAX_COUNT = 2**62
 
 
 def _text(value: Any) -> str:
@@ -74,22 +85,45 @@ class Field:
     unit: str
     meaning: str
     optional: bool = True
+    values: tuple[str, ...] = ()  # the values a text may take (empty: any)
+    bounds: tuple[float, float] | None = None  # the range [low, high] a number must lie in
 
     def __post_init__(self) -> None:
         if self.kind not in TYPES:
             raise ValueError(f"row field {self.name}: type {self.kind!r} is not one of {', '.join(TYPES)}")
 
     def holds(self, value: Any) -> bool:
-        """Whether ``value`` is of this field's type (null where the field is optional)."""
+        """Whether ``value`` is of this field's type and values (null where the field is optional)."""
+        return self.wrong(value) is None
+
+    def wrong(self, value: Any) -> str | None:
+        """Why ``value`` cannot be this field's (None: it can): its type, a text outside the
+        field's values, a number outside its bounds."""
         if value is None:
-            return self.optional
-        return TYPES[self.kind][1](value)
+            return None if self.optional else f"required ({TYPES[self.kind][0]}), got None"
+        if not TYPES[self.kind][1](value):
+            return f"{type(value).__name__} {_short(value)}, not {TYPES[self.kind][0]}"
+        if self.values and value not in self.values:
+            return f"{_short(value)} is not one of {', '.join(self.values)}"
+        if self.bounds is not None and (value < self.bounds[0] or value > self.bounds[1]):
+            return f"{_short(value)} is outside [{number(self.bounds[0])}, {number(self.bounds[1])}]"
+        return None
 
     def format(self, value: Any) -> str:
         """``value`` as text: a dash for null or a non-finite number."""
         if missing(value):
             return "-"
         return TYPES[self.kind][2](value)
+
+
+def _count(name: str, unit: str, meaning: str) -> Field:
+    """A field that counts (steps, evaluations, bytes): an integer in [0, MAX_COUNT]."""
+    return Field(name, "int", unit, meaning, bounds=(0, MAX_COUNT))
+
+
+def _seconds(name: str, meaning: str) -> Field:
+    """A time the run took: a number of seconds, never negative."""
+    return Field(name, "float", "s", meaning, bounds=(0.0, math.inf))
 
 
 def _parameter_fields() -> list[Field]:
@@ -103,7 +137,7 @@ def _parameter_fields() -> list[Field]:
 FIELDS: tuple[Field, ...] = (
     Field("problem", "str", "", "the problem's name", optional=False),
     Field("integrator", "str", "", "the scheme's name", optional=False),
-    Field("status", "str", "", "ok, diverged, failed, timeout or skipped", optional=False),
+    Field("status", "str", "", "what became of the cell", optional=False, values=STATUSES),
     Field("message", "str", "", "what the row must say: a failure, a skip's reason, the reference's limits"),
     *_parameter_fields(),
     Field("t_final", "float", "time", "the final time asked for"),
@@ -112,29 +146,29 @@ FIELDS: tuple[Field, ...] = (
     Field("run_id", "int", "", "the run that stored the row (added when the store reads it)"),
     # the run
     Field("t_reached", "float", "time", "the time the run reached (where a diverged run stopped)"),
-    Field("samples", "int", "", "the number of samples of the state measured"),
-    Field("steps", "int", "", "steps taken"),
-    Field("rhs_evals", "int", "", "right-hand side evaluations"),
-    Field("nl_iters", "int", "", "nonlinear (fixed-point or Newton) iterations"),
-    Field("rejected", "int", "", "rejected steps (adaptive schemes)"),
-    Field("fallbacks", "int", "", "steps that fell back to a safer method"),
-    Field("jac_evals", "int", "", "Jacobian evaluations"),
-    Field("residual_evals", "int", "", "residual evaluations (bpl)"),
-    Field("pade_degenerate", "int", "", "steps whose Pade approximant was degenerate (bpl)"),
-    Field("series_evals", "int", "", "Taylor series evaluations (taylor)"),
+    _count("samples", "", "the number of samples of the state measured"),
+    _count("steps", "", "steps taken"),
+    _count("rhs_evals", "", "right-hand side evaluations"),
+    _count("nl_iters", "", "nonlinear (fixed-point or Newton) iterations"),
+    _count("rejected", "", "rejected steps (adaptive schemes)"),
+    _count("fallbacks", "", "steps that fell back to a safer method"),
+    _count("jac_evals", "", "Jacobian evaluations"),
+    _count("residual_evals", "", "residual evaluations (bpl)"),
+    _count("pade_degenerate", "", "steps whose Pade approximant was degenerate (bpl)"),
+    _count("series_evals", "", "Taylor series evaluations (taylor)"),
     Field("fallback_fraction", "float", "1", "fallbacks / steps (bpl)"),
     Field("mean_dt", "float", "time", "(t_reached - t0) / steps"),
     Field("min_dt", "float", "time", "the smallest step taken (adaptive schemes)"),
     Field("max_dt", "float", "time", "the largest step taken (adaptive schemes)"),
-    Field("working_set_bytes", "int", "bytes", "the bytes the run touches: samples, state and scratch"),
+    _count("working_set_bytes", "bytes", "the bytes the run touches: samples, state and scratch"),
     # cost
-    Field("cpu_s", "float", "s", "process time of the integration: the minimum over every timed run"),
-    Field("wall_s", "float", "s", "wall time of the integration: the minimum over every timed run"),
-    Field("repeats", "int", "", "the number of timed runs"),
-    Field("cpu_s_median", "float", "s", "the median process time of the timed runs"),
-    Field("cpu_s_max", "float", "s", "the largest process time of the timed runs"),
-    Field("wall_s_median", "float", "s", "the median wall time of the timed runs"),
-    Field("wall_s_max", "float", "s", "the largest wall time of the timed runs"),
+    _seconds("cpu_s", "process time of the integration: the minimum over every timed run"),
+    _seconds("wall_s", "wall time of the integration: the minimum over every timed run"),
+    _count("repeats", "", "the number of timed runs"),
+    _seconds("cpu_s_median", "the median process time of the timed runs"),
+    _seconds("cpu_s_max", "the largest process time of the timed runs"),
+    _seconds("wall_s_median", "the median wall time of the timed runs"),
+    _seconds("wall_s_max", "the largest wall time of the timed runs"),
     Field("cpu_s_samples", "floats", "s", "the process time of every timed run, in order"),
     Field("samples_digest", "str", "", "a digest of the run's samples, which every timed run must reproduce"),
     Field("cpu_s_processes", "floats", "s", "each timing process's minimum (the row's own process first)"),
@@ -146,7 +180,7 @@ FIELDS: tuple[Field, ...] = (
     Field("calibration_t", "float", "s", "the time (seconds since the epoch) of that calibration"),
     Field("peer_overhead_s", "float", "s", "a library peer's CPU time per step on the trivial rhs"),
     Field("compile_s", "float", "s", "the CPU time JAX took to compile or load the solve (diffrax)"),
-    Field("instructions", "int", "", "instructions of the integration under Callgrind"),
+    _count("instructions", "", "instructions of the integration under Callgrind"),
     Field("instructions_per_step", "float", "", "instructions / steps"),
     Field("instructions_tool", "str", "", "Valgrind's version and the count's target"),
     Field("instructions_target", "str", "", "the CPU the counted kernels were compiled for"),
@@ -157,7 +191,7 @@ FIELDS: tuple[Field, ...] = (
     Field("final_error", "float", "1", "the solution error at the last sample, relative to the motion"),
     Field("error_horizon", "float", "time", "the last sample time the solution errors cover"),
     Field("error_curve", "mapping", "", "the solution error's upper envelope (t, error) and l2 at 80 times"),
-    Field("drifting_components", "int", "", "the reference's components that drift"),
+    _count("drifting_components", "", "the reference's components that drift"),
     Field("solution_lost", "bool", "", "l2_error or final_error is 0.5 or more"),
     Field("drift_curve", "mapping", "", "the first invariant's drift curve (invariant, t, error)"),
     Field("drift_curves", "mappings", "", "every invariant's drift curve, in the problem's order"),
@@ -179,9 +213,9 @@ FIELDS: tuple[Field, ...] = (
     Field("match_parameter", "str", "", "the parameter searched"),
     Field("match_value", "float", "", "the value found"),
     Field("match_note", "str", "", "why the value found misses the target, where it does"),
-    Field("match_evals", "int", "", "the settings the search ran"),
+    _count("match_evals", "", "the settings the search ran"),
     Field("match_mean_steps", "mapping", "time", "each value tried -> the mean step it took"),
-    Field("cpu_runs", "int", "", "the runs the matched setting's CPU time is the best of"),
+    _count("cpu_runs", "", "the runs the matched setting's CPU time is the best of"),
 )
 
 # the families: a field NAME.SUFFIX (diag.NAME.SUFFIX) for each NAME of the kind
@@ -195,7 +229,8 @@ FAMILIES: tuple[Field, ...] = (
     Field("NAME.t_50pct", "float", "time", f"the first time {_INVARIANT} passes 50 %"),
     Field("NAME.growth", "float", "1", f"alpha, the power law's exponent fitted to {_GROWTH}"),
     Field("NAME.growth_ci", "floats", "1", "alpha's interval [low, high]"),
-    Field("NAME.growth_class", "str", "", f"the growth class of {_GROWTH}: bounded, sqrt, linear, ..."),
+    Field("NAME.growth_class", "str", "", f"the growth class of {_GROWTH}: bounded, sqrt, linear, ...",
+          values=GROWTH_CLASSES),
     Field("NAME.growth_reason", "str", "", "what the growth class rests on, or why it is undetermined"),
     Field("NAME.growth_windows", "floats", "1", f"the local slopes of {_GROWTH}, earliest first"),
     Field("NAME.saturated_t", "float", "time", f"the first time {_GROWTH} reached saturation"),
@@ -216,7 +251,7 @@ def field(name: str, counters: Iterable[str] = ()) -> Field | None:
     if name in _BY_NAME:
         return _BY_NAME[name]
     if name in counters:
-        return Field(name, "int", "", _COUNTER)
+        return _count(name, "", _COUNTER)
     head, _, suffix = name.rpartition(".")
     if not head:
         return None
@@ -229,34 +264,67 @@ class RowError(ValueError):
     """A row that is not of the declared fields and types (its message names the field)."""
 
 
-def problems(row: Mapping[str, Any], counters: Iterable[str] = ()) -> list[str]:
-    """What is wrong with ``row`` against the registry, one line per field (none: it holds)."""
+def problems(row: Mapping[str, Any], counters: Iterable[str] = (), only: Iterable[str] | None = None) -> list[str]:
+    """What is wrong with ``row`` against the registry, one line per field (none: it holds):
+    an undeclared field, a value of the wrong type, a text outside its field's values, a
+    number outside its bounds, a required field missing or empty. ``counters``: the scheme's
+    own counters; ``only``: the names of the fields to check (None: every field)."""
     counters = tuple(counters)
+    only = None if only is None else set(only)
     out = []
     for f in FIELDS:
-        if not f.optional and not (f.name in row and f.holds(row[f.name]) and row[f.name] != ""):
-            out.append(f"{f.name}: required ({TYPES[f.kind][0]}), got {row.get(f.name)!r}")
+        value = row.get(f.name)
+        empty = value is None or (isinstance(value, str) and not value)
+        if not f.optional and (only is None or f.name in only) and empty:
+            out.append(f"{f.name}: required ({TYPES[f.kind][0]}), got {value!r}")
     for name, value in row.items():
+        if only is not None and name not in only:
+            continue
         declared = field(name, counters) if isinstance(name, str) else None
         if declared is None:
             out.append(f"{name}: not a declared row field (longtime.core.rowschema)")
-        elif declared.optional and not declared.holds(value):
-            out.append(f"{name}: {type(value).__name__} {_short(value)}, not {TYPES[declared.kind][0]}")
+        elif value is not None:
+            wrong = declared.wrong(value)
+            if wrong:
+                out.append(f"{name}: {wrong}")
     return out
 
 
-def check(row: Mapping[str, Any], counters: Iterable[str] = ()) -> None:
-    """Refuse (RowError naming every wrong field) a row that has an undeclared field, a value
-    of the wrong type or no problem, integrator or status."""
+def scheme_counters(integrator: Any) -> tuple[str, ...]:
+    """The own counters (``extra_counters``) of the scheme named ``integrator``: none where no
+    installed scheme has the name."""
+    from longtime.core import registry  # the registry loads the plugins: only when a row is checked
+
+    scheme = registry.integrators().get(integrator) if isinstance(integrator, str) else None
+    return tuple(getattr(scheme, "extra_counters", ()))
+
+
+def validate_row(row: Any, counters: Iterable[str] | None = None) -> list[str]:
+    """What is wrong with ``row`` (``problems``), one line per field, the first line naming a
+    row that is not a mapping; none: it holds. ``counters``: the scheme's own counters (None:
+    those of the scheme the row names, ``scheme_counters``). The one check of a row, wherever
+    one is made or read: a cell's row (longtime.execution.cells), the store's, a merged row."""
     if not isinstance(row, Mapping):
-        raise RowError(f"a row must be a mapping of fields, not {type(row).__name__}")
-    wrong = problems(row, counters)
+        return [f"a row must be a mapping of fields, not {type(row).__name__}"]
+    return problems(row, scheme_counters(row.get("integrator")) if counters is None else counters)
+
+
+def check(row: Mapping[str, Any], counters: Iterable[str] | None = None) -> None:
+    """Refuse (RowError naming every wrong field) a row that ``validate_row`` finds wrong:
+    an undeclared field, a value of the wrong type or outside its field's values or bounds,
+    no problem, integrator or status."""
+    wrong = validate_row(row, counters)
     if wrong:
+        if not isinstance(row, Mapping):
+            raise RowError(wrong[0])
         raise RowError(f"row of {row.get('problem')} x {row.get('integrator')}: " + "; ".join(wrong))
 
 
 def _short(value: Any) -> str:
-    text = repr(value)
+    try:
+        text = repr(value)
+    except RecursionError:  # nested deeper than repr goes
+        return f"a {type(value).__name__} nested too deep to show"
     return text if len(text) <= 60 else text[:57] + "..."
 
 
@@ -265,6 +333,12 @@ def markdown() -> str:
     lines = ["| field | type | unit | meaning |", "|---|---|---|---|"]
     for f in (*FIELDS, *FAMILIES):
         kind = TYPES[f.kind][0] + ("" if f.optional else ", required")
+        if f.values:
+            kind += ": " + ", ".join(f.values)
+        elif f.bounds == (0, MAX_COUNT):
+            kind += ", 0 to 2^62"
+        elif f.bounds is not None:
+            kind += f", >= {number(f.bounds[0])}"
         lines.append(f"| `{f.name}` | {kind} | {f.unit} | {f.meaning} |")
     return "\n".join(lines)
 

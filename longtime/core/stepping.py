@@ -14,7 +14,7 @@ from typing import Callable
 
 import numpy as np
 
-from longtime.core import drivers
+from longtime.core import drivers, rowschema
 from longtime.core.integrator import Integrator
 from longtime.core.kernel_cache import cached_kernel
 from longtime.core.params import Param
@@ -22,8 +22,9 @@ from longtime.core.problem import BLOWUP_MESSAGE, Problem
 from longtime.core.progress import RunProgress
 from longtime.core.trajectory import Trajectory
 
-STATUS_NAMES = {drivers.OK: "ok", drivers.DIVERGED: "diverged", drivers.FAILED: "failed",
-                drivers.TIMEOUT: "timeout"}
+# the compiled drivers' status codes -> the row statuses they end in
+STATUS_NAMES = {drivers.OK: rowschema.OK, drivers.DIVERGED: rowschema.DIVERGED, drivers.FAILED: rowschema.FAILED,
+                drivers.TIMEOUT: rowschema.TIMEOUT}
 # fixed-step runs go in chunks: the first of FIRST_CHUNK steps, then sized to take about
 # CHUNK_SECONDS each (a call into compiled code costs microseconds: no measurable slowdown)
 FIRST_CHUNK = 10_000

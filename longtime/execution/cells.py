@@ -10,12 +10,13 @@ import itertools
 import json
 import math
 import numbers
+import os
 import time
 import traceback
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping
 
-from longtime.core import contract, phases, registry, roles
+from longtime.core import contract, phases, registry, roles, rowschema
 from longtime.core.cache import no_space
 from longtime.core.integrator import Integrator
 from longtime.core.outputs import to_stderr
@@ -37,7 +38,7 @@ DEFAULT_TIME_LIMIT = 600.0
 # a cell beyond these is refused up front, unless --allow-large
 MAX_STEPS = 10**9
 # beyond this many steps a run's 64-bit step counters overflow: refused even with --allow-large
-MAX_COUNTED_STEPS = 2**62
+MAX_COUNTED_STEPS = rowschema.MAX_COUNT
 MAX_SAMPLE_BYTES = 4 * 2**30
 
 
@@ -260,6 +261,20 @@ def check_step(problem: str, scheme: str, settings: Mapping[str, Any], t_final: 
                          f"a fixed step must be <= the span (pass a smaller --dt or a larger --t-final)")
 
 
+def check_span(problem: str, t_final: float, argument: str) -> None:
+    """A final time a run can reach: one whose span at the problem's default step is more
+    steps than a run can count (MAX_COUNTED_STEPS, which ``check_size`` refuses even with
+    --allow-large) is an InputError naming ``argument`` (how the front end spells it)."""
+    pcls = registry.problem_class(problem)
+    try:
+        steps = (float(t_final) - pcls.t0) / pcls.default_dt
+    except OverflowError:
+        steps = math.inf
+    if not steps <= MAX_COUNTED_STEPS:
+        raise InputError(f"{argument}: about {steps:.3g} steps of {problem}'s step dt={pcls.default_dt:g}, more than "
+                         f"a run can count ({MAX_COUNTED_STEPS:.3g}): no run reaches it")
+
+
 def base_row(cell: Cell) -> dict[str, Any]:
     s = cell.integrator_settings
     row = {"problem": cell.problem, "integrator": cell.integrator, "status": "", "message": "",
@@ -314,7 +329,49 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
     Past ``time_limit`` seconds (None: no limit) the integration stops where it got: a ``timeout`` row.
     ``keep``, a dict,
     receives what the row was measured from (``problem``, ``integrator``, ``trajectory``,
-    ``reference``: the trusted reference states, ``trust``), for ``longtime.solve``."""
+    ``reference``: the trusted reference states, ``trust``), for ``longtime.solve``.
+    A row that does not hold against the declared row (a scheme's undeclared field, a value
+    of the wrong type, a count out of range) is the cell's ``failed`` row naming each wrong
+    field (``declared``): it costs its cell, never the run."""
+    return declared(cell, _measured_row(cell, max_samples, reference, timing, time_limit, keep, reference_budget_s))
+
+
+def declared(cell: Cell, row: dict[str, Any]) -> dict[str, Any]:
+    """``row`` where it holds against the declared row (longtime.core.rowschema.validate_row)
+    and its counts are ones the run could take (``implausible``); else the cell's ``failed``
+    row (its names, parameters and settings) whose message names each wrong field."""
+    wrong = rowschema.validate_row(row) or implausible(cell, row)
+    if not wrong:
+        return row
+    failed = base_row(cell)
+    if isinstance(row.get("parameters"), str):
+        failed["parameters"] = row["parameters"]
+    refused = f"the scheme's row is refused: {'; '.join(wrong)}"
+    failed.update(status=rowschema.FAILED, message="; ".join(m for m in (refused, cell.note) if m))
+    return failed
+
+
+def implausible(cell: Cell, row: Mapping[str, Any]) -> list[str]:
+    """The counts of a row that its run cannot have taken (none: they can): a run that reached
+    past t0 in no step, a fixed-step run of more steps than its span holds at its step."""
+    if row.get("status") in (rowschema.SKIPPED, rowschema.FAILED) or not isinstance(row.get("steps"), int):
+        return []
+    pcls = registry.problem_class(cell.problem)
+    steps, reached = row["steps"], row.get("t_reached")
+    if steps == 0 and isinstance(reached, float) and reached > pcls.t0:
+        return [f"steps: 0 steps reached t = {reached:g} past t0 = {pcls.t0:g}"]
+    dt = row.get("dt")
+    if issubclass(registry.integrator_class(cell.integrator), FixedStepIntegrator) and isinstance(dt, float) \
+            and dt > 0 and isinstance(reached, float):
+        most = math.ceil((reached - pcls.t0) / dt * (1 + 1e-9)) + 1
+        if steps > most:
+            return [f"steps: {steps} steps of dt = {dt:g} over the span {reached - pcls.t0:g} (at most {most})"]
+    return []
+
+
+def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing | None, time_limit: float | None,
+                  keep: dict[str, Any] | None, reference_budget_s: float | None) -> dict[str, Any]:
+    """run_cell's row as measured (before it is checked against the declared row)."""
     row = base_row(cell)
     deadline = time.monotonic() + time_limit if time_limit else None
     if cell.skip_reason:
@@ -387,6 +444,13 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
             raise disk_full(exc, f"running {cell.problem} x {cell.integrator}") from None
         row["status"] = "failed"
         row["message"] = "".join(traceback.format_exception_only(type(exc), exc)).strip()
+    except OverflowError as exc:  # Python's float arithmetic past double precision (omega=1e308, squared)
+        row["status"] = "failed"
+        where = traceback.extract_tb(exc.__traceback__)[-1]
+        settings = json.dumps({**cell.problem_settings, **cell.integrator_settings}, sort_keys=True, default=str)
+        row["message"] = (f"OverflowError: {exc} in {where.name} ({os.path.basename(where.filename)}:{where.lineno}): "
+                          f"the settings {settings} of {cell.problem} x {cell.integrator} pass the range of "
+                          f"double precision there")
     except (Exception, SystemExit) as exc:  # a failing cell never takes the matrix down
         # (a plugin's sys.exit too; os.abort or a segfault need a process per cell)
         row["status"] = "failed"

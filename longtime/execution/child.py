@@ -138,6 +138,7 @@ class Child:
     folder: Path
     proc: subprocess.Popen
     started: float = field(default_factory=time.monotonic)
+    unreadable: str = ""  # why its result file could not be read, where it could not
 
     @property
     def pid(self) -> int:
@@ -166,9 +167,15 @@ class Child:
         self.proc.wait()
 
     def result(self) -> Any | None:
-        """What the child wrote with ``write_result`` (None where it wrote nothing)."""
+        """What the child wrote with ``write_result`` (None where it wrote nothing, or where
+        what is there cannot be read: a folder, not JSON; ``failure`` then says so)."""
         path = self.folder / RESULT_FILE
-        return json.loads(path.read_text()) if path.exists() else None
+        try:
+            return json.loads(path.read_text()) if path.exists() else None
+        except (OSError, ValueError) as exc:
+            reason = getattr(exc, "strerror", None) or exc
+            self.unreadable = f"its {RESULT_FILE} cannot be read ({type(exc).__name__}: {reason})"
+            return None
 
     def records(self) -> dict[str, dict]:
         """The child's ``add_record`` lines, by cell key."""
@@ -196,7 +203,8 @@ class Child:
         """Why a child that ended gave no result: ``what`` (the child, named) exited with code
         N or was killed by a named signal, and the end of its stderr."""
         tail = self.stderr().strip()[-STDERR_TAIL:]
-        return f"{what} {how_it_ended(self.proc.returncode)} without a result" + (f"; stderr: {tail}" if tail else "")
+        ended = f"{what} {how_it_ended(self.proc.returncode)} without a result"
+        return "; ".join(m for m in (ended, self.unreadable, tail and f"stderr: {tail}") if m)
 
     def clear(self) -> None:
         """Remove what the last job left in the folder (its result, records, mark, a batch's
@@ -334,9 +342,10 @@ class Resident:
         finally:
             if watchdog is not None:
                 watchdog.stop()  # joined: a kill it made is in ``killed``
-        if line == b"done":
-            return dict(zip((c.key for c in cells), child.result()))
-        child.kill()
+        result = child.result() if line == b"done" else None
+        if result is not None:
+            return dict(zip((c.key for c in cells), result))
+        child.kill()  # ended, or its result cannot be read: the rows it wrote, cell by cell
         done = {}
         for path in child.folder.glob("row-*.json"):
             data = json.loads(path.read_text())

@@ -23,9 +23,11 @@ the run is marked ``interrupted``. An interrupted client keeps every stored row,
 """
 from __future__ import annotations
 
+import shutil
 from typing import Iterator
 
 from longtime.core.params import InputError
+from longtime.execution import tempdirs
 from longtime.execution.cells import Cell, base_row, run_cell
 from longtime.execution.child import RunSpec, resident
 from longtime.execution.limits import hard_limit
@@ -109,19 +111,26 @@ def _unreachable(address: str, seconds: float) -> str | None:
 
 
 def _connect(options, n_cells: int):
+    """(client, local cluster or None, the local cluster's scratch folder or None)."""
     try:
         from distributed import Client, LocalCluster
     except ImportError:
         raise InputError("executor 'dask' needs dask.distributed: pip install 'longtime[dask]'") from None
     if options.scheduler:
         try:
-            return Client(options.scheduler, timeout="10s"), None
+            return Client(options.scheduler, timeout="10s"), None, None
         except (OSError, TimeoutError, ValueError) as exc:
             raise InputError(f"--scheduler {options.scheduler}: cannot connect to a Dask scheduler "
                              f"there ({exc})") from None
-    cluster = LocalCluster(n_workers=min(options.workers(), n_cells), threads_per_worker=1,
-                           dashboard_address=None)
-    return Client(cluster), cluster
+    # the workers' scratch space (Dask's dask-scratch-space and its lock files) in a folder of
+    # this process, removed with the cluster (``_close``) or by a later process's sweep
+    import dask
+
+    scratch = tempdirs.make("dask")
+    with dask.config.set({"temporary-directory": str(scratch)}):  # the scheduler's and the nannies' too
+        cluster = LocalCluster(n_workers=min(options.workers(), n_cells), threads_per_worker=1,
+                               dashboard_address=None, local_directory=str(scratch))
+    return Client(cluster), cluster, scratch
 
 
 def dask_cluster(cells: list[Cell], options) -> Iterator[tuple[Cell, dict]]:
@@ -141,7 +150,7 @@ def dask_cluster(cells: list[Cell], options) -> Iterator[tuple[Cell, dict]]:
     runnable = [c for c in cells if not c.skip_reason]
     if not runnable:
         return
-    client, cluster = _connect(options, len(runnable))
+    client, cluster, scratch = _connect(options, len(runnable))
     spec = options.run_spec()
     try:
         if options.cell_timeout:
@@ -178,6 +187,8 @@ def dask_cluster(cells: list[Cell], options) -> Iterator[tuple[Cell, dict]]:
             yield from zip(batch, rows)
     finally:
         _close(client, cluster)
+        if scratch is not None:
+            shutil.rmtree(scratch, ignore_errors=True)
 
 
 def run_batch_limited(cells: list[Cell], spec: RunSpec) -> list[dict]:

@@ -103,6 +103,8 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
     given each stored row (``add``): the results page's figures drawn ahead."""
     shown = progress or Progress(on=False)
     options = spec.options
+    for name, folder in spec.writable:  # refused before the store is opened (or made) and any cell runs
+        cli_args.writable_folder(name, folder)
     if spec.resume is not None:
         store = Store(spec.db, create=False)  # resuming never creates an empty store
         if spec.resume < 0:
@@ -137,8 +139,6 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
     if spec.baseline is not None:
         store.run(spec.baseline)  # an unknown baseline is bad input, caught up front
         check_baseline(store, spec.baseline, cells)
-    for name, folder in spec.writable:
-        cli_args.writable_folder(name, folder)  # refused before the first cell
     made = None
     with recorded_run(store, spec.command, cells, run_id) as run_id:
         if spec.resume is None:

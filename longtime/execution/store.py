@@ -19,7 +19,7 @@ from contextlib import closing, contextmanager
 from pathlib import Path
 from typing import Any, Iterable, Iterator
 
-from longtime.core import registry, rowschema
+from longtime.core import rowschema
 from longtime.core.params import InputError
 from longtime.core.roles import ROW_PARAMETERS
 from longtime.execution.cells import Cell
@@ -149,9 +149,8 @@ class Store(RunRecords):
     def _row_text(self, row: dict[str, Any], what: str, run_id: int) -> str:
         """The JSON text ``row`` is stored as, once it holds against the declared row fields
         (the scheme's own counters included)."""
-        scheme = registry.integrators().get(row.get("integrator")) if isinstance(row, dict) else None
         try:
-            rowschema.check(row, getattr(scheme, "extra_counters", ()))
+            rowschema.check(row)
         except rowschema.RowError as exc:
             raise StoreError(f"store {self.path}: refused {what}: {exc}", str(self.path), run_id) from None
         return json.dumps(row)
@@ -277,24 +276,16 @@ class Store(RunRecords):
         return out
 
 
-_NAMES = ("problem", "integrator", "status")
-_NUMBERS = (*ROW_PARAMETERS, "t_final")
+# the fields every reader of a stored row relies on: its names, status, parameters and texts
+READ_FIELDS = ("problem", "integrator", "status", *ROW_PARAMETERS, "t_final", "settings", "parameters", "message")
 
 
 def bad_row(row: Any) -> str | None:
     """Why a stored row cannot be read as one (None: it can): it must be a JSON object whose
-    problem, integrator and status are non-empty texts and whose row parameters (dt, tol,
-    eps_res, order, t_final) are numbers or null."""
+    READ_FIELDS hold against the declared row (longtime.core.rowschema): problem, integrator
+    and a status of its values, row parameters (dt, tol, eps_res, order) and t_final of their
+    types, settings, parameters and message texts."""
     if not isinstance(row, dict):
         return f"not a JSON object but {type(row).__name__ if row is not None else 'null'}"
-    for key in _NAMES:
-        if not isinstance(row.get(key), str) or not row[key]:
-            return f"{key} is {row.get(key)!r}, not a name" if key in row else f"no {key}"
-    for key in _NUMBERS:
-        value = row.get(key)
-        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))):
-            return f"{key} is {value!r}, not a number"
-    for key in ("settings", "parameters", "message"):
-        if row.get(key) is not None and not isinstance(row[key], str):
-            return f"{key} is {type(row[key]).__name__}, not a text"
-    return None
+    wrong = rowschema.problems(row, only=READ_FIELDS)
+    return wrong[0] if wrong else None

@@ -1,4 +1,5 @@
-"""Temporary folders of longtime's processes (a pool's row files, an isolated cell's files).
+"""Temporary folders of longtime's processes (a pool's row files, an isolated cell's files,
+a local Dask cluster's scratch space).
 
 Each folder is named after the process that makes it, ``longtime-KIND-PID-XXXXXXXX`` in the
 temp folder. Its maker removes it on every exit it sees (an error, Ctrl-C, SIGTERM, SIGHUP:
@@ -13,7 +14,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
-KINDS = ("pool", "cell", "valgrind", "timing")
+KINDS = ("pool", "cell", "valgrind", "timing", "dask")
 # a cell process's exit code when a write found no space (sysexits' EX_TEMPFAIL: try again later)
 NO_SPACE_EXIT = 75
 

@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from longtime.core.rowschema import GROWTH_CLASSES, POWER_CLASSES
 from longtime.numerics.loglog import fit_slope
 
 DECADES = 2.0
@@ -53,9 +54,9 @@ WINDOW_POINTS = 20
 ROUNDOFF_FACTOR = 10.0
 EPS = float(np.finfo(float).eps)
 SATURATION = 0.5  # the relative error of "O(1)": also where NAME.t_50pct is set
-# upper ends of alpha for each class, in order
-LIMITS = ((0.25, "bounded"), (0.75, "sqrt"), (1.5, "linear"), (2.5, "quadratic"), (math.inf, "faster"))
-CLASSES = tuple(name for _, name in LIMITS) + ("saturated", "diverged", "undetermined")
+# upper ends of alpha for each power-law class (bounded, sqrt, linear, quadratic, faster), in order
+LIMITS = tuple(zip((0.25, 0.75, 1.5, 2.5, math.inf), POWER_CLASSES, strict=True))
+CLASSES = GROWTH_CLASSES
 
 
 def classify(alpha: float) -> str:
