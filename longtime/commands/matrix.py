@@ -22,7 +22,9 @@ def add_parser(subparsers) -> None:
                    help="finish an interrupted run (default: the newest incomplete run of matrix or run)")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--no-report", action="store_true", help="do not print the report at the end")
-    p.add_argument("--full", action="store_true", help="the full per-cell tables after the summary")
+    p.add_argument("--full", action="store_true",
+                   help="the full per-cell tables after the summary, and each setting the budget moved as the "
+                        "job starts (else one line says how many and why)")
     p.add_argument("--html", default=None, type=cli_args.out_folder("--html"), metavar="DIR",
                    help="folder of the results page (default: longtime-report/run-RUN_ID beside the store)")
     p.add_argument("--no-html", action="store_true", help="do not write the results page")
@@ -69,7 +71,7 @@ def cmd_matrix(args) -> int:
     spec = MainJobSpec(selection=matrix_selection(args) if args.resume is None else Selection(), resume=args.resume,
                        executor=executor, options=options, db=args.db, command=command_line(args),
                        baseline=args.baseline, checks=CHECKS if args.checks is None else args.checks,
-                       ensembles=not args.no_ensemble,
+                       ensembles=not args.no_ensemble, list_moves=args.full,
                        writable=(("--html", args.html),) if args.html and page_wanted else ())
     ahead = None
     if page_wanted:  # the page's figures, drawn on the pool's idle workers
