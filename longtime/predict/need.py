@@ -1,0 +1,118 @@
+"""Which cells' timing could change an answer (``need``): the main job times these again in
+fresh processes (longtime.execution.processes), the rest keep the time of their own process.
+
+An answer that reads a cell's time is a front of error against CPU: the verdict's and
+recommend's decisions (per target error and horizon of its problem, the cheapest setting
+predicted to keep the target, its runner-up of another scheme and its open rivals:
+longtime.predict.decision), and the report's Pareto front at the problem's main final time
+(per accuracy decade, the fastest ok row whose error ``PARETO_FIELDS`` reads is at most the
+decade). A cell is a contender, and is timed again, where
+
+- its setting is within ``FACTOR`` of the cheapest setting that keeps some (target,
+  horizon) of its problem's verdict, each at its predicted CPU to that horizon (the targets
+  the verdict and recommend ask about: ``decision.TARGETS``); or its setting is a decision's
+  best, runner-up or open rival, or the most accurate setting (a chaos check's run): the
+  settings a check re-runs. A setting's cost model reads every run of it, so every row of a
+  contender setting is a contender;
+- or, at its problem's main final time, for some error field of ``PARETO_FIELDS`` within the
+  targets (at most the coarsest, ``max(TARGETS)``), its CPU time is within ``FACTOR`` of the
+  fastest row whose error in that field is at most its own;
+- or its problem has no front at all (no ok row with an error and a time): nothing says
+  which of its cells an answer could read, so every one is timed again.
+
+Every other cell is dominated: some cell of its problem meets every target it meets, or
+its error, for less than 1 / ``FACTOR`` of its CPU. A cell's time measured in one process
+is at most about twice what several processes measure (a slow moment of the machine slows
+work through the caches by up to twice: docs/performance.md, "Two speeds"), and noise only
+adds time, so a cell dominated by more than ``FACTOR`` = 2 in its own process's time is
+dominated in any timing; its row says by how much (``timed_in``).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from longtime.core.fmt import positive
+from longtime.core.rowtext import main_t_final, setting
+from longtime.measure.lyapunov import past_predictability
+from longtime.predict.decision import TARGETS, keepers, verdicts
+
+# a cell within this factor of a front's CPU time is a contender (see the module's text)
+FACTOR = 2.0
+# the error fields the report's Pareto front reads, the first of them a problem's rows have
+# (longtime.reporting.report.pareto)
+PARETO_FIELDS = ("l2_error", "H.max", "I.max", "constraint.max")
+
+
+@dataclass(frozen=True)
+class Need:
+    """Whether a row's cell is timed again (``retime``), and if not, by how much it is
+    dominated (``factor``: its CPU over the cheapest that matches it; None: it is on no
+    front, its error meets no target) and why, in words (``why``)."""
+    retime: bool
+    factor: float | None = None
+    why: str = ""
+
+
+def setting_key(row: dict[str, Any]) -> tuple:
+    """A row's setting within its problem (the verdict's: its scheme and parameters)."""
+    return row.get("problem"), row.get("integrator"), setting(row)
+
+
+def need(rows: list[dict[str, Any]], factor: float = FACTOR) -> list[Need]:
+    """Per row of ``rows`` (one run's), whether its cell's timing could change an answer
+    (see the module's text), in the order of ``rows``."""
+    ratio = [math.inf] * len(rows)  # each row's smallest CPU ratio to a front
+    named: set[tuple] = set()  # settings an answer or a check names
+    by_problem: dict[str, list[int]] = {}
+    for i, r in enumerate(rows):
+        by_problem.setdefault(str(r.get("problem")), []).append(i)
+    found = verdicts(rows)
+    for problem, members in by_problem.items():
+        mine = [rows[i] for i in members]
+        within: dict[tuple, float] = {}
+        v = found.get(problem)
+        if v is not None and v.candidates:
+            for (target, horizon), d in v.grid.items():
+                if d.best is None:
+                    continue
+                named.update(setting_key(s.row) for s in (d.best, d.runner_up, *d.open) if s is not None)
+                cheapest = d.best.cpu_at(horizon)
+                for s in keepers(v.candidates, target, horizon):
+                    if cheapest > 0:
+                        k = setting_key(s.row)
+                        within[k] = min(within.get(k, math.inf), s.cpu_at(horizon) / cheapest)
+            named.add(setting_key(min(v.candidates, key=lambda c: (c.error, c.cpu_per_t)).row))
+        t_main = main_t_final(mine)
+        fronts = 0
+        for field in PARETO_FIELDS:
+            ok = [i for i in members if _on_front_candidate(rows[i], field, t_main)]
+            fronts += bool(ok)
+            for i in ok:
+                err = rows[i][field]
+                if err > max(TARGETS):
+                    continue
+                best = min(rows[j]["cpu_s"] for j in ok if rows[j][field] <= err)
+                ratio[i] = min(ratio[i], rows[i]["cpu_s"] / best)
+        for i in members:
+            ratio[i] = min(ratio[i], within.get(setting_key(rows[i]), math.inf))
+        if not fronts and not within:
+            for i in members:
+                ratio[i] = 1.0  # no front: every cell is timed again
+    out = []
+    for i, r in enumerate(rows):
+        if ratio[i] <= factor or setting_key(r) in named:
+            out.append(Need(True, ratio[i] if math.isfinite(ratio[i]) else None))
+        elif math.isfinite(ratio[i]):
+            out.append(Need(False, ratio[i], f"not on the front by x{ratio[i]:.2g}"))
+        else:
+            out.append(Need(False, None, f"on no front: its error meets no target (at most {max(TARGETS):g})"))
+    return out
+
+
+def _on_front_candidate(row: dict[str, Any], field: str, t_main: float | None) -> bool:
+    """An ok row at its problem's main final time with a CPU time and an error in ``field``
+    (a chaotic problem's row past its predictability horizon has no L2 accuracy to offer)."""
+    return (row.get("status") == "ok" and positive(row.get("cpu_s")) and positive(row.get(field))
+            and row.get("t_final") == t_main and not (field == "l2_error" and past_predictability(row)))
