@@ -308,7 +308,8 @@ def across_processes(pairs: Iterable[tuple[Cell, dict[str, Any]]], processes: in
     chosen = {id(r) for _, r in todo}
     for _, row in pairs:
         if id(row) not in chosen:
-            one_process(row, alone.get(id(row)) or alone_why(row, processes))
+            timed = processes > 1 and timed_elsewhere(row)  # else a reason of its own comes first
+            one_process(row, alone[id(row)] if timed and id(row) in alone else alone_why(row, processes))
     if not todo:
         return []
     cells = [c for c, _ in todo]
