@@ -9,7 +9,7 @@ process only, the timing phase's wall seconds, and the ratio need / all; then ho
 contenders' ``cpu_s`` agree between the two ways (max / min: the share within x1.15).
 
     python -m longtime matrix -p kepler,toda,henon-heiles --db /tmp/t.sqlite   # a stored run
-    python benchmarks/bench_timing_need.py --db /tmp/t.sqlite [--run ID] [--rounds 2]
+    python benchmarks/bench_timing_need.py --db /tmp/t.sqlite [--run ID] [--rounds 2] [-p kepler,toda]
 """
 from __future__ import annotations
 
@@ -54,10 +54,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--db", required=True, help="a store holding a main job's run")
     parser.add_argument("--run", type=int, default=None, help="its run id (default: the newest)")
     parser.add_argument("--rounds", type=int, default=2, help="rounds of (all, need) (default: 2)")
+    parser.add_argument("-p", "--problem", default=None, help="only these problems' rows (comma-separated)")
     args = parser.parse_args(argv)
     store = Store(args.db, readonly=True)
     run_id = args.run or max(r["id"] for r in store.runs())
     pairs = store.incomplete_rows(run_id, "status")  # every stored row with its cell
+    if args.problem:
+        pairs = [(c, r) for c, r in pairs if c.problem in args.problem.split(",")]
     print(f"run {run_id} of {args.db}: {len(pairs)} rows")
     print(f"{'round':>5s} {'timing':>7s} {'3 processes':>12s} {'own process':>12s} {'wall s':>8s}")
     ratios, last = [], {}

@@ -92,3 +92,11 @@ def test_a_cell_timed_in_its_own_process_is_judged_against_the_single_cell_facto
     points = [{"status": "ok", "cpu_s_process_spread": 1.05}, {"status": "ok", "timed_in": alone["timed_in"]}]
     assert process_factor(points, 1.2) == 2.0
     assert process_factor(points[:1], 1.2) == 1.2
+
+
+def test_the_report_counts_the_cells_timed_in_their_own_process(monkeypatch):
+    from longtime.reporting.screen import count_lines
+
+    rows, _ = _timed(monkeypatch, "need")
+    text = "\n".join(count_lines(rows, orders=False))
+    assert "timed in its own process only 2 (dominated by more than x2" in text

@@ -48,6 +48,17 @@ FACTOR = 2.0
 PARETO_FIELDS = ("l2_error", "H.max", "I.max", "constraint.max")
 
 
+# how a cell left out of the timing processes is said to be dominated (``Need.why``)
+NOT_ON_FRONT = "not on the front"
+NO_FRONT = "on no front"
+
+
+def left_out(row: dict[str, Any]) -> bool:
+    """Whether timing by need left ``row``'s cell in its own process (its ``timed_in``)."""
+    text = str(row.get("timed_in") or "")
+    return f": {NOT_ON_FRONT}" in text or f": {NO_FRONT}" in text
+
+
 @dataclass(frozen=True)
 class Need:
     """Whether a row's cell is timed again (``retime``), and if not, by how much it is
@@ -119,9 +130,9 @@ def need(rows: list[dict[str, Any]], factor: float = FACTOR) -> list[Need]:
         if ratio[i] <= factor or keys[i] in named:
             out.append(Need(True, ratio[i] if math.isfinite(ratio[i]) else None))
         elif math.isfinite(ratio[i]):
-            out.append(Need(False, ratio[i], f"not on the front by x{ratio[i]:.2g}"))
+            out.append(Need(False, ratio[i], f"{NOT_ON_FRONT} by x{ratio[i]:.2g}"))
         else:
-            out.append(Need(False, None, f"on no front: its error meets no target (at most {max(TARGETS):g})"))
+            out.append(Need(False, None, f"{NO_FRONT}: its error meets no target (at most {max(TARGETS):g})"))
     return out
 
 
