@@ -100,3 +100,10 @@ def test_the_report_counts_the_cells_timed_in_their_own_process(monkeypatch):
     rows, _ = _timed(monkeypatch, "need")
     text = "\n".join(count_lines(rows, orders=False))
     assert "timed in its own process only 2 (dominated by more than x2" in text
+
+
+def test_the_main_job_times_by_need_and_a_run_of_named_cells_times_all():
+    from longtime.execution.main_job import MainJobSpec
+    from longtime.execution.matrix import ExecOptions
+
+    assert MainJobSpec().options.retime == "need" and ExecOptions().retime == "all"

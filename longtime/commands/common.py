@@ -137,7 +137,7 @@ def exec_options(args, executor: str) -> ExecOptions:
         check_scheduler(args.scheduler)
     return ExecOptions(cost=cost, jobs=args.jobs, max_samples=args.max_samples,
                        timing=Timing(repeats=args.repeats, min_time=args.min_time),
-                       processes=args.processes or default_processes(), retime=getattr(args, "timing", None) or "need",
+                       processes=args.processes or default_processes(), retime=getattr(args, "timing", None) or "all",
                        cell_timeout=getattr(args, "cell_timeout", None),
                        time_limit=getattr(args, "time_limit", DEFAULT_TIME_LIMIT) or None,
                        memory_limit=getattr(args, "memory_limit", limits.default_memory_limit()),

@@ -3,6 +3,7 @@ interrupted run resumed, then its results page and report (longtime.reporting.ma
 and with --baseline its comparison with a stored run (exit 1 on a regression)."""
 from __future__ import annotations
 
+import dataclasses
 import sys
 
 from longtime.commands.common import add_selection, exec_options, selection, warn_broken, wrapped
@@ -66,6 +67,8 @@ def cmd_matrix(args) -> int:
     warn_broken()
     executor = args.executor or "process"
     options = exec_options(args, executor)
+    if args.timing is None:  # the main job times by need (longtime.execution.processes.by_need)
+        options = dataclasses.replace(options, retime="need")
     shown = Progress(on=not args.no_progress)
     page_wanted = not args.no_report and not args.no_html
     spec = MainJobSpec(selection=matrix_selection(args) if args.resume is None else Selection(), resume=args.resume,

@@ -32,8 +32,6 @@ def cmd_run(args) -> int:
     options = exec_options(args, executor)
     if not args.executor and not args.jobs:
         options = dataclasses.replace(options, jobs=1)
-    if args.timing is None:  # the cells a question names: each timed in every process
-        options = dataclasses.replace(options, retime="all")
     store = None if args.no_store else Store(args.db)
     rows, _ = run_cells(cells, store=store, command=command_line(args), executor=executor,
                         options=options)

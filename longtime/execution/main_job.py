@@ -45,16 +45,17 @@ class MainJobSpec:
     """One main job. ``selection``: its cells, or ``resume``: the run to finish (a run id, 0:
     the newest incomplete run of matrix or run) instead. ``executor`` and ``options`` run
     the cells into the store ``db`` (None: $LONGTIME_DB or longtime.sqlite) under the
-    command line ``command``. ``baseline``: a stored run the job is to be compared with,
-    refused up front when it has no cell in common. ``checks``: how many of the verdicts'
-    predictions are re-run (0: none); ``ensembles``: whether the chaotic problems' ensemble
+    command line ``command``; the default options time by need (``ExecOptions.retime``).
+    ``baseline``: a stored run the job is to be compared with, refused up front when it has
+    no cell in common. ``checks``: how many of the verdicts' predictions are re-run (0:
+    none); ``ensembles``: whether the chaotic problems' ensemble
     distances are measured. ``writable``: (flag, folder) pairs refused before the first
     cell where the folder cannot be written. ``list_moves``: each setting the budget moved on
     a line of its own as the job starts (else one line says how many and why)."""
     selection: Selection = field(default_factory=Selection)
     resume: int | None = None
     executor: str = "process"
-    options: ExecOptions = field(default_factory=ExecOptions)
+    options: ExecOptions = field(default_factory=lambda: ExecOptions(retime="need"))
     db: str | None = None
     command: str = "matrix"
     baseline: int | None = None

@@ -67,9 +67,9 @@ class ExecOptions:
     # processes that time each cell (longtime.execution.processes); the repeats of ``timing``
     # are split among them
     processes: int = field(default_factory=default_processes)
-    # which cells those processes time again: "need" (those whose time could change an answer,
-    # longtime.execution.processes.by_need) or "all"
-    retime: str = "need"
+    # which cells those processes time again: "all", or "need" (those whose time could change
+    # an answer, longtime.execution.processes.by_need: the main job's default)
+    retime: str = "all"
     # called with each cell as it starts in this process (the store marks it started)
     on_start: Callable[[Cell], None] | None = None
     # work for a pool worker that has no cell left to run (the results page's figures and
