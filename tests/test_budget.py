@@ -97,3 +97,18 @@ def test_the_report_names_what_the_budget_moved():
     text = summary(rows, orders=False)
     assert "moved by the default matrix's budget: dop853 t_final 1000 -> 200" in text
     assert "--full-sweep runs 1000" in text
+
+
+def test_the_moves_are_one_line_as_the_job_starts_and_each_with_full(capsys):
+    from longtime.execution.main_job import say_moves
+
+    full = expand(["fpu"], ["dop853", "verlet"], default_sweep=True)
+    _, moves = budget.fit(full)
+    left = budget.Move("fpu", "verlet", "long-time cell at t_final 1e+06 left out", "about 40 s a run")
+    say_moves(moves + [left])
+    short = capsys.readouterr().err.strip().splitlines()
+    assert len(short) == 1 and "moved 2 setting(s)" in short[0] and "1 long-time cell(s) left out" in short[0]
+    assert f"1 over {budget.CELL_BUDGET_S:g} s" in short[0] and "--full" in short[0]
+    say_moves(moves + [left], full=True)
+    listed = capsys.readouterr().err.strip().splitlines()
+    assert len(listed) == 3 and listed[1].strip() == moves[0].text() and listed[2].strip() == left.text()

@@ -14,9 +14,10 @@ from longtime.core.roles import ROW_PARAMETERS, flag
 from longtime.execution import limits
 from longtime.execution.cells import DEFAULT_TIME_LIMIT
 from longtime.execution.matrix import COSTS, EXECUTORS, ExecOptions, check_cost
-from longtime.execution.processes import DEFAULT_PROCESSES, default_processes, max_processes
+from longtime.execution.processes import DEFAULT_PROCESSES, RETIME, default_processes, max_processes
 from longtime.execution.store import default_path
 from longtime.measure.reference import budget_seconds
+from longtime.predict.need import FACTOR as NEED_FACTOR
 
 # argument types: one set for every command (longtime.core.cli_args)
 _names, _key_value = cli_args.names, cli_args.key_value
@@ -88,6 +89,11 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
                         f"the minimum over them, cpu_s_processes each one's and cpu_s_process_spread "
                         f"their spread, which compare and history judge (default {DEFAULT_PROCESSES}, "
                         f"or $LONGTIME_PROCESSES)")
+    p.add_argument("--timing", choices=RETIME, default=None,
+                   help="which cells those fresh processes time again: need, those whose time could change an "
+                        f"answer (within x{NEED_FACTOR:g} of a front of error against CPU of their problem, or named "
+                        "by a verdict or a check; the rest keep their own process's time, and each row's timed_in "
+                        "says which and why), or all (default: need for matrix, all for run)")
     p.add_argument("--min-time", type=cli_args.seconds("--min-time", allow_zero=True), default=Timing.min_time,
                    metavar="SECONDS",
                    help=f"repeat a cell's timed run until the timed total passes this "
@@ -131,7 +137,7 @@ def exec_options(args, executor: str) -> ExecOptions:
         check_scheduler(args.scheduler)
     return ExecOptions(cost=cost, jobs=args.jobs, max_samples=args.max_samples,
                        timing=Timing(repeats=args.repeats, min_time=args.min_time),
-                       processes=args.processes or default_processes(),
+                       processes=args.processes or default_processes(), retime=getattr(args, "timing", None) or "all",
                        cell_timeout=getattr(args, "cell_timeout", None),
                        time_limit=getattr(args, "time_limit", DEFAULT_TIME_LIMIT) or None,
                        memory_limit=getattr(args, "memory_limit", limits.default_memory_limit()),

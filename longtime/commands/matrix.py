@@ -3,6 +3,7 @@ interrupted run resumed, then its results page and report (longtime.reporting.ma
 and with --baseline its comparison with a stored run (exit 1 on a regression)."""
 from __future__ import annotations
 
+import dataclasses
 import sys
 
 from longtime.commands.common import add_selection, exec_options, selection, warn_broken, wrapped
@@ -22,7 +23,9 @@ def add_parser(subparsers) -> None:
                    help="finish an interrupted run (default: the newest incomplete run of matrix or run)")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--no-report", action="store_true", help="do not print the report at the end")
-    p.add_argument("--full", action="store_true", help="the full per-cell tables after the summary")
+    p.add_argument("--full", action="store_true",
+                   help="the full per-cell tables after the summary, and each setting the budget moved as the "
+                        "job starts (else one line says how many and why)")
     p.add_argument("--html", default=None, type=cli_args.out_folder("--html"), metavar="DIR",
                    help="folder of the results page (default: longtime-report/run-RUN_ID beside the store)")
     p.add_argument("--no-html", action="store_true", help="do not write the results page")
@@ -65,12 +68,14 @@ def cmd_matrix(args) -> int:
     warn_broken()
     executor = args.executor or "process"
     options = exec_options(args, executor)
+    if args.timing is None:  # the main job times by need (longtime.execution.processes.by_need)
+        options = dataclasses.replace(options, retime="need")
     shown = Progress(on=not args.no_progress)
     page_wanted = not args.no_report and not args.no_html
     spec = MainJobSpec(selection=matrix_selection(args) if args.resume is None else Selection(), resume=args.resume,
                        executor=executor, options=options, db=args.db, command=command_line(args),
                        baseline=args.baseline, checks=CHECKS if args.checks is None else args.checks,
-                       ensembles=not args.no_ensemble,
+                       ensembles=not args.no_ensemble, list_moves=args.full,
                        writable=(("--html", args.html),) if args.html and page_wanted else ())
     ahead = None
     if page_wanted:  # the page's figures, drawn on the pool's idle workers

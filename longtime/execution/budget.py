@@ -197,3 +197,24 @@ def notes(rows: Iterable[dict[str, Any]]) -> dict[tuple[str, str], str]:
         if at >= 0:
             out.setdefault((r["problem"], r["integrator"]), message[at + len(NOTE):].strip())
     return out
+
+
+def summary(moves: list[Move]) -> str:
+    """What the budget moved, in one line: how many pairs' sweeps run to a shorter horizon,
+    by the budget they passed, and how many long-time cells are left out."""
+    shorter: dict[float, int] = {}
+    left_out = 0
+    for m in moves:
+        if m.setting.startswith("t_final"):
+            budget = cell_budget(m.integrator)
+            shorter[budget] = shorter.get(budget, 0) + 1
+        else:
+            left_out += 1
+    parts = []
+    if shorter:
+        over = ", ".join(f"{n} over {b:g} s" for b, n in sorted(shorter.items(), key=lambda kv: -kv[0]))
+        parts.append(f"{sum(shorter.values())} pair(s)' sweeps to a shorter t_final (a run estimated "
+                     f"over its cell budget: {over})")
+    if left_out:
+        parts.append(f"{left_out} long-time cell(s) left out (a run estimated over {LONG_CELL_BUDGET_S:g} s)")
+    return f"the default matrix's budget moved {len(moves)} setting(s): " + "; ".join(parts)

@@ -45,21 +45,24 @@ class MainJobSpec:
     """One main job. ``selection``: its cells, or ``resume``: the run to finish (a run id, 0:
     the newest incomplete run of matrix or run) instead. ``executor`` and ``options`` run
     the cells into the store ``db`` (None: $LONGTIME_DB or longtime.sqlite) under the
-    command line ``command``. ``baseline``: a stored run the job is to be compared with,
-    refused up front when it has no cell in common. ``checks``: how many of the verdicts'
-    predictions are re-run (0: none); ``ensembles``: whether the chaotic problems' ensemble
+    command line ``command``; the default options time by need (``ExecOptions.retime``).
+    ``baseline``: a stored run the job is to be compared with, refused up front when it has
+    no cell in common. ``checks``: how many of the verdicts' predictions are re-run (0:
+    none); ``ensembles``: whether the chaotic problems' ensemble
     distances are measured. ``writable``: (flag, folder) pairs refused before the first
-    cell where the folder cannot be written."""
+    cell where the folder cannot be written. ``list_moves``: each setting the budget moved on
+    a line of its own as the job starts (else one line says how many and why)."""
     selection: Selection = field(default_factory=Selection)
     resume: int | None = None
     executor: str = "process"
-    options: ExecOptions = field(default_factory=ExecOptions)
+    options: ExecOptions = field(default_factory=lambda: ExecOptions(retime="need"))
     db: str | None = None
     command: str = "matrix"
     baseline: int | None = None
     checks: int = CHECKS
     ensembles: bool = True
     writable: tuple[tuple[str, str], ...] = ()
+    list_moves: bool = False
 
 
 @dataclass(frozen=True)
@@ -134,7 +137,7 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
         with phases.phase("plan"), shown.phase("plan", detail="the cells of the selection, fitted to the budget",
                                                          announce=False):
             cells, moves = plan(spec.selection, options)
-        say_moves(moves)
+        say_moves(moves, spec.list_moves)
         store, run_id, died = Store(spec.db), None, []
     if spec.baseline is not None:
         store.run(spec.baseline)  # an unknown baseline is bad input, caught up front
@@ -182,14 +185,16 @@ def _result(store: Store, run_id: int, ran: bool = True, ahead: Any = None) -> M
     return MainJobResult(store, run_id, store.rows(run_id), store.checks(run_id), store.ensembles(run_id), ran, ahead)
 
 
-def say_moves(moves: list) -> None:
-    """What the default matrix's budget moved, on stderr as the run starts (each moved row's
-    message and the report's summary say it too)."""
+def say_moves(moves: list, full: bool = False) -> None:
+    """What the default matrix's budget moved, on stderr as the run starts: one line
+    (``budget.summary``), and with ``full`` each move on a line of its own (each moved row's
+    message and the report name them too)."""
     if moves:
-        print(f"the default matrix's budget moved {len(moves)} setting(s) (--full-sweep runs the "
-              f"default sweep as it is):", file=sys.stderr)
-        for m in moves:
-            print(f"  {m.text()}", file=sys.stderr)
+        where = ":" if full else " (`--full` lists them here; the report names each)"
+        print(f"{budget.summary(moves)}; --full-sweep runs the default sweep as it is{where}", file=sys.stderr)
+        if full:
+            for m in moves:
+                print(f"  {m.text()}", file=sys.stderr)
 
 
 def check_baseline(store: Store, baseline: int, cells) -> None:

@@ -46,7 +46,7 @@ from longtime.execution.limits import (
 )
 from longtime.execution.pool import spawn_pool
 from longtime.execution.pool import workers as pool_workers
-from longtime.execution.processes import across_processes, default_processes, timed_elsewhere
+from longtime.execution.processes import RETIME, across_processes, by_need, default_processes, timed_elsewhere
 from longtime.execution.store import Store
 from longtime.execution.tempdirs import DiskFull, disk_full
 
@@ -67,6 +67,9 @@ class ExecOptions:
     # processes that time each cell (longtime.execution.processes); the repeats of ``timing``
     # are split among them
     processes: int = field(default_factory=default_processes)
+    # which cells those processes time again: "all", or "need" (those whose time could change
+    # an answer, longtime.execution.processes.by_need: the main job's default)
+    retime: str = "all"
     # called with each cell as it starts in this process (the store marks it started)
     on_start: Callable[[Cell], None] | None = None
     # work for a pool worker that has no cell left to run (the results page's figures and
@@ -380,6 +383,7 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
     if options.max_samples < 2:
         raise InputError(f"max_samples={options.max_samples} is not valid: must be >= 2")
     check_cost(options.cost)
+    check_choice("retime", options.retime, RETIME)
     run = get_executor(executor)
     if store is not None and run_id is not None and options.on_start is None:
         options = dataclasses.replace(options, on_start=lambda cell: store.mark_started(run_id, cell))
@@ -403,13 +407,18 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
                 on_row(cell, row)
             shown.advance(last=f"{cell.problem} x {cell.integrator}: {row['status']}")
     found = [(cell, rows[cell.key]) for cell in cells if cell.key in rows]
-    again = [r for _, r in found if processes > 1 and timed_elsewhere(r)]
+    alone = by_need([r for _, r in found], found, options.retime) if processes > 1 else {}
+    again = [r for _, r in found if processes > 1 and timed_elsewhere(r) and id(r) not in alone]
+    left = sum(1 for _, r in found if processes > 1 and timed_elsewhere(r) and id(r) in alone)
     timing_phase = shown.phase("timing processes", total=len(again) * (processes - 1), unit="cells timed",
                                estimate_s=timing_estimate(again, processes, options.workers()),
-                               detail=f"{len(again)} cells timed again in each of {processes - 1} fresh processes") \
+                               detail=f"{len(again)} cells timed again in each of {processes - 1} fresh processes"
+                                      + (f" ({left} whose timing changes no answer left out: --timing all)"
+                                         if left else "")) \
         if again else contextlib.nullcontext()
     with timing_phase:
-        across_processes(found, processes, options.run_spec(), options.workers(), on_progress=shown.advance)
+        across_processes(found, processes, options.run_spec(), options.workers(), on_progress=shown.advance,
+                         alone=alone)
     for cell, row in found:
         phase_done(row, PROCESSES_PHASE)
         if storing:
@@ -482,7 +491,9 @@ def complete_phases(store: Store, run_id: int, options: ExecOptions) -> int:
     timed = [(c, r) for c, r in incomplete if PROCESSES_PHASE in r[PHASES_FIELD]]
     if timed:
         spec = dataclasses.replace(options.run_spec(), timing=options.timing.per_process(options.processes))
-        across_processes(timed, options.processes, spec, options.workers())
+        # judged on the run's rows: those stored before, with these
+        alone = by_need(store.rows(run_id), timed, options.retime) if options.processes > 1 else {}
+        across_processes(timed, options.processes, spec, options.workers(), alone=alone)
         for cell, row in timed:
             phase_done(row, PROCESSES_PHASE)
             store.update_row(run_id, cell, row)

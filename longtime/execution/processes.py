@@ -25,7 +25,11 @@ taken between them where there are two or more (the row's own process times a bu
 
 A cell whose single run takes longer than ``Timing.ONCE_ABOVE`` is timed once, in its own
 process only (its cost dwarfs the spread; the row says so); a cell that did not end ``ok``
-is not timed again.
+is not timed again. Timing by need (``by_need``, the main job's default: ``RETIME``,
+``--timing``) leaves out, besides, the cells whose timing could change no answer
+(longtime.predict.need: dominated by more than its FACTOR on every front of error against
+CPU); ``--timing all`` times every cell again. Each row says how it was timed (``timed_in``:
+"3 processes", or "its own process: " and why).
 """
 from __future__ import annotations
 
@@ -53,6 +57,11 @@ POLL_S = 0.05
 # a timing process spreads each cell's runs over at least this many seconds (time_cells)
 SPREAD_S = 3.0
 MAX_ROUNDS = 100
+# which cells the timing processes time again: "need" (those whose timing could change an
+# answer: ``by_need``) or "all"
+RETIME = ("need", "all")
+# the row field that says how its cell was timed: "N processes", or "its own process: why"
+TIMED_IN = "timed_in"
 # the statuses of a timing process's run that end it before its end (a time limit passed, the
 # process paused or killed): a lost sample, never evidence that the run differs
 LOST = ("timeout",)
@@ -242,28 +251,65 @@ def merge(row: dict[str, Any], others: list[dict[str, Any]], processes: int) -> 
         why = f": {missing[0]}" if missing else ""
         note = f"timed in {len(mins)} of {processes} processes{why}"
         row["message"] = f"{row['message']}; {note}" if row.get("message") else note
+    row[TIMED_IN] = f"{len(mins)} processes" if len(mins) > 1 else \
+        f"its own process: {missing[0] if missing else 'the others gave no time'}"
 
 
-def one_process(row: dict[str, Any]) -> None:
-    """The process fields of a row timed in its own process only."""
+def one_process(row: dict[str, Any], why: str) -> None:
+    """The process fields of a row timed in its own process only, and ``why`` in its
+    ``timed_in``."""
     if isinstance(row.get("cpu_s"), (int, float)):
         row.setdefault("cpu_s_processes", [row["cpu_s"]])
         row.setdefault("cpu_s_process_spread", None)
+        row[TIMED_IN] = f"its own process: {why}"
+
+
+def alone_why(row: dict[str, Any], processes: int) -> str:
+    """Why a row that is not timed elsewhere (``timed_elsewhere``) is timed in its own
+    process only."""
+    if processes <= 1:
+        return "one process asked (--processes 1)"
+    if row.get("status") != "ok":
+        return f"the run ended {row.get('status')}"
+    wall = row.get("wall_s")
+    if isinstance(wall, (int, float)) and wall > Timing.ONCE_ABOVE:
+        return f"a run over {Timing.ONCE_ABOVE:g} s, timed once"
+    return "no digest of its samples to check another process's run against"
+
+
+def by_need(rows: list[dict[str, Any]], pairs: Iterable[tuple[Cell, dict[str, Any]]],
+            retime: str = "need") -> dict[int, str]:
+    """The rows of ``pairs`` that the timing processes leave out under ``retime``: "all"
+    none; "need" those whose timing could change no answer (longtime.predict.need, judged on
+    ``rows``, the run's rows), each (by ``id``) with why, for its ``timed_in``."""
+    if retime == "all":
+        return {}
+    from longtime.predict.need import need, setting_key
+
+    def ident(r: dict[str, Any]) -> tuple:
+        return (*setting_key(r), r.get("t_final"))
+
+    why = {ident(r): n.why for r, n in zip(rows, need(rows)) if not n.retime}
+    return {id(r): why[ident(r)] for _, r in pairs if ident(r) in why}
 
 
 def across_processes(pairs: Iterable[tuple[Cell, dict[str, Any]]], processes: int, spec: RunSpec, jobs: int = 1,
-                     on_progress: Callable[[int], None] | None = None) -> list[Cell]:
+                     on_progress: Callable[[int], None] | None = None,
+                     alone: dict[int, str] | None = None) -> list[Cell]:
     """Time the cells of ``pairs`` (cell, its row as measured) in ``processes - 1`` fresh
     processes, ``jobs`` at a time, each cell run as ``spec`` says, and fold their times into
-    the rows (``merge``); rows not timed elsewhere get their own process's fields. Returns the
-    cells whose rows changed. ``on_progress(k)``: k more cells timed, summed over the
-    processes (a progress display)."""
+    the rows (``merge``); rows not timed elsewhere, and those of ``alone`` (``id`` of a row:
+    why it is left out, ``by_need``), get their own process's fields. Returns the cells whose
+    rows changed. ``on_progress(k)``: k more cells timed, summed over the processes (a
+    progress display)."""
     pairs = list(pairs)
-    todo = [(c, r) for c, r in pairs if processes > 1 and timed_elsewhere(r)]
+    alone = alone or {}
+    todo = [(c, r) for c, r in pairs if processes > 1 and timed_elsewhere(r) and id(r) not in alone]
     chosen = {id(r) for _, r in todo}
     for _, row in pairs:
         if id(row) not in chosen:
-            one_process(row)
+            timed = processes > 1 and timed_elsewhere(row)  # else a reason of its own comes first
+            one_process(row, alone[id(row)] if timed and id(row) in alone else alone_why(row, processes))
     if not todo:
         return []
     cells = [c for c, _ in todo]

@@ -143,8 +143,7 @@ def decide(candidates: list[Setting], target: float, horizon: float,
     chaotic problem's predictability horizon of ``target``) nothing is predicted."""
     if limit is not None and horizon > limit.horizon * (1 + 1e-9):
         return Decision(target, horizon, limit=limit)
-    keeps = [s for s in candidates if (e := s.error_at(horizon)) is not None and e <= target]
-    keeps.sort(key=lambda s: (s.cpu_at(horizon), s.text))
+    keeps = keepers(candidates, target, horizon)
     best = keeps[0] if keeps else None
     runner = next((s for s in keeps if best is not None and s.scheme != best.scheme), None)
     cap = best.cpu_per_t if best is not None else math.inf
@@ -157,6 +156,13 @@ def decide(candidates: list[Setting], target: float, horizon: float,
             seen.add(s.scheme)
             unique.append(s)
     return Decision(target, horizon, best, runner, unique)
+
+
+def keepers(candidates: list[Setting], target: float, horizon: float) -> list[Setting]:
+    """The candidates whose measured or predicted error at ``horizon`` keeps ``target``,
+    cheapest first (their predicted CPU to ``horizon``)."""
+    keeps = [s for s in candidates if (e := s.error_at(horizon)) is not None and e <= target]
+    return sorted(keeps, key=lambda s: (s.cpu_at(horizon), s.text))
 
 
 def deciding_run(s: Setting, horizon: float, db: str | None = None) -> str:

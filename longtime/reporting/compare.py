@@ -11,8 +11,9 @@ RUN_B). Cells are matched by problem, scheme, t_final and every setting. Per com
   by a test on the repeats within one. Where both rows were timed in several processes
   (``cpu_s_process_spread``, longtime.execution.processes), a cell is slower when its ratio
   exceeds both ``--factor`` and the larger of the two rows' spreads between processes
-  (``time_threshold``); a row timed in one process only (a store from before, or
-  ``--processes 1``) is judged against ``--cell-factor`` (``CELL_FACTOR``). A scheme (or a
+  (``time_threshold``); a row timed in one process only (a store from before, ``--processes
+  1``, or a cell the main job's timing by need left in its own process: its ``timed_in``)
+  is judged against ``--cell-factor`` (``CELL_FACTOR``), never ``--factor``. A scheme (or a
   problem) is slower when the median ratio of its batches over at least ``MIN_BATCHES``
   problems (schemes) exceeds ``--factor`` (``TIME_FACTOR``), and then each of its cells
   beyond ``--factor`` is slower. Cells whose CPU time is below ``SHORT_CPU_S`` are too short

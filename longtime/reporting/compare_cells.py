@@ -67,6 +67,13 @@ def process_spread(a: dict, b: dict) -> float | None:
     return max(spreads)
 
 
+def one_process(row: dict) -> bool:
+    """Whether a row's time was taken in its own process only (its ``timed_in``, where the
+    main job's timing by need left it out of the fresh timing processes, or ``--processes
+    1``): it has no spread between processes."""
+    return str(row.get("timed_in") or "").startswith("its own process")
+
+
 def compare_rows(a: dict, b: dict, factor: float = TIME_FACTOR, error_factor: float = 2.0,
                  alpha: float = 0.05, raw: bool = False, cell_factor: float = CELL_FACTOR,
                  short: float = SHORT_CPU_S, instruction_factor: float = INSTRUCTION_FACTOR,
@@ -105,6 +112,9 @@ def compare_rows(a: dict, b: dict, factor: float = TIME_FACTOR, error_factor: fl
             why = f"beyond x{threshold:.3g}: the spread between processes x{spread:.3g} and --factor x{factor:g}"
         else:
             threshold, why = cell_factor, f"cell beyond x{cell_factor:g}"
+            alone = [side for side, r in (("A", a), ("B", b)) if one_process(r)]
+            if alone:  # no spread between processes to judge by: --cell-factor, never --factor
+                why += f": timed in its own process in {' and '.join(alone)} (no spread between processes)"
         out.update(process_spread=spread, time_threshold=threshold, bandwidth_ratio=bandwidth)
         attributable = max(factor, spread or 0.0)  # the smallest time ratio any verdict of this cell rests on
         if min(a["cpu_s"], b["cpu_s"]) < short:

@@ -11,7 +11,10 @@ its regression reports), then read as a benchmark suite reads them:
 - neighbouring pieces closer than the factor are one level. For time the factor is the
   series' spread between processes (the median over its runs of ``cpu_s_process_spread``:
   how far one cell's time moves from one process to the next, longtime.execution.processes)
-  and at least ``compare_cells.TIME_FACTOR``; runs timed in one process only leave it at
+  and at least ``compare_cells.TIME_FACTOR``; where a run was timed in its own process only
+  (its ``timed_in``: the main job's timing by need left it out of the fresh processes, or
+  ``--processes 1``), at least ``compare_cells.CELL_FACTOR``, as compare judges such a cell;
+  older runs stored without ``timed_in`` and no spread leave it at
   ``compare_cells.TIME_FACTOR``; the repeats within one process never set it. Errors:
   ``ERROR_FACTOR``;
 - for time, a level held by fewer than ``MIN_RUNS`` runs between two levels that agree is a
@@ -52,12 +55,14 @@ from longtime.execution.calibration import stream_median
 from longtime.reporting import machines
 from longtime.reporting.compare import cross_machine_table
 from longtime.reporting.compare_cells import (
+    CELL_FACTOR,
     INSTRUCTION_FACTOR,
     MATCH_KEYS,
     ROUND_OFF,
     TIME_FACTOR,
     cell_key,
     error_fields,
+    one_process,
 )
 from longtime.reporting.compare_text import label
 
@@ -154,9 +159,12 @@ def _same(have, text: str) -> bool:
 
 def process_factor(points: list[dict[str, Any]], factor: float) -> float:
     """The factor a time step must pass in a cell's series: the median over its runs of the
-    spread between processes (``cpu_s_process_spread``), at least ``factor``."""
+    spread between processes (``cpu_s_process_spread``), at least ``factor``, and at least
+    ``CELL_FACTOR`` where a run was timed in its own process (``timed_in``)."""
     spreads = sorted(p[SPREAD_FIELD] for p in points
                      if p.get("status") == "ok" and isinstance(p.get(SPREAD_FIELD), (int, float)))
+    if any(p.get("status") == "ok" and one_process(p) for p in points):
+        factor = max(factor, CELL_FACTOR)  # a run timed in its own process has no spread to judge by
     if not spreads:
         return factor
     return max(factor, _median(spreads))
@@ -210,7 +218,8 @@ def history(store, problems=None, schemes=None, sets: dict[str, str] | None = No
             points.append({"run_id": rid, "commit": run.get("git_commit"), "code": run_code(run),
                            "date": run.get("started"), "status": r.get("status"), "cpu_s": r.get("cpu_s"),
                            TIME_FIELD: r.get(TIME_FIELD), "cpu_s_processes": r.get("cpu_s_processes"),
-                           SPREAD_FIELD: r.get(SPREAD_FIELD), **{f: r.get(f) for f in errors},
+                           SPREAD_FIELD: r.get(SPREAD_FIELD), "timed_in": r.get("timed_in"),
+                           **{f: r.get(f) for f in errors},
                            INSTRUCTIONS_FIELD: r.get(INSTRUCTIONS_FIELD),
                            "machine": machine_of[rid]["label"] if rid in machine_of else None,
                            "instructions_counted_by": json.dumps([r.get("instructions_tool"),

@@ -18,6 +18,7 @@ from longtime.core.roles import ROW_PARAMETERS, row_columns
 from longtime.core.rowtext import main_t_final, setting  # noqa: F401 (their home; read from here too)
 from longtime.measure.lyapunov import past_predictability
 from longtime.predict.decision import verdicts
+from longtime.predict.need import PARETO_FIELDS, pareto_field  # noqa: F401 (their home; read from here too)
 from longtime.reporting.verdict import verdict_lines
 
 # the JSON contract (README.md, `--format json`): every row carries these keys (null where not applicable)
@@ -95,9 +96,8 @@ def render(rows: list[dict[str, Any]], fmt: str = "table") -> str:
 
 # ------------------------------------------------------------------ the summary read first
 STATUSES = ("ok", "diverged", "failed", "timeout", "skipped")
-# the accuracy a Pareto front ranks by, first present wins: the solution error where a
-# reference exists, else the energy drift
-PARETO_FIELDS = ("l2_error", "H.max", "I.max", "constraint.max")
+# the accuracy a Pareto front ranks by is the first of PARETO_FIELDS present (the solution
+# error where a reference exists, else the energy drift): longtime.predict.need
 DECADES = tuple(10.0 ** -k for k in range(1, 16))
 
 
@@ -111,11 +111,6 @@ def status_counts(rows: Iterable[dict[str, Any]]) -> dict[str, int]:
 def format_counts(counts: dict[str, int]) -> str:
     shown = [f"{n} {s}" for s, n in counts.items() if n]
     return ", ".join(shown) or "no rows"
-
-
-def pareto_field(rows: list[dict[str, Any]]) -> str | None:
-    ok = [r for r in rows if r.get("status") == "ok"]
-    return next((f for f in PARETO_FIELDS if any(positive(r.get(f)) for r in ok)), None)
 
 
 def pareto(rows: list[dict[str, Any]], field: str | None = None) -> list[dict[str, Any]]:

@@ -127,7 +127,9 @@ def count_lines(rows: list[dict[str, Any]], orders: bool = True) -> list[str]:
     import re
 
     from longtime.execution.budget import notes
-    from longtime.measure.orders import left_out
+    from longtime.measure.orders import left_out as left_out_of_fits
+    from longtime.predict.need import FACTOR as NEED_FACTOR
+    from longtime.predict.need import left_out
 
     lines = [f"{len(rows)} cells: {format_counts(status_counts(rows))}"]
     skipped: dict[str, list[tuple[str, str]]] = {}
@@ -158,8 +160,13 @@ def count_lines(rows: list[dict[str, Any]], orders: bool = True) -> list[str]:
     if moved:
         lines += _wrap(f"  moved by the default matrix's budget {len(moved)} (a run over its seconds runs to a "
                        f"shorter t_final): {_pairs_text(sorted(moved), ONE_LINE)}")
+    alone = sum(1 for r in rows if left_out(r))
+    if alone:
+        lines += _wrap(f"  timed in its own process only {alone} (dominated by more than x{NEED_FACTOR:g} on every "
+                       f"front of error against CPU: their time changes no answer; each row's timed_in says by how "
+                       f"much; --timing all times every cell in every process)")
     if orders:
-        out = left_out(rows)
+        out = left_out_of_fits(rows)
         if out:
             kinds: dict[str, list[tuple[str, str]]] = {}
             for m in out:
