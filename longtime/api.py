@@ -12,7 +12,6 @@ prints (timings aside).
 """
 from __future__ import annotations
 
-import math
 import shlex
 import time
 from dataclasses import dataclass, field
