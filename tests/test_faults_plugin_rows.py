@@ -21,6 +21,7 @@ SPOILS = {
     "evil-negative-steps": (("counters", "steps", -5), "steps"),
     "evil-huge-steps": (("counters", "steps", 10**30), "steps"),
     "evil-many-steps": (("counters", "steps", 10**6), "steps"),  # 10 steps of dt 0.1 reach t = 1
+    "evil-no-steps": (("counters", "steps", 0), "steps"),  # no step reaches t = 1
     "evil-status": (("status", None, "sucess"), "status"),
 }
 

@@ -49,6 +49,7 @@ from longtime.execution.limits import (
     Watchdog,
     die_with_parent,
     hard_limit,
+    hit_memory_limit,
     kill_with_parent,
     set_memory_limit,
     timeout_message,
@@ -313,7 +314,7 @@ class Resident:
             write_job(child.folder, "batches", todo, spec)
             rows.update(self._batch(child, todo, spec))
             todo = [c for c in todo if c.key not in rows]
-        if any(str(r.get("message") or "").startswith("memory limit") for r in rows.values()):
+        if any(hit_memory_limit(r) for r in rows.values()):
             self.close()
         return [rows[c.key] for c in cells]
 

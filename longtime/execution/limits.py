@@ -160,6 +160,14 @@ def memory_argument_api(value) -> int | None:
     return int(value * 2**30) or None
 
 
+MEMORY_LIMIT = "memory limit"  # how the message of a cell stopped by its memory limit begins
+
+
+def hit_memory_limit(row: dict) -> bool:
+    """Whether ``row`` is of a cell stopped by its memory limit (``memory_message``)."""
+    return str(row.get("message") or "").startswith(MEMORY_LIMIT)
+
+
 def memory_message(exc: BaseException) -> str:
     """The message of a cell that ran out of memory: the limit it ran into, when there is one."""
     limit = None
@@ -173,7 +181,7 @@ def memory_message(exc: BaseException) -> str:
     what = str(exc).strip() or type(exc).__name__
     if limit is None:
         return f"out of memory: {what}"
-    return f"memory limit: the cell may use {gib(limit)} (--memory-limit); {what}"
+    return f"{MEMORY_LIMIT}: the cell may use {gib(limit)} (--memory-limit); {what}"
 
 
 def die_with_parent(parent: int) -> None:
