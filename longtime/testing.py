@@ -314,7 +314,8 @@ def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float 
 def accuracy_fields(row: dict[str, Any]) -> dict[str, Any]:
     """The fields of a row that say how accurate it was (and what it ran)."""
     keep = ("problem", "integrator", "status", *row_columns(), "t_final", "settings", "steps",
-            "rhs_evals", "l2_error", "final_error", "reference", "reference_error", "error_horizon")
+            "rhs_evals", "l2_error", "final_error", "reference", "reference_error", "error_horizon",
+            "error_floor", "error_below_floor", "discretisation_error")
     suffixes = (".max", ".mean", ".final", ".growth", ".growth_class")
     return {k: v for k, v in row.items()
             if (k in keep or k.endswith(suffixes)) and (v is None or isinstance(v, (str, int, float, bool)))}
