@@ -107,6 +107,28 @@ def test_slopes_still_rising_toward_the_declared_order_are_undetermined():
     # of it by less than a tenth (kahan-li-8's 7.97, 8.08, 8.14)
 
 
+def test_a_high_order_schemes_default_sweep_crosses_its_asymptotic_range():
+    """kahan-li-8's default sweep on kepler was the problem's dt 0.005 to 0.02, all on the
+    round-off floor (no order); an order-8 scheme now sweeps three doublings of the largest
+    step too, and its order is determined there."""
+    from longtime.execution.cells import expand
+    from longtime.problems.kepler import Kepler
+
+    def steps(scheme):
+        cells = expand(["kepler"], [scheme], default_sweep=True)
+        return sorted(c.integrator_settings["dt"] for c in cells if c.t_final == Kepler.sweep_t_final)
+
+    dts = steps("kahan-li-8")
+    assert dts == [0.005, 0.01, 0.02, 0.04, 0.08, 0.16]
+    assert steps("rk4") == [0.005, 0.01, 0.02] and steps("yoshida6") == [0.005, 0.01, 0.02, 0.04]
+    # its l2_errors at T = 40 pi (longtime.sweep("kepler", "kahan-li-8", default_sweep=True))
+    errors = [1.2731e-11, 8.4376e-13, 3.0063e-11, 7.1968e-09, 1.9053e-06, 6.1890e-04]
+    (fit,) = observed_orders(rows("kahan-li-8", dts, errors))
+    assert [p[0] for p in fit["order_points"]] == [0.04, 0.08, 0.16] and not fit["order_flag"]
+    assert abs(fit["observed_order"] - 8) <= fit["observed_order_ci"]
+    assert all("round-off floor" in why for _, _, why in fit["order_dropped"])
+
+
 def test_a_pre_asymptotic_sweep_of_a_problem_not_tuned_to_is_undetermined():
     """yoshida8 (order 8) on henon-heiles at dt 0.4 to 0.1: its local slopes 6.71, 7.38, 7.80
     still rise toward 8; the old rule fitted 7.66 +- 1.39 over the three smallest steps and
