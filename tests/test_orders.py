@@ -52,6 +52,11 @@ def test_reference_floor_and_a_missed_order_is_flagged():
     assert [p[0] for p in fit["order_points"]] == [0.025, 0.05, 0.1]
     assert fit["observed_order"] == pytest.approx(3.0, abs=1e-9)
     assert fit["order_flag"]  # rk4 declares 4: 3 misses by more than the interval
+    # the floor in l2_error's units (error_floor) is the one compared, where the row has it
+    swept = rows("rk4", dts, errors, reference_error=1e-12)
+    for r in swept:
+        r["error_floor"] = 1e-8
+    assert [p[0] for p in observed_orders(swept)[0]["order_points"]] == [0.025, 0.05, 0.1]
 
 
 def _errors_with_slopes(dts, slopes, smallest=1e-10):

@@ -10,7 +10,8 @@ The rule (docs/metrics.md, "Observed order"), on the points by increasing step, 
 point left out named with why:
 
 1. floors: an error below ``ROUND_OFF_FLOOR`` (round-off) or below ``REFERENCE_MARGIN``
-   times the row's ``reference_error`` (the reference's own accuracy) is dropped; so is an
+   times the reference's own error (the row's ``error_floor``, in l2_error's units, else
+   its ``reference_error``) is dropped; so is an
    error above ``MAX_ERROR`` (the scheme does not resolve the solution), and a row past
    its predictability horizon (a chaotic solution lost);
 2. the local slopes log(e2/e1)/log(h2/h1) between successive points are computed; at the
@@ -236,7 +237,9 @@ def _points(ok: list[dict], field: str) -> tuple[list[tuple[float, float, float 
         elif field == "l2_error" and past_predictability(r):
             reason = "past its predictability horizon (a chaotic solution lost)"
         else:
-            points.append((_x(r), float(r[field]), r.get("reference_error") if field == "l2_error" else None))
+            # the reference's error in l2_error's units where the row has it (error_floor)
+            ref = next((r[k] for k in ("error_floor", "reference_error") if positive(r.get(k))), None)
+            points.append((_x(r), float(r[field]), ref if field == "l2_error" else None))
             continue
         why[reason] = why.get(reason, 0) + 1
     return points, why
