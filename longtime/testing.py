@@ -26,12 +26,21 @@ from longtime.core.roles import row_columns, row_fields
 EXTRA_HALVINGS = 2
 
 
-def default_dts(problem: Any) -> list[float]:
+def default_dts(problem: Any, scheme: Any = None, t_final: float | None = None) -> list[float]:
     """The steps ``assert_order`` sweeps by default: the problem's ``sweep_dt`` and two
-    halvings of its smallest step."""
+    halvings of its smallest step; for a ``scheme`` of a high declared order, the larger
+    steps of its default sweep too (longtime.execution.cells.sweep_steps, over ``t_final``,
+    default the problem's), where its error is above the round-off floor."""
+    from longtime.execution.cells import sweep_steps
+
     cls = registry.problem_class(resolve(problem, "problem")[0])
     dts = sorted({float(x) for x in cls.sweep_dt} or {float(cls.default_dt)}, reverse=True)
-    return dts + [dts[-1] / 2 ** k for k in range(1, EXTRA_HALVINGS + 1)]
+    larger = []
+    if scheme is not None:
+        icls = registry.integrator_class(resolve(scheme, "scheme")[0])
+        span = cls.default_t_final if t_final is None else t_final
+        larger = [h for h in sweep_steps(cls, icls, span) if h > dts[0]]
+    return larger + dts + [dts[-1] / 2 ** k for k in range(1, EXTRA_HALVINGS + 1)]
 
 
 def _label(scheme: Any, problem: Any) -> str:
@@ -54,7 +63,7 @@ def assert_order(scheme: Any, problem: Any, order: float, *, dts: Sequence[float
     ``default_dts``) is within ``slack`` of ``order``. Returns the Order."""
     check_number("order", order, positive=True)
     check_number("slack", slack, minimum=0.0)
-    dts = list(dts) if dts is not None else default_dts(problem)
+    dts = list(dts) if dts is not None else default_dts(problem, scheme, t_final)
     rows = sweep(problem, scheme, t_final=t_final, executor=executor, repeats=1, min_time=0.0, dt=dts, **settings)
     found = convergence(rows)
     if isinstance(found, list):
@@ -314,7 +323,8 @@ def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float 
 def accuracy_fields(row: dict[str, Any]) -> dict[str, Any]:
     """The fields of a row that say how accurate it was (and what it ran)."""
     keep = ("problem", "integrator", "status", *row_columns(), "t_final", "settings", "steps",
-            "rhs_evals", "l2_error", "final_error", "reference", "reference_error", "error_horizon")
+            "rhs_evals", "l2_error", "final_error", "reference", "reference_error", "error_horizon",
+            "error_floor", "error_below_floor", "discretisation_error")
     suffixes = (".max", ".mean", ".final", ".growth", ".growth_class")
     return {k: v for k, v in row.items()
             if (k in keep or k.endswith(suffixes)) and (v is None or isinstance(v, (str, int, float, bool)))}

@@ -75,13 +75,13 @@ def test_soliton_shape():
     assert abs(np.linalg.norm(p.u0) - l2) < 1e-12 * l2
 
 
-def test_soliton_speed_and_exact_solution():
+def test_soliton_speed_and_pde_solution():
     """ETDRK4 over half a period: the computed soliton moves at c = c0 (1 + h/(2 delta))."""
     p = KdV(d=128)
     tf = SOLITON_PERIOD / 2
     traj = ETDRK4(dt=tf / 200).integrate(p, tf, max_samples=11)
     assert traj.status == "ok"
-    exact = p.exact(traj.t)
+    exact = p.pde_solution(traj.t)
     err = np.linalg.norm(traj.u - exact, axis=1) / np.linalg.norm(exact, axis=1)
     assert err.max() < 1e-6
     # speed from the phase of mode 1, which rotates as exp(-i w c t)
@@ -90,7 +90,7 @@ def test_soliton_speed_and_exact_solution():
     speed = -np.polyfit(traj.t, phase, 1)[0] / (2 * np.pi / K.PERIOD_X)
     assert abs(speed - K.SPEED) < 1e-6 * K.SPEED
     # the peak is half a period away after half a period: exact soliton state at T is u0
-    assert np.max(np.abs(p.exact([SOLITON_PERIOD])[0] - p.u0)) < 1e-13
+    assert np.max(np.abs(p.pde_solution([SOLITON_PERIOD])[0] - p.u0)) < 1e-13
 
 
 def test_invariants_conserved_by_galerkin():

@@ -81,10 +81,44 @@ def test_exact_solutions_are_checked_or_declared():
     assert harmonic.error < 1e-13 and harmonic.horizon == 200.0 and harmonic.note == ""
     duffing = reference.reference_check(registry.problem_class("duffing-2")(), 200.0)
     assert duffing.error < 1e-12 and "vs heyoka long double" in duffing.basis
-    kdv = registry.problem_class("kdv")(d=32)  # no heyoka system: the declared accuracy
-    trust = reference.reference_check(kdv, 15.0)
-    assert trust.error == trust.rtol == kdv.exact_rtol > reference.REFERENCE_RTOL
-    assert trust.horizon == 15.0 and "declared" in trust.message(15.0)
+
+
+def test_kdv_reference_is_the_galerkin_systems_own_solution():
+    """KdV's reference is the solution of the Galerkin system its schemes integrate (the
+    integrating factor by DOP853, checked against the system integrated directly), not the
+    PDE's soliton: rk4 at a small step agrees with it far below the soliton's distance
+    from the system (about 2.5e-7), which the row gives apart as discretisation_error."""
+    row = run_cell(Cell("kdv", "rk4", {}, {"dt": 0.002}, 3.0))
+    assert row["status"] == "ok" and row["reference"] == "integrating factor"
+    assert row["reference_error"] < 1e-11 and row["reference_horizon"] == 3.0
+    assert 3e-10 < row["l2_error"] < 1e-8  # rk4's own error (3.3e-9 to t = 10)
+    assert 1.5e-7 < row["discretisation_error"] < 4e-7
+    assert row["error_floor"] < 1e-11 and row["error_below_floor"] is False
+    # the reference itself, at other times than its check's, against the system run directly
+    kdv = registry.problem_class("kdv")(d=64)
+    times = np.linspace(0.0, 3.0, 7)
+    ref = reference.reference_states(kdv, times)
+    direct, stopped = reference.system_states(kdv, times, "direct")
+    assert stopped is None and np.max(reference._relative(ref, direct)) < 1e-11
+    # and the PDE's soliton is not it
+    assert np.max(reference._relative(kdv.pde_solution(times)[1:], ref[1:])) > 1e-7
+
+
+def test_an_error_below_the_references_is_not_reported_as_measured():
+    from longtime.measure.metrics import floor_fields
+
+    trust = reference.Trust("double", 1e-8, 10.0, 1e-10, "heyoka double vs long double")
+    states = np.ones((5, 2))  # RMS size sqrt(2)
+    notes: list[str] = []
+    out = floor_fields({"l2_error": 1e-11, "final_error": 3e-10}, trust, states, 2 ** 0.5, notes)
+    assert out == {"error_floor": pytest.approx(1e-10), "error_below_floor": True}
+    assert notes and "l2_error 1e-11 below the reference's error 1e-10" in notes[0] and "final_error" not in notes[0]
+    notes.clear()
+    assert floor_fields({"l2_error": 1e-9}, trust, states, 2 ** 0.5, notes)["error_below_floor"] is False
+    assert not notes
+    unchecked = reference.Trust("double", 1e-8, 10.0, None, "unchecked")
+    assert floor_fields({"l2_error": 1e-20}, unchecked, states, 1.0, notes) == {
+        "error_floor": None, "error_below_floor": None}
 
 
 def test_a_cached_check_is_reused(fresh_cache, monkeypatch):

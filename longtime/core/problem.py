@@ -35,10 +35,15 @@ Python-level capabilities (vectorised over samples; ``U`` has shape (n, dim)):
     exact(t) -> U                                       exact solution at the times t,
                                                         through the state u0 as rounded
     exact_rtol                                          the relative accuracy of ``exact``
-                                                        where it is not machine-level (kdv:
-                                                        the soliton is not exactly periodic);
-                                                        None: checked against heyoka in long
+                                                        where it is not machine-level; None:
+                                                        checked against heyoka in long
                                                         double (longtime.measure.reference)
+    pde_solution(t) -> U                                the solution of the PDE that the
+                                                        problem discretises, at the times t
+                                                        (kdv's soliton): not the reference,
+                                                        which is the system's own solution;
+                                                        rows give its distance from it
+                                                        (``discretisation_error``)
     heyoka_system() -> (vars, rhs expressions)          for the heyoka reference
     jax_rhs(t, u, params) -> u'                         ("jax_rhs") the rhs in jax.numpy (a
                                                         staticmethod that imports jax when
@@ -165,6 +170,7 @@ class Problem(ABC):
     jac: ClassVar[Callable | None] = None
     exact: ClassVar[Callable | None] = None
     exact_rtol: ClassVar[float | None] = None
+    pde_solution: ClassVar[Callable | None] = None
     heyoka_system: ClassVar[Callable | None] = None
     taylor: ClassVar[Callable | None] = None
     constraints: ClassVar[Any] = None

@@ -198,8 +198,13 @@ FIELDS: tuple[Field, ...] = (
     Field("drift_curve", "mapping", "", "the first invariant's drift curve (invariant, t, error)"),
     Field("drift_curves", "mappings", "", "every invariant's drift curve, in the problem's order"),
     Field("diag_curves", "mappings", "", "every diagnostic's curve (diagnostic, t, error)"),
-    Field("reference", "str", "", "what the errors are measured against: exact, or heyoka double/long double"),
-    Field("reference_error", "float", "1", "the reference's own error, as checked"),
+    Field("reference", "str", "", "what the errors are measured against: exact, heyoka double/long double, "
+                                  "or integrating factor (a discretised system's own solution)"),
+    Field("reference_error", "float", "1", "the reference's own error, as checked (relative to the state)"),
+    Field("error_floor", "float", "1", "the reference's error in l2_error's units: errors below it are not measured"),
+    Field("error_below_floor", "bool", "", "l2_error or final_error is below error_floor: not measured, only bounded"),
+    Field("discretisation_error", "float", "1",
+          "a discretised PDE's: its solution's l2_error against the system's (the space discretisation's error)"),
     Field("reference_horizon", "float", "time", "the time up to which the reference is trusted"),
     Field("reference_rtol", "float", "1", "the relative tolerance the reference is trusted to"),
     # chaos

@@ -14,6 +14,13 @@ at the last sample,
 null when the horizon ends before it; ``error_curve`` keeps e's upper envelope and the
 l2_error up to each of its times (``error_curve``); ``drifting_components`` counts the
 reference's components that drift (``drifting_components``).
+``error_floor`` is the reference's own error (``reference_error``, relative to the state)
+in l2_error's units, reference_error x the reference's RMS size / S; an l2_error or
+final_error below it is not measured, only bounded by about twice the floor:
+``error_below_floor`` says so, and the row's message. Where the problem discretises a PDE
+(``pde_solution``), ``discretisation_error`` is the l2_error of the PDE's solution against
+the reference, the system's own solution: the space discretisation's share, which no
+time step removes.
 Growth law of each error (longtime.measure.growth): NAME.growth, NAME.growth_ci, NAME.growth_class,
 NAME.growth_reason, NAME.growth_windows, NAME.saturated_t per invariant, and the same as
 ``error.`` for the solution error e(t) over the samples up to the horizon. ``drift_curves``
@@ -216,6 +223,34 @@ def drift_envelope(name: str, t: np.ndarray, err: np.ndarray, points: int = DRIF
             "error": [float(f"{e[i]:.6g}") for i in peaks]}
 
 
+def discretisation_error(problem: Problem, t: np.ndarray, reference: np.ndarray,
+                         window: tuple[np.ndarray, np.ndarray] | None) -> float | None:
+    """The l2_error of the problem's ``pde_solution`` against ``reference`` (the system's
+    solution) at the times ``t``, with the reference's motion scale: how far the space
+    discretisation alone is from the PDE."""
+    _, l2, _ = solution_errors(t, np.asarray(problem.pde_solution(t), dtype=float), reference, window)
+    return finite_or_none(l2[-1])
+
+
+def floor_fields(row: dict[str, Any], trust: Trust | None, reference: np.ndarray, scale: float,
+                 notes: list[str]) -> dict[str, Any]:
+    """``error_floor`` (the reference's error in l2_error's units: reference_error times the
+    reference's RMS size over the motion scale ``scale``) and ``error_below_floor`` (the
+    row's l2_error or final_error is below it: not measured); null without a checked
+    reference. A row below the floor says so in ``notes``."""
+    if trust is None or trust.error is None or not scale > 0:
+        return {"error_floor": None, "error_below_floor": None}
+    size = math.sqrt(float(np.mean(np.sum(np.asarray(reference, dtype=float) ** 2, axis=1))))
+    floor = finite_or_none(trust.error * size / scale)
+    if floor is None:
+        return {"error_floor": None, "error_below_floor": None}
+    below = [(k, row[k]) for k in ("l2_error", "final_error") if row.get(k) is not None and row[k] < floor]
+    if below:
+        notes.append(", ".join(f"{k} {v:.2g}" for k, v in below) + f" below the reference's error {floor:.2g} "
+                     f"({trust.basis}): not measured, only bounded by about {2 * floor:.2g}")
+    return {"error_floor": floor, "error_below_floor": bool(below)}
+
+
 def diagnostic_fields(problem: Problem, t: np.ndarray, U: np.ndarray, notes: list[str]) -> dict[str, Any]:
     """``diag.NAME.max``, ``diag.NAME.final`` (the change |D(t) - D(0)| relative to |D(0)|,
     absolute where D(0) = 0, as for an invariant) and ``diag_curves`` (its envelope, as
@@ -268,7 +303,11 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
         "diag_curves": None,  # every diagnostic's curve
         **growth_fields("error", np.empty(0), np.empty(0), problem.t0),  # null without a reference
         **trust_fields(trust),
+        "error_floor": None,  # null without a checked reference
+        "error_below_floor": None,
     }
+    if problem.pde_solution is not None:  # a discretised PDE: the space discretisation's error
+        row["discretisation_error"] = None
     if problem.chaotic:  # the first time the solution error reaches O(1) (null: it never does)
         row["predictability_t"] = None
     # a diverged run ends on a non-finite state: measure the finite part (until the blow-up)
@@ -307,8 +346,11 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
             bad = int(np.argmin(np.isfinite(reference[:k]).all(axis=1)))
             notes.append(f"the reference is not finite at t = {t[bad]:.6g}: no error measured")
         elif k >= 2:
-            rel, l2, _ = solution_errors(t[:k], U[:k], reference[:k], motion_window(problem, float(t[k - 1]), trust))
+            window = motion_window(problem, float(t[k - 1]), trust)
+            rel, l2, scale = solution_errors(t[:k], U[:k], reference[:k], window)
             row["l2_error"] = finite_or_none(l2[-1])
+            if problem.pde_solution is not None:
+                row["discretisation_error"] = discretisation_error(problem, t[:k], reference[:k], window)
             row["error_curve"] = error_curve(t[:k], rel, l2)
             row["drifting_components"] = drifting_components(t[:k], reference[:k])
             # growth law of the error relative to the motion, up to the horizon
@@ -318,6 +360,7 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
                 row["predictability_t"] = predictability(t[:k], rel, O1_ERROR)
             if k == finite:
                 row["final_error"] = finite_or_none(rel[-1])
+            row.update(floor_fields(row, trust, reference[:k], scale, notes))
     row.update(traj.extra)
     if notes:
         row["message"] = "; ".join(notes)

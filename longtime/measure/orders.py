@@ -10,7 +10,8 @@ The rule (docs/metrics.md, "Observed order"), on the points by increasing step, 
 point left out named with why:
 
 1. floors: an error below ``ROUND_OFF_FLOOR`` (round-off) or below ``REFERENCE_MARGIN``
-   times the row's ``reference_error`` (the reference's own accuracy) is dropped; so is an
+   times the reference's own error (the row's ``error_floor``, in l2_error's units, else
+   its ``reference_error``) is dropped; so is an
    error above ``MAX_ERROR`` (the scheme does not resolve the solution), and a row past
    its predictability horizon (a chaotic solution lost);
 2. the local slopes log(e2/e1)/log(h2/h1) between successive points are computed; at the
@@ -25,7 +26,13 @@ point left out named with why:
 4. the order is determined when the range holds at least ``MIN_POINTS`` points. Otherwise
    it is undetermined, with the reason: "2 points only (...): not an order", or the local
    slopes: "pre-asymptotic: local slopes 3.20, 3.65, 3.85 (dt 0.1 to 0.0125) still rise
-   toward small steps (...)", or "local slopes disagree: ..." when they do not move one way.
+   toward small steps (...)", or "local slopes disagree: ..." when they do not move one way;
+5. a range whose local slopes still approach the declared order as the step shrinks (each
+   nearer it than the one at the next larger step, by more than ``SLOPE_BAND`` in all) while
+   the smallest step's slope misses it by more than ``ORDER_TOLERANCE`` is pre-asymptotic
+   too: its fit would read an order below the declared one that smaller steps would not
+   (rk4's 3.65, 3.85 on the pendulum; yoshida8's 6.71, 7.38, 7.80 on henon-heiles), and
+   the order is undetermined, with the slopes (``_approaching``).
 
 A determined order is the least-squares slope over the range with a 95 % interval (Student
 t on the slope's standard error). It is flagged when it differs from the declared order by
@@ -230,7 +237,9 @@ def _points(ok: list[dict], field: str) -> tuple[list[tuple[float, float, float 
         elif field == "l2_error" and past_predictability(r):
             reason = "past its predictability horizon (a chaotic solution lost)"
         else:
-            points.append((_x(r), float(r[field]), r.get("reference_error") if field == "l2_error" else None))
+            # the reference's error in l2_error's units where the row has it (error_floor)
+            ref = next((r[k] for k in ("error_floor", "reference_error") if positive(r.get(k))), None)
+            points.append((_x(r), float(r[field]), ref if field == "l2_error" else None))
             continue
         why[reason] = why.get(reason, 0) + 1
     return points, why
@@ -244,6 +253,20 @@ def _flagged(slope: float, ci: float | None, slopes: list[float], declared: int 
         return False
     margin = max(ci, ORDER_TOLERANCE)
     return abs(slope - declared) > margin and not (min(slopes) - margin <= declared <= max(slopes) + margin)
+
+
+def _approaching(slopes: list[float], declared: int | None) -> bool:
+    """The local slopes of a range (by increasing step) still approach the declared order as
+    the step shrinks: each nearer it than the one at the next larger step, on one side of it,
+    by more than SLOPE_BAND in all, and the smallest step's slope misses it by more than
+    ORDER_TOLERANCE (rule 5 of the module)."""
+    if declared is None or len(slopes) < 2:
+        return False
+    gaps = [s - declared for s in slopes]
+    one_side = all(g < 0 for g in gaps) or all(g > 0 for g in gaps)
+    nearer = all(abs(a) < abs(b) for a, b in zip(gaps, gaps[1:]))
+    return (one_side and nearer and abs(gaps[-1]) - abs(gaps[0]) > SLOPE_BAND
+            and abs(gaps[0]) > ORDER_TOLERANCE)
 
 
 def _fit(members: list[dict]) -> tuple[dict | None, dict]:
@@ -286,6 +309,15 @@ def _fit(members: list[dict]) -> tuple[dict | None, dict]:
     first = members[0]
     declared = declared_order(first)
     range_slopes = local_slopes(used)
+    if _approaching(range_slopes, declared):
+        listed = ", ".join(f"{x:.2f}" for x in reversed(range_slopes))
+        way = "rise" if range_slopes[0] < declared else "fall"
+        reason = (f"pre-asymptotic: local slopes {listed} ({variable} {used[-1][0]:.3g} to {used[0][0]:.3g}) "
+                  f"still {way} toward the declared order {declared} as the step shrinks, the smallest step's "
+                  f"{range_slopes[0]:.2f} {abs(declared - range_slopes[0]):.2f} from it: the fit over them "
+                  f"({slope:.2f}) is not the order" + (f"; {rows_without}" if rows_without else ""))
+        return None, {"reason": reason, "dropped": [list(d) for d in dropped], "slopes": slopes,
+                      "error_field": field, "variable": variable}
     return {"problem": first["problem"], "integrator": first["integrator"],
             "run_id": first.get("run_id"), "t_final": first.get("t_final"),
             "order": first.get("order"), "settings": first.get("settings"),

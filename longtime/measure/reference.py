@@ -16,6 +16,16 @@ its horizon is the longer one. An exact solution is compared with the long-doubl
 without a heyoka system carries the accuracy its problem declares (``exact_rtol``). Every
 heyoka run has the wall-time budget $LONGTIME_REFERENCE_SECONDS (default 120): a check that
 passes it trusts the reference at most as far as it got, and says so.
+
+A problem that is a discretisation without a heyoka system (kdv's Fourier-Galerkin system:
+a diagonal linear part, ``linear_part`` and ``nonlinear``) has as its reference the solution
+of that system, the one its schemes integrate: DOP853 at rtol SYSTEM_RTOL on the
+integrating-factor form z = exp(-L (t - t0)) u, z' = exp(-L (t - t0)) N(exp(L (t - t0)) z),
+whose rate is the nonlinear term's alone, dense output at the samples. Its check integrates
+the system itself (u' = L u + N(u)) by DOP853 at the same tolerance on the check grid: two
+formulations, two step sequences; their relative difference is ``reference_error``. Its
+solution of the PDE (``pde_solution``) is not the reference: the row's
+``discretisation_error`` measures how far it is (longtime.measure.metrics).
 """
 from __future__ import annotations
 
@@ -40,6 +50,9 @@ from longtime.core.problem import Problem
 REFERENCE_RTOL = 1e-8
 CHECK_POINTS = 2000  # the check grid holds between this many and twice as many times
 PRECISIONS = ("double", "long double", "real128")
+# the source of the integrating-factor reference of a discretised system, and its tolerance
+SYSTEM = "integrating factor"
+SYSTEM_RTOL = 1e-13
 # a heyoka run that takes longer than this (wall seconds) is given up: the row keeps its
 # status and says so (duffing-1 far past t = 40 needs ever more steps per unit time)
 DEFAULT_BUDGET_S = 120.0
@@ -93,7 +106,8 @@ class Trust:
     note: str = ""  # a time budget that ran out, a declared accuracy
 
     def fields(self) -> dict[str, Any]:
-        return {"reference": self.source if self.source == "exact" else f"heyoka {self.source}",
+        name = self.source if self.source in ("exact", SYSTEM) else f"heyoka {self.source}"
+        return {"reference": name,
                 "reference_error": self.error, "reference_horizon": self.horizon,
                 "reference_rtol": self.rtol}
 
@@ -119,7 +133,14 @@ def _slack(t: float) -> float:
 
 def has_reference(problem: Problem) -> bool:
     caps = problem.capabilities()
-    return "exact" in caps or "heyoka" in caps
+    return "exact" in caps or "heyoka" in caps or "linear_part" in caps
+
+
+def integrates_system(problem: Problem) -> bool:
+    """The reference is the integrating-factor solution of the problem's system (see the
+    module): no exact solution, no heyoka system, a diagonal linear part."""
+    return (problem.exact is None and problem.heyoka_system is None
+            and "linear_part" in problem.capabilities())
 
 
 def trusted_reference(problem: Problem, times: np.ndarray, t_final: float,
@@ -138,7 +159,8 @@ def trusted_reference(problem: Problem, times: np.ndarray, t_final: float,
 def reference_states(problem: Problem, times: np.ndarray, precision: str = "double",
                      budget_s: float | None = None) -> np.ndarray:
     """States (len(times), dim) of the problem's true trajectory from problem.u0 at t0: the
-    exact solution, else heyoka in ``precision`` (cached).
+    exact solution, else heyoka in ``precision``, else the integrating-factor solution of the
+    system (``integrates_system``; ``precision`` is then not read), cached.
 
     Raises ReferenceUnavailable when heyoka stops early or takes more than ``budget_s``
     wall seconds (default $LONGTIME_REFERENCE_SECONDS or 120).
@@ -151,9 +173,13 @@ def reference_states(problem: Problem, times: np.ndarray, precision: str = "doub
                 del _EXACT[next(iter(_EXACT))]
             _EXACT[key] = np.asarray(problem.exact(times), dtype=float)
         return _EXACT[key].copy()
-    if problem.heyoka_system is None:
+    system = integrates_system(problem)
+    if problem.heyoka_system is None and not system:
         raise InputError(f"problem '{problem.name}' has neither an exact solution nor a heyoka system")
-    _fp(precision)  # validates
+    if system:
+        precision = f"{SYSTEM} rtol={SYSTEM_RTOL!r}"
+    else:
+        _fp(precision)  # validates
     path = cache_path(problem, "states", precision, times.tobytes(), suffix=".npy")
     def read():
         states = np.load(path)
@@ -171,9 +197,13 @@ def reference_states(problem: Problem, times: np.ndarray, precision: str = "doub
     starts_later = grid[0] > problem.t0
     if starts_later:
         grid = np.r_[problem.t0, grid]
-    states, stopped = propagate(problem, grid, precision, budget_s)
+    if system:
+        states, stopped = system_states(problem, grid, "factor", budget_s)
+    else:
+        states, stopped = propagate(problem, grid, precision, budget_s)
     if stopped is not None:
-        raise ReferenceUnavailable(f"heyoka {precision} reference for {problem.name} passed its time "
+        what = SYSTEM if system else f"heyoka {precision}"
+        raise ReferenceUnavailable(f"{what} reference for {problem.name} passed its time "
                                    f"budget at t = {stopped:.6g} (LONGTIME_REFERENCE_SECONDS)")
     states = states[int(starts_later):][inverse]
     save_cached(path, states)
@@ -182,6 +212,8 @@ def reference_states(problem: Problem, times: np.ndarray, precision: str = "doub
 
 def reference_check(problem: Problem, t_final: float, budget_s: float | None = None) -> Trust:
     """How far the reference of ``problem`` is trusted over [t0, t_final] (see the module)."""
+    if integrates_system(problem):
+        return _system_check(problem, float(t_final), budget_s)
     ladder = _ladder()
     declared = problem.exact_rtol if problem.exact is not None else None
     rtol = max(REFERENCE_RTOL, declared or 0.0)
@@ -221,7 +253,15 @@ def check_seconds_per_t(problem: Problem, span: float, budget_s: float = 5.0) ->
     declared accuracy). Its runs' cost grows with t at about this rate, so a caller can tell
     beforehand whether a check to some horizon fits a budget. The compile has the reference's
     budget (``budget_seconds``); a timed run that passes ``budget_s`` gives the rate of what
-    it reached, inf if it reached nothing. Raises ReferenceUnavailable as the check would."""
+    it reached, inf if it reached nothing. Raises ReferenceUnavailable as the check would.
+    A system's integrating-factor check (``integrates_system``) is timed the same way."""
+    if integrates_system(problem):
+        start = time.perf_counter()
+        grid = np.linspace(problem.t0, problem.t0 + span, 3)
+        _, stopped = system_states(problem, grid, "factor", budget_s)
+        _, stopped_hi = system_states(problem, grid, "direct", max(start + budget_s - time.perf_counter(), 0.0))
+        reached = min(t for t in (stopped, stopped_hi, grid[-1]) if t is not None) - problem.t0
+        return (time.perf_counter() - start) / reached if reached > 0 else math.inf
     ladder = _ladder()
     if problem.heyoka_system is None or len(ladder) < 2:
         return 0.0
@@ -357,6 +397,108 @@ def propagate(problem: Problem, grid: np.ndarray, precision: str, budget_s: floa
         if found_out is not None and found_out(np.concatenate(rows)):
             break
     return np.concatenate(rows), None
+
+
+def system_states(problem: Problem, grid: np.ndarray, form: str, budget_s: float | None = None
+                  ) -> tuple[np.ndarray, float | None]:
+    """float64 states at the increasing ``grid`` (grid[0] = t0) of the problem's system by
+    DOP853 at rtol SYSTEM_RTOL, dense output: ``form`` "factor" integrates the
+    integrating-factor form (the reference), "direct" the system u' = rhs(t, u) (its check).
+    Returns them and the time where the budget stopped the run (None: it did not; then
+    fewer rows)."""
+    from scipy.integrate import DOP853
+
+    deadline = time.perf_counter() + (budget_seconds() if budget_s is None else budget_s)
+    grid = np.asarray(grid, dtype=float)
+    t0, params, out = float(grid[0]), problem.params, np.empty(problem.dim)
+    diagonal = np.empty(problem.dim)
+    problem.linear_part(params, diagonal)
+    lam = diagonal[0::2] + 1j * diagonal[1::2]  # L on the complex view z_k = u[2k] + i u[2k+1]
+
+    def turn(u: np.ndarray, t: float, sign: float) -> np.ndarray:
+        """exp(sign L (t - t0)) u, pair by pair."""
+        z = (u[0::2] + 1j * u[1::2]) * np.exp(sign * lam * (t - t0))
+        v = np.empty_like(u)
+        v[0::2], v[1::2] = z.real, z.imag
+        return v
+
+    if form == "factor":
+        def fun(t: float, z: np.ndarray) -> np.ndarray:
+            problem.nonlinear(t, turn(z, t, 1.0), params, out)
+            return turn(out, t, -1.0)
+
+        def state(t: float, y: np.ndarray) -> np.ndarray:
+            return turn(y, t, 1.0)
+    elif form == "direct":
+        def fun(t: float, u: np.ndarray) -> np.ndarray:
+            problem.rhs(t, u, params, out)
+            return out.copy()
+
+        def state(t: float, y: np.ndarray) -> np.ndarray:
+            return y
+    else:
+        raise ValueError(f"form={form!r}: expected factor or direct")
+    rows = [problem.u0.astype(float)]
+    if grid.size == 1:
+        return np.array(rows), None
+    # the integrating factor is 1 at t0: z(t0) = u0
+    atol = SYSTEM_RTOL * 1e-3 * max(float(np.max(np.abs(problem.u0))), np.finfo(float).tiny)
+    solver = DOP853(fun, t0, problem.u0.astype(float), float(grid[-1]), rtol=SYSTEM_RTOL, atol=atol)
+    done = 1
+    while done < grid.size:
+        if time.perf_counter() > deadline:
+            return np.array(rows), float(solver.t)
+        solver.step()
+        if solver.status == "failed":
+            raise ReferenceUnavailable(f"{SYSTEM} reference for {problem.name} stopped at t = {solver.t:.6g}")
+        reached = int(np.searchsorted(grid, solver.t, side="right"))
+        if solver.status == "finished":
+            reached = grid.size
+        if reached > done:
+            dense = solver.dense_output()
+            rows += [state(t, y) for t, y in zip(grid[done:reached], dense(grid[done:reached]).T)]
+            done = reached
+    return np.array(rows), None
+
+
+def _system_check(problem: Problem, t_final: float, budget_s: float | None) -> Trust:
+    """``reference_check`` of an integrating-factor reference: it against the system
+    integrated directly on CHECK_POINTS + 1 evenly spaced times (cached on disk)."""
+    budget = budget_seconds() if budget_s is None else budget_s
+    parts = ("system-check", repr(t_final), str(CHECK_POINTS), repr(SYSTEM_RTOL))
+    paths = [cache_path(problem, *parts), cache_path(problem, *parts, f"budget={budget!r}")]
+    runs = None
+    for path in paths:
+        if str(path) in _CHECKS:
+            runs = _CHECKS[str(path)]
+            break
+
+        def read(path=path):
+            with np.load(path) as data:
+                found = {k: data[k] for k in data.files if k != "stopped"}
+                found["stopped"] = json.loads(str(data["stopped"]))
+            return found
+
+        runs = load_cached(path, read)
+        if runs is not None:
+            _CHECKS[str(path)] = runs
+            break
+    if runs is None:
+        times = np.linspace(problem.t0, t_final, CHECK_POINTS + 1)
+        factor, stop_factor = system_states(problem, times, "factor", budget)
+        direct, stop_direct = system_states(problem, times, "direct", budget)
+        stops = {k: v for k, v in (("factor", stop_factor), ("direct", stop_direct)) if v is not None}
+        runs = {"times": times, "factor": factor, "direct": direct, "stopped": stops}
+        path = paths[1] if stops else paths[0]  # a partial check holds only for its budget
+        save_cached(path, times=times, factor=factor, direct=direct, stopped=np.array(json.dumps(stops)))
+        _CHECKS[str(path)] = runs
+    n = min(len(runs["factor"]), len(runs["direct"]))
+    note = ""
+    if runs["stopped"]:
+        t = min(runs["stopped"].values())
+        note = f"the {SYSTEM} reference check passed its time budget at t = {t:.6g} ({BUDGET_VARIABLE})"
+    return _trust(SYSTEM, REFERENCE_RTOL, runs["times"], _relative(runs["factor"][:n], runs["direct"][:n]),
+                  f"the system by an integrating factor vs directly (DOP853, rtol {SYSTEM_RTOL:g} both)", note)
 
 
 def _fp(precision: str):
