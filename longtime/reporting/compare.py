@@ -34,8 +34,11 @@ RUN_B). Cells are matched by problem, scheme, t_final and every setting. Per com
   a loss counts when the ratio exceeds ``--error-factor`` (2) and B's error is above
   ``ROUND_OFF`` (errors at round-off move by such factors with any change of compiler);
 - instructions (``--cost instructions`` in both runs, counted by the same Valgrind): the
-  ratio B / A of the cell's count. The count is deterministic (runs of identical code agree
-  within 1e-4, beside CPU-bound processes too), so a cell whose count grows
+  ratio B / A of the cell's count. The count is deterministic (identical code counted in any
+  batch, order or process, beside CPU-bound processes too, agrees within
+  longtime.measure.instructions.COUNT_NOISE instructions a call; a cell's threshold rises
+  above the factor where that noise is a larger share of its count,
+  ``instruction_threshold``), so a cell whose count grows
   beyond ``--instruction-factor`` (``INSTRUCTION_FACTOR``) regressed, whatever the time
   says. A cell whose counts agree within that factor did the same work: its time is
   judged against ``--cell-factor`` (and the spread between processes, if larger), and it
