@@ -40,7 +40,8 @@ def cmd_merge(args) -> int:
                   f"stands; merge again when it ends", file=sys.stderr)
     copied = sum(m["merged"] == "copied" for m in merged)
     updated = sum(m["merged"] == "updated" for m in merged)
-    print(f"{copied} of {len(merged)} run(s) merged into {args.into}, {updated} updated", file=sys.stderr)
+    print(f"{len(merged)} run(s) merged into {args.into}: {copied} copied, {updated} updated, "
+          f"{len(merged) - copied - updated} unchanged", file=sys.stderr)
     return 1 if any(m["differ"] for m in merged) else 0
 
 
