@@ -176,3 +176,19 @@ def test_identical_code_beside_memory_hogs_neither_regresses_nor_improves(tmp_pa
                               c["time_verdict"], c.get("bandwidth_ratio") and round(c["bandwidth_ratio"], 3))
                              for c in result["cells"]])
     assert all(v[:3] == (0, 0, 0) for v in verdicts.values()), verdicts
+
+
+def test_time_verdicts_without_the_bandwidth_check_say_so():
+    rows_a = [_row(0.1, 1.05, dt=dt) for dt in (0.1, 0.05)]
+    rows_b = [_row(0.2, 1.05, dt=dt) for dt in (0.1, 0.05)]
+    for calibrations, why in (((_points(None), _points(None)), "no memory-bandwidth calibration in A and B"),
+                              ((None, None), "no calibration in A and B")):
+        old = compare(rows_a, rows_b, calibrations=calibrations)
+        assert old["regressed"] == 2 and old["time_unchecked"] == 2
+        assert old["bandwidth_unchecked"].startswith(why)
+        assert all(c["regressions"][0].endswith("[without the memory-bandwidth check]") for c in old["cells"])
+        text = render(old)
+        assert "time verdicts without the memory-bandwidth check: 2 cell(s) (" + why in text
+    checked = compare(rows_a, rows_b, calibrations=(_points(0.010), _points(0.0101)))
+    assert checked["time_unchecked"] == 0 and checked["bandwidth_unchecked"] is None
+    assert "without the memory-bandwidth check" not in render(checked)

@@ -114,6 +114,26 @@ def test_counts_agree_beside_a_cpu_bound_process(counted):
 
 
 @pytest.mark.slow
+@needs_valgrind
+def test_a_count_does_not_depend_on_the_cells_counted_with_it():
+    """kepler x verlet and x rk4 (100 steps: the smallest counts, where the dispatch of the
+    call weighs most) counted in two batches, in the opposite order: each cell's two counts
+    agree within COUNT_NOISE (the warm-up, the interpreter's and the allocators' state that
+    the cell before leaves are not in the count)."""
+    from longtime.execution.valgrind import instruction_fields
+    from longtime.measure.instructions import COUNT_NOISE
+
+    counts = []
+    for order in (["rk4", "verlet"], ["verlet", "rk4"]):
+        pairs = _rows(expand(["kepler"], order, t_final=10.0, sets={"dt": 0.1}))
+        fields = instruction_fields(pairs, 100_001, 600.0)
+        counts.append({c.integrator: fields[c.key]["instructions"] for c, _ in pairs})
+    for scheme in ("rk4", "verlet"):
+        first, second = counts[0][scheme], counts[1][scheme]
+        assert abs(second - first) <= COUNT_NOISE, (scheme, first, second)
+
+
+@pytest.mark.slow
 def test_missing_valgrind_is_one_line(tmp_path):
     env = {**os.environ, "PATH": str(tmp_path)}  # no valgrind (nor anything else) on PATH
     res = subprocess.run([sys.executable, "-m", "longtime.commands.cli", "run", "-p", "kepler", "-i", "rk4",
@@ -202,6 +222,31 @@ def test_the_page_draws_work_precision_against_instructions():
         r.update(instructions=1300 * r["steps"], instructions_per_step=1300.0)
     figs = problem_figures(rows, styles(["rk4"]), drift=False)
     assert "instructions of the integration" in figs["work_precision_instructions"]
+
+
+def test_a_count_change_within_the_counts_noise_is_no_change(tmp_path):
+    """Counts of identical code differ by up to COUNT_NOISE instructions a call: on a cell so
+    small that this passes --instruction-factor, compare and history judge it within."""
+    from longtime.execution.store import Store
+    from longtime.measure.instructions import COUNT_NOISE
+    from longtime.reporting.history import history
+
+    row = {"problem": "harmonic", "integrator": "verlet", "status": "ok", "t_final": 1.0, "dt": 0.1, "settings": "",
+           "cpu_s": 1e-3, "instructions": 5_000, "instructions_tool": "callgrind 3.19.0"}
+    noisy = {**row, "instructions": 5_000 + COUNT_NOISE - 1}  # beyond x1.01, within the noise
+    cell = compare([row], [noisy])["cells"][0]
+    assert cell["instruction_verdict"] == "within" and cell["instruction_threshold"] == pytest.approx(1.02)
+    assert compare([row], [{**row, "instructions": 5_400}])["cells"][0]["instruction_verdict"] == "more"
+    big = {**row, "instructions": 1_000_000}
+    assert compare([big], [{**big, "instructions": 1_010_100}])["cells"][0]["instruction_verdict"] == "more"
+    store = Store(tmp_path / "s.sqlite")
+    cell = expand(["harmonic"], ["verlet"], t_final=1.0, sets={"dt": 0.1})[0]
+    for count in (5_000, 5_000 + COUNT_NOISE - 1, 5_000, 5_400, 5_401):
+        run_id = store.begin_run("run", [cell])
+        store.add_row(run_id, cell, {**row, "instructions_per_step": count / 10, "instructions": count})
+        store.finish_run(run_id, "done")
+    steps = [s for s in history(store)[0]["steps"] if s["field"] == "instructions"]
+    assert [s["run_id"] for s in steps] == [4]
 
 
 def test_compare_judges_counts_of_one_tool_only():

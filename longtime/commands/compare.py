@@ -4,6 +4,7 @@ The comparison and its rules: longtime.reporting.compare.
 """
 from __future__ import annotations
 
+from longtime.measure.instructions import COUNT_NOISE
 from longtime.reporting.compare import report, run_compare
 from longtime.reporting.compare_cells import CELL_FACTOR, INSTRUCTION_FACTOR, TIME_FACTOR
 
@@ -35,7 +36,8 @@ def add_time_flags(p) -> None:
 def add_instruction_flag(p) -> None:
     p.add_argument("--instruction-factor", type=float, default=INSTRUCTION_FACTOR,
                    help=f"ratio of a cell's instruction count (--cost instructions in both runs) that counts as "
-                        f"more work (default {INSTRUCTION_FACTOR:g}: counts of identical code agree within 1e-4)")
+                        f"more work (default {INSTRUCTION_FACTOR:g}; more for a count so small that the counts' noise, "
+                        f"{COUNT_NOISE} instructions a call, passes it)")
 
 
 def add_parser(subparsers) -> None:

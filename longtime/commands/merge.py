@@ -5,8 +5,13 @@ as if measured in one place. ``report``, ``compare``, ``history`` and the result
 the merged store show the cross-machine table (longtime.reporting.machines).
 
 A run keeps its id unless the target holds that id already (then it gets the next free
-one: the line of each run says where it went); a run merged before is not copied again.
-Prints one line per run (``--format json``: one record per run).
+one: the line of each run says where it went); a run merged before is brought up to date
+(rows added or completed since, its status), never copied twice. A run still running in its
+source is copied as it stands (status running) and completed by a later merge. Every row is
+checked as the store checks a row it adds: a refused row is not copied, and one line on
+stderr per reason says how many. Where two copies of one run hold different rows, one line
+on stderr names the run and the count, the copy already in the target is kept, and the exit
+status is 1. Prints one line per run (``--format json``: one record per run).
 """
 from __future__ import annotations
 
@@ -20,13 +25,36 @@ def cmd_merge(args) -> int:
     merged = merge_stores(args.stores, args.into)
     if args.format == "json":
         print(json.dumps(merged, indent=1))
-        return 0
+    else:
+        for m in merged:
+            print(f"{m['store']} run {m['run']} ({m['status']}) -> {_where(m, args.into)}")
     for m in merged:
-        where = f"run {m['id']}" if m["id"] is not None else f"already in {args.into}: not copied"
-        print(f"{m['store']} run {m['run']} ({m['status']}) -> {where}")
-    copied = sum(m["id"] is not None for m in merged)
-    print(f"{copied} of {len(merged)} run(s) merged into {args.into}", file=sys.stderr)
-    return 0
+        for reason, count in m["refused"].items():
+            print(f"warning: {m['store']} run {m['run']}: {count} row(s) not copied, refused by the row check: "
+                  f"{reason}", file=sys.stderr)
+        if m["differ"]:
+            print(f"warning: {m['store']} run {m['run']}: {m['differ']} row(s) differ from the copy in {args.into} "
+                  f"(run {m['copy']}): the copy's rows are kept", file=sys.stderr)
+        if m["status"] == "running":
+            print(f"note: {m['store']} run {m['run']} is still running there (not marked finished): copied as it "
+                  f"stands; merge again when it ends", file=sys.stderr)
+    copied = sum(m["merged"] == "copied" for m in merged)
+    updated = sum(m["merged"] == "updated" for m in merged)
+    print(f"{len(merged)} run(s) merged into {args.into}: {copied} copied, {updated} updated, "
+          f"{len(merged) - copied - updated} unchanged", file=sys.stderr)
+    return 1 if any(m["differ"] for m in merged) else 0
+
+
+def _where(m: dict, into: str) -> str:
+    """Where the run of the record ``m`` went, and what changed there."""
+    if m["merged"] == "copied":
+        return f"run {m['copy']}" + (f" ({m['added']} row(s) copied)" if m["refused"] else "")
+    if m["merged"] == "unchanged":
+        return f"already in {into} as run {m['copy']}: unchanged"
+    changes = [f"{m[k]} row(s) {said}" for k, said in (("added", "added"), ("replaced", "completed")) if m[k]]
+    if m["status_was"] is not None:
+        changes.append(f"status {m['status_was']} -> {m['status']}")
+    return f"run {m['copy']} updated: {', '.join(changes)}"
 
 
 def add_parser(subparsers) -> None:

@@ -20,7 +20,8 @@ from longtime.execution.cells import Cell, check_size, expand
 from longtime.execution.checks import run_checks
 from longtime.execution.lifecycle import recorded_run
 from longtime.execution.matrix import PHASES_FIELD, ExecOptions, complete_phases, run_matrix
-from longtime.execution.store import Store
+from longtime.execution.run_environment import this_machine
+from longtime.execution.store import Store, machine_text, other_machine, recorded_machine
 from longtime.predict.checks import CHECKS, check_budget, check_summary
 
 
@@ -112,10 +113,12 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
         store = Store(spec.db, create=False)  # resuming never creates an empty store
         if spec.resume < 0:
             raise InputError(f"--resume {spec.resume}: a run id is > 0 (or none: the newest incomplete run)")
-        run_id = spec.resume or store.latest_incomplete_run(("matrix", "run"))
+        here = this_machine()
+        run_id = spec.resume or store.latest_incomplete_run(("matrix", "run"), machine=here) \
+            or store.latest_incomplete_run(("matrix", "run"))  # another machine's: refused below
         if run_id is None:
             raise InputError(f"--resume: no incomplete run in {store.path} (give a run id to pick one)")
-        store.run(run_id)  # an unknown id is an error, not "0 cells left"
+        check_same_machine(store, store.run(run_id), here)  # an unknown id is an error, not "0 cells left"
         cells = store.pending(run_id)
         lacking = [row for _, row in store.incomplete_rows(run_id, PHASES_FIELD)]
         if lacking:  # rows stored before their timing processes or counts ran: run them
@@ -165,6 +168,17 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
             except (InputError, OSError, ValueError, RuntimeError) as exc:  # the rows are stored; this is extra
                 print(f"warning: ensembles not measured: {type(exc).__name__}: {exc}", file=sys.stderr)
     return _result(store, run_id, ahead=made)
+
+
+def check_same_machine(store: Store, run: dict, here: dict) -> None:
+    """Refuse to resume ``run`` (a record of ``store.runs``) on a machine other than the one it
+    is recorded on (a run another machine's store brought in by ``longtime merge``): this
+    machine's rows would be stored under the other machine's record."""
+    recorded = recorded_machine(run)
+    if other_machine(recorded, here):
+        raise InputError(f"--resume: run {run['id']} of {store.path} ran on {machine_text(recorded)}, this is "
+                         f"{machine_text(here)}: resume it on its own machine, or run the cells as a new run "
+                         f"here (matrix without --resume)")
 
 
 def _check(store: Store, run_id: int, options: ExecOptions, limit: int, shown: Progress) -> None:

@@ -28,9 +28,7 @@ def environment(cells: Iterable[Cell] = ()) -> dict[str, Any]:
             versions[pkg] = version(pkg)
         except PackageNotFoundError:
             versions[pkg] = None
-    machine = {"platform": platform.platform(), "machine": platform.machine(),
-               "processor": platform.processor(), "cpus": os.cpu_count(), "node": platform.node(),
-               "cpu_model": cpu_model()}
+    machine = this_machine()
     own = provenance.longtime_state()
     code = provenance.of_cells(cells)
     versions["longtime_git"] = {"commit": own["commit"], "dirty": own["dirty"]}
@@ -38,6 +36,19 @@ def environment(cells: Iterable[Cell] = ()) -> dict[str, Any]:
     committed = [c["commit"] for c in code if c.get("commit")]
     commit = os.environ.get("LONGTIME_GIT_COMMIT") or (committed[0] if len(committed) == 1 else None) or own["commit"]
     return {"versions": versions, "machine": machine, "git_commit": commit}
+
+
+def this_machine() -> dict[str, Any]:
+    """The machine this process runs on, as a run records it: platform, architecture,
+    processor, core count, host name and CPU model."""
+    return {"platform": platform.platform(), "machine": platform.machine(),
+            "processor": platform.processor(), "cpus": os.cpu_count(), "node": platform.node(),
+            "cpu_model": cpu_model()}
+
+
+def machine_key(machine: dict[str, Any]) -> tuple:
+    """What tells one machine from another: its host name, CPU model and core count."""
+    return (machine.get("node"), machine.get("cpu_model") or machine.get("processor"), machine.get("cpus"))
 
 
 @functools.cache

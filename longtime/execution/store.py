@@ -23,7 +23,7 @@ from longtime.core import rowschema
 from longtime.core.params import InputError
 from longtime.core.roles import ROW_PARAMETERS
 from longtime.execution.cells import Cell
-from longtime.execution.run_environment import environment
+from longtime.execution.run_environment import environment, machine_key
 from longtime.execution.store_records import RunRecords
 from longtime.execution.store_schema import (
     APPLICATION_ID,
@@ -244,11 +244,14 @@ class Store(RunRecords):
         runs = [r for r in self.runs() if not command_prefix or (r["command"] or "").startswith(command_prefix)]
         return runs[-1]["id"] if runs else None
 
-    def latest_incomplete_run(self, command_prefix: str | tuple[str, ...] | None = None) -> int | None:
+    def latest_incomplete_run(self, command_prefix: str | tuple[str, ...] | None = None,
+                              machine: dict[str, Any] | None = None) -> int | None:
         """The newest run (of commands starting with ``command_prefix``, or one of them) that
-        did not finish: a cell not stored, or not marked done (interrupted, or its process died)."""
+        did not finish: a cell not stored, or not marked done (interrupted, or its process died);
+        with ``machine``, only a run recorded on that machine (``recorded_machine``)."""
         runs = [r for r in self.runs() if (not command_prefix or (r["command"] or "").startswith(command_prefix))
-                and (r["status"] != "done" or r["done"] < r["planned"])]
+                and (r["status"] != "done" or r["done"] < r["planned"])
+                and (machine is None or not other_machine(recorded_machine(r), machine))]
         return runs[-1]["id"] if runs else None
 
     def rows(self, run_id: int | None = None) -> list[dict[str, Any]]:
@@ -289,3 +292,25 @@ def bad_row(row: Any) -> str | None:
         return f"not a JSON object but {type(row).__name__ if row is not None else 'null'}"
     wrong = rowschema.problems(row, only=READ_FIELDS)
     return wrong[0] if wrong else None
+
+
+def recorded_machine(run: dict[str, Any]) -> dict[str, Any] | None:
+    """The machine the run ``run`` (a record of ``Store.runs``) is recorded to have run on
+    (None: its record names none)."""
+    try:
+        machine = json.loads(run.get("machine") or "null")
+    except (TypeError, ValueError, RecursionError):  # a hand-edited or nested-beyond-reading record
+        return None
+    return machine if isinstance(machine, dict) and any(machine_key(machine)) else None
+
+
+def other_machine(recorded: dict[str, Any] | None, here: dict[str, Any]) -> bool:
+    """Whether ``recorded`` names a machine other than ``here`` (host name, CPU model and core
+    count: longtime.execution.run_environment.machine_key)."""
+    return recorded is not None and machine_key(recorded) != machine_key(here)
+
+
+def machine_text(machine: dict[str, Any]) -> str:
+    """A machine in a few words: its host name, CPU model and core count."""
+    node, model, cpus = machine_key(machine)
+    return f"{node or 'an unnamed host'} ({model or 'CPU model unknown'}, {cpus if cpus is not None else '?'} cores)"

@@ -6,8 +6,9 @@ minute of CPU; loading a cell's kernels from the cache, a few seconds).
 counted, writes them to a job file (longtime.execution.child), runs ``python -m
 longtime.execution.valgrind FOLDER`` under Valgrind (longtime.measure.instructions.command)
 and reads the counts back. The ``main`` of this module is the worker's side: per cell it builds the problem and the
-scheme, loads and warms up the kernel uncounted, then counts only the calls into the
-compiled loop (longtime.measure.instructions.counting), in one chunk.
+scheme, loads and warms up the kernel uncounted (the counted path itself run WARM_CALLS
+times on the warm-up's throw-away state), then counts only the calls into the compiled loop
+(longtime.measure.instructions.counted_call), in one chunk.
 
 The counted kernels are compiled for one fixed target (instructions.COUNT_TARGET,
 x86-64-v3) whatever the host, in a numba cache of their own (instructions.target_cache_dir):
@@ -54,6 +55,8 @@ STARTUP_SECONDS = 600.0
 PER_CELL_SECONDS = 60.0
 # the shared drivers whose loop calls are counted: the first call is the warm-up
 _COUNTED_DRIVERS = (FixedStepIntegrator._integrate, AdaptiveIntegrator._integrate)
+# uncounted runs of the counted path on the warm-up's throw-away state before a cell's count
+WARM_CALLS = 3
 
 
 def skipped(reason: str) -> dict[str, Any]:
@@ -125,8 +128,12 @@ def _count(valgrind: str, cells: list[Cell], rows: dict[str, dict], max_samples:
     """Count ``cells`` in one Valgrind process; a cell it did not finish gets a reason."""
     folder = tempdirs.make("valgrind")
     try:
-        env = {**instructions.counting_environment(), "LONGTIME_PROGRESS": "0",
-               "PYTHONHASHSEED": "0"}  # the same dict layouts in every run: the same dispatch path
+        # PYTHONHASHSEED: the same dict layouts in every run, the same dispatch path; PYTHONMALLOC:
+        # Python's objects from the C allocator, whose per-size caches give the objects of a
+        # counted call's dispatch the same path whatever was allocated before (Python's own
+        # allocator takes a longer path where a block empties or starts a pool)
+        env = {**instructions.counting_environment(), "LONGTIME_PROGRESS": "0", "PYTHONHASHSEED": "0",
+               "PYTHONMALLOC": "malloc"}
         prepared = _prepare(env, folder, cells, rows, max_samples)
         if prepared:
             cells = [c for c in cells if c.key not in prepared]
@@ -149,8 +156,10 @@ def _count(valgrind: str, cells: list[Cell], rows: dict[str, dict], max_samples:
             child.kill()  # an interruption here: no Valgrind counts on
         counts = instructions.read_dumps(prefix)
         done = child.records()
-        # the kernels counted are compiled for the fixed target: another target's count is another tool's
-        tool = f"{instructions.tool_version()} ({instructions.COUNT_TARGET} kernels)"
+        # the kernels counted are compiled for the fixed target, and counted as COUNT_METHOD says:
+        # another target's or another way's count is another tool's
+        tool = (f"{instructions.tool_version()}, counting {instructions.COUNT_METHOD} "
+                f"({instructions.COUNT_TARGET} kernels)")
         out = dict(prepared)
         lost = next((i for i, c in enumerate(cells) if c.key not in done), None)
         if trouble and lost is not None and lost + 1 < len(cells):
@@ -246,7 +255,10 @@ def _last_line(text: str) -> str:
 # ------------------------------------------------------------------ the worker, under Valgrind
 def _counted_loops(integrator) -> None:
     """Make ``integrator`` count its calls into the compiled loop: the first call of a run
-    (the drivers' warm-up: it loads the kernel) is not counted, every later one is."""
+    (the drivers' warm-up on a throw-away state: it loads the kernel) is not counted, every
+    later one is. The warm-up runs the counted path itself WARM_CALLS times, uncounted, so
+    that a count finds the dispatch into the loop as the same cell in any batch finds it
+    (its caches filled, whichever cells ran before)."""
     build_loop = integrator.compiled_loop
 
     def compiled_loop(problem):
@@ -256,11 +268,11 @@ def _counted_loops(integrator) -> None:
         def call(*args):
             calls[0] += 1
             if calls[0] == 1:
-                result = loop(*args)
+                for _ in range(WARM_CALLS):
+                    result = instructions.counted_call(loop, args)
                 instructions.begin_cell()
                 return result
-            with instructions.counting():
-                return loop(*args)
+            return instructions.counted_call(loop, args)
 
         return call
 
@@ -304,6 +316,8 @@ def main(argv: list[str]) -> int:
             item = {"reason": f"the run {where} failed: {type(exc).__name__}: {exc}"}
         if not preparing:
             instructions.dump(f"cell {i}")  # the count since the warm-up (zero for a failed cell)
+        else:
+            instructions.end_cell()
         children.add_record(folder, cell.key, item)
     return 0
 

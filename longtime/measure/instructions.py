@@ -5,8 +5,8 @@ What is counted is chosen from inside the process, by Valgrind client requests: 
 instruction sequence of ``valgrind.h`` (amd64), compiled once with llvmlite into a tiny
 function that ctypes calls. Callgrind starts with instrumentation and collection off
 (``--instr-atstart=no --collect-atstart=no``), so importing Python, numpy and numba and
-loading the compiled kernels run uninstrumented (fast) and uncounted; ``counting()``
-switches collection on around exactly the calls into a compiled loop, and ``dump(label)``
+loading the compiled kernels run uninstrumented (fast) and uncounted; ``counted_call``
+switches collection on around exactly one call into a compiled loop, and ``dump(label)``
 writes the count of one cell to a file of its own (and zeroes it for the next cell).
 
 Why client requests and not ``--toggle-collect=<symbol>``: numba's kernels are machine code
@@ -16,23 +16,27 @@ Valgrind's scheduling slices, so where it starts and stops counting moves from r
 A client request is an instruction of the program itself: the count starts and stops at the
 same instruction in every run. What lies between the two requests besides the kernel is
 numba's dispatch of the call (unboxing the arguments, boxing the returned tuple) and the
-ctypes return: a constant per call (``CALL_OVERHEAD`` measures it), the same in every run.
+ctypes calls of the two requests: C code only, no Python instruction the interpreter
+specialises (``counted_call``), with the garbage collector off and Python's objects from
+the C allocator (longtime.execution.valgrind), so the count of a cell does not depend on the
+cells counted before it in the same process. What still moves it is the path the
+allocators take: identical code counted in any batch agrees within ``COUNT_NOISE``.
 
 This module runs in the process Valgrind executes (``longtime.execution.valgrind``); in a
 process without Valgrind the requests are no-ops (``running()`` is 0).
 """
 from __future__ import annotations
 
-import contextlib
 import ctypes
 import functools
+import gc
 import os
 import platform
 import re
 import shutil
 import subprocess
 from pathlib import Path
-from typing import Iterator
+from typing import Any, Callable, Iterable
 
 from longtime.core.params import InputError
 
@@ -48,8 +52,25 @@ SLOWDOWN = 50.0
 # the arguments every Callgrind process of longtime runs with: nothing instrumented or
 # counted until the client requests say so; no cache or branch simulation (the count of
 # instructions, Ir, is all that is read)
+# how closely counts of identical code agree, counted in any batch, process or order and
+# beside any load (docs/machines.md, "What can still move a count"): within this many
+# instructions a call into the compiled loop (measured: at most 52, the paths of glibc's
+# free and of the dispatch's C calls), whatever the cell's size
+COUNT_NOISE = 100
+# what the counts of a row were taken with: Valgrind's tool and version (tool_version), the
+# way a call is counted (``counted_call``) and the target the kernels were compiled for;
+# counts of another are not compared
+COUNT_METHOD = "the calls alone"
 CALLGRIND_OPTIONS = ("--tool=callgrind", "--instr-atstart=no", "--collect-atstart=no",
                      "--cache-sim=no", "--branch-sim=no", "--dump-instr=no", "--compress-strings=no")
+
+
+def count_factor(factor: float, counts: Iterable[int]) -> float:
+    """The ratio two counts of one cell must pass to be a change of the code: ``factor``, or
+    more where COUNT_NOISE is a larger share of the smallest of ``counts`` (a cell of a few
+    steps, whose count is mostly the dispatch of the call)."""
+    smallest = min(counts, default=0)
+    return max(factor, 1 + COUNT_NOISE / smallest) if smallest > 0 else factor
 
 
 def valgrind_path() -> str | None:
@@ -128,28 +149,51 @@ def running() -> int:
 
 
 def begin_cell() -> None:
-    """Instrument from here on (the kernel is loaded and warmed up) and zero the count."""
+    """Instrument from here on (the kernel is loaded and warmed up) and zero the count. The
+    garbage collector is off until ``dump``: a collection that falls inside a counted call
+    would count the objects of everything that ran before it."""
+    gc.collect()
+    gc.disable()
     request(START_INSTRUMENTATION)
     request(ZERO_STATS)
 
 
-@contextlib.contextmanager
-def counting() -> Iterator[None]:
-    """Collect the instructions executed inside the block (collection is off outside)."""
-    _request_function()  # compiled before the count starts
-    request(TOGGLE_COLLECT)
+@functools.lru_cache(maxsize=1)
+def _toggle() -> Callable[[], int]:
+    """The request TOGGLE_COLLECT as one call into C: the ctypes function with its arguments
+    bound (functools.partial), so no Python line runs between it and what it brackets."""
+    return functools.partial(_request_function(), TOGGLE_COLLECT, 0, 0, 0, 0, 0)
+
+
+def counted_call(fn: Callable[..., Any], args: tuple) -> Any:
+    """``fn(*args)`` with collection on for the call alone: between the two requests run
+    only the call's dispatch into ``fn`` (numba's, for a compiled loop) and ``fn`` itself.
+    Every call here is written ``f(*args)`` (CALL_FUNCTION_EX, which the interpreter never
+    specialises): a plain call's instruction is specialised, or its specialisation retried,
+    at a moment that depends on how often it ran before, which would move the count of one
+    cell with the cells counted before it."""
+    toggle = _toggle()
+    toggle(*())  # a constant: no global looked up (LOAD_GLOBAL is specialised too)
     try:
-        yield
+        return fn(*args)
     finally:
-        request(TOGGLE_COLLECT)
+        toggle(*())
 
 
 def dump(label: str) -> None:
     """Write the count since ``begin_cell`` to a dump file whose description ends in
-    ``label``, zero it, and stop instrumenting (the next cell's loading runs fast)."""
+    ``label``, zero it, stop instrumenting (the next cell's loading runs fast) and turn the
+    garbage collector back on."""
     text = ctypes.create_string_buffer(label.encode())
     request(DUMP_STATS_AT, ctypes.addressof(text))
     request(STOP_INSTRUMENTATION)
+    end_cell()
+
+
+def end_cell() -> None:
+    """Turn the garbage collector back on after a cell (``dump`` does; a process that counts
+    nothing, outside Valgrind, calls this instead)."""
+    gc.enable()
 
 
 _TRIGGER = re.compile(r"^desc: Trigger: Client Request: (.*)$", re.M)

@@ -25,15 +25,21 @@ RUN_B). Cells are matched by problem, scheme, t_final and every setting. Per com
   ``--factor`` and spread between processes, either way, a neighbour streamed memory in one run and not in
   the other, and the cell's time gets no verdict ("not comparable", with the ratio;
   longtime.reporting.compare_machine). Its instruction counts, where both runs have them,
-  still judge it. A run calibrated without the streaming workload is judged as it is, and
-  the machine line says it lacks it;
+  still judge it. A run stored before the bandwidth check (calibrated without the streaming
+  workload, or not calibrated) is judged as it is: the machine line says it lacks it, a line
+  counts the time verdicts given without the check (``time_unchecked``; why:
+  ``bandwidth_unchecked``, also on each such cell), and each such time regression or
+  improvement ends "[without the memory-bandwidth check]";
 - accuracy: the ratio B / A of every error and drift field both rows have (``l2_error``,
   ``final_error``, ``NAME.max``, ``NAME.mean``, ``NAME.final``, ``constraint.max``, ``error.*``);
   a loss counts when the ratio exceeds ``--error-factor`` (2) and B's error is above
   ``ROUND_OFF`` (errors at round-off move by such factors with any change of compiler);
 - instructions (``--cost instructions`` in both runs, counted by the same Valgrind): the
-  ratio B / A of the cell's count. The count is deterministic (runs of identical code agree
-  within 1e-4, beside CPU-bound processes too), so a cell whose count grows
+  ratio B / A of the cell's count. The count is deterministic (identical code counted in any
+  batch, order or process, beside CPU-bound processes too, agrees within
+  longtime.measure.instructions.COUNT_NOISE instructions a call; a cell's threshold rises
+  above the factor where that noise is a larger share of its count,
+  ``instruction_threshold``), so a cell whose count grows
   beyond ``--instruction-factor`` (``INSTRUCTION_FACTOR``) regressed, whatever the time
   says. A cell whose counts agree within that factor did the same work: its time is
   judged against ``--cell-factor`` (and the spread between processes, if larger), and it
@@ -71,7 +77,7 @@ from longtime.reporting.compare_cells import (
     cell_key,
     compare_rows,
 )
-from longtime.reporting.compare_machine import machine
+from longtime.reporting.compare_machine import bandwidth_unchecked, machine
 from longtime.reporting.compare_text import label, render
 
 
@@ -119,6 +125,7 @@ def compare(rows_a: list[dict], rows_b: list[dict], factor: float = TIME_FACTOR,
     cells = [compare_rows(by_a[k], by_b[k], factor, error_factor, alpha, raw, cell_factor, short,
                           instruction_factor, machine_ab["bandwidth_ratio"]) for k in common]
     groups = apply_group_verdicts(cells, factor)
+    _mark_unchecked(cells, bandwidth_unchecked(machine_ab))
     keys = sorted({(c["problem"], c["integrator"]) for c in cells})
     used_a = [by_a[k] for k in common]
     used_b = [by_b[k] for k in common]
@@ -151,7 +158,24 @@ def compare(rows_a: list[dict], rows_b: list[dict], factor: float = TIME_FACTOR,
             "time_basis": "/".join(sorted(bases)) or None, "factor": factor, "cell_factor": cell_factor,
             "error_factor": error_factor, "instruction_factor": instruction_factor,
             "short_cpu_s": short, "schemes": groups["schemes"], "problems": groups["problems"], "pairs": pairs,
-            "machine": machine_ab, **_left_out(rows_a, rows_b)}
+            "machine": machine_ab, "bandwidth_unchecked": bandwidth_unchecked(machine_ab),
+            "time_unchecked": sum(bool(c.get("bandwidth_unchecked")) for c in cells), **_left_out(rows_a, rows_b)}
+
+
+def _mark_unchecked(cells: list[dict], reason: str | None) -> None:
+    """Where the runs' bandwidths were not compared (``reason``), each cell with a time verdict
+    (slower, faster, within) gains ``bandwidth_unchecked`` (the reason), and its time
+    regression or improvement says it was judged without the check."""
+    for c in cells:
+        c["bandwidth_unchecked"] = None
+        if reason is None or c["time_verdict"] not in ("slower", "faster", "within"):
+            continue
+        c["bandwidth_unchecked"] = reason
+        said = c["regressions"] if c["time_verdict"] == "slower" else c["improvements"]
+        for i, text in enumerate(said if c["time_verdict"] != "within" else []):
+            if text.startswith(("time x", "cpu x")):  # the cell's time verdict (compare_cells._slower)
+                said[i] = f"{text} [without the memory-bandwidth check]"
+                break
 
 
 def _left_out(rows_a: list[dict], rows_b: list[dict]) -> dict[str, list[dict]]:

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from longtime.core.roles import row_columns
+from longtime.measure.instructions import count_factor
 
 # set above the spread measured between runs of identical code, alone and beside CPU-bound
 # processes (README, "compare")
@@ -17,8 +18,9 @@ CELL_FACTOR = 2.0  # a single cell's ratio beyond this: slower
 MIN_BATCHES = 3  # batches a scheme's (a problem's) median needs
 SHORT_CPU_S = 2e-5  # cells below this CPU time (shorter than any measured) get no time verdict
 ROUND_OFF = 1e-13
-# instruction counts of identical code agree within 1e-4 (docs/performance.md): a change
-# beyond 1 % is the code's
+# instruction counts of identical code agree within COUNT_NOISE instructions (docs/machines.md):
+# a change beyond 1 % is the code's (beyond more where that noise is a larger share of the
+# count: longtime.measure.instructions.count_factor)
 INSTRUCTION_FACTOR = 1.01
 # a cell is its problem, scheme, final time and every parameter (row fields and settings)
 MATCH_KEYS = ("problem", "integrator", *row_columns(), "t_final", "settings")
@@ -153,9 +155,11 @@ def compare_rows(a: dict, b: dict, factor: float = TIME_FACTOR, error_factor: fl
 
 
 def _judge_instructions(out: dict, a: dict, b: dict, factor: float) -> None:
-    """The cell's instruction counts (both ok rows counted by the same tool): their ratio
-    and ``instruction_verdict`` (more / fewer / within; "other tool" when two Valgrind
-    versions counted; None when a run has no count)."""
+    """The cell's instruction counts (both ok rows counted by the same tool): their ratio,
+    the ratio it must pass (``instruction_threshold``: ``factor``, or more for a count so
+    small that the counts' noise passes it: longtime.measure.instructions.count_factor) and
+    ``instruction_verdict`` (more / fewer / within; "other tool" when two Valgrind versions
+    counted; None when a run has no count)."""
     out["instruction_verdict"] = None
     ia, ib = a.get("instructions"), b.get("instructions")
     if not (_number(ia) and _number(ib) and ia > 0 and a.get("status") == "ok" and b.get("status") == "ok"):
@@ -164,11 +168,12 @@ def _judge_instructions(out: dict, a: dict, b: dict, factor: float) -> None:
         out["instruction_verdict"] = "other tool"
         return
     ratio = ib / ia
-    out.update(instructions_a=ia, instructions_b=ib, instruction_ratio=ratio)
+    factor = count_factor(factor, (ia, ib))
+    out.update(instructions_a=ia, instructions_b=ib, instruction_ratio=ratio, instruction_threshold=factor)
     per_step = ""
     if _number(a.get("instructions_per_step")) and _number(b.get("instructions_per_step")):
         per_step = f", {a['instructions_per_step']:.4g} -> {b['instructions_per_step']:.4g} a step"
-    text = f"instructions x{ratio:.4g} ({ia:.4g} -> {ib:.4g}{per_step}; beyond x{factor:g})"
+    text = f"instructions x{ratio:.4g} ({ia:.4g} -> {ib:.4g}{per_step}; beyond x{factor:.4g})"
     if ratio > factor:
         out["instruction_verdict"] = "more"
         out["regressions"].append(text)

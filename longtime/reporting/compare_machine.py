@@ -38,6 +38,28 @@ def machine(cal_a: list[dict] | None, cal_b: list[dict] | None) -> dict[str, Any
     return out
 
 
+def bandwidth_unchecked(m: dict[str, Any]) -> str | None:
+    """Why the runs' memory bandwidths were not set against each other (``machine``'s record
+    ``m``; None: they were): a run stored before calibrations, or before the streaming
+    workload joined them, or two runs that streamed arrays of other sizes."""
+    if m["bandwidth_ratio"] is not None:
+        return None
+    if m["ratio"] is None:
+        missing = " and ".join(x for x, v in (("A", m["reference_cpu_s_a"]), ("B", m["reference_cpu_s_b"]))
+                               if v is None)
+        return f"no calibration in {missing}: stored before calibrations"
+    missing = " and ".join(x for x, v in (("A", m.get("stream_cpu_s_a")), ("B", m.get("stream_cpu_s_b"))) if v is None)
+    if missing:
+        return f"no memory-bandwidth calibration in {missing}: stored before the bandwidth check"
+    return "A and B streamed arrays of other sizes"
+
+
+def unchecked_text(n: int, reason: str) -> str:
+    """The line that says ``n`` time verdicts were given without the bandwidth check, and why."""
+    return (f"time verdicts without the memory-bandwidth check: {n} cell(s) ({reason}): they rest on the older "
+            f"measurement, which does not tell a neighbour that streams memory from the code")
+
+
 def machine_text(m: dict[str, Any]) -> str:
     if m["ratio"] is None:
         missing = " and ".join(x for x, v in (("A", m["reference_cpu_s_a"]), ("B", m["reference_cpu_s_b"]))

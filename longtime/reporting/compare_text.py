@@ -6,7 +6,7 @@ from typing import Any
 
 from longtime.reporting import machines
 from longtime.reporting.compare_cells import MATCH_KEYS
-from longtime.reporting.compare_machine import machine_text
+from longtime.reporting.compare_machine import machine_text, unchecked_text
 
 
 def label(cell: dict) -> str:
@@ -60,6 +60,8 @@ def render(result: dict[str, Any], show_all: bool = False) -> str:
     lines = [f"{len(cells)} common cells ({result['only_a']} only in A, {result['only_b']} only in B): "
              f"{result['regressed']} regressed, {result['improved']} improved",
              _counts_text(result["counts"], result), machine_text(result["machine"])]
+    if result.get("time_unchecked"):
+        lines.append(unchecked_text(result["time_unchecked"], result["bandwidth_unchecked"]))
     lines += _instructions_text(result)
     if result.get("provenance"):
         lines += provenance_lines(result["provenance"])

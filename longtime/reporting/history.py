@@ -35,7 +35,8 @@ series' steps (the table says so); its errors and instruction count still do.
 Each series is one entry of ``series_specs``: its field, how its factor is found and how
 its steps are named. Where runs counted instructions (``--cost instructions``),
 ``instructions`` is a series too: deterministic, so every level counts, and neighbouring
-levels within ``compare_cells.INSTRUCTION_FACTOR`` are one level.
+levels within ``compare_cells.INSTRUCTION_FACTOR`` (more for a count so small that the counts'
+noise passes it: longtime.measure.instructions.count_factor) are one level.
 A store that holds runs of several machines (``longtime merge``) gives each run its
 machine (``machine``: M1, M2, ..., longtime.reporting.machines); a time step is looked for
 only between runs of one machine, an instruction step only between counts of one target,
@@ -52,6 +53,7 @@ from typing import Any
 
 from longtime.core.roles import ROW_PARAMETERS
 from longtime.execution.calibration import stream_median
+from longtime.measure.instructions import count_factor
 from longtime.reporting import machines
 from longtime.reporting.compare import cross_machine_table
 from longtime.reporting.compare_cells import (
@@ -183,7 +185,9 @@ def series_specs(points: list[dict[str, Any]], errors: list[str], factor: float,
     specs += [{"field": f, "factor": error_factor, "min_runs": 1, "floor": ROUND_OFF,
                "kinds": ("less accurate", "more accurate")} for f in errors]
     if any(isinstance(p.get(INSTRUCTIONS_FIELD), int) for p in points):  # deterministic: every level counts
-        specs.append({"field": INSTRUCTIONS_FIELD, "factor": INSTRUCTION_FACTOR, "min_runs": 1, "floor": 0.0,
+        counts = [p[INSTRUCTIONS_FIELD] for p in points if isinstance(p.get(INSTRUCTIONS_FIELD), int)]
+        specs.append({"field": INSTRUCTIONS_FIELD, "factor": count_factor(INSTRUCTION_FACTOR, counts), "min_runs": 1,
+                      "floor": 0.0,
                       "kinds": ("more instructions", "fewer instructions")})
     return specs
 

@@ -29,6 +29,7 @@ from html import escape
 from typing import Any, Callable
 
 from longtime.execution.calibration import drift
+from longtime.execution.run_environment import machine_key
 
 # what the table says about each kind of figure
 COMPARABLE = (
@@ -49,11 +50,6 @@ def _json(text: Any) -> Any:
         return json.loads(text)
     except ValueError:
         return None
-
-
-def machine_key(machine: dict[str, Any]) -> tuple:
-    """What tells one machine from another: its host name, CPU model and core count."""
-    return (machine.get("node"), machine.get("cpu_model") or machine.get("processor"), machine.get("cpus"))
 
 
 def machines(runs: list[dict[str, Any]], calibrations: Callable[[int], list[dict]]) -> dict[int, dict[str, Any]]:
