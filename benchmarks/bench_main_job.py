@@ -113,8 +113,9 @@ def integration_core_s(rows: list[dict]) -> float:
 
 
 def process_times(rows: list[dict]) -> dict[tuple, list[float]]:
-    """Each ok cell timed in several processes, by the key `longtime compare` matches rows by:
-    its processes' minima, the row's own first."""
+    """Each ok cell timed in several processes (under the main job's timing by need, the cells
+    within x2 of a front: longtime.predict.need), by the key `longtime compare` matches rows
+    by: its processes' minima, the row's own first."""
     from longtime.reporting.compare_cells import cell_key
 
     out = {}
@@ -280,8 +281,8 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"  {s:7.1f} s  {what}")
     warm_times = [r["times"] for name, r in runs if name.startswith("warm") and r["times"]]
     if len(warm_times) > 1:
-        print(f"\nhow each cell's CPU time held across the {len(warm_times)} warm runs (max / min over the runs; "
-              f"the cost issue's goal x{HOLD:g})")
+        print(f"\nhow each cell timed in several processes (by need: the fronts' cells) held its CPU time across "
+              f"the {len(warm_times)} warm runs (max / min over the runs; the cost issue's goal x{HOLD:g})")
         print("\n".join(hold_table(warm_times)))
     if any(r["status"] != 0 for _, r in runs):
         print("a run failed: see its stderr.txt (--keep)")

@@ -107,3 +107,16 @@ def test_the_main_job_times_by_need_and_a_run_of_named_cells_times_all():
     from longtime.execution.matrix import ExecOptions
 
     assert MainJobSpec().options.retime == "need" and ExecOptions().retime == "all"
+
+
+def test_a_setting_the_verdict_picks_past_its_run_is_timed_again_though_off_the_measured_front():
+    # energy errors only (no reference): verlet's is bounded, rk4's grows linearly. At t = 100
+    # rk4 is more accurate for 1 / 2.5 of verlet's CPU (verlet: x2.5 off the measured front),
+    # but 1000 times further rk4's error is 1e-3 and verlet's still 1e-5: the verdict's best there
+    def energy(scheme, error, law, cpu):
+        return {**_row(scheme, 0.01, None, cpu, t_final=100.0), "H.max": error, "H.growth_class": law}
+
+    rows = [energy("verlet", 1e-5, "bounded", 0.25), energy("rk4", 1e-6, "linear", 0.10)]
+    verlet, rk4 = need(rows)
+    assert rk4.retime and verlet.retime
+    assert not need([rows[0], {**rows[1], "H.growth_class": "bounded"}])[0].retime  # x2.5 off every front

@@ -60,8 +60,9 @@ MAX_ROUNDS = 100
 # which cells the timing processes time again: "need" (those whose timing could change an
 # answer: ``by_need``) or "all"
 RETIME = ("need", "all")
-# the row field that says how its cell was timed: "N processes", or "its own process: why"
+# the row field that says how its cell was timed: "N processes", or ALONE + ": why"
 TIMED_IN = "timed_in"
+ALONE = "its own process"
 # the statuses of a timing process's run that end it before its end (a time limit passed, the
 # process paused or killed): a lost sample, never evidence that the run differs
 LOST = ("timeout",)
@@ -252,7 +253,7 @@ def merge(row: dict[str, Any], others: list[dict[str, Any]], processes: int) -> 
         note = f"timed in {len(mins)} of {processes} processes{why}"
         row["message"] = f"{row['message']}; {note}" if row.get("message") else note
     row[TIMED_IN] = f"{len(mins)} processes" if len(mins) > 1 else \
-        f"its own process: {missing[0] if missing else 'the others gave no time'}"
+        f"{ALONE}: {missing[0] if missing else 'the others gave no time'}"
 
 
 def one_process(row: dict[str, Any], why: str) -> None:
@@ -261,7 +262,7 @@ def one_process(row: dict[str, Any], why: str) -> None:
     if isinstance(row.get("cpu_s"), (int, float)):
         row.setdefault("cpu_s_processes", [row["cpu_s"]])
         row.setdefault("cpu_s_process_spread", None)
-        row[TIMED_IN] = f"its own process: {why}"
+        row[TIMED_IN] = f"{ALONE}: {why}"
 
 
 def alone_why(row: dict[str, Any], processes: int) -> str:

@@ -73,7 +73,9 @@ def one_process(row: dict) -> bool:
     """Whether a row's time was taken in its own process only (its ``timed_in``, where the
     main job's timing by need left it out of the fresh timing processes, or ``--processes
     1``): it has no spread between processes."""
-    return str(row.get("timed_in") or "").startswith("its own process")
+    from longtime.execution.processes import ALONE, TIMED_IN
+
+    return str(row.get(TIMED_IN) or "").startswith(ALONE)
 
 
 def compare_rows(a: dict, b: dict, factor: float = TIME_FACTOR, error_factor: float = 2.0,
