@@ -50,7 +50,7 @@ def growth_span(problem: Problem, horizon: float) -> float:
         k += 1
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # arrays: compared by identity
 class Growth:
     """ln G(t) of a perturbation on ``problem`` from ``t0``, at the ends ``t`` of the
     intervals (NaN past ``measured_to``, where the budget ran out), and the problem's
