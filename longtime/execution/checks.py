@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from longtime.core.fmt import positive
+from longtime.measure.instability import INITIAL_ROUNDING
 from longtime.predict.checks import CHECK_BUDGET_S, CHECK_REFERENCE_S, CHECKS, judge_ranks
 from longtime.predict.decision import TARGETS, Verdict, predictability, verdicts
 from longtime.predict.settings import Measure, Setting
@@ -52,6 +53,12 @@ GROWTH_CLASSES = ("unstable orbit", "close encounters")
 # a growth check's target is at least this (a hundred times the reference's trusted accuracy,
 # longtime.measure.reference.REFERENCE_RTOL: an error above it is measured, not the reference's)
 GROWTH_MIN_TARGET = 1e-6
+# a growth check runs to where a rounding has grown to this many times its target: a run and
+# the suite's reference start from the same rounded state, so only the steps' roundings
+# separate them, and those grow less than a rounding of the state in every direction does
+# (restricted-three-body, heyoka at tolerance eps: 1.8e-6 at t = 68.1 where a rounding of the
+# state has grown to 1.2e-3)
+GROWTH_CHECK_MARGIN = 1e3
 # the checks' total wall-time estimate (seconds): each run's predicted CPU times TIMED_RUNS
 # (its warm-up and timed repeats) plus its reference's time to the horizon, and the timing of
 # each problem's reference rate: 12 s for the other classes' groups, and 4 s for a
@@ -119,8 +126,10 @@ def _growth_group(v: Verdict, rows: list[dict[str, Any]], budget_s: float) -> li
     setting, at the finest map target E (at least GROWTH_MIN_TARGET and ten times its
     error) whose horizon, the time a rounding of the state grows to E
     (longtime.measure.instability, over ten times the main final time), lies past its run,
-    re-run a period (without one, a quarter of that horizon) past it: its error must exceed E
-    there. None where a stored row's reference stops before that time (it would not be judged)."""
+    re-run to where a rounding has grown to GROWTH_CHECK_MARGIN times E (no farther than
+    its reference is trusted, and there at least a tenth of that): its pointwise error there
+    (``final_error``) must exceed E. None where a stored row's reference stops
+    before that time (it would not be judged)."""
     if v.measure is None or v.measure.field != "l2_error" or not v.candidates or v.t_main is None:
         return []
     declared = _declared_class(v.problem)
@@ -131,20 +140,39 @@ def _growth_group(v: Verdict, rows: list[dict[str, Any]], budget_s: float) -> li
 
     s = min(v.candidates, key=lambda c: (c.error, c.cpu_per_t))
     try:
-        growth = instability.measure(build(cell_of_row(s.row))[0], 10 * v.t_main, budget_s=CHECK_REFERENCE_S)
+        problem = build(cell_of_row(s.row))[0]
+        growth = instability.measure(problem, 10 * v.t_main, budget_s=CHECK_REFERENCE_S)
     except Exception:  # no heyoka system, a compile past its budget: no growth check
         return []
     ends = [float(r["reference_horizon"]) for r in rows if r.get("problem") == v.problem
             and positive(r.get("reference_horizon")) and r["reference_horizon"] < float(r.get("t_final") or 0)]
     for target in sorted(TARGETS):
-        h = growth.horizon(target)
-        if h is None or target < max(GROWTH_MIN_TARGET, 10 * s.error) or h <= s.span:
+        h, horizon = growth.horizon(target), growth.horizon(GROWTH_CHECK_MARGIN * target)
+        if h is None or horizon is None or target < max(GROWTH_MIN_TARGET, 10 * s.error) or h <= s.span:
             continue
-        horizon = h + (growth.period or 0.25 * h)
+        # no farther than its reference is trusted, rounded down to 3 significant figures (a
+        # round final time, and inside the reach of the check run's own reference check)
+        horizon = _judged_until(problem, horizon)
+        unit = 10.0 ** (math.floor(math.log10(horizon)) - 2) if horizon > 0 else 1.0
+        horizon = math.floor(horizon / unit) * unit
+        if horizon <= h or INITIAL_ROUNDING * (growth.factor_at(horizon) or 0.0) < GROWTH_CHECK_MARGIN / 10 * target:
+            return []
         if s.cpu_at(horizon) > budget_s or any(e < horizon for e in ends):
             return []
         return [PlannedCheck(s, horizon, v.measure, "growth", target, f"{v.problem} {target:g} growth", declared)]
     return []
+
+
+def _judged_until(problem, horizon: float) -> float:
+    """``horizon``, or the end of the reference's trusted horizon where its check over
+    [t0, horizon] (cached, within CHECK_REFERENCE_S) ends before it: a check past it would
+    not be judged."""
+    from longtime.measure.reference import ReferenceUnavailable, reference_check
+
+    try:
+        return min(horizon, reference_check(problem, horizon, CHECK_REFERENCE_S).horizon)
+    except ReferenceUnavailable:
+        return problem.t0
 
 
 def _decision_groups(v: Verdict, budget_s: float) -> list[list[list[PlannedCheck]]]:
@@ -273,18 +301,22 @@ def check_row(c: PlannedCheck, row: dict[str, Any]) -> dict[str, Any]:
     no prediction, an "open" one, has predicted_error null; ``predicted_bound`` true where the
     prediction is an upper bound, an undetermined law's steepest window extrapolated)."""
     s, horizon, m = c.setting, c.horizon, c.measure
-    measured = row.get(m.field) if row.get("status") == "ok" else None
-    if m.field == "l2_error" and measured is not None and not (row.get("error_horizon") or 0) >= horizon * (1 - 1e-9):
+    # a growth check's claim is pointwise: the error at the horizon, not an RMS over [0, T]
+    field = "final_error" if c.role == "growth" else m.field
+    measured = row.get(field) if row.get("status") == "ok" else None
+    if field in ("l2_error", "final_error") and measured is not None \
+            and not (row.get("error_horizon") or 0) >= horizon * (1 - 1e-9):
         measured = None  # the reference stopped short of the horizon: an error over less than the prediction's span
     from longtime.execution.cells import cell_of_row
 
     predicted = s.error_at(horizon) if c.role in ("best", "runner-up") else None
     # an undetermined law's prediction past the run is its steepest window's: an upper bound
     bound = predicted is not None and s.bound_exponent is not None and horizon > s.span * (1 + 1e-9)
-    return {**row, "check_of": cell_of_row(s.row).key, "check_of_run": s.row.get("run_id"), "check_field": m.field,
-            "check_law": (f"chaotic: error above {c.target:g} past t = {horizon:.4g}" if c.role == "chaos" else
-                          f"unstable: a rounding of the state grows to {c.target:g} before t = {horizon:.4g}"
-                          if c.role == "growth" else s.law_text()),
+    law = (f"chaotic: error above {c.target:g} past t = {horizon:.4g}" if c.role == "chaos" else
+           f"unstable: a rounding of the state grows to {c.target:g} before t = {horizon:.4g}, the error at T above it"
+           if c.role == "growth" else s.law_text())
+    return {**row, "check_of": cell_of_row(s.row).key, "check_of_run": s.row.get("run_id"), "check_field": field,
+            "check_law": law,
             "check_role": c.role, "check_group": c.group, "check_kind": c.kind, "check_target": c.target,
             "predicted_error": predicted, "predicted_bound": bound, "predicted_cpu_s": s.cpu_at(horizon),
             "predicted_cpu_model": s.cost.text() if s.cost else "per-time",

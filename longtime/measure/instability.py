@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -50,7 +49,7 @@ def growth_span(problem: Problem, horizon: float) -> float:
         k += 1
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # arrays: compared by identity
 class Growth:
     """ln G(t) of a perturbation on ``problem`` from ``t0``, at the ends ``t`` of the
     intervals (NaN past ``measured_to``, where the budget ran out), and the problem's
@@ -122,10 +121,6 @@ class Growth:
         if h is None:
             return self.reason(target)
         return f"{self.reason(target)}: no double-precision run keeps {target:g} past t = {h:.4g}"
-
-    def fields(self) -> dict[str, Any]:
-        """The growth as JSON-ready fields: the span measured and G at its end."""
-        return {"growth_span": self.measured_to, "growth_factor": self.factor_at(self.measured_to)}
 
 
 # measured growths of this process, by problem identity, initial state and span
