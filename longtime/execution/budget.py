@@ -42,6 +42,9 @@ LONG_CELL_BUDGET_S = 30.0
 HORIZON_FRACTIONS = (0.5, 0.2, 0.1, 0.05, 0.02, 0.01)
 # the shorter ones a scheme with its own ``cell_budget_s`` may take besides
 SHORT_BUDGET_FRACTIONS = (0.005, 0.002, 0.001)
+# the wall seconds a cell takes besides its runs (the problem and its kernels loaded, the
+# metrics), as ``cell_seconds`` counts them
+CELL_OVERHEAD_S = 0.5
 # the start of every note the budget leaves in a row's message (the report finds them by it)
 NOTE = "budget:"
 
@@ -64,6 +67,23 @@ def run_seconds(cell: Cell, dims: dict[str, int] | None = None) -> float:
     dim, steps, _ = cell_size(cell, {} if dims is None else dims)
     icls = registry.integrator_class(cell.integrator)
     return steps * (icls.python_step_s + dim * icls.step_cost * COMPONENT_STEP_S)
+
+
+def cell_seconds(cell: Cell, timing: Any, dims: dict[str, int] | None = None) -> float:
+    """The estimated wall seconds of ``cell`` in a worker: CELL_OVERHEAD_S, its warm-up run
+    and its timed runs as ``timing`` (a longtime.core.timing.Timing) repeats them; a skipped
+    cell costs nothing. As rough as ``run_seconds``: the progress line's time left weighs
+    the cells by it."""
+    if cell.skip_reason:
+        return 0.0
+    try:
+        run = run_seconds(cell, dims)
+    except Exception:  # a problem that cannot be built here fails in its worker, in its row
+        return CELL_OVERHEAD_S
+    if not math.isfinite(run):
+        return CELL_OVERHEAD_S
+    timed = run if run > timing.ONCE_ABOVE else max(timing.least_runs * run, min(timing.min_time, timing.repeats * run))
+    return CELL_OVERHEAD_S + run + timed
 
 
 def cell_budget(scheme: str) -> float:
