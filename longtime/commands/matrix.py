@@ -15,7 +15,6 @@ from longtime.execution.lifecycle import command_line
 from longtime.execution.main_job import MainJobSpec, Selection, plan, run_main_job
 from longtime.predict.checks import CHECKS
 
-
 # ``longtime matrix --quick``: a first answer in about a minute (warm caches): two problems
 # whose answers the report states, the schemes of the main families (splitting, explicit and
 # implicit Runge-Kutta, adaptive, the Taylor reference), each over its default sweep
