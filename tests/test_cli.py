@@ -188,6 +188,14 @@ def test_list_shows_capabilities_and_requirements(capsys):
     assert "separable" in problems["toda"]["capabilities"]
     assert schemes["verlet"]["requires"] == ["separable"]
     assert schemes["rk4sym"]["symplectic"] and schemes["rk4sym"]["order"] == 4
+    assert schemes["rebound-ias15"]["requires"] == [] and "n-body" in schemes["rebound-ias15"]["needs"]
+    # the table: what each scheme needs said (never "needs -" for one that needs a kind of
+    # problem), the intervals not measured counted in one line unless --full
+    code, out, _ = run_cli(capsys, "list")
+    assert code == 0 and "needs an n-body problem" in out
+    assert out.count("not measured") == 1 and "`longtime list --full` names each" in out
+    code, full, _ = run_cli(capsys, "list", "--full")
+    assert code == 0 and full.count("not measured") > 1
 
 
 def test_integer_parameters_reject_fractions(capsys):
