@@ -83,21 +83,24 @@ def missed_text(c: dict[str, Any]) -> str:
     """Why a stored check failed ('' where it held or was not judged): the measured error
     or CPU time as a multiple of the predicted, past the bounds check_holds allows, or the
     winner's rank lost."""
-    from longtime.predict.checks import CHECK_COST_FACTOR, CHECK_ERROR_FACTOR, check_holds
+    from longtime.predict.checks import CHECK_COST_FACTOR, CHECK_ERROR_FACTOR, check_holds, cpu_pair
 
     if check_holds(c) is not False:
         return ""
     if c.get("check_role") == "chaos":
         return f"error {c.get('measured_error'):.2g} measured, not above the target {c['check_target']:g}"
     out = []
-    me, pe, mc, pc = (c.get(k) for k in ("measured_error", "predicted_error", "cpu_s", "predicted_cpu_s"))
+    me, pe = c.get("measured_error"), c.get("predicted_error")
+    mc, pc, calibrated = cpu_pair(c)
     low = 0.0 if c.get("predicted_bound") else 1 / CHECK_ERROR_FACTOR
     if not low <= me / pe <= CHECK_ERROR_FACTOR:
         out.append(f"error x{me / pe:.2g} the predicted ({me:.2g} against {pe:.2g}; within "
                    f"x{CHECK_ERROR_FACTOR:g} holds)")
     if mc > CHECK_COST_FACTOR * pc:
-        out.append(f"CPU x{mc / pc:.2g} the predicted ({mc:.3g} s against {pc:.3g} s; within x{CHECK_COST_FACTOR:g} "
-                   f"holds: a CPU time measured on a loaded machine can miss it)")
+        out.append(f"CPU x{mc / pc:.2g} the predicted, in calibrated time (the machine's speed taken out: not "
+                   f"its load; within x{CHECK_COST_FACTOR:g} holds)" if calibrated else
+                   f"CPU x{mc / pc:.2g} the predicted ({mc:.3g} s against {pc:.3g} s; within x{CHECK_COST_FACTOR:g} "
+                   f"holds; not calibrated: the machine may have been loaded)")
     if c.get("rank_held") is False:
         out.append("a rival kept the target for less: " + ", ".join(c.get("rank_lost_to") or []))
     return "; ".join(out)
