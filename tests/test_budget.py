@@ -97,3 +97,17 @@ def test_the_report_names_what_the_budget_moved():
     text = summary(rows, orders=False)
     assert "moved by the default matrix's budget: dop853 t_final 1000 -> 200" in text
     assert "--full-sweep runs 1000" in text
+
+
+def test_a_cells_estimated_wall_time_weighs_its_runs():
+    """The progress line's weights: a skipped cell costs nothing, every other cell the
+    overhead and more, a cell of ten times the steps more than a cell of one."""
+    from longtime.core.timing import Timing
+    from longtime.execution.budget import CELL_OVERHEAD_S, cell_seconds
+    from longtime.execution.cells import Cell
+
+    timing = Timing()
+    short = cell_seconds(Cell("kepler", "rk4", {}, {"dt": 0.01}, 100.0), timing)
+    long = cell_seconds(Cell("kepler", "rk4", {}, {"dt": 0.01}, 1e6), timing)
+    assert cell_seconds(Cell("kepler", "verlet", skip_reason="needs x"), timing) == 0.0
+    assert CELL_OVERHEAD_S < short < long
