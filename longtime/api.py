@@ -39,6 +39,8 @@ from longtime.execution.cells import (
 
 # the memory a cell may use unless memory_limit= says otherwise: longtime run's default
 DEFAULT_MEMORY_LIMIT = f"{limits.MEMORY_SHARE:.0%}"
+# ``schemes=ALL`` (solve, sweep, ...): every registered scheme that applies to the problems
+ALL = "all"
 
 
 def check_options(*, max_samples: Any, repeats: Any, min_time: Any, time_limit: Any, memory_limit: Any,
@@ -99,7 +101,12 @@ def cells_for(problems: Any, schemes: Any, t_final: Any = None, settings: dict[s
     longtime.core.params (the command line's): a list is not empty; a keyword is a
     parameter of a selected problem or scheme (else the closest names and the full list);
     a value has its parameter's type (a number is not a string, nor a bool) and range; a
-    final time is a finite number. ``caller`` names the function in the messages."""
+    final time is a finite number. ``caller`` names the function in the messages.
+    ``schemes="all"``: every registered scheme, each on the problems it applies to (the
+    pairs it cannot treat, or whose package is not installed, are left out, not skipped rows)."""
+    every = isinstance(schemes, str) and schemes == ALL
+    if every:
+        schemes = sorted(registry.integrators())
     pnames, inames, sets, sweeps = [], [], {}, {}
     for p in check_values("problems", problems):
         name, given = resolve(p, "problem")
@@ -128,8 +135,9 @@ def cells_for(problems: Any, schemes: Any, t_final: Any = None, settings: dict[s
             sets.pop(key, None)  # the keyword overrides an instance's own setting
         else:
             sets[key] = values[0]
-    return expand(pnames, inames, sweeps=sweeps, t_final=t_final, sets=sets, strict=strict,
-                  default_sweep=default_sweep, **(limits or {}))  # a plugin's checks under a cell's limits
+    cells = expand(pnames, inames, sweeps=sweeps, t_final=t_final, sets=sets, strict=strict and not every,
+                   default_sweep=default_sweep, **(limits or {}))  # a plugin's checks under a cell's limits
+    return [c for c in cells if not c.skip_reason] if every else cells
 
 
 def run_cells(cells: list[Cell], *, store=None, command: str = "", executor: str = "serial",

@@ -332,3 +332,18 @@ def test_an_adaptive_try_step_that_writes_past_its_array_is_a_failed_row_naming_
     r = longtime.solve("harmonic", OobAdaptive, t_final=1)
     assert r.status == "failed"
     assert r.row["message"].startswith("scheme input-oob-adaptive: its try_step indexes outside its arrays")
+
+
+def test_schemes_all_is_every_scheme_that_applies():
+    """``schemes="all"``: every registered scheme on the problems it can treat, a pair it
+    cannot treat left out (not a skipped row); a swept keyword reaches the schemes that take it."""
+    from longtime.api import cells_for
+    from longtime.core import registry
+
+    cells = cells_for(["kepler"], "all", t_final=1.0)
+    names = {c.integrator for c in cells}
+    assert not any(c.skip_reason for c in cells)
+    assert {"verlet", "rk4", "gauss4", "heyoka"} <= names and "boris" not in names  # boris needs lorentz
+    assert names <= set(registry.integrators())
+    swept = cells_for(["harmonic"], "all", t_final=1.0, settings={"dt": [0.1, 0.05]})
+    assert {c.integrator_settings.get("dt") for c in swept if c.integrator == "verlet"} == {0.1, 0.05}

@@ -112,3 +112,17 @@ def test_the_moves_are_one_line_as_the_job_starts_and_each_with_full(capsys):
     say_moves(moves + [left], full=True)
     listed = capsys.readouterr().err.strip().splitlines()
     assert len(listed) == 3 and listed[1].strip() == moves[0].text() and listed[2].strip() == left.text()
+
+
+def test_a_cells_estimated_wall_time_weighs_its_runs():
+    """The progress line's weights: a skipped cell costs nothing, every other cell the
+    overhead and more, a cell of ten times the steps more than a cell of one."""
+    from longtime.core.timing import Timing
+    from longtime.execution.budget import CELL_OVERHEAD_S, cell_seconds
+    from longtime.execution.cells import Cell
+
+    timing = Timing()
+    short = cell_seconds(Cell("kepler", "rk4", {}, {"dt": 0.01}, 100.0), timing)
+    long = cell_seconds(Cell("kepler", "rk4", {}, {"dt": 0.01}, 1e6), timing)
+    assert cell_seconds(Cell("kepler", "verlet", skip_reason="needs x"), timing) == 0.0
+    assert CELL_OVERHEAD_S < short < long

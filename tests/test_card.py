@@ -94,7 +94,10 @@ def test_card_reads_every_run_says_does_not_apply_and_hints_a_command_that_runs(
     assert table.returncode == 0, table.stderr
     # every run by default (recommend's rows): run 1's harmonic rows, though run 2 is the latest
     assert "== harmonic: 2 of 2 cells ok ==" in table.stdout
-    assert "== linear-test: does not apply (verlet needs" in table.stdout
+    # the problems it does not apply to in one line; --full: each on its own
+    assert any(line.startswith("  does not apply: verlet needs") and "(linear-test)" in line
+               for line in table.stdout.splitlines()), table.stdout
+    assert "== linear-test: does not apply (verlet needs" in _cli("verlet", "--db", str(db), "--full").stdout
     assert "linear-test: 0 of" not in table.stdout and table.stdout.count("Pareto front") == 1
     narrowed = _cli("verlet", "--db", str(db), "--run", "2", "--format", "json")
     assert [p["problem"] for p in json.loads(narrowed.stdout)["problems"]] == ["linear-test"]

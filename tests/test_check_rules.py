@@ -126,3 +126,19 @@ def test_the_winner_map_marks_only_judged_checks():
     marks = check_marks([held, missed, opened], (1e-12, 1e-1))
     assert marks == [(1e3, 1.1e-5, True), (1e3, 1e-3, False)]
     assert check_marks([{**missed, "measured_error": 5.0}], (1e-12, 1e-1)) == [(1e3, 1e-1, False)]  # on the edge
+
+
+def test_a_check_cpu_is_judged_in_calibrated_time_where_both_carry_a_calibration():
+    """A machine twice as slow while the checks ran (twice the CPU seconds, and twice the
+    calibration): the prediction holds in calibrated time; without calibrations, in seconds."""
+    from longtime.execution.checks import _calibrated
+    from longtime.predict.checks import check_holds
+
+    row = {"cpu_s": 0.5, "cpu_s_calibrated": 100.0}  # timed when the reference workload took 5 ms
+    check = {"check_role": "best", "predicted_error": 1e-6, "measured_error": 1e-6, "predicted_cpu_s": 1.0,
+             "cpu_s": 2.0, "predicted_cpu_s_calibrated": _calibrated(1.0, row), "cpu_s_calibrated": 2.0 / 0.01}
+    assert check["predicted_cpu_s_calibrated"] == 200.0
+    assert check_holds(check) is True
+    raw = {k: v for k, v in check.items() if not k.endswith("_calibrated")}
+    assert check_holds(raw) is False
+    assert check_holds({**check, "cpu_s_calibrated": 400.0}) is False  # slower in calibrated time too

@@ -10,6 +10,8 @@ from longtime import Problem
 from longtime.commands.cli import main
 from longtime.core import registry
 from longtime.core.params import InputError
+from longtime.execution.cells import Cell
+from longtime.execution.store import Store
 
 
 def run_cli(capsys, *argv):
@@ -19,10 +21,16 @@ def run_cli(capsys, *argv):
 
 
 @pytest.fixture
-def db(tmp_path, capsys):
+def db(tmp_path):
+    """A store holding one finished run of one row, written without running a cell: bad input
+    is refused before any cell runs, so what a refusal must keep is a row, not a measurement."""
     path = tmp_path / "store.sqlite"
-    code, _, _ = run_cli(capsys, "run", "-p", "harmonic", "-i", "rk4", "--t-final", "10", "--db", str(path))
-    assert code == 0
+    store = Store(path)
+    cell = Cell("harmonic", "rk4", t_final=10.0)
+    run_id = store.begin_run("run -p harmonic -i rk4", [cell])
+    store.add_row(run_id, cell, {"problem": "harmonic", "integrator": "rk4", "status": "ok", "t_final": 10.0})
+    store.finish_run(run_id, "done")
+    assert len(stored_rows(path)) == 1
     return path
 
 
@@ -180,6 +188,14 @@ def test_list_shows_capabilities_and_requirements(capsys):
     assert "separable" in problems["toda"]["capabilities"]
     assert schemes["verlet"]["requires"] == ["separable"]
     assert schemes["rk4sym"]["symplectic"] and schemes["rk4sym"]["order"] == 4
+    assert schemes["rebound-ias15"]["requires"] == [] and "n-body" in schemes["rebound-ias15"]["needs"]
+    # the table: what each scheme needs said (never "needs -" for one that needs a kind of
+    # problem), the intervals not measured counted in one line unless --full
+    code, out, _ = run_cli(capsys, "list")
+    assert code == 0 and "needs an n-body problem" in out
+    assert out.count("not measured") == 1 and "`longtime list --full` names each" in out
+    code, full, _ = run_cli(capsys, "list", "--full")
+    assert code == 0 and full.count("not measured") > 1
 
 
 def test_integer_parameters_reject_fractions(capsys):

@@ -160,3 +160,14 @@ def test_a_round_off_floor_is_a_stall_and_a_large_one_is_not():
     assert _stop_sweep([1e-3, 1e-4, 1e-5, 2e-5, 3e-5, 2e-5, 5e-5, 1e-4]) is None  # stuck far above round-off
     assert _stop_sweep([1e-3, 1e-7, 1e-16]) == 3  # at machine precision (below half an ulp of the scale)
     assert _stop_sweep([1e-3, 1e-7, 4e-16], scale=4.0) == 3 and _stop_sweep([1e-3, 1e-7, 2e-16]) is None
+
+
+def test_a_failed_step_names_a_nonlinear_solve_only_for_a_scheme_that_solves_one():
+    from longtime.core import drivers
+    from longtime.core.registry import integrator_class
+    from longtime.core.stepping import _solves, _status_message
+
+    rk45, gauss4 = integrator_class("rk45")(), integrator_class("gauss4")()
+    assert not _solves(rk45) and _solves(gauss4)
+    assert _status_message(drivers.FAILED, 2.0, _solves(rk45)) == "step failed at t=2 (step size underflow)"
+    assert "nonlinear solve did not converge" in _status_message(drivers.FAILED, 2.0, _solves(gauss4))

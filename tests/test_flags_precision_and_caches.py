@@ -37,6 +37,33 @@ PROBES = {"dt": 0.5, "tol": 1e-3, "eps_res": 1e-10, "order": 4, "atol": 1e-2, "m
           "pade_den": 2, "pade_tol": 0.5, "max_dt": 0.01, "fallback": "taylor"}
 
 
+# the libraries whose every run compiles first (JAX: tens of seconds a run): their schemes are
+# in the slow run only (tests/test_peers.py runs one of them by default)
+COMPILING_LIBRARIES = {"diffrax"}
+
+
+def _representatives(schemes: list[str]) -> set[str]:
+    """A scheme of each implementation (the first of each module), but those of
+    COMPILING_LIBRARIES: the default run checks the flags on these; the slow run on every
+    scheme of the registry."""
+    first: dict[str, str] = {}
+    for s in schemes:
+        icls = registry.integrator_class(s)
+        if icls.library not in COMPILING_LIBRARIES:
+            first.setdefault(icls.__module__, s)
+    return set(first.values())
+
+
+REPRESENTATIVE = _representatives(SCHEMES)
+
+
+def each_scheme(cases, scheme_of=lambda case: case):
+    """``cases`` as pytest params: those of a representative scheme in the default run, the
+    others marked slow."""
+    return [pytest.param(*(c if isinstance(c, tuple) else (c,)),
+                         marks=() if scheme_of(c) in REPRESENTATIVE else pytest.mark.slow) for c in cases]
+
+
 def problem_for(scheme: str) -> tuple[str, dict]:
     icls = registry.integrator_class(scheme)
     for name, settings in PROBLEMS:
@@ -84,7 +111,7 @@ def run(monkeypatch, scheme, settings, t_final=None, max_samples=100_001, timing
 PARAMETERS = [(s, k) for s in SCHEMES for k in registry.integrator_class(s).parameters]
 
 
-@pytest.mark.parametrize("scheme,key", PARAMETERS, ids=[f"{s}-{k}" for s, k in PARAMETERS])
+@pytest.mark.parametrize("scheme,key", each_scheme(PARAMETERS, lambda c: c[0]), ids=[f"{s}-{k}" for s, k in PARAMETERS])
 def test_every_declared_parameter_reaches_the_run(monkeypatch, scheme, key):
     """The row records the value (its field for a swept one, and ``parameters``) and the run
     changes with it: a scheme that declares a parameter and ignores it fails here."""
@@ -98,7 +125,7 @@ def test_every_declared_parameter_reaches_the_run(monkeypatch, scheme, key):
     assert not same_run(base, traj), f"{scheme}: {key}={value!r} gave the run of the default"
 
 
-@pytest.mark.parametrize("scheme", SCHEMES)
+@pytest.mark.parametrize("scheme", each_scheme(SCHEMES))
 def test_t_final_and_repeats_reach_every_scheme(monkeypatch, scheme):
     """--t-final (not a multiple of any step) is where every run ends; --repeats N with a long
     --min-time gives N timed runs; the row records every parameter actually used (a fixed
@@ -114,7 +141,7 @@ def test_t_final_and_repeats_reach_every_scheme(monkeypatch, scheme):
         assert used["dt"] == row["dt"] == registry.problem_class(problem).default_dt
 
 
-@pytest.mark.parametrize("scheme", SCHEMES)
+@pytest.mark.parametrize("scheme", each_scheme(SCHEMES))
 def test_max_samples_bounds_the_samples_of_every_scheme(monkeypatch, scheme):
     problem, _ = problem_for(scheme)
     icls = registry.integrator_class(scheme)
@@ -142,13 +169,31 @@ def _flag_cases():
     return out
 
 
-@pytest.mark.parametrize("flag,scheme", _flag_cases(), ids=[f"{f}-{s}" for f, s in _flag_cases()])
-def test_sweep_flags_reach_the_row_from_the_command_line(capsys, flag, scheme):
+@pytest.fixture(scope="module")
+def one_calibration():
+    """A calibration taken once: the flag tests' runs are calibrated with it (a copy at the
+    time asked) instead of timing the reference workload again in each."""
+    from longtime.execution import calibration
+
+    return calibration.measure("batch")
+
+
+@pytest.mark.parametrize("flag,scheme", each_scheme(_flag_cases(), lambda c: c[1]),
+                         ids=[f"{f}-{s}" for f, s in _flag_cases()])
+def test_sweep_flags_reach_the_row_from_the_command_line(capsys, monkeypatch, one_calibration, flag, scheme):
+    """The flag, given on the command line (cells run in this process: --executor serial),
+    is the row's value and its parameter."""
+    import time
+
+    from longtime.execution import calibration
+
+    monkeypatch.setattr(calibration, "measure", lambda phase="batch", **_: {**one_calibration, "t": time.time(),
+                                                                            "phase": phase})
     problem, psettings = problem_for(scheme)
     value = _probe(scheme, flag, problem)
     sets = [a for k, v in psettings.items() for a in ("--set", f"{k}={v}")]
     rows = cli_rows(capsys, "-p", problem, "-i", scheme, f"--{flag.replace('_', '-')}", str(value),
-                    "--t-final", str(T_FINAL[problem]), *sets)
+                    "--t-final", str(T_FINAL[problem]), "--executor", "serial", *sets)
     assert len(rows) == 1 and rows[0][flag] == value
     assert json.loads(rows[0]["parameters"])[flag] == value
 

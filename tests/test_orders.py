@@ -325,3 +325,16 @@ def test_report_and_compare_name_an_undetermined_order_with_its_slopes_and_flag_
     assert "MISSES" not in text
     assert "left out of A's order table: harmonic rk4 (pre-asymptotic: local slopes 3.65" in render(
         compare(trending, trending))
+
+
+def test_a_pair_swept_at_two_final_times_names_the_sweep_its_reason_is_about():
+    """The default sweep (2 points left) and a long-time sweep as long (every point lost): the
+    reason is the default sweep's, the shorter run's, and says its final time."""
+    dts = [0.1, 0.05, 0.025]
+    short = rows("rk4", dts, [2e-2, 1.25e-3, 0.5])
+    long = [{**r, "t_final": 1000.0, "l2_error": 0.6 + i / 10} for i, r in enumerate(rows("rk4", dts, dts))]
+    for both in (short + long, long + short):
+        (why,) = left_out(both)
+        assert why["reason"].startswith("2 points only") and why["reason"].endswith("(its sweep to t = 10)"), why
+    (why,) = left_out(long)
+    assert why["reason"] == "every point above 0.1"  # one final time: nothing to name

@@ -250,3 +250,15 @@ def test_benchmark_cell_times_in_processes_and_asv_runs_in_processes():
     assert bench.extra_info["cpu_s_process_spread"] >= 1
     classes = benchmarks(["kepler"], ["rk4"], dt=0.01)
     assert classes["Integration"].processes == DEFAULT_PROCESSES
+
+
+def test_compare_names_whose_commit_it_shows():
+    """A run's commit that is not longtime's own (a plugin's repository) is named as the code
+    measured's, never shown as if it were longtime's."""
+    from longtime.reporting.compare_text import provenance_lines
+
+    own = {"commit": "a" * 40, "dirty": False}
+    same = {"git_commit": "a" * 40, "longtime": "1.0", "longtime_git": own, "code": []}
+    lines = provenance_lines({"a": same, "b": {**same, "git_commit": "b" * 40}})
+    assert lines[0].startswith("run A: longtime 1.0 (commit aaaaaaaaaa)"), lines
+    assert lines[1].startswith("run B: commit of the code measured bbbbbbbbbb; longtime 1.0 (commit aaaaaaaaaa)")

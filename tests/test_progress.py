@@ -44,6 +44,23 @@ def test_plain_lines_in_a_pipe_carry_the_phase_the_count_and_the_time(monkeypatc
     assert quiet.getvalue() == ""
 
 
+def test_the_time_left_weighs_the_units_by_their_estimated_costs(monkeypatch):
+    """One cheap cell of four done (cost 1 of 10): the time left is nine times the time
+    spent, not three times, as a count of cells would say."""
+    monkeypatch.setattr(progress.time, "monotonic", lambda: 100.0)
+    state = {"total": 4, "done": 1, "start": 90.0, "costs": 10.0, "cost_done": 1.0}
+    assert progress.Progress._left(state) == pytest.approx(90.0)
+    assert progress.Progress._left({**state, "costs": None}) == pytest.approx(30.0)
+    assert progress.Progress._left({**state, "done": 0, "cost_done": 0.0}) is None
+    out = io.StringIO()
+    shown = progress.Progress(stream=out)
+    with shown.phase("cells", total=4, unit="cells", costs=10.0):
+        shown.advance(last="kepler x rk4: ok", cost=1.0)
+        shown._state["start"] = 90.0
+        shown._line(shown._state)
+    assert "about 1:30 left" in out.getvalue()
+
+
 def test_the_default_intervals_meet_the_promise(monkeypatch):
     monkeypatch.delenv(progress.ENV_SECONDS, raising=False)
     assert progress.interval(terminal=True) <= 15 and progress.interval(terminal=False) <= 60

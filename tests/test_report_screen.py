@@ -1,5 +1,6 @@
 """The default report is a first screen that answers: the table across problems first, the
 counts with their reasons, within about 80 lines and never past 120 columns."""
+import re
 import subprocess
 import sys
 
@@ -27,8 +28,11 @@ def test_the_first_screen_opens_with_the_answer_table_and_fits(store):
     lines = out.stdout.splitlines()
     assert len(lines) <= 100 and max(map(len, lines)) <= 120, out.stdout
     head = next(k for k, line in enumerate(lines) if line.startswith("problem "))
-    table = lines[head + 1:head + 1 + len(PROBLEMS)]
-    assert head + len(PROBLEMS) < 25 and sorted(line.split()[0] for line in table) == sorted(PROBLEMS)
+    table = [line for line in lines[head + 1:head + 1 + 2 * len(PROBLEMS)] if line[:1].strip()]
+    assert head + 2 * len(PROBLEMS) < 25 and sorted(line.split()[0] for line in table) == sorted(PROBLEMS)
+    # each answer in full (never cut) with its CPU time beneath it
+    block = "\n".join(lines[head:head + 2 * len(PROBLEMS)])
+    assert "..." not in block and re.search(r"\n {20,}\S.* s, (runner-up x|no runner-up)", block), block
     assert "1e-03 to 100 T" in lines[head] and "1e-10 to T" in lines[head]
     # said once: the skip of verlet on duffing-1 (not separable) with its reason, not per problem
     skipped = [line for line in lines if "skipped" in line and "does not apply" in line]
@@ -59,3 +63,17 @@ def test_a_chaotic_problem_that_lost_the_solution_has_no_pointwise_answer():
     assert found[0]["answers"] == [NO_POINTWISE] * 3
     assert NO_POINTWISE in first_screen(rows)
     assert report_text(rows).startswith("cheapest setting predicted")
+
+
+def test_a_failed_check_is_named_with_its_reason():
+    from longtime.reporting.screen import missed_text
+
+    check = {"problem": "kepler", "integrator": "rk4", "dt": 0.01, "t_final": 1000.0, "check_role": "best",
+             "predicted_error": 1e-6, "measured_error": 1.1e-6, "predicted_cpu_s": 1.0, "cpu_s": 2.2}
+    assert missed_text(check).startswith("CPU x2.2 the predicted (2.2 s against 1 s")
+    assert missed_text({**check, "cpu_s": 1.2}) == ""  # held
+    assert missed_text({**check, "cpu_s": 1.2, "measured_error": 1e-4}).startswith("error x1e+02 the predicted")
+    rows = [{"problem": "kepler", "integrator": "rk4", "status": "ok", "t_final": 100.0, "cpu_s": 0.1,
+             "l2_error": 1e-6, "dt": 0.01}]
+    text = first_screen(rows, checks=[check])
+    assert "failed: rk4 dt=0.01 on kepler to t = 1000 (best): CPU x2.2 the predicted" in text

@@ -19,6 +19,9 @@ def add_parser(subparsers) -> None:
                                                 "reads it)")
     p.add_argument("--db", default=None, help=f"SQLite store (default: $LONGTIME_DB or {default_path()})")
     p.add_argument("--format", choices=["table", "json", "markdown"], default="table")
+    p.add_argument("--full", action="store_true",
+                   help="each undetermined order with its reason and slopes, and each problem the scheme does not "
+                        "apply to, on a line of its own (by default each kind summarised in one line)")
     p.add_argument("--time-limit", type=cli_args.seconds("--time-limit", allow_zero=True), default=DEFAULT_TIME_LIMIT,
                    metavar="SECONDS", help=f"seconds the card (the scheme's runs it measures) may take, as a cell's "
                                            f"limit (default {DEFAULT_TIME_LIMIT:g}; 0: no limit)")
@@ -64,6 +67,6 @@ def cmd_card(args) -> int:
     elif args.format == "markdown":
         print(card_markdown(found))
     else:
-        print(card_text(found))
+        print(card_text(found, full=args.full))
     print(f"card of {args.scheme} from {source}", file=sys.stderr)
     return 0

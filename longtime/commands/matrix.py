@@ -8,6 +8,7 @@ import sys
 
 from longtime.commands.common import add_selection, exec_options, selection, warn_broken, wrapped
 from longtime.core import cli_args, phases
+from longtime.core.params import InputError
 from longtime.core.progress import Progress
 from longtime.execution import budget
 from longtime.execution.calibration import drift_text
@@ -15,10 +16,21 @@ from longtime.execution.lifecycle import command_line
 from longtime.execution.main_job import MainJobSpec, Selection, plan, run_main_job
 from longtime.predict.checks import CHECKS
 
+# ``longtime matrix --quick``: a first answer in about a minute (warm caches): two problems
+# whose answers the report states, the schemes of the main families (splitting, explicit and
+# implicit Runge-Kutta, adaptive, the Taylor reference), each over its default sweep
+QUICK_PROBLEMS = ("harmonic", "kepler")
+QUICK_SCHEMES = ("verlet", "yoshida6", "rk4", "gauss4", "rk45", "dop853", "heyoka")
+
 
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser("matrix", help="every scheme on every problem over the default sweep")
     add_selection(p, required=False)
+    p.add_argument("--quick", action="store_true",
+                   help=f"a first answer in about a minute: {', '.join(QUICK_PROBLEMS)} x "
+                        f"{', '.join(QUICK_SCHEMES)} over the default sweep (-p and -i replace them), no "
+                        f"ensembles and no checks unless --checks asks; `longtime matrix` without it runs the "
+                        f"full matrix")
     p.add_argument("--resume", type=int, nargs="?", const=0, default=None, metavar="RUN_ID",
                    help="finish an interrupted run (default: the newest incomplete run of matrix or run)")
     p.add_argument("--no-progress", action="store_true")
@@ -63,8 +75,21 @@ def matrix_cells(args) -> tuple[list, list]:
     return plan(matrix_selection(args), exec_options(args, args.executor or "process"))
 
 
+def quick(args) -> None:
+    """--quick: the quick matrix's problems and schemes where -p and -i do not name them, no
+    checks where --checks does not ask for them, no ensembles."""
+    if args.resume is not None:
+        raise InputError("--quick and --resume: --resume finishes the run it names as it was planned")
+    args.problem = args.problem or list(QUICK_PROBLEMS)
+    args.integrator = args.integrator or list(QUICK_SCHEMES)
+    args.checks = 0 if args.checks is None else args.checks
+    args.no_ensemble = True
+
+
 def cmd_matrix(args) -> int:
     phases.since_process_start("startup")  # the interpreter, the imports, the plugins
+    if args.quick:
+        quick(args)
     warn_broken()
     executor = args.executor or "process"
     options = exec_options(args, executor)

@@ -72,6 +72,9 @@ class Integrator(ABC):
     name: ClassVar[str] = ""  # the registry sets it from the entry point when empty
     summary: ClassVar[str] = ""
     requires: ClassVar[frozenset[str]] = frozenset()
+    # what it needs of a problem beyond ``requires``, in words (what its ``incompatibility``
+    # checks besides the capabilities); ``longtime list`` shows it beside them
+    needs: ClassVar[str] = ""
     order: ClassVar[int | None] = None
     symplectic: ClassVar[bool] = False
     kind: ClassVar[str] = "fixed"  # fixed | adaptive | external

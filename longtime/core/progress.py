@@ -9,6 +9,10 @@ log, ``| tee``, a terminal that reports 0 columns) each phase is plain lines, on
 message, newline-terminated: one when the phase starts, one every ``PLAIN_SECONDS``, one
 when it ends. ``$LONGTIME_PROGRESS_SECONDS`` sets both intervals.
 
+A phase of units of unequal cost (the cells of a matrix) can be given each unit's estimated
+cost (``costs``, ``advance(cost=...)``): its time left is then the time spent times the
+estimated cost left over the estimated cost done, not over the units done.
+
 A single run of a scheme that goes on for more than ``RUN_SECONDS`` prints a ``RunProgress``
 line on stderr every ``RUN_SECONDS`` (``$LONGTIME_PROGRESS=0`` turns these lines off).
 """
@@ -75,16 +79,19 @@ class Progress:
 
     @contextlib.contextmanager
     def phase(self, name: str, total: int | None = None, unit: str = "", estimate_s: float | None = None,
-              detail: str = "", announce: bool = True) -> Iterator["Progress"]:
+              detail: str = "", announce: bool = True, costs: float | None = None) -> Iterator["Progress"]:
         """The ``with`` block as phase ``name``: ``total`` units of ``unit`` (``advance`` counts
         them), or an expected duration ``estimate_s``; ``detail`` says what it works on.
+        ``costs``: the units' estimated costs together (in any unit; ``advance(cost=...)``
+        gives each finished unit's), from which the time left is estimated.
         ``announce=False``: silent unless the phase outlasts one interval (a command that is
         usually quick, whose stderr says nothing else then)."""
         if not self.on:
             yield self
             return
         state = {"name": name, "total": total, "unit": unit, "done": 0, "start": time.monotonic(),
-                 "estimate": estimate_s, "detail": detail, "last": "", "spoke": announce}
+                 "estimate": estimate_s, "detail": detail, "last": "", "spoke": announce,
+                 "costs": costs if costs and costs > 0 else None, "cost_done": 0.0}
         outer, outer_bar = self._state, self._bar
         self._state, self._bar = state, None
         if announce and self.terminal:
@@ -113,22 +120,41 @@ class Progress:
             if state["spoke"] and not failed:
                 print(f"longtime: {name}: done ({counted}{took})", file=self.stream, flush=True)
 
-    def advance(self, count: int = 1, last: str = "") -> None:
-        """``count`` more units of the open phase done; ``last`` names the one that ended."""
+    def advance(self, count: int = 1, last: str = "", cost: float | None = None) -> None:
+        """``count`` more units of the open phase done; ``last`` names the one that ended;
+        ``cost``: their estimated cost (a phase opened with ``costs``)."""
         state = self._state
         if not self.on or state is None:
             return
         with self._lock:
             state["done"] += count
+            state["cost_done"] += cost or 0.0
             state["last"] = last or state["last"]
             if self._bar is not None:
-                if last:
-                    self._bar.set_postfix_str(last, refresh=False)
+                left = self._left(state)
+                postfix = ", ".join(x for x in (f"about {_clock(left)} left" if left is not None else "", last) if x)
+                if postfix:
+                    self._bar.set_postfix_str(postfix, refresh=False)
                 self._bar.update(count)
+
+    @staticmethod
+    def _left(state: dict[str, Any]) -> float | None:
+        """The seconds left: the time spent times the estimated cost left over the cost done
+        (a phase with ``costs``), else over the units done; None before any is done."""
+        took = time.monotonic() - state["start"]
+        if not (state["total"] and 0 < state["done"] < state["total"] and took > 0):
+            return None
+        if state["costs"] and state["cost_done"] > 0:
+            return took * max(state["costs"] - state["cost_done"], 0.0) / state["cost_done"]
+        return took * (state["total"] - state["done"]) / state["done"]
 
     def _new_bar(self, state: dict[str, Any]) -> Any:
         from tqdm import tqdm
 
+        if state["total"] is not None and state["costs"]:  # the time left from the costs, in the postfix
+            return tqdm(total=state["total"], unit=state["unit"] or "it", desc=state["name"], file=self.stream,
+                        dynamic_ncols=True, mininterval=0.5,
+                        bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}{postfix}]")
         if state["total"] is not None:
             return tqdm(total=state["total"], unit=state["unit"] or "it", desc=state["name"], file=self.stream,
                         dynamic_ncols=True, mininterval=0.5)
@@ -143,8 +169,9 @@ class Progress:
             share = f" ({100 * state['done'] / state['total']:.0f} %)" if state["total"] else ""
             parts.append(f"{state['done']} of {state['total']} {state['unit']}{share}")
         parts.append(_clock(took) + (f" of about {_clock(state['estimate'])}" if (state["estimate"] or 0) >= 1 else ""))
-        if state["total"] and 0 < state["done"] < state["total"] and took > 0:
-            parts.append(f"about {_clock(took * (state['total'] - state['done']) / state['done'])} left")
+        left = self._left(state)
+        if left is not None:
+            parts.append(f"about {_clock(left)} left")
         if state["detail"]:
             parts.append(state["detail"])
         if state["last"]:

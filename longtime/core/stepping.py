@@ -10,7 +10,7 @@ import functools
 import math
 import time
 from abc import abstractmethod
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -109,7 +109,7 @@ class FixedStepIntegrator(Integrator):
             chunk = max(FIRST_CHUNK, int(chunk * CHUNK_SECONDS / max(w1, 1e-9)))
         watch.close()
         return Trajectory(
-            status=STATUS_NAMES[status], message=_status_message(status, t_end), t=out_t[:n],
+            status=STATUS_NAMES[status], message=_status_message(status, t_end, _solves(self)), t=out_t[:n],
             u=out_u[:n], cpu_s=cpu, wall_s=wall, counters=self._counters(counters),
             min_dt=dt, max_dt=dt)
 
@@ -183,7 +183,7 @@ class AdaptiveIntegrator(Integrator):
             watch.update(t)
         watch.close()
         steps = int(counters[drivers.STEPS])
-        message = _status_message(status, t)
+        message = _status_message(status, t, _solves(self))
         if status == drivers.FAILED and np.isfinite(u).all():  # say why where it is plain
             f = np.empty(dim)
             problem.rhs(t, u, problem.params, f)
@@ -198,11 +198,21 @@ class AdaptiveIntegrator(Integrator):
             min_dt=float(hstats[0]) if steps else None, max_dt=float(hstats[1]) if steps else None)
 
 
-def _status_message(status: int, t: float) -> str:
+def _solves(scheme: Any) -> bool:
+    """Whether ``scheme``'s step solves a nonlinear system: it declares an iteration limit
+    (``max_iter``: the implicit Runge-Kutta, AVF, Dirac and RATTLE steps)."""
+    return "max_iter" in scheme.parameters
+
+
+def _status_message(status: int, t: float, solves: bool = True) -> str:
+    """The row's message of a loop's ``status`` at ``t``; ``solves``: the scheme's step solves
+    a nonlinear system (an implicit stage, whose solve can fail), else only a step size
+    underflow fails a step."""
     if status == drivers.TIMEOUT:
         return f"time limit reached at t={t:.6g}"
     if status == drivers.DIVERGED:
         return BLOWUP_MESSAGE.format(t=t)
     if status == drivers.FAILED:
-        return f"step failed at t={t:.6g} (nonlinear solve did not converge or step size underflow)"
+        why = "nonlinear solve did not converge or step size underflow" if solves else "step size underflow"
+        return f"step failed at t={t:.6g} ({why})"
     return ""

@@ -48,6 +48,9 @@ HORIZON_FRACTIONS = (0.5, 0.2, 0.1, 0.05, 0.02, 0.01)
 # the tolerance at which an adaptive peer's steps are estimated as the problem's default step's (a
 # rough size: its runs of kepler and toda take from a tenth to ten times as many)
 PEER_TOL = 1e-10
+# the wall seconds a cell takes besides its runs (the problem and its kernels loaded, the
+# metrics), as ``cell_seconds`` counts them
+CELL_OVERHEAD_S = 0.5
 # the start of every note the budget leaves in a row's message (the report finds them by it)
 NOTE = "budget:"
 
@@ -73,6 +76,23 @@ def run_seconds(cell: Cell, dims: dict[str, int] | None = None) -> float:
     if icls.cell_budget_s is not None and tol and "dt" not in cell.integrator_settings:
         steps *= (PEER_TOL / float(tol)) ** (1.0 / (icls.order or 5))
     return steps * (icls.python_step_s + dim * icls.step_cost * COMPONENT_STEP_S)
+
+
+def cell_seconds(cell: Cell, timing: Any, dims: dict[str, int] | None = None) -> float:
+    """The estimated wall seconds of ``cell`` in a worker: CELL_OVERHEAD_S, its warm-up run
+    and its timed runs as ``timing`` (a longtime.core.timing.Timing) repeats them; a skipped
+    cell costs nothing. As rough as ``run_seconds``: the progress line's time left weighs
+    the cells by it."""
+    if cell.skip_reason:
+        return 0.0
+    try:
+        run = run_seconds(cell, dims)
+    except Exception:  # a problem that cannot be built here fails in its worker, in its row
+        return CELL_OVERHEAD_S
+    if not math.isfinite(run):
+        return CELL_OVERHEAD_S
+    timed = run if run > timing.ONCE_ABOVE else max(timing.least_runs * run, min(timing.min_time, timing.repeats * run))
+    return CELL_OVERHEAD_S + run + timed
 
 
 def cell_budget(scheme: str) -> float:

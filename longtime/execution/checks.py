@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from longtime.core.fmt import positive
+from longtime.execution import calibration
 from longtime.measure.instability import INITIAL_ROUNDING
 from longtime.predict.checks import CHECK_BUDGET_S, CHECK_REFERENCE_S, CHECKS, judge_ranks
 from longtime.predict.decision import TARGETS, Verdict, predictability, verdicts
@@ -296,6 +297,13 @@ def reference_seconds_per_t(v: Verdict) -> float:
         return math.inf  # its reference cannot be run here: no check of it is planned
 
 
+def _calibrated(cpu_s: float | None, row: dict[str, Any]) -> float | None:
+    """``cpu_s`` in the calibrated units of ``row`` (its cpu_s_calibrated over its cpu_s:
+    the machine's speed when the row was timed); None where the row has no calibration."""
+    own, calibrated = row.get("cpu_s"), row.get("cpu_s_calibrated")
+    return cpu_s * calibrated / own if positive(cpu_s) and positive(own) and positive(calibrated) else None
+
+
 def check_row(c: PlannedCheck, row: dict[str, Any]) -> dict[str, Any]:
     """A check's stored record: the re-run's row with the prediction beside it (a rival with
     no prediction, an "open" one, has predicted_error null; ``predicted_bound`` true where the
@@ -319,6 +327,7 @@ def check_row(c: PlannedCheck, row: dict[str, Any]) -> dict[str, Any]:
             "check_law": law,
             "check_role": c.role, "check_group": c.group, "check_kind": c.kind, "check_target": c.target,
             "predicted_error": predicted, "predicted_bound": bound, "predicted_cpu_s": s.cpu_at(horizon),
+            "predicted_cpu_s_calibrated": _calibrated(s.cpu_at(horizon), s.row),
             "predicted_cpu_model": s.cost.text() if s.cost else "per-time",
             "measured_error": measured if positive(measured) else None,
             "from_t_final": s.span, "from_error": s.error}
@@ -343,10 +352,13 @@ def run_checks(store, run_id: int, rows: list[dict[str, Any]], options=None,
     # the warm-up and TIMED_RUNS - 1 timed runs at most (the checks' time estimate), no minimum time
     timing = Timing(repeats=min(options.timing.repeats, TIMED_RUNS - 1), min_time=0.0)
     records, cells = [], []
+    here = calibration.here()  # the machine's speed now: a check's CPU is judged calibrated
+    point = here.points[-1] if here.points and not here.due() else calibration.measure("checks")
     for c in plan:
         cell = cell_of_row(c.setting.row, t_final=c.horizon)
         row = run_cell(cell, options.max_samples, timing=timing, time_limit=options.time_limit,
                        reference_budget_s=reference_s)
+        calibration.annotate(row, [point], point["t"])
         records.append(check_row(c, row))
         cells.append(cell)
     judge_ranks(records)

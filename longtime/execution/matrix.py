@@ -24,7 +24,7 @@ from longtime.core.cache import no_space
 from longtime.core.params import InputError, check_choice
 from longtime.core.progress import Progress
 from longtime.core.timing import Timing
-from longtime.execution import calibration, tempdirs
+from longtime.execution import budget, calibration, tempdirs
 from longtime.execution.batches import batches_by_pair, calibrated_row, key_digest, run_batch, write_json
 from longtime.execution.cells import (
     DEFAULT_MAX_SAMPLES,
@@ -391,7 +391,9 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
     shown = progress if isinstance(progress, Progress) else Progress(on=bool(progress))
     storing = store is not None and run_id is not None
     later = [PROCESSES_PHASE] + ([COUNTS_PHASE] if options.cost == "instructions" else [])
-    with shown.phase("cells", total=len(cells), unit="cells"):
+    dims: dict[str, int] = {}
+    cost = {c.key: budget.cell_seconds(c, options.timing, dims) for c in cells}  # the time left weighs them
+    with shown.phase("cells", total=len(cells), unit="cells", costs=sum(cost.values())):
         here = calibration.here(reset=True)  # the machine's speed ahead of the cells, and after them
         if storing:
             store.add_calibrations(run_id, [here.take("before")])
@@ -405,7 +407,7 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
                 store.add_row(run_id, cell, row)
             if on_row is not None:
                 on_row(cell, row)
-            shown.advance(last=f"{cell.problem} x {cell.integrator}: {row['status']}")
+            shown.advance(last=f"{cell.problem} x {cell.integrator}: {row['status']}", cost=cost.get(cell.key))
     found = [(cell, rows[cell.key]) for cell in cells if cell.key in rows]
     alone = by_need([r for _, r in found], found, options.retime) if processes > 1 else {}
     again = [r for _, r in found if processes > 1 and timed_elsewhere(r) and id(r) not in alone]

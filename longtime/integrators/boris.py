@@ -64,6 +64,7 @@ class Boris(FixedStepIntegrator):
     order = 2
     symplectic = False
     long_runs = True  # one field evaluation a step: paper-scale final times in the matrix
+    needs = "a state (x, v) of particles in space (dimension a multiple of 6)"
 
     def incompatibility(self, problem):
         reason = super().incompatibility(problem)

@@ -67,6 +67,7 @@ class Rebound(Integrator):
     # astronomers compare these; on the figure-eights IAS15 takes about 1e3 steps a period
     # (2.4e6 steps, minutes, for their 2200 periods)
     long_runs = frozenset({"outer-solar-system"})
+    needs = "an n-body problem (longtime.problems.nbody.NBody)"
 
     def incompatibility(self, problem):
         from longtime.problems.nbody import NBody

@@ -366,18 +366,27 @@ def left_out(rows: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
     all ``skipped`` is left to the skip line that names its missing capability."""
     rows = list(rows)
     fitted, why = set(), {}
+    finals: dict[tuple, set] = {}
     for members in _groups(rows):
         pair = (members[0]["problem"], members[0]["integrator"])
         if all(r.get("status") == "skipped" for r in members):
             continue
+        finals.setdefault(pair, set()).add(members[0].get("t_final"))
         fit, reason = _fit(members)
+        t_final = members[0].get("t_final")
+        # the sweep with the most rows, of equal ones the shortest run's (the default sweep's,
+        # where an order is measured, before a long-time cell's)
+        rank = (len(members), -t_final if positive(t_final) else -math.inf)
         if fit is not None:
             fitted.add(pair)
-        elif pair not in why or len(members) > why[pair][0]:
-            why[pair] = (len(members), reason, declared_order(members[0]))
-    return [{"problem": p, "integrator": i, "reason": r["reason"], "dropped": r["dropped"], "declared_order": d,
+        elif pair not in why or rank > why[pair][0]:
+            why[pair] = (rank, reason, declared_order(members[0]), t_final)
+    # a pair swept at several final times names the one its reason is about
+    return [{"problem": p, "integrator": i, "reason": r["reason"] + (
+                f" (its sweep to t = {tf:.4g})" if len(finals[p, i]) > 1 and positive(tf) else ""),
+             "dropped": r["dropped"], "declared_order": d,
              "slopes": r["slopes"], "error_field": r.get("error_field"), "variable": r.get("variable")}
-            for (p, i), (_, r, d) in sorted(why.items()) if (p, i) not in fitted]
+            for (p, i), (_, r, d, tf) in sorted(why.items()) if (p, i) not in fitted]
 
 
 def left_out_text(entries: list[dict[str, Any]]) -> str:

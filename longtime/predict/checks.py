@@ -29,7 +29,8 @@ def check_holds(c: dict[str, Any]) -> bool | None:
     prediction ("best", "runner-up", or a check stored without a role): the measured error
     within CHECK_ERROR_FACTOR of the predicted (a bound, ``predicted_bound``, an "at most":
     the measured error at most CHECK_ERROR_FACTOR times it) and the measured CPU at most
-    CHECK_COST_FACTOR times the predicted, and for the best its rank (``rank_held`` not
+    CHECK_COST_FACTOR times the predicted (calibrated where both carry a calibration:
+    ``cpu_pair``), and for the best its rank (``rank_held`` not
     False). None where the check measured no error, or made no prediction (an "open" rival)."""
     role = c.get("check_role")
     me = c.get("measured_error")
@@ -41,8 +42,25 @@ def check_holds(c: dict[str, Any]) -> bool | None:
     if not (positive(pe) and positive(me) and positive(pc) and positive(mc)):
         return None
     low = 0.0 if c.get("predicted_bound") else 1 / CHECK_ERROR_FACTOR
-    held = (low <= me / pe <= CHECK_ERROR_FACTOR) and mc <= CHECK_COST_FACTOR * pc
+    held = (low <= me / pe <= CHECK_ERROR_FACTOR) and cpu_held(c)
     return held and c.get("rank_held") is not False
+
+
+def cpu_pair(c: dict[str, Any]) -> tuple[float, float, bool]:
+    """(measured, predicted CPU, calibrated) of a check: in calibrated units (each over the
+    machine's speed when it was timed: the check's and its row's calibrations) where both
+    carry one, so that a machine loaded while the checks ran fails no prediction; else in
+    CPU seconds."""
+    mc, pc = c.get("cpu_s_calibrated"), c.get("predicted_cpu_s_calibrated")
+    if positive(mc) and positive(pc):
+        return mc, pc, True
+    return c.get("cpu_s"), c.get("predicted_cpu_s"), False
+
+
+def cpu_held(c: dict[str, Any]) -> bool:
+    """The check's measured CPU at most CHECK_COST_FACTOR times the predicted (``cpu_pair``)."""
+    mc, pc, _ = cpu_pair(c)
+    return mc <= CHECK_COST_FACTOR * pc
 
 
 def check_budget(rows: list[dict[str, Any]], limit: int = CHECKS) -> float:

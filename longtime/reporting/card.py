@@ -238,27 +238,60 @@ def _lines(c: dict) -> list[tuple[str, str]]:
     return out
 
 
-def _problem_lines(p: dict) -> list[tuple[str, str]]:
-    orders = "; ".join(_order_text(o) for o in p["orders"]) or "no sweep"
+def _undetermined(p: dict) -> bool:
+    """Every order of problem entry ``p`` is undetermined."""
+    return bool(p["orders"]) and all(o["observed"] is None for o in p["orders"])
+
+
+def _why_kind(reason: str) -> str:
+    """An undetermined order's reason in brief: '2 points only', 'every point above 0.1',
+    'pre-asymptotic', ..."""
+    import re
+
+    return re.split(r" \(|: |; ", str(reason))[0]
+
+
+def _problem_lines(p: dict, full: bool = True) -> list[tuple[str, str]]:
+    if not full and _undetermined(p):  # counted in the card's one line about them
+        orders = "undetermined (below)"
+    else:
+        orders = "; ".join(_order_text(o) for o in p["orders"]) or "no sweep"
     growth = ", ".join(f"{'solution error' if n == 'error' else n} {g['class']}" for n, g in p["growth"].items()) \
         or "no growth law"
     return [("observed order", orders), ("growth (longest run)", growth), ("cost", _per_step_text(p)),
             ("Pareto front", _pareto_text(p["pareto"]))]
 
 
-def card_text(c: dict) -> str:
-    """The plain-text card (``longtime card``)."""
+def card_text(c: dict, full: bool = True) -> str:
+    """The plain-text card (``longtime card``). ``full=False``: the problems it does not
+    apply to, and the reasons of the orders left undetermined, each summarised in one line
+    (``longtime card --full`` gives each)."""
     lines = [f"{c['scheme']}: {c['summary']}".rstrip(": ")]
     lines += [f"  {label}: {text}" for label, text in _lines(c)]
     if not c["problems"]:
         lines.append(f"  no stored rows of {c['scheme']} in {c.get('rows_from') or 'the rows'}: "
                      f"`{run_hint(c['scheme'])}` measures some")
+    not_applied: dict[str, list[str]] = {}
+    undetermined: dict[str, list[str]] = {}
     for p in c["problems"]:
         if p.get("does_not_apply"):
-            lines.append(f"  == {p['problem']}: does not apply ({p['does_not_apply']}) ==")
+            if full:
+                lines.append(f"  == {p['problem']}: does not apply ({p['does_not_apply']}) ==")
+            else:
+                not_applied.setdefault(str(p["does_not_apply"]).split(", which")[0], []).append(p["problem"])
             continue
         lines.append(f"  == {p['problem']}: {p['ok']} of {p['cells']} cells ok ==")
-        lines += [f"    {label}: {text}" for label, text in _problem_lines(p)]
+        lines += [f"    {label}: {text}" for label, text in _problem_lines(p, full)]
+        if not full and _undetermined(p):
+            for o in p["orders"]:
+                undetermined.setdefault(_why_kind(o["reason"]), []).append(p["problem"])
+    if undetermined:
+        lines.append(f"  order undetermined on {len({q for ps in undetermined.values() for q in ps})} problems: "
+                     + "; ".join(f"{why} ({', '.join(sorted(set(ps)))})" for why, ps in
+                                 sorted(undetermined.items(), key=lambda kv: -len(kv[1])))
+                     + " (`--full`: each with its slopes)")
+    if not_applied:
+        lines.append("  does not apply: " + "; ".join(f"{why} ({', '.join(ps)})" for why, ps in not_applied.items()))
     return "\n".join(lines)
 
 

@@ -127,7 +127,11 @@ def provenance_lines(prov: dict[str, Any]) -> list[str]:
         p = prov[side]
         own = p.get("longtime_git") or {}
         mine = f"{(own.get('commit') or '-')[:10]}{'+dirty' if own.get('dirty') else ''}"
-        lines.append(f"run {side.upper()}: commit {(p.get('git_commit') or '-')[:10]}; "
-                     f"longtime {p.get('longtime') or '-'} "
-                     f"({mine}); code under test: {text(p.get('code') or [])}")
+        # the run's commit is longtime's own, or that of the code under test (a plugin's
+        # repository, $LONGTIME_GIT_COMMIT): named as such, never as longtime's
+        measured = p.get("git_commit")
+        whose = "" if not measured or measured == own.get("commit") else \
+            f"commit of the code measured {measured[:10]}; "
+        lines.append(f"run {side.upper()}: {whose}longtime {p.get('longtime') or '-'} "
+                     f"(commit {mine}); code under test: {text(p.get('code') or [])}")
     return lines

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import Any, Iterable
 
+from longtime.core.rowtext import setting
 from longtime.measure.lyapunov import past_predictability
 from longtime.predict.decision import verdicts
 from longtime.reporting.report import format_counts, pareto, pareto_field, render, status_counts, summary
@@ -14,11 +15,7 @@ ANSWER_TARGETS = ((1e-3, 100.0), (1e-6, 1.0), (1e-10, 1.0))
 NO_POINTWISE = "no pointwise answer"
 # the default report's width: no line past it (a long list wraps, indented)
 WIDTH = 100
-ANSWER_CELL = 23
-
-
-def _cell_text(text: str, width: int = ANSWER_CELL) -> str:
-    return text if len(text) <= width else text[:width - 3] + "..."
+ANSWER_CELL = 23  # an answer column's least width (a setting is never cut: wider where it needs)
 
 
 def _wrap(text: str, indent: str = "    ", width: int = WIDTH) -> list[str]:
@@ -48,10 +45,11 @@ def answer_rows(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = (
     for problem, v in verdicts(rows, checks).items():
         mine = [r for r in rows if r.get("problem") == problem]
         chaotic = _chaotic(problem, mine)
-        answers = []
+        answers, costs = [], []
         for error, factor in ANSWER_TARGETS:
             if v.measure is None or not v.candidates or v.t_main is None:
                 answers.append(NO_POINTWISE if chaotic else "nothing measured")
+                costs.append("")
                 continue
             d = decide(v.candidates, error, v.t_main * factor)
             if d.best is None and chaotic:
@@ -60,24 +58,75 @@ def answer_rows(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = (
                 answers.append("none measured")
             else:
                 answers.append(decision_text(d))
+            costs.append(cost_text(d, v.t_main * factor))
         out.append({"problem": problem, "field": v.measure.field if v.measure else None, "t_main": v.t_main,
-                    "answers": answers, "chaotic": chaotic})
+                    "answers": answers, "costs": costs, "chaotic": chaotic})
     return out
 
 
+def cost_text(d: Any, horizon: float) -> str:
+    """The predicted CPU of a decision's answer up to ``horizon`` and its runner-up's over it
+    ('0.012 s, runner-up x2.3'); '' without an answer."""
+    b, r = d.best, d.runner_up
+    if b is None:
+        return ""
+    cpu = b.cpu_at(horizon)
+    if r is None:
+        return f"{cpu:.2g} s, no runner-up"
+    if not cpu > 0:
+        return f"{cpu:.2g} s"
+    ratio = r.cpu_at(horizon) / cpu
+    return f"{cpu:.2g} s, runner-up x{ratio:.2g}" if ratio < 10 else f"{cpu:.2g} s, runner-up x{ratio:.0f}"
+
+
+def missed_text(c: dict[str, Any]) -> str:
+    """Why a stored check failed ('' where it held or was not judged): the measured error
+    or CPU time as a multiple of the predicted, past the bounds check_holds allows, or the
+    winner's rank lost."""
+    from longtime.predict.checks import CHECK_COST_FACTOR, CHECK_ERROR_FACTOR, check_holds, cpu_pair
+
+    if check_holds(c) is not False:
+        return ""
+    if c.get("check_role") == "chaos":
+        return f"error {c.get('measured_error'):.2g} measured, not above the target {c['check_target']:g}"
+    out = []
+    me, pe = c.get("measured_error"), c.get("predicted_error")
+    mc, pc, calibrated = cpu_pair(c)
+    low = 0.0 if c.get("predicted_bound") else 1 / CHECK_ERROR_FACTOR
+    if not low <= me / pe <= CHECK_ERROR_FACTOR:
+        out.append(f"error x{me / pe:.2g} the predicted ({me:.2g} against {pe:.2g}; within "
+                   f"x{CHECK_ERROR_FACTOR:g} holds)")
+    if mc > CHECK_COST_FACTOR * pc:
+        out.append(f"CPU x{mc / pc:.2g} the predicted, in calibrated time (the machine's speed taken out: not "
+                   f"its load; within x{CHECK_COST_FACTOR:g} holds)" if calibrated else
+                   f"CPU x{mc / pc:.2g} the predicted ({mc:.3g} s against {pc:.3g} s; within x{CHECK_COST_FACTOR:g} "
+                   f"holds; not calibrated: the machine may have been loaded)")
+    if c.get("rank_held") is False:
+        out.append("a rival kept the target for less: " + ", ".join(c.get("rank_lost_to") or []))
+    return "; ".join(out)
+
+
 def answer_table(answers: list[dict[str, Any]]) -> list[str]:
-    """The cross-problem table of ``answer_rows``: a line per problem."""
+    """The cross-problem table of ``answer_rows``: a line per problem with each answer's
+    setting in full, and beneath it a line with each answer's predicted CPU time and its
+    runner-up's as a multiple of it."""
     width = max([len("problem")] + [len(a["problem"]) + (4 if a["field"] not in (None, "l2_error") else 0)
                                    for a in answers])
     head = [f"{e:.0e} to {'T' if f == 1 else f'{f:g} T'}" for e, f in ANSWER_TARGETS]
-    lines = [(f"{'problem':<{width}}  {'T':>8}  " + "  ".join(f"{h:<{ANSWER_CELL}}" for h in head)).rstrip()]
+    cols = [max([ANSWER_CELL, len(head[k])] + [len(a["answers"][k]) for a in answers if len(a["answers"]) > k]
+                + [len(c) for a in answers for c in a.get("costs", [])[k:k + 1]]) for k in range(len(head))]
+    lines = [(f"{'problem':<{width}}  {'T':>8}  " + "  ".join(f"{h:<{w}}" for h, w in zip(head, cols))).rstrip()]
     for a in answers:
         name = a["problem"] + (f" ({a['field'].removesuffix('.max')})" if a["field"] not in (None, "l2_error") else "")
         t = f"{a['t_main']:.4g}" if a["t_main"] else "-"
-        cells = [_cell_text(x) for x in a["answers"]]
         if all(x == NO_POINTWISE for x in a["answers"]):
-            cells = [f"{NO_POINTWISE} (chaotic: the solution is lost within the run)"]
-        lines.append((f"{name:<{width}}  {t:>8}  " + "  ".join(f"{c:<{ANSWER_CELL}}" for c in cells)).rstrip())
+            lines.append(f"{name:<{width}}  {t:>8}  {NO_POINTWISE} (chaotic: the solution is lost within the run)")
+            continue
+        lines.append((f"{name:<{width}}  {t:>8}  " + "  ".join(f"{c:<{w}}" for c, w in zip(a["answers"], cols)))
+                     .rstrip())
+        costs = a.get("costs") or []
+        if any(costs):
+            lines.append((f"{'':<{width}}  {'':>8}  " + "  ".join(f"{c:<{w}}" for c, w in zip(costs, cols))).rstrip())
     return lines
 
 
@@ -225,7 +274,8 @@ def first_screen(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = 
     checks = list(checks)
     answers = answer_rows(rows, checks)
     lines = _wrap("cheapest setting predicted to keep the error up to T (T: the run's final time; the error: the "
-                  "solution's, the energy's where marked (H)); `longtime recommend -p P --error E --horizon T`:", "  ")
+                  "solution's, the energy's where marked (H)), beneath it its predicted CPU time and the runner-up's "
+                  "as a multiple of it; `longtime recommend -p P --error E --horizon T`:", "  ")
     lines += answer_table(answers)
     lines.append("")
     lines += count_lines(rows)
@@ -240,6 +290,11 @@ def first_screen(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = 
         from longtime.predict.checks import check_summary
 
         lines += _wrap(f"checks: {check_summary(checks)}")
+        for c in checks:
+            why = missed_text(c)
+            if why:
+                lines += _wrap(f"  failed: {c['integrator']} {setting(c)} on {c['problem']} to t = {c['t_final']:.4g} "
+                               f"({c.get('check_role') or 'check'}): {why}", "    ")
     lines += _wrap("a prediction extrapolates a setting's growth law up to a multiple of its run's span, never "
                    "past an error of O(1) (docs/metrics.md, \"How far a class is trusted\"); undetermined (S): "
                    "S might keep it but no law reaches that far, `longtime recommend` names the run that decides it",
