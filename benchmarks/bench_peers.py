@@ -40,6 +40,7 @@ import numpy as np
 
 from longtime.core import registry
 from longtime.core.timing import Timing
+from longtime.integrators.peer_common import SAMPLES  # the rows' output times, a direct call's too
 from longtime.measure.metrics import evaluate
 from longtime.measure.reference import reference_states
 
@@ -113,7 +114,7 @@ def direct(scheme: str, problem, tol: float, t_final: float):
             options["jacfn"] = jacfn
         solver = CVODE(rhsfn, userdata=(params,), method="Adams" if scheme == "cvode-adams" else "BDF", rtol=tol,
                        atol=tol, max_num_steps=2**31 - 1, **options)
-        grid = np.linspace(problem.t0, t_final, 10_001)
+        grid = np.linspace(problem.t0, t_final, SAMPLES)
 
         def call():
             return solver.solve(grid, problem.u0.copy()).y[-1]
@@ -124,7 +125,7 @@ def direct(scheme: str, problem, tol: float, t_final: float):
         jax.config.update("jax_enable_x64", True)
         solver = {"diffrax-tsit5": diffrax.Tsit5, "diffrax-dopri5": diffrax.Dopri5,
                   "diffrax-dopri8": diffrax.Dopri8}[scheme]()
-        grid = np.linspace(problem.t0, t_final, 10_001)
+        grid = np.linspace(problem.t0, t_final, SAMPLES)
 
         @jax.jit
         def solve(u0, p):
@@ -151,7 +152,8 @@ def direct_row(scheme: str, problem, tol: float, t_final: float) -> dict:
     def error(u):
         return float(np.linalg.norm(u - truth) / np.linalg.norm(truth))
 
-    traj = registry.integrator_class(scheme)(tol=tol).integrate(problem, t_final, max_samples=2001,
+    # the matrix's samples: CVODE's first step depends on its first output time
+    traj = registry.integrator_class(scheme)(tol=tol).integrate(problem, t_final, max_samples=SAMPLES,
                                                                 timing=Timing(repeats=REPEATS, min_runs=REPEATS))
     call = direct(scheme, problem, tol, t_final)
     cpus = []

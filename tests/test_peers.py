@@ -251,10 +251,10 @@ def test_a_peer_gives_what_a_direct_call_of_its_library_gives(name, kepler, heyo
     # the same problem, tolerance and horizon through the library called as its users call it
     # (benchmarks/bench_peers.py's ``direct``; it also compares the CPU, which a test cannot)
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository's benchmarks/
-    from benchmarks.bench_peers import direct
+    from benchmarks.bench_peers import SAMPLES, direct
 
     t_final = 4 * np.pi  # two orbits of kepler, through two pericentre passages
-    traj = registry.integrator_class(name)(tol=TOL).integrate(kepler, t_final, max_samples=2001)
+    traj = registry.integrator_class(name)(tol=TOL).integrate(kepler, t_final, max_samples=SAMPLES)
     assert traj.status == "ok" and traj.t[-1] == pytest.approx(t_final), traj.message
     truth = heyoka_kepler(np.array([0.0, t_final]))[-1]
     row = np.linalg.norm(traj.u[-1] - truth) / np.linalg.norm(truth)

@@ -19,9 +19,10 @@ and the report lists them; ``longtime matrix --full-sweep`` runs the default swe
 A scheme with its own ``cell_budget_s`` (the library peers: scipy's, SUNDIALS' and diffrax's,
 whose many rows must not lengthen the main job much) is never moved to a shorter horizon, so
 that it is compared with the other schemes over the same run: the settings of its sweep
-estimated above its budget are left out instead (an adaptive peer's steps are estimated as
-the problem's default step's, times (``PEER_TOL`` / tol) ** (1 / order), order 5 where the
-method's is variable), always keeping its cheapest setting. A kept setting that cannot reach
+estimated above its budget are left out instead (an adaptive peer of order p at tolerance tol
+is estimated at the problem's default step's count times PEER_TOL ** (1 / 5) / tol ** (1 / p):
+a 5th-order method at PEER_TOL takes about the default step; p is 5 where the method's order
+is variable), always keeping its cheapest setting. A kept setting that cannot reach
 the horizon within the cell's time limit is a ``timeout`` row, which says how far it got.
 Horizons and sweeps given on the command line (--t-final, --dt, ...) are never moved.
 """
@@ -45,8 +46,8 @@ CELL_BUDGET_S = 5.0
 LONG_CELL_BUDGET_S = 30.0
 # the shorter horizons a moved sweep may take, as fractions of the problem's sweep horizon
 HORIZON_FRACTIONS = (0.5, 0.2, 0.1, 0.05, 0.02, 0.01)
-# the tolerance at which an adaptive peer's steps are estimated as the problem's default step's (a
-# rough size: its runs of kepler and toda take from a tenth to ten times as many)
+# the tolerance at which a 5th-order adaptive peer's steps are estimated as the problem's default
+# step's (a rough size: the runs of kepler and toda take from a third to ten times as many)
 PEER_TOL = 1e-10
 # the wall seconds a cell takes besides its runs (the problem and its kernels loaded, the
 # metrics), as ``cell_seconds`` counts them
@@ -74,7 +75,7 @@ def run_seconds(cell: Cell, dims: dict[str, int] | None = None) -> float:
     icls = registry.integrator_class(cell.integrator)
     tol = cell.integrator_settings.get("tol")
     if icls.cell_budget_s is not None and tol and "dt" not in cell.integrator_settings:
-        steps *= (PEER_TOL / float(tol)) ** (1.0 / (icls.order or 5))
+        steps *= PEER_TOL ** 0.2 / float(tol) ** (1.0 / (icls.order or 5))
     return steps * (icls.python_step_s + dim * icls.step_cost * COMPONENT_STEP_S)
 
 
