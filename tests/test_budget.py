@@ -52,7 +52,8 @@ def test_every_pair_of_the_default_matrix_keeps_a_row():
     assert none == [] and moves
     assert pairs(budgeted) == pairs(full)
     ran = {(c.problem, c.integrator) for c in budgeted if not c.skip_reason}
-    assert ran == {(c.problem, c.integrator) for c in full if not c.skip_reason}
+    slow = {(c.problem, c.integrator) for c in budgeted if c.skip_reason and c.skip_reason.startswith(budget.TOO_SLOW)}
+    assert ran | slow == {(c.problem, c.integrator) for c in full if not c.skip_reason}
     assert ("fpu", "dop853") in ran
     moved = {(m.problem, m.integrator) for m in moves}
     # cells of unmoved pairs are exactly the full sweep's

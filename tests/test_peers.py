@@ -188,15 +188,36 @@ def test_a_peer_over_its_budget_runs_fewer_settings_never_a_shorter_horizon():
     ran = [c for c in cells if not c.skip_reason]
     mains = {p: registry.problem_class(p).sweep_t_final for p in ("toda", "outer-solar-system", "fpu")}
     assert ran and all(c.t_final == mains[c.problem] for c in ran)  # the horizon every scheme runs
-    # every pair keeps at least its cheapest setting, the loosest tolerance
+    # every pair keeps at least its cheapest setting, the loosest tolerance, or is too slow for the
+    # default matrix even there: then each of its cells is a skipped row that says so
     pairs = {(c.problem, c.integrator) for c in full if not c.skip_reason}
-    assert pairs == {(c.problem, c.integrator) for c in ran}
+    slow = {(c.problem, c.integrator) for c in cells if c.skip_reason and c.skip_reason.startswith(budget.TOO_SLOW)}
+    assert pairs == {(c.problem, c.integrator) for c in ran} | slow
+    assert not slow & {(c.problem, c.integrator) for c in ran}
     assert moves and all("left out" in m.setting for m in moves)
     for m in moves:  # what was left out is estimated over the budget, and the cells kept say so
         kept = [c for c in ran if (c.problem, c.integrator) == (m.problem, m.integrator)]
         assert all(budget.NOTE in c.note and m.setting in c.note for c in kept)
-    rk23 = [c for c in ran if c.integrator == "scipy-rk23" and c.problem == "fpu"]
-    assert [c.integrator_settings["tol"] for c in rk23] == [max(peer_common.TOLERANCES)]
+    # the cheapest setting of a pair kept is its loosest tolerance; fpu x scipy-rk23 is estimated
+    # at tens of seconds a run to t = 1000 even there, past a cell's budget: too slow
+    assert ("fpu", "scipy-rk23") in slow
+    for pair in {(c.problem, c.integrator) for c in ran}:
+        tols = [c.integrator_settings["tol"] for c in ran if (c.problem, c.integrator) == pair]
+        assert max(peer_common.TOLERANCES) in tols
+    for c in cells:
+        if (c.problem, c.integrator) in slow:
+            assert "--full-sweep runs it" in c.skip_reason and "estimated" in c.skip_reason
+
+
+def test_a_peer_too_slow_for_the_default_matrix_is_said_so_in_which_library():
+    from longtime.execution import budget
+    from longtime.execution.cells import base_row
+    from longtime.reporting.libraries import _cell
+
+    cells, _ = budget.fit(expand(["fpu"], ["scipy-rk23"], default_sweep=True))
+    rows = [{**base_row(c), "status": "skipped", "message": c.skip_reason} for c in cells]
+    text, cpu = _cell(rows, registry.problem_class("fpu").sweep_t_final, 1e-6)
+    assert cpu is None and text.startswith("too slow: about ") and "estimated for t_final 1000" in text
 
 
 @needs_sundials

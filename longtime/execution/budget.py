@@ -54,6 +54,8 @@ PEER_TOL = 1e-10
 CELL_OVERHEAD_S = 0.5
 # the start of every note the budget leaves in a row's message (the report finds them by it)
 NOTE = "budget:"
+# the start of a skipped peer row's message whose cheapest setting is estimated past CELL_BUDGET_S
+TOO_SLOW = "too slow for the default matrix:"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -161,7 +163,11 @@ def _fewer_settings(problem: str, scheme: str, sweep: list[int], cells: list[Cel
     cost = {i: run_seconds(cells[i], dims) for i in sweep}
     over = [i for i in sweep if cost[i] > budget]
     if len(over) == len(sweep):
-        over.remove(min(sweep, key=lambda i: cost[i]))
+        cheapest = min(sweep, key=lambda i: cost[i])
+        if cost[cheapest] > CELL_BUDGET_S:  # past what a cell of the suite's own may take: too slow here
+            _too_slow(problem, scheme, sweep, cells, out, moves, cost)
+            return
+        over.remove(cheapest)
     if not over:
         return
     left = ", ".join(setting_text(cells[i]) for i in over)
@@ -176,6 +182,21 @@ def _fewer_settings(problem: str, scheme: str, sweep: list[int], cells: list[Cel
     for i in sweep:
         if out[i] is not None:
             out[i] = dataclasses.replace(out[i], note="; ".join(n for n in (out[i].note, note) if n))
+
+
+def _too_slow(problem: str, scheme: str, sweep: list[int], cells: list[Cell], out: list, moves: list[Move],
+              cost: dict[int, float]) -> None:
+    """A peer none of whose settings runs the horizon within CELL_BUDGET_S (the estimate of
+    its cheapest): its cells become skipped rows saying so, never a shorter horizon, and
+    --full-sweep runs them."""
+    cheapest = min(sweep, key=lambda i: cost[i])
+    horizon = number(cells[cheapest].t_final) if cells[cheapest].t_final is not None else "the default"
+    reason = (f"{TOO_SLOW} about {cost[cheapest]:.3g} s a run estimated for t_final {horizon} at its cheapest "
+              f"setting ({setting_text(cells[cheapest])}), over the default matrix's {CELL_BUDGET_S:g} s a cell; "
+              f"--full-sweep runs it")
+    moves.append(Move(problem, scheme, "left out of the default matrix", reason))
+    for i in sweep:
+        out[i] = dataclasses.replace(cells[i], skip_reason=reason)
 
 
 def setting_text(cell: Cell) -> str:

@@ -12,6 +12,7 @@ from typing import Any
 
 from longtime.core.fmt import positive
 from longtime.core.rowtext import main_t_final, setting
+from longtime.execution.budget import TOO_SLOW
 
 # the error the table asks of each library's settings (l2_error, relative to the motion)
 TARGET = 1e-6
@@ -38,6 +39,9 @@ def _cell(rows: list[dict[str, Any]], t_main: float, target: float) -> tuple[str
         if all(r.get("status") == "skipped" for r in rows):
             if any("pip install" in str(r.get("message")) for r in rows):
                 return "not installed", None
+            estimated = next((str(r["message"]) for r in rows if str(r.get("message")).startswith(TOO_SLOW)), None)
+            if estimated is not None:  # "too slow: about 43 s a run estimated for t_final 1000 ..."
+                return "too slow:" + estimated[len(TOO_SLOW):].split(", over the")[0], None
             return "does not apply", None
         return "no ok row", None
     main = [r for r in ran if r.get("t_final") == t_main]
