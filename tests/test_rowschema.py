@@ -108,6 +108,23 @@ def test_formatters():
     assert rowschema.field("solution_lost").format(True) == "yes"
     assert rowschema.field("H.growth_ci").format([0.5, 1.25]) == "0.5, 1.25"
     assert rowschema.field("l2_error").format(None) == "-" and rowschema.field("l2_error").format(float("nan")) == "-"
+    # a field by its name, as the reports format a row's fields; an undeclared one as a number
+    assert rowschema.formatted("H.growth_ci", [0.5, 1.25]) == "0.5, 1.25"
+    assert rowschema.formatted("solution_lost", False) == "no" and rowschema.formatted("cpu_s", None) == "-"
+    assert rowschema.formatted("not_a_field", 0.001234) == "1.234e-03"
+
+
+def test_the_report_table_formats_through_the_fields():
+    from longtime.reporting.report import render
+
+    rows = [{"problem": "kepler", "integrator": "verlet", "status": "ok", "dt": 0.1, "l2_error": 1.234567e-5,
+             "H.max": float("nan"), "cpu_s": 12345.6, "steps": 1000},
+            {"problem": "kepler", "integrator": "rk4", "status": "ok", "dt": 0.05, "l2_error": None,
+             "H.max": 3.2e-9, "cpu_s": 20.5, "steps": 20}]
+    table = render(rows, "table").splitlines()
+    assert table[1].split() == ["integrator", "dt", "status", "H.max", "l2_error", "cpu_s", "steps"]
+    assert table[2].split() == ["rk4", "0.05", "ok", "3.200e-09", "-", "20.5", "20"]
+    assert table[3].split() == ["verlet", "0.1", "ok", "-", "1.235e-05", "1.235e+04", "1000"]
 
 
 @pytest.mark.parametrize("cell", [

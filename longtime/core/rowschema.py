@@ -262,6 +262,13 @@ def field(name: str, counters: Iterable[str] = ()) -> Field | None:
     return _BY_SUFFIX.get(suffix)
 
 
+def formatted(name: str, value: Any) -> str:
+    """Row field ``name``'s ``value`` as a person reads it (its ``Field.format``: a dash for
+    null); a value of a field the row does not declare, as a number (longtime.core.fmt.number)."""
+    declared = field(name)
+    return number(value) if declared is None else declared.format(value)
+
+
 class RowError(ValueError):
     """A row that is not of the declared fields and types (its message names the field)."""
 
