@@ -4,12 +4,14 @@ Importing the package compiles nothing: numba kernels compile on first use.
 """
 from longtime.core.version import __version__
 
-__all__ = ["AdaptiveIntegrator", "FixedStepIntegrator", "InputError", "Integrator", "Order", "Param",
-           "Problem", "Result", "Trajectory", "__version__", "card", "convergence", "plot", "recommend", "solve",
-           "sweep", "testing", "work_precision"]
+__all__ = ["AdaptiveIntegrator", "FixedStepIntegrator", "InputError", "Integrator", "MainJobSpec", "Order", "Param",
+           "Problem", "Result", "Trajectory", "__version__", "card", "convergence", "main_job", "plot", "recommend",
+           "solve", "sweep", "testing", "work_precision"]
 
 # the Python API (docs/api.md), imported on first use: `import longtime` stays light
-_API = ("Order", "Result", "card", "convergence", "recommend", "solve", "sweep", "work_precision")
+_API = ("Order", "Result", "card", "convergence", "main_job", "recommend", "solve", "sweep", "work_precision")
+# the main job's specification, from its home in the execution layer, on first use too
+_EXECUTION = {"MainJobSpec": "main_job"}
 # the base classes, imported on first use too (numpy and numba load with them): the command's
 # entry point (longtime.commands.entry) is running, and catches Ctrl-C, before they load
 _CORE = {"AdaptiveIntegrator": "stepping", "FixedStepIntegrator": "stepping", "Integrator": "integrator",
@@ -27,6 +29,10 @@ def __getattr__(name: str):
         import importlib
 
         return getattr(importlib.import_module(f"longtime.core.{_CORE[name]}"), name)
+    if name in _EXECUTION:
+        import importlib
+
+        return getattr(importlib.import_module(f"longtime.execution.{_EXECUTION[name]}"), name)
     if name in _SUBMODULES:
         import importlib
 

@@ -3,7 +3,6 @@ corrupt stores, bad input, Ctrl-C and SIGKILL. Nothing finished may be lost, no 
 no hang, nothing silently wrong. Plugins are pip-installed as tests/_plugins.py describes."""
 import json
 import os
-import shutil
 import signal
 import socket
 import sqlite3
@@ -13,6 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
+from _permissions import unprivileged
 from _plugins import HEUN_SOURCE, install_plugin, longtime
 
 from longtime.commands.cli import main
@@ -181,7 +181,8 @@ def _foreign(path):
 
 @pytest.mark.slow
 def test_foreign_and_newer_sqlite_files_are_refused_untouched(tmp_path, capsys):
-    """Before, longtime added its tables to another program's file and then crashed."""
+    """Another program's SQLite file, and a store of a newer schema, are refused and left as they were:
+    longtime adds no table to them and does not crash."""
     foreign = tmp_path / "other.sqlite"
     before = _foreign(foreign)
     argv = ["run", "-p", "harmonic", "-i", "verlet", "--dt", "0.1", "--t-final", "1"]
@@ -324,7 +325,8 @@ def _stuck_matrix(fault_env, tmp_path):
 
 @pytest.mark.slow
 def test_ctrl_c_with_a_stuck_worker_exits_promptly(fault_env, tmp_path):
-    """Before: 'interrupted' was printed and the process had not exited 60 s later."""
+    """Ctrl-C while a pool worker is stuck in a cell ends the process promptly, not only prints
+    'interrupted'."""
     proc, worker = _stuck_matrix(fault_env, tmp_path)
     os.kill(proc.pid, signal.SIGINT)
     start = time.time()
@@ -337,7 +339,7 @@ def test_ctrl_c_with_a_stuck_worker_exits_promptly(fault_env, tmp_path):
 
 @pytest.mark.slow
 def test_pool_workers_die_with_a_killed_parent(fault_env, tmp_path):
-    """Before: after SIGKILL of the parent, pool workers lived on."""
+    """After SIGKILL of the parent, its pool workers do not live on."""
     proc, worker = _stuck_matrix(fault_env, tmp_path)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait(timeout=10)
@@ -388,7 +390,8 @@ def test_time_limit_gives_a_timeout_row(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_ctrl_c_stops_a_long_compiled_loop(tmp_path):
-    """Before: SIGINT was ignored for the whole fixed-step integration (10^10 steps)."""
+    """SIGINT stops a fixed-step integration inside its compiled loop (10^10 steps), not only at its
+    end."""
     env = {**os.environ, "LONGTIME_DB": str(tmp_path / "int.sqlite")}
     # the kernel compiled first (into the disk caches): the SIGINT reaches the compiled loop,
     # not a cold compile (which Python interrupts between bytecodes anyway)
@@ -414,7 +417,8 @@ def test_ctrl_c_stops_a_long_compiled_loop(tmp_path):
 
 @pytest.mark.slow
 def test_unmeasured_metrics_are_null_and_defaults_are_stored():
-    """Before: a run that blew up in its first step (toda --dt 1) reported H.max 0.0."""
+    """A run that blows up in its first step (toda --dt 1) reports what it did not measure as null
+    (H.max is not 0.0), and the defaults it ran with are stored."""
     import numpy as np
 
     from longtime.core.registry import problem_class
@@ -445,7 +449,7 @@ def test_nan_invariant_of_a_plugin_is_flagged(fault_env):
 
 @pytest.mark.slow
 def test_nan_rhs_is_named_as_such(fault_env):
-    """Before: rk45 on a NaN rhs said 'nonlinear solve did not converge'."""
+    """rk45 on a rhs that returns NaN names the NaN, not a nonlinear solve that did not converge."""
     res = longtime(fault_env, "run", "-p", "plug-nan-rhs", "-i", "rk45", "--t-final", "2", "--no-store",
                    "--format", "json")
     assert res.returncode == 1, res.stderr
@@ -484,11 +488,11 @@ def test_corrupt_reference_cache_is_discarded_and_rebuilt(tmp_path, monkeypatch)
 
 @pytest.mark.slow
 def test_serial_run_killed_by_a_plugin_names_the_cell_and_resumes(fault_env, tmp_path):
-    """Before: os.abort() in a serial `run` left the run 'running' with no trace of the cell,
-    and --resume said there was no matrix run. Now the store knows the cell it died in; the
-    report says so and --resume runs that cell in its own process (a failed row naming
-    SIGABRT) and the rest as usual. (By default `run` runs its cells in a worker process,
-    where the abort is a failed row: test_faults_limits; --executor serial runs them here.)"""
+    """os.abort() in a serial `run` leaves a trace: the store knows the cell the run died in, the
+    report says so, and --resume runs that cell in its own process (a failed row naming SIGABRT) and
+    the rest as usual; the run is not left 'running' with no trace of the cell. (By default `run`
+    runs its cells in a worker process, where the abort is a failed row: test_faults_limits;
+    --executor serial runs them here.)"""
     db = tmp_path / "abort.sqlite"
     res = longtime(fault_env, "run", "-p", "harmonic", "-i", "verlet,plug-abort,euler", "--dt", "0.1",
                    "--t-final", "2", "--db", str(db), "--executor", "serial")
@@ -517,8 +521,8 @@ def test_an_order_one_error_does_not_read_as_a_plain_ok():
 
 @pytest.mark.slow
 def test_corrupt_numba_cache_files_are_discarded_and_rebuilt(tmp_path):
-    """Before: a truncated numba cache file failed the row ('pickle data was truncated') on
-    every rerun, naming no file."""
+    """A truncated numba cache file is discarded and rebuilt, not a failed row ('pickle data was
+    truncated') on every rerun naming no file."""
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"), "LONGTIME_CACHE_DIR": str(tmp_path / "lt")}
     argv = ["run", "-p", "harmonic", "-i", "verlet", "--dt", "0.1", "--t-final", "1", "--no-store",
             "--format", "json"]
@@ -537,7 +541,8 @@ def test_corrupt_numba_cache_files_are_discarded_and_rebuilt(tmp_path):
 @pytest.mark.parametrize("command", [["reproduce", "--quick"], ["plot", "work-precision"],
                                      ["match", "-p", "kdv"]])
 def test_out_that_is_a_file_is_an_input_error(command, tmp_path, capsys):
-    """Before: `reproduce --out FILE` ran, then failed with FileExistsError."""
+    """`reproduce --out FILE` is an input error before anything runs, not a FileExistsError after the
+    run."""
     target = tmp_path / "a-file"
     target.write_text("x")
     with pytest.raises(SystemExit) as exc:
@@ -548,8 +553,7 @@ def test_out_that_is_a_file_is_an_input_error(command, tmp_path, capsys):
 
 @pytest.mark.slow
 def test_a_matrix_rejected_as_it_starts_leaves_no_run(tmp_path, capsys, monkeypatch):
-    """Before: a matrix rejected for bad input (found as the executor started) was recorded
-    as a resumable run."""
+    """A matrix rejected for bad input (found as the executor starts) records no resumable run."""
     from longtime.core.params import InputError
     from longtime.execution import matrix
 
@@ -570,24 +574,13 @@ def test_a_matrix_rejected_as_it_starts_leaves_no_run(tmp_path, capsys, monkeypa
 
 # --- faults of privileges, foreign files and bad numbers ------------------------------------
 
-def _unprivileged():
-    """A command prefix under which file permissions hold: root ignores them, so as root the
-    command runs in a user namespace without a mapping (no override of the permission bits).
-    None when that is not possible."""
-    if os.geteuid() != 0:
-        return []
-    if shutil.which("unshare") and subprocess.run(["unshare", "--user", "true"], capture_output=True).returncode == 0:
-        return ["unshare", "--user"]
-    return None
-
-
 def _cli(prefix, *args, env=None):
     return subprocess.run([*prefix, sys.executable, "-m", "longtime.commands.cli", *args], env=env or os.environ,
                           capture_output=True, text=True, timeout=300)
 
 
 def _permission_prefix():
-    prefix = _unprivileged()
+    prefix = unprivileged()
     if prefix is None:
         pytest.skip("running as root without user namespaces: file permissions cannot be enforced")
     return prefix
@@ -636,7 +629,8 @@ def test_unreadable_store_is_a_one_line_error(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_unreachable_scheduler_is_an_input_error(tmp_path):
-    """Before: an OSError traceback after 30 s (and a run left to resume)."""
+    """An unreachable scheduler is an input error: no OSError traceback after 30 s, no run left to
+    resume."""
     pytest.importorskip("distributed")
     with socket.socket() as s:  # a local port nothing listens on
         s.bind(("127.0.0.1", 0))
@@ -668,7 +662,8 @@ def test_a_growing_solution_is_not_called_diverged():
 
 @pytest.mark.slow
 def test_nan_exact_solution_of_a_plugin_is_named(fault_env):
-    """Before: a NaN exact solution became a null error on an ok row with no message."""
+    """A plugin's exact solution that is NaN is named in the row's message, not a null error on an ok
+    row with no message."""
     res = longtime(fault_env, "run", "-p", "plug-nan-exact", "-i", "verlet", "--dt", "0.1",
                    "--t-final", "2", "--no-store", "--format", "json")
     assert res.returncode == 0, res.stderr
@@ -679,7 +674,7 @@ def test_nan_exact_solution_of_a_plugin_is_named(fault_env):
 
 @pytest.mark.slow
 def test_report_of_a_killed_run_says_it_is_incomplete(fault_env, tmp_path):
-    """Before: the report of a SIGKILLed run read like a finished one."""
+    """The report of a SIGKILLed run says it is incomplete, not reads like a finished one."""
     db = tmp_path / "killed.sqlite"
     stuck_file = tmp_path / "stuck.txt"
     proc = subprocess.Popen([sys.executable, "-m", "longtime.commands.cli", "run", "-p", "harmonic", "-i",

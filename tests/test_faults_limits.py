@@ -10,6 +10,7 @@ import time
 
 import numpy as np
 import pytest
+from _permissions import unprivileged
 from _plugins import HEUN_SOURCE, install_plugin, longtime
 
 from longtime.commands.cli import main
@@ -128,8 +129,8 @@ def _spin_env(env, tmp_path):
 @pytest.mark.slow
 @pytest.mark.parametrize("scheme", ["plug-spin", "plug-sleep"])
 def test_a_stuck_cell_of_run_ends_as_a_timeout_row(env, tmp_path, scheme):
-    """Before: a compiled step that spins (or a plugin's Python that never returns) hung
-    `longtime run` for ever; --time-limit applied between chunks only."""
+    """A compiled step that spins (or a plugin's Python that never returns) ends as a timeout row of
+    `longtime run`, not a hang: --time-limit holds inside a chunk, not only between chunks."""
     from longtime.execution.limits import hard_limit
 
     start = time.monotonic()
@@ -164,7 +165,7 @@ def test_a_spinning_cell_of_the_default_matrix_ends_as_a_timeout_row(env, tmp_pa
 
 @pytest.mark.slow
 def test_ctrl_c_ends_a_run_stuck_in_a_compiled_step(env, tmp_path):
-    """Before: SIGINT did not end a `run` whose cell spun in compiled code."""
+    """SIGINT ends a `run` whose cell spins in compiled code."""
     spin = _spin_env(env, tmp_path)
     proc = subprocess.Popen([sys.executable, "-m", "longtime.commands.cli", "run", "-p", "harmonic", "-i", "plug-spin",
                              "--dt", "0.1", "--t-final", "1"], env=spin, stdout=subprocess.DEVNULL,
@@ -184,8 +185,9 @@ def test_ctrl_c_ends_a_run_stuck_in_a_compiled_step(env, tmp_path):
 
 
 def test_toda_invariants_are_bounded_in_memory():
-    """Before: every sample's Lax matrix was built at once (d = 80, 62500 samples: 3.2 GB,
-    5.9 GB with eigvalsh's copy). In chunks the eigenvalues are the same, bitwise."""
+    """Toda's invariants are computed in chunks of samples, not from every sample's Lax matrix at once
+    (d = 80, 62500 samples: 3.2 GB, 5.9 GB with eigvalsh's copy); the eigenvalues are the same,
+    bitwise."""
     from longtime.core.registry import problem_class
     from longtime.problems import toda
 
@@ -237,7 +239,7 @@ def test_toda_d5000_ends_within_its_limit(tmp_path):
 
 @pytest.mark.slow
 def test_a_cell_past_the_memory_limit_fails_alone(env):
-    """Before: nothing limited a cell's memory (a plugin could invite the OOM killer)."""
+    """A cell past the memory limit fails alone: a plugin's cell cannot invite the OOM killer."""
     res = longtime(env, "run", "-p", "harmonic", "-i", "plug-hog,verlet", "--dt", "0.1", "--t-final", "1",
                    "--memory-limit", "1", "--no-store", "--format", "json")
     assert res.returncode == 1, res.stderr
@@ -267,8 +269,8 @@ def test_bad_memory_limit_is_an_input_error(value, capsys):
 @pytest.mark.slow
 @pytest.mark.parametrize("extra", [[], ["--time-limit", "0"]])
 def test_plugin_output_does_not_corrupt_json(env, extra):
-    """Before: a scheme's print (Python, numba, or to fd 1) went into the JSON on stdout.
-    Both in a worker process (default) and in this process (no time limit)."""
+    """A scheme's print (Python, numba, or to fd 1) stays out of the JSON on stdout, both in a worker
+    process (default) and in this process (no time limit)."""
     res = longtime(env, "run", "-p", "harmonic", "-i", "plug-talk", "--dt", "0.5", "--t-final", "1",
                    "--no-store", "--format", "json", "--repeats", "1", *extra)
     (row,) = json.loads(res.stdout)
@@ -280,7 +282,7 @@ def test_plugin_output_does_not_corrupt_json(env, extra):
 # --- bad input refused up front --------------------------------------------------------------
 
 def test_a_fixed_step_larger_than_the_span_is_refused(capsys, tmp_path):
-    """Before: the row said dt 5 but one step of 1 was taken."""
+    """A fixed step larger than the span is refused, not a row saying dt 5 for one step of 1."""
     db = tmp_path / "s.sqlite"
     assert main(["run", "-p", "kepler", "-i", "verlet", "--dt", "5", "--t-final", "1", "--db", str(db)]) == 2
     err = capsys.readouterr().err
@@ -301,20 +303,11 @@ def test_one_computation_under_several_labels_is_one_point_of_an_order_fit():
     assert fit["observed_order"] == pytest.approx(4.0)
 
 
-def _unprivileged():
-    if os.geteuid() != 0:
-        return []
-    import shutil
-
-    if shutil.which("unshare") and subprocess.run(["unshare", "--user", "true"], capture_output=True).returncode == 0:
-        return ["unshare", "--user"]
-    return None
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", ["file", "read-only", "under-file"])
 def test_an_unusable_cache_folder_is_refused_up_front(tmp_path, kind):
-    """Before: every cell failed on its own with PermissionError or NotADirectoryError."""
+    """An unusable cache folder is refused up front, not in every cell on its own (PermissionError,
+    NotADirectoryError)."""
     cache = tmp_path / "cache"
     prefix = []
     if kind == "file":
@@ -323,7 +316,7 @@ def test_an_unusable_cache_folder_is_refused_up_front(tmp_path, kind):
         (tmp_path / "f").write_text("x")
         cache = tmp_path / "f" / "cache"
     else:
-        prefix = _unprivileged()
+        prefix = unprivileged()
         if prefix is None:
             pytest.skip("root without user namespaces: permissions do not hold")
         cache.mkdir()
@@ -361,8 +354,8 @@ def test_a_stored_order_that_is_not_a_number_does_not_break_the_report(tmp_path,
 
 @pytest.mark.slow
 def test_names_that_break_the_rule_are_broken_plugins(env):
-    """Before: a scheme registered as ../../../../tmp/x was loaded (its name built cache file
-    names), and 'a=b' failed with an AttributeError."""
+    """Names that break the rule make broken plugins: a scheme registered as ../../../../tmp/x is not
+    loaded (its name builds cache file names), and 'a=b' is refused, not an AttributeError."""
     from longtime.core.contract import NAME_RULE
 
     res = longtime(env, "list", "--format", "json")
@@ -399,7 +392,7 @@ def test_an_invariant_name_that_breaks_the_rule_fails_its_cell(env):
 
 
 def test_figure_text_is_not_mathtext():
-    r"""Before: a label '$\alpha$' was drawn as the Greek letter."""
+    r"""A label '$\alpha$' is drawn as typed, not as the Greek letter."""
     from longtime.reporting.figures import pyplot
 
     plt = pyplot()

@@ -1,13 +1,12 @@
 """Bad input refused up front, in one line (exit 2), before any cell
 runs; Ctrl-C while the command is still importing ends it without a traceback."""
 import json
-import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from _permissions import unprivileged
 
 from longtime.commands.cli import main
 from longtime.execution.cells import Cell
@@ -59,16 +58,8 @@ def test_memory_limit_that_rounds_to_nothing_or_overflows_is_refused(value, text
     assert exc.value.code == 2 and text in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
 
 
-def _unprivileged():
-    if os.geteuid() != 0:
-        return []
-    if shutil.which("unshare") and subprocess.run(["unshare", "--user", "true"], capture_output=True).returncode == 0:
-        return ["unshare", "--user"]
-    return None
-
-
 def test_read_only_folders_are_refused_up_front(store_with_run, tmp_path):
-    prefix = _unprivileged()
+    prefix = unprivileged()
     if prefix is None:
         pytest.skip("running as root without user namespaces: file permissions cannot be enforced")
     locked = tmp_path / "locked"
@@ -90,7 +81,7 @@ def test_read_only_folders_are_refused_up_front(store_with_run, tmp_path):
 
 
 def test_a_matrix_whose_page_cannot_be_written_makes_no_store(tmp_path):
-    prefix = _unprivileged()
+    prefix = unprivileged()
     if prefix is None:
         pytest.skip("running as root without user namespaces: file permissions cannot be enforced")
     locked = tmp_path / "locked"

@@ -49,8 +49,9 @@ def statuses(db) -> list[str]:
 # --- a store is recognised by its schema ------------------------------------------------------
 
 def test_foreign_file_with_a_stores_table_names_is_refused_untouched(tmp_path, capsys):
-    """Before: tables named runs, rows and planned made it an old store: longtime stamped it,
-    switched it to WAL, added a table, then failed with an OperationalError traceback."""
+    """A foreign file with tables named runs, rows and planned is not taken for an old store: it is
+    refused untouched (not stamped, not switched to WAL, no table added), without an
+    OperationalError traceback."""
     db = tmp_path / "theirs.sqlite"
     with sqlite3.connect(db) as con:
         con.execute("CREATE TABLE runs (name TEXT, at REAL)")
@@ -67,8 +68,9 @@ def test_foreign_file_with_a_stores_table_names_is_refused_untouched(tmp_path, c
 
 @pytest.mark.parametrize("kind", ["empty", "stamped"])
 def test_empty_file_and_stamped_file_without_tables_are_refused(tmp_path, capsys, kind):
-    """Before: `report` on either printed an OperationalError traceback (exit 1), and `run`
-    took an empty file for a new store."""
+    """An empty file and a stamped file without tables are refused untouched, in one line, by `report`
+    (no OperationalError traceback) and by `run` (which does not take an empty file for a new
+    store)."""
     db = tmp_path / "s.sqlite"
     if kind == "empty":
         db.write_bytes(b"")
@@ -109,7 +111,7 @@ def test_a_store_that_another_process_is_creating_is_waited_for(tmp_path):
 
 
 def test_empty_db_path_is_an_input_error(tmp_path, monkeypatch, capsys):
-    """Before: --db "" silently wrote ./longtime.sqlite."""
+    """--db "" is an input error; nothing is written to ./longtime.sqlite."""
     monkeypatch.chdir(tmp_path)
     monkeypatch.delenv("LONGTIME_DB", raising=False)
     assert main(["run", *QUICK, "--db", ""]) == 2
@@ -121,8 +123,8 @@ def test_empty_db_path_is_an_input_error(tmp_path, monkeypatch, capsys):
 
 @pytest.mark.slow
 def test_resume_without_an_id_takes_the_newest_incomplete_run(tmp_path, monkeypatch, capsys):
-    """Before: it took the newest run, complete or not ("0 cells left"), and the interrupt
-    message said RUN_ID instead of the run's id."""
+    """--resume without an id takes the newest incomplete run, not the newest run ("0 cells left"), and
+    the interrupt message names the run's id, not RUN_ID."""
     db = tmp_path / "r.sqlite"
     real = batches.run_cell
     calls = []
@@ -177,8 +179,9 @@ def _stored_rows(db) -> int:
 
 @pytest.mark.slow
 def test_lost_dask_scheduler_is_an_interruption_not_failed_rows(tmp_path, capsys):
-    """Before: killing the scheduler stored the unfinished cells as failed
-    ("FutureCancelledError"), marked the run done, exited 0, and --resume found 0 cells."""
+    """Killing the scheduler interrupts the run: its unfinished cells are not stored as failed
+    ("FutureCancelledError"), the run is not marked done nor the exit 0, and --resume finds the
+    cells left."""
     pytest.importorskip("distributed")
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
@@ -224,7 +227,8 @@ def test_lost_dask_scheduler_is_an_interruption_not_failed_rows(tmp_path, capsys
 
 @pytest.mark.slow
 def test_a_scheduler_that_is_not_an_address_is_one_line_and_leaves_no_run(tmp_path):
-    """Before: a ValueError traceback, and an empty run left in the store to resume."""
+    """A scheduler that is not an address is one line, not a ValueError traceback, and leaves no empty
+    run in the store to resume."""
     pytest.importorskip("distributed")
     db = tmp_path / "s.sqlite"
     res = _cli([], "matrix", *QUICK, "--scheduler", "not an address", "--db", str(db), "--no-progress")
@@ -244,8 +248,9 @@ def _file_size_limit(limit: int):
 
 @pytest.mark.slow
 def test_a_full_disk_is_one_line_and_resume_completes(tmp_path, capsys):
-    """Before: a double traceback (the row, then marking the run) and the run left
-    'running'. RLIMIT_FSIZE stands for the full disk: a write past it fails."""
+    """A full disk is one line, not a double traceback (the row, then marking the run), the run is not
+    left 'running', and --resume completes it. RLIMIT_FSIZE stands for the full disk: a write past
+    it fails."""
     cells = ["run", "-p", "harmonic", "-i", "verlet", "--dt", ",".join(f"{0.1 + i / 1000:g}" for i in range(20)),
              "--t-final", "1", "--repeats", "1", "--min-time", "0", "--format", "csv"]
     assert main([*cells, "--no-store"]) == 0  # compiled and cached before the limit
@@ -292,7 +297,8 @@ def _error_line(argv, capsys) -> str:
 
 @pytest.mark.slow
 def test_report_outputs_that_cannot_be_written_are_one_line(one_run, tmp_path, capsys):
-    """Before: tracebacks (NotADirectoryError, FileExistsError), exit 1."""
+    """Report outputs that cannot be written are one line each, not a traceback (NotADirectoryError,
+    FileExistsError) with exit 1."""
     (tmp_path / "a-file").write_text("x")
     db = ["--db", str(one_run)]
     assert "a-file is a file, not a folder" in _error_line(
@@ -319,7 +325,8 @@ def test_report_out_into_a_folder_that_cannot_be_written(one_run, tmp_path):
 @pytest.mark.slow
 @pytest.mark.parametrize("run", ["¹", "٣", "1.0", "-1"])
 def test_a_run_id_is_an_ascii_number(one_run, capsys, run):
-    """Before: `--run ¹` passed isdigit() and failed in int() with a traceback."""
+    """A run id is an ASCII number: `--run ¹` passes isdigit() and is refused in one line, not a
+    traceback from int()."""
     assert main(["report", "--db", str(one_run), "--run", run]) == 2
     assert "expected a run id" in one_line(capsys.readouterr().err)
 
@@ -327,7 +334,7 @@ def test_a_run_id_is_an_ascii_number(one_run, capsys, run):
 # --- errors are one line ----------------------------------------------------------------------
 
 def test_an_unexpected_error_is_one_line_and_debug_shows_the_traceback(monkeypatch, capsys):
-    """Before: any error but bad input ended in a traceback."""
+    """An unexpected error (not bad input) ends in one line naming --debug, which shows the traceback."""
 
     def broken(args):
         raise RuntimeError("something broke\nsecond line")
@@ -343,7 +350,8 @@ def test_an_unexpected_error_is_one_line_and_debug_shows_the_traceback(monkeypat
 
 @pytest.mark.slow
 def test_a_closed_stdout_is_quiet():
-    """Before: `longtime list | head` printed a BrokenPipeError traceback."""
+    """`longtime list | head` (stdout closed by its reader) ends quietly, without a BrokenPipeError
+    traceback."""
     proc = subprocess.Popen([sys.executable, "-m", "longtime.commands.cli", "list"], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE)
     proc.stdout.close()  # the reader is gone before the first line
@@ -381,8 +389,8 @@ def _pool_matrix(tmp_path, *extra):
 @pytest.mark.slow
 @pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGHUP, 129)])
 def test_sigterm_and_sighup_are_handled_like_ctrl_c(tmp_path, sig, code):
-    """Before: SIGTERM exited 143 but left the run 'running' and its pool folder, with row
-    files, in the temp folder."""
+    """SIGTERM and SIGHUP are handled like Ctrl-C: the run is marked interrupted (not left 'running')
+    and its pool folder, with row files, does not stay in the temp folder."""
     proc, db, tmp = _pool_matrix(tmp_path)
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=30)
@@ -396,7 +404,8 @@ def test_sigterm_and_sighup_are_handled_like_ctrl_c(tmp_path, sig, code):
 
 @pytest.mark.slow
 def test_a_later_run_removes_the_folders_of_killed_processes(tmp_path):
-    """Before: every kill -9 of a matrix left its pool folder in the temp folder for good."""
+    """A later run removes the pool folder a killed (kill -9) matrix left in the temp folder; a live
+    process's folder stays."""
     proc, _, tmp = _pool_matrix(tmp_path)
     proc.kill()
     proc.wait()

@@ -274,7 +274,8 @@ def stored(tmp_path_factory):
 
 
 def test_report_json_keeps_every_float_bitwise(stored, capsys):
-    """Before: pandas' to_json wrote 10 digits (cpu_s 0.3333333333) and counts as floats."""
+    """`report --format json` keeps every float bitwise (not pandas' 10 digits: cpu_s 0.3333333333) and
+    writes counts as integers, not floats."""
     db, rows = stored
     code, out, _ = _cli(capsys, "report", "--db", str(db), "--format", "json")
     assert code == 0
@@ -354,8 +355,8 @@ def test_human_formats_round_but_never_show_a_tiny_value_as_zero(fmt):
 
 # ------------------------------------------------------------------ caches, verified before trusted
 def test_stability_cache_that_is_corrupt_is_discarded_and_rebuilt(tmp_path, monkeypatch):
-    """Before: a truncated stability file crashed `longtime list` (JSONDecodeError) on every
-    run, and one of the wrong shape crashed format_interval (KeyError)."""
+    """A corrupt stability file is discarded and rebuilt: a truncated one does not crash `longtime
+    list` (JSONDecodeError), nor one of the wrong shape format_interval (KeyError)."""
     from longtime.measure import stability
 
     monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))
@@ -378,9 +379,9 @@ def test_stability_cache_that_is_corrupt_is_discarded_and_rebuilt(tmp_path, monk
 
 
 def test_reference_cache_file_with_flipped_bits_is_not_believed(tmp_path, monkeypatch):
-    """Before: a states file whose data bytes were damaged (right shape, finite values) was
-    used as the reference; only unreadable files were caught. Now every file is checked
-    against the checksum written with it."""
+    """A states file whose data bytes are damaged (right shape, finite values) is not used as the
+    reference: every file is checked against the checksum written with it, not only for being
+    readable."""
     from longtime.measure import reference
 
     monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))
@@ -401,8 +402,9 @@ def test_reference_cache_file_with_flipped_bits_is_not_believed(tmp_path, monkey
 
 
 def test_reference_cache_key_covers_the_equations(monkeypatch, tmp_path):
-    """Before: the key was the problem's name, settings and initial state: an edited
-    right-hand side (a coefficient in heyoka_system) reused the old reference."""
+    """The reference's key covers the equations, not only the problem's name, settings and initial
+    state: an edited right-hand side (a coefficient in heyoka_system) does not reuse the old
+    reference."""
     pytest.importorskip("heyoka")
     from longtime.measure import reference
 
@@ -426,9 +428,9 @@ def _longtime_run(env, *argv):
 
 @pytest.mark.slow
 def test_corrupt_kernel_module_and_bytecode_are_discarded_and_rebuilt(tmp_path):
-    """Before: a generated kernel module with bytes that are not UTF-8 failed the row
-    ('UnicodeDecodeError') on every rerun, naming no file; a damaged .pyc of it, 'bad
-    marshal data', the same."""
+    """A generated kernel module with bytes that are not UTF-8, and a damaged .pyc of it ('bad marshal
+    data'), are discarded and rebuilt, not a failed row ('UnicodeDecodeError') on every rerun naming
+    no file."""
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     env.update(NUMBA_CACHE_DIR=str(tmp_path / "numba"), LONGTIME_CACHE_DIR=str(tmp_path / "lt"))
     argv = ["-p", "harmonic", "-i", "verlet", "--dt", "0.1", "--t-final", "1", "--no-store", "--format",

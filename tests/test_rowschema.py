@@ -108,6 +108,23 @@ def test_formatters():
     assert rowschema.field("solution_lost").format(True) == "yes"
     assert rowschema.field("H.growth_ci").format([0.5, 1.25]) == "0.5, 1.25"
     assert rowschema.field("l2_error").format(None) == "-" and rowschema.field("l2_error").format(float("nan")) == "-"
+    # a field by its name, as the reports format a row's fields; an undeclared one as a number
+    assert rowschema.formatted("H.growth_ci", [0.5, 1.25]) == "0.5, 1.25"
+    assert rowschema.formatted("solution_lost", False) == "no" and rowschema.formatted("cpu_s", None) == "-"
+    assert rowschema.formatted("not_a_field", 0.001234) == "1.234e-03"
+
+
+def test_the_report_table_formats_through_the_fields():
+    from longtime.reporting.report import render
+
+    rows = [{"problem": "kepler", "integrator": "verlet", "status": "ok", "dt": 0.1, "l2_error": 1.234567e-5,
+             "H.max": float("nan"), "cpu_s": 12345.6, "steps": 1000},
+            {"problem": "kepler", "integrator": "rk4", "status": "ok", "dt": 0.05, "l2_error": None,
+             "H.max": 3.2e-9, "cpu_s": 20.5, "steps": 20}]
+    table = render(rows, "table").splitlines()
+    assert table[1].split() == ["integrator", "dt", "status", "H.max", "l2_error", "cpu_s", "steps"]
+    assert table[2].split() == ["rk4", "0.05", "ok", "3.200e-09", "-", "20.5", "20"]
+    assert table[3].split() == ["verlet", "0.1", "ok", "-", "1.235e-05", "1.235e+04", "1000"]
 
 
 @pytest.mark.parametrize("cell", [
@@ -153,3 +170,33 @@ def test_docs_list_every_declared_field_and_no_other():
     assert sorted(set(documented) - set(declared)) == [], "documented in docs/metrics.md but not declared"
     # the whole table as the registry writes it (python -m longtime.core.rowschema prints it)
     assert _documented() == rowschema.markdown()
+
+
+def test_the_store_checks_checks_and_ensemble_records_against_their_fields(tmp_path):
+    """A check (a row with its prediction beside it) and an ensemble record are refused by the
+    store, nothing written, where a field is undeclared or not its field's: a status outside
+    the statuses, a role outside the check roles, text where a number goes."""
+    store = Store(tmp_path / "s.sqlite")
+    run_id = store.begin_run("test", [CELL])
+    check = {**ROW, "check_of": "harmonic|rk4", "check_role": "best", "check_target": 1e-6, "predicted_error": 1e-7,
+             "predicted_bound": False, "measured_error": 2e-7, "rank_rivals": ["rk4 dt=0.2"], "rank_held": True}
+    store.add_check(run_id, CELL, check)
+    for bad, named in [({"status": "sucess"}, "status: 'sucess' is not one of"),
+                       ({"check_role": "winner"}, "check_role: 'winner' is not one of"),
+                       ({"predicted_error": "1e-7"}, "predicted_error: str '1e-7', not a number"),
+                       ({"check_colour": "red"}, "check_colour: not a declared field")]:
+        with pytest.raises(StoreError, match=re.escape(named)):
+            store.add_check(run_id, CELL, {**check, **bad})
+    ensemble = {"problem": "henon-heiles", "integrator": "verlet", "status": "ok", "dt": 0.1, "settings": "dt=0.1",
+                "problem_settings": {"state": "chaotic"}, "members": 8, "size": 1e-6, "window": 0.5, "seed": 1,
+                "lyapunov_time": 20.0, "lyapunov_note": "", "t_final": 400.0, "span_lyapunov": 20.0,
+                "observable": "u[0]", "floor": 0.01, "floors": [0.01, 0.008], "row_t_final": 100.0,
+                "member_status": {"ok": 8}, "cpu_s": 1.5, "distance": 0.012, "distinguishable": False}
+    store.add_ensemble(run_id, ensemble)
+    for bad, named in [({"status": "sucess", "distance": None}, "status: 'sucess' is not one of"),
+                       ({"members": 8.0}, "members: float 8.0, not an integer"),
+                       ({"distance": -1.0}, "distance: -1.0 is outside"),
+                       ({"colour": "red"}, "colour: not a declared field")]:
+        with pytest.raises(StoreError, match=re.escape(named)):
+            store.add_ensemble(run_id, {**ensemble, **bad})
+    assert len(store.checks(run_id)) == 1 and len(store.ensembles(run_id)) == 1

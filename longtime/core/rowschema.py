@@ -267,6 +267,79 @@ def field(name: str, counters: Iterable[str] = ()) -> Field | None:
     return _BY_SUFFIX.get(suffix)
 
 
+def formatted(name: str, value: Any) -> str:
+    """Row field ``name``'s ``value`` as a person reads it (its ``Field.format``: a dash for
+    null); a value of a field the row does not declare, as a number (longtime.core.fmt.number)."""
+    declared = field(name)
+    return number(value) if declared is None else declared.format(value)
+
+
+# the store's records beside the rows (longtime.execution.store_records), each field the row
+# declares held as the row's: a check is the row of a re-run with its prediction beside it
+CHECK_ROLES = ("best", "runner-up", "open", "chaos", "growth")
+CHECK_FIELDS: tuple[Field, ...] = (
+    Field("check_of", "str", "", "the key of the cell whose row made the prediction"),
+    Field("check_of_run", "int", "", "the run of that row"),
+    Field("check_field", "str", "", "the row field the prediction is about (l2_error, H.max, ...)"),
+    Field("check_law", "str", "", "the law the prediction extrapolates, as text"),
+    Field("check_role", "str", "", "what the re-run tests", values=CHECK_ROLES),
+    Field("check_group", "str", "", "the decision the group's re-runs test"),
+    Field("check_kind", "str", "", "the class of problem the check covers"),
+    Field("check_target", "float", "1", "the target error of the decision"),
+    Field("predicted_error", "float", "1", "the error predicted at the horizon (null: no prediction)"),
+    Field("predicted_bound", "bool", "", "whether the predicted error is an upper bound"),
+    Field("predicted_cpu_s", "float", "s", "the CPU time predicted at the horizon", bounds=(0.0, math.inf)),
+    Field("predicted_cpu_model", "str", "", "the cost model the CPU time is predicted by"),
+    Field("measured_error", "float", "1", "the error the re-run measured at the horizon"),
+    Field("from_t_final", "float", "time", "the span of the row that made the prediction"),
+    Field("from_error", "float", "1", "that row's error"),
+    Field("rank_rivals", "strs", "", "the settings measured against the best one"),
+    Field("rank_lost_to", "strs", "", "the rivals that kept the target more cheaply"),
+    Field("rank_held", "bool", "", "whether the best setting held its rank (null: no rival measured)"),
+)
+# an ensemble record: one scheme's distance to heyoka's ensemble on a chaotic problem
+ENSEMBLE_FIELDS: tuple[Field, ...] = (
+    Field("problem_settings", "mapping", "", "the settings of the problem's chaotic state"),
+    Field("members", "int", "", "the ensemble's members", bounds=(0, MAX_COUNT)),
+    Field("size", "float", "1", "the perturbation's size"),
+    Field("window", "float", "1", "the share of the run the distribution is read over"),
+    Field("seed", "int", "", "the perturbations' seed"),
+    Field("lyapunov_time", "float", "time", "1/lambda (null: no chaos measured)"),
+    Field("lyapunov_note", "str", "", "what the Lyapunov time rests on"),
+    Field("span_lyapunov", "float", "1", "the run's span in Lyapunov times"),
+    Field("observable", "str", "", "the observable whose distribution is compared"),
+    Field("floor", "float", "1", "the distance between heyoka's ensembles (the floor)", bounds=(0.0, math.inf)),
+    Field("floors", "floats", "1", "each of those distances"),
+    Field("row_t_final", "float", "time", "the final time of the row the setting comes from"),
+    Field("note", "str", "", "why there is no distance, or what it rests on"),
+    Field("member_status", "mapping", "", "how many members ended in each status"),
+    Field("distance", "float", "1", "the distance between the distributions", bounds=(0.0, math.inf)),
+    Field("distinguishable", "bool", "", "whether the distance stands above the floor"),
+)
+
+
+def record_problems(record: Any, fields: Iterable[Field], counters: Iterable[str] | None = None) -> list[str]:
+    """What is wrong with a record the store keeps beside the rows (a check: CHECK_FIELDS, an
+    ensemble: ENSEMBLE_FIELDS), one line per field (none: it holds): no problem or integrator,
+    a field neither ``fields`` nor the row declares, a value that is not its field's (type,
+    values, bounds: ``Field.wrong``). A field the row declares holds as the row's."""
+    if not isinstance(record, Mapping):
+        return [f"a record must be a mapping of fields, not {type(record).__name__}"]
+    out = [f"{name}: required (a text), got {record.get(name)!r}" for name in ("problem", "integrator")
+           if not isinstance(record.get(name), str) or not record.get(name)]
+    own = {f.name: f for f in fields}
+    counters = scheme_counters(record.get("integrator")) if counters is None else tuple(counters)
+    for name, value in record.items():
+        declared = own.get(name) or (field(name, counters) if isinstance(name, str) else None)
+        if declared is None:
+            out.append(f"{name}: not a declared field (longtime.core.rowschema)")
+        elif value is not None:
+            wrong = declared.wrong(value)
+            if wrong:
+                out.append(f"{name}: {wrong}")
+    return out
+
+
 class RowError(ValueError):
     """A row that is not of the declared fields and types (its message names the field)."""
 

@@ -7,8 +7,9 @@ import sqlite3
 from contextlib import closing
 from typing import Any, Iterable
 
+from longtime.core import rowschema
 from longtime.execution.cells import Cell
-from longtime.execution.store_schema import now
+from longtime.execution.store_schema import StoreError, now
 
 
 class RunRecords:
@@ -41,9 +42,12 @@ class RunRecords:
         """Store a checked prediction (longtime.execution.checks.check_row): the row of a
         re-run at a horizon past the stored rows, with the predicted error and CPU time beside
         the measured. Checks are kept apart from the run's rows: they are no cell of its
-        matrix (a report, an order fit or a resume never sees them as one)."""
-        with self._writing(f"a check of {cell.problem} x {cell.integrator} (run {run_id})", run_id), \
-                self._writer_lock, self._row_writer() as con:
+        matrix (a report, an order fit or a resume never sees them as one). A StoreError names
+        each field that is not the declared row's or a check's (rowschema.CHECK_FIELDS): nothing
+        is written then."""
+        what = f"a check of {cell.problem} x {cell.integrator} (run {run_id})"
+        self._refuse_wrong(check, rowschema.CHECK_FIELDS, what, run_id)
+        with self._writing(what, run_id), self._writer_lock, self._row_writer() as con:
             con.execute("INSERT OR REPLACE INTO checks (run_id, cell_key, problem, integrator, row, created) "
                         "VALUES (?, ?, ?, ?, ?, ?)",
                         (run_id, cell.key, check["problem"], check["integrator"], json.dumps(check), now()))
@@ -56,11 +60,14 @@ class RunRecords:
     def add_ensemble(self, run_id: int, record: dict[str, Any]) -> None:
         """Store one scheme's ensemble distance on a chaotic problem
         (longtime.execution.ensembles): its record, whose ``status`` says whether it holds a
-        distance (ok) or why not; kept apart from the rows (no cell of the matrix)."""
+        distance (ok) or why not; kept apart from the rows (no cell of the matrix). A
+        StoreError names each field that is not the declared row's or an ensemble record's
+        (rowschema.ENSEMBLE_FIELDS): nothing is written then."""
         if record.get("status") != "ok" and record.get("distance") is not None:
             raise ValueError(f"an ensemble record of status {record.get('status')!r} carries a distance")
-        with self._writing(f"the ensemble of {record['problem']} x {record['integrator']} (run {run_id})", run_id), \
-                self._writer_lock, self._row_writer() as con:
+        what = f"the ensemble of {record.get('problem')} x {record.get('integrator')} (run {run_id})"
+        self._refuse_wrong(record, rowschema.ENSEMBLE_FIELDS, what, run_id)
+        with self._writing(what, run_id), self._writer_lock, self._row_writer() as con:
             con.execute("INSERT OR REPLACE INTO ensembles (run_id, problem, integrator, status, record, created) "
                         "VALUES (?, ?, ?, ?, ?, ?)",
                         (run_id, record["problem"], record["integrator"], record["status"], json.dumps(record),
@@ -70,6 +77,13 @@ class RunRecords:
         """The ensemble records of ``run_id`` (default: every run's), in the order stored;
         none in a store older than the ensembles table."""
         return self._records("ensembles", "record", run_id)
+
+    def _refuse_wrong(self, record: dict[str, Any], fields: tuple[rowschema.Field, ...], what: str,
+                      run_id: int) -> None:
+        """A StoreError naming each wrong field of ``record`` (rowschema.record_problems)."""
+        wrong = rowschema.record_problems(record, fields)
+        if wrong:
+            raise StoreError(f"store {self.path}: refused {what}: " + "; ".join(wrong), str(self.path), run_id)
 
     def _records(self, table: str, column: str, run_id: int | None) -> list[dict[str, Any]]:
         """The JSON records of a side table (checks, ensembles) of ``run_id`` (default: every

@@ -23,10 +23,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from longtime.core.drivers import FAILED, NL_ITERS, OK, RHS_EVALS, state_scale, track_increment
+from longtime.core.drivers import FAILED, OK, RHS_EVALS, state_scale
 from longtime.core.params import Param
 from longtime.core.stepping import FixedStepIntegrator
-from longtime.integrators.implicit_rk import ImplicitRungeKutta, iteration_done
+from longtime.integrators.implicit_rk import ImplicitRungeKutta, sweep_done
 
 
 def gauss_legendre(nodes: int) -> tuple[np.ndarray, np.ndarray]:
@@ -83,9 +83,8 @@ class AVF(FixedStepIntegrator):
                 for m in range(n):
                     delta = max(delta, abs(h * (total[m] - g[m])))
                     g[m] = total[m]
-                counters[NL_ITERS] += 1
-                best, stale = track_increment(delta, best, stale)
-                if iteration_done(delta, best, stale, scale, brouwer):
+                done, best, stale = sweep_done(delta, best, stale, scale, brouwer, counters)
+                if done:
                     converged = True
                     break
             counters[RHS_EVALS] += evals

@@ -52,6 +52,16 @@ def iteration_done(delta, best, stale, scale, brouwer):
     return settled(delta, best, stale, scale) if brouwer else reached_round_off(delta, best, stale, scale)
 
 
+@numba.njit(cache=True, inline="always")
+def sweep_done(delta, best, stale, scale, brouwer, counters):
+    """The tail of a fixed-point sweep (the stages here, avf's averaged slope): the sweep
+    counted in ``nl_iters``, its increment ``delta`` tracked (drivers.track_increment) and the
+    ``stop`` setting's rule applied (``iteration_done``). Returns (done, best, stale)."""
+    counters[NL_ITERS] += 1
+    best, stale = track_increment(delta, best, stale)
+    return iteration_done(delta, best, stale, scale, brouwer), best, stale
+
+
 class ImplicitRungeKutta(FixedStepIntegrator):
     A: np.ndarray
     b: np.ndarray
@@ -105,9 +115,8 @@ class ImplicitRungeKutta(FixedStepIntegrator):
                         delta = max(delta, abs(h * (k_new[m] - work[i, m])))
                         work[i, m] = k_new[m]
                 evals += s
-                counters[NL_ITERS] += 1
-                best, stale = track_increment(delta, best, stale)
-                if iteration_done(delta, best, stale, scale, brouwer):
+                done, best, stale = sweep_done(delta, best, stale, scale, brouwer, counters)
+                if done:
                     converged = True
                     break
             counters[RHS_EVALS] += evals

@@ -52,6 +52,7 @@ import math
 from typing import Any
 
 from longtime.core.roles import ROW_PARAMETERS
+from longtime.core.rowschema import formatted
 from longtime.execution.calibration import stream_median
 from longtime.measure.instructions import count_factor
 from longtime.reporting import machines
@@ -326,9 +327,10 @@ def render(found: list[dict[str, Any]]) -> str:
                   "spread", *(["memory streaming"] if streamed else []), *shown]
         body = [[str(p["run_id"]), str(p.get("machine") or "-"), _short(p["commit"]), _code(p.get("code")),
                  (p["date"] or "-")[:19], str(p["status"]),
-                 number(p[TIME_FIELD]), number(p["cpu_s"]), str(len(p.get("cpu_s_processes") or []) or "-"),
+                 formatted(TIME_FIELD, p[TIME_FIELD]), formatted("cpu_s", p["cpu_s"]),
+                 str(len(p.get("cpu_s_processes") or []) or "-"),
                  f"x{p[SPREAD_FIELD]:.3g}" if isinstance(p.get(SPREAD_FIELD), (int, float)) else "-",
-                 *([_bandwidth(p)] if streamed else []), *(number(p.get(f)) for f in shown)] for p in c["runs"]]
+                 *([_bandwidth(p)] if streamed else []), *(formatted(f, p.get(f)) for f in shown)] for p in c["runs"]]
         widths = [max(len(h), *(len(r[i]) for r in body)) for i, h in enumerate(header)]
         lines = [f"== {label(c['cell'])}: {len(c['runs'])} run{'s' if len(c['runs']) != 1 else ''}; a time "
                  f"step passes x{c['time_factor']:.3g} ({c['time_factor_basis']}) =="]

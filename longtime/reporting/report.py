@@ -13,8 +13,9 @@ import pandas as pd
 
 from longtime.core import jsontext
 from longtime.core.files import write_atomic
-from longtime.core.fmt import number, positive
+from longtime.core.fmt import positive
 from longtime.core.roles import ROW_PARAMETERS, row_columns
+from longtime.core.rowschema import formatted
 from longtime.core.rowtext import main_t_final, setting  # noqa: F401 (their home; read from here too)
 from longtime.measure.lyapunov import past_predictability
 from longtime.predict.decision import verdicts
@@ -38,8 +39,9 @@ def frame(rows: Iterable[dict[str, Any]]) -> pd.DataFrame:
     return pd.DataFrame([complete(r) for r in rows])
 
 
-def _fmt(x) -> str:
-    return number(x)  # one number format for every report (longtime.core.fmt)
+def _formatted(table: pd.DataFrame) -> pd.DataFrame:
+    """Each column's values as text, as their row field formats them (rowschema.formatted)."""
+    return table.apply(lambda column: column.map(lambda v: formatted(column.name, v)))
 
 
 def problem_table(df: pd.DataFrame) -> pd.DataFrame:
@@ -84,9 +86,9 @@ def render(rows: list[dict[str, Any]], fmt: str = "table") -> str:
     for problem, sub in df.groupby("problem", sort=True):
         table = problem_table(sub)
         if fmt == "markdown":
-            text = table.map(_fmt).to_markdown(index=False)
+            text = _formatted(table).to_markdown(index=False)
         else:
-            text = table.map(_fmt).to_string(index=False)
+            text = _formatted(table).to_string(index=False)
         parts.append(f"== {problem}: accuracy against cost ({len(sub)} rows) ==\n{text}")
         notes = sub[sub["status"].isin(["skipped", "failed", "diverged", "timeout"])]
         for _, r in notes.iterrows():
