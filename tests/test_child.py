@@ -12,8 +12,10 @@ from longtime.core.integrator import Timing
 from longtime.execution import child as children
 from longtime.execution import tempdirs
 from longtime.execution.cells import Cell
-from longtime.execution.child import JOB_FILE, RESULT_FILE, Child, JobVersionError, RunSpec
+from longtime.execution.child import Child, JobVersionError, RunSpec
 from longtime.execution.isolation import run_cell_isolated
+from longtime.execution.jobfiles import JOB as JOB_FILE
+from longtime.execution.jobfiles import RESULT as RESULT_FILE
 from longtime.integrators.splitting import Verlet
 
 

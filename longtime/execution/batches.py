@@ -5,15 +5,11 @@ by another worker's crash loses nothing finished). The process pool and the Dask
 both run their batches here."""
 from __future__ import annotations
 
-import hashlib
-import json
-import os
 import time
-from pathlib import Path
 
 from longtime.core import phases
 from longtime.core.timing import Timing
-from longtime.execution import calibration
+from longtime.execution import calibration, jobfiles
 from longtime.execution.cells import DEFAULT_TIME_LIMIT, Cell, cell_size, run_cell
 
 
@@ -55,23 +51,14 @@ def run_batch(cells: list[Cell], max_samples: int, timing: Timing, folder: str |
     here = calibration.here()
     here.start()
     for c in cells:
-        marker = Path(folder, f"running-{os.getpid()}") if folder else None
+        marker = jobfiles.running_marker(folder) if folder else None
         if marker is not None:
-            write_json(marker, c.to_dict())
+            jobfiles.write_json(marker, c.to_dict())
         row = calibrated_row(here, c, max_samples, timing, time_limit)
         if marker is not None:
-            write_json(Path(folder, f"row-{key_digest(c.key)}.json"), {"cell": c.to_dict(), "row": row})
+            jobfiles.write_row(folder, c.key, c.to_dict(), row)
             marker.unlink(missing_ok=True)  # gone when the watchdog has claimed it
         rows.append(row)
     here.finish()
     return rows
 
-
-def key_digest(text: str) -> str:
-    return hashlib.sha1(text.encode()).hexdigest()
-
-
-def write_json(path: Path, data) -> None:
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text(json.dumps(data))
-    tmp.replace(path)  # atomic: a reader never sees half a file

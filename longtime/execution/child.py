@@ -2,7 +2,8 @@
 
 The parent side (``write_job``, ``start``, ``Child``) and the child side (``read_job``,
 ``enter``, ``mark``, ``write_result``, ``add_record``) meet in one temporary folder of the
-parent (``tempdirs``), which the parent removes when the child is done:
+parent (``tempdirs``), which the parent removes when the child is done; its files (named in
+``longtime.execution.jobfiles``, which writes them whole or not at all) are:
 
 - ``job.json``: what to run, the only file of this kind (``write_job``): its format's
   ``version``, its ``kind`` (``time``, ``cell``, ``count``, ``batches``), the parent's
@@ -43,7 +44,7 @@ from typing import Any
 
 from longtime.core import registry
 from longtime.core.integrator import Timing
-from longtime.execution import tempdirs
+from longtime.execution import jobfiles, tempdirs
 from longtime.execution.cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, Cell, base_row
 from longtime.execution.limits import (
     Watchdog,
@@ -56,13 +57,6 @@ from longtime.execution.limits import (
 )
 
 JOB_VERSION = 1
-JOB_FILE = "job.json"
-SESSION_FILE = "session.pkl"
-SYS_PATH_FILE = "sys_path.json"
-STDERR_FILE = "stderr.txt"
-MARK_FILE = "current"
-RESULT_FILE = "result.json"
-RECORDS_FILE = "records.jsonl"
 STDERR_TAIL = 600  # characters of a dead child's stderr kept in the message that names it
 POLL_S = 0.05
 
@@ -111,13 +105,13 @@ def write_job(folder: Path, kind: str, cells: list[Cell], spec: RunSpec, **optio
     (atomically: a child never reads half a job), with the session beside it."""
     data = {"version": JOB_VERSION, "kind": kind, "parent": os.getpid(), "cells": [c.to_dict() for c in cells],
             "spec": spec.to_dict(), "options": options}
-    _write_atomic(folder / JOB_FILE, json.dumps(data))
+    jobfiles.write_json(folder / jobfiles.JOB, data)
     session = registry.session_payload()
     if session is not None:
-        (folder / SESSION_FILE).write_bytes(session)
+        (folder / jobfiles.SESSION).write_bytes(session)
     # the modules this process imports (a plugin in development, a scheme beside a test) are
     # importable in the child too
-    (folder / SYS_PATH_FILE).write_text(json.dumps([p for p in sys.path if p]))
+    (folder / jobfiles.SYS_PATH).write_text(json.dumps([p for p in sys.path if p]))
 
 
 def signal_name(code: int) -> str:
@@ -170,24 +164,24 @@ class Child:
     def result(self) -> Any | None:
         """What the child wrote with ``write_result`` (None where it wrote nothing, or where
         what is there cannot be read: a folder, not JSON; ``failure`` then says so)."""
-        path = self.folder / RESULT_FILE
+        path = self.folder / jobfiles.RESULT
         try:
             return json.loads(path.read_text()) if path.exists() else None
         except (OSError, ValueError) as exc:
             reason = getattr(exc, "strerror", None) or exc
-            self.unreadable = f"its {RESULT_FILE} cannot be read ({type(exc).__name__}: {reason})"
+            self.unreadable = f"its {jobfiles.RESULT} cannot be read ({type(exc).__name__}: {reason})"
             return None
 
     def records(self) -> dict[str, dict]:
         """The child's ``add_record`` lines, by cell key."""
-        path = self.folder / RECORDS_FILE
+        path = self.folder / jobfiles.RECORDS
         lines = path.read_text().splitlines() if path.exists() else []
         return {item["key"]: item for item in map(json.loads, lines)}
 
     def marks(self) -> list[int]:
         """The child's mark: [the index of the cell it is in, the cells it has finished]."""
         try:
-            return [int(x) for x in (self.folder / MARK_FILE).read_text().split()]
+            return [int(x) for x in (self.folder / jobfiles.MARK).read_text().split()]
         except (OSError, ValueError):
             return []
 
@@ -197,7 +191,7 @@ class Child:
         return marks[0] if marks else None
 
     def stderr(self) -> str:
-        path = self.folder / STDERR_FILE
+        path = self.folder / jobfiles.STDERR
         return path.read_text(errors="replace") if path.exists() else ""
 
     def failure(self, what: str) -> str:
@@ -210,11 +204,7 @@ class Child:
     def clear(self) -> None:
         """Remove what the last job left in the folder (its result, records, mark, a batch's
         row files and markers)."""
-        for name in (RESULT_FILE, RECORDS_FILE, MARK_FILE):
-            (self.folder / name).unlink(missing_ok=True)
-        for pattern in ("row-*", "running-*", "killed-*"):
-            for path in self.folder.glob(pattern):
-                path.unlink(missing_ok=True)
+        jobfiles.clear(self.folder)
 
     def remove(self) -> None:
         """Kill the child if it runs and remove its folder: it leaves no file."""
@@ -232,7 +222,7 @@ def start(folder: Path, module: str, *args: str, prefix: tuple[str, ...] | list[
     it the child asks for it itself in ``enter``)."""
     argv = [*prefix, sys.executable, "-m", module, str(folder), *args]
     stream = subprocess.PIPE if pipes else subprocess.DEVNULL
-    with open(folder / STDERR_FILE, "wb") as err:
+    with open(folder / jobfiles.STDERR, "wb") as err:
         proc = subprocess.Popen(argv, stdin=stream, stdout=stream, stderr=err, env=env, start_new_session=True,
                                 preexec_fn=kill_with_parent if dies_at_start else None)
     return Child(folder, proc)
@@ -241,9 +231,9 @@ def start(folder: Path, module: str, *args: str, prefix: tuple[str, ...] | list[
 # ------------------------------------------------------------------ the child's side
 def read_job(folder: str | Path) -> Job:
     """The job in ``folder`` (JobVersionError for a job of another format)."""
-    data = json.loads((Path(folder) / JOB_FILE).read_text())
+    data = json.loads((Path(folder) / jobfiles.JOB).read_text())
     if data.get("version") != JOB_VERSION:
-        raise JobVersionError(f"job file {Path(folder) / JOB_FILE} has format version {data.get('version')!r}; "
+        raise JobVersionError(f"job file {Path(folder) / jobfiles.JOB} has format version {data.get('version')!r}; "
                               f"this longtime reads version {JOB_VERSION}")
     return Job(kind=data["kind"], parent=data["parent"], cells=[Cell.from_dict(c) for c in data["cells"]],
                spec=RunSpec.from_dict(data["spec"]), options=data.get("options") or {})
@@ -255,11 +245,11 @@ def enter(folder: str | Path, job: Job) -> None:
     session that cannot be restored is said on stderr: the cells that need it fail alone."""
     path = Path(folder)
     die_with_parent(job.parent)
-    if (path / SYS_PATH_FILE).exists():
-        sys.path[:0] = [p for p in json.loads((path / SYS_PATH_FILE).read_text()) if p not in sys.path]
-    if (path / SESSION_FILE).exists():
+    if (path / jobfiles.SYS_PATH).exists():
+        sys.path[:0] = [p for p in json.loads((path / jobfiles.SYS_PATH).read_text()) if p not in sys.path]
+    if (path / jobfiles.SESSION).exists():
         try:
-            registry.restore_session((path / SESSION_FILE).read_bytes())
+            registry.restore_session((path / jobfiles.SESSION).read_bytes())
         except Exception as exc:
             print(f"longtime: the session's registered classes could not be restored: {exc!r}", file=sys.stderr)
     set_memory_limit(job.spec.memory_limit)
@@ -267,24 +257,18 @@ def enter(folder: str | Path, job: Job) -> None:
 
 def mark(folder: str | Path, cell: int, finished: int) -> None:
     """The child is in cell ``cell`` and has finished ``finished`` cells (``Child.marks``)."""
-    (Path(folder) / MARK_FILE).write_text(f"{cell} {finished}")
+    jobfiles.write_text(Path(folder) / jobfiles.MARK, f"{cell} {finished}")
 
 
 def write_result(folder: str | Path, result: Any) -> None:
     """The child's result, atomically: the parent never reads half a result."""
-    _write_atomic(Path(folder) / RESULT_FILE, json.dumps(result))
+    jobfiles.write_json(Path(folder) / jobfiles.RESULT, result)
 
 
 def add_record(folder: str | Path, key: str, item: dict[str, Any]) -> None:
     """One cell's record, on disk at once (``Child.records``)."""
-    with open(Path(folder) / RECORDS_FILE, "a") as records:
+    with open(Path(folder) / jobfiles.RECORDS, "a") as records:
         records.write(json.dumps({"key": key, **item}) + "\n")
-
-
-def _write_atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text(text)
-    tmp.replace(path)
 
 
 # ------------------------------------------------------------------ a child that runs batch after batch
@@ -347,12 +331,8 @@ class Resident:
         if result is not None:
             return dict(zip((c.key for c in cells), result))
         child.kill()  # ended, or its result cannot be read: the rows it wrote, cell by cell
-        done = {}
-        for path in child.folder.glob("row-*.json"):
-            data = json.loads(path.read_text())
-            done[Cell.from_dict(data["cell"]).key] = data["row"]
-        running = [Cell.from_dict(json.loads(p.read_text())) for p in child.folder.glob("running-*")
-                   if not p.name.endswith(".part")]
+        done = {Cell.from_dict(cell).key: row for cell, row in jobfiles.finished_rows(child.folder)}
+        running = [Cell.from_dict(c) for c in jobfiles.running_cells(child.folder)]
         if killed:
             cell = Cell.from_dict(killed[0][0])
             if cell.key not in done:  # else it ended just ahead of the kill: its own row stands
@@ -381,7 +361,7 @@ class Resident:
         while True:
             if select.select([fd], [], [], POLL_S)[0]:
                 return child.proc.stdout.readline().strip()
-            if any(child.folder.glob("running-*")):
+            if jobfiles.running_markers(child.folder):
                 quiet_since = time.monotonic()
             elif time.monotonic() - quiet_since > self.STARTUP_S + (limit or 0):
                 return None

@@ -37,7 +37,7 @@ from typing import Any, Iterable
 from longtime.core import registry
 from longtime.core.stepping import AdaptiveIntegrator, FixedStepIntegrator
 from longtime.execution import child as children
-from longtime.execution import tempdirs
+from longtime.execution import jobfiles, tempdirs
 from longtime.execution.cells import Cell, build
 from longtime.execution.child import RunSpec
 from longtime.measure import instructions
@@ -191,7 +191,7 @@ def _prepare(env: dict[str, str], folder: Path, cells: list[Cell], rows: dict[st
     the cells that cannot be counted (every cell when this process fails)."""
     limit = STARTUP_SECONDS + sum(PER_CELL_SECONDS + 2 * _budget(rows[c.key]) / instructions.SLOWDOWN for c in cells)
     what = f"compiling the kernels for {instructions.COUNT_TARGET} (outside Valgrind)"
-    (folder / children.RECORDS_FILE).unlink(missing_ok=True)
+    (folder / jobfiles.RECORDS).unlink(missing_ok=True)
     children.write_job(folder, "count", cells, RunSpec(max_samples, time_limit=None), prepare=True)
     child = children.start(folder, "longtime.execution.valgrind", env=env)
     try:
@@ -207,7 +207,7 @@ def _prepare(env: dict[str, str], folder: Path, cells: list[Cell], rows: dict[st
     finally:
         child.kill()
     done = child.records()
-    (folder / children.RECORDS_FILE).unlink(missing_ok=True)
+    (folder / jobfiles.RECORDS).unlink(missing_ok=True)
     out = {}
     lost = next((i for i, c in enumerate(cells) if c.key not in done), None)
     if trouble and lost is not None and lost + 1 < len(cells):
