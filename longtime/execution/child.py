@@ -21,14 +21,18 @@ A child dies with the thread that started it (``PR_SET_PDEATHSIG``, ``limits``),
 its own process group (a kill reaches whatever it started), and ends on ``os._exit``, which
 skips the interpreter's teardown (numba's, LLVM's, a thread a plugin left running).
 
+Every child is ``python -m longtime.execution.child FOLDER`` (``start``): it reads its job
+and runs the child's side of its kind (``KINDS``: the timing processes', an isolated cell's,
+Valgrind's, a resident child's), which lives beside the parent's side of that kind.
+
 ``Resident`` is a child that lives on and runs batch after batch of cells (a Dask worker's):
 it keeps its compiled kernels, and is replaced only when a cell passes its time limit (it is
-killed), ends the process, or runs into the memory limit. Run as ``python -m
-longtime.execution.child FOLDER``, this module is that child.
+killed), ends the process, or runs into the memory limit.
 """
 from __future__ import annotations
 
 import contextlib
+import importlib
 import json
 import os
 import select
@@ -57,6 +61,10 @@ from longtime.execution.limits import (
 )
 
 JOB_VERSION = 1
+# the child's side of each kind of job: "module:function", called with (folder, job) in the
+# child; a child imports only the module its kind runs
+KINDS = {"time": "longtime.execution.processes:run_job", "cell": "longtime.execution.isolation:run_job",
+         "count": "longtime.execution.valgrind:run_job", "batches": "longtime.execution.child:serve"}
 STDERR_TAIL = 600  # characters of a dead child's stderr kept in the message that names it
 POLL_S = 0.05
 
@@ -102,7 +110,10 @@ class JobVersionError(RuntimeError):
 # ------------------------------------------------------------------ the parent's side
 def write_job(folder: Path, kind: str, cells: list[Cell], spec: RunSpec, **options: Any) -> None:
     """The job of a child started on ``folder``: the one writer of a child's job file
-    (atomically: a child never reads half a job), with the session beside it."""
+    (atomically: a child never reads half a job), with the session beside it. ``kind``:
+    one of ``KINDS``."""
+    if kind not in KINDS:
+        raise ValueError(f"job kind {kind!r}: expected one of {', '.join(KINDS)}")
     data = {"version": JOB_VERSION, "kind": kind, "parent": os.getpid(), "cells": [c.to_dict() for c in cells],
             "spec": spec.to_dict(), "options": options}
     jobfiles.write_json(folder / jobfiles.JOB, data)
@@ -212,15 +223,15 @@ class Child:
         shutil.rmtree(self.folder, ignore_errors=True)
 
 
-def start(folder: Path, module: str, *args: str, prefix: tuple[str, ...] | list[str] = (),
-          env: dict[str, str] | None = None, pipes: bool = False, dies_at_start: bool = True) -> Child:
-    """Start ``python -m module FOLDER args`` (under ``prefix``, such as Valgrind's command)
-    on the job written in ``folder``: its own process group, stdin and stdout closed (or,
+def start(folder: Path, prefix: tuple[str, ...] | list[str] = (), env: dict[str, str] | None = None,
+          pipes: bool = False, dies_at_start: bool = True) -> Child:
+    """Start ``python -m longtime.execution.child FOLDER`` (under ``prefix``, such as
+    Valgrind's command) on the job written in ``folder``: its own process group, stdin and stdout closed (or,
     with ``pipes``, pipes to this process), stderr into the folder. ``dies_at_start``: the
     child dies with the thread that starts it from before its first instruction (a
     ``preexec_fn``, unsafe where other threads may hold locks, as on a Dask worker; without
     it the child asks for it itself in ``enter``)."""
-    argv = [*prefix, sys.executable, "-m", module, str(folder), *args]
+    argv = [*prefix, sys.executable, "-m", "longtime.execution.child", str(folder)]
     stream = subprocess.PIPE if pipes else subprocess.DEVNULL
     with open(folder / jobfiles.STDERR, "wb") as err:
         proc = subprocess.Popen(argv, stdin=stream, stdout=stream, stderr=err, env=env, start_new_session=True,
@@ -308,7 +319,7 @@ class Resident:
         if self.child is None:
             folder = tempdirs.make("cell")
             write_job(folder, "batches", [], spec)
-            self.child = start(folder, "longtime.execution.child", pipes=True, dies_at_start=False)
+            self.child = start(folder, pipes=True, dies_at_start=False)
             self.memory_limit = spec.memory_limit
         return self.child
 
@@ -402,7 +413,18 @@ def close_residents() -> None:
         _RESIDENTS.clear()
 
 
-def _serve(folder: str) -> None:
+def main(folder: str) -> None:
+    """A child started on ``folder`` (``start``): runs its job's kind (``KINDS``). A job of a
+    kind this longtime does not know ends it with one line on stderr (exit 1)."""
+    job = read_job(folder)
+    if job.kind not in KINDS:
+        sys.exit(f"longtime: job file {Path(folder) / jobfiles.JOB} has kind {job.kind!r}; "
+                 f"this longtime runs {', '.join(KINDS)}")
+    module, _, name = KINDS[job.kind].partition(":")
+    getattr(importlib.import_module(module), name)(folder, job)
+
+
+def serve(folder: str, job: Job) -> None:
     """The resident child: a batch for each line on stdin (the job file says which cells),
     ``done`` on the answer channel when its rows are written; ends at end of file."""
     from longtime.core import phases
@@ -411,7 +433,7 @@ def _serve(folder: str) -> None:
     phases.since_process_start("worker start")
     answers = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)  # what a plugin prints goes to stderr, never into the answers
-    enter(folder, read_job(folder))
+    enter(folder, job)
     for _ in sys.stdin.buffer:
         job = read_job(folder)
         rows = run_batch(job.cells, job.spec.max_samples, job.spec.timing, folder, job.spec.time_limit)
@@ -423,4 +445,7 @@ def _serve(folder: str) -> None:
 
 
 if __name__ == "__main__":
-    _serve(sys.argv[1])
+    # through the module as its importers know it: one copy of its classes, not a second as __main__
+    from longtime.execution.child import main as _main
+
+    _main(sys.argv[1])
