@@ -8,9 +8,8 @@ from __future__ import annotations
 import time
 
 from longtime.core import phases
-from longtime.core.timing import Timing
 from longtime.execution import calibration, jobfiles
-from longtime.execution.cells import DEFAULT_TIME_LIMIT, Cell, cell_size, run_cell
+from longtime.execution.cells import Cell, RunSpec, cell_size, run_cell
 
 
 def batches_by_pair(cells: list[Cell]) -> list[list[Cell]]:
@@ -33,18 +32,18 @@ def estimated_work(cell: Cell, dims: dict[str, int]) -> float:
         return 0.0
 
 
-def calibrated_row(here: calibration.Calibrator, cell: Cell, max_samples: int, timing: Timing,
-                time_limit: float | None) -> dict:
-    """run_cell's row with the machine's speed beside it (longtime.execution.calibration)."""
+def calibrated_row(here: calibration.Calibrator, cell: Cell, spec: RunSpec) -> dict:
+    """run_cell's row, run as ``spec`` says, with the machine's speed beside it
+    (longtime.execution.calibration)."""
     t0 = time.time()
     with phases.phase("cell"):  # building the cell, the row: what its nested phases leave
-        row = run_cell(cell, max_samples, timing=timing, time_limit=time_limit)
+        row = run_cell(cell, spec.max_samples, timing=spec.timing, time_limit=spec.time_limit)
     return row if cell.skip_reason else here.cell(row, t0, time.time())
 
 
-def run_batch(cells: list[Cell], max_samples: int, timing: Timing, folder: str | None = None,
-              time_limit: float | None = DEFAULT_TIME_LIMIT) -> list[dict]:
-    """Rows of ``cells`` in this worker. With ``folder``, the cell in progress and each finished
+def run_batch(cells: list[Cell], spec: RunSpec, folder: str | None = None) -> list[dict]:
+    """Rows of ``cells`` in this worker, run as ``spec`` says (its memory limit is the
+    worker's, set where the worker starts). With ``folder``, the cell in progress and each finished
     row are also written there, so that a pool broken by another worker's crash loses
     nothing finished and knows which cells were running."""
     rows = []
@@ -54,7 +53,7 @@ def run_batch(cells: list[Cell], max_samples: int, timing: Timing, folder: str |
         marker = jobfiles.running_marker(folder) if folder else None
         if marker is not None:
             jobfiles.write_json(marker, c.to_dict())
-        row = calibrated_row(here, c, max_samples, timing, time_limit)
+        row = calibrated_row(here, c, spec)
         if marker is not None:
             jobfiles.write_row(folder, c.key, c.to_dict(), row)
             marker.unlink(missing_ok=True)  # gone when the watchdog has claimed it

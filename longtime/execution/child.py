@@ -47,9 +47,8 @@ from pathlib import Path
 from typing import Any
 
 from longtime.core import registry
-from longtime.core.integrator import Timing
 from longtime.execution import jobfiles, tempdirs
-from longtime.execution.cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, Cell, base_row
+from longtime.execution.cells import Cell, RunSpec, base_row
 from longtime.execution.limits import (
     Watchdog,
     die_with_parent,
@@ -67,29 +66,6 @@ KINDS = {"time": "longtime.execution.processes:run_job", "cell": "longtime.execu
          "count": "longtime.execution.valgrind:run_job", "batches": "longtime.execution.child:serve"}
 STDERR_TAIL = 600  # characters of a dead child's stderr kept in the message that names it
 POLL_S = 0.05
-
-
-@dataclass(frozen=True)
-class RunSpec:
-    """How each cell runs, wherever cells cross a module or a process: at most
-    ``max_samples`` samples, timed as ``timing`` says, stopped by the integration itself past
-    ``time_limit`` seconds (None: never; the hard limit follows from it, ``limits.hard_limit``),
-    its process under ``memory_limit`` bytes of data (None: no limit)."""
-
-    max_samples: int = DEFAULT_MAX_SAMPLES
-    timing: Timing = field(default_factory=Timing)
-    time_limit: float | None = DEFAULT_TIME_LIMIT
-    memory_limit: int | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"max_samples": int(self.max_samples), "timing": self.timing.to_dict(),
-                "time_limit": None if self.time_limit is None else float(self.time_limit),
-                "memory_limit": None if self.memory_limit is None else int(self.memory_limit)}
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> "RunSpec":
-        return cls(max_samples=data["max_samples"], timing=Timing.from_dict(data["timing"]),
-                   time_limit=data.get("time_limit"), memory_limit=data.get("memory_limit"))
 
 
 @dataclass(frozen=True)
@@ -436,7 +412,7 @@ def serve(folder: str, job: Job) -> None:
     enter(folder, job)
     for _ in sys.stdin.buffer:
         job = read_job(folder)
-        rows = run_batch(job.cells, job.spec.max_samples, job.spec.timing, folder, job.spec.time_limit)
+        rows = run_batch(job.cells, job.spec, folder)
         write_result(folder, rows)
         answers.write(b"done\n")
         answers.flush()

@@ -26,8 +26,8 @@ from typing import Iterator
 from longtime.core.cache import no_space
 from longtime.execution import child as children
 from longtime.execution import tempdirs
-from longtime.execution.cells import Cell, base_row, run_cell
-from longtime.execution.child import Child, RunSpec
+from longtime.execution.cells import Cell, RunSpec, base_row, run_cell
+from longtime.execution.child import Child
 
 POLL_S = 0.05
 # a child's start-up (Python, numpy, numba, the plugins) before its cell begins: its time limit

@@ -29,10 +29,10 @@ from longtime.execution.cells import (
     DEFAULT_MAX_SAMPLES,
     DEFAULT_TIME_LIMIT,
     Cell,
+    RunSpec,
     base_row,
     run_cell,
 )
-from longtime.execution.child import RunSpec
 from longtime.execution.isolation import run_isolated
 from longtime.execution.limits import (
     Watchdog,
@@ -95,6 +95,7 @@ def serial(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict
     returns, a second at once (limits.signal_relay)."""
     here = calibration.here()
     here.start()
+    spec = options.run_spec()
     with signal_relay():
         for cell in cells:
             if options.on_start is not None and not cell.skip_reason:
@@ -102,7 +103,7 @@ def serial(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict
             # the cell runs in this process (a script's, a notebook's): under the memory limit a
             # worker has, lifted again before the row is handed on
             with memory_limited(options.memory_limit):
-                row = calibrated_row(here, cell, options.max_samples, options.timing, options.time_limit)
+                row = calibrated_row(here, cell, spec)
             yield cell, row
 
 
@@ -264,8 +265,7 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
                             else None)
                 try:
                     for batch, fut in scheduled(pool, workers, batches_by_pair(remaining), run_batch,
-                                                options.max_samples, options.timing, folder, options.time_limit,
-                                                idle_work=options.idle_work):
+                                                options.run_spec(), folder, idle_work=options.idle_work):
                         try:
                             rows = fut.result()
                         except BrokenProcessPool:  # some worker died: sorted out below
