@@ -95,10 +95,10 @@ def write_job(folder: Path, kind: str, cells: list[Cell], spec: RunSpec, **optio
     jobfiles.write_json(folder / jobfiles.JOB, data)
     session = registry.session_payload()
     if session is not None:
-        (folder / jobfiles.SESSION).write_bytes(session)
+        jobfiles.write(folder / jobfiles.SESSION, session)
     # the modules this process imports (a plugin in development, a scheme beside a test) are
     # importable in the child too
-    (folder / jobfiles.SYS_PATH).write_text(json.dumps([p for p in sys.path if p]))
+    jobfiles.write_json(folder / jobfiles.SYS_PATH, [p for p in sys.path if p])
 
 
 def signal_name(code: int) -> str:
@@ -202,8 +202,8 @@ class Child:
 def start(folder: Path, prefix: tuple[str, ...] | list[str] = (), env: dict[str, str] | None = None,
           pipes: bool = False, dies_at_start: bool = True) -> Child:
     """Start ``python -m longtime.execution.child FOLDER`` (under ``prefix``, such as
-    Valgrind's command) on the job written in ``folder``: its own process group, stdin and stdout closed (or,
-    with ``pipes``, pipes to this process), stderr into the folder. ``dies_at_start``: the
+    Valgrind's command) on the job written in ``folder``: its own process group, stdin and
+    stdout closed (or, with ``pipes``, pipes to this process), stderr into the folder. ``dies_at_start``: the
     child dies with the thread that starts it from before its first instruction (a
     ``preexec_fn``, unsafe where other threads may hold locks, as on a Dask worker; without
     it the child asks for it itself in ``enter``)."""
@@ -244,7 +244,7 @@ def enter(folder: str | Path, job: Job) -> None:
 
 def mark(folder: str | Path, cell: int, finished: int) -> None:
     """The child is in cell ``cell`` and has finished ``finished`` cells (``Child.marks``)."""
-    jobfiles.write_text(Path(folder) / jobfiles.MARK, f"{cell} {finished}")
+    jobfiles.write(Path(folder) / jobfiles.MARK, f"{cell} {finished}")
 
 
 def write_result(folder: str | Path, result: Any) -> None:

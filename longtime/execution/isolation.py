@@ -2,9 +2,9 @@
 
 A cell that hangs or takes the interpreter down (``os._exit``, a segfault in compiled
 code, out of memory) must become a row, not stop the matrix. Each cell runs in a fresh
-child interpreter (``python -m longtime.execution.child``, a job of kind ``cell``) started with ``subprocess``, not
-``multiprocessing``: the child then also works from daemonic processes such as Dask's
-workers, which may not have multiprocessing children. The child reads the cell from a
+child interpreter (``python -m longtime.execution.child``, a job of kind ``cell``) started
+with ``subprocess``, not ``multiprocessing``: the child then also works from daemonic
+processes such as Dask's workers, which may not have multiprocessing children. The child reads the cell from a
 job file and writes its row as its result (longtime.execution.child); the parent kills the
 child's whole process group when the time limit passes (a ``timeout`` row) and reads a dead
 child's exit code or signal and the end of its stderr (a ``failed`` row).

@@ -8,8 +8,8 @@ the marker of the cell it is in (``running-PID``: the cell, as JSON), each finis
 (``row-KEY.json``: the cell and its row, KEY a digest of the cell's key) and the marker of a
 cell whose worker the watchdog killed (``killed-PID``, ``longtime.execution.limits``).
 
-Every file a reader may open while its writer runs is written with ``write_json`` or
-``write_text``: whole or not at all (``longtime.core.files.write_atomic``), so no reader
+Every one of these files but the appended records is written with ``write`` or
+``write_json``: whole or not at all (``longtime.core.files.write_atomic``), so no reader
 sees half a file, and a writer killed mid-write leaves only a hidden temporary file.
 """
 from __future__ import annotations
@@ -37,9 +37,9 @@ KILLED = "killed-"
 LEFTOVERS = (RESULT, RECORDS, MARK, f"{ROW}*", f"{RUNNING}*", f"{KILLED}*", ".*.tmp")
 
 
-def write_text(path: str | os.PathLike, text: str) -> None:
-    """``text`` to ``path``, whole or not at all."""
-    write_atomic(path, text)
+def write(path: str | os.PathLike, data: str | bytes) -> None:
+    """``data`` (text or bytes) to ``path``, whole or not at all."""
+    write_atomic(path, data)
 
 
 def write_json(path: str | os.PathLike, data: Any) -> None:

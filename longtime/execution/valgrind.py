@@ -3,11 +3,12 @@ all cells of a run in one Valgrind process (importing numba under Valgrind costs
 minute of CPU; loading a cell's kernels from the cache, a few seconds).
 
 ``instruction_fields(pairs, ...)`` is the parent's side: it decides which cells can be
-counted, writes them to a job file of kind ``count`` (longtime.execution.child), runs ``python -m
-longtime.execution.child FOLDER`` under Valgrind (longtime.measure.instructions.command)
-and reads the counts back. ``run_job`` is the worker's side: per cell it builds the problem and the
-scheme, loads and warms up the kernel uncounted, then counts only the calls into the
-compiled loop (longtime.measure.instructions.counting), in one chunk.
+counted, writes them to a job file of kind ``count`` (longtime.execution.child), runs
+``python -m longtime.execution.child FOLDER`` under Valgrind
+(longtime.measure.instructions.command) and reads the counts back. ``run_job`` is the
+worker's side: per cell it builds the problem and the scheme, loads and warms up the
+kernel uncounted, then counts only the calls into the compiled loop
+(longtime.measure.instructions.counting), in one chunk.
 
 The counted kernels are compiled for one fixed target (instructions.COUNT_TARGET,
 x86-64-v3) whatever the host, in a numba cache of their own (instructions.target_cache_dir):
