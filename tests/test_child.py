@@ -1,9 +1,11 @@
 """Child processes started one way (longtime.execution.child): a versioned job file with the run
 options whole, and the timing of a cell arriving in an isolated child as it was sent."""
+import importlib
 import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -12,8 +14,10 @@ from longtime.core.integrator import Timing
 from longtime.execution import child as children
 from longtime.execution import tempdirs
 from longtime.execution.cells import Cell
-from longtime.execution.child import JOB_FILE, RESULT_FILE, Child, JobVersionError, RunSpec
+from longtime.execution.child import Child, JobVersionError, RunSpec
 from longtime.execution.isolation import run_cell_isolated
+from longtime.execution.jobfiles import JOB as JOB_FILE
+from longtime.execution.jobfiles import RESULT as RESULT_FILE
 from longtime.integrators.splitting import Verlet
 
 
@@ -44,14 +48,26 @@ def test_a_job_file_carries_its_version_the_cells_and_the_run_options_whole(tmp_
         children.read_job(tmp_path)
 
 
+def test_every_kind_of_job_names_the_function_its_child_runs():
+    for kind, target in children.KINDS.items():
+        module, _, name = target.partition(":")
+        assert callable(getattr(importlib.import_module(module), name)), kind
+    with pytest.raises(ValueError, match="job kind 'nope'"):
+        children.write_job(Path("/nonexistent"), "nope", [], RunSpec())
+
+
 def test_a_child_that_dies_is_named_by_its_signal_and_leaves_no_file(tmp_path):
+    """A job of a kind the child does not run (a child of another longtime): it exits with
+    code 1, its one line naming the kind, and the parent says so."""
     folder = tempdirs.make("cell")
     children.write_job(folder, "cell", [], RunSpec())
-    child = children.start(folder, "longtime.execution.no_such_module_here")
+    data = json.loads((folder / JOB_FILE).read_text())
+    (folder / JOB_FILE).write_text(json.dumps({**data, "kind": "no-such-kind"}))
+    child = children.start(folder)
     assert child.wait(60)
     assert child.result() is None
     assert child.failure("the child").startswith("the child exited with code 1 without a result; stderr: ")
-    assert "No module named" in child.failure("the child")
+    assert "has kind 'no-such-kind'; this longtime runs time, cell, count, batches" in child.failure("the child")
     child.remove()
     assert not folder.exists()
     assert children.how_it_ended(-9) == "killed by SIGKILL"

@@ -21,7 +21,7 @@ class ExitsWhenCounted(RK4):
     summary = "RK4 that ends the counting process"
 
     def make_step(self, problem):
-        if sys.argv and sys.argv[0].endswith("valgrind.py"):
+        if os.path.basename(sys.argv[-1]).startswith("longtime-valgrind-"):  # a counting process's folder
             os._exit(3)
         return super().make_step(problem)
 

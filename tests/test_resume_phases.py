@@ -35,7 +35,7 @@ def test_a_kill_in_the_timing_phase_then_resume_times_every_row_across_processes
                              "--no-ensemble", "--no-report", "--no-progress", "--db", str(db)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
     deadline = time.monotonic() + 120
-    while not children(proc.pid, "longtime.execution.processes"):
+    while not children(proc.pid, "longtime-timing-"):
         assert proc.poll() is None, proc.stderr.read().decode()
         assert time.monotonic() < deadline, "no timing process started"
         time.sleep(0.02)

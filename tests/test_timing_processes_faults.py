@@ -74,7 +74,8 @@ class PausedWhenTimedElsewhere(RK4):
         from pathlib import Path
 
         marker = Path(os.environ.get("PAUSE_PID_FILE", ""))
-        if sys.argv and sys.argv[0].endswith("processes.py") and marker.name and not marker.exists():
+        in_timing = os.path.basename(sys.argv[-1]).startswith("longtime-timing-")  # a timing process's folder
+        if in_timing and marker.name and not marker.exists():
             marker.write_text(str(os.getpid()))
             time.sleep(1.0)  # the pause lands here, inside the run: its deadline is already set
         return super()._integrate(*args, **kwargs)
@@ -127,7 +128,7 @@ class DiesWhenTimedElsewhere(RK4):
     def _integrate(self, *args, **kwargs):
         import sys
 
-        if sys.argv and sys.argv[0].endswith("processes.py"):
+        if os.path.basename(sys.argv[-1]).startswith("longtime-timing-"):  # a timing process's folder
             os._exit(3)
         return super()._integrate(*args, **kwargs)
 

@@ -5,16 +5,11 @@ by another worker's crash loses nothing finished). The process pool and the Dask
 both run their batches here."""
 from __future__ import annotations
 
-import hashlib
-import json
-import os
 import time
-from pathlib import Path
 
 from longtime.core import phases
-from longtime.core.timing import Timing
-from longtime.execution import calibration
-from longtime.execution.cells import DEFAULT_TIME_LIMIT, Cell, cell_size, run_cell
+from longtime.execution import calibration, jobfiles
+from longtime.execution.cells import Cell, RunSpec, cell_size, run_cell
 
 
 def batches_by_pair(cells: list[Cell]) -> list[list[Cell]]:
@@ -37,41 +32,32 @@ def estimated_work(cell: Cell, dims: dict[str, int]) -> float:
         return 0.0
 
 
-def calibrated_row(here: calibration.Calibrator, cell: Cell, max_samples: int, timing: Timing,
-                time_limit: float | None) -> dict:
-    """run_cell's row with the machine's speed beside it (longtime.execution.calibration)."""
+def calibrated_row(here: calibration.Calibrator, cell: Cell, spec: RunSpec) -> dict:
+    """run_cell's row, run as ``spec`` says, with the machine's speed beside it
+    (longtime.execution.calibration)."""
     t0 = time.time()
     with phases.phase("cell"):  # building the cell, the row: what its nested phases leave
-        row = run_cell(cell, max_samples, timing=timing, time_limit=time_limit)
+        row = run_cell(cell, spec.max_samples, timing=spec.timing, time_limit=spec.time_limit)
     return row if cell.skip_reason else here.cell(row, t0, time.time())
 
 
-def run_batch(cells: list[Cell], max_samples: int, timing: Timing, folder: str | None = None,
-              time_limit: float | None = DEFAULT_TIME_LIMIT) -> list[dict]:
-    """Rows of ``cells`` in this worker. With ``folder``, the cell in progress and each finished
+def run_batch(cells: list[Cell], spec: RunSpec, folder: str | None = None) -> list[dict]:
+    """Rows of ``cells`` in this worker, run as ``spec`` says (its memory limit is the
+    worker's, set where the worker starts). With ``folder``, the cell in progress and each finished
     row are also written there, so that a pool broken by another worker's crash loses
     nothing finished and knows which cells were running."""
     rows = []
     here = calibration.here()
     here.start()
     for c in cells:
-        marker = Path(folder, f"running-{os.getpid()}") if folder else None
+        marker = jobfiles.running_marker(folder) if folder else None
         if marker is not None:
-            write_json(marker, c.to_dict())
-        row = calibrated_row(here, c, max_samples, timing, time_limit)
+            jobfiles.write_json(marker, c.to_dict())
+        row = calibrated_row(here, c, spec)
         if marker is not None:
-            write_json(Path(folder, f"row-{key_digest(c.key)}.json"), {"cell": c.to_dict(), "row": row})
+            jobfiles.write_row(folder, c.key, c.to_dict(), row)
             marker.unlink(missing_ok=True)  # gone when the watchdog has claimed it
         rows.append(row)
     here.finish()
     return rows
 
-
-def key_digest(text: str) -> str:
-    return hashlib.sha1(text.encode()).hexdigest()
-
-
-def write_json(path: Path, data) -> None:
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text(json.dumps(data))
-    tmp.replace(path)  # atomic: a reader never sees half a file

@@ -46,6 +46,29 @@ MAX_SAMPLE_BYTES = 4 * 2**30
 
 
 @dataclass(frozen=True)
+class RunSpec:
+    """How each cell runs, wherever cells cross a module or a process: at most
+    ``max_samples`` samples, timed as ``timing`` says, stopped by the integration itself past
+    ``time_limit`` seconds (None: never; the hard limit follows from it, ``limits.hard_limit``),
+    its process under ``memory_limit`` bytes of data (None: no limit)."""
+
+    max_samples: int = DEFAULT_MAX_SAMPLES
+    timing: Timing = field(default_factory=Timing)
+    time_limit: float | None = DEFAULT_TIME_LIMIT
+    memory_limit: int | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"max_samples": int(self.max_samples), "timing": self.timing.to_dict(),
+                "time_limit": None if self.time_limit is None else float(self.time_limit),
+                "memory_limit": None if self.memory_limit is None else int(self.memory_limit)}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "RunSpec":
+        return cls(max_samples=data["max_samples"], timing=Timing.from_dict(data["timing"]),
+                   time_limit=data.get("time_limit"), memory_limit=data.get("memory_limit"))
+
+
+@dataclass(frozen=True)
 class Cell:
     problem: str
     integrator: str

@@ -2,7 +2,8 @@
 
 The parent side (``write_job``, ``start``, ``Child``) and the child side (``read_job``,
 ``enter``, ``mark``, ``write_result``, ``add_record``) meet in one temporary folder of the
-parent (``tempdirs``), which the parent removes when the child is done:
+parent (``tempdirs``), which the parent removes when the child is done; its files (named in
+``longtime.execution.jobfiles``, which writes them whole or not at all) are:
 
 - ``job.json``: what to run, the only file of this kind (``write_job``): its format's
   ``version``, its ``kind`` (``time``, ``cell``, ``count``, ``batches``), the parent's
@@ -20,14 +21,18 @@ A child dies with the thread that started it (``PR_SET_PDEATHSIG``, ``limits``),
 its own process group (a kill reaches whatever it started), and ends on ``os._exit``, which
 skips the interpreter's teardown (numba's, LLVM's, a thread a plugin left running).
 
+Every child is ``python -m longtime.execution.child FOLDER`` (``start``): it reads its job
+and runs the child's side of its kind (``KINDS``: the timing processes', an isolated cell's,
+Valgrind's, a resident child's), which lives beside the parent's side of that kind.
+
 ``Resident`` is a child that lives on and runs batch after batch of cells (a Dask worker's):
 it keeps its compiled kernels, and is replaced only when a cell passes its time limit (it is
-killed), ends the process, or runs into the memory limit. Run as ``python -m
-longtime.execution.child FOLDER``, this module is that child.
+killed), ends the process, or runs into the memory limit.
 """
 from __future__ import annotations
 
 import contextlib
+import importlib
 import json
 import os
 import select
@@ -42,9 +47,8 @@ from pathlib import Path
 from typing import Any
 
 from longtime.core import registry
-from longtime.core.integrator import Timing
-from longtime.execution import tempdirs
-from longtime.execution.cells import DEFAULT_MAX_SAMPLES, DEFAULT_TIME_LIMIT, Cell, base_row
+from longtime.execution import jobfiles, tempdirs
+from longtime.execution.cells import Cell, RunSpec, base_row
 from longtime.execution.limits import (
     Watchdog,
     die_with_parent,
@@ -56,38 +60,12 @@ from longtime.execution.limits import (
 )
 
 JOB_VERSION = 1
-JOB_FILE = "job.json"
-SESSION_FILE = "session.pkl"
-SYS_PATH_FILE = "sys_path.json"
-STDERR_FILE = "stderr.txt"
-MARK_FILE = "current"
-RESULT_FILE = "result.json"
-RECORDS_FILE = "records.jsonl"
+# the child's side of each kind of job: "module:function", called with (folder, job) in the
+# child; a child imports only the module its kind runs
+KINDS = {"time": "longtime.execution.processes:run_job", "cell": "longtime.execution.isolation:run_job",
+         "count": "longtime.execution.valgrind:run_job", "batches": "longtime.execution.child:serve"}
 STDERR_TAIL = 600  # characters of a dead child's stderr kept in the message that names it
 POLL_S = 0.05
-
-
-@dataclass(frozen=True)
-class RunSpec:
-    """How each cell runs, wherever cells cross a module or a process: at most
-    ``max_samples`` samples, timed as ``timing`` says, stopped by the integration itself past
-    ``time_limit`` seconds (None: never; the hard limit follows from it, ``limits.hard_limit``),
-    its process under ``memory_limit`` bytes of data (None: no limit)."""
-
-    max_samples: int = DEFAULT_MAX_SAMPLES
-    timing: Timing = field(default_factory=Timing)
-    time_limit: float | None = DEFAULT_TIME_LIMIT
-    memory_limit: int | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"max_samples": int(self.max_samples), "timing": self.timing.to_dict(),
-                "time_limit": None if self.time_limit is None else float(self.time_limit),
-                "memory_limit": None if self.memory_limit is None else int(self.memory_limit)}
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> "RunSpec":
-        return cls(max_samples=data["max_samples"], timing=Timing.from_dict(data["timing"]),
-                   time_limit=data.get("time_limit"), memory_limit=data.get("memory_limit"))
 
 
 @dataclass(frozen=True)
@@ -108,16 +86,19 @@ class JobVersionError(RuntimeError):
 # ------------------------------------------------------------------ the parent's side
 def write_job(folder: Path, kind: str, cells: list[Cell], spec: RunSpec, **options: Any) -> None:
     """The job of a child started on ``folder``: the one writer of a child's job file
-    (atomically: a child never reads half a job), with the session beside it."""
+    (atomically: a child never reads half a job), with the session beside it. ``kind``:
+    one of ``KINDS``."""
+    if kind not in KINDS:
+        raise ValueError(f"job kind {kind!r}: expected one of {', '.join(KINDS)}")
     data = {"version": JOB_VERSION, "kind": kind, "parent": os.getpid(), "cells": [c.to_dict() for c in cells],
             "spec": spec.to_dict(), "options": options}
-    _write_atomic(folder / JOB_FILE, json.dumps(data))
+    jobfiles.write_json(folder / jobfiles.JOB, data)
     session = registry.session_payload()
     if session is not None:
-        (folder / SESSION_FILE).write_bytes(session)
+        jobfiles.write(folder / jobfiles.SESSION, session)
     # the modules this process imports (a plugin in development, a scheme beside a test) are
     # importable in the child too
-    (folder / SYS_PATH_FILE).write_text(json.dumps([p for p in sys.path if p]))
+    jobfiles.write_json(folder / jobfiles.SYS_PATH, [p for p in sys.path if p])
 
 
 def signal_name(code: int) -> str:
@@ -170,24 +151,24 @@ class Child:
     def result(self) -> Any | None:
         """What the child wrote with ``write_result`` (None where it wrote nothing, or where
         what is there cannot be read: a folder, not JSON; ``failure`` then says so)."""
-        path = self.folder / RESULT_FILE
+        path = self.folder / jobfiles.RESULT
         try:
             return json.loads(path.read_text()) if path.exists() else None
         except (OSError, ValueError) as exc:
             reason = getattr(exc, "strerror", None) or exc
-            self.unreadable = f"its {RESULT_FILE} cannot be read ({type(exc).__name__}: {reason})"
+            self.unreadable = f"its {jobfiles.RESULT} cannot be read ({type(exc).__name__}: {reason})"
             return None
 
     def records(self) -> dict[str, dict]:
         """The child's ``add_record`` lines, by cell key."""
-        path = self.folder / RECORDS_FILE
+        path = self.folder / jobfiles.RECORDS
         lines = path.read_text().splitlines() if path.exists() else []
         return {item["key"]: item for item in map(json.loads, lines)}
 
     def marks(self) -> list[int]:
         """The child's mark: [the index of the cell it is in, the cells it has finished]."""
         try:
-            return [int(x) for x in (self.folder / MARK_FILE).read_text().split()]
+            return [int(x) for x in (self.folder / jobfiles.MARK).read_text().split()]
         except (OSError, ValueError):
             return []
 
@@ -197,7 +178,7 @@ class Child:
         return marks[0] if marks else None
 
     def stderr(self) -> str:
-        path = self.folder / STDERR_FILE
+        path = self.folder / jobfiles.STDERR
         return path.read_text(errors="replace") if path.exists() else ""
 
     def failure(self, what: str) -> str:
@@ -210,11 +191,7 @@ class Child:
     def clear(self) -> None:
         """Remove what the last job left in the folder (its result, records, mark, a batch's
         row files and markers)."""
-        for name in (RESULT_FILE, RECORDS_FILE, MARK_FILE):
-            (self.folder / name).unlink(missing_ok=True)
-        for pattern in ("row-*", "running-*", "killed-*"):
-            for path in self.folder.glob(pattern):
-                path.unlink(missing_ok=True)
+        jobfiles.clear(self.folder)
 
     def remove(self) -> None:
         """Kill the child if it runs and remove its folder: it leaves no file."""
@@ -222,17 +199,17 @@ class Child:
         shutil.rmtree(self.folder, ignore_errors=True)
 
 
-def start(folder: Path, module: str, *args: str, prefix: tuple[str, ...] | list[str] = (),
-          env: dict[str, str] | None = None, pipes: bool = False, dies_at_start: bool = True) -> Child:
-    """Start ``python -m module FOLDER args`` (under ``prefix``, such as Valgrind's command)
-    on the job written in ``folder``: its own process group, stdin and stdout closed (or,
-    with ``pipes``, pipes to this process), stderr into the folder. ``dies_at_start``: the
+def start(folder: Path, prefix: tuple[str, ...] | list[str] = (), env: dict[str, str] | None = None,
+          pipes: bool = False, dies_at_start: bool = True) -> Child:
+    """Start ``python -m longtime.execution.child FOLDER`` (under ``prefix``, such as
+    Valgrind's command) on the job written in ``folder``: its own process group, stdin and
+    stdout closed (or, with ``pipes``, pipes to this process), stderr into the folder. ``dies_at_start``: the
     child dies with the thread that starts it from before its first instruction (a
     ``preexec_fn``, unsafe where other threads may hold locks, as on a Dask worker; without
     it the child asks for it itself in ``enter``)."""
-    argv = [*prefix, sys.executable, "-m", module, str(folder), *args]
+    argv = [*prefix, sys.executable, "-m", "longtime.execution.child", str(folder)]
     stream = subprocess.PIPE if pipes else subprocess.DEVNULL
-    with open(folder / STDERR_FILE, "wb") as err:
+    with open(folder / jobfiles.STDERR, "wb") as err:
         proc = subprocess.Popen(argv, stdin=stream, stdout=stream, stderr=err, env=env, start_new_session=True,
                                 preexec_fn=kill_with_parent if dies_at_start else None)
     return Child(folder, proc)
@@ -241,9 +218,9 @@ def start(folder: Path, module: str, *args: str, prefix: tuple[str, ...] | list[
 # ------------------------------------------------------------------ the child's side
 def read_job(folder: str | Path) -> Job:
     """The job in ``folder`` (JobVersionError for a job of another format)."""
-    data = json.loads((Path(folder) / JOB_FILE).read_text())
+    data = json.loads((Path(folder) / jobfiles.JOB).read_text())
     if data.get("version") != JOB_VERSION:
-        raise JobVersionError(f"job file {Path(folder) / JOB_FILE} has format version {data.get('version')!r}; "
+        raise JobVersionError(f"job file {Path(folder) / jobfiles.JOB} has format version {data.get('version')!r}; "
                               f"this longtime reads version {JOB_VERSION}")
     return Job(kind=data["kind"], parent=data["parent"], cells=[Cell.from_dict(c) for c in data["cells"]],
                spec=RunSpec.from_dict(data["spec"]), options=data.get("options") or {})
@@ -255,11 +232,11 @@ def enter(folder: str | Path, job: Job) -> None:
     session that cannot be restored is said on stderr: the cells that need it fail alone."""
     path = Path(folder)
     die_with_parent(job.parent)
-    if (path / SYS_PATH_FILE).exists():
-        sys.path[:0] = [p for p in json.loads((path / SYS_PATH_FILE).read_text()) if p not in sys.path]
-    if (path / SESSION_FILE).exists():
+    if (path / jobfiles.SYS_PATH).exists():
+        sys.path[:0] = [p for p in json.loads((path / jobfiles.SYS_PATH).read_text()) if p not in sys.path]
+    if (path / jobfiles.SESSION).exists():
         try:
-            registry.restore_session((path / SESSION_FILE).read_bytes())
+            registry.restore_session((path / jobfiles.SESSION).read_bytes())
         except Exception as exc:
             print(f"longtime: the session's registered classes could not be restored: {exc!r}", file=sys.stderr)
     set_memory_limit(job.spec.memory_limit)
@@ -267,24 +244,18 @@ def enter(folder: str | Path, job: Job) -> None:
 
 def mark(folder: str | Path, cell: int, finished: int) -> None:
     """The child is in cell ``cell`` and has finished ``finished`` cells (``Child.marks``)."""
-    (Path(folder) / MARK_FILE).write_text(f"{cell} {finished}")
+    jobfiles.write(Path(folder) / jobfiles.MARK, f"{cell} {finished}")
 
 
 def write_result(folder: str | Path, result: Any) -> None:
     """The child's result, atomically: the parent never reads half a result."""
-    _write_atomic(Path(folder) / RESULT_FILE, json.dumps(result))
+    jobfiles.write_json(Path(folder) / jobfiles.RESULT, result)
 
 
 def add_record(folder: str | Path, key: str, item: dict[str, Any]) -> None:
     """One cell's record, on disk at once (``Child.records``)."""
-    with open(Path(folder) / RECORDS_FILE, "a") as records:
+    with open(Path(folder) / jobfiles.RECORDS, "a") as records:
         records.write(json.dumps({"key": key, **item}) + "\n")
-
-
-def _write_atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text(text)
-    tmp.replace(path)
 
 
 # ------------------------------------------------------------------ a child that runs batch after batch
@@ -324,7 +295,7 @@ class Resident:
         if self.child is None:
             folder = tempdirs.make("cell")
             write_job(folder, "batches", [], spec)
-            self.child = start(folder, "longtime.execution.child", pipes=True, dies_at_start=False)
+            self.child = start(folder, pipes=True, dies_at_start=False)
             self.memory_limit = spec.memory_limit
         return self.child
 
@@ -347,12 +318,8 @@ class Resident:
         if result is not None:
             return dict(zip((c.key for c in cells), result))
         child.kill()  # ended, or its result cannot be read: the rows it wrote, cell by cell
-        done = {}
-        for path in child.folder.glob("row-*.json"):
-            data = json.loads(path.read_text())
-            done[Cell.from_dict(data["cell"]).key] = data["row"]
-        running = [Cell.from_dict(json.loads(p.read_text())) for p in child.folder.glob("running-*")
-                   if not p.name.endswith(".part")]
+        done = {Cell.from_dict(cell).key: row for cell, row in jobfiles.finished_rows(child.folder)}
+        running = [Cell.from_dict(c) for c in jobfiles.running_cells(child.folder)]
         if killed:
             cell = Cell.from_dict(killed[0][0])
             if cell.key not in done:  # else it ended just ahead of the kill: its own row stands
@@ -381,7 +348,7 @@ class Resident:
         while True:
             if select.select([fd], [], [], POLL_S)[0]:
                 return child.proc.stdout.readline().strip()
-            if any(child.folder.glob("running-*")):
+            if jobfiles.running_markers(child.folder):
                 quiet_since = time.monotonic()
             elif time.monotonic() - quiet_since > self.STARTUP_S + (limit or 0):
                 return None
@@ -422,7 +389,18 @@ def close_residents() -> None:
         _RESIDENTS.clear()
 
 
-def _serve(folder: str) -> None:
+def main(folder: str) -> None:
+    """A child started on ``folder`` (``start``): runs its job's kind (``KINDS``). A job of a
+    kind this longtime does not know ends it with one line on stderr (exit 1)."""
+    job = read_job(folder)
+    if job.kind not in KINDS:
+        sys.exit(f"longtime: job file {Path(folder) / jobfiles.JOB} has kind {job.kind!r}; "
+                 f"this longtime runs {', '.join(KINDS)}")
+    module, _, name = KINDS[job.kind].partition(":")
+    getattr(importlib.import_module(module), name)(folder, job)
+
+
+def serve(folder: str, job: Job) -> None:
     """The resident child: a batch for each line on stdin (the job file says which cells),
     ``done`` on the answer channel when its rows are written; ends at end of file."""
     from longtime.core import phases
@@ -431,10 +409,10 @@ def _serve(folder: str) -> None:
     phases.since_process_start("worker start")
     answers = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)  # what a plugin prints goes to stderr, never into the answers
-    enter(folder, read_job(folder))
+    enter(folder, job)
     for _ in sys.stdin.buffer:
         job = read_job(folder)
-        rows = run_batch(job.cells, job.spec.max_samples, job.spec.timing, folder, job.spec.time_limit)
+        rows = run_batch(job.cells, job.spec, folder)
         write_result(folder, rows)
         answers.write(b"done\n")
         answers.flush()
@@ -443,4 +421,7 @@ def _serve(folder: str) -> None:
 
 
 if __name__ == "__main__":
-    _serve(sys.argv[1])
+    # through the module as its importers know it: one copy of its classes, not a second as __main__
+    from longtime.execution.child import main as _main
+
+    _main(sys.argv[1])

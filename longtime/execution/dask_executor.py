@@ -28,8 +28,8 @@ from typing import Iterator
 
 from longtime.core.params import InputError
 from longtime.execution import tempdirs
-from longtime.execution.cells import Cell, base_row, run_cell
-from longtime.execution.child import RunSpec, resident
+from longtime.execution.cells import Cell, RunSpec, base_row, run_cell
+from longtime.execution.child import resident
 from longtime.execution.limits import hard_limit
 
 
@@ -162,8 +162,8 @@ def dask_cluster(cells: list[Cell], options) -> Iterator[tuple[Cell, dict]]:
                 futures = {client.submit(run_batch_limited, batch, spec, pure=False): batch
                            for batch in batches(runnable, workers)}
             else:
-                futures = {client.submit(run_batch, batch, spec.max_samples, spec.timing, time_limit=spec.time_limit,
-                                         pure=False): batch for batch in batches(runnable, workers)}
+                futures = {client.submit(run_batch, batch, spec, pure=False): batch
+                           for batch in batches(runnable, workers)}
         left = len(runnable)
         for fut in as_completed(futures):
             batch = futures[fut]

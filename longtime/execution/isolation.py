@@ -2,9 +2,9 @@
 
 A cell that hangs or takes the interpreter down (``os._exit``, a segfault in compiled
 code, out of memory) must become a row, not stop the matrix. Each cell runs in a fresh
-child interpreter (``python -m longtime.execution.isolation``) started with ``subprocess``, not
-``multiprocessing``: the child then also works from daemonic processes such as Dask's
-workers, which may not have multiprocessing children. The child reads the cell from a
+child interpreter (``python -m longtime.execution.child``, a job of kind ``cell``) started
+with ``subprocess``, not ``multiprocessing``: the child then also works from daemonic
+processes such as Dask's workers, which may not have multiprocessing children. The child reads the cell from a
 job file and writes its row as its result (longtime.execution.child); the parent kills the
 child's whole process group when the time limit passes (a ``timeout`` row) and reads a dead
 child's exit code or signal and the end of its stderr (a ``failed`` row).
@@ -26,8 +26,8 @@ from typing import Iterator
 from longtime.core.cache import no_space
 from longtime.execution import child as children
 from longtime.execution import tempdirs
-from longtime.execution.cells import Cell, base_row, run_cell
-from longtime.execution.child import Child, RunSpec
+from longtime.execution.cells import Cell, RunSpec, base_row, run_cell
+from longtime.execution.child import Child
 
 POLL_S = 0.05
 # a child's start-up (Python, numpy, numba, the plugins) before its cell begins: its time limit
@@ -59,7 +59,7 @@ def _start(cell: Cell, spec: RunSpec, timeout: float | None) -> _Cell:
         folder = tempdirs.make("cell")
         children.write_job(folder, "cell", [cell], spec)
         # no preexec_fn: this may be a Dask worker's thread; the child asks to die with it itself
-        child = children.start(folder, "longtime.execution.isolation", dies_at_start=False)
+        child = children.start(folder, dies_at_start=False)
     except OSError as exc:
         if folder is not None:
             shutil.rmtree(folder, ignore_errors=True)
@@ -138,8 +138,9 @@ def run_cell_isolated(cell: Cell, spec: RunSpec, timeout: float | None = None) -
     raise AssertionError("unreachable")
 
 
-def _child_main(folder: str) -> None:
-    job = children.read_job(folder)
+def run_job(folder: str, job: children.Job) -> None:
+    """The child's side of a ``cell`` job (longtime.execution.child.KINDS): the cell's row as
+    its result."""
     children.enter(folder, job)
     (cell,) = job.cells
     try:
@@ -154,7 +155,3 @@ def _child_main(folder: str) -> None:
         os._exit(tempdirs.NO_SPACE_EXIT)
     sys.stderr.flush()
     os._exit(0)  # skip interpreter teardown: a thread a plugin left running cannot hang us
-
-
-if __name__ == "__main__":
-    _child_main(sys.argv[1])

@@ -4,7 +4,7 @@
 compiled steps and the row keeps what it reached. A cell stuck where no driver looks (a
 compiled step that never returns, a plugin's Python, the metrics, the reference) is ended
 from outside: cells run in worker processes, each writes a marker file when it starts a
-cell (``running-PID``, see ``batches.run_batch``), and a ``Watchdog`` thread in the parent
+cell (``running-PID``, see ``batches.run_batch`` and ``jobfiles``), and a ``Watchdog`` thread in the parent
 kills a worker whose cell has run past its hard limit, ``time_limit + GRACE_S +
 GRACE_SHARE * time_limit`` (``hard_limit``), and records a ``timeout`` row for that cell.
 
@@ -24,6 +24,8 @@ import threading
 import time
 from pathlib import Path
 from typing import Any, Callable
+
+from longtime.execution import jobfiles
 
 # the hard limit of a cell: its --time-limit, plus this many seconds, plus this share of it
 GRACE_S = 10.0
@@ -311,9 +313,7 @@ class Watchdog:
 
     def _watch(self) -> None:
         while not self._stop.wait(POLL_S):
-            for marker in self.folder.glob("running-*"):
-                if marker.name.endswith(".part"):
-                    continue
+            for marker in jobfiles.running_markers(self.folder):
                 with contextlib.suppress(OSError, ValueError):
                     self._check(marker)
 
@@ -321,10 +321,9 @@ class Watchdog:
         elapsed = time.time() - marker.stat().st_mtime
         if elapsed <= self.limit:
             return
-        pid = int(marker.name.split("-", 1)[1])
+        pid = jobfiles.marker_pid(marker)
         cell = json.loads(marker.read_text())
-        claimed = marker.with_name(f"killed-{pid}")
-        marker.rename(claimed)  # fails when the cell has just ended (its worker removed it)
+        marker.rename(jobfiles.killed_marker(marker))  # fails when the cell has just ended (its worker removed it)
         with contextlib.suppress(ProcessLookupError, PermissionError):
             os.kill(pid, signal.SIGKILL)
         self.killed += 1

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import json
 import os
 import shutil
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -24,16 +23,16 @@ from longtime.core.cache import no_space
 from longtime.core.params import InputError, check_choice
 from longtime.core.progress import Progress
 from longtime.core.timing import Timing
-from longtime.execution import budget, calibration, tempdirs
-from longtime.execution.batches import batches_by_pair, calibrated_row, key_digest, run_batch, write_json
+from longtime.execution import budget, calibration, jobfiles, tempdirs
+from longtime.execution.batches import batches_by_pair, calibrated_row, run_batch
 from longtime.execution.cells import (
     DEFAULT_MAX_SAMPLES,
     DEFAULT_TIME_LIMIT,
     Cell,
+    RunSpec,
     base_row,
     run_cell,
 )
-from longtime.execution.child import RunSpec
 from longtime.execution.isolation import run_isolated
 from longtime.execution.limits import (
     Watchdog,
@@ -96,6 +95,7 @@ def serial(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict
     returns, a second at once (limits.signal_relay)."""
     here = calibration.here()
     here.start()
+    spec = options.run_spec()
     with signal_relay():
         for cell in cells:
             if options.on_start is not None and not cell.skip_reason:
@@ -103,7 +103,7 @@ def serial(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict
             # the cell runs in this process (a script's, a notebook's): under the memory limit a
             # worker has, lifted again before the row is handed on
             with memory_limited(options.memory_limit):
-                row = calibrated_row(here, cell, options.max_samples, options.timing, options.time_limit)
+                row = calibrated_row(here, cell, spec)
             yield cell, row
 
 
@@ -210,11 +210,10 @@ def _record_timeout(folder: str, time_limit: float) -> Callable[[dict, float], N
 
     def record(cell_dict: dict, elapsed: float) -> None:
         cell = Cell.from_dict(cell_dict)
-        path = Path(folder, f"row-{key_digest(cell.key)}.json")
-        if path.exists():  # it ended just ahead of the kill: its own row stands
+        if jobfiles.row_file(folder, cell.key).exists():  # it ended just ahead of the kill: its own row stands
             return
         row = {**base_row(cell), "status": "timeout", "message": timeout_message(time_limit, elapsed)}
-        write_json(path, {"cell": cell.to_dict(), "row": row})
+        jobfiles.write_row(folder, cell.key, cell.to_dict(), row)
 
     return record
 
@@ -266,8 +265,7 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
                             else None)
                 try:
                     for batch, fut in scheduled(pool, workers, batches_by_pair(remaining), run_batch,
-                                                options.max_samples, options.timing, folder, options.time_limit,
-                                                idle_work=options.idle_work):
+                                                options.run_spec(), folder, idle_work=options.idle_work):
                         try:
                             rows = fut.result()
                         except BrokenProcessPool:  # some worker died: sorted out below
@@ -289,14 +287,12 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
                 if not broken:
                     break
                 # rows the broken pool's workers finished but could not return
-                for path in sorted(Path(folder).glob("row-*.json")):
-                    data = json.loads(path.read_text())
-                    cell = Cell.from_dict(data["cell"])
+                for cell_dict, row in jobfiles.finished_rows(folder):
+                    cell = Cell.from_dict(cell_dict)
                     if cell.key not in done:
                         done.add(cell.key)
-                        yield cell, data["row"]
-                suspects = [Cell.from_dict(json.loads(p.read_text())) for p in Path(folder).glob("running-*")
-                            if not p.name.endswith(".part")]
+                        yield cell, row
+                suspects = [Cell.from_dict(c) for c in jobfiles.running_cells(folder)]
                 suspects = [c for c in suspects if c.key not in done]
                 for path in Path(folder).iterdir():
                     path.unlink()

@@ -341,7 +341,7 @@ def run_children(cells: list[Cell], count: int, spec: RunSpec, jobs: int, timeou
                 index = waiting.pop(0)
                 folder = tempdirs.make("timing")
                 children.write_job(folder, "time", cells, spec, paired=paired)
-                child = children.start(folder, "longtime.execution.processes")
+                child = children.start(folder)
                 started.append(child)
                 running.append((index, child, time.monotonic() + timeout))
             still = []
@@ -395,9 +395,10 @@ def _without(cells: list[Cell], culprit: int, why: str, spec: RunSpec, timeout: 
     return results, ""
 
 
-def _child_main(folder: str) -> None:
+def run_job(folder: str, job: children.Job) -> None:
+    """The child's side of a ``time`` job (longtime.execution.child.KINDS): each cell timed,
+    the results as its result."""
     phases.since_process_start("timing start")  # an interpreter and its imports
-    job = children.read_job(folder)
     children.enter(folder, job)  # a registered class that cannot be restored: its cells fail alone
     reference = None
     if job.options.get("paired"):
@@ -417,7 +418,3 @@ def _child_main(folder: str) -> None:
     children.write_result(folder, results)
     sys.stderr.flush()
     os._exit(0)  # skip interpreter teardown (numba's and LLVM's)
-
-
-if __name__ == "__main__":
-    _child_main(sys.argv[1])

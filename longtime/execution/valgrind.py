@@ -3,11 +3,12 @@ all cells of a run in one Valgrind process (importing numba under Valgrind costs
 minute of CPU; loading a cell's kernels from the cache, a few seconds).
 
 ``instruction_fields(pairs, ...)`` is the parent's side: it decides which cells can be
-counted, writes them to a job file (longtime.execution.child), runs ``python -m
-longtime.execution.valgrind FOLDER`` under Valgrind (longtime.measure.instructions.command)
-and reads the counts back. The ``main`` of this module is the worker's side: per cell it builds the problem and the
-scheme, loads and warms up the kernel uncounted (the counted path itself run WARM_CALLS
-times on the warm-up's throw-away state), then counts only the calls into the compiled loop
+counted, writes them to a job file of kind ``count`` (longtime.execution.child), runs
+``python -m longtime.execution.child FOLDER`` under Valgrind
+(longtime.measure.instructions.command) and reads the counts back. ``run_job`` is the
+worker's side: per cell it builds the problem and the scheme, loads and warms up the
+kernel uncounted (the counted path itself run WARM_CALLS times on the warm-up's throw-away
+state), then counts only the calls into the compiled loop
 (longtime.measure.instructions.counted_call), in one chunk.
 
 The counted kernels are compiled for one fixed target (instructions.COUNT_TARGET,
@@ -30,7 +31,6 @@ from __future__ import annotations
 import re
 import shutil
 import signal
-import sys
 import time
 from pathlib import Path
 from typing import Any, Iterable
@@ -38,7 +38,7 @@ from typing import Any, Iterable
 from longtime.core import registry
 from longtime.core.stepping import AdaptiveIntegrator, FixedStepIntegrator
 from longtime.execution import child as children
-from longtime.execution import tempdirs
+from longtime.execution import jobfiles, tempdirs
 from longtime.execution.cells import Cell, build
 from longtime.execution.child import RunSpec
 from longtime.measure import instructions
@@ -143,8 +143,7 @@ def _count(valgrind: str, cells: list[Cell], rows: dict[str, dict], max_samples:
         limit = STARTUP_SECONDS + sum(PER_CELL_SECONDS + _budget(rows[c.key]) for c in cells)
         prefix = folder / "callgrind.out"
         # no gdb server: a killed Valgrind leaves no vgdb-pipe files in the temp folder
-        child = children.start(folder, "longtime.execution.valgrind", prefix=[*instructions.command(valgrind, prefix),
-                                                                              "--vgdb=no"], env=env)
+        child = children.start(folder, prefix=[*instructions.command(valgrind, prefix), "--vgdb=no"], env=env)
         started = time.monotonic()
         try:
             if child.wait(limit):
@@ -200,9 +199,9 @@ def _prepare(env: dict[str, str], folder: Path, cells: list[Cell], rows: dict[st
     the cells that cannot be counted (every cell when this process fails)."""
     limit = STARTUP_SECONDS + sum(PER_CELL_SECONDS + 2 * _budget(rows[c.key]) / instructions.SLOWDOWN for c in cells)
     what = f"compiling the kernels for {instructions.COUNT_TARGET} (outside Valgrind)"
-    (folder / children.RECORDS_FILE).unlink(missing_ok=True)
+    (folder / jobfiles.RECORDS).unlink(missing_ok=True)
     children.write_job(folder, "count", cells, RunSpec(max_samples, time_limit=None), prepare=True)
-    child = children.start(folder, "longtime.execution.valgrind", env=env)
+    child = children.start(folder, env=env)
     try:
         if not child.wait(limit):
             trouble = f"{what} was stopped after {limit:.0f} s (its limit)"
@@ -216,7 +215,7 @@ def _prepare(env: dict[str, str], folder: Path, cells: list[Cell], rows: dict[st
     finally:
         child.kill()
     done = child.records()
-    (folder / children.RECORDS_FILE).unlink(missing_ok=True)
+    (folder / jobfiles.RECORDS).unlink(missing_ok=True)
     out = {}
     lost = next((i for i, c in enumerate(cells) if c.key not in done), None)
     if trouble and lost is not None and lost + 1 < len(cells):
@@ -293,13 +292,12 @@ def _run_one(cell: Cell, max_samples: int, where: str) -> dict[str, Any]:
     return {"steps": traj.steps, "digest": traj.extra.get("samples_digest")}
 
 
-def main(argv: list[str]) -> int:
-    """Count the cells of the job in the folder ``argv[0]`` (under Valgrind); for a job with
-    ``prepare``, run them once outside it to compile and cache their kernels."""
+def run_job(folder: str, job: children.Job) -> None:
+    """The child's side of a ``count`` job (longtime.execution.child.KINDS): count its cells
+    (under Valgrind); for a job with ``prepare``, run them once outside it to compile and
+    cache their kernels."""
     from longtime.core import stepping
 
-    folder = argv[0]
-    job = children.read_job(folder)
     preparing = bool(job.options.get("prepare"))
     where = f"compiled for {instructions.COUNT_TARGET}" if preparing else "under Valgrind"
     children.enter(folder, job)
@@ -319,8 +317,3 @@ def main(argv: list[str]) -> int:
         else:
             instructions.end_cell()
         children.add_record(folder, cell.key, item)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
