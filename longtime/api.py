@@ -474,7 +474,8 @@ def recommend(problem: Any, error: float, horizon: float, rows: Any = None, *, d
     name, _ = resolve(problem, "problem")
     check_number("error", error, positive=True)
     check_number("horizon", horizon, positive=True)
-    check_span(name, horizon, f"horizon={horizon!r}")
+    if name in registry.problems():  # an unknown one is named by the decision, with the known ones
+        check_span(name, horizon, f"horizon={horizon!r}")
     check_number("budget", budget, minimum=0, maximum=MAX_SECONDS)
     if rows is not None:
         mine = records(rows)

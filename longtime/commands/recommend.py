@@ -15,10 +15,12 @@ from longtime.execution.store import default_path
 
 def cmd_recommend(args) -> int:
     from longtime.api import recommend
+    from longtime.core import registry
     from longtime.execution.cells import check_span
     from longtime.reporting.recommend import NO_ANSWER_EXIT
 
-    check_span(args.problem, args.horizon, f"--horizon {args.horizon:g}")  # a horizon run accepts
+    if args.problem in registry.problems():  # an unknown one is named by recommend, as -p
+        check_span(args.problem, args.horizon, f"--horizon {args.horizon:g}")  # a horizon a run accepts
     answer = recommend(args.problem, args.error, args.horizon, db=args.db, run=args.run, budget=args.budget,
                        library=args.library)
     print(answer)
