@@ -31,8 +31,17 @@ def page(tmp_path_factory):
 def test_page_content(page):
     path, rows = page
     text = path.read_text()
-    # self-contained: nothing loaded from anywhere (SVG namespaces are names, not loads)
+    # nothing loaded from anywhere but the page's own folder (SVG namespaces are names, not loads)
     assert not re.search(r"""(src|href)=["']?(https?:|//)|url\(\s*["']?https?:|@import""", text)
+    # the folder is complete: every figure an <img> of an SVG file beside the page, with its size
+    assert "<svg" not in text
+    images = re.findall(r'<img src="([^"]+)" loading="lazy" alt="[^"]+" width="(\d+)" height="(\d+)">', text)
+    assert len(images) == text.count("<img") == 7
+    for src, width, height in images:
+        figure = path.parent / src
+        assert src.startswith("figures/") and figure.is_file() and int(width) > 50 and int(height) > 50
+        assert figure.read_text().lstrip().startswith("<?xml") and "<svg" in figure.read_text()
+    assert sorted(f.name for f in (path.parent / "figures").iterdir()) == sorted(Path(s).name for s, _, _ in images)
     # the winner map, work-precision and drift per problem, and the run's calibrations
     assert text.count('<figure class="plot">') == 7
     assert "14 cells</b> (12 ok, 2 skipped)" in text
@@ -295,3 +304,33 @@ def test_drift_figure_stays_legible_with_thirty_schemes(monkeypatch):
     widths = [ax.get_position().width * fig.get_figwidth() for ax in panels]
     assert len(panels) == 3 and min(widths) > 2.0, widths  # inches
     assert len(fig.legends) == 1 and len(fig.legends[0].get_texts()) == 30
+
+
+def test_the_page_and_its_figures_are_replaced_together(tmp_path, monkeypatch):
+    from longtime.core import files as files_module
+    from longtime.reporting import page as page_module
+    from longtime.reporting.page import figure_files, write_folder
+
+    svg = '<svg width="72pt" height="36pt" viewBox="0 0 72 36"><path d="M0 0L1 1"/></svg>'
+    first, files = figure_files(f'<figure class="plot">{svg}<figcaption>Winner map: a map.</figcaption></figure>')
+    assert first.startswith('<figure class="plot"><img src="figures/') and 'alt="Winner map"' in first
+    assert 'width="96" height="48"' in first and len(files) == 1
+    write_folder(tmp_path, first, files)
+    old = sorted((tmp_path / "figures").iterdir())
+    # a write that fails at the page (a full disk) keeps the earlier page and its figures whole
+    second, more = figure_files(f'<figure class="plot">{svg.replace("M0 0", "M0 1")}</figure>')
+    real = files_module.write_atomic
+
+    def full(path, data, *a):
+        if Path(path).name == "index.html":
+            raise files_module.NotWritten(28, "No space left on device", str(path))
+        return real(path, data, *a)
+
+    monkeypatch.setattr(page_module, "write_atomic", full)
+    with pytest.raises(files_module.NotWritten):
+        write_folder(tmp_path, second, more)
+    assert (tmp_path / "index.html").read_text() == first and sorted((tmp_path / "figures").iterdir()) == old
+    monkeypatch.setattr(page_module, "write_atomic", real)
+    # a write that succeeds leaves the new page's figures only
+    write_folder(tmp_path, second, more)
+    assert sorted(f"figures/{f.name}" for f in (tmp_path / "figures").iterdir()) == sorted(more)

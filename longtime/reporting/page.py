@@ -1,5 +1,9 @@
-"""The results page: one self-contained static HTML file (figures inline as SVG, no
-script or style from the network, no server).
+"""The results page: a static folder, index.html and its figures beside it as SVG files
+(figures/<digest>.svg, each an <img> that loads lazily, with its size so that the page lays
+out before any figure loads); no script or style from the network, no server. The page and
+its figures are written together: the figures first, each whole, then index.html (renamed
+into place), then the figures of the page it replaced; a failed write leaves the previous
+page and its figures as they were.
 
 Head: the run's metadata (command, commit, versions, machine) and the counts of each
 status. Per problem: the work-precision figure (error against the minimum CPU time of the
@@ -18,7 +22,9 @@ pool workers, with longtime.reporting.figures_ahead).
 """
 from __future__ import annotations
 
+import hashlib
 import json
+import re
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Iterable
@@ -41,6 +47,11 @@ from longtime.reporting.page_tables import (
 from longtime.reporting.report import format_counts, not_ok, status_counts
 
 PAGE_NAME = "index.html"
+FIGURES_DIR = "figures"  # the page's figures, beside index.html
+
+_SVG = re.compile(r"<svg\b.*?</svg>", re.S)
+_PT = re.compile(r'\b(width|height)="([0-9.]+)pt"')
+_CAPTION = re.compile(r"\s*<figcaption>([^<]*)")
 
 
 def provenance_text(run: dict) -> str:
@@ -362,17 +373,61 @@ def _calibration_figures(runs: list[dict[str, Any]]) -> list[str]:
     return out
 
 
+def figure_files(page: str) -> tuple[str, dict[str, bytes]]:
+    """(the page with each inline SVG figure replaced by an <img> of its file, {file name
+    relative to the page: its bytes}). A file is named by a digest of its content; the <img>
+    carries the figure's size in CSS pixels and, as its text, the start of its caption."""
+    files: dict[str, bytes] = {}
+
+    def to_file(m: re.Match) -> str:
+        figure = m.group(0)
+        name = f"{FIGURES_DIR}/{hashlib.md5(figure.encode()).hexdigest()[:16]}.svg"
+        files[name] = ('<?xml version="1.0" encoding="utf-8" standalone="no"?>\n' + figure).encode()
+        root = figure[:figure.index(">")]
+        size = "".join(f' {k}="{round(float(v) * 4 / 3)}"' for k, v in _PT.findall(root))  # 1 pt = 4/3 px
+        caption = _CAPTION.match(page, m.end())
+        alt = caption.group(1).split(":")[0].split(".")[0].strip() if caption else ""
+        return f'<img src="{name}" loading="lazy" alt="{alt or "figure"}"{size}>'
+
+    return _SVG.sub(to_file, page), files
+
+
 def write_page(out_dir: str | Path, rows: list[dict[str, Any]], runs: list[dict[str, Any]],
                drift: bool = True, jobs: int = 1, ahead: FiguresAhead | None = None,
                history: str | None = None, checks: Iterable[dict[str, Any]] = (),
                writer: str = "report --html", ensembles: Iterable[dict[str, Any]] = ()) -> Path:
-    """Write ``out_dir``/index.html (figures drawn on ``jobs`` processes, or ``ahead``);
-    return its path."""
+    """Write ``out_dir``/index.html and its figures (drawn on ``jobs`` processes, or
+    ``ahead``) in ``out_dir``/figures; return the page's path."""
+    page, files = figure_files(build_page(rows, runs, drift=drift, jobs=jobs, ahead=ahead, history=history,
+                                          checks=checks, writer=writer, ensembles=ensembles))
+    return write_folder(out_dir, page, files)
+
+
+def write_folder(out_dir: str | Path, page: str, files: dict[str, bytes]) -> Path:
+    """``page`` as ``out_dir``/index.html with ``files`` beside it, replacing an earlier page
+    and its figures at once (the rename of index.html): the files first, then the page, then
+    the earlier page's figures that this one does not use. On a failed write (``NotWritten``)
+    the files written so far are removed and the earlier page keeps its own."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    path = out / PAGE_NAME
-    return write_atomic(path, build_page(rows, runs, drift=drift, jobs=jobs, ahead=ahead, history=history,
-                                         checks=checks, writer=writer, ensembles=ensembles))
+    written = []
+    try:
+        for name, data in files.items():
+            path = out / name
+            if path.is_file() and not path.is_symlink() and path.read_bytes() == data:
+                continue  # the same figure, already there (its name is its digest)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            written.append(write_atomic(path, data))
+        page_path = write_atomic(out / PAGE_NAME, page)
+    except OSError:  # NotWritten, or a folder that cannot be made
+        for path in written:
+            path.unlink(missing_ok=True)
+        raise
+    folder = out / FIGURES_DIR
+    for old in folder.glob("*.svg") if folder.is_dir() else ():
+        if f"{FIGURES_DIR}/{old.name}" not in files:
+            old.unlink(missing_ok=True)
+    return page_path
 
 
 def write_html(out_dir, rows: list[dict[str, Any]], store, run_ids: Iterable[int] | None = None,
