@@ -75,17 +75,22 @@ def test_summary_starts_with_counts_and_pareto(page):
 
 
 def test_page_leads_with_the_verdict(page):
-    """The page's order: the verdict per problem (an answer, the winner map), the checks, the
-    evidence (folded), the capability matrix, the run and machine last; the footer names the
-    command that wrote it."""
+    """The page's order: the answers (one row per problem) and which library on the first
+    screen, the verdict per problem (an answer, the winner map), the checks, the evidence
+    (folded), the capability matrix, the run and machine last; the footer names the command
+    that wrote it."""
     path, _ = page
     text = path.read_text()
-    order = ['<h2 id="verdict">', '<h3 id="verdict-harmonic">', 'class="answer"', "Winner map:",
+    order = ['<nav><b>Contents:</b>', '<h2 id="answers">', '<table class="answers">', '<h2 id="libraries">',
+             '<h2 id="verdict">', '<h3 id="verdict-harmonic">', 'class="answer"', "Winner map:",
              '<h3 id="verdict-kepler">', '<h2 id="checks">', '<h2 id="evidence">', '<h3 id="harmonic">',
              "<details><summary>Fastest scheme per accuracy", '<h2 id="capabilities">', '<h2 id="about">',
              'class="meta"', "by <code>longtime report --html</code>"]
     at = [text.find(x) for x in order]
     assert -1 not in at and at == sorted(at), dict(zip(order, at))
+    # the answers table: a row per problem, linked to its verdict
+    answers = text[text.find('<table class="answers">'):text.find('<h2 id="libraries">')]
+    assert '<a href="#verdict-harmonic">harmonic</a>' in answers and '<a href="#verdict-kepler">kepler</a>' in answers
     # the calibration and the metadata come after everything else
     assert text.find("<figcaption>Run 1: the reference workload") > text.find('<h2 id="about">')
 

@@ -104,13 +104,9 @@ def _verdict_section(p: str, v, mine: list[dict]) -> str:
         return head + (f'<p class="note">No verdict: no ok row with an error, a growth class and a CPU time '
                        f'(<code>longtime matrix -p {escape(p)}</code> measures them).</p>')
     out = [head]
-    # an example answer: at a hundred times the runs' final time, 1e-6 where predicted (else
-    # the middle of the targets predicted there)
-    h = v.horizons[min(2, len(v.horizons) - 1)]
-    met = [t for t in v.targets if v.grid[(t, h)].best is not None]
-    if met:
-        t = 1e-6 if 1e-6 in met else met[len(met) // 2]
-        d = v.grid[(t, h)]
+    example = _example(v)
+    if example:
+        t, h, d = example
         b, r = d.best, d.runner_up
         runner = (f"; runner-up {escape(r.text)}, x{r.cpu_at(h) / b.cpu_at(h):.3g} the CPU" if r else
                   "; no other scheme is predicted to keep it")
@@ -120,12 +116,7 @@ def _verdict_section(p: str, v, mine: list[dict]) -> str:
                    f'<span class="note">Any other target and horizon: the map below, or <code>longtime recommend -p '
                    f'{escape(p)} --error E --horizon T</code>.</span></p>')
     else:
-        chaotic = next((d for (_, h_), d in v.grid.items() if h_ == h and d.limit is not None), None)
-        if chaotic is not None:  # past the predictability horizon: no pointwise answer, and why
-            out.append(f'<p class="answer">No pointwise answer up to T = {h:.3g}: '
-                       f'{escape(chaotic.limit.text())}.</p>')
-        else:
-            out.append(f'<p class="answer">No setting is predicted to keep any target up to T = {h:.3g}.</p>')
+        out.append(f'<p class="answer">{escape(_no_answer(v))}.</p>')
     fig = winner_map_svg(v)
     if fig:
         out.append(f'<figure class="plot">{fig}<figcaption>Winner map: for each target ({escape(v.measure.text)}) '
@@ -162,6 +153,57 @@ def _verdict_section(p: str, v, mine: list[dict]) -> str:
                          "<ul>" + "".join(f"<li>{escape(check_text(c))}</li>" for c in failed_first(v.checks))
                          + "</ul>", open_=check_counts(v.checks)["failed"] > 0))
     return "".join(out)
+
+
+def _example(v):
+    """(target, horizon, decision) of a verdict's example answer: at a hundred times the
+    runs' final time, 1e-6 where predicted (else the middle of the targets predicted there);
+    None where no target is predicted there."""
+    h = v.horizons[min(2, len(v.horizons) - 1)]
+    met = [t for t in v.targets if v.grid[(t, h)].best is not None]
+    if not met:
+        return None
+    t = 1e-6 if 1e-6 in met else met[len(met) // 2]
+    return t, h, v.grid[(t, h)]
+
+
+def _no_answer(v) -> str:
+    """Why a verdict has no example answer: past the predictability horizon, or no setting."""
+    h = v.horizons[min(2, len(v.horizons) - 1)]
+    chaotic = next((d for (_, h_), d in v.grid.items() if h_ == h and d.limit is not None), None)
+    if chaotic is not None:  # past the predictability horizon: no pointwise answer, and why
+        return f"No pointwise answer up to T = {h:.3g}: {chaotic.limit.text()}"
+    return f"No setting is predicted to keep any target up to T = {h:.3g}"
+
+
+def _answers_section(problems: list[str], found: dict) -> str:
+    """The first screen's answer: one row per problem, its example answer (the verdict's
+    first line) with its CPU and the runner-up's ratio; the verdict below says more."""
+    body = []
+    for p in problems:
+        v = found[p]
+        link = f'<a href="#verdict-{slug(p)}">{escape(p)}</a>'
+        if v.measure is None or not v.candidates:
+            body.append([link, '<td colspan="5">no verdict: no ok row with an error, a growth class and a CPU '
+                               "time</td>"])
+            continue
+        example = _example(v)
+        if example is None:
+            body.append([link, f'<td colspan="5">{escape(_no_answer(v))}</td>'])
+            continue
+        t, h, d = example
+        b, r = d.best, d.runner_up
+        body.append([link, f"<td>{escape(v.measure.field)} &le; {t:.0e} up to T = {h:.3g}</td>",
+                     f"<td><b>{escape(b.text)}</b></td>", f'<td class="num">{b.cpu_at(h):.3g}</td>',
+                     f'<td class="num">{b.error_at(h):.2g}</td>',
+                     f"<td>{escape(r.text)} (x{r.cpu_at(h) / b.cpu_at(h):.3g})</td>" if r else "<td>none</td>"])
+    rows = "".join("<tr>" + (f"<td>{c[0]}</td>" + "".join(c[1:])) + "</tr>" for c in body)
+    head = "".join(f"<th>{h}</th>" for h in ("problem", "target", "cheapest setting", "CPU s", "predicted error",
+                                             "runner-up (its CPU)"))
+    return (f'<h2 id="answers">Answers</h2><table class="answers"><tr>{head}</tr>{rows}</table>'
+            '<p class="note">Per problem, the cheapest stored setting predicted to keep the target up to T '
+            '(a hundred times the runs\' final time); any other target and horizon: <a href="#verdict">the '
+            "verdicts</a> below.</p>")
 
 
 def _libraries_section(rows: list[dict]) -> str:
@@ -320,11 +362,13 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
            f'<p class="lead"><b>{len(rows)} cells</b> ({escape(format_counts(counts))}) '
            f'of run{"s" if len(runs) != 1 else ""} '
            f'{escape(ids)}. <a href="#about">The run, the machine and its calibration</a> are at the end.</p>',
-           "<nav><b>Verdict:</b> " + "".join(f'<a href="#verdict-{slug(p)}">{escape(p)}</a>' for p in problems)
-           + '<br><a href="#libraries">which library</a><a href="#checks">checked predictions</a>'
+           '<nav><b>Contents:</b> <a href="#answers">answers</a><a href="#libraries">which library</a>'
+           + "<b>verdict:</b> " + "".join(f'<a href="#verdict-{slug(p)}">{escape(p)}</a>' for p in problems)
+           + '<br><a href="#checks">checked predictions</a>'
            + ('<a href="#cards">scheme cards</a>' if cards else "")
            + '<a href="#evidence">evidence</a>' + ('<a href="#history">history</a>' if history else "")
            + '<a href="#capabilities">capability matrix</a><a href="#about">run and machine</a></nav>',
+           _answers_section(problems, found), _libraries_section(rows),
            '<h2 id="verdict">Verdict</h2>'
            '<p class="note">Per problem, the cheapest stored setting predicted to keep a target error '
            'up to a horizon T: '
@@ -336,7 +380,6 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
            "against the problem's horizon); past its reach, or where its growth is undetermined, a "
            "setting predicts nothing. docs/metrics.md says how a prediction is made and checked.</p>"]
     out += verdict_sections
-    out.append(_libraries_section(rows))
     out.append(checked)
     if cards:
         out.append(cards)
