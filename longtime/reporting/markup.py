@@ -42,7 +42,8 @@ if(!left){done();}
 figs.forEach(function(f){var i=f.querySelector('img');if(!i){if(--left===0){done();}return;}
 var probe=new Image();probe.onload=function(){if(probe.naturalWidth>50&&probe.naturalHeight>50&&i.width>50){drawn++;
 f.dataset.rendered='yes';}if(--left===0){done();}};
-probe.onerror=function(){errs.push('no figure '+i.getAttribute('src'));if(--left===0){done();}};probe.src=i.src;});});})();
+probe.onerror=function(){errs.push('no figure '+i.getAttribute('src'));if(--left===0){done();}};
+probe.src=i.src;});});})();
 """
 
 

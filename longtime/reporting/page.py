@@ -14,8 +14,9 @@ table, the growth classes per scheme and setting, the fitted orders, and the sta
 intervals of the schemes where they were measured. Then one capability matrix, schemes x
 problems: ran / skipped and why / diverged / failed.
 
-Colours: one per scheme family (the module that defines the scheme: explicit RK,
-splitting, ...), a marker per scheme within it; legends sit outside the axes.
+Colours: a colour and a marker per scheme, one look per scheme in every figure of the page
+and no two schemes of a figure alike (longtime.reporting.figures.style.styles of the page's
+schemes); legends sit outside the axes.
 
 The figures are drawn by longtime.reporting.figures.results (ahead of the page, by idle
 pool workers, with longtime.reporting.figures_ahead).
@@ -91,9 +92,10 @@ def _fold(summary: str, body: str, open_: bool = False) -> str:
     return f'<details{" open" if open_ else ""}><summary>{summary}</summary>{body}</details>'
 
 
-def _verdict_section(p: str, v, mine: list[dict]) -> str:
-    """One problem's verdict: an example answer, the winner map, the winners as a table
-    (folded) and the settings whose law does not extrapolate, each with its deciding run."""
+def _verdict_section(p: str, v, mine: list[dict], style: dict | None = None) -> str:
+    """One problem's verdict: an example answer, the winner map (in the page's ``style``),
+    the winners as a table (folded) and the settings whose law does not extrapolate, each
+    with its deciding run."""
     from longtime.predict.checks import check_counts, check_summary
     from longtime.predict.decision import deciding_run
     from longtime.reporting.figures.verdict import winner_map_svg
@@ -117,7 +119,7 @@ def _verdict_section(p: str, v, mine: list[dict]) -> str:
                    f'{escape(p)} --error E --horizon T</code>.</span></p>')
     else:
         out.append(f'<p class="answer">{escape(_no_answer(v))}.</p>')
-    fig = winner_map_svg(v)
+    fig = winner_map_svg(v, style)
     if fig:
         out.append(f'<figure class="plot">{fig}<figcaption>Winner map: for each target ({escape(v.measure.text)}) '
                    f"and horizon T, the scheme of the cheapest setting predicted to keep it (its setting written "
@@ -351,7 +353,7 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
         counts = status_counts(rows)
         found = verdicts(rows, checks)
         cards = _cards_section(rows)
-        verdict_sections = [_verdict_section(p, found[p], by_problem[p]) for p in problems]
+        verdict_sections = [_verdict_section(p, found[p], by_problem[p], style) for p in problems]
         checked = _checks_section(checks)
         figures, intervals = drawn()
     ids = ", ".join(str(r["id"]) for r in runs) or "-"
