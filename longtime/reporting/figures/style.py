@@ -103,9 +103,10 @@ def front_schemes(rows: list[dict]) -> set[str]:
 
 
 def svg(fig) -> str:
-    """The figure as inline SVG markup (no XML prolog); closes the figure.
+    """The figure as SVG markup (no XML prolog; the page writes it as a file beside itself);
+    closes the figure.
 
-    Text stays text (``svg.fonttype`` none): the page can be searched for a scheme's name, and
+    Text stays text (``svg.fonttype`` none): a figure can be searched for a scheme's name, and
     the SVG is a third smaller and faster to write than with every glyph as a path. The
     figure is drawn once: its tight box is measured with Agg's renderer, which lays the
     figure out without drawing it, where ``bbox_inches="tight"`` draws the whole figure
