@@ -335,6 +335,14 @@ def test_the_page_and_its_figures_are_replaced_together(tmp_path, monkeypatch):
     with pytest.raises(files_module.NotWritten):
         write_folder(tmp_path, second, more)
     assert (tmp_path / "index.html").read_text() == first and sorted((tmp_path / "figures").iterdir()) == old
+    # a write that fails at a figure into a new folder leaves nothing, and names the page and the figure
+    monkeypatch.setattr(page_module, "write_atomic", lambda path, data, *a: full(Path(path).with_name("index.html"),
+                                                                                data))
+    with pytest.raises(files_module.NotWritten) as caught:
+        write_folder(tmp_path / "new", second, more)
+    assert str(caught.value).startswith(f"cannot write {tmp_path / 'new' / 'index.html'}: No space left on device "
+                                        f"(its figure figures/")
+    assert [p.name for p in (tmp_path / "new").iterdir()] == []
     monkeypatch.setattr(page_module, "write_atomic", real)
     # a write that succeeds leaves the new page's figures only
     write_folder(tmp_path, second, more)

@@ -30,7 +30,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Iterable
 
-from longtime.core.files import write_atomic
+from longtime.core.files import NotWritten, write_atomic
 from longtime.measure.orders import left_out, observed_orders
 from longtime.reporting.figures.results import figures_drawing
 from longtime.reporting.figures.style import styles
@@ -451,11 +451,15 @@ def write_page(out_dir: str | Path, rows: list[dict[str, Any]], runs: list[dict[
 def write_folder(out_dir: str | Path, page: str, files: dict[str, bytes]) -> Path:
     """``page`` as ``out_dir``/index.html with ``files`` beside it, replacing an earlier page
     and its figures at once (the rename of index.html): the files first, then the page, then
-    the earlier page's figures that this one does not use. On a failed write (``NotWritten``)
-    the files written so far are removed and the earlier page keeps its own."""
+    the earlier page's figures that this one does not use. On a failed write the files
+    written so far are removed, the earlier page keeps its own, and ``NotWritten`` names the
+    page (and the figure that failed)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    written = []
+    page_path = out / PAGE_NAME
+    folder = out / FIGURES_DIR
+    made = not folder.exists()
+    written, name = [], None
     try:
         for name, data in files.items():
             path = out / name
@@ -463,12 +467,17 @@ def write_folder(out_dir: str | Path, page: str, files: dict[str, bytes]) -> Pat
                 continue  # the same figure, already there (its name is its digest)
             path.parent.mkdir(parents=True, exist_ok=True)
             written.append(write_atomic(path, data))
-        page_path = write_atomic(out / PAGE_NAME, page)
-    except OSError:  # NotWritten, or a folder that cannot be made
+        name = None
+        write_atomic(page_path, page)
+    except OSError as exc:  # NotWritten, or a folder that cannot be made
         for path in written:
             path.unlink(missing_ok=True)
-        raise
-    folder = out / FIGURES_DIR
+        if made and folder.is_dir() and not any(folder.iterdir()):
+            folder.rmdir()
+        if name is None and isinstance(exc, NotWritten):
+            raise
+        what = f" (its figure {name})" if name else ""
+        raise NotWritten(exc.errno, f"{exc.strerror or exc}{what}", str(page_path)) from exc
     for old in folder.glob("*.svg") if folder.is_dir() else ():
         if f"{FIGURES_DIR}/{old.name}" not in files:
             old.unlink(missing_ok=True)
