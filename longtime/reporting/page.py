@@ -273,8 +273,8 @@ def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: l
     fig = figs["work_precision"]
     if fig:
         out.append(_fold("Work-precision figure", f'<figure class="plot">{fig}<figcaption>{escape(figs["field"])} '
-                                                  f"against CPU seconds, one point per setting; colour: scheme family, "
-                                                  f"marker: scheme.</figcaption></figure>"))
+                                                  f"against CPU seconds, one point per setting; a colour and a marker "
+                                                  f"per scheme.</figcaption></figure>"))
     fig = figs.get("work_precision_instructions")
     if fig:
         out.append(_fold("Work-precision in instructions", f'<figure class="plot">{fig}<figcaption>'
