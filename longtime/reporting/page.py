@@ -24,6 +24,7 @@ pool workers, with longtime.reporting.figures_ahead).
 from __future__ import annotations
 
 import hashlib
+import html
 import json
 import re
 from datetime import datetime, timezone
@@ -431,8 +432,8 @@ def figure_files(page: str) -> tuple[str, dict[str, bytes]]:
         root = figure[:figure.index(">")]
         size = "".join(f' {k}="{round(float(v) * 4 / 3)}"' for k, v in _PT.findall(root))  # 1 pt = 4/3 px
         caption = _CAPTION.match(page, m.end())
-        alt = caption.group(1).split(":")[0].split(".")[0].strip() if caption else ""
-        return f'<img src="{name}" loading="lazy" alt="{alt or "figure"}"{size}>'
+        alt = re.split(r"[:;.(]", html.unescape(caption.group(1)))[0].strip() if caption else ""
+        return f'<img src="{name}" loading="lazy" alt="{escape(alt or "figure")}"{size}>'
 
     return _SVG.sub(to_file, page), files
 
