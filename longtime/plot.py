@@ -75,8 +75,8 @@ def _axes(ax):
 
 
 def scheme_styles(schemes) -> dict[str, dict[str, str]]:
-    """The results page's style: each scheme its own colour and marker, the same in every
-    figure and every run (longtime.reporting.figures.style.scheme_style)."""
+    """The results page's style of ``schemes`` drawn together: a colour and a marker each, no
+    two alike (longtime.reporting.figures.style.styles)."""
     from longtime.reporting.figures.style import styles
 
     return styles(schemes)
@@ -140,6 +140,7 @@ def drift(result_or_rows: Any, invariant: str = "H", ax=None):
     from longtime.api import Result, records
     from longtime.measure.metrics import relative_error
     from longtime.reporting.figures.results import row_curves
+    from longtime.reporting.figures.style import scheme_style
     from longtime.reporting.report import setting
 
     with matplotlib.rc_context(RC):
@@ -153,7 +154,7 @@ def drift(result_or_rows: Any, invariant: str = "H", ax=None):
             t = res.t - res.t[0]
             shown = (t > 0) & (err > 0)
             scheme = res.row["integrator"]
-            ax.loglog(t[shown], err[shown], lw=0.8, color=scheme_styles([scheme])[scheme]["color"],
+            ax.loglog(t[shown], err[shown], lw=0.8, color=scheme_style(scheme)["color"],
                       label=f"{scheme} {setting(res.row)}".strip())
             title = res.row["problem"]
         else:

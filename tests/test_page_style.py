@@ -1,5 +1,5 @@
-"""The results page and the API's plots: a scheme has one colour and one marker in every
-figure and every run; a crowded figure greys the schemes off the Pareto front; the
+"""The results page and the API's plots: no two schemes of a figure share a colour, a scheme
+has one colour and one marker across the figures of a page; a crowded figure greys the schemes off the Pareto front; the
 capability matrix says "lost" where a scheme lost the solution; the inline SVGs share no id."""
 import re
 from collections import Counter
@@ -16,22 +16,57 @@ def rows():
                           repeats=1).to_dict("records")
 
 
-def test_a_scheme_has_the_same_colour_in_every_figure(rows):
+def test_a_scheme_has_the_same_colour_in_every_figure_of_a_page(rows):
     from longtime import plot
     from longtime.reporting.figures.results import drift_svg, work_precision_svg
     from longtime.reporting.figures.verdict import scheme_colours
 
-    colour = scheme_style("verlet")["color"]
-    other = scheme_style("rk4")["color"]
+    page = styles(["verlet", "rk4", "euler", "dop853", "heyoka"])  # the page's schemes
+    colour, other = page["verlet"]["color"], page["rk4"]["color"]
     assert colour != other
-    # whatever else a figure holds
-    assert styles(["verlet", "rk4"])["verlet"] == styles(["verlet", "euler", "dop853", "heyoka"])["verlet"]
-    precision = work_precision_svg(rows, "l2_error", styles(["verlet", "rk4"]))
-    drift, _ = drift_svg(rows, styles(["verlet", "rk4"]))
+    precision = work_precision_svg(rows, "l2_error", page)
+    drift, _ = drift_svg(rows, page)
     for figure in (precision, drift):
         assert f"stroke: {colour}" in figure and f"stroke: {other}" in figure
-    assert scheme_colours(["verlet", "rk4"])["verlet"] == colour  # the winner maps
-    assert plot.scheme_styles(["verlet", "euler"])["verlet"]["color"] == colour  # the API's plots
+    assert scheme_colours(["verlet", "rk4"], page)["verlet"] == colour  # the winner maps
+    assert scheme_colours(["verlet"])["verlet"] == scheme_style("verlet")["color"]  # a map drawn alone
+    assert plot.scheme_styles(["verlet", "euler"]) == styles(["verlet", "euler"])  # the API's plots
+
+
+def _lab(colour: str) -> tuple[float, float, float]:
+    """CIELAB of an sRGB hex colour (D65)."""
+    r, g, b = (int(colour[i:i + 2], 16) / 255 for i in (1, 3, 5))
+    r, g, b = (((c + 0.055) / 1.055) ** 2.4 if c > 0.04045 else c / 12.92 for c in (r, g, b))
+    x = (0.4124 * r + 0.3576 * g + 0.1805 * b) / 0.95047
+    y = 0.2126 * r + 0.7152 * g + 0.0722 * b
+    z = (0.0193 * r + 0.1192 * g + 0.9505 * b) / 1.08883
+    f = [c ** (1 / 3) if c > 0.008856 else 7.787 * c + 16 / 116 for c in (x, y, z)]
+    return 116 * f[1] - 16, 500 * (f[0] - f[1]), 200 * (f[1] - f[2])
+
+
+def _delta_e(a: str, b: str) -> float:
+    return sum((p - q) ** 2 for p, q in zip(_lab(a), _lab(b))) ** 0.5
+
+
+@pytest.mark.parametrize("n", [2, 7, 10, 14, 20])
+def test_no_two_schemes_of_a_figure_share_a_colour(n):
+    from longtime.core import registry
+
+    own = sorted(name for name, c in registry.integrators().items() if c.__module__.startswith("longtime."))
+    # schemes whose own looks (by their place among all) collide: every 20th by name
+    for schemes in (own[:n], own[::20][:n] + own[1::20][:max(0, n - len(own[::20]))], own[-n:]):
+        colours = [c["color"] for c in styles(schemes).values()]
+        assert len(set(colours)) == len(colours) == len(set(schemes))
+        # told apart by eye: at least 23 apart in CIELAB (about 10 just-noticeable differences)
+        assert min(_delta_e(a, b) for k, a in enumerate(colours) for b in colours[k + 1:]) > 23
+        assert min(_delta_e(c, GREY) for c in colours) > 23 and min(_delta_e(c, "#ffffff") for c in colours) > 40
+    # henon-heiles as in the report of three schemes in one green
+    seven = ["rk4", "verlet", "gauss4", "yoshida8", "rk45", "heyoka", "symplectic-euler"]
+    colours = [c["color"] for c in styles(seven).values()]
+    assert min(_delta_e(a, b) for k, a in enumerate(colours) for b in colours[k + 1:]) > 27
+    # past twenty the colours repeat, the (colour, marker) pairs do not
+    many = styles(own[:40])
+    assert len({(c["color"], c["marker"]) for c in many.values()}) == len(many)
 
 
 def test_the_looks_follow_a_fixed_rule():

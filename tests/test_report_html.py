@@ -40,8 +40,17 @@ def page(tmp_path_factory):
 def test_page_content(page):
     path, rows = page
     text = path.read_text()
-    # self-contained: nothing loaded from anywhere (SVG namespaces are names, not loads)
+    # nothing loaded from anywhere but the page's own folder (SVG namespaces are names, not loads)
     assert not re.search(r"""(src|href)=["']?(https?:|//)|url\(\s*["']?https?:|@import""", text)
+    # the folder is complete: every figure an <img> of an SVG file beside the page, with its size
+    assert "<svg" not in text
+    images = re.findall(r'<img src="([^"]+)" loading="lazy" alt="[^"]+" width="(\d+)" height="(\d+)">', text)
+    assert len(images) == text.count("<img") == 7
+    for src, width, height in images:
+        figure = path.parent / src
+        assert src.startswith("figures/") and figure.is_file() and int(width) > 50 and int(height) > 50
+        assert figure.read_text().lstrip().startswith("<?xml") and "<svg" in figure.read_text()
+    assert sorted(f.name for f in (path.parent / "figures").iterdir()) == sorted(Path(s).name for s, _, _ in images)
     # the winner map, work-precision and drift per problem, and the run's calibrations
     assert figures_beside_the_checks(text) == 7
     assert "14 cells</b> (12 ok, 2 skipped)" in text
@@ -75,17 +84,22 @@ def test_summary_starts_with_counts_and_pareto(page):
 
 
 def test_page_leads_with_the_verdict(page):
-    """The page's order: the verdict per problem (an answer, the winner map), the checks, the
-    evidence (folded), the capability matrix, the run and machine last; the footer names the
-    command that wrote it."""
+    """The page's order: the answers (one row per problem) and which library on the first
+    screen, the verdict per problem (an answer, the winner map), the checks, the evidence
+    (folded), the capability matrix, the run and machine last; the footer names the command
+    that wrote it."""
     path, _ = page
     text = path.read_text()
-    order = ['<h2 id="verdict">', '<h3 id="verdict-harmonic">', 'class="answer"', "Winner map:",
+    order = ['<nav><b>Contents:</b>', '<h2 id="answers">', '<table class="answers">', '<h2 id="libraries">',
+             '<h2 id="verdict">', '<h3 id="verdict-harmonic">', 'class="answer"', "Winner map:",
              '<h3 id="verdict-kepler">', '<h2 id="checks">', '<h2 id="evidence">', '<h3 id="harmonic">',
              "<details><summary>Fastest scheme per accuracy", '<h2 id="capabilities">', '<h2 id="about">',
              'class="meta"', "by <code>longtime report --html</code>"]
     at = [text.find(x) for x in order]
     assert -1 not in at and at == sorted(at), dict(zip(order, at))
+    # the answers table: a row per problem, linked to its verdict
+    answers = text[text.find('<table class="answers">'):text.find('<h2 id="libraries">')]
+    assert '<a href="#verdict-harmonic">harmonic</a>' in answers and '<a href="#verdict-kepler">kepler</a>' in answers
     # the calibration and the metadata come after everything else
     assert text.find("<figcaption>Run 1: the reference workload") > text.find('<h2 id="about">')
 
@@ -305,3 +319,41 @@ def test_drift_figure_stays_legible_with_thirty_schemes(monkeypatch):
     widths = [ax.get_position().width * fig.get_figwidth() for ax in panels]
     assert len(panels) == 3 and min(widths) > 2.0, widths  # inches
     assert len(fig.legends) == 1 and len(fig.legends[0].get_texts()) == 30
+
+
+def test_the_page_and_its_figures_are_replaced_together(tmp_path, monkeypatch):
+    from longtime.core import files as files_module
+    from longtime.reporting import page as page_module
+    from longtime.reporting.page import figure_files, write_folder
+
+    svg = '<svg width="72pt" height="36pt" viewBox="0 0 72 36"><path d="M0 0L1 1"/></svg>'
+    first, files = figure_files(f'<figure class="plot">{svg}<figcaption>Winner map: a map.</figcaption></figure>')
+    assert first.startswith('<figure class="plot"><img src="figures/') and 'alt="Winner map"' in first
+    assert 'width="96" height="48"' in first and len(files) == 1
+    write_folder(tmp_path, first, files)
+    old = sorted((tmp_path / "figures").iterdir())
+    # a write that fails at the page (a full disk) keeps the earlier page and its figures whole
+    second, more = figure_files(f'<figure class="plot">{svg.replace("M0 0", "M0 1")}</figure>')
+    real = files_module.write_atomic
+
+    def full(path, data, *a):
+        if Path(path).name == "index.html":
+            raise files_module.NotWritten(28, "No space left on device", str(path))
+        return real(path, data, *a)
+
+    monkeypatch.setattr(page_module, "write_atomic", full)
+    with pytest.raises(files_module.NotWritten):
+        write_folder(tmp_path, second, more)
+    assert (tmp_path / "index.html").read_text() == first and sorted((tmp_path / "figures").iterdir()) == old
+    # a write that fails at a figure into a new folder leaves nothing, and names the page and the figure
+    monkeypatch.setattr(page_module, "write_atomic", lambda path, data, *a: full(Path(path).with_name("index.html"),
+                                                                                data))
+    with pytest.raises(files_module.NotWritten) as caught:
+        write_folder(tmp_path / "new", second, more)
+    assert str(caught.value).startswith(f"cannot write {tmp_path / 'new' / 'index.html'}: No space left on device "
+                                        f"(its figure figures/")
+    assert [p.name for p in (tmp_path / "new").iterdir()] == []
+    monkeypatch.setattr(page_module, "write_atomic", real)
+    # a write that succeeds leaves the new page's figures only
+    write_folder(tmp_path, second, more)
+    assert sorted(f"figures/{f.name}" for f in (tmp_path / "figures").iterdir()) == sorted(more)

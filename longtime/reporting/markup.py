@@ -16,7 +16,7 @@ th{background:#f3f3f3}td.num{text-align:right;font-variant-numeric:tabular-nums}
 .ok{background:#e8f5e9}.skipped{background:#f5f5f5;color:#666}.diverged{background:#fff3e0}
 .failed,.timeout{background:#ffebee}.lost{background:#fce4ec;color:#880e4f;font-weight:bold}
 .undetermined{background:#fff8e1}.flag{color:#b71c1c;font-weight:bold}
-figure{margin:.5em 0}figure svg{max-width:100%;height:auto}figcaption{font-size:.85em;color:#555}
+figure{margin:.5em 0}figure svg,figure img{max-width:100%;height:auto}figcaption{font-size:.85em;color:#555}
 .meta td:first-child{font-weight:bold}.note{font-size:.85em;color:#555}
 nav a{margin-right:.8em}nav{line-height:1.7}
 .lead{font-size:1em}.answer{font-size:1.05em;background:#f1f8e9;border-left:4px solid #7cb342;padding:.3em .6em}
@@ -28,19 +28,22 @@ white-space:nowrap}
 h3{margin-top:1.4em}.footer{margin-top:2em}
 """
 
-# records errors and checks that every figure has a drawn size (folded ones opened for the
-# measurement, then folded again); a browser test reads the result from
-# <body data-figures="..." data-errors="..."> (no network, no external script)
+# records errors and checks that every figure's file loads and has a drawn size (a probe image
+# per figure, so that lazy figures below the first screen are checked too); a browser test
+# reads the result from <body data-figures="..." data-rendered="..." data-errors="...">
+# (no network, no external script)
 SCRIPT = """
 (function(){var errs=[];
 window.addEventListener('error',function(e){errs.push(String(e.message));document.body.dataset.errors=errs.join('|');});
 window.addEventListener('load',function(){var figs=document.querySelectorAll('figure.plot');var drawn=0;
-var closed=[];document.querySelectorAll('details:not([open])').forEach(function(d){d.open=true;closed.push(d);});
-figs.forEach(function(f){var s=f.querySelector('svg');if(s){var b=s.getBoundingClientRect();
-if(b.width>50&&b.height>50&&s.querySelectorAll('path').length>0){drawn++;f.dataset.rendered='yes';}}});
-closed.forEach(function(d){d.open=false;});
-document.body.dataset.figures=figs.length;document.body.dataset.rendered=drawn;
-document.body.dataset.errors=errs.join('|');});})();
+var left=figs.length;function done(){document.body.dataset.figures=figs.length;document.body.dataset.rendered=drawn;
+document.body.dataset.errors=errs.join('|');}
+if(!left){done();}
+figs.forEach(function(f){var i=f.querySelector('img');if(!i){if(--left===0){done();}return;}
+var probe=new Image();probe.onload=function(){if(probe.naturalWidth>50&&probe.naturalHeight>50&&i.width>50){drawn++;
+f.dataset.rendered='yes';}if(--left===0){done();}};
+probe.onerror=function(){errs.push('no figure '+i.getAttribute('src'));if(--left===0){done();}};
+probe.src=i.src;});});})();
 """
 
 

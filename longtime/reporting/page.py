@@ -1,5 +1,9 @@
-"""The results page: one self-contained static HTML file (figures inline as SVG, no
-script or style from the network, no server).
+"""The results page: a static folder, index.html and its figures beside it as SVG files
+(figures/<digest>.svg, each an <img> that loads lazily, with its size so that the page lays
+out before any figure loads); no script or style from the network, no server. The page and
+its figures are written together: the figures first, each whole, then index.html (renamed
+into place), then the figures of the page it replaced; a failed write leaves the previous
+page and its figures as they were.
 
 Head: the run's metadata (command, commit, versions, machine) and the counts of each
 status. Per problem: the work-precision figure (error against the minimum CPU time of the
@@ -10,20 +14,24 @@ table, the growth classes per scheme and setting, the fitted orders, and the sta
 intervals of the schemes where they were measured. Then one capability matrix, schemes x
 problems: ran / skipped and why / diverged / failed.
 
-Colours: one per scheme family (the module that defines the scheme: explicit RK,
-splitting, ...), a marker per scheme within it; legends sit outside the axes.
+Colours: a colour and a marker per scheme, one look per scheme in every figure of the page
+and no two schemes of a figure alike (longtime.reporting.figures.style.styles of the page's
+schemes); legends sit outside the axes.
 
 The figures are drawn by longtime.reporting.figures.results (ahead of the page, by idle
 pool workers, with longtime.reporting.figures_ahead).
 """
 from __future__ import annotations
 
+import hashlib
+import html
 import json
+import re
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Iterable
 
-from longtime.core.files import write_atomic
+from longtime.core.files import NotWritten, write_atomic
 from longtime.measure.orders import left_out, observed_orders
 from longtime.reporting.figures.results import figures_drawing
 from longtime.reporting.figures.style import styles
@@ -41,6 +49,11 @@ from longtime.reporting.page_tables import (
 from longtime.reporting.report import format_counts, not_ok, status_counts
 
 PAGE_NAME = "index.html"
+FIGURES_DIR = "figures"  # the page's figures, beside index.html
+
+_SVG = re.compile(r"<svg\b.*?</svg>", re.S)
+_PT = re.compile(r'\b(width|height)="([0-9.]+)pt"')
+_CAPTION = re.compile(r"\s*<figcaption>([^<]*)")
 
 
 def provenance_text(run: dict) -> str:
@@ -80,9 +93,10 @@ def _fold(summary: str, body: str, open_: bool = False) -> str:
     return f'<details{" open" if open_ else ""}><summary>{summary}</summary>{body}</details>'
 
 
-def _verdict_section(p: str, v, mine: list[dict]) -> str:
-    """One problem's verdict: an example answer, the winner map, the winners as a table
-    (folded) and the settings whose law does not extrapolate, each with its deciding run."""
+def _verdict_section(p: str, v, mine: list[dict], style: dict | None = None) -> str:
+    """One problem's verdict: an example answer, the winner map (in the page's ``style``),
+    the winners as a table (folded) and the settings whose law does not extrapolate, each
+    with its deciding run."""
     from longtime.predict.checks import check_counts, check_summary
     from longtime.predict.decision import deciding_run
     from longtime.reporting.figures.verdict import winner_map_svg
@@ -93,13 +107,9 @@ def _verdict_section(p: str, v, mine: list[dict]) -> str:
         return head + (f'<p class="note">No verdict: no ok row with an error, a growth class and a CPU time '
                        f'(<code>longtime matrix -p {escape(p)}</code> measures them).</p>')
     out = [head]
-    # an example answer: at a hundred times the runs' final time, 1e-6 where predicted (else
-    # the middle of the targets predicted there)
-    h = v.horizons[min(2, len(v.horizons) - 1)]
-    met = [t for t in v.targets if v.grid[(t, h)].best is not None]
-    if met:
-        t = 1e-6 if 1e-6 in met else met[len(met) // 2]
-        d = v.grid[(t, h)]
+    example = _example(v)
+    if example:
+        t, h, d = example
         b, r = d.best, d.runner_up
         runner = (f"; runner-up {escape(r.text)}, x{r.cpu_at(h) / b.cpu_at(h):.3g} the CPU" if r else
                   "; no other scheme is predicted to keep it")
@@ -109,13 +119,8 @@ def _verdict_section(p: str, v, mine: list[dict]) -> str:
                    f'<span class="note">Any other target and horizon: the map below, or <code>longtime recommend -p '
                    f'{escape(p)} --error E --horizon T</code>.</span></p>')
     else:
-        chaotic = next((d for (_, h_), d in v.grid.items() if h_ == h and d.limit is not None), None)
-        if chaotic is not None:  # past the predictability horizon: no pointwise answer, and why
-            out.append(f'<p class="answer">No pointwise answer up to T = {h:.3g}: '
-                       f'{escape(chaotic.limit.text())}.</p>')
-        else:
-            out.append(f'<p class="answer">No setting is predicted to keep any target up to T = {h:.3g}.</p>')
-    fig = winner_map_svg(v)
+        out.append(f'<p class="answer">{escape(_no_answer(v))}.</p>')
+    fig = winner_map_svg(v, style)
     if fig:
         out.append(f'<figure class="plot">{fig}<figcaption>Winner map: for each target ({escape(v.measure.text)}) '
                    f"and horizon T, the scheme of the cheapest setting predicted to keep it (its setting written "
@@ -151,6 +156,57 @@ def _verdict_section(p: str, v, mine: list[dict]) -> str:
                          "<ul>" + "".join(f"<li>{escape(check_text(c))}</li>" for c in failed_first(v.checks))
                          + "</ul>", open_=check_counts(v.checks)["failed"] > 0))
     return "".join(out)
+
+
+def _example(v):
+    """(target, horizon, decision) of a verdict's example answer: at a hundred times the
+    runs' final time, 1e-6 where predicted (else the middle of the targets predicted there);
+    None where no target is predicted there."""
+    h = v.horizons[min(2, len(v.horizons) - 1)]
+    met = [t for t in v.targets if v.grid[(t, h)].best is not None]
+    if not met:
+        return None
+    t = 1e-6 if 1e-6 in met else met[len(met) // 2]
+    return t, h, v.grid[(t, h)]
+
+
+def _no_answer(v) -> str:
+    """Why a verdict has no example answer: past the predictability horizon, or no setting."""
+    h = v.horizons[min(2, len(v.horizons) - 1)]
+    chaotic = next((d for (_, h_), d in v.grid.items() if h_ == h and d.limit is not None), None)
+    if chaotic is not None:  # past the predictability horizon: no pointwise answer, and why
+        return f"No pointwise answer up to T = {h:.3g}: {chaotic.limit.text()}"
+    return f"No setting is predicted to keep any target up to T = {h:.3g}"
+
+
+def _answers_section(problems: list[str], found: dict) -> str:
+    """The first screen's answer: one row per problem, its example answer (the verdict's
+    first line) with its CPU and the runner-up's ratio; the verdict below says more."""
+    body = []
+    for p in problems:
+        v = found[p]
+        link = f'<a href="#verdict-{slug(p)}">{escape(p)}</a>'
+        if v.measure is None or not v.candidates:
+            body.append([link, '<td colspan="5">no verdict: no ok row with an error, a growth class and a CPU '
+                               "time</td>"])
+            continue
+        example = _example(v)
+        if example is None:
+            body.append([link, f'<td colspan="5">{escape(_no_answer(v))}</td>'])
+            continue
+        t, h, d = example
+        b, r = d.best, d.runner_up
+        body.append([link, f"<td>{escape(v.measure.field)} &le; {t:.0e} up to T = {h:.3g}</td>",
+                     f"<td><b>{escape(b.text)}</b></td>", f'<td class="num">{b.cpu_at(h):.3g}</td>',
+                     f'<td class="num">{b.error_at(h):.2g}</td>',
+                     f"<td>{escape(r.text)} (x{r.cpu_at(h) / b.cpu_at(h):.3g})</td>" if r else "<td>none</td>"])
+    rows = "".join("<tr>" + (f"<td>{c[0]}</td>" + "".join(c[1:])) + "</tr>" for c in body)
+    head = "".join(f"<th>{h}</th>" for h in ("problem", "target", "cheapest setting", "CPU s", "predicted error",
+                                             "runner-up (its CPU)"))
+    return (f'<h2 id="answers">Answers</h2><table class="answers"><tr>{head}</tr>{rows}</table>'
+            '<p class="note">Per problem, the cheapest stored setting predicted to keep the target up to T '
+            '(a hundred times the runs\' final time); any other target and horizon: <a href="#verdict">the '
+            "verdicts</a> below.</p>")
 
 
 def _libraries_section(rows: list[dict]) -> str:
@@ -218,8 +274,8 @@ def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: l
     fig = figs["work_precision"]
     if fig:
         out.append(_fold("Work-precision figure", f'<figure class="plot">{fig}<figcaption>{escape(figs["field"])} '
-                                                  f"against CPU seconds, one point per setting; colour: scheme family, "
-                                                  f"marker: scheme.</figcaption></figure>"))
+                                                  f"against CPU seconds, one point per setting; a colour and a marker "
+                                                  f"per scheme.</figcaption></figure>"))
     fig = figs.get("work_precision_instructions")
     if fig:
         out.append(_fold("Work-precision in instructions", f'<figure class="plot">{fig}<figcaption>'
@@ -298,7 +354,7 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
         counts = status_counts(rows)
         found = verdicts(rows, checks)
         cards = _cards_section(rows)
-        verdict_sections = [_verdict_section(p, found[p], by_problem[p]) for p in problems]
+        verdict_sections = [_verdict_section(p, found[p], by_problem[p], style) for p in problems]
         checked = _checks_section(checks)
         figures, intervals = drawn()
     ids = ", ".join(str(r["id"]) for r in runs) or "-"
@@ -309,11 +365,13 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
            f'<p class="lead"><b>{len(rows)} cells</b> ({escape(format_counts(counts))}) '
            f'of run{"s" if len(runs) != 1 else ""} '
            f'{escape(ids)}. <a href="#about">The run, the machine and its calibration</a> are at the end.</p>',
-           "<nav><b>Verdict:</b> " + "".join(f'<a href="#verdict-{slug(p)}">{escape(p)}</a>' for p in problems)
-           + '<br><a href="#libraries">which library</a><a href="#checks">checked predictions</a>'
+           '<nav><b>Contents:</b> <a href="#answers">answers</a><a href="#libraries">which library</a>'
+           + "<b>verdict:</b> " + "".join(f'<a href="#verdict-{slug(p)}">{escape(p)}</a>' for p in problems)
+           + '<br><a href="#checks">checked predictions</a>'
            + ('<a href="#cards">scheme cards</a>' if cards else "")
            + '<a href="#evidence">evidence</a>' + ('<a href="#history">history</a>' if history else "")
            + '<a href="#capabilities">capability matrix</a><a href="#about">run and machine</a></nav>',
+           _answers_section(problems, found), _libraries_section(rows),
            '<h2 id="verdict">Verdict</h2>'
            '<p class="note">Per problem, the cheapest stored setting predicted to keep a target error '
            'up to a horizon T: '
@@ -325,7 +383,6 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
            "against the problem's horizon); past its reach, or where its growth is undetermined, a "
            "setting predicts nothing. docs/metrics.md says how a prediction is made and checked.</p>"]
     out += verdict_sections
-    out.append(_libraries_section(rows))
     out.append(checked)
     if cards:
         out.append(cards)
@@ -362,17 +419,70 @@ def _calibration_figures(runs: list[dict[str, Any]]) -> list[str]:
     return out
 
 
+def figure_files(page: str) -> tuple[str, dict[str, bytes]]:
+    """(the page with each inline SVG figure replaced by an <img> of its file, {file name
+    relative to the page: its bytes}). A file is named by a digest of its content; the <img>
+    carries the figure's size in CSS pixels and, as its text, the start of its caption."""
+    files: dict[str, bytes] = {}
+
+    def to_file(m: re.Match) -> str:
+        figure = m.group(0)
+        name = f"{FIGURES_DIR}/{hashlib.md5(figure.encode()).hexdigest()[:16]}.svg"
+        files[name] = ('<?xml version="1.0" encoding="utf-8" standalone="no"?>\n' + figure).encode()
+        root = figure[:figure.index(">")]
+        size = "".join(f' {k}="{round(float(v) * 4 / 3)}"' for k, v in _PT.findall(root))  # 1 pt = 4/3 px
+        caption = _CAPTION.match(page, m.end())
+        alt = re.split(r"[:;.(]", html.unescape(caption.group(1)))[0].strip() if caption else ""
+        return f'<img src="{name}" loading="lazy" alt="{escape(alt or "figure")}"{size}>'
+
+    return _SVG.sub(to_file, page), files
+
+
 def write_page(out_dir: str | Path, rows: list[dict[str, Any]], runs: list[dict[str, Any]],
                drift: bool = True, jobs: int = 1, ahead: FiguresAhead | None = None,
                history: str | None = None, checks: Iterable[dict[str, Any]] = (),
                writer: str = "report --html", ensembles: Iterable[dict[str, Any]] = ()) -> Path:
-    """Write ``out_dir``/index.html (figures drawn on ``jobs`` processes, or ``ahead``);
-    return its path."""
+    """Write ``out_dir``/index.html and its figures (drawn on ``jobs`` processes, or
+    ``ahead``) in ``out_dir``/figures; return the page's path."""
+    page, files = figure_files(build_page(rows, runs, drift=drift, jobs=jobs, ahead=ahead, history=history,
+                                          checks=checks, writer=writer, ensembles=ensembles))
+    return write_folder(out_dir, page, files)
+
+
+def write_folder(out_dir: str | Path, page: str, files: dict[str, bytes]) -> Path:
+    """``page`` as ``out_dir``/index.html with ``files`` beside it, replacing an earlier page
+    and its figures at once (the rename of index.html): the files first, then the page, then
+    the earlier page's figures that this one does not use. On a failed write the files
+    written so far are removed, the earlier page keeps its own, and ``NotWritten`` names the
+    page (and the figure that failed)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    path = out / PAGE_NAME
-    return write_atomic(path, build_page(rows, runs, drift=drift, jobs=jobs, ahead=ahead, history=history,
-                                         checks=checks, writer=writer, ensembles=ensembles))
+    page_path = out / PAGE_NAME
+    folder = out / FIGURES_DIR
+    made = not folder.exists()
+    written, name = [], None
+    try:
+        for name, data in files.items():
+            path = out / name
+            if path.is_file() and not path.is_symlink() and path.read_bytes() == data:
+                continue  # the same figure, already there (its name is its digest)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            written.append(write_atomic(path, data))
+        name = None
+        write_atomic(page_path, page)
+    except OSError as exc:  # NotWritten, or a folder that cannot be made
+        for path in written:
+            path.unlink(missing_ok=True)
+        if made and folder.is_dir() and not any(folder.iterdir()):
+            folder.rmdir()
+        if name is None and isinstance(exc, NotWritten):
+            raise
+        what = f" (its figure {name})" if name else ""
+        raise NotWritten(exc.errno, f"{exc.strerror or exc}{what}", str(page_path)) from exc
+    for old in folder.glob("*.svg") if folder.is_dir() else ():
+        if f"{FIGURES_DIR}/{old.name}" not in files:
+            old.unlink(missing_ok=True)
+    return page_path
 
 
 def write_html(out_dir, rows: list[dict[str, Any]], store, run_ids: Iterable[int] | None = None,

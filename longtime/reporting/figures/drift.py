@@ -24,7 +24,7 @@ def drift(out: Path, formats: Sequence[str] = ("png", "svg"), problems: list[str
 
     problems = problems or ["toda"]
     schemes = schemes or ["rk4", "rk4sym"]
-    colours = {s: st["color"] for s, st in styles(schemes).items()}  # each scheme's own, as in every figure
+    colours = {s: st["color"] for s, st in styles(schemes).items()}  # no two schemes of the figure alike
     plt = pyplot()
     fig, axes = plt.subplots(len(problems), 1, figsize=(8, 3.8 * len(problems)), squeeze=False)
     for ax, name in zip(axes[:, 0], problems):

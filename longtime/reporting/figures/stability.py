@@ -58,7 +58,7 @@ def stability_regions(out: str | Path = "stability", formats: Sequence[str] = ("
     registry.check_names("integrator", schemes) if hasattr(registry, "check_names") else None
     from longtime.reporting.figures.style import styles
 
-    colours = {s: st["color"] for s, st in styles(schemes).items()}  # each scheme's own, as in every figure
+    colours = {s: st["color"] for s, st in styles(schemes).items()}  # no two schemes of the figure alike
     xs = np.linspace(*RE, int(resolution * (RE[1] - RE[0]) / (IM[1] - IM[0]) / 2) * 2 + 1)
     ys = np.linspace(*IM, resolution)
     axis = np.linspace(0.01, 8.0, 800)

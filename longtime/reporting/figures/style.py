@@ -1,15 +1,17 @@
-"""How schemes look in every figure: one colour and one marker per scheme, the same in every
-figure of the results page and of ``longtime.plot`` and the same from run to run; legends
-outside the axes; and a figure as inline SVG with ids of its own.
+"""How schemes look in every figure: one colour and one marker per scheme, no two schemes of
+a figure alike, one look per scheme across the figures of a page; legends outside the axes;
+and a figure as inline SVG with ids of its own.
 
-A scheme's look is a (colour, marker) pair of PALETTE x MARKERS, by a fixed rule: longtime's
-own schemes, sorted by name, take the pairs in turn (the k-th: colour k mod 20, marker k mod
-11, so the first 220 pairs are distinct and neighbours by name differ in both); a scheme
-that is not longtime's (a plugin's) takes a pair by a hash of its name (md5) among those the
-built-in schemes leave free, so installing a plugin changes no other scheme's look. A figure
-of more than MAX_CURVES schemes greys all but the schemes on the problem's Pareto front, the
-fastest and the next fastest at each accuracy decade (``emphasis``), so that its legend
-stays legible; the greyed schemes are one legend entry."""
+A look is a (colour, marker) pair of PALETTE x MARKERS. The schemes of one figure, or of one
+page (which draws all its figures with one ``styles`` of all its schemes), take the pairs in
+turn by name (the k-th: colour k mod 20, marker k mod 11): up to twenty schemes have twenty
+distinct colours, up to ten the ten farthest apart, and the first 220 pairs are distinct. A
+scheme drawn alone (``scheme_style``) has a look of its own by a fixed rule: longtime's own
+schemes, sorted by name, take the pairs in turn; a scheme that is not longtime's (a plugin's)
+takes a pair by a hash of its name (md5) among those the built-in schemes leave free. A
+figure of more than MAX_CURVES schemes greys all but the schemes on the problem's Pareto
+front, the fastest and the next fastest at each accuracy decade (``emphasis``), so that its
+legend stays legible; the greyed schemes are one legend entry."""
 from __future__ import annotations
 
 import functools
@@ -23,11 +25,14 @@ from longtime.reporting.figures import collect_minor_ticks, plain_log_ticks, pyp
 
 LINE_STYLES = ("-", "--", ":", "-.")
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "*", "h")
-# twenty colours told apart on screen and in print: tab10 (its grey a gold), then ten darker or stronger ones
-# (no grey: grey marks the schemes a crowded figure sets back, and undetermined map cells)
+# twenty colours told apart on screen and in print, each two at least 23 apart in CIELAB
+# (CIE76 delta E; 2 is a just-noticeable difference), the first ten at least 27: tab10 with
+# black for its grey, then ten chosen greedily from matplotlib's qualitative maps for their
+# distance to those before; none near white or GREY (grey marks the schemes a crowded figure
+# sets back, and undetermined map cells)
 PALETTE = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22",
-           "#e7ba52", "#393b79", "#637939", "#8c6d31", "#843c39", "#7b4173", "#3182bd", "#e6550d", "#31a354",
-           "#756bb1", "#ad494a")
+           "#000000", "#ffbb78", "#637939", "#1b9e77", "#98df8a", "#a6761d", "#e7298a", "#b15928", "#393b79",
+           "#d6616b", "#e6ab02")
 # a figure with more schemes than this draws the Pareto front's in colour and the rest grey
 MAX_CURVES = 10
 GREY = "#c8c8c8"
@@ -60,8 +65,8 @@ def _pair(k: int) -> dict[str, str]:
 
 
 def scheme_style(scheme: str) -> dict[str, str]:
-    """{color, marker} of ``scheme``, the same in every figure and every run (the module's
-    rule: longtime's own schemes by their sorted names, another by a hash of its name)."""
+    """{color, marker} of ``scheme`` drawn alone, the same in every run (the module's rule:
+    longtime's own schemes by their sorted names, another by a hash of its name)."""
     own = _built_in_schemes()
     if scheme in own:
         return _pair(own.index(scheme))
@@ -72,8 +77,9 @@ def scheme_style(scheme: str) -> dict[str, str]:
 
 
 def styles(schemes: Iterable[str]) -> dict[str, dict[str, str]]:
-    """scheme -> {color, marker}: each scheme's own (``scheme_style``)."""
-    return {s: scheme_style(s) for s in sorted(set(schemes))}
+    """scheme -> {color, marker} for the schemes of one figure or one page: the k-th by name
+    takes pair k, so that no two of up to len(PALETTE) schemes share a colour."""
+    return {s: _pair(k) for k, s in enumerate(sorted(set(schemes)))}
 
 
 def emphasis(style: dict[str, dict[str, str]], schemes: Sequence[str], front: Iterable[str]) \
@@ -97,9 +103,10 @@ def front_schemes(rows: list[dict]) -> set[str]:
 
 
 def svg(fig) -> str:
-    """The figure as inline SVG markup (no XML prolog); closes the figure.
+    """The figure as SVG markup (no XML prolog; the page writes it as a file beside itself);
+    closes the figure.
 
-    Text stays text (``svg.fonttype`` none): the page can be searched for a scheme's name, and
+    Text stays text (``svg.fonttype`` none): a figure can be searched for a scheme's name, and
     the SVG is a third smaller and faster to write than with every glyph as a path. The
     figure is drawn once: its tight box is measured with Agg's renderer, which lays the
     figure out without drawing it, where ``bbox_inches="tight"`` draws the whole figure

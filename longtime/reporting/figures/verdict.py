@@ -20,9 +20,10 @@ UNDETERMINED = "#d9d9d9"
 NONE = "#ffffff"
 
 
-def scheme_colours(schemes: list[str]) -> dict[str, Any]:
-    """Each winning scheme's colour: its own, as in every figure (style.scheme_style)."""
-    return {s: scheme_style(s)["color"] for s in schemes}
+def scheme_colours(schemes: list[str], style: dict | None = None) -> dict[str, Any]:
+    """Each winning scheme's colour: its colour in ``style`` (the page's, as in its other
+    figures), else its own (style.scheme_style)."""
+    return {s: ((style or {}).get(s) or scheme_style(s))["color"] for s in schemes}
 
 
 # two fills closer than this (RGB distance, 0 to sqrt 3) read as one colour in a map
@@ -78,8 +79,9 @@ def check_marks(checks: list[dict], limits: tuple[float, float]) -> list[tuple[f
     return marks
 
 
-def winner_map_svg(v: Verdict) -> str | None:
-    """The winner map of one problem's verdict, as inline SVG (None without a map)."""
+def winner_map_svg(v: Verdict, style: dict | None = None) -> str | None:
+    """The winner map of one problem's verdict, as inline SVG (None without a map); the
+    winners in their colours of ``style`` (the page's), else their own."""
     if not v.grid or not v.targets:
         return None
     from matplotlib.collections import LineCollection, PolyCollection
@@ -88,7 +90,7 @@ def winner_map_svg(v: Verdict) -> str | None:
     targets = sorted(v.targets)  # ascending: the finest at the bottom
     horizons = list(v.horizons)
     winners = list(dict.fromkeys(d.best.scheme for d in v.grid.values() if d.best is not None))
-    colours = scheme_colours(winners)
+    colours = scheme_colours(winners, style)
     hatched = hatches(winners, colours)
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(1.0 + 1.7 * len(horizons), 0.8 + 0.4 * len(targets)))

@@ -30,7 +30,7 @@ def _store_rows(db, run) -> list[dict]:
 
 def curves(ax, rows: list[dict], field: str, style: dict[str, dict[str, str]]) -> None:
     """One curve per scheme of ``rows`` (ok rows of one problem): ``field`` against CPU
-    seconds, log-log, coloured by family (``style``: figures.style.styles)."""
+    seconds, log-log, a colour and a marker per scheme (``style``: figures.style.styles)."""
     from longtime.reporting.figures.style import family
 
     for scheme in sorted({r["integrator"] for r in rows}):
@@ -72,7 +72,7 @@ def work_precision(out: Path, formats: Sequence[str] = ("png", "svg"), rows: lis
         fig, axes = plt.subplots(1, len(panels), figsize=(6.2 * len(panels), 4.6), squeeze=False)
         from longtime.reporting.figures.style import styles
 
-        style = styles(sorted({r["integrator"] for r in mine}))  # a colour per family, a marker per scheme
+        style = styles(sorted({r["integrator"] for r in mine}))  # a colour and a marker per scheme, none alike
         for ax, (field, label) in zip(axes[0], panels):
             curves(ax, mine, field, style)
             ax.set_xlabel("CPU seconds (integration: minimum of repeats, bar to the maximum)")
