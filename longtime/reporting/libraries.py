@@ -9,8 +9,10 @@ from typing import Any
 
 from longtime.core.fmt import positive
 from longtime.core.rowtext import main_t_final, setting
+from longtime.predict.settings import Measure, error_kept, measure
 
-# the error the table asks of each library's settings (l2_error, relative to the motion)
+# the error the table asks of each library's settings (the verdict's measure: max_error, the
+# largest error of any block of the state over the run, relative to its motion)
 TARGET = 1e-6
 
 
@@ -25,7 +27,7 @@ def library_of(scheme: str) -> str:
         return "unknown"
 
 
-def _cell(rows: list[dict[str, Any]], t_main: float, target: float) -> str:
+def _cell(rows: list[dict[str, Any]], t_main: float, target: float, m: Measure | None) -> str:
     if not rows:
         return "-"
     ran = [r for r in rows if r.get("status") == "ok"]
@@ -36,18 +38,20 @@ def _cell(rows: list[dict[str, Any]], t_main: float, target: float) -> str:
     main = [r for r in ran if r.get("t_final") == t_main]
     if not main:
         return f"only shorter runs (t_final {min(r['t_final'] for r in ran):.3g}: the budget)"
+    errors = {id(r): error_kept(r, m) if m is not None and m.solution else None for r in main}
     kept = [r for r in main if not r.get("solution_lost") and positive(r.get("cpu_s"))
-            and r.get("l2_error") is not None and r["l2_error"] <= target]
+            and errors[id(r)] is not None and errors[id(r)] <= target]
     if not kept:
-        best = min((r["l2_error"] for r in main if r.get("l2_error") is not None), default=None)
+        best = min((e for e in errors.values() if e is not None), default=None)
         return f"none keeps it (best {best:.2g})" if best is not None else "no error measured"
     r = min(kept, key=lambda r: r["cpu_s"])
-    return f"{r['integrator']} {setting(r)}: {r['cpu_s']:.3g} s ({r['l2_error']:.1g})".replace("  ", " ")
+    return f"{r['integrator']} {setting(r)}: {r['cpu_s']:.3g} s ({errors[id(r)]:.1g})".replace("  ", " ")
 
 
 def library_table(rows: list[dict[str, Any]], target: float = TARGET) -> tuple[list[str], list[list[str]]]:
     """(header, body): a row per problem, a column per library present in ``rows``, each cell
-    the cheapest ok setting of that library whose ``l2_error`` keeps ``target`` at the
+    the cheapest ok setting of that library that keeps ``target`` (``error_kept`` of the
+    problem's solution error, ``measure``) at the
     problem's main final time (``main_t_final``), with its CPU seconds and error, or why
     there is none."""
     by_library: dict[str, set[str]] = {}
@@ -60,6 +64,7 @@ def library_table(rows: list[dict[str, Any]], target: float = TARGET) -> tuple[l
         t_main = main_t_final(mine)
         if t_main is None:
             continue
-        cells = [_cell([r for r in mine if r["integrator"] in by_library[lib]], t_main, target) for lib in libraries]
+        m = measure(mine)
+        cells = [_cell([r for r in mine if r["integrator"] in by_library[lib]], t_main, target, m) for lib in libraries]
         body.append([problem, f"{t_main:.4g}", *cells])
     return ["problem", "T", *libraries], body

@@ -102,7 +102,7 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
     if m is None or not cands:
         return unanswered(f"no ok row of {problem} with an error, a growth class and a CPU time in the store; "
                           f"`longtime matrix -p {problem}{where}` measures them", m)
-    limit = predictability(mine, error) if m.field == "l2_error" else None
+    limit = predictability(mine, error) if m.solution else None
     d = decide(cands, error, horizon, limit)
     if d.limit is not None:
         rec = unanswered(d.limit.text(), m, d)

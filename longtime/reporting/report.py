@@ -18,6 +18,7 @@ from longtime.core.roles import ROW_PARAMETERS, row_columns
 from longtime.core.rowtext import main_t_final, setting  # noqa: F401 (their home; read from here too)
 from longtime.measure.lyapunov import past_predictability
 from longtime.predict.decision import verdicts
+from longtime.predict.settings import SOLUTION_FIELDS
 from longtime.reporting.verdict import verdict_lines
 
 # the JSON contract (README.md, `--format json`): every row carries these keys (null where not applicable)
@@ -96,8 +97,9 @@ def render(rows: list[dict[str, Any]], fmt: str = "table") -> str:
 # ------------------------------------------------------------------ the summary read first
 STATUSES = ("ok", "diverged", "failed", "timeout", "skipped")
 # the accuracy a Pareto front ranks by, first present wins: the solution error where a
-# reference exists, else the energy drift
-PARETO_FIELDS = ("l2_error", "H.max", "I.max", "constraint.max")
+# reference exists (the verdict's: longtime.predict.settings.SOLUTION_FIELDS, the largest
+# error over the run first), else the energy drift
+PARETO_FIELDS = (*SOLUTION_FIELDS, "H.max", "I.max", "constraint.max")
 DECADES = tuple(10.0 ** -k for k in range(1, 16))
 
 
@@ -128,7 +130,7 @@ def pareto(rows: list[dict[str, Any]], field: str | None = None) -> list[dict[st
     field = field or pareto_field(rows)
     t_main = main_t_final(rows)
     ok = [r for r in rows if r.get("status") == "ok" and positive(r.get("cpu_s")) and positive(r.get(field))
-          and r.get("t_final") == t_main and not (field == "l2_error" and past_predictability(r))]
+          and r.get("t_final") == t_main and not (field in SOLUTION_FIELDS and past_predictability(r))]
     out = []
     for target in DECADES:
         meets = sorted((r for r in ok if r[field] <= target), key=lambda r: r["cpu_s"])

@@ -7,6 +7,7 @@ from typing import Any, Iterable
 
 from longtime.measure.lyapunov import past_predictability
 from longtime.predict.decision import verdicts
+from longtime.predict.settings import SOLUTION_FIELDS
 from longtime.reporting.report import format_counts, pareto, pareto_field, render, status_counts, summary
 
 # the answer table's columns: (target error, horizon in units of the run's final time)
@@ -67,12 +68,12 @@ def answer_rows(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = (
 
 def answer_table(answers: list[dict[str, Any]]) -> list[str]:
     """The cross-problem table of ``answer_rows``: a line per problem."""
-    width = max([len("problem")] + [len(a["problem"]) + (4 if a["field"] not in (None, "l2_error") else 0)
+    width = max([len("problem")] + [len(a["problem"]) + (4 if a["field"] not in (None, *SOLUTION_FIELDS) else 0)
                                    for a in answers])
     head = [f"{e:.0e} to {'T' if f == 1 else f'{f:g} T'}" for e, f in ANSWER_TARGETS]
     lines = [(f"{'problem':<{width}}  {'T':>8}  " + "  ".join(f"{h:<{ANSWER_CELL}}" for h in head)).rstrip()]
     for a in answers:
-        name = a["problem"] + (f" ({a['field'].removesuffix('.max')})" if a["field"] not in (None, "l2_error") else "")
+        name = a["problem"] + (f" ({a['field'].removesuffix('.max')})" if a["field"] not in (None, *SOLUTION_FIELDS) else "")
         t = f"{a['t_main']:.4g}" if a["t_main"] else "-"
         cells = [_cell_text(x) for x in a["answers"]]
         if all(x == NO_POINTWISE for x in a["answers"]):
