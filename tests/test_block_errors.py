@@ -113,3 +113,17 @@ def test_a_block_at_rest_is_measured_against_its_size():
     err = BlockErrors.of(t, U, ref, blocks=Blocks({"moving": [0], "still": [1], "zero": [2]}, 3))
     assert err.scales[1] == pytest.approx(4.0) and err.scales[2] == 1.0  # its size; zero: absolute
     assert err.pointwise[-1, 1] == pytest.approx(0.1 / 4.0) and err.pointwise[-1, 2] == pytest.approx(0.1)
+
+
+def test_a_plugin_whose_blocks_miss_a_component_is_refused():
+    from longtime.core import contract
+    from longtime.core.params import InputError
+
+    class Halves(registry.problem_class("harmonic")):
+        name = "halves"
+
+        def blocks(self):
+            return {"q": [0]}  # p in no block
+
+    with pytest.raises(InputError, match="blocks"):
+        contract.check_problem_outputs(Halves(), 1.0)
