@@ -177,20 +177,19 @@ class BlockErrors:
         early = None
         if window is not None and len(window[0]) >= 3 and np.isfinite(window[1]).all():
             early = detrended_components(*window)[-1] / len(window[0])
-        size_c = np.cumsum(reference**2, axis=0)
-        diff_c = (np.asarray(U, dtype=float) - reference) ** 2
+        U = np.asarray(U, dtype=float)
         out = []
-        for blocks in partitions:
+        for blocks in partitions:  # per-block sums first: arrays of (samples, blocks) from here
             motion = blocks.sum(components)
             variance = motion[-1] / len(t)
             if early is not None:
                 variance = np.maximum(variance, blocks.sum(early))
                 motion = np.maximum(motion, n * blocks.sum(early))
-            size = blocks.sum(size_c)  # nothing moved yet: the block's size
+            size = np.cumsum(blocks.sum(reference**2), axis=0)  # nothing moved yet: the block's size
             still = ~(variance > STILL**2 * size[-1] / len(t))  # a motion below its rounding: nothing moves
             variance = np.where(still, size[-1] / len(t), variance)
             scales = np.where(variance > 0, np.sqrt(variance), 1.0)
-            diff = blocks.sum(diff_c)
+            diff = blocks.sum((U - reference) ** 2)
             motion = np.where(motion > STILL**2 * size, motion, np.where(size > 0, size, n))
             l2 = np.sqrt(np.cumsum(diff, axis=0) / motion)
             l2[-1] = np.sqrt(diff.sum(axis=0) / len(t)) / scales  # the whole run's, with its motion scale
@@ -412,7 +411,8 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
             bad = int(np.argmin(np.isfinite(reference[:k]).all(axis=1)))
             notes.append(f"the reference is not finite at t = {t[bad]:.6g}: no error measured")
         elif k >= 2:
-            per_block, state = BlockErrors.each(t[:k], U[:k], reference[:k], motion_window(problem, float(t[k - 1]), trust),
+            window = motion_window(problem, float(t[k - 1]), trust)
+            per_block, state = BlockErrors.each(t[:k], U[:k], reference[:k], window,
                                                 [Blocks.of(problem), Blocks.whole(problem.dim)])
             rel, l2 = per_block.largest
             row["l2_error"] = finite_or_none(l2[-1])

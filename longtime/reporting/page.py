@@ -160,8 +160,9 @@ def _libraries_section(rows: list[dict]) -> str:
     header, body = library_table(rows)
     return (f'<h2 id="libraries">Which library</h2><p class="note">Per problem and library, the cheapest ok '
             f"setting measured to keep its solution error (max_error: the largest error of any block of the "
-            f"state over [0, T], relative to its motion) &le; {TARGET:g} over the problem's main run (T: the final time "
-            f"most of its rows ran to), its CPU seconds and its error; measured rows only, no extrapolation.</p>"
+            f"state over [0, T], relative to its motion) &le; {TARGET:g} over the problem's main run (T: the "
+            f"final time most of its rows ran to), its CPU seconds and its error; measured rows only, no "
+            f"extrapolation.</p>"
             + table(header, body))
 
 

@@ -73,7 +73,8 @@ def answer_table(answers: list[dict[str, Any]]) -> list[str]:
     head = [f"{e:.0e} to {'T' if f == 1 else f'{f:g} T'}" for e, f in ANSWER_TARGETS]
     lines = [(f"{'problem':<{width}}  {'T':>8}  " + "  ".join(f"{h:<{ANSWER_CELL}}" for h in head)).rstrip()]
     for a in answers:
-        name = a["problem"] + (f" ({a['field'].removesuffix('.max')})" if a["field"] not in (None, *SOLUTION_FIELDS) else "")
+        invariant = a["field"] not in (None, *SOLUTION_FIELDS)
+        name = a["problem"] + (f" ({a['field'].removesuffix('.max')})" if invariant else "")
         t = f"{a['t_main']:.4g}" if a["t_main"] else "-"
         cells = [_cell_text(x) for x in a["answers"]]
         if all(x == NO_POINTWISE for x in a["answers"]):
