@@ -128,3 +128,26 @@ def test_a_plugin_whose_blocks_miss_a_component_is_refused():
 
     with pytest.raises(InputError, match="blocks"):
         contract.check_problem_outputs(Halves(), 1.0)
+
+
+def test_keeping_E_up_to_T_reads_the_largest_error_up_to_T():
+    """longtime.predict.settings.error_kept: the running maximum of the error envelope up to T
+    (never the RMS), the whole run's max_error at or past its end; a store without max_error
+    is read by its l2_error, and the verdict names it."""
+    from longtime.predict import settings as S
+
+    curve = {"t": [1.0, 10.0, 50.0, 100.0], "error": [1e-7, 3e-6, 2e-6, 4e-6], "l2": [1e-7, 1e-6, 1.2e-6, 1.5e-6]}
+    row = {"status": "ok", "problem": "harmonic", "integrator": "rk4", "dt": 0.1, "settings": "", "t_final": 100.0,
+           "cpu_s": 1.0, "max_error": 4e-6, "l2_error": 1.5e-6, "error.growth_class": "linear",
+           "reference": "exact", "error_curve": curve}
+    m = S.measure([row])
+    assert m.field == "max_error" and m.solution and "largest error" in m.text
+    assert S.error_kept(row, m) == 4e-6 and S.error_kept(row, m, 200.0) == 4e-6
+    assert S.error_kept(row, m, 10.0) == 3e-6
+    assert S.error_kept(row, m, 50.0) == 3e-6  # the largest up to 50, not the envelope's 2e-6 there
+    (s,) = S.settings([row], m)
+    assert s.error == 4e-6 and s.error_reached(50.0) == S.error_kept(row, m, 50.0)
+    old = {k: v for k, v in row.items() if k != "max_error"}
+    m_old = S.measure([old])
+    assert m_old.field == "l2_error" and "RMS" in m_old.text
+    assert S.error_kept(old, m_old, 50.0) == 1.2e-6
