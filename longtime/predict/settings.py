@@ -120,16 +120,27 @@ class Measure:
         return self.field in SOLUTION_FIELDS
 
 
+def solution_measure(rows: Iterable[dict[str, Any]], with_law: bool = False) -> Measure | None:
+    """The solution error's Measure where ok rows have one (the first of SOLUTION_FIELDS
+    that one has; ``with_law``: with its growth class too), else None."""
+    ok = [r for r in rows if r.get("status") == "ok"]
+    for name in SOLUTION_FIELDS:
+        if any(positive(r.get(name)) and (r.get("error.growth_class") or not with_law) for r in ok):
+            ref = next((r.get("reference") for r in ok if r.get("reference")), None)
+            return Measure(name, "error", f"{SOLUTION_TEXTS[name]}, against the "
+                                          f"{'exact solution' if ref == 'exact' else 'reference'}")
+    return None
+
+
 def measure(rows: Iterable[dict[str, Any]]) -> Measure | None:
     """The solution error where ok rows have one and its growth class (SOLUTION_FIELDS),
     else H's drift, else the first invariant's with a growth class; None when no ok row has
     any."""
+    rows = list(rows)
+    found = solution_measure(rows, with_law=True)
+    if found is not None:
+        return found
     ok = [r for r in rows if r.get("status") == "ok"]
-    for name in SOLUTION_FIELDS:
-        if any(positive(r.get(name)) and r.get("error.growth_class") for r in ok):
-            ref = next((r.get("reference") for r in ok if r.get("reference")), None)
-            return Measure(name, "error", f"{SOLUTION_TEXTS[name]}, against the "
-                                          f"{'exact solution' if ref == 'exact' else 'reference'}")
     names = [k[: -len(".growth_class")] for r in ok for k in r if k.endswith(".growth_class")
              and r.get(k) and k != "error.growth_class" and positive(r.get(k[: -len(".growth_class")] + ".max"))]
     if not names:

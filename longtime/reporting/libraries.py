@@ -9,7 +9,7 @@ from typing import Any
 
 from longtime.core.fmt import positive
 from longtime.core.rowtext import main_t_final, setting
-from longtime.predict.settings import Measure, error_kept, measure
+from longtime.predict.settings import Measure, error_kept, solution_measure
 
 # the error the table asks of each library's settings (the verdict's measure: max_error, the
 # largest error of any block of the state over the run, relative to its motion)
@@ -38,7 +38,7 @@ def _cell(rows: list[dict[str, Any]], t_main: float, target: float, m: Measure |
     main = [r for r in ran if r.get("t_final") == t_main]
     if not main:
         return f"only shorter runs (t_final {min(r['t_final'] for r in ran):.3g}: the budget)"
-    errors = {id(r): error_kept(r, m) if m is not None and m.solution else None for r in main}
+    errors = {id(r): error_kept(r, m) if m is not None else None for r in main}
     kept = [r for r in main if not r.get("solution_lost") and positive(r.get("cpu_s"))
             and errors[id(r)] is not None and errors[id(r)] <= target]
     if not kept:
@@ -51,7 +51,7 @@ def _cell(rows: list[dict[str, Any]], t_main: float, target: float, m: Measure |
 def library_table(rows: list[dict[str, Any]], target: float = TARGET) -> tuple[list[str], list[list[str]]]:
     """(header, body): a row per problem, a column per library present in ``rows``, each cell
     the cheapest ok setting of that library that keeps ``target`` (``error_kept`` of the
-    problem's solution error, ``measure``) at the
+    problem's solution error, ``solution_measure``) at the
     problem's main final time (``main_t_final``), with its CPU seconds and error, or why
     there is none."""
     by_library: dict[str, set[str]] = {}
@@ -64,7 +64,7 @@ def library_table(rows: list[dict[str, Any]], target: float = TARGET) -> tuple[l
         t_main = main_t_final(mine)
         if t_main is None:
             continue
-        m = measure(mine)
+        m = solution_measure(mine)
         cells = [_cell([r for r in mine if r["integrator"] in by_library[lib]], t_main, target, m) for lib in libraries]
         body.append([problem, f"{t_main:.4g}", *cells])
     return ["problem", "T", *libraries], body
