@@ -81,8 +81,14 @@ def test_errors_cover_only_the_samples_up_to_the_reference_horizon():
     fit = [np.polyval(np.polyfit(t, ref[:, j], 1), t) for j in range(2)]
     scale = np.sqrt(np.mean(sum((ref[:, j] - fit[j]) ** 2 for j in range(2))))
     dev = np.linalg.norm(U - ref, axis=1) / scale
-    assert row["final_error"] == pytest.approx(dev[-1]) and row["error_horizon"] == 4.0
-    assert row["l2_error"] == pytest.approx(np.sqrt(np.mean(dev**2)))
+    assert row["final_error_state"] == pytest.approx(dev[-1]) and row["error_horizon"] == 4.0
+    assert row["l2_error_state"] == pytest.approx(np.sqrt(np.mean(dev**2)))
+    # harmonic's blocks are q and p: each against its own motion, the row's error the larger
+    scales = [np.sqrt(np.mean((ref[:, j] - fit[j]) ** 2)) for j in range(2)]
+    each = np.abs(U - ref) / np.array(scales)
+    assert row["final_error"] == pytest.approx(each[-1].max())
+    assert row["l2_error"] == pytest.approx(np.sqrt(np.mean(each**2, axis=0)).max())
+    assert row["error_block"] == ["q oscillator", "p oscillator"][int(np.argmax(np.mean(each**2, axis=0)))]
     assert row["error_curve"]["l2"][-1] == pytest.approx(row["l2_error"], rel=1e-5)
     row = evaluate(p, traj, None)
     assert row["l2_error"] is None and row["error_horizon"] is None and row["reference_horizon"] is None

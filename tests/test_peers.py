@@ -216,7 +216,7 @@ def test_a_peer_too_slow_for_the_default_matrix_is_said_so_in_which_library():
 
     cells, _ = budget.fit(expand(["fpu"], ["scipy-rk23"], default_sweep=True))
     rows = [{**base_row(c), "status": "skipped", "message": c.skip_reason} for c in cells]
-    text, cpu = _cell(rows, registry.problem_class("fpu").sweep_t_final, 1e-6)
+    text, cpu = _cell(rows, registry.problem_class("fpu").sweep_t_final, 1e-6, None)
     assert cpu is None and text.startswith("too slow: about ") and "estimated for t_final 1000" in text
 
 

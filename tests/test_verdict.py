@@ -371,7 +371,7 @@ def test_checks_of_a_real_run_hold_and_are_stored(tmp_path):
     for c in checks:
         assert PC.check_holds(c) is not None
         assert c["measured_error"] == pytest.approx(c["predicted_error"], rel=0.5)  # the law holds that far
-        assert c["check_field"] == "l2_error" and c["from_t_final"] == 50.0
+        assert c["check_field"] == "max_error" and c["from_t_final"] == 50.0  # the largest error up to T
     assert store.checks(1) == [{"run_id": 1, **c} for c in checks] and len(store.rows(1)) == 2
     text = summary(rows, checks=store.checks(1))
     assert "  checks: " in text and "2 checked predictions held" in text

@@ -245,8 +245,9 @@ def exact_probe_times(problem: Any, t_final: float) -> Any:
 def check_problem_outputs(problem: Any, t_final: float) -> None:
     """The Python-level outputs of a plugin's problem: ``exact`` at t0, t_final and a time
     between (``exact_probe_times``) is (times, dim), not transposed, and starts at the initial
-    state; each invariant, violation and diagnostic on the initial state twice is (2,) or
-    (2, k). An InputError names the problem and the output."""
+    state; ``blocks()`` puts every component in exactly one block; each invariant, violation
+    and diagnostic on the initial state twice is (2,) or (2, k). An InputError names the
+    problem and the output."""
     import numpy as np
 
     owner, dim = f"problem {problem.name}", problem.dim
@@ -265,6 +266,12 @@ def check_problem_outputs(problem: Any, t_final: float) -> None:
         tol = max(float(problem.exact_rtol or 0.0), 1e-8) * max(1.0, float(np.max(np.abs(problem.u0))))
         if not np.all(np.abs(E[0] - problem.u0) <= tol):
             raise InputError(f"{owner}: exact(t0) = {E[0].tolist()} is not the initial state {problem.u0.tolist()}")
+    blocks = problem.blocks()
+    groups = [list(v) for v in blocks.values()] if isinstance(blocks, dict) else None
+    flat = sorted(i for g in groups for i in g) if groups and all(groups) else None
+    if flat != list(range(dim)):
+        raise InputError(f"{owner}: blocks() returned {blocks!r}: expected {{name: component indices}} with every "
+                         f"component 0..{dim - 1} in exactly one non-empty block")
     for kind in ("invariants", "violations", "diagnostics"):
         for name, values in (getattr(problem, kind)(t, U) or {}).items():
             _shape_check(owner, f"{kind}(t, U)[{name!r}] for 2 samples", values, (2,),

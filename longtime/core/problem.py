@@ -44,6 +44,9 @@ Python-level capabilities (vectorised over samples; ``U`` has shape (n, dim)):
                                                         which is the system's own solution;
                                                         rows give its distance from it
                                                         (``discretisation_error``)
+    blocks() -> {name: component indices}              the state's blocks, each measured
+                                                        against its own motion (default:
+                                                        each component its own block)
     heyoka_system() -> (vars, rhs expressions)          for the heyoka reference
     jax_rhs(t, u, params) -> u'                         ("jax_rhs") the rhs in jax.numpy (a
                                                         staticmethod that imports jax when
@@ -92,6 +95,23 @@ def separable_rhs(grad_T: Callable, grad_V: Callable) -> Callable:
     return rhs
 
 
+def qp_blocks(objects: list[str], space_dim: int) -> dict[str, list[int]]:
+    """The blocks (``Problem.blocks``) of a state u = (q, p) that holds, in the order of
+    ``objects``, each object's ``space_dim`` coordinates in q and as many momenta in p: its
+    position "q NAME" and its momentum "p NAME" for each object."""
+    n = len(objects)
+    out = {}
+    for k, name in enumerate(objects):
+        out[f"q {name}"] = list(range(k * space_dim, (k + 1) * space_dim))
+        out[f"p {name}"] = list(range((n + k) * space_dim, (n + k + 1) * space_dim))
+    return out
+
+
+def whole_state(problem: "Problem") -> dict[str, list[int]]:
+    """One block, the whole state (``Problem.blocks`` of a field or a single vector quantity)."""
+    return {"u": list(range(problem.dim))}
+
+
 class Problem(ABC):
     """Base class of every problem: the contract a new problem implements.
 
@@ -118,6 +138,8 @@ class Problem(ABC):
     - ``parameters``: ``{name: Param}``, the settings it takes (``self.settings`` holds them
       resolved), and ``setup()`` and ``kernel_params()`` to derive the float64 ``params``
       array the compiled functions receive;
+    - ``blocks()``: the state's blocks, each measured against its own motion (default: each
+      component; ``qp_blocks`` for bodies' positions and momenta, ``whole_state``);
     - the class attributes below: ``name`` and ``summary``, ``t0``, ``default_t_final`` and
       ``default_dt``, the default matrix's sweep, ``chaotic``, ``autonomous`` and the
       divergence bound (``blowup_factor``, or ``size_bound`` for a solution that grows).
@@ -229,6 +251,16 @@ class Problem(ABC):
         modes exchange by design): {name: (n,) or (n, k)}. Each row records how far each
         moved from its initial value and its curve; none is classed as a drift."""
         return {}
+
+    def blocks(self) -> dict[str, list[int]]:
+        """The state's blocks, {name: component indices}: the parts whose errors are measured
+        each against its own motion (longtime.measure.metrics), so that a part that moves
+        little beside the rest (a planet beside the outer solar system's 53 AU, a body's
+        momentum m v beside its position) cannot hide its loss in the whole state's norm. A
+        block is one quantity of one object in one unit (a body's position, its momentum; a
+        field), so that no block's norm adds different units. Every component is in exactly
+        one block. Default: each component its own block."""
+        return {f"u[{i}]": [i] for i in range(self.dim)}
 
     def metrics_bytes(self, samples: int) -> int:
         """Peak bytes the metrics of ``samples`` recorded states allocate beside the samples

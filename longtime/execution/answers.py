@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from longtime.core.fmt import positive
-from longtime.predict.settings import Setting
+from longtime.predict.settings import SOLUTION_FIELDS, Setting
 
 # the default wall-time budget of the runs (``longtime recommend --budget``)
 DEFAULT_BUDGET_S = 60.0
@@ -125,7 +125,7 @@ def _judge(s: Setting, row: dict[str, Any], field: str, target: float, horizon: 
     error = row.get(field)
     if not positive(error):
         return Measured(s, row, None, cpu, False, f"no {field} measured")
-    if field == "l2_error" and not (row.get("error_horizon") or 0) >= horizon * (1 - 1e-9):
+    if field in SOLUTION_FIELDS and not (row.get("error_horizon") or 0) >= horizon * (1 - 1e-9):
         reach = row.get("error_horizon")
         return Measured(s, row, None, cpu, False, f"its reference is trusted only up to t = {reach:.4g}"
                         if positive(reach) else "no reference trusted")

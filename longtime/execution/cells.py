@@ -471,10 +471,10 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
                 row.update(lyapunov.row_fields(problem, row))
         row["working_set_bytes"] = working_set(integrator, problem, traj)
         row["status"] = traj.status
-        worst = max((e for e in (row.get("l2_error"), row.get("final_error")) if e is not None), default=None)
-        row["solution_lost"] = None if worst is None else bool(worst >= O1_ERROR)
+        row["solution_lost"], worst = metrics.solution_lost(row)
         if row["solution_lost"]:  # finite but wrong: never a plain "ok" (the report folds it too)
-            note = "; ".join(m for m in (note, f"error O(1) (relative error {worst:.3g} >= {O1_ERROR:g}): "
+            block = f" of {row['error_block']}" if row.get("error_block") else ""
+            note = "; ".join(m for m in (note, f"error O(1) (relative error{block} {worst:.3g} >= {O1_ERROR:g}): "
                                                f"the solution is not followed") if m)
         row["message"] = "; ".join(m for m in (traj.message, note, row["message"]) if m)  # + metrics' notes
     except MemoryError as exc:  # past the worker's memory limit (longtime.execution.limits), or the machine's

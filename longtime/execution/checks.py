@@ -16,7 +16,7 @@ from longtime.execution import calibration
 from longtime.measure.instability import INITIAL_ROUNDING
 from longtime.predict.checks import CHECK_BUDGET_S, CHECK_REFERENCE_S, CHECKS, judge_ranks
 from longtime.predict.decision import TARGETS, Verdict, predictability, verdicts
-from longtime.predict.settings import Measure, Setting
+from longtime.predict.settings import Measure, Setting, error_kept
 
 
 @dataclass
@@ -107,7 +107,7 @@ def _chaos_group(v: Verdict, rows: list[dict[str, Any]], budget_s: float) -> lis
     the finest map target E that it keeps over its run and whose horizon lies past its run,
     re-run CHAOS_MARGIN_LYAPUNOV Lyapunov times past that horizon (within ``budget_s``)."""
     mine = [r for r in rows if r.get("problem") == v.problem]
-    if v.measure is None or v.measure.field != "l2_error" or not v.candidates:
+    if v.measure is None or not v.measure.solution or not v.candidates:
         return []
     s = min(v.candidates, key=lambda c: (c.error, c.cpu_per_t))
     for target in sorted(TARGETS):
@@ -131,7 +131,7 @@ def _growth_group(v: Verdict, rows: list[dict[str, Any]], budget_s: float) -> li
     its reference is trusted, and there at least a tenth of that): its pointwise error there
     (``final_error``) must exceed E. None where a stored row's reference stops
     before that time (it would not be judged)."""
-    if v.measure is None or v.measure.field != "l2_error" or not v.candidates or v.t_main is None:
+    if v.measure is None or not v.measure.solution or not v.candidates or v.t_main is None:
         return []
     declared = _declared_class(v.problem)
     if declared not in GROWTH_CLASSES:
@@ -284,7 +284,7 @@ def reference_seconds_per_t(v: Verdict) -> float:
     reference: 0 for an invariant's error (no reference), else the reference check's
     heyoka runs timed over ten times the problem's main final time
     (longtime.measure.reference.check_seconds_per_t)."""
-    if v.measure is None or v.measure.field != "l2_error":
+    if v.measure is None or not v.measure.solution:
         return 0.0
     from longtime.execution.cells import build, cell_of_row
     from longtime.measure.reference import ReferenceUnavailable, check_seconds_per_t
@@ -309,10 +309,11 @@ def check_row(c: PlannedCheck, row: dict[str, Any]) -> dict[str, Any]:
     no prediction, an "open" one, has predicted_error null; ``predicted_bound`` true where the
     prediction is an upper bound, an undetermined law's steepest window extrapolated)."""
     s, horizon, m = c.setting, c.horizon, c.measure
-    # a growth check's claim is pointwise: the error at the horizon, not an RMS over [0, T]
+    # a growth check's claim is pointwise: the error at the horizon, not the largest over [0, T]
     field = "final_error" if c.role == "growth" else m.field
-    measured = row.get(field) if row.get("status") == "ok" else None
-    if field in ("l2_error", "final_error") and measured is not None \
+    ok = row.get("status") == "ok"
+    measured = (row.get(field) if c.role == "growth" else error_kept(row, m)) if ok else None
+    if (c.role == "growth" or m.solution) and measured is not None \
             and not (row.get("error_horizon") or 0) >= horizon * (1 - 1e-9):
         measured = None  # the reference stopped short of the horizon: an error over less than the prediction's span
     from longtime.execution.cells import cell_of_row

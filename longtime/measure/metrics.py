@@ -5,17 +5,23 @@ error where I(u0) = 0. Per invariant NAME: NAME.max, NAME.final, NAME.mean (time
 e_I by the trapezoid rule over the samples, which are every step up to max_samples),
 NAME.t_1pct, NAME.t_50pct (first sample time with e_I > 1 % / 50 %, null if never).
 Against the reference, over the samples up to its horizon (``error_horizon`` is the last
-one), every solution error is relative to the size of the motion (``motion_scale``): S =
-sqrt(mean_i sum_j (u_ref,ij - line_j(t_i))^2), line_j the least-squares line in t of
-component j (its mean and any drift taken out), so that a drifting or constant component
-(charged-particle's x3 = 0.1 + 0.2 t) cannot hide a lost solution. The error at a sample is
-e(t) = |u - u_ref| / S; ``l2_error`` = sqrt(mean_i |u_i - u_ref,i|^2) / S; ``final_error`` = e
-at the last sample,
-null when the horizon ends before it; ``error_curve`` keeps e's upper envelope and the
-l2_error up to each of its times (``error_curve``); ``drifting_components`` counts the
-reference's components that drift (``drifting_components``).
+one), every solution error is measured per block of the state (``Problem.blocks``: a body's
+position, its momentum; by default each component), each block b relative to the size of
+its own motion (``motion_scale``): S_b = sqrt(mean_i sum_{j in b} (u_ref,ij - line_j(t_i))^2),
+line_j the least-squares line in t of component j (its mean and any drift taken out), so
+that a drifting or constant component (charged-particle's x3 = 0.1 + 0.2 t) cannot hide a
+lost solution, nor a body that moves little beside the others (Jupiter beside the outer
+solar system's 53 AU) its loss. The error of block b at a sample is e_b(t) = |u_b -
+u_ref,b| / S_b, and the solution error the largest block's: e(t) = max_b e_b(t);
+``l2_error`` = max_b sqrt(mean_i |u_b,i - u_ref,b,i|^2) / S_b (``error_block`` names that
+block); ``final_error`` = e at the last sample, null when the horizon ends before it;
+``max_error`` = the largest e over the samples (what a setting keeps up to the horizon);
+``l2_error_state`` and ``final_error_state`` are the same of the whole state as one block;
+``error_curve`` keeps e's upper envelope and the largest block's l2_error up to each of its
+times (``error_curve``); ``drifting_components`` counts the reference's components that
+drift (``drifting_components``).
 ``error_floor`` is the reference's own error (``reference_error``, relative to the state)
-in l2_error's units, reference_error x the reference's RMS size / S; an l2_error or
+in l2_error's units, reference_error x the reference's RMS size / S_b of l2_error's block; an l2_error or
 final_error below it is not measured, only bounded by about twice the floor:
 ``error_below_floor`` says so, and the row's message. Where the problem discretises a PDE
 (``pde_solution``), ``discretisation_error`` is the l2_error of the PDE's solution against
@@ -58,6 +64,14 @@ STILL = 1e-8
 WINDOW_POINTS = 1001  # reference states at log-spaced times of the run's first hundredth (motion_window)
 
 
+def solution_lost(row: dict[str, Any]) -> tuple[bool | None, float | None]:
+    """(lost, error): whether a row's solution is lost, its l2_error or final_error (each the
+    largest block's) at least O1_ERROR, so that any one block lost loses it; None without a
+    measured error."""
+    worst = max((e for e in (row.get("l2_error"), row.get("final_error")) if e is not None), default=None)
+    return (None if worst is None else bool(worst >= O1_ERROR)), worst
+
+
 def finite_or_none(x) -> float | None:
     x = float(x)
     return x if math.isfinite(x) else None
@@ -78,6 +92,11 @@ def detrended_ss(t: np.ndarray, states: np.ndarray) -> np.ndarray:
     """The motion of ``states`` (samples x components) at times ``t``: at each sample k, the
     sum over components of the squared residuals of the samples up to k about each
     component's least-squares line in t (its mean and its drift taken out)."""
+    return detrended_components(t, states).sum(axis=1)
+
+
+def detrended_components(t: np.ndarray, states: np.ndarray) -> np.ndarray:
+    """``detrended_ss`` per component (samples x components), before the sum."""
     t = np.asarray(t, dtype=float)
     x = np.asarray(states, dtype=float)
     t = t - t.mean()
@@ -90,7 +109,7 @@ def detrended_ss(t: np.ndarray, states: np.ndarray) -> np.ndarray:
     ctx = stx - st[:, None] * sx / n[:, None]
     with np.errstate(divide="ignore", invalid="ignore"):
         trend = np.where(ctt[:, None] > 0, ctx**2 / ctt[:, None], 0.0)
-    return np.maximum(cxx - trend, 0.0).sum(axis=1)
+    return np.maximum(cxx - trend, 0.0)
 
 
 def motion_scale(t: np.ndarray, reference: np.ndarray, window: tuple[np.ndarray, np.ndarray] | None = None) -> float:
@@ -99,13 +118,101 @@ def motion_scale(t: np.ndarray, reference: np.ndarray, window: tuple[np.ndarray,
     times of the run's start, ``motion_window``); the RMS size of the state where nothing
     moves. Samples evenly spaced by a period see a periodic motion at one phase only
     (kepler's 10,001 samples over 10,000 periods): the window's times alias with no period."""
-    variance = float(detrended_ss(t, reference)[-1]) / len(t)
-    if window is not None and len(window[0]) >= 3 and np.isfinite(window[1]).all():
-        variance = max(variance, float(detrended_ss(*window)[-1]) / len(window[0]))
-    size = float(np.mean(np.sum(np.asarray(reference, dtype=float) ** 2, axis=1)))
-    if not variance > STILL**2 * size:  # a motion below the state's rounding: nothing moves
-        variance = size
-    return math.sqrt(variance) if variance > 0 else 1.0
+    reference = np.asarray(reference, dtype=float)
+    return float(BlockErrors.of(t, reference, reference, window).scales[0])
+
+
+class Blocks:
+    """A partition of the state's components into named blocks (``Problem.blocks``), and
+    per-block sums of per-component arrays. ``Blocks.whole(dim)``: one block."""
+
+    def __init__(self, blocks: dict[str, Any], dim: int) -> None:
+        self.names = list(blocks)
+        groups = [np.asarray(list(v), dtype=np.int64).reshape(-1) for v in blocks.values()]
+        seen = np.concatenate(groups) if groups else np.empty(0, dtype=np.int64)
+        if not groups or any(g.size == 0 for g in groups) or seen.size != dim \
+                or not np.array_equal(np.sort(seen), np.arange(dim)):
+            raise ValueError(f"blocks {dict(zip(self.names, (g.tolist() for g in groups)))} are not a partition of "
+                             f"the state's {dim} components (each in exactly one non-empty block)")
+        self.order = seen  # the components, block by block
+        self.starts = np.cumsum([0] + [g.size for g in groups[:-1]])
+
+    @classmethod
+    def whole(cls, dim: int) -> "Blocks":
+        return cls({"u": range(dim)}, dim)
+
+    @classmethod
+    def of(cls, problem: Problem) -> "Blocks":
+        return cls(problem.blocks(), problem.dim)
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def sum(self, x: np.ndarray) -> np.ndarray:
+        """Per-block sums over the last axis of ``x`` (..., components) -> (..., blocks)."""
+        return np.add.reduceat(np.asarray(x, dtype=float)[..., self.order], self.starts, axis=-1)
+
+
+class BlockErrors:
+    """The solution error of states ``U`` against ``reference`` at times ``t`` per block of
+    the state (``Blocks``; default one, the whole state), each relative to its own motion:
+
+    - ``scales`` (blocks,): S_b, ``motion_scale`` of the block's reference;
+    - ``pointwise`` (samples, blocks): |u_b - u_ref,b| / S_b;
+    - ``l2`` (samples, blocks): at each sample the l2_error of the samples up to it,
+      sqrt(sum |u_b - u_ref,b|^2 / the block's motion over those samples); at the last one
+      sqrt(mean |u_b - u_ref,b|^2) / S_b, the whole run's.
+
+    A block that does not move (a motion below STILL of its size) is measured against its
+    size, one whose reference is zero throughout as an absolute error."""
+
+    def __init__(self, names: list[str], scales: np.ndarray, pointwise: np.ndarray, l2: np.ndarray) -> None:
+        self.names, self.scales, self.pointwise, self.l2 = names, scales, pointwise, l2
+
+    @classmethod
+    def of(cls, t: np.ndarray, U: np.ndarray, reference: np.ndarray,
+           window: tuple[np.ndarray, np.ndarray] | None = None, blocks: Blocks | None = None) -> "BlockErrors":
+        return cls.each(t, U, reference, window, [blocks or Blocks.whole(np.shape(reference)[1])])[0]
+
+    @classmethod
+    def each(cls, t: np.ndarray, U: np.ndarray, reference: np.ndarray,
+             window: tuple[np.ndarray, np.ndarray] | None, partitions: list[Blocks]) -> list["BlockErrors"]:
+        """``of`` for each partition of the state, the per-component sums computed once."""
+        reference = np.asarray(reference, dtype=float)
+        n = np.arange(1, len(t) + 1, dtype=float)[:, None]
+        components = detrended_components(t, reference)  # (samples, components), cumulative
+        early = None
+        if window is not None and len(window[0]) >= 3 and np.isfinite(window[1]).all():
+            early = detrended_components(*window)[-1] / len(window[0])
+        U = np.asarray(U, dtype=float)
+        out = []
+        for blocks in partitions:  # per-block sums first: arrays of (samples, blocks) from here
+            motion = blocks.sum(components)
+            variance = motion[-1] / len(t)
+            if early is not None:
+                variance = np.maximum(variance, blocks.sum(early))
+                motion = np.maximum(motion, n * blocks.sum(early))
+            size = np.cumsum(blocks.sum(reference**2), axis=0)  # nothing moved yet: the block's size
+            still = ~(variance > STILL**2 * size[-1] / len(t))  # a motion below its rounding: nothing moves
+            variance = np.where(still, size[-1] / len(t), variance)
+            scales = np.where(variance > 0, np.sqrt(variance), 1.0)
+            diff = blocks.sum((U - reference) ** 2)
+            motion = np.where(motion > STILL**2 * size, motion, np.where(size > 0, size, n))
+            l2 = np.sqrt(np.cumsum(diff, axis=0) / motion)
+            l2[-1] = np.sqrt(diff.sum(axis=0) / len(t)) / scales  # the whole run's, with its motion scale
+            out.append(cls(blocks.names, scales, np.sqrt(diff) / scales, l2))
+        return out
+
+    @property
+    def largest(self) -> tuple[np.ndarray, np.ndarray]:
+        """(e, l2) of the largest block at each sample: the solution error."""
+        return self.pointwise.max(axis=1), self.l2.max(axis=1)
+
+    @property
+    def worst(self) -> str:
+        """The name of the block with the largest l2_error over the run."""
+        last = self.l2[-1]
+        return self.names[int(np.argmax(np.where(np.isfinite(last), last, np.inf)))]
 
 
 def motion_window(problem: Problem, t_end: float, trust: Trust | None) -> tuple[np.ndarray, np.ndarray] | None:
@@ -126,23 +233,16 @@ def motion_window(problem: Problem, t_end: float, trust: Trust | None) -> tuple[
 
 
 def solution_errors(t: np.ndarray, U: np.ndarray, reference: np.ndarray,
-                    window: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, float]:
-    """(e, l2, S) of states ``U`` against ``reference`` at times ``t``: S = motion_scale,
-    e(t) = |u - u_ref| / S at each sample, l2 at each sample = the l2_error of the samples up
-    to it, sqrt(sum |u - u_ref|^2 / sum of the motion), the motion of those samples (the
-    l2_error a run ending there reports)."""
-    scale = motion_scale(t, reference, window)
-    diff = np.sum((U - reference) ** 2, axis=1)
-    pointwise = np.sqrt(diff) / scale
-    n = np.arange(1, len(t) + 1, dtype=float)
-    motion = detrended_ss(t, reference)
-    if window is not None and len(window[0]) >= 3 and np.isfinite(window[1]).all():
-        motion = np.maximum(motion, n * float(detrended_ss(*window)[-1]) / len(window[0]))
-    size = np.cumsum(np.sum(np.asarray(reference, dtype=float) ** 2, axis=1))  # nothing moved yet: the state's size
-    motion = np.where(motion > STILL**2 * size, motion, np.where(size > 0, size, n))
-    l2 = np.sqrt(np.cumsum(diff) / motion)
-    l2[-1] = math.sqrt(float(np.sum(diff)) / len(t)) / scale  # the whole run's, with its motion scale
-    return pointwise, l2, scale
+                    window: tuple[np.ndarray, np.ndarray] | None = None,
+                    blocks: Blocks | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+    """(e, l2, S) of states ``U`` against ``reference`` at times ``t`` (BlockErrors): with
+    ``blocks`` None the whole state's, S = motion_scale, e(t) = |u - u_ref| / S at each
+    sample, l2 at each sample = the l2_error of the samples up to it (the l2_error a run
+    ending there reports); with ``blocks``, e and l2 of the largest block at each sample
+    and S the largest block's scale at the end."""
+    errors = BlockErrors.of(t, U, reference, window, blocks)
+    pointwise, l2 = errors.largest
+    return pointwise, l2, float(errors.scales[errors.names.index(errors.worst)])
 
 
 def drifting_components(t: np.ndarray, reference: np.ndarray) -> int:
@@ -226,9 +326,10 @@ def drift_envelope(name: str, t: np.ndarray, err: np.ndarray, points: int = DRIF
 def discretisation_error(problem: Problem, t: np.ndarray, reference: np.ndarray,
                          window: tuple[np.ndarray, np.ndarray] | None) -> float | None:
     """The l2_error of the problem's ``pde_solution`` against ``reference`` (the system's
-    solution) at the times ``t``, with the reference's motion scale: how far the space
-    discretisation alone is from the PDE."""
-    _, l2, _ = solution_errors(t, np.asarray(problem.pde_solution(t), dtype=float), reference, window)
+    solution) at the times ``t``, per block as a row's: how far the space discretisation
+    alone is from the PDE."""
+    pde = np.asarray(problem.pde_solution(t), dtype=float)
+    _, l2 = BlockErrors.of(t, pde, reference, window, Blocks.of(problem)).largest
     return finite_or_none(l2[-1])
 
 
@@ -295,6 +396,10 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
         "samples": int(t.size),
         "l2_error": None,  # null unless a reference is at hand
         "final_error": None,
+        "max_error": None,  # the largest block's largest error up to the horizon
+        "l2_error_state": None,  # the same of the whole state against its motion (one block)
+        "final_error_state": None,
+        "error_block": None,  # the block whose l2_error is the row's
         "error_horizon": None,  # the last sample time the errors cover
         "error_curve": None,  # the solution error's curve (null without a reference)
         "drifting_components": None,  # components of the reference that drift (null without one)
@@ -347,8 +452,14 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
             notes.append(f"the reference is not finite at t = {t[bad]:.6g}: no error measured")
         elif k >= 2:
             window = motion_window(problem, float(t[k - 1]), trust)
-            rel, l2, scale = solution_errors(t[:k], U[:k], reference[:k], window)
+            per_block, state = BlockErrors.each(t[:k], U[:k], reference[:k], window,
+                                                [Blocks.of(problem), Blocks.whole(problem.dim)])
+            rel, l2 = per_block.largest
             row["l2_error"] = finite_or_none(l2[-1])
+            row["max_error"] = finite_or_none(np.max(rel))
+            row["l2_error_state"] = finite_or_none(state.l2[-1, 0])
+            row["error_block"] = per_block.worst
+            scale = float(per_block.scales[per_block.names.index(per_block.worst)])  # l2_error's motion
             if problem.pde_solution is not None:
                 row["discretisation_error"] = discretisation_error(problem, t[:k], reference[:k], window)
             row["error_curve"] = error_curve(t[:k], rel, l2)
@@ -360,6 +471,7 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
                 row["predictability_t"] = predictability(t[:k], rel, O1_ERROR)
             if k == finite:
                 row["final_error"] = finite_or_none(rel[-1])
+                row["final_error_state"] = finite_or_none(state.pointwise[-1, 0])
             row.update(floor_fields(row, trust, reference[:k], scale, notes))
     row.update(traj.extra)
     if notes:

@@ -4,7 +4,10 @@ only on the asymptotic range and only where the data determine it.
 For each sweep (one problem, one scheme, one final time and every setting but the swept
 step or tolerance), the points are (mean_dt, error): mean_dt is dt for a fixed-step scheme
 and t_final / steps for an adaptive one, so a tolerance sweep measures the same order.
-The error is ``l2_error`` where the row has one, else the energy drift ``H.max``.
+The error is the whole state's ``l2_error_state`` where the row has one (one norm of the
+state for every step of the sweep: a scheme's order does not depend on the norm, and the
+largest block of ``l2_error`` may change from one step to the next), else ``l2_error``
+(rows that predate it), else the energy drift ``H.max``.
 
 The rule (docs/metrics.md, "Observed order"), on the points by increasing step, each
 point left out named with why:
@@ -63,7 +66,8 @@ SLOPE_BAND = 0.1
 RELATIVE_BAND = 0.1
 INTERVAL_POINTS = 4
 FLOOR_ZONE = 1e3
-ERROR_FIELDS = ("l2_error", "H.max")
+ERROR_FIELDS = ("l2_error_state", "l2_error", "H.max")
+SOLUTION_ERRORS = ("l2_error_state", "l2_error")
 GROUP_KEYS = ("run_id", "problem", "integrator", "t_final", "order", "settings")
 
 
@@ -234,12 +238,12 @@ def _points(ok: list[dict], field: str) -> tuple[list[tuple[float, float, float 
             reason = f"no positive {field}"
         elif _x(r) is None:
             reason = "no step"
-        elif field == "l2_error" and past_predictability(r):
+        elif field in SOLUTION_ERRORS and past_predictability(r):
             reason = "past its predictability horizon (a chaotic solution lost)"
         else:
             # the reference's error in l2_error's units where the row has it (error_floor)
             ref = next((r[k] for k in ("error_floor", "reference_error") if positive(r.get(k))), None)
-            points.append((_x(r), float(r[field]), ref if field == "l2_error" else None))
+            points.append((_x(r), float(r[field]), ref if field in SOLUTION_ERRORS else None))
             continue
         why[reason] = why.get(reason, 0) + 1
     return points, why

@@ -40,12 +40,13 @@ from longtime.core.fmt import positive
 from longtime.core.rowtext import main_t_final, setting
 from longtime.measure.lyapunov import past_predictability
 from longtime.predict.decision import TARGETS, keepers, verdicts
+from longtime.predict.settings import SOLUTION_FIELDS
 
 # a cell within this factor of a front's CPU time is a contender (see the module's text)
 FACTOR = 2.0
 # the error fields a Pareto front ranks by, the first of them a problem's rows have
 # (``pareto_field``; longtime.reporting.report.pareto)
-PARETO_FIELDS = ("l2_error", "H.max", "I.max", "constraint.max")
+PARETO_FIELDS = (*SOLUTION_FIELDS, "H.max", "I.max", "constraint.max")
 
 
 # how a cell left out of the timing processes is said to be dominated (``Need.why``)

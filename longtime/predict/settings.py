@@ -24,10 +24,14 @@ The predicted cost is ``CostModel.at(T)``: fixed + per-time parts fitted on runs
 lengths of the setting (set-up and dense-output sampling apart from the stepping), else
 per-time from one run; each prediction says which.
 
-The error read is the solution error ``l2_error`` (the RMS error over [0, T] relative to the
-motion, longtime.measure.metrics; law ``error.growth_class``) where the problem's rows have
-a reference, else the energy error ``H.max`` (law ``H.growth_class``), else the first
-invariant's: ``measure`` says which.
+A setting "keeps E up to T" where its error over [t0, T] stays at most E: the largest
+error up to T, never an average (``error_kept``, the one definition that recommend, the
+verdict, its checks and the results page read). The error read is the solution error
+``max_error`` (the largest error of any block of the state over [0, T], each block relative
+to its own motion, longtime.measure.metrics; law ``error.growth_class``) where the
+problem's rows have a reference (``l2_error``, the RMS over [0, T], only from a store
+whose rows predate ``max_error``), else the energy error ``H.max`` (law
+``H.growth_class``), else the first invariant's: ``measure`` says which.
 """
 from __future__ import annotations
 
@@ -93,6 +97,15 @@ LOST = SATURATION
 SHORT_RUN = 0.1
 
 
+# the solution error's fields, in the order ``measure`` takes them: max_error (the largest
+# error over [0, T]); l2_error (its RMS) only where no row has max_error (an older store)
+SOLUTION_FIELDS = ("max_error", "l2_error")
+SOLUTION_TEXTS = {"max_error": "the largest error of any block of the state (a body's position, its momentum, ...) "
+                               "over [0, T], relative to that block's motion",
+                  "l2_error": "the RMS error of the solution over [0, T] relative to its motion (rows stored "
+                              "without max_error)"}
+
+
 @dataclass
 class Measure:
     """The error a problem's verdict reads: ``field`` of the rows, the growth law ``law``
@@ -101,15 +114,33 @@ class Measure:
     law: str
     text: str
 
+    @property
+    def solution(self) -> bool:
+        """Whether it is the solution error (against a reference), not an invariant's."""
+        return self.field in SOLUTION_FIELDS
+
+
+def solution_measure(rows: Iterable[dict[str, Any]], with_law: bool = False) -> Measure | None:
+    """The solution error's Measure where ok rows have one (the first of SOLUTION_FIELDS
+    that one has; ``with_law``: with its growth class too), else None."""
+    ok = [r for r in rows if r.get("status") == "ok"]
+    for name in SOLUTION_FIELDS:
+        if any(positive(r.get(name)) and (r.get("error.growth_class") or not with_law) for r in ok):
+            ref = next((r.get("reference") for r in ok if r.get("reference")), None)
+            return Measure(name, "error", f"{SOLUTION_TEXTS[name]}, against the "
+                                          f"{'exact solution' if ref == 'exact' else 'reference'}")
+    return None
+
 
 def measure(rows: Iterable[dict[str, Any]]) -> Measure | None:
-    """The solution error where ok rows have one and its growth class, else H's drift, else
-    the first invariant's with a growth class; None when no ok row has any."""
+    """The solution error where ok rows have one and its growth class (SOLUTION_FIELDS),
+    else H's drift, else the first invariant's with a growth class; None when no ok row has
+    any."""
+    rows = list(rows)
+    found = solution_measure(rows, with_law=True)
+    if found is not None:
+        return found
     ok = [r for r in rows if r.get("status") == "ok"]
-    if any(positive(r.get("l2_error")) and r.get("error.growth_class") for r in ok):
-        ref = next((r.get("reference") for r in ok if r.get("reference")), None)
-        return Measure("l2_error", "error", f"the RMS error of the solution over [0, T] relative to its motion, "
-                                            f"against the {'exact solution' if ref == 'exact' else 'reference'}")
     names = [k[: -len(".growth_class")] for r in ok for k in r if k.endswith(".growth_class")
              and r.get(k) and k != "error.growth_class" and positive(r.get(k[: -len(".growth_class")] + ".max"))]
     if not names:
@@ -130,12 +161,12 @@ class Setting:
     alpha: float | None  # the fitted exponent (evidence; a prediction uses the class's)
     ci: tuple[float, float] | None
     reason: str
-    # the error's kind: "solution" (l2_error), "drifting" (l2_error of a setting whose
+    # the error's kind: "solution" (max_error), "drifting" (max_error of a setting whose
     # energy drift will steepen it, see TRUST_FACTORS) or "invariant" (NAME.max)
     kind: str = "solution"
     windows: tuple[float, ...] = ()  # the slopes of the growth fit's windows, earliest first
     # the error reached up to each time of its run, (t, error) earliest first: the row's
-    # error_curve (l2_error up to t) or its invariant's envelope (running maximum); () for a
+    # error_curve (its running maximum) or its invariant's envelope (running maximum); () for a
     # row stored without it
     curve: tuple[tuple[float, float], ...] = ()
     cost: "CostModel | None" = None  # CPU seconds against T (default: per-time, from this run)
@@ -209,14 +240,9 @@ class Setting:
         return self.span * self.factor
 
     def error_reached(self, horizon: float) -> float:
-        """The error measured up to ``horizon`` within its run: read on its error curve (the
-        larger of the two curve points around ``horizon``), else the error of its whole run."""
-        if not self.curve or horizon >= self.span * (1 - 1e-9):
-            return self.error
-        after = next((k for k, (t, _) in enumerate(self.curve) if t >= horizon * (1 - 1e-9)), None)
-        if after is None:
-            return self.error
-        return max(self.curve[after][1], self.curve[after - 1][1] if after > 0 else 0.0)
+        """The error measured up to ``horizon`` within its run (``error_kept``, on the curve
+        kept once per setting)."""
+        return _reached(self.curve, self.error, self.span, horizon)
 
     def state_at(self, horizon: float) -> str:
         """What it says of its error at ``horizon``: "measured" (within its run),
@@ -315,16 +341,48 @@ def cost_model(runs: list[tuple[float, float]]) -> CostModel:
     return CostModel(0.0, longest[1] / longest[0], "per-time", (longest[0],))
 
 
+def error_kept(row: dict[str, Any], m: Measure, horizon: float | None = None) -> float | None:
+    """What "keeps E up to T" reads, the one definition: the error of ``row`` over [t0, T]
+    (T = ``horizon``; None, or at or past the row's run: its whole run), E kept where it is
+    at most E. For the solution error (max_error) and an invariant's (NAME.max): the largest
+    error up to T, read within the run on the running maximum of the row's error envelope
+    (``_curve``); for l2_error (an older row) its RMS up to T. None where the row has no
+    such error."""
+    whole = row.get(m.field)
+    if not isinstance(whole, (int, float)) or isinstance(whole, bool) or not math.isfinite(whole):
+        return None
+    if horizon is None:
+        return float(whole)
+    return _reached(_curve(row, m), float(whole), float(row.get("t_final") or 0), horizon)
+
+
+def _reached(curve: tuple[tuple[float, float], ...], whole: float, span: float, horizon: float) -> float:
+    """The error up to ``horizon`` of a run of ``span`` whose error is ``whole``: read on
+    its curve of the error reached (the larger of the two points around ``horizon``), else
+    ``whole``."""
+    if not curve or horizon >= span * (1 - 1e-9):
+        return whole
+    after = next((k for k, (t, _) in enumerate(curve) if t >= horizon * (1 - 1e-9)), None)
+    if after is None:
+        return whole
+    return max(curve[after][1], curve[after - 1][1] if after > 0 else 0.0)
+
+
 def _curve(row: dict[str, Any], m: Measure) -> tuple[tuple[float, float], ...]:
-    """The error reached up to each time of the row's run, (t, error) earliest first: its
-    error_curve's l2 (the l2_error up to t) for the solution error, the running maximum of
-    the invariant's envelope for NAME.max; () where the row keeps none."""
+    """The error reached up to each time of the row's run, (t, error) earliest first: for
+    max_error the running maximum of its error_curve's envelope (the largest error up to
+    t), for l2_error its error_curve's l2 (the l2_error up to t), for NAME.max the running
+    maximum of the invariant's envelope; () where the row keeps none."""
     t0 = 0.0  # the curves' times are t - t0
-    if m.field == "l2_error":
+    if m.solution:
         c = row.get("error_curve")
-        if isinstance(c, dict) and c.get("l2"):
-            return tuple((t0 + float(t), float(e)) for t, e in zip(c["t"], c["l2"]))
-        return ()
+        key = "l2" if m.field == "l2_error" else "error"
+        if not (isinstance(c, dict) and c.get(key)):
+            return ()
+        values = np.asarray(c[key], dtype=float)
+        if key == "error":
+            values = np.maximum.accumulate(values)
+        return tuple((t0 + float(t), float(e)) for t, e in zip(c["t"], values))
     name = m.field[: -len(".max")]
     for c in row.get("drift_curves") or ([row["drift_curve"]] if row.get("drift_curve") else []):
         if isinstance(c, dict) and c.get("invariant") == name:
@@ -398,7 +456,7 @@ def _kind(row: dict[str, Any], m: Measure, law: str) -> str:
     "drifting" where the row's energy error drifts like t^a (DRIFTS; an undetermined one
     whose window slopes rise past 0.25: a its latest slope) with k < 1 + a, else
     "solution"."""
-    if m.field != "l2_error":
+    if not m.solution:
         return "invariant"
     if positive(row.get("lyapunov_time")):
         return "chaotic"

@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 from longtime.core.params import Param
-from longtime.core.problem import Problem
+from longtime.core.problem import Problem, qp_blocks
 
 X0 = (0.0, 0.2, 0.1)
 V0 = (0.09, 0.05, 0.2)
@@ -70,6 +70,9 @@ class ChargedParticle(Problem):
     rhs = staticmethod(_rhs)
     field_B = staticmethod(_field_B)
     field_E = staticmethod(_field_E)
+
+    def blocks(self):
+        return qp_blocks(["particle"], 3)  # its position x and its velocity v
 
     def initial_state(self):
         return [*X0, *V0]

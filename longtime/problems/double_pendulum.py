@@ -50,7 +50,7 @@ import numba
 import numpy as np
 
 from longtime.core.params import InputError, Param
-from longtime.core.problem import Problem
+from longtime.core.problem import Problem, qp_blocks
 
 # kernel params: (m1, m2, l1, l2, g)
 
@@ -159,6 +159,9 @@ class DoublePendulum(Problem):
 
     rhs = staticmethod(_rhs)
     constraints = PendulumConstraints
+
+    def blocks(self):
+        return qp_blocks(["bob 1", "bob 2"], 2)  # each bob's position and momentum
 
     def initial_state(self):
         s = self.settings

@@ -19,7 +19,7 @@ import numba
 import numpy as np
 
 from longtime.core.params import Param
-from longtime.core.problem import Problem
+from longtime.core.problem import Problem, qp_blocks
 from longtime.numerics.series import cos_wt_coeff, product, square
 
 _A, _B, _R, _C, _W = range(5)
@@ -90,6 +90,9 @@ class _Duffing(Problem):
     def coefficients(self) -> tuple[float, float, float, float, float]:
         """(a, b, r, c, w)."""
         raise NotImplementedError
+
+    def blocks(self):
+        return qp_blocks(["oscillator"], 1)
 
     def initial_state(self):
         return [1.0, 0.0]

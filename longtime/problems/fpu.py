@@ -110,6 +110,16 @@ class FPU(Problem):
     frequencies = staticmethod(_frequencies)
     grad_U = staticmethod(_grad_U)
 
+    def blocks(self):
+        """Each stiff spring's two masses: their positions (x_{0,i}, x_{1,i}, a rotation of
+        q_{2i-1}, q_{2i}) and their momenta (y_{0,i}, y_{1,i})."""
+        m = self.settings["m"]
+        out = {}
+        for i in range(m):
+            out[f"q spring {i + 1}"] = [i, m + i]
+            out[f"p spring {i + 1}"] = [2 * m + i, 3 * m + i]
+        return out
+
     def initial_state(self):
         # HLW I.5.1: x_{0,1} = 1, y_{0,1} = 1, x_{1,1} = 1/omega, y_{1,1} = 1, the rest 0
         m, w = self.settings["m"], self.settings["omega"]

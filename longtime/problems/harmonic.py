@@ -5,7 +5,7 @@ import numba
 import numpy as np
 
 from longtime.core.params import Param
-from longtime.core.problem import Problem
+from longtime.core.problem import Problem, qp_blocks
 
 
 @numba.njit(cache=True)
@@ -59,6 +59,9 @@ class Harmonic(Problem):
     grad_T = staticmethod(_grad_T)
     grad_V = staticmethod(_grad_V)
     taylor = staticmethod(_taylor)
+
+    def blocks(self):
+        return qp_blocks(["oscillator"], 1)
 
     def initial_state(self):
         return [self.settings["q0"], self.settings["p0"]]

@@ -13,7 +13,7 @@ import numba
 import numpy as np
 
 from longtime.core.params import InputError, Param
-from longtime.core.problem import Problem, separable_rhs
+from longtime.core.problem import Problem, qp_blocks, separable_rhs
 
 
 @numba.njit(cache=True)
@@ -61,6 +61,9 @@ class HenonHeiles(Problem):
     jax_rhs = staticmethod(_jax_rhs)
     grad_T = staticmethod(_grad_T)
     grad_V = staticmethod(_grad_V)
+
+    def blocks(self):
+        return qp_blocks(["particle"], 2)
 
     def initial_state(self):
         E, y0 = self.settings["energy"], self.settings["y0"]

@@ -59,7 +59,7 @@ import scipy.fft
 from rocket_fft.lowlevel import c2r, r2c
 
 from longtime.core.params import InputError, Param
-from longtime.core.problem import Problem
+from longtime.core.problem import Problem, whole_state
 
 # constants (docs/problems.md 5): depth delta, gravity g, soliton amplitude h, period X
 DEPTH, GRAVITY, AMPLITUDE, PERIOD_X = 2.0, 10.0, 0.5, 24.0 * math.pi
@@ -261,6 +261,9 @@ class KdV(Problem):
         x = np.where(x >= PERIOD_X / 2, x - PERIOD_X, x)
         u0 = AMPLITUDE / np.cosh(KAPPA * x) ** 2
         return scipy.fft.rfft(u0)[: self.modes + 1] / n_fine
+
+    def blocks(self):
+        return whole_state(self)  # one field: its modes are not objects of their own
 
     def initial_state(self):
         return self.from_coefficients(self.soliton_coefficients())[0]

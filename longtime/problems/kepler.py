@@ -12,7 +12,7 @@ import numba
 import numpy as np
 
 from longtime.core.params import Param
-from longtime.core.problem import Problem, separable_rhs
+from longtime.core.problem import Problem, qp_blocks, separable_rhs
 from longtime.numerics.series import power_coeff, product, square
 
 
@@ -123,6 +123,9 @@ class Kepler(Problem):
 
     def taylor_work_shape(self, order):
         return (2, order + 1)
+
+    def blocks(self):
+        return qp_blocks(["planet"], 2)
 
     def initial_state(self):
         e = self.settings["e"]

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from longtime.core.problem import Problem, separable_rhs
+from longtime.core.problem import Problem, qp_blocks, separable_rhs
 
 K_B = 1.380658e-23  # J / K, the value HLW use
 ARGON_MASS = 66.34e-27  # kg
@@ -69,6 +69,9 @@ class LennardJones(Problem):
     rhs = staticmethod(separable_rhs(_grad_T, _grad_V))
     grad_T = staticmethod(_grad_T)
     grad_V = staticmethod(_grad_V)
+
+    def blocks(self):
+        return qp_blocks([f"atom {k + 1}" for k in range(POSITIONS.shape[0])], 2)
 
     def initial_state(self):
         return np.r_[POSITIONS.ravel(), VELOCITIES.ravel()]

@@ -7,7 +7,7 @@ import numba
 import numpy as np
 
 from longtime.core.params import Param
-from longtime.core.problem import Problem
+from longtime.core.problem import Problem, whole_state
 
 
 @numba.njit(cache=True)
@@ -59,6 +59,9 @@ class LinearTest(Problem):
     jax_rhs = staticmethod(_jax_rhs)
     jac = staticmethod(_jac)
     taylor = staticmethod(_taylor)
+
+    def blocks(self):
+        return whole_state(self)  # one complex number (re, im)
 
     def initial_state(self):
         return [1.0, 0.0]

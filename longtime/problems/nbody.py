@@ -14,7 +14,7 @@ import numba
 import numpy as np
 
 from longtime.core.params import Param
-from longtime.core.problem import Problem
+from longtime.core.problem import Problem, qp_blocks
 from longtime.numerics.series import power_coeff, product, square
 
 
@@ -123,6 +123,14 @@ class NBody(Problem):
 
     def masses(self) -> np.ndarray:
         raise NotImplementedError
+
+    def body_names(self) -> list[str]:
+        return [f"body {k + 1}" for k in range(self.masses().size)]
+
+    def blocks(self):
+        """Each body's position and its momentum (its momentum m v is 1e-5 of its position
+        for Jupiter in AU and solar masses: in one norm it would not count)."""
+        return qp_blocks(self.body_names(), self.space_dim)
 
     def kernel_params(self):
         if self.space_dim not in (2, 3):
@@ -281,6 +289,9 @@ class OuterSolarSystem(NBody):
 
     def masses(self):
         return _OSS_MASSES
+
+    def body_names(self):
+        return ["Sun", "Jupiter", "Saturn", "Uranus", "Neptune", "Pluto"]
 
     def initial_state(self):
         return np.r_[_OSS_Q.ravel(), (_OSS_MASSES[:, None] * _OSS_V).ravel()]

@@ -20,7 +20,7 @@ import numba
 import numpy as np
 
 from longtime.core.params import Param
-from longtime.core.problem import Problem
+from longtime.core.problem import Problem, qp_blocks
 
 ARENSTORF_MU = 0.012277471
 ARENSTORF_STATE = (0.994, 0.0, 0.0, -2.00158510637908252240537862224)
@@ -59,6 +59,9 @@ class RestrictedThreeBody(Problem):
     sweep_t_final = ARENSTORF_PERIOD
 
     rhs = staticmethod(_rhs)
+
+    def blocks(self):
+        return qp_blocks(["satellite"], 2)  # its position and velocity in the rotating frame
 
     def initial_state(self):
         return list(ARENSTORF_STATE)

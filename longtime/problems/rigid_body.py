@@ -27,7 +27,7 @@ import numba
 import numpy as np
 
 from longtime.core.params import Param
-from longtime.core.problem import Problem
+from longtime.core.problem import Problem, whole_state
 
 
 @numba.njit(cache=True)
@@ -113,6 +113,9 @@ class RigidBody(Problem):
     rhs = staticmethod(_rhs)
     jax_rhs = staticmethod(_jax_rhs)
     jac = staticmethod(_jac)
+
+    def blocks(self):
+        return whole_state(self)  # one angular momentum vector
 
     def initial_state(self):
         angle = self.settings["angle"]

@@ -12,7 +12,7 @@ import numba
 import numpy as np
 
 from longtime.core.params import Param
-from longtime.core.problem import Problem
+from longtime.core.problem import Problem, qp_blocks
 from longtime.numerics.series import exp_coeff
 
 
@@ -99,6 +99,9 @@ class Toda(Problem):
 
     def taylor_work_shape(self, order):
         return (2 * self.settings["d"], order + 1)
+
+    def blocks(self):
+        return qp_blocks([str(k + 1) for k in range(self.settings["d"])], 1)
 
     def initial_state(self):
         d = self.settings["d"]

@@ -13,8 +13,10 @@ from typing import Any
 from longtime.core.fmt import positive
 from longtime.core.rowtext import main_t_final, setting
 from longtime.execution.budget import TOO_SLOW
+from longtime.predict.settings import Measure, error_kept, solution_measure
 
-# the error the table asks of each library's settings (l2_error, relative to the motion)
+# the error the table asks of each library's settings (the verdict's measure: max_error, the
+# largest error of any block of the state over the run, relative to its motion)
 TARGET = 1e-6
 
 
@@ -29,7 +31,7 @@ def library_of(scheme: str) -> str:
         return "unknown"
 
 
-def _cell(rows: list[dict[str, Any]], t_main: float, target: float) -> tuple[str, float | None]:
+def _cell(rows: list[dict[str, Any]], t_main: float, target: float, m: Measure | None) -> tuple[str, float | None]:
     """(the library's cell, the CPU seconds of its entry or None where it has none)."""
     if not rows:
         return "not run on this problem", None
@@ -49,17 +51,18 @@ def _cell(rows: list[dict[str, Any]], t_main: float, target: float) -> tuple[str
         return _too_slow(slow, t_main), None
     if not main:
         return f"only shorter runs (t_final {min(r['t_final'] for r in ran):.3g}: the budget)", None
+    errors = {id(r): error_kept(r, m) if m is not None else None for r in main}
     kept = [r for r in main if not r.get("solution_lost") and positive(r.get("cpu_s"))
-            and r.get("l2_error") is not None and r["l2_error"] <= target]
+            and errors[id(r)] is not None and errors[id(r)] <= target]
     if not kept:
-        measured = [r for r in main if r.get("l2_error") is not None]
+        measured = [r for r in main if errors[id(r)] is not None]
         if not measured:
             return "no error measured", None
-        r = min(measured, key=lambda r: r["l2_error"])
-        text = f"none keeps it (best {r['l2_error']:.2g}: {r['integrator']} {setting(r)})".replace("  ", " ")
+        r = min(measured, key=lambda r: errors[id(r)])
+        text = f"none keeps it (best {errors[id(r)]:.2g}: {r['integrator']} {setting(r)})".replace("  ", " ")
         return (f"{text}; {_too_slow(slow, t_main)}" if slow else text), None
     r = min(kept, key=lambda r: r["cpu_s"])
-    text = f"{r['integrator']} {setting(r)}: {r['cpu_s']:.3g} s ({r['l2_error']:.1g})".replace("  ", " ")
+    text = f"{r['integrator']} {setting(r)}: {r['cpu_s']:.3g} s ({errors[id(r)]:.1g})".replace("  ", " ")
     return text, float(r["cpu_s"])
 
 
@@ -76,10 +79,10 @@ def _too_slow(slow: list[dict[str, Any]], t_main: float) -> str:
 
 def library_table(rows: list[dict[str, Any]], target: float = TARGET) -> tuple[list[str], list[list[str]]]:
     """(header, body): a row per problem, a column per library present in ``rows``, each cell
-    the cheapest ok setting of that library whose ``l2_error`` keeps ``target`` at the
-    problem's main final time (``main_t_final``), with its CPU seconds, its error and its
-    CPU as a multiple of the cheapest library's entry ("best" for that one), or why there is
-    none."""
+    the cheapest ok setting of that library that keeps ``target`` (``error_kept`` of the
+    problem's solution error, ``solution_measure``) at the problem's main final time
+    (``main_t_final``), with its CPU seconds, its error and its CPU as a multiple of the
+    cheapest library's entry ("best" for that one), or why there is none."""
     by_library: dict[str, set[str]] = {}
     for scheme in sorted({r["integrator"] for r in rows}):
         by_library.setdefault(library_of(scheme), set()).add(scheme)
@@ -90,7 +93,9 @@ def library_table(rows: list[dict[str, Any]], target: float = TARGET) -> tuple[l
         t_main = main_t_final(mine)
         if t_main is None:
             continue
-        found = [_cell([r for r in mine if r["integrator"] in by_library[lib]], t_main, target) for lib in libraries]
+        m = solution_measure(mine)
+        found = [_cell([r for r in mine if r["integrator"] in by_library[lib]], t_main, target, m)
+                 for lib in libraries]
         best = min((cpu for _, cpu in found if cpu is not None), default=None)
         cells = [text if cpu is None else f"{text} {_ratio(cpu, best)}" for text, cpu in found]
         body.append([problem, f"{t_main:.4g}", *cells])

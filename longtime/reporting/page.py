@@ -215,10 +215,12 @@ def _libraries_section(rows: list[dict]) -> str:
 
     header, body = library_table(rows)
     return (f'<h2 id="libraries">Which library</h2><p class="note">Per problem and library, the cheapest ok '
-            f"setting measured to keep l2_error &le; {TARGET:g} over the problem's main run (T: the final time "
-            f"most of its rows ran to), its CPU seconds, its error and its CPU as a multiple of the cheapest "
-            f"library's; or why the library has none (too slow: a run stopped at the time limit, the seconds "
-            f"it ran and how far it got). Measured rows only, no extrapolation.</p>"
+            f"setting measured to keep its solution error (max_error: the largest error of any block of the "
+            f"state over [0, T], relative to its motion) &le; {TARGET:g} over the problem's main run (T: the "
+            f"final time most of its rows ran to), its CPU seconds, its error and its CPU as a multiple of the "
+            f"cheapest library's; or why the library has none (too slow: a run stopped at the time limit, the "
+            f"seconds it ran and how far it got, or its cheapest setting estimated past a cell's budget). "
+            f"Measured rows only, no extrapolation.</p>"
             + table(header, body))
 
 

@@ -125,7 +125,7 @@ def recommend(rows: list[dict[str, Any]], problem: str, error: float, horizon: f
     if m is None or not cands:
         return unanswered(f"no ok row of {problem} with an error, a growth class and a CPU time in the store; "
                           f"`longtime matrix -p {problem}{where}` measures them", m)
-    limit = predictability(mine, error, growth) if m.field == "l2_error" else None
+    limit = predictability(mine, error, growth) if m.solution else None
     d = decide(cands, error, horizon, limit)
     # a limit set by the stored rows' reference alone is lifted by runs checked against a
     # reference to T; one set by the growth of a rounding is not

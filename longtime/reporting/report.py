@@ -20,6 +20,7 @@ from longtime.core.rowtext import main_t_final, setting  # noqa: F401 (their hom
 from longtime.measure.lyapunov import past_predictability
 from longtime.predict.decision import verdicts
 from longtime.predict.need import PARETO_FIELDS, pareto_field  # noqa: F401 (their home; read from here too)
+from longtime.predict.settings import SOLUTION_FIELDS
 from longtime.reporting.verdict import verdict_lines
 
 # the JSON contract (README.md, `--format json`): every row carries these keys (null where not applicable)
@@ -99,7 +100,8 @@ def render(rows: list[dict[str, Any]], fmt: str = "table") -> str:
 # ------------------------------------------------------------------ the summary read first
 STATUSES = ("ok", "diverged", "failed", "timeout", "skipped")
 # the accuracy a Pareto front ranks by is the first of PARETO_FIELDS present (the solution
-# error where a reference exists, else the energy drift): longtime.predict.need
+# error where a reference exists, the largest error over the run first, else the energy
+# drift): longtime.predict.need
 DECADES = tuple(10.0 ** -k for k in range(1, 16))
 
 
@@ -125,7 +127,7 @@ def pareto(rows: list[dict[str, Any]], field: str | None = None) -> list[dict[st
     field = field or pareto_field(rows)
     t_main = main_t_final(rows)
     ok = [r for r in rows if r.get("status") == "ok" and positive(r.get("cpu_s")) and positive(r.get(field))
-          and r.get("t_final") == t_main and not (field == "l2_error" and past_predictability(r))]
+          and r.get("t_final") == t_main and not (field in SOLUTION_FIELDS and past_predictability(r))]
     out = []
     for target in DECADES:
         meets = sorted((r for r in ok if r[field] <= target), key=lambda r: r["cpu_s"])

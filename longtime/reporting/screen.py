@@ -8,6 +8,7 @@ from typing import Any, Iterable
 from longtime.core.rowtext import setting
 from longtime.measure.lyapunov import past_predictability
 from longtime.predict.decision import verdicts
+from longtime.predict.settings import SOLUTION_FIELDS
 from longtime.reporting.report import format_counts, pareto, pareto_field, render, status_counts, summary
 
 # the answer table's columns: (target error, horizon in units of the run's final time)
@@ -110,14 +111,15 @@ def answer_table(answers: list[dict[str, Any]]) -> list[str]:
     """The cross-problem table of ``answer_rows``: a line per problem with each answer's
     setting in full, and beneath it a line with each answer's predicted CPU time and its
     runner-up's as a multiple of it."""
-    width = max([len("problem")] + [len(a["problem"]) + (4 if a["field"] not in (None, "l2_error") else 0)
+    width = max([len("problem")] + [len(a["problem"]) + (4 if a["field"] not in (None, *SOLUTION_FIELDS) else 0)
                                    for a in answers])
     head = [f"{e:.0e} to {'T' if f == 1 else f'{f:g} T'}" for e, f in ANSWER_TARGETS]
     cols = [max([ANSWER_CELL, len(head[k])] + [len(a["answers"][k]) for a in answers if len(a["answers"]) > k]
                 + [len(c) for a in answers for c in a.get("costs", [])[k:k + 1]]) for k in range(len(head))]
     lines = [(f"{'problem':<{width}}  {'T':>8}  " + "  ".join(f"{h:<{w}}" for h, w in zip(head, cols))).rstrip()]
     for a in answers:
-        name = a["problem"] + (f" ({a['field'].removesuffix('.max')})" if a["field"] not in (None, "l2_error") else "")
+        invariant = a["field"] not in (None, *SOLUTION_FIELDS)
+        name = a["problem"] + (f" ({a['field'].removesuffix('.max')})" if invariant else "")
         t = f"{a['t_main']:.4g}" if a["t_main"] else "-"
         if all(x == NO_POINTWISE for x in a["answers"]):
             lines.append(f"{name:<{width}}  {t:>8}  {NO_POINTWISE} (chaotic: the solution is lost within the run)")
