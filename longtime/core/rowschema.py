@@ -294,6 +294,8 @@ CHECK_FIELDS: tuple[Field, ...] = (
     Field("predicted_error", "float", "1", "the error predicted at the horizon (null: no prediction)"),
     Field("predicted_bound", "bool", "", "whether the predicted error is an upper bound"),
     Field("predicted_cpu_s", "float", "s", "the CPU time predicted at the horizon", bounds=(0.0, math.inf)),
+    Field("predicted_cpu_s_calibrated", "float", "s", "the predicted CPU time in the machine's calibrated units "
+          "(the prediction rescaled by its row's calibration)", bounds=(0.0, math.inf)),
     Field("predicted_cpu_model", "str", "", "the cost model the CPU time is predicted by"),
     Field("measured_error", "float", "1", "the error the re-run measured at the horizon"),
     Field("from_t_final", "float", "time", "the span of the row that made the prediction"),
