@@ -336,10 +336,17 @@ def record_problems(record: Any, fields: Iterable[Field], counters: Iterable[str
            if not isinstance(record.get(name), str) or not record.get(name)]
     own = {f.name: f for f in fields}
     counters = scheme_counters(record.get("integrator")) if counters is None else tuple(counters)
-    for name, value in record.items():
-        declared = own.get(name) or (field(name, counters) if isinstance(name, str) else None)
+    return out + _value_problems(record.items(), lambda name: own.get(name) or field(name, counters), "field")
+
+
+def _value_problems(items: Iterable[tuple[Any, Any]], declared_as: Any, what: str) -> list[str]:
+    """One line per item whose name ``declared_as`` does not declare (a ``what``), or whose
+    value is not its field's (``Field.wrong``); a null value holds."""
+    out = []
+    for name, value in items:
+        declared = declared_as(name) if isinstance(name, str) else None
         if declared is None:
-            out.append(f"{name}: not a declared field (longtime.core.rowschema)")
+            out.append(f"{name}: not a declared {what} (longtime.core.rowschema)")
         elif value is not None:
             wrong = declared.wrong(value)
             if wrong:
@@ -364,17 +371,8 @@ def problems(row: Mapping[str, Any], counters: Iterable[str] = (), only: Iterabl
         empty = value is None or (isinstance(value, str) and not value)
         if not f.optional and (only is None or f.name in only) and empty:
             out.append(f"{f.name}: required ({TYPES[f.kind][0]}), got {value!r}")
-    for name, value in row.items():
-        if only is not None and name not in only:
-            continue
-        declared = field(name, counters) if isinstance(name, str) else None
-        if declared is None:
-            out.append(f"{name}: not a declared row field (longtime.core.rowschema)")
-        elif value is not None:
-            wrong = declared.wrong(value)
-            if wrong:
-                out.append(f"{name}: {wrong}")
-    return out
+    items = [(name, value) for name, value in row.items() if only is None or name in only]
+    return out + _value_problems(items, lambda name: field(name, counters), "row field")
 
 
 def scheme_counters(integrator: Any) -> tuple[str, ...]:

@@ -297,17 +297,13 @@ def check_cached(problem: Problem, t_final: float) -> bool:
     return str(path) in _CHECKS or path.exists()
 
 
-def _check_runs(problem: Problem, t_final: float, ladder: list[str],
-                budget_s: float | None) -> dict[str, Any]:
-    """The heyoka runs behind ``reference_check`` on its check grid, cached on disk: "times",
-    one float64 array of states per precision run (rows reached), "stopped" {precision: t}
-    for runs that passed their budget."""
-    budget = budget_seconds() if budget_s is None else budget_s
-    parts = ("check", repr(t_final), str(CHECK_POINTS), repr(REFERENCE_RTOL), ",".join(ladder))
-    paths = [cache_path(problem, *parts), cache_path(problem, *parts, f"budget={budget!r}")]
+def _cached_check(paths: list[Path]) -> dict[str, Any] | None:
+    """A reference check's runs from the first of ``paths`` held in this process or cached on
+    disk (None: neither)."""
     for path in paths:
         if str(path) in _CHECKS:
             return _CHECKS[str(path)]
+
         def read(path=path):
             with np.load(path) as data:
                 runs = {k: data[k] for k in data.files if k != "stopped"}
@@ -318,6 +314,20 @@ def _check_runs(problem: Problem, t_final: float, ladder: list[str],
         if runs is not None:
             _CHECKS[str(path)] = runs
             return runs
+    return None
+
+
+def _check_runs(problem: Problem, t_final: float, ladder: list[str],
+                budget_s: float | None) -> dict[str, Any]:
+    """The heyoka runs behind ``reference_check`` on its check grid, cached on disk: "times",
+    one float64 array of states per precision run (rows reached), "stopped" {precision: t}
+    for runs that passed their budget."""
+    budget = budget_seconds() if budget_s is None else budget_s
+    parts = ("check", repr(t_final), str(CHECK_POINTS), repr(REFERENCE_RTOL), ",".join(ladder))
+    paths = [cache_path(problem, *parts), cache_path(problem, *parts, f"budget={budget!r}")]
+    runs = _cached_check(paths)
+    if runs is not None:
+        return runs
     times, low, stopped = _stepped_run(problem, t_final, budget)
     runs: dict[str, Any] = {"times": times, ladder[0]: low}
     stops = {ladder[0]: stopped} if stopped is not None else {}
@@ -467,22 +477,7 @@ def _system_check(problem: Problem, t_final: float, budget_s: float | None) -> T
     budget = budget_seconds() if budget_s is None else budget_s
     parts = ("system-check", repr(t_final), str(CHECK_POINTS), repr(SYSTEM_RTOL))
     paths = [cache_path(problem, *parts), cache_path(problem, *parts, f"budget={budget!r}")]
-    runs = None
-    for path in paths:
-        if str(path) in _CHECKS:
-            runs = _CHECKS[str(path)]
-            break
-
-        def read(path=path):
-            with np.load(path) as data:
-                found = {k: data[k] for k in data.files if k != "stopped"}
-                found["stopped"] = json.loads(str(data["stopped"]))
-            return found
-
-        runs = load_cached(path, read)
-        if runs is not None:
-            _CHECKS[str(path)] = runs
-            break
+    runs = _cached_check(paths)
     if runs is None:
         times = np.linspace(problem.t0, t_final, CHECK_POINTS + 1)
         factor, stop_factor = system_states(problem, times, "factor", budget)
