@@ -93,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{problem:24s} {straight['dim']:3d} {tol:>6s} {'y' if high else 'n':>2s} "
                   f"{straight['decomposition']:5d}/{compact['decomposition']:<5d} "
                   f"{straight['compile_s']:6.2f}/{compact['compile_s']:<6.2f} "
-                  f"{per_t[0]:8.1f}/{per_t[1]:<8.1f} "
+                  f"{per_t[0]:8.3g}/{per_t[1]:<8.3g} "
                   f"{compact['compile_s'] / straight['compile_s']:11.3f} {per_t[1] / per_t[0]:7.2f} {diff:10.2e}",
                   flush=True)
             if args.opt_level is not None:
