@@ -18,6 +18,7 @@ the cache's writing), each stage's own time, the stages nested in it subtracted.
     python benchmarks/bench_compile.py                  # every family
     python benchmarks/bench_compile.py -f bpl --events  # one family, with the breakdown
     python benchmarks/bench_compile.py -f splitting --stages
+    python benchmarks/bench_compile.py --pair pythagorean-three-body,bpl --events  # any pair
     python benchmarks/bench_compile.py --matrix -- -p kepler,toda   # longtime matrix's kernels
 
 ``--matrix`` compiles, in one fresh process with empty caches (as one worker of a cold main
@@ -210,6 +211,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("-f", "--family", action="append", choices=sorted(FAMILIES),
                         help="families to measure (default: all)")
+    parser.add_argument("--pair", action="append", metavar="PROBLEM,SCHEME", default=[],
+                        help="also (or, without -f, only) this problem and scheme, measured as a family")
     parser.add_argument("--events", action="store_true",
                         help="list the functions that took longest to compile (cold run)")
     parser.add_argument("--stages", action="store_true",
@@ -225,8 +228,15 @@ def main(argv: list[str] | None = None) -> int:
         for pair, seconds in figures["pairs"]:
             print(f"{seconds:8.2f} s  {pair}")
         return 0
+    pairs = []
+    for pair in args.pair:
+        problem, _, scheme = pair.partition(",")
+        if not problem or not scheme:
+            parser.error(f"--pair: expected PROBLEM,SCHEME, got {pair!r}")
+        FAMILIES[pair] = (problem, scheme)
+        pairs.append(pair)
     print(f"{'family':14s} {'pair':28s} {'cold s':>8s} {'warm s':>8s}")
-    for family in args.family or list(FAMILIES):
+    for family in (args.family or ([] if pairs else list(FAMILIES))) + pairs:
         figures = measure(family, args.events, args.stages)
         pair = " x ".join(FAMILIES[family])
         print(f"{family:14s} {pair:28s} {figures['cold_s']:8.2f} {figures['warm_s']:8.2f}")

@@ -72,3 +72,23 @@ def test_a_compile_past_its_time_is_given_up(no_heyoka_cache):
     with pytest.raises(heyoka_build.CompileTimeout, match="toda"):
         heyoka_build.taylor_adaptive(problem, problem.u0.copy(), timeout_s=0.3, compact_mode=False)
     assert time.perf_counter() - start < 2.0
+
+
+@pytest.mark.parametrize("name", ["kepler", "figure-eight"])
+def test_compact_mode_is_the_same_taylor_method(name):
+    # compact mode changes how heyoka's code is laid out, not the method: at the reference's
+    # settings (tolerance at double's epsilon, high accuracy) both builds take the same steps
+    # and agree to round-off, so a reference built either way is the same reference
+    problem = registry.problems()[name]()
+    eps = float(np.finfo(float).eps)
+    runs = []
+    for compact in (False, True):
+        ta = heyoka_build.taylor_adaptive(problem, problem.u0.copy(), None, tol=eps, high_accuracy=True,
+                                          time=float(problem.t0), compact_mode=compact)
+        grid = np.linspace(problem.t0, problem.t0 + 5.0, 51)
+        outcome, _, _, steps, _, states = ta.propagate_grid(grid)
+        runs.append((ta.order, int(steps), np.asarray(states)))
+    (order_s, steps_s, straight), (order_c, steps_c, compact_states) = runs
+    assert order_s == order_c and abs(steps_s - steps_c) <= 1
+    scale = np.abs(straight).max()
+    assert np.abs(straight - compact_states).max() <= 1e-13 * scale

@@ -58,6 +58,7 @@ import numpy as np
 import scipy.fft
 from rocket_fft.lowlevel import c2r, r2c
 
+from longtime.core.drivers import copy_into
 from longtime.core.params import InputError, Param
 from longtime.core.problem import Problem, whole_state
 
@@ -161,7 +162,7 @@ def _taylor(t0, u, params, coeffs, work):
     order = coeffs.shape[0] - 1
     n = int(params[P_N])
     spec = np.empty(n // 2 + 1, dtype=np.complex128)  # once per call, not per order
-    coeffs[0, :] = u
+    copy_into(coeffs[0], u)  # not a slice assignment: drivers.copy_into says why
     acc = work[order]
     for k in range(order):
         _to_physical(coeffs[k], params, spec, work[k])
