@@ -3,7 +3,8 @@
 A cell's reference is its problem's exact solution where it has one, else heyoka's adaptive
 Taylor integrator at machine-epsilon tolerance with ``high_accuracy`` (compensated summation
 for long runs), evaluated at the cell's samples through ``propagate_grid`` (dense output, so
-heyoka's own steps are not clipped) and cached on disk.
+heyoka's own steps are not clipped) and cached on disk; an exact solution on a grid of at
+least EXACT_DISK_SAMPLES times is cached on disk too.
 
 ``reference_check`` estimates the reference's error, once per problem, initial state and
 final time (cached on disk): heyoka in double is compared with heyoka in long double (80-bit
