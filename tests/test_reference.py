@@ -190,3 +190,45 @@ def test_exact_states_are_evaluated_once_per_grid_and_setting(monkeypatch):
     reference.reference_states(low, times[:-1])
     assert calls == [0.3, 0.9, 0.3]
     np.testing.assert_allclose(other, kepler_cls(e=0.9).exact(times), rtol=0, atol=0)
+
+
+def test_exact_states_of_a_large_grid_are_read_back_from_disk(monkeypatch, tmp_path):
+    """A grid of at least EXACT_DISK_SAMPLES times keeps the exact solution on disk: a new
+    process (an empty in-process cache) reads back the same states without evaluating it; a
+    solution that is not finite is never kept."""
+    import numpy as np
+
+    from longtime.core import registry
+    from longtime.measure import reference
+
+    monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(reference, "EXACT_DISK_SAMPLES", 40)
+    calls = []
+    kepler_cls = registry.problems()["kepler"]
+    real = kepler_cls.exact
+
+    def counted(self, t):
+        calls.append(len(t))
+        return real(self, t)
+
+    monkeypatch.setattr(kepler_cls, "exact", counted)
+    problem, times = kepler_cls(e=0.7), np.linspace(0.0, 30.0, 50)
+    monkeypatch.setattr(reference, "_EXACT", {})
+    first = reference.reference_states(problem, times)
+    monkeypatch.setattr(reference, "_EXACT", {})
+    again = reference.reference_states(problem, times)
+    assert calls == [50]
+    np.testing.assert_array_equal(again, first)
+    np.testing.assert_array_equal(first, real(problem, times))
+    reference.reference_states(problem, times[:30])  # below the threshold: evaluated, not kept
+    assert calls == [50, 30]
+
+    def broken(self, t):
+        out = real(self, t)
+        out[-1] = np.nan
+        return out
+
+    monkeypatch.setattr(kepler_cls, "exact", broken)
+    for _ in range(2):
+        monkeypatch.setattr(reference, "_EXACT", {})
+        assert np.isnan(reference.reference_states(problem, times + 1.0)[-1]).all()

@@ -246,13 +246,13 @@ def test_a_scheme_measured_ahead_leaves_its_interval_and_structure_in_the_caches
     assert list((tmp_path / "structure").glob("verlet-*.json"))
 
 
-def test_drift_figures_drawn_ahead_outlive_a_new_cpu_time_unless_it_changes_the_drawn_setting():
+def test_drift_figures_drawn_ahead_outlive_any_new_cpu_time():
     """Rows that keep their curves: CPU times measured again (the timing processes after the
     matrix) leave the drift figures as drawn, not the work-precision ones, even where they
-    reorder the schemes by cost; a time that changes a scheme's setting of median CPU time
-    (the one drawn) leaves neither."""
+    reorder the schemes or a scheme's settings by cost: the drawn setting is a scheme's row
+    of median steps. A changed curve leaves neither."""
     from longtime.execution.cells import Cell
-    from longtime.reporting.figures.results import FIGURE_GROUPS
+    from longtime.reporting.figures.results import FIGURE_GROUPS, representative
     from longtime.reporting.figures_ahead import FiguresAhead
 
     def curve(scale):
@@ -263,7 +263,8 @@ def test_drift_figures_drawn_ahead_outlive_a_new_cpu_time_unless_it_changes_the_
     for k, cell in enumerate(cells):
         dt = cell.integrator_settings["dt"]
         ahead.add(cell, {"problem": "harmonic", "integrator": cell.integrator, "status": "ok", "dt": dt,
-                         "cpu_s": 0.01 * (k + 1) / dt, "l2_error": dt**4, "drift_curve": curve(dt),
+                         "steps": round(10.0 / dt), "cpu_s": 0.01 * (k + 1) / dt, "l2_error": dt**4,
+                         "drift_curve": curve(dt),
                          "drift_curves": [curve(dt)]})
     task = next(t for t in iter(ahead.task, None) if t[0].__name__ == "problem_figures")
     fn, (rows, style, drift, groups), done = task
@@ -274,9 +275,10 @@ def test_drift_figures_drawn_ahead_outlive_a_new_cpu_time_unless_it_changes_the_
     retimed = [{**r, "cpu_s": r["cpu_s"] * (0.1 if r["integrator"] == "verlet" else 1.0),
                 "cpu_s_processes": [r["cpu_s"]]} for r in rows]
     assert ahead.figures("harmonic", retimed, style, drift) == drift_figs
-    # rk4 at dt 0.02 made cheaper than at 0.05: its median setting is another row
+    # rk4 at dt 0.02 made cheaper than at 0.05: its setting of median steps is still dt 0.05
     moved = [{**r, "cpu_s": 1e-4} if r["integrator"] == "rk4" and r["dt"] == 0.02 else r for r in rows]
-    assert ahead.figures("harmonic", moved, style, drift) is None
+    assert ahead.figures("harmonic", moved, style, drift) == drift_figs
+    assert {s: r["dt"] for s, r in representative(moved).items()} == {"rk4": 0.05, "verlet": 0.05}
     other_curve = [{**r, "drift_curves": [curve(7.0)]} if r["integrator"] == "verlet" else r for r in rows]
     assert ahead.figures("harmonic", other_curve, style, drift) is None
 

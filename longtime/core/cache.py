@@ -2,10 +2,10 @@
 
 Folders: ``kernels`` holds the generated modules of compiled loops (``longtime.core.jitcache``)
 and, in their ``__pycache__``, numba's cache of them (in $NUMBA_CACHE_DIR instead when that
-is set); ``reference`` holds the heyoka reference solutions. Everything there is rebuilt
-on demand: ``longtime cache info`` shows the folders, ``longtime cache clear`` empties
-them. LONGTIME_NO_KERNEL_CACHE=1 turns the kernel cache off (every process compiles its
-kernels from the closures; nothing is written to ``kernels``).
+is set); ``reference`` holds the heyoka reference solutions and the exact solutions on large
+grids. Everything there is rebuilt on demand: ``longtime cache info`` shows the folders,
+``longtime cache clear`` empties them. LONGTIME_NO_KERNEL_CACHE=1 turns the kernel cache off
+(every process compiles its kernels from the closures; nothing is written to ``kernels``).
 """
 from __future__ import annotations
 

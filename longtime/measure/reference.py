@@ -3,7 +3,8 @@
 A cell's reference is its problem's exact solution where it has one, else heyoka's adaptive
 Taylor integrator at machine-epsilon tolerance with ``high_accuracy`` (compensated summation
 for long runs), evaluated at the cell's samples through ``propagate_grid`` (dense output, so
-heyoka's own steps are not clipped) and cached on disk.
+heyoka's own steps are not clipped) and cached on disk; an exact solution on a grid of at
+least EXACT_DISK_SAMPLES times is cached on disk too.
 
 ``reference_check`` estimates the reference's error, once per problem, initial state and
 final time (cached on disk): heyoka in double is compared with heyoka in long double (80-bit
@@ -81,6 +82,9 @@ _CHECKS: dict[str, dict[str, Any]] = {}  # check runs already loaded in this pro
 # as kepler's long-double Newton solve is paid once a grid; the oldest entries go past _EXACT_KEEP
 _EXACT: dict[str, np.ndarray] = {}
 _EXACT_KEEP = 64
+# an exact solution on a grid of at least this many times is also cached on disk: each cell
+# runs in its own process, where the in-process cache holds nothing yet
+EXACT_DISK_SAMPLES = 10_000
 
 
 class ReferenceUnavailable(RuntimeError):
@@ -171,7 +175,7 @@ def reference_states(problem: Problem, times: np.ndarray, precision: str = "doub
         if key not in _EXACT:
             while len(_EXACT) >= _EXACT_KEEP:
                 del _EXACT[next(iter(_EXACT))]
-            _EXACT[key] = np.asarray(problem.exact(times), dtype=float)
+            _EXACT[key] = _exact_states(problem, times)
         return _EXACT[key].copy()
     system = integrates_system(problem)
     if problem.heyoka_system is None and not system:
@@ -208,6 +212,47 @@ def reference_states(problem: Problem, times: np.ndarray, precision: str = "doub
     states = states[int(starts_later):][inverse]
     save_cached(path, states)
     return states
+
+
+def _exact_states(problem: Problem, times: np.ndarray) -> np.ndarray:
+    """The problem's exact solution at ``times``, from the disk cache where the grid holds at
+    least EXACT_DISK_SAMPLES times (kepler's long-double Newton solve costs more than reading
+    it back) and the problem's module can be read: its source is part of the key, so an
+    edited formula is another file. A solution of the wrong shape or not finite is returned
+    as computed, never cached (the caller's checks name it)."""
+    source = _source_digest(problem) if times.size >= EXACT_DISK_SAMPLES else None
+    if source is None:
+        return np.asarray(problem.exact(times), dtype=float)
+    path = cache_path(problem, "exact", source, times.tobytes(), suffix=".npy")
+    shape = (times.size, problem.dim)
+
+    def read():
+        states = np.load(path)
+        if states.shape != shape or not np.isfinite(states).all():
+            raise ValueError(f"holds {states.shape} states, expected {shape}, all finite")
+        return states
+
+    cached = load_cached(path, read)
+    if cached is not None:
+        return cached
+    states = np.asarray(problem.exact(times), dtype=float)
+    if states.shape == shape and np.isfinite(states).all():
+        save_cached(path, states)
+    return states
+
+
+def _source_digest(problem: Problem) -> str | None:
+    """A digest of the source files of the problem's class and of the classes it derives from
+    (where its exact solution's code is), None where one has none to read (a class defined
+    interactively)."""
+    import inspect
+
+    classes = [c for c in type(problem).__mro__ if c not in (Problem, object) and issubclass(c, Problem)]
+    try:
+        files = sorted({inspect.getsourcefile(c) or "" for c in classes})
+        return digest(*(Path(f).read_bytes() for f in files))
+    except (OSError, TypeError):
+        return None
 
 
 def reference_check(problem: Problem, t_final: float, budget_s: float | None = None) -> Trust:

@@ -83,14 +83,14 @@ def levels(values: list[float | None], factor: float, min_runs: int) -> list[dic
     within ``factor`` joined, short levels between two that agree dropped (see the module
     docstring). Each level: ``start`` and ``end`` (indices into ``values``), ``value`` (the
     median of its values)."""
-    from asv.step_detect import detect_steps
-
     present = [v for v in values if v is not None and math.isfinite(v)]
     if not present:
         return []
     if len(set(present)) == 1:  # one value throughout (an error, bit for bit): one level
         pieces = [[0, len(values)]]
-    else:
+    else:  # asv is imported only here: a store of one run never needs it
+        from asv.step_detect import detect_steps
+
         pieces = [[left, right] for left, right, *_ in detect_steps([v if v is not None and math.isfinite(v) else None
                                                        for v in values])]
     limit = math.log(factor)

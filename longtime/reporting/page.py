@@ -312,7 +312,7 @@ def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: l
         if fig:
             out.append(_fold("Invariant drift against time", f'<figure class="plot">{fig}<figcaption>'
                              f"Relative error of each invariant (absolute where it starts at 0), log-log (a "
-                             f"slope is a growth law), for each scheme's setting of median CPU time (the upper "
+                             f"slope is a growth law), for each scheme's setting of median steps (the upper "
                              f"envelope each row keeps); one panel per invariant."
                              f"{escape(' ' + '; '.join(notes)) if notes else ''}</figcaption></figure>"))
         fig, notes = figs.get("diagnostics"), figs.get("diagnostics_notes") or []

@@ -120,11 +120,19 @@ def work_precision_svg(rows: list[dict], field: str, style: dict, cost: str = "c
 
 
 def representative(rows: list[dict]) -> dict[str, dict]:
-    """scheme -> the ok row of median CPU time among its rows (the drawn setting)."""
+    """scheme -> the ok row of median cost among its rows (the drawn setting): cost as its
+    steps, a count that the timing processes' new CPU times leave as it is (so that a drift
+    figure drawn ahead stays the page's), ties ordered by final time and setting; by CPU
+    time where a row has no step count."""
+    from longtime.core.rowtext import setting as setting_text
+
     out = {}
     for scheme in sorted({r["integrator"] for r in rows}):
-        ok = sorted((r for r in rows if r["integrator"] == scheme and r.get("status") == "ok"
-                     and positive(r.get("cpu_s"))), key=lambda r: r["cpu_s"])
+        ok = [r for r in rows if r["integrator"] == scheme and r.get("status") == "ok" and positive(r.get("cpu_s"))]
+        if all(isinstance(r.get("steps"), int) and r["steps"] > 0 for r in ok):
+            ok.sort(key=lambda r: (r["steps"], str(r.get("t_final")), setting_text(r), str(r.get("parameters"))))
+        else:
+            ok.sort(key=lambda r: r["cpu_s"])
         if ok:
             out[scheme] = ok[(len(ok) - 1) // 2]
     return out
@@ -156,8 +164,8 @@ def row_curves(row: dict) -> dict[str, list[tuple[str, np.ndarray, np.ndarray]]]
 
 def drawn_settings(rows: list[dict]) -> list[tuple[str, dict]]:
     """(scheme, its representative row) in the order the drift figures draw them and list
-    them: by scheme, so that a CPU time measured again, which may swap two settings' order
-    by cost, leaves the figure as it is unless it changes the representative setting."""
+    them: by scheme, so that a CPU time measured again, which may swap two schemes' order
+    by cost, leaves the figure as it is."""
     return sorted(representative(rows).items())
 
 
@@ -281,7 +289,7 @@ def figure_inputs(rows: list[dict[str, Any]], style: dict, drift: bool = True) -
     digests, the same figures. The drift group's is the representative settings, each as its
     scheme's style, its setting and the curves it keeps (a row that keeps none is run again:
     the whole row), so a row's CPU time measured again leaves the drift figures as drawn
-    unless it changes which setting represents a scheme."""
+    (the representative settings are chosen by their steps, not their CPU times)."""
     from longtime.core.rowtext import setting as setting_text
 
     def drawn(row):
