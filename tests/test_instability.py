@@ -102,8 +102,10 @@ def test_recommend_runs_its_candidates_to_the_horizon_and_answers_measured_at_t(
     rec = R.recommend(HARMONIC, "harmonic", 1e-3, 1e3, budget=30.0)
     assert rec.answered and rec.basis == "measured at T", str(rec)
     assert "measured at T" in rec.lines[0] and "against a reference checked to T" in rec.lines[-1]
-    # gauss4, cheapest predicted, run to T keeps the target: it is the answer, its error measured there
-    assert rec.scheme == "gauss4" and rec.measured_error is not None and rec.measured_error <= 1e-3
+    # the candidates run to T keep the target; the answer is the one measured cheapest there (which
+    # of gauss4 and rk4 that is, the machine's speed decides), its error measured at T
+    assert rec.scheme in ("gauss4", "rk4") and rec.measured_error is not None and rec.measured_error <= 1e-3
+    assert rec.measured_cpu_s is not None and rec.measured_cpu_s > 0
     assert "error" in rec.lines[1] and "measured at T" in rec.lines[1]
 
 

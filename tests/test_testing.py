@@ -46,7 +46,7 @@ def test_assert_order_passes_on_forest_ruth_and_names_the_measured_order_when_pe
     slopes = [float(x) for x in re.search(r"order undetermined \(pre-asymptotic: local slopes ([\d., ]+) \(dt",
                                           msg).group(1).split(", ")]
     assert len(slopes) == 3 and slopes[0] > 3.5 and slopes[-1] < 2.7 and slopes == sorted(slopes, reverse=True)
-    assert "expected order 4 +- 0.1" in msg and "dt=0.0025" in msg and "points used (l2_error)" in msg
+    assert "expected order 4 +- 0.1" in msg and "dt=0.0025" in msg and "points used (l2_error_state)" in msg
 
 
 def test_assert_bounded_and_its_failure_message():
