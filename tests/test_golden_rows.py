@@ -48,9 +48,10 @@ FAST = ["--repeats", "1", "--min-time", "0", "--format", "json", "--no-store"]
 
 
 def machine_dependent(key: str) -> bool:
-    """Timings, and the digest of the states' bits (which differ by an ulp between CPUs: see
-    above; the states themselves are compared within the tolerances through the metrics)."""
-    return key.startswith(("cpu_s", "wall_s", "calibration_")) or key in ("repeats", "samples_digest")
+    """Timings and how they were taken (``timed_in`` follows the processes the session asks
+    for), and the digest of the states' bits (which differ by an ulp between CPUs: see above;
+    the states themselves are compared within the tolerances through the metrics)."""
+    return key.startswith(("cpu_s", "wall_s", "calibration_")) or key in ("repeats", "samples_digest", "timed_in")
 
 
 def rows_of(argv: list[str]) -> list[dict]:
