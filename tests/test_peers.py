@@ -290,3 +290,28 @@ def test_a_peer_s_tolerances_given_on_the_command_line_are_never_left_out():
     cells, moves = plan(Selection(problems=("fpu",), schemes=("scipy-rk23",), sweeps={"tol": (1e-7, 1e-13)}),
                         ExecOptions())
     assert sorted(c.integrator_settings["tol"] for c in cells) == [1e-13, 1e-7] and not moves
+
+
+@needs_sundials
+@pytest.mark.parametrize("name", CVODE)
+def test_a_right_hand_side_that_turns_nan_fails_cvode_at_its_smallest_step(name):
+    """A NaN right-hand side past t = 1: CVODE's step stops at its smallest step (a share of
+    the span) with CVODE's own failure, a failed row at t = 1, not a step shrinking without end."""
+    import numba
+
+    import longtime
+    from longtime.problems.harmonic import Harmonic
+
+    @numba.njit
+    def nan_rhs(t, u, params, out):
+        out[0] = u[1]
+        out[1] = -u[0] if t < 1.0 else np.nan
+
+    class NanHarmonic(Harmonic):
+        name = "nan-harmonic"
+        rhs = staticmethod(nan_rhs)
+        grad_T = grad_V = jax_rhs = taylor = None
+
+    row = longtime.sweep(NanHarmonic, [name], t_final=10.0, executor="serial", tol=1e-8).iloc[0]
+    assert row["status"] == "failed" and "min step size" in row["message"]
+    assert row["t_reached"] == pytest.approx(1.0, abs=1e-6)
