@@ -315,3 +315,34 @@ def test_a_right_hand_side_that_turns_nan_fails_cvode_at_its_smallest_step(name)
     row = longtime.sweep(NanHarmonic, [name], t_final=10.0, executor="serial", tol=1e-8).iloc[0]
     assert row["status"] == "failed" and "min step size" in row["message"]
     assert row["t_reached"] == pytest.approx(1.0, abs=1e-6)
+
+
+@needs_diffrax
+@pytest.mark.slow  # diffrax compiles its solve (JAX)
+def test_a_right_hand_side_that_turns_nan_fails_diffrax_at_its_smallest_step():
+    """The same NaN past t = 1 through diffrax: its PID controller's smallest step (a share of
+    the span) ends the solve there, a failed row, not MAX_STEPS rejected steps."""
+    import numba
+
+    import longtime
+    from longtime.problems.harmonic import Harmonic
+
+    @numba.njit
+    def nan_rhs(t, u, params, out):
+        out[0] = u[1]
+        out[1] = -u[0] if t < 1.0 else np.nan
+
+    def nan_jax_rhs(t, u, params):
+        import jax.numpy as jnp
+
+        return jnp.where(t < 1.0, Harmonic.jax_rhs(t, u, params), jnp.nan)
+
+    class NanHarmonic(Harmonic):
+        name = "nan-harmonic"
+        rhs = staticmethod(nan_rhs)
+        jax_rhs = staticmethod(nan_jax_rhs)
+        grad_T = grad_V = taylor = None
+
+    row = longtime.sweep(NanHarmonic, ["diffrax-tsit5"], t_final=10.0, executor="serial", tol=1e-8).iloc[0]
+    assert row["status"] == "failed" and "did not succeed" in row["message"]
+    assert row["t_reached"] == pytest.approx(1.0, abs=0.01)

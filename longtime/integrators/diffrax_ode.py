@@ -21,6 +21,7 @@ and jax the rows are skipped and name the extra ``longtime[diffrax]``.
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -35,6 +36,7 @@ from longtime.integrators import peer_common
 EXTRA = "diffrax"  # pip install "longtime[diffrax]"
 SAMPLES = peer_common.SAMPLES  # the samples of a row: heyoka's count (docs/metrics.md)
 MAX_STEPS = 2**31 - 1  # diffrax's bound on the steps of one solve
+MIN_STEP_OF_SPAN = 1e-12  # the smallest step of an adaptive solve, as a share of its span (as CVODE's)
 
 # compiled solves by (scheme, settings, problem identity, t0, t_final, samples):
 # (compiled function, its compile seconds)
@@ -110,8 +112,13 @@ class Diffrax(Integrator):
             dt0, controller = self.step_control(problem)
 
         def solve(u0, params, t0, t1, ts):
+            control = controller
+            if isinstance(control, diffrax.PIDController) and control.dtmin is None:
+                # a step below MIN_STEP_OF_SPAN of the span ends the solve (dt_min_reached): a
+                # right-hand side that turns NaN fails there, not after MAX_STEPS rejected steps
+                control = dataclasses.replace(control, dtmin=MIN_STEP_OF_SPAN * jnp.abs(t1 - t0), force_dtmin=False)
             sol = diffrax.diffeqsolve(term, solver, t0, t1, dt0, shape(u0), args=params,
-                                      stepsize_controller=controller, saveat=diffrax.SaveAt(ts=ts),
+                                      stepsize_controller=control, saveat=diffrax.SaveAt(ts=ts),
                                       max_steps=MAX_STEPS, adjoint=diffrax.ForwardMode(), throw=False)
             return (flat(sol.ys), sol.stats["num_steps"], sol.stats["num_accepted_steps"],
                     sol.stats["num_rejected_steps"], sol.result == diffrax.RESULTS.successful)
