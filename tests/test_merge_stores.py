@@ -130,3 +130,16 @@ def test_merge_copies_only_the_rows_the_store_accepts(tmp_path, capsys):
     assert cli.main(["report", "--db", str(c), "--run", "all", "--format", "json"]) == 0
     served = json.loads(capsys.readouterr().out)
     assert "evil_field" not in json.dumps(served) and "fast" not in json.dumps(served)
+
+
+def test_a_machine_record_nested_past_reading_merges_as_no_machine(tmp_path, capsys):
+    """A hand-edited store whose run's machine text is JSON nested deeper than Python reads
+    (a RecursionError) merges its run and rows, read as a run of no named machine."""
+    source, target = tmp_path / "a.sqlite", tmp_path / "c.sqlite"
+    _interrupted(source, OTHER, rows=2)
+    with closing(sqlite3.connect(source)) as con:
+        con.execute("UPDATE runs SET machine = ?", ("[" * 100_000 + "]" * 100_000,))
+        con.commit()
+    _merge(capsys, source, into=target)
+    store = Store(target)
+    assert len(store.runs()) == 1 and len(store.rows(store.runs()[0]["id"])) == 2
