@@ -74,7 +74,7 @@ def test_one_block_is_the_whole_state_figure():
     assert row["error_block"] == "u"
     assert row["l2_error"] == pytest.approx(row["l2_error_state"], rel=1e-12)
     assert row["final_error"] == pytest.approx(row["final_error_state"], rel=1e-12)
-    e, l2, scale = solution_errors(t, U, ref)  # the whole state's, as before blocks
+    e, l2, scale = solution_errors(t, U, ref)  # the whole state taken as one block
     assert row["l2_error"] == pytest.approx(l2[-1], rel=1e-12)
 
 

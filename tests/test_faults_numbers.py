@@ -1,4 +1,4 @@
-"""Numbers that used to be accepted and fail later: a time limit past what a clock counts, a
+"""Numbers that would fail later are refused or named: a time limit past what a clock counts, a
 step larger than the span in an ensemble, a horizon no run reaches, a setting whose square
 passes double precision, an API argument of the wrong type. Each is refused up front, in
 one line naming the argument, or is a failed row that says what overflowed."""

@@ -148,11 +148,7 @@ def fit(cells: list[Cell], given_t_final: bool = False,
                 moves.append(Move(problem, scheme, setting, reason))
                 out[i] = None
                 note = f"{NOTE} {setting} ({reason}; --full-sweep runs it)"
-                for j in sweep:  # the pair's rows say it
-                    mine = out[j]
-                    if mine is None:
-                        continue
-                    out[j] = dataclasses.replace(mine, note="; ".join(n for n in (mine.note, note) if n))
+                _say(out, sweep, note)  # the pair's rows say it
     return [c for c in out if c is not None], moves
 
 
@@ -171,7 +167,7 @@ def _fewer_settings(problem: str, scheme: str, sweep: list[int], cells: list[Cel
     if not over:
         return
     left = ", ".join(setting_text(cells[i]) for i in over)
-    horizon = number(cells[over[0]].t_final) if cells[over[0]].t_final is not None else "the default"
+    horizon = _horizon_text(cells[over[0]])
     setting = f"{left} left out"
     reason = (f"about {max(cost[i] for i in over):.3g} s a run at t_final {horizon}, over the "
               f"{budget:g} s a cell of a library peer")
@@ -179,9 +175,18 @@ def _fewer_settings(problem: str, scheme: str, sweep: list[int], cells: list[Cel
     note = f"{NOTE} {setting} ({reason}; --full-sweep runs them)"
     for i in over:
         out[i] = None
-    for i in sweep:
+    _say(out, sweep, note)
+
+
+def _say(out: list, members: list[int], note: str) -> None:
+    """Add ``note`` to the notes of the cells of ``members`` still in ``out``."""
+    for i in members:
         if out[i] is not None:
             out[i] = dataclasses.replace(out[i], note="; ".join(n for n in (out[i].note, note) if n))
+
+
+def _horizon_text(cell: Cell) -> str:
+    return number(cell.t_final) if cell.t_final is not None else "the default"
 
 
 def _too_slow(problem: str, scheme: str, sweep: list[int], cells: list[Cell], out: list, moves: list[Move],
@@ -190,7 +195,7 @@ def _too_slow(problem: str, scheme: str, sweep: list[int], cells: list[Cell], ou
     its cheapest): its cells become skipped rows saying so, never a shorter horizon, and
     --full-sweep runs them."""
     cheapest = min(sweep, key=lambda i: cost[i])
-    horizon = number(cells[cheapest].t_final) if cells[cheapest].t_final is not None else "the default"
+    horizon = _horizon_text(cells[cheapest])
     reason = (f"{TOO_SLOW} about {cost[cheapest]:.3g} s a run estimated for t_final {horizon} at its cheapest "
               f"setting ({setting_text(cells[cheapest])}), over the default matrix's {CELL_BUDGET_S:g} s a cell; "
               f"--full-sweep runs it")
