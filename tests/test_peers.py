@@ -292,39 +292,11 @@ def test_a_peer_s_tolerances_given_on_the_command_line_are_never_left_out():
     assert sorted(c.integrator_settings["tol"] for c in cells) == [1e-13, 1e-7] and not moves
 
 
-@needs_sundials
-@pytest.mark.parametrize("name", CVODE)
-def test_a_right_hand_side_that_turns_nan_fails_cvode_at_its_smallest_step(name):
-    """A NaN right-hand side past t = 1: CVODE's step stops at its smallest step (a share of
-    the span) with CVODE's own failure, a failed row at t = 1, not a step shrinking without end."""
+
+def _nan_harmonic():
+    """harmonic whose right-hand side turns NaN at t = 1 (compiled and in jax.numpy)."""
     import numba
 
-    import longtime
-    from longtime.problems.harmonic import Harmonic
-
-    @numba.njit
-    def nan_rhs(t, u, params, out):
-        out[0] = u[1]
-        out[1] = -u[0] if t < 1.0 else np.nan
-
-    class NanHarmonic(Harmonic):
-        name = "nan-harmonic"
-        rhs = staticmethod(nan_rhs)
-        grad_T = grad_V = jax_rhs = taylor = None
-
-    row = longtime.sweep(NanHarmonic, [name], t_final=10.0, executor="serial", tol=1e-8).iloc[0]
-    assert row["status"] == "failed" and "min step size" in row["message"]
-    assert row["t_reached"] == pytest.approx(1.0, abs=1e-6)
-
-
-@needs_diffrax
-@pytest.mark.slow  # diffrax compiles its solve (JAX)
-def test_a_right_hand_side_that_turns_nan_fails_diffrax_at_its_smallest_step():
-    """The same NaN past t = 1 through diffrax: its PID controller's smallest step (a share of
-    the span) ends the solve there, a failed row, not MAX_STEPS rejected steps."""
-    import numba
-
-    import longtime
     from longtime.problems.harmonic import Harmonic
 
     @numba.njit
@@ -343,6 +315,28 @@ def test_a_right_hand_side_that_turns_nan_fails_diffrax_at_its_smallest_step():
         jax_rhs = staticmethod(nan_jax_rhs)
         grad_T = grad_V = taylor = None
 
-    row = longtime.sweep(NanHarmonic, ["diffrax-tsit5"], t_final=10.0, executor="serial", tol=1e-8).iloc[0]
+    return NanHarmonic
+
+
+@needs_sundials
+@pytest.mark.parametrize("name", CVODE)
+def test_a_right_hand_side_that_turns_nan_fails_cvode_at_its_smallest_step(name):
+    """A NaN right-hand side past t = 1: CVODE's step stops at its smallest step (a share of
+    the span) with CVODE's own failure, a failed row at t = 1, not a step shrinking without end."""
+    import longtime
+
+    row = longtime.sweep(_nan_harmonic(), [name], t_final=10.0, executor="serial", tol=1e-8).iloc[0]
+    assert row["status"] == "failed" and "min step size" in row["message"]
+    assert row["t_reached"] == pytest.approx(1.0, abs=1e-6)
+
+
+@needs_diffrax
+@pytest.mark.slow  # diffrax compiles its solve (JAX)
+def test_a_right_hand_side_that_turns_nan_fails_diffrax_at_its_smallest_step():
+    """The same NaN past t = 1 through diffrax: its PID controller's smallest step (a share of
+    the span) ends the solve there, a failed row, not MAX_STEPS rejected steps."""
+    import longtime
+
+    row = longtime.sweep(_nan_harmonic(), ["diffrax-tsit5"], t_final=10.0, executor="serial", tol=1e-8).iloc[0]
     assert row["status"] == "failed" and "did not succeed" in row["message"]
     assert row["t_reached"] == pytest.approx(1.0, abs=0.01)
