@@ -69,7 +69,7 @@ def main(argv=None) -> int:
                 out = []
                 for f, row in zip(factors, run_matrix(cells, None, None, "serial", dataclasses.replace(opts))):
                     measured = row.get(v.measure.field) if row.get("status") == "ok" else None
-                    if v.measure.field == "l2_error" and measured is not None and \
+                    if v.measure.solution and measured is not None and \
                             not (row.get("error_horizon") or 0) >= f * s.span * (1 - 1e-9):
                         measured = None  # the reference stopped short
                     predicted = s.error * f ** S.EXPONENTS[law]
