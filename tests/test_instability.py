@@ -9,6 +9,7 @@ import pytest
 
 from longtime.core import registry
 from longtime.measure import instability as I
+from longtime.predict import decision as D
 from longtime.predict.decision import predictability
 from longtime.reporting import recommend as R
 
@@ -154,3 +155,33 @@ def test_a_budget_that_cannot_pay_the_reference_to_t_runs_nothing_and_says_so(mo
     assert rec.basis == "predicted" and rec.scheme == "rk4"
     assert "predicted, not run: the answer lies past the stored runs and nothing ran: its reference check to T is " \
            "estimated at 1e+03 s" in str(rec)
+
+
+def test_the_winner_map_honours_the_growth_as_recommend_does():
+    rows = [_row("restricted-three-body", ARENSTORF, 1e-9)]
+    t = ARENSTORF * np.arange(1.0, 11.0)
+    grown = I.Growth("restricted-three-body", t, np.log(100.0) * np.arange(1.0, 11.0))  # x100 a period
+    cell = (1e-6, 10 * ARENSTORF)  # a rounding reaches 1e-6 after five periods
+    assert D.problem_verdict("restricted-three-body", rows).grid[cell].state == "predicted"
+    bounded = D.verdicts(rows, growths={"restricted-three-body": grown})["restricted-three-body"]
+    assert bounded.grid[cell].state == "chaotic" and bounded.grid[cell].best is None
+    assert bounded.grid[cell].limit.horizon == pytest.approx(5 * ARENSTORF)
+    assert bounded.grid[(1e-6, ARENSTORF)].state == "predicted"  # within it, the law answers
+    # the same cell as `longtime recommend` answers it
+    assert not R.recommend(rows, "restricted-three-body", *cell, growth=grown).answered
+
+
+def test_a_measured_growth_is_read_back_and_nothing_is_run_for_the_map(tmp_path, monkeypatch):
+    monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(I, "_MEASURED", {})
+    p = registry.problem_class("kepler")()
+    rows = [_row("kepler", p.default_t_final, 1e-10)]
+    assert I.measured(p, 1e6 * p.default_t_final) is None  # nothing measured yet: none, and no run
+    assert R.map_growths(rows) == {}
+    g = I.measure(p, 3 * p.default_t_final)  # over five times the default final time
+    monkeypatch.setattr(I, "_MEASURED", {})  # a later process: read back from the disk
+    back = I.measured(p, 1e6 * p.default_t_final)
+    assert back is not None and back.t[-1] == pytest.approx(5 * p.default_t_final)
+    assert np.array_equal(back.log_growth, g.log_growth)
+    assert I.measured(p, 2 * p.default_t_final) is None  # the span measured lies past what is asked
+    assert np.array_equal(R.map_growths(rows)["kepler"].log_growth, g.log_growth)

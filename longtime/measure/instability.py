@@ -131,12 +131,38 @@ def measure(problem: Problem, horizon: float, budget_s: float = GROWTH_BUDGET_S)
     """The growth of a perturbation on ``problem`` from its initial state over
     ``growth_span(problem, horizon)`` (cached). Raises ValueError for a problem without a
     heyoka system, ReferenceUnavailable where its compile passes the budget."""
+    return _growth(problem, growth_span(problem, horizon), budget_s, cached_only=False)  # type: ignore[return-value]
+
+
+def measured(problem: Problem, horizon: float) -> Growth | None:
+    """The growth of a perturbation on ``problem`` over the longest span (``growth_span`` of
+    a horizon up to ``horizon``) that is measured already, in this process or cached on disk
+    (by ``recommend``, the checks of a main job): None where none is. It integrates nothing:
+    for a reader, such as the results page's winner maps, that must not wait for a run."""
+    spans, k, base = [], 0, float(problem.default_t_final)
+    while base * 10.0**k <= horizon * (1 + 1e-9) or not spans:
+        spans += [base * step * 10.0**k for step in SPAN_STEPS]
+        k += 1
+    for span in sorted({s for s in spans if s <= growth_span(problem, horizon)}, reverse=True):
+        growth = _growth(problem, span, 0.0, cached_only=True)
+        if growth is not None:
+            return growth
+    return None
+
+
+def _growth(problem: Problem, span: float, budget_s: float, cached_only: bool) -> Growth | None:
+    """The growth over ``span`` (measured within ``budget_s``; never None unless
+    ``cached_only``, where it is None if neither this process nor the disk holds it)."""
     from longtime.measure import lyapunov
 
-    span = growth_span(problem, horizon)
     key = (problem.identity(), problem.u0.tobytes(), span)
     if key not in _MEASURED:
-        logs = np.asarray(lyapunov.separations(problem, span, budget_s), dtype=float)
+        if cached_only and problem.heyoka_system is None:
+            return None
+        logs = lyapunov.separations(problem, span, budget_s, cached_only=cached_only)
+        if logs is None:
+            return None
+        logs = np.asarray(logs, dtype=float)
         t = problem.t0 + span * np.arange(1, logs.size + 1) / logs.size
         period = getattr(problem, "period", None)
         _MEASURED[key] = Growth(problem.name, t, np.cumsum(logs), float(problem.t0),

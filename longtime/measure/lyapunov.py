@@ -60,15 +60,18 @@ def _measure(problem: Problem, t_span: float, budget_s: float) -> dict[str, Any]
     return summarise(separations(problem, t_span, budget_s), t_span / INTERVALS, t_span)
 
 
-def separations(problem: Problem, t_span: float, budget_s: float) -> np.ndarray:
+def separations(problem: Problem, t_span: float, budget_s: float, cached_only: bool = False) -> np.ndarray | None:
     """ln(d / d0) of each of the INTERVALS intervals over [t0, t0 + ``t_span``] (NaN from
     where the budget ran out), cached beside the references: the Lyapunov exponent's data,
-    and summed, the growth of a perturbation (longtime.measure.instability)."""
+    and summed, the growth of a perturbation (longtime.measure.instability).
+    ``cached_only``: None where they are not cached (nothing is integrated)."""
     from longtime.measure import reference
 
     path = reference.cache_path(problem, "lyapunov", repr(float(t_span)), repr((SEPARATION, INTERVALS, BLOCKS)),
                                  suffix=".npy")
     logs = reference.load_cached(path, lambda: np.load(path))
+    if logs is None and cached_only:
+        return None
     if logs is None:
         logs = _separations(problem, t_span, budget_s)
         reference.save_cached(path, logs)

@@ -216,7 +216,12 @@ class Verdict:
         return [t for t in self.targets if any(self.grid[(t, h)].state != "none" for h in self.horizons)]
 
 
-def problem_verdict(problem: str, rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = ()) -> Verdict:
+def problem_verdict(problem: str, rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = (),
+                    growth: Growth | None = None) -> Verdict:
+    """One problem's verdict over the map of TARGETS and horizons; no cell is predicted past
+    the predictability horizon of its target (``predictability``: the Lyapunov bound, the
+    reference's end, and where ``growth`` is given the growth of a rounding measured on the
+    problem, as ``longtime recommend`` bounds its answer)."""
     mine = [r for r in rows if r.get("problem") == problem]
     m = measure(mine)
     t_main = main_t_final(mine)
@@ -224,7 +229,7 @@ def problem_verdict(problem: str, rows: list[dict[str, Any]], checks: Iterable[d
         return Verdict(problem, m, [], t_main)
     cands = settings(mine, m)
     horizons = tuple(t_main * f for f in HORIZON_FACTORS)
-    grid = {(t, h): decide(cands, t, h, predictability(mine, t) if m.solution else None)
+    grid = {(t, h): decide(cands, t, h, predictability(mine, t, growth) if m.solution else None)
             for t in TARGETS for h in horizons}
     v = Verdict(problem, m, cands, t_main, TARGETS, horizons, grid,
                 [c for c in checks if c.get("problem") == problem])
@@ -236,6 +241,9 @@ def problem_verdict(problem: str, rows: list[dict[str, Any]], checks: Iterable[d
     return v
 
 
-def verdicts(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = ()) -> dict[str, Verdict]:
-    checks = list(checks)
-    return {p: problem_verdict(p, rows, checks) for p in sorted({r["problem"] for r in rows})}
+def verdicts(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = (),
+             growths: dict[str, Growth] | None = None) -> dict[str, Verdict]:
+    """Every problem's verdict (``problem_verdict``), each bounded by its problem's growth in
+    ``growths`` where it has one."""
+    checks, growths = list(checks), growths or {}
+    return {p: problem_verdict(p, rows, checks, growths.get(p)) for p in sorted({r["problem"] for r in rows})}

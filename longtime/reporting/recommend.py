@@ -266,10 +266,13 @@ def _invariant_lines(rows: list[dict[str, Any]]) -> list[str]:
             "run): " + "; ".join(out)]
 
 
-def measured_growth(rows: list[dict[str, Any]], problem: str, horizon: float) -> Growth | None:
+def measured_growth(rows: list[dict[str, Any]], problem: str, horizon: float,
+                    cached_only: bool = False) -> Growth | None:
     """The growth of a perturbation on ``problem`` (at the settings of its first stored row)
     up to ``horizon`` (longtime.measure.instability, cached); None where it cannot be measured
-    (no rows, no heyoka system, a compile past its budget)."""
+    (no rows, no heyoka system, a compile past its budget). ``cached_only``: the growth over
+    the longest span up to ``horizon`` measured already (``instability.measured``), nothing
+    run."""
     from longtime.execution.cells import build, cell_of_row
     from longtime.measure import instability
 
@@ -278,9 +281,26 @@ def measured_growth(rows: list[dict[str, Any]], problem: str, horizon: float) ->
     if row is None or not positive(horizon):  # no pointwise error to bound
         return None
     try:
-        return instability.measure(build(cell_of_row(row))[0], horizon)
+        problem_ = build(cell_of_row(row))[0]
+        return instability.measured(problem_, horizon) if cached_only else instability.measure(problem_, horizon)
     except Exception:  # no heyoka system, a compile past its budget: nothing bounds the answer
         return None
+
+
+def map_growths(rows: list[dict[str, Any]]) -> dict[str, Growth]:
+    """Per problem of ``rows``, the growth of a perturbation already measured over its
+    winner map's horizons (``measured_growth``, cached only: the page and the report wait
+    for no run), which bounds the map as it bounds ``recommend``'s answer."""
+    from longtime.core.rowtext import main_t_final
+    from longtime.predict.decision import HORIZON_FACTORS
+
+    out = {}
+    for p in sorted({r["problem"] for r in rows}):
+        t_main = main_t_final([r for r in rows if r["problem"] == p])
+        g = measured_growth(rows, p, t_main * max(HORIZON_FACTORS), cached_only=True) if t_main else None
+        if g is not None:
+            out[p] = g
+    return out
 
 
 def _of_library(rows: list[dict[str, Any]], library: str, problem: str) -> tuple[list[dict[str, Any]], str]:
