@@ -40,7 +40,7 @@ import time
 
 # (problem, target error, horizon, what it asks)
 QUESTIONS = [
-    ("harmonic", 1e-8, 2e3, "10 x the stored runs"),
+    ("harmonic", 1e-4, 2e4, "100 x the stored runs"),
     ("harmonic", 1e-6, 1e5, "500 x the stored runs: past every reach"),
     ("duffing-2", 1e-6, 200, "within the stored runs"),
     ("duffing-2", 1e-10, 1e4, "50 x the stored runs"),
@@ -131,6 +131,8 @@ def _question(db: str, rows: list, problem: str, target: float, horizon: float, 
     commands.append(" ".join(run_command(best, horizon)))
     keeps = err is not None and err <= target and why != "lost"
     # the answer --budget 0 gives, from the stored runs' laws alone, against its run to T
+    g_err = g_cpu = None
+    g_why = ""
     if guess is None:
         p_text = "no answer: " + (_short(predicted.lines[0].split(": ", 2)[-1]) if predicted.lines else "")
     else:
@@ -163,6 +165,10 @@ def _question(db: str, rows: list, problem: str, target: float, horizon: float, 
             f"no: {beaten}" if beaten else f"no: {why or f'misses {target:g}'}")
     if keeps and not beaten and cpu and stated_cpu and max(cpu / stated_cpu, stated_cpu / cpu) > CHECK_COST_FACTOR:
         held = f"error yes, CPU off x{max(cpu / stated_cpu, stated_cpu / cpu):.2g}"
+    if guess is not None and guess.text != best.text and keeps and cpu and g_cpu:
+        kept = g_err is not None and g_err <= target and not g_why
+        held += (f"; the --budget 0 answer costs x{g_cpu / cpu:.2g} the CPU" if kept
+                 else "; the --budget 0 answer misses it")
     answer = best.text + (f" (measured at T by recommend: {_fmt(rec.measured_error)}, {_cpu(rec.measured_cpu_s)})"
                           if rec.basis == "measured at T" else
                           f" (predicted: {_fmt(best.error_at(horizon))}, {_cpu(best.cpu_at(horizon))})")
