@@ -386,10 +386,12 @@ def test_a_checks_reference_cost_is_known_before_it_runs():
     from longtime.execution.cells import build
     from longtime.measure.reference import check_seconds_per_t
 
+    # a budget that a loaded machine does not exhaust: the rate is finite wherever the run
+    # reaches anything, and this test asks only that it does
     kdv = build(Cell("kdv", "rk4", {"d": 32}, {"dt": 0.01}, 1.0))[0]
-    assert 0 < check_seconds_per_t(kdv, 1.0) < float("inf")
+    assert 0 < check_seconds_per_t(kdv, 1.0, budget_s=120.0) < float("inf")
     harmonic = build(Cell("harmonic", "rk4", {}, {"dt": 0.1}, 10.0))[0]
-    rate = check_seconds_per_t(harmonic, 100.0)
+    rate = check_seconds_per_t(harmonic, 100.0, budget_s=120.0)
     assert 0 < rate < float("inf")
     v = D.problem_verdict("harmonic", ROWS)
     assert XC.reference_seconds_per_t(v) > 0
