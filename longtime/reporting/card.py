@@ -18,6 +18,7 @@ import statistics
 from typing import Any, Iterable
 
 from longtime.core.fmt import positive
+from longtime.core.rowschema import formatted
 from longtime.reporting.markup import escape, slug
 
 NOT_MEASURED = "not measured"
@@ -211,7 +212,8 @@ def _per_step_text(p: dict) -> str:
     ins = p["instructions_per_step"]
     return (f"rhs evaluations per step {rhs:.3g}" if rhs is not None
             else f"rhs evaluations per step {NOT_MEASURED}") + \
-        (f", instructions per step {ins:.4g}" if ins is not None else f", instructions per step {NOT_MEASURED}")
+        (f", instructions per step {formatted('instructions_per_step', ins)}" if ins is not None
+         else f", instructions per step {NOT_MEASURED}")
 
 
 def _structure_text(s: dict | None) -> str:
@@ -256,8 +258,8 @@ def _problem_lines(p: dict, full: bool = True) -> list[tuple[str, str]]:
         orders = "undetermined (below)"
     else:
         orders = "; ".join(_order_text(o) for o in p["orders"]) or "no sweep"
-    growth = ", ".join(f"{'solution error' if n == 'error' else n} {g['class']}" for n, g in p["growth"].items()) \
-        or "no growth law"
+    growth = ", ".join(f"{'solution error' if n == 'error' else n} {formatted(f'{n}.growth_class', g['class'])}"
+                       for n, g in p["growth"].items()) or "no growth law"
     return [("observed order", orders), ("growth (longest run)", growth), ("cost", _per_step_text(p)),
             ("Pareto front", _pareto_text(p["pareto"]))]
 
