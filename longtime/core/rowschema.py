@@ -18,10 +18,8 @@ from typing import Any, Callable, Iterable, Mapping
 from longtime.core.fmt import missing, number
 from longtime.core.params import ROLES
 from longtime.core.roles import ROW_PARAMETERS
+from longtime.core.status import STATUSES
 
-# the statuses of a row: what became of its cell
-OK, DIVERGED, FAILED, TIMEOUT, SKIPPED = "ok", "diverged", "failed", "timeout", "skipped"
-STATUSES = (OK, DIVERGED, FAILED, TIMEOUT, SKIPPED)
 # the growth classes of an error (longtime.measure.growth): the power law's classes by
 # increasing exponent, then the verdicts that are not a power law
 POWER_CLASSES = ("bounded", "sqrt", "linear", "quadratic", "faster")

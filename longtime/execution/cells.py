@@ -23,6 +23,7 @@ from longtime.core.outputs import to_stderr
 from longtime.core.params import InputError, check_time_span, unknown_parameter
 from longtime.core.problem import Problem
 from longtime.core.roles import ROW_PARAMETERS
+from longtime.core.status import Status
 from longtime.core.stepping import FixedStepIntegrator
 from longtime.core.timing import Timing
 from longtime.core.trajectory import Trajectory
@@ -388,14 +389,14 @@ def declared(cell: Cell, row: dict[str, Any]) -> dict[str, Any]:
     if isinstance(row.get("parameters"), str):
         failed["parameters"] = row["parameters"]
     refused = f"the scheme's row is refused: {'; '.join(wrong)}"
-    failed.update(status=rowschema.FAILED, message="; ".join(m for m in (refused, cell.note) if m))
+    failed.update(status=Status.FAILED, message="; ".join(m for m in (refused, cell.note) if m))
     return failed
 
 
 def implausible(cell: Cell, row: Mapping[str, Any]) -> list[str]:
     """The counts of a row that its run cannot have taken (none: they can): a run that reached
     past t0 in no step, a fixed-step run of more steps than its span holds at its step."""
-    if row.get("status") in (rowschema.SKIPPED, rowschema.FAILED) or not isinstance(row.get("steps"), int):
+    if row.get("status") in (Status.SKIPPED, Status.FAILED) or not isinstance(row.get("steps"), int):
         return []
     pcls = registry.problem_class(cell.problem)
     steps, reached = row["steps"], row.get("t_reached")
@@ -416,7 +417,7 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
     row = base_row(cell)
     deadline = time.monotonic() + time_limit if time_limit else None
     if cell.skip_reason:
-        row.update(status="skipped", message=cell.skip_reason)
+        row.update(status=Status.SKIPPED, message=cell.skip_reason)
         return row
     try:
         problem, integrator = build(cell)
@@ -430,19 +431,19 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
         row["parameters"] = json.dumps(used, sort_keys=True, default=str)
         unsafe = _probe_step(integrator, problem)
         if unsafe:
-            row.update(status="failed", message=unsafe)
+            row.update(status=Status.FAILED, message=unsafe)
             return row
         with phases.phase("integration", f"{cell.problem} x {cell.integrator}"):
             traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
                                         timing=timing or Timing(), deadline=deadline)
-        if traj.status == "timeout":
+        if traj.status == Status.TIMEOUT:
             traj.message = f"{traj.message} (cell time limit {time_limit:g} s: --time-limit)"
-        if traj.status == "diverged":
+        if traj.status == Status.DIVERGED:
             traj.message = "; ".join(m for m in (traj.message, contract.nan_note(problem, traj.t, traj.u)) if m)
         t_end = problem.default_t_final if cell.t_final is None else cell.t_final
         wrong = contract.check_samples(cell.integrator, problem, traj, t_end)
         if wrong:  # samples that cannot be measured are a fault, never a row that reads ok
-            row.update(status="failed", message=wrong)
+            row.update(status=Status.FAILED, message=wrong)
             return row
         ref, trust, note = None, None, ""
         if reference and has_reference(problem):
@@ -458,8 +459,8 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
                 note = trust.message(float(traj.t[-1]))
             except ReferenceUnavailable as exc:
                 note = f"no reference: {exc}"
-            if budget < full and time.monotonic() >= hard and traj.status != "timeout":
-                traj.status = "timeout"
+            if budget < full and time.monotonic() >= hard and traj.status != Status.TIMEOUT:
+                traj.status = Status.TIMEOUT
                 traj.message = "; ".join(m for m in (traj.message, (
                     f"the reference check passed the cell's hard time limit of {limits.hard_limit(time_limit):g} s "
                     f"(--time-limit {time_limit:g} s + grace) after the integration")) if m)
@@ -478,15 +479,15 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
                                                f"the solution is not followed") if m)
         row["message"] = "; ".join(m for m in (traj.message, note, row["message"]) if m)  # + metrics' notes
     except MemoryError as exc:  # past the worker's memory limit (longtime.execution.limits), or the machine's
-        row["status"] = "failed"
+        row["status"] = Status.FAILED
         row["message"] = limits.memory_message(exc)
     except OSError as exc:
         if no_space(exc):  # the machine's fault, not the cell's: never stored as its row
             raise disk_full(exc, f"running {cell.problem} x {cell.integrator}") from None
-        row["status"] = "failed"
+        row["status"] = Status.FAILED
         row["message"] = "".join(traceback.format_exception_only(type(exc), exc)).strip()
     except OverflowError as exc:  # Python's float arithmetic past double precision (omega=1e308, squared)
-        row["status"] = "failed"
+        row["status"] = Status.FAILED
         where = traceback.extract_tb(exc.__traceback__)[-1]
         settings = json.dumps({**cell.problem_settings, **cell.integrator_settings}, sort_keys=True, default=str)
         row["message"] = (f"OverflowError: {exc} in {where.name} ({os.path.basename(where.filename)}:{where.lineno}): "
@@ -494,7 +495,7 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
                           f"double precision there")
     except (Exception, SystemExit) as exc:  # a failing cell never takes the matrix down
         # (a plugin's sys.exit too; os.abort or a segfault need a process per cell)
-        row["status"] = "failed"
+        row["status"] = Status.FAILED
         row["message"] = "".join(traceback.format_exception_only(type(exc), exc)).strip()
     if cell.note:  # the settings the default matrix's budget moved, said where the row is read
         row["message"] = "; ".join(m for m in (row["message"], cell.note) if m)

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from longtime.core.fmt import positive
+from longtime.core.status import Status
 from longtime.execution import calibration
 from longtime.measure.instability import INITIAL_ROUNDING
 from longtime.predict.checks import CHECK_BUDGET_S, CHECK_REFERENCE_S, CHECKS, judge_ranks
@@ -311,7 +312,7 @@ def check_row(c: PlannedCheck, row: dict[str, Any]) -> dict[str, Any]:
     s, horizon, m = c.setting, c.horizon, c.measure
     # a growth check's claim is pointwise: the error at the horizon, not the largest over [0, T]
     field = "final_error" if c.role == "growth" else m.field
-    ok = row.get("status") == "ok"
+    ok = row.get("status") == Status.OK
     measured = (row.get(field) if c.role == "growth" else error_kept(row, m)) if ok else None
     if (c.role == "growth" or m.solution) and measured is not None \
             and not (row.get("error_horizon") or 0) >= horizon * (1 - 1e-9):

@@ -25,6 +25,7 @@ import numpy as np
 
 from longtime.core.integrator import Integrator
 from longtime.core.problem import Problem
+from longtime.core.status import Status
 
 DEFAULT_MEMBERS = 16
 DEFAULT_SIZE = 1e-6
@@ -115,7 +116,7 @@ def scheme_pool(problem: Problem, scheme: Integrator, t_final: float, members: i
         with _started_at(problem, state):
             traj = scheme.integrate(problem, t_final, max_samples=MAX_SAMPLES, deadline=deadline)
         counts[traj.status] = counts.get(traj.status, 0) + 1
-        if traj.status != "ok":
+        if traj.status != Status.OK:
             return None, counts
         pool.append(_late(traj.t, observable(problem, traj.t, traj.u)[1], problem.t0, t_final, window))
     return np.concatenate(pool), counts
@@ -144,7 +145,7 @@ def measure(problem: Problem, scheme: Integrator, t_final: float, members: int =
     for state in states:
         with _started_at(problem, state):
             traj = scheme.integrate(problem, t_final, max_samples=MAX_SAMPLES)
-        if traj.status != "ok":
+        if traj.status != Status.OK:
             lost += 1
             continue
         pool.append(_late(traj.t, observable(problem, traj.t, traj.u)[1], problem.t0, t_final, window))

@@ -48,6 +48,7 @@ import numpy as np
 
 from longtime.core.contract import check_name
 from longtime.core.problem import Problem
+from longtime.core.status import Status
 from longtime.core.trajectory import Trajectory
 from longtime.measure.growth import growth_fields
 from longtime.measure.lyapunov import predictability
@@ -418,7 +419,7 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
     # a diverged run ends on a non-finite state: measure the finite part (until the blow-up)
     finite = int(np.argmin(np.isfinite(U).all(axis=1))) if not np.isfinite(U).all() else t.size
     t, U = t[:finite], U[:finite]
-    diverged = traj.status == "diverged"
+    diverged = traj.status == Status.DIVERGED
     if finite == 0:
         return row
     notes: list[str] = []

@@ -13,7 +13,7 @@ from typing import Any
 from longtime.core.fmt import positive
 from longtime.core.rowschema import formatted
 from longtime.core.rowtext import main_t_final, setting
-from longtime.execution.budget import TOO_SLOW
+from longtime.core.status import TOO_SLOW, Status
 from longtime.predict.settings import Measure, error_kept, solution_measure
 
 # the error the table asks of each library's settings (the verdict's measure: max_error, the
@@ -36,10 +36,10 @@ def _cell(rows: list[dict[str, Any]], t_main: float, target: float, m: Measure |
     """(the library's cell, the CPU seconds of its entry or None where it has none)."""
     if not rows:
         return "not run on this problem", None
-    ran = [r for r in rows if r.get("status") == "ok"]
-    slow = [r for r in rows if r.get("status") == "timeout" and r.get("t_final") == t_main]
+    ran = [r for r in rows if r.get("status") == Status.OK]
+    slow = [r for r in rows if r.get("status") == Status.TIMEOUT and r.get("t_final") == t_main]
     if not ran and not slow:
-        if all(r.get("status") == "skipped" for r in rows):
+        if all(r.get("status") == Status.SKIPPED for r in rows):
             if any("pip install" in str(r.get("message")) for r in rows):
                 return "not installed", None
             estimated = next((str(r["message"]) for r in rows if str(r.get("message")).startswith(TOO_SLOW)), None)

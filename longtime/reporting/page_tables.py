@@ -4,6 +4,7 @@ observed orders, the capability matrix and the stability intervals."""
 from __future__ import annotations
 
 from longtime.core.rowschema import formatted
+from longtime.core.status import Status
 from longtime.reporting.markup import escape, num, table
 from longtime.reporting.report import (
     format_counts,
@@ -82,7 +83,7 @@ def chaos_table(rows: list[dict]) -> str | None:
     predictability horizon), in time and in Lyapunov times."""
     from longtime.core.rowtext import setting
 
-    chaotic = [r for r in rows if "predictability_t" in r and r.get("status") == "ok"]
+    chaotic = [r for r in rows if "predictability_t" in r and r.get("status") == Status.OK]
     if not chaotic:
         return None
     first = next((r for r in chaotic if r.get("lyapunov_note")), chaotic[0])
@@ -132,7 +133,7 @@ def ensemble_table(records: list[dict]) -> str | None:
             f"apart: a distance above {FLOOR_FACTOR:g} x the floor. A scheme one of whose members diverged, "
             f"failed or passed the step's deadline has that status and no distance "
             f"(<code>longtime matrix --no-ensemble</code> skips the step; docs/metrics.md, \"Chaos\").")
-    ok = sorted((r for r in records if r.get("status") == "ok" and r.get("distance") is not None),
+    ok = sorted((r for r in records if r.get("status") == Status.OK and r.get("distance") is not None),
                 key=lambda r: r["distance"])
     rest = sorted((r for r in records if r not in ok), key=lambda r: (r.get("status") or "", r["integrator"]))
     body = []
@@ -171,7 +172,8 @@ def orders_table(fits: list[dict]) -> str | None:
                   body, raw=True)
 
 
-ABBREVIATIONS = {"ok": "ok", "skipped": "-", "diverged": "div", "failed": "fail", "timeout": "t/o"}
+ABBREVIATIONS = {Status.OK: "ok", Status.SKIPPED: "-", Status.DIVERGED: "div", Status.FAILED: "fail",
+                 Status.TIMEOUT: "t/o"}
 
 
 def capability_matrix(rows: list[dict]) -> str:
@@ -188,13 +190,14 @@ def capability_matrix(rows: list[dict]) -> str:
                 cells.append('<td class="skipped" title="not in this run"></td>')
                 continue
             counts = status_counts(mine)
-            worst = next(st for st in ("failed", "timeout", "diverged", "skipped", "ok") if counts.get(st))
+            worst = next(st for st in (Status.FAILED, Status.TIMEOUT, Status.DIVERGED, Status.SKIPPED, Status.OK)
+                         if counts.get(st))
             title = format_counts(counts)
             text = ABBREVIATIONS[worst]
-            lost = sum(1 for r in mine if r.get("status") == "ok" and r.get("solution_lost"))
-            if worst == "skipped":
+            lost = sum(1 for r in mine if r.get("status") == Status.OK and r.get("solution_lost"))
+            if worst == Status.SKIPPED:
                 title = "skipped: " + str(mine[0].get("message") or "").removeprefix(s + " ")
-            elif worst != "ok":
+            elif worst != Status.OK:
                 text += f" {counts[worst]}/{len(mine)}"
             elif lost:  # ran to the end, but the error reached O(1): not an ok answer
                 worst, text = "lost", "lost" if lost == len(mine) else f"lost {lost}/{len(mine)}"
