@@ -30,9 +30,9 @@ EXTRA_HALVINGS = 2
 def default_dts(problem: Any, scheme: Any = None, t_final: float | None = None) -> list[float]:
     """The steps ``assert_order`` sweeps by default: the problem's ``sweep_dt`` and two
     halvings of its smallest step; for a ``scheme`` of a high declared order, the larger
-    steps of its default sweep too (longtime.execution.cells.sweep_steps, over ``t_final``,
+    steps of its default sweep too (longtime.execution.sizes.sweep_steps, over ``t_final``,
     default the problem's), where its error is above the round-off floor."""
-    from longtime.execution.cells import sweep_steps
+    from longtime.execution.sizes import sweep_steps
 
     cls = registry.problem_class(resolve(problem, "problem")[0])
     dts = sorted({float(x) for x in cls.sweep_dt} or {float(cls.default_dt)}, reverse=True)

@@ -9,8 +9,9 @@ from longtime.core import cli_args, jsontext
 from longtime.core.params import InputError, check_time_span
 from longtime.core.progress import Progress
 from longtime.core.status import Status
-from longtime.execution.cells import DEFAULT_TIME_LIMIT, MAX_STEPS, check_step
+from longtime.execution.cells import DEFAULT_TIME_LIMIT
 from longtime.execution.limits import PastLimit, call_limited, default_memory_limit
+from longtime.execution.sizes import MAX_STEPS, check_step
 from longtime.measure import ensemble
 
 

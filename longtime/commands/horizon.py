@@ -22,7 +22,8 @@ import numpy as np
 from longtime.core import cli_args, jsontext
 from longtime.core.params import InputError
 from longtime.core.status import Status
-from longtime.execution.cells import DEFAULT_TIME_LIMIT, MAX_STEPS
+from longtime.execution.cells import DEFAULT_TIME_LIMIT
+from longtime.execution.sizes import MAX_STEPS
 from longtime.measure.horizon import estimate, fit_law, judge, local_slopes, verdict_text
 
 PROBLEM = "henon-heiles"

@@ -28,7 +28,7 @@ import numpy as np
 from longtime.core import cli_args, jsontext
 from longtime.core.params import InputError
 from longtime.core.status import Status
-from longtime.execution.cells import MAX_STEPS
+from longtime.execution.sizes import MAX_STEPS
 from longtime.measure.growth import growth_fields
 
 PERTURBATION = 1e-12
@@ -138,7 +138,7 @@ def heyoka_row(problem_name: str, invariant: str, times: np.ndarray) -> dict[str
     schemes' span, sampled at their times; a row like the schemes' (no ensemble)."""
     from longtime.core import registry
     from longtime.measure.metrics import relative_error
-    from longtime.measure.reference import ReferenceUnavailable, propagate
+    from longtime.measure.reference_runs import ReferenceUnavailable, propagate
 
     problem = registry.problem_class(problem_name)()
     row: dict[str, Any] = {"problem": problem_name, "invariant": invariant, "scheme": "heyoka",

@@ -6,8 +6,9 @@ import sys
 
 from longtime.commands.common import add_selection, exec_options, notices, selection, warn_broken
 from longtime.core.status import Status
-from longtime.execution.cells import check_size, expand
+from longtime.execution.cells import expand
 from longtime.execution.lifecycle import command_line
+from longtime.execution.sizes import check_size
 from longtime.execution.store import Store
 from longtime.reporting.report import render
 

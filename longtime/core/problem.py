@@ -264,8 +264,8 @@ class Problem(ABC):
     def metrics_bytes(self, samples: int) -> int:
         """Peak bytes the metrics of ``samples`` recorded states allocate beside the samples
         (the reference's states, differences and norms, the invariants' values): the up-front
-        size check (cells.check_size) counts them. A problem whose invariants allocate more
-        per sample (toda's Lax matrices) says so here."""
+        size check (longtime.execution.sizes.check_size) counts them. A problem whose
+        invariants allocate more per sample (toda's Lax matrices) says so here."""
         return 4 * samples * self.dim * 8
 
     @property

@@ -36,7 +36,8 @@ from longtime.core import registry
 from longtime.core.fmt import number
 from longtime.core.status import TOO_SLOW
 from longtime.core.stepping import FixedStepIntegrator
-from longtime.execution.cells import Cell, cell_size
+from longtime.execution.cells import Cell
+from longtime.execution.sizes import cell_size
 
 # seconds a compiled RK4 step costs per state component (measured on the main job's problems:
 # docs/performance.md)

@@ -169,7 +169,8 @@ def _judged_until(problem, horizon: float) -> float:
     """``horizon``, or the end of the reference's trusted horizon where its check over
     [t0, horizon] (cached, within CHECK_REFERENCE_S) ends before it: a check past it would
     not be judged."""
-    from longtime.measure.reference import ReferenceUnavailable, reference_check
+    from longtime.measure.reference import reference_check
+    from longtime.measure.reference_runs import ReferenceUnavailable
 
     try:
         return min(horizon, reference_check(problem, horizon, CHECK_REFERENCE_S).horizon)
@@ -288,7 +289,8 @@ def reference_seconds_per_t(v: Verdict) -> float:
     if v.measure is None or not v.measure.solution:
         return 0.0
     from longtime.execution.cells import build, cell_of_row
-    from longtime.measure.reference import ReferenceUnavailable, check_seconds_per_t
+    from longtime.measure.reference import check_seconds_per_t
+    from longtime.measure.reference_runs import ReferenceUnavailable
 
     row = next(s.row for s in v.candidates)
     problem = build(cell_of_row(row))[0]

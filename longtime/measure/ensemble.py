@@ -67,7 +67,7 @@ def _late(t: np.ndarray, values: np.ndarray, t0: float, t_final: float, window: 
 
 def _reference_pool(problem: Problem, states: list[np.ndarray], t_final: float, window: float,
                     budget_s: float | None = None) -> np.ndarray:
-    from longtime.measure.reference import propagate
+    from longtime.measure.reference_runs import propagate
 
     grid = np.linspace(problem.t0, t_final, GRID)
     pool = []
@@ -86,16 +86,16 @@ def reference_pools(problem: Problem, t_final: float, members: int, size: float,
     + 2, ...) that the floor is measured against, cached beside the references (their key:
     the problem, its settings, state and ODE, heyoka's version; here also the ensemble's own
     parameters): every scheme of a problem is compared with the same pools, computed once."""
-    from longtime.measure import reference
+    from longtime.measure import reference_files
 
     key = repr((float(t_final), members, size, seed, window, GRID, others))
-    path = reference.cache_path(problem, "ensemble", key)
-    found = reference.load_cached(path, lambda: _read_pools(path))
+    path = reference_files.cache_path(problem, "ensemble", key)
+    found = reference_files.load_cached(path, lambda: _read_pools(path))
     if found is not None:
         return found
     pools = [_reference_pool(problem, initial_states(problem, members, size, seed + k), t_final, window, budget_s)
              for k in range(others + 1)]
-    reference.save_cached(path, **{f"pool{k}": pool for k, pool in enumerate(pools)})
+    reference_files.save_cached(path, **{f"pool{k}": pool for k, pool in enumerate(pools)})
     return pools[0], pools[1:]
 
 

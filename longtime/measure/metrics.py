@@ -220,7 +220,8 @@ def motion_window(problem: Problem, t_end: float, trust: Trust | None) -> tuple[
     """(times, reference states) at WINDOW_POINTS log-spaced times of [t0, t0 + W], W = the
     run's span / 100 (its first hundredth, where the reference is trusted), for
     ``motion_scale``; None where the reference cannot give them."""
-    from longtime.measure.reference import ReferenceUnavailable, reference_states
+    from longtime.measure.reference import reference_states
+    from longtime.measure.reference_runs import ReferenceUnavailable
 
     span = min(float(t_end - problem.t0), float(trust.horizon - problem.t0)) if trust else float(t_end - problem.t0)
     if trust is None or not span > 0:
