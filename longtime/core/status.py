@@ -20,8 +20,6 @@ class Status:
 
 
 STATUSES = (Status.OK, Status.DIVERGED, Status.FAILED, Status.TIMEOUT, Status.SKIPPED)
-# the statuses of a run that did not reach its final time (a skipped cell did not run)
-NOT_REACHED = (Status.DIVERGED, Status.FAILED, Status.TIMEOUT)
 
 
 class Code:
@@ -44,7 +42,7 @@ TIME_LIMIT = "time limit reached"
 STEP_FAILED = "step failed"
 MEMORY_LIMIT = "memory limit"
 TOO_SLOW = "too slow for the default matrix:"
-# a diverged run's message at t
+# a diverged run's message at t (longtime.core.problem.BLOWUP_MESSAGE, as the library peers read it)
 BLOWUP = "state blew up (non-finite or beyond the problem's bound) at t={t:.6g}"
 
 
