@@ -29,7 +29,7 @@ def main() -> int:
     from longtime.core import registry
     from longtime.core.timing import Timing
     from longtime.execution import calibration
-    from longtime.execution.cells import working_set
+    from longtime.execution.sizes import working_set
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=4)

@@ -467,7 +467,7 @@ def recommend(problem: Any, error: float, horizon: float, rows: Any = None, *, d
     ``budget``: the wall seconds (>= 0; 0 runs nothing) for running the best predicted
     candidates to ``horizon`` where the answer lies beyond the stored runs (``basis``
     "measured at T", ``measured_error``, ``measured_cpu_s``), as ``longtime recommend --budget``."""
-    from longtime.execution.cells import check_span
+    from longtime.execution.sizes import check_span
     from longtime.reporting.recommend import measured_growth, stored_recommendation
     from longtime.reporting.recommend import recommend as decide
 

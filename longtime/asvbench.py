@@ -67,6 +67,8 @@ import time
 from dataclasses import dataclass
 from typing import Any, ClassVar, Sequence
 
+from longtime.core.status import Status
+
 ALL = "default"  # the label of the setting when no parameter is given
 # a growth class as a number for asv (worse is larger); undetermined is not tracked (n/a)
 GROWTH_RANKS = {"bounded": 1, "sqrt": 2, "linear": 3, "quadratic": 4, "faster": 5, "saturated": 6, "diverged": 7}
@@ -168,7 +170,7 @@ class Integration(_Suite):
 
         cell = self.selection.cell(problem, scheme, setting)
         record = time_cells([cell], 100_001, Timing(repeats=3))[0]
-        return float(record["cpu_s"]) if record.get("status") == "ok" else math.nan
+        return float(record["cpu_s"]) if record.get("status") == Status.OK else math.nan
 
     track_cpu_s.unit = "seconds"
 
@@ -196,7 +198,7 @@ class Accuracy(_Suite):
     @staticmethod
     def _field(rows, problem, scheme, setting, name):
         row = rows[f"{problem}|{scheme}|{setting}"]
-        if row.get("status") != "ok" or name is None or row.get(name) is None:
+        if row.get("status") != Status.OK or name is None or row.get(name) is None:
             return math.nan  # shown as n/a: a failed or diverged run has nothing to track
         return float(row[name])
 
@@ -214,7 +216,7 @@ class Accuracy(_Suite):
         3 linear, 4 quadratic, 5 faster, 6 saturated, 7 diverged; undetermined: n/a)."""
         row = rows[f"{problem}|{scheme}|{setting}"]
         inv = row.get("invariant")
-        if row.get("status") != "ok" or inv is None:
+        if row.get("status") != Status.OK or inv is None:
             return math.nan
         return float(GROWTH_RANKS.get(row.get(f"{inv}.growth_class"), math.nan))
 
@@ -279,10 +281,10 @@ class Speed(_Suite):
         results = run_children(cells, DEFAULT_PROCESSES, spec, 1, START_S + 60 * SPREAD_S, paired=True)
         out = {}
         for k, label in enumerate(labels):
-            records = [res[k] for res, _ in results if res is not None and res[k].get("status") == "ok"]
+            records = [res[k] for res, _ in results if res is not None and res[k].get("status") == Status.OK]
             ratios = [r["cpu_ratio"] for r in records if not math.isnan(r.get("cpu_ratio", math.nan))]
             why = "; ".join(err or res[k].get("message") or res[k].get("status") for res, err in results
-                            if res is None or res[k].get("status") != "ok")
+                            if res is None or res[k].get("status") != Status.OK)
             # each process's ratio is kept beside the track (the smallest) for a reader of the cache
             out[label] = {"cpu_ratio": min(ratios) if ratios else None, "processes": ratios, "why": why}
         return out

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from longtime.core.params import InputError, check_choice
+from longtime.core.status import Status
 from longtime.reporting.figures import FORMATS, save  # noqa: F401  (the helpers every kind uses)
 
 PLOT_KINDS: dict[str, str] = {
@@ -114,7 +115,7 @@ def work_precision(rows: Any, ax=None, *, field: str | None = None, problem: str
     from longtime.reporting.figures.work_precision import curves
     from longtime.reporting.report import pareto_field
 
-    rows = [r for r in records(rows) if r.get("status") == "ok" and positive(r.get("cpu_s"))
+    rows = [r for r in records(rows) if r.get("status") == Status.OK and positive(r.get("cpu_s"))
             and (problem is None or r["problem"] == problem)]
     problems = sorted({r["problem"] for r in rows})
     if len(problems) != 1:
@@ -158,7 +159,7 @@ def drift(result_or_rows: Any, invariant: str = "H", ax=None):
                       label=f"{scheme} {setting(res.row)}".strip())
             title = res.row["problem"]
         else:
-            rows = [r for r in records(result_or_rows) if r.get("status") == "ok"]
+            rows = [r for r in records(result_or_rows) if r.get("status") == Status.OK]
             style = scheme_styles(sorted({r["integrator"] for r in rows}))
             drawn = 0
             for r in rows:

@@ -21,6 +21,7 @@ from longtime.api import Order, Result, cells_for, convergence, resolve, solve, 
 from longtime.core import registry
 from longtime.core.params import check_number
 from longtime.core.roles import row_columns, row_fields
+from longtime.core.status import Status
 
 # a fit needs points in the asymptotic range: the problem's sweep and this many halvings below it
 EXTRA_HALVINGS = 2
@@ -29,9 +30,9 @@ EXTRA_HALVINGS = 2
 def default_dts(problem: Any, scheme: Any = None, t_final: float | None = None) -> list[float]:
     """The steps ``assert_order`` sweeps by default: the problem's ``sweep_dt`` and two
     halvings of its smallest step; for a ``scheme`` of a high declared order, the larger
-    steps of its default sweep too (longtime.execution.cells.sweep_steps, over ``t_final``,
+    steps of its default sweep too (longtime.execution.sizes.sweep_steps, over ``t_final``,
     default the problem's), where its error is above the round-off floor."""
-    from longtime.execution.cells import sweep_steps
+    from longtime.execution.sizes import sweep_steps
 
     cls = registry.problem_class(resolve(problem, "problem")[0])
     dts = sorted({float(x) for x in cls.sweep_dt} or {float(cls.default_dt)}, reverse=True)
@@ -135,7 +136,7 @@ def assert_reversible(scheme: Any, *, h: float | None = None, problem: Any = Non
 
 
 def _not_ok(rows) -> str:
-    bad = rows[rows["status"] != "ok"]
+    bad = rows[rows["status"] != Status.OK]
     if bad.empty:
         return ""
     return "; not ok: " + ", ".join(f"dt={r['dt']:.4g} {r['status']} ({r['message']})" for _, r in bad.iterrows())
@@ -143,7 +144,7 @@ def _not_ok(rows) -> str:
 
 def _solve(scheme: Any, problem: Any, t_final: float, settings: dict) -> Result:
     result = solve(problem, scheme, t_final=t_final, repeats=1, min_time=0.0, **settings)
-    if result.status != "ok":
+    if result.status != Status.OK:
         raise AssertionError(f"{_label(scheme, problem)} to t={t_final:g} ({_settings(result)}): "
                              f"status {result.status}: {result.row['message']}")
     return result
@@ -289,7 +290,7 @@ def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float 
         raise AssertionError(f"benchmark_cell times one cell; the settings give {len(cells)}")
     keep: dict[str, Any] = {}
     row = complete(run_cell(cells[0], timing=Timing(repeats=1), keep=keep))
-    if "trajectory" not in keep or row["status"] != "ok":
+    if "trajectory" not in keep or row["status"] != Status.OK:
         raise AssertionError(f"{cells[0].integrator} on {cells[0].problem}: status {row['status']}: {row['message']}")
     prob, integ, first = keep["problem"], keep["integrator"], keep["trajectory"]
     t_end = prob.default_t_final if cells[0].t_final is None else cells[0].t_final
@@ -305,7 +306,7 @@ def benchmark_cell(benchmark: Any, problem: Any, scheme: Any, *, t_final: float 
             if results is None:
                 raise AssertionError(f"{integ.name} on {prob.name}: a timing process gave no result: {why}")
             (res,) = results
-            if res.get("status") != "ok" or res.get("samples_digest") != digest:
+            if res.get("status") != Status.OK or res.get("samples_digest") != digest:
                 raise AssertionError(f"{integ.name} on {prob.name}: the run timed in another process did not "
                                      f"reproduce the measured one ({res.get('status')}: {res.get('message')})")
             minima.append(res["cpu_s"])

@@ -36,7 +36,7 @@ def test_a_bound_is_judged_as_at_most_and_a_class_as_a_point_estimate():
     c = _check(bounded, 1e3, 1e-6)
     assert c["predicted_bound"] is True and c["predicted_error"] == pytest.approx(5e-8 * 10**2.25)
     assert PC.check_holds(c) is True  # 1e-6, nine times below the bound of 8.9e-6: the bound holds
-    assert "error at most 8.9e-06 predicted, 1e-06 measured" in check_text(c)
+    assert "error at most 8.891e-06 predicted, 1.000e-06 measured" in check_text(c)
     assert PC.check_holds({**c, "measured_error": 3.1 * c["predicted_error"]}) is False  # past x3 the bound
     assert PC.check_holds({**c, "measured_error": 2.9 * c["predicted_error"]}) is True
     # a linear class is a point estimate: nine times below it is a miss

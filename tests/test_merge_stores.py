@@ -132,6 +132,32 @@ def test_merge_copies_only_the_rows_the_store_accepts(tmp_path, capsys):
     assert "evil_field" not in json.dumps(served) and "fast" not in json.dumps(served)
 
 
+def test_merge_copies_only_the_checks_and_ensemble_records_the_store_accepts(tmp_path, capsys):
+    """A check or an ensemble record that the store would refuse to add (a status outside the
+    statuses, a field it does not declare, not JSON) is not copied, and counted by its kind."""
+    a, c = tmp_path / "a.sqlite", tmp_path / "c.sqlite"
+    run_id = _interrupted(a, OTHER, rows=1)
+    check = {**_row(CELLS[0]), "check_of": CELLS[0].key, "check_role": "best", "measured_error": 1e-7}
+    ensemble = {"problem": "harmonic", "integrator": "verlet", "status": "ok", "members": 8, "distance": 0.1}
+    with closing(sqlite3.connect(a)) as con, con:  # a hand-edited store
+        con.executemany("INSERT INTO checks (run_id, cell_key, problem, integrator, row, created) "
+                        "VALUES (?, ?, 'harmonic', 'rk4', ?, 'now')",
+                        [(run_id, "k1", json.dumps(check)), (run_id, "k2", json.dumps({**check, "status": "sucess"})),
+                         (run_id, "k3", "{not json")])
+        con.executemany("INSERT INTO ensembles (run_id, problem, integrator, status, record, created) "
+                        "VALUES (?, 'harmonic', ?, 'ok', ?, 'now')",
+                        [(run_id, "verlet", json.dumps(ensemble)),
+                         (run_id, "rk4", json.dumps({**ensemble, "integrator": "rk4", "colour": "red"}))])
+    [record], err = _merge(capsys, a, into=c)
+    assert record["refused_records"] == {"check: status: 'sucess' is not one of ok, diverged, failed, timeout, "
+                                         "skipped": 1, "check: not JSON (JSONDecodeError)": 1,
+                                         "ensemble: colour: not a declared field (longtime.core.rowschema)": 1}
+    assert sum("record(s) not copied" in line for line in err.splitlines()) == 3
+    merged = Store(c, readonly=True)
+    assert [k["status"] for k in merged.checks()] == ["ok"] and [e["integrator"] for e in merged.ensembles()] == [
+        "verlet"]
+
+
 def test_a_machine_record_nested_past_reading_merges_as_no_machine(tmp_path, capsys):
     """A hand-edited store whose run's machine text is JSON nested deeper than Python reads
     (a RecursionError) merges its run and rows, read as a run of no named machine."""

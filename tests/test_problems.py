@@ -117,7 +117,7 @@ def test_reference_past_its_time_budget_is_unavailable_not_a_hang():
 def test_a_cell_without_reference_keeps_its_status_and_says_why(monkeypatch, tmp_path):
     from longtime.execution import cells
 
-    monkeypatch.setattr("longtime.measure.reference.DEFAULT_BUDGET_S", 0.0)
+    monkeypatch.setattr("longtime.measure.reference_runs.DEFAULT_BUDGET_S", 0.0)
     monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))  # nothing cached: heyoka must run
     row = cells.run_cell(cells.Cell("toda", "rk4", {}, {"dt": 0.1}, 50.0))
     assert row["status"] == "ok" and row["l2_error"] is None and row["H.max"] is not None

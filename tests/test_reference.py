@@ -9,7 +9,7 @@ import pytest
 
 from longtime.core import registry
 from longtime.execution.cells import Cell, run_cell
-from longtime.measure import reference
+from longtime.measure import reference, reference_runs
 from longtime.problems.kepler import Kepler
 
 
@@ -154,7 +154,7 @@ def test_a_check_that_passes_its_budget_trusts_only_what_it_checked(fresh_cache,
 
 
 def test_a_cell_whose_check_passes_its_budget_at_once_has_no_errors(fresh_cache, monkeypatch):
-    monkeypatch.setattr(reference, "DEFAULT_BUDGET_S", 0.0)
+    monkeypatch.setattr(reference_runs, "DEFAULT_BUDGET_S", 0.0)
     row = run_cell(Cell("double-pendulum", "rk4", {}, {"dt": 0.01}, 5.0))
     assert row["status"] == "ok" and row["l2_error"] is None and row["final_error"] is None
     assert row["reference_horizon"] is None and row["error_horizon"] is None

@@ -106,10 +106,15 @@ def test_formatters():
     assert rowschema.field("cpu_s").format(1.23456e-5) == "1.235e-05"
     assert rowschema.field("steps").format(120) == "120"
     assert rowschema.field("solution_lost").format(True) == "yes"
-    assert rowschema.field("H.growth_ci").format([0.5, 1.25]) == "0.5, 1.25"
+    assert rowschema.field("settings").format("dt=0.1") == "dt=0.1"
+    # a field with a format spec of its own: an exponent to two decimals, each of a list too
+    assert rowschema.field("H.growth").format(1.0234) == "1.02"
+    assert rowschema.field("H.growth_ci").format([0.5, 1.25]) == "0.50, 1.25"
     assert rowschema.field("l2_error").format(None) == "-" and rowschema.field("l2_error").format(float("nan")) == "-"
     # a field by its name, as the reports format a row's fields; an undeclared one as a number
-    assert rowschema.formatted("H.growth_ci", [0.5, 1.25]) == "0.5, 1.25"
+    assert rowschema.formatted("error.growth_ci", [0.5, float("nan")]) == "0.50, -"
+    # a check's and an ensemble record's fields too
+    assert rowschema.formatted("members", 8) == "8" and rowschema.formatted("predicted_error", 8.9e-6) == "8.900e-06"
     assert rowschema.formatted("solution_lost", False) == "no" and rowschema.formatted("cpu_s", None) == "-"
     assert rowschema.formatted("not_a_field", 0.001234) == "1.234e-03"
 

@@ -235,7 +235,7 @@ def _check_steps(own_p: list[str], own_s: list[str], problems: list[str], scheme
     ``longtime run`` refuses it, so that the suite written holds no cell ``run`` would refuse
     (the plugin's own names, perhaps not installed yet, are checked when asv runs them)."""
     from longtime.core import registry
-    from longtime.execution.cells import check_step
+    from longtime.execution.sizes import check_step
 
     problems, schemes = problems or own_p, schemes or own_s
     known_p = [n for n in problems if n in registry.problems()]

@@ -16,7 +16,7 @@ from longtime.execution.cells import DEFAULT_TIME_LIMIT
 from longtime.execution.matrix import COSTS, EXECUTORS, ExecOptions, check_cost
 from longtime.execution.processes import DEFAULT_PROCESSES, RETIME, default_processes, max_processes
 from longtime.execution.store import default_path
-from longtime.measure.reference import budget_seconds
+from longtime.measure.reference_runs import budget_seconds
 from longtime.predict.need import FACTOR as NEED_FACTOR
 
 # argument types: one set for every command (longtime.core.cli_args)

@@ -8,8 +8,10 @@ from typing import Any
 from longtime.core import cli_args, jsontext
 from longtime.core.params import InputError, check_time_span
 from longtime.core.progress import Progress
-from longtime.execution.cells import DEFAULT_TIME_LIMIT, MAX_STEPS, check_step
+from longtime.core.status import Status
+from longtime.execution.cells import DEFAULT_TIME_LIMIT
 from longtime.execution.limits import PastLimit, call_limited, default_memory_limit
+from longtime.execution.sizes import MAX_STEPS, check_step
 from longtime.measure import ensemble
 
 
@@ -54,7 +56,7 @@ def study(problems: list[str], schemes: list[str], dt: float | None = None, t_fi
             reason = scheme.incompatibility(problem)
             row: dict[str, Any] = {"problem": p, "integrator": s}
             if reason:
-                rows.append({**row, "status": "skipped", "message": reason})
+                rows.append({**row, "status": Status.SKIPPED, "message": reason})
                 continue
             if dt is not None and isinstance(scheme, FixedStepIntegrator):
                 problem, scheme = build(Cell(p, s, {}, {"dt": dt}))
@@ -64,16 +66,16 @@ def study(problems: list[str], schemes: list[str], dt: float | None = None, t_fi
                 row.update(call_limited(ensemble.measure, problem, scheme, tf, members, size, seed, window,
                                         time_limit=time_limit, memory_limit=memory_limit))
             except PastLimit as exc:
-                rows.append({**row, "status": "timeout", "message": f"the ensemble stopped: {exc}"})
+                rows.append({**row, "status": Status.TIMEOUT, "message": f"the ensemble stopped: {exc}"})
                 continue
             except MemoryError as exc:
-                rows.append({**row, "status": "failed", "message": f"the ensemble ran out of memory: {exc}"})
+                rows.append({**row, "status": Status.FAILED, "message": f"the ensemble ran out of memory: {exc}"})
                 continue
             found = lyapunov.measure(problem)
             row["lyapunov_time"] = found["lyapunov_time"]
             row["span_lyapunov"] = (tf - problem.t0) / found["lyapunov_time"] if found["lyapunov_time"] else None
             row["verdict"] = ensemble.verdict(row)
-            row["status"] = "ok" if row["ensemble.distance"] is not None else "failed"
+            row["status"] = Status.OK if row["ensemble.distance"] is not None else Status.FAILED
             rows.append(row)
     return rows
 
@@ -87,7 +89,7 @@ def markdown(rows: list[dict[str, Any]]) -> str:
             "ensembles' own spread", "verdict"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
-        if r.get("status") == "skipped":
+        if r.get("status") == Status.SKIPPED:
             lines.append(f"| {r['problem']} | {r['integrator']} | skipped: {r['message']} |" + " |" * (len(head) - 3))
             continue
         lines.append("| " + " | ".join([r["problem"], r["integrator"], _g(r.get("dt")), _g(r.get("t_final")),

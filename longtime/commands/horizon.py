@@ -21,7 +21,9 @@ import numpy as np
 
 from longtime.core import cli_args, jsontext
 from longtime.core.params import InputError
-from longtime.execution.cells import DEFAULT_TIME_LIMIT, MAX_STEPS
+from longtime.core.status import Status
+from longtime.execution.cells import DEFAULT_TIME_LIMIT
+from longtime.execution.sizes import MAX_STEPS
 from longtime.measure.horizon import estimate, fit_law, judge, local_slopes, verdict_text
 
 PROBLEM = "henon-heiles"
@@ -59,9 +61,9 @@ def run_member(scheme: str, dt: float, energy: float, y0: float, t_final: float,
                                      memory_limit=default_memory_limit())
     except PastLimit as exc:
         raise RuntimeError(f"{scheme} at dt={dt}, y0={y0}: {exc} (--time-limit)") from None
-    if traj.status == "failed":
+    if traj.status == Status.FAILED:
         raise RuntimeError(f"{scheme} at dt={dt}, y0={y0}: {traj.message}")
-    escaped = traj.t_reached if traj.status == "diverged" else None
+    escaped = traj.t_reached if traj.status == Status.DIVERGED else None
     t, u = traj.t, traj.u
     finite = np.all(np.isfinite(u), axis=1)
     H = problem.invariants(t[finite], u[finite])["H"]

@@ -27,6 +27,7 @@ from pathlib import Path
 from longtime.core import cli_args, jsontext, registry
 from longtime.core.fmt import column
 from longtime.core.params import InputError
+from longtime.core.status import Status
 from longtime.execution.cells import Cell, build, expand
 from longtime.execution.lifecycle import command_line, recorded_run
 from longtime.execution.search import Matcher, accuracy_parameter  # noqa: F401  (the search lives in longtime.execution.search)
@@ -42,7 +43,7 @@ DEFAULT_SCHEMES = ["bpl", "bpl-exp", "etdrk4", "rk45", "adaptive-rk4"]
 
 def _shown(row: dict, metric: str):
     """The error of a finished run (none for a failed or diverged one)."""
-    return row.get(metric) if row.get("status") == "ok" else None
+    return row.get(metric) if row.get("status") == Status.OK else None
 
 
 def match_table(rows: list[dict], problem: str, settings: dict, metric: str, target: float) -> str:
@@ -62,7 +63,7 @@ def match_table(rows: list[dict], problem: str, settings: dict, metric: str, tar
             f"{column(r.get('rhs_evals'), '9d')} | "
             + (f"{p[0]:9.4g} {p[1]:9.3g} {p[2]:9.3g} {column(ratio, '10.3g')}" if p
                else f"{'-':>9s} " * 3 + f"{'-':>10s}"))
-        if r["status"] != "ok":
+        if r["status"] != Status.OK:
             lines.append(f"    {r['status']}: {r.get('message')}")
         if r.get("match_note"):
             lines.append(f"    note: {r['match_note']}")
@@ -86,7 +87,7 @@ def step_cap_lines(problem: str, bases: list[Cell], rows: list[dict]) -> list[st
 
     from longtime.measure.stability import AMPLIFICATION_GROWTH, amplification_onset
 
-    by = {c.integrator: (c, r) for c, r in zip(bases, rows) if r.get("status") == "ok" and r.get("mean_dt")}
+    by = {c.integrator: (c, r) for c, r in zip(bases, rows) if r.get("status") == Status.OK and r.get("mean_dt")}
     if "bpl" not in by or registry.problem_class(problem).linear_part is None:
         return []
     cell, row = by["bpl"]
@@ -125,7 +126,7 @@ def scaling_tables(scaling: dict[str, dict[int, dict]], orders: dict[int, dict],
         cells = []
         for d in sizes:
             r = per.get(d)
-            cells.append(f"{column(r.get('cpu_s') if r and r['status'] == 'ok' else None, '14.4f')}")
+            cells.append(f"{column(r.get('cpu_s') if r and r['status'] == Status.OK else None, '14.4f')}")
         g = growth(per, base_size, top_size)
         paper = KDV_GROWTH_128_512.get(scheme)
         lines.append(f"{scheme:14s} " + " ".join(cells) + f" {column(g, '+15.0f')}%"
@@ -138,20 +139,20 @@ def scaling_tables(scaling: dict[str, dict[int, dict]], orders: dict[int, dict],
             if r:
                 lines.append(f"{scheme:14s} {d:5d} {column(r.get('mean_dt'), '10.3e')} "
                              f"{column(_shown(r, metric), '11.3e')} {column(r.get('steps'), '8d')} "
-                             f"{column(r.get('rhs_evals'), '10d')}  {r['status'] if r['status'] != 'ok' else ''}")
+                             f"{column(r.get('rhs_evals'), '10d')}  {r['status'] if r['status'] != Status.OK else ''}")
     if orders:
         lines += ["", "== bpl: series order N (matched eps_res, base size) ==",
                   f"{'N':>4s} {'CPU s':>9s} {'mean step':>10s} {metric:>11s} {'steps':>8s}"]
         for n, r in sorted(orders.items()):
             lines.append(f"{n:4d} {column(r.get('cpu_s'), '9.4f')} {column(r.get('mean_dt'), '10.3e')} "
                          f"{column(_shown(r, metric), '11.3e')} {column(r.get('steps'), '8d')}  "
-                         f"{r['status'] if r['status'] != 'ok' else ''}")
+                         f"{r['status'] if r['status'] != Status.OK else ''}")
     return "\n".join(lines)
 
 
 def growth(per: dict[int, dict], base: int, top: int) -> float | None:
     a, b = per.get(base), per.get(top)
-    if not a or not b or a["status"] != "ok" or b["status"] != "ok" or not a.get("cpu_s"):
+    if not a or not b or a["status"] != Status.OK or b["status"] != Status.OK or not a.get("cpu_s"):
         return None
     return 100.0 * (b["cpu_s"] / a["cpu_s"] - 1.0)
 

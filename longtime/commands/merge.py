@@ -8,8 +8,9 @@ A run keeps its id unless the target holds that id already (then it gets the nex
 one: the line of each run says where it went); a run merged before is brought up to date
 (rows added or completed since, its status), never copied twice. A run still running in its
 source is copied as it stands (status running) and completed by a later merge. Every row is
-checked as the store checks a row it adds: a refused row is not copied, and one line on
-stderr per reason says how many. Where two copies of one run hold different rows, one line
+checked as the store checks a row it adds, and every check and ensemble record as it checks
+one of those: a refused row or record is not copied, and one line on stderr per reason says
+how many. Where two copies of one run hold different rows, one line
 on stderr names the run and the count, the copy already in the target is kept, and the exit
 status is 1. Prints one line per run (``--format json``: one record per run).
 """
@@ -32,6 +33,9 @@ def cmd_merge(args) -> int:
         for reason, count in m["refused"].items():
             print(f"warning: {m['store']} run {m['run']}: {count} row(s) not copied, refused by the row check: "
                   f"{reason}", file=sys.stderr)
+        for reason, count in m.get("refused_records", {}).items():
+            print(f"warning: {m['store']} run {m['run']}: {count} record(s) not copied, refused by the record "
+                  f"check: {reason}", file=sys.stderr)
         if m["differ"]:
             print(f"warning: {m['store']} run {m['run']}: {m['differ']} row(s) differ from the copy in {args.into} "
                   f"(run {m['copy']}): the copy's rows are kept", file=sys.stderr)

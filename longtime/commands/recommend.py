@@ -16,7 +16,7 @@ from longtime.execution.store import default_path
 def cmd_recommend(args) -> int:
     from longtime.api import recommend
     from longtime.core import registry
-    from longtime.execution.cells import check_span
+    from longtime.execution.sizes import check_span
     from longtime.reporting.recommend import NO_ANSWER_EXIT
 
     if args.problem in registry.problems():  # an unknown one is named by recommend, as -p

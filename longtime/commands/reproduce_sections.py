@@ -15,6 +15,7 @@ import numpy as np
 from longtime.core import registry
 from longtime.core.fmt import markdown_table, number
 from longtime.core.params import InputError
+from longtime.core.status import Status
 from longtime.execution import search
 from longtime.execution.cells import Cell, integrate_cell, run_cell
 from longtime.execution.matrix import ExecOptions, run_matrix
@@ -94,7 +95,7 @@ table = markdown_table
 
 def status_notes(rows: list[dict]) -> str:
     notes = [f"- {r['integrator']} ({r['problem']}): **{r['status']}**: {r.get('message') or ''}"
-             for r in rows if r.get("status") != "ok"]
+             for r in rows if r.get("status") != Status.OK]
     return "\n".join(notes)
 
 
@@ -212,7 +213,7 @@ def section_toda(ctx: Context) -> str:
                        "pole within reach takes its Taylor sum; its rows say which share of the steps did.")
         for fallback, target, r in bpl_rows:
             pe = PAPER_TODA_BPL[target][0]
-            if r.get("H.mean") and r.get("status") == "ok":
+            if r.get("H.mean") and r.get("status") == Status.OK:
                 explain.append(f"- bpl{'' if fallback == 'none' else ' (fallback=taylor)'} at mean step "
                                f"{fmt(r.get('mean_dt'))} (paper {target:g}): E_mean ours / paper = "
                                f"{r['H.mean'] / pe:.3g}, fallback_fraction {fmt(r.get('fallback_fraction'))}.")

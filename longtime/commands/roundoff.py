@@ -27,7 +27,8 @@ import numpy as np
 
 from longtime.core import cli_args, jsontext
 from longtime.core.params import InputError
-from longtime.execution.cells import MAX_STEPS
+from longtime.core.status import Status
+from longtime.execution.sizes import MAX_STEPS
 from longtime.measure.growth import growth_fields
 
 PERTURBATION = 1e-12
@@ -137,7 +138,7 @@ def heyoka_row(problem_name: str, invariant: str, times: np.ndarray) -> dict[str
     schemes' span, sampled at their times; a row like the schemes' (no ensemble)."""
     from longtime.core import registry
     from longtime.measure.metrics import relative_error
-    from longtime.measure.reference import ReferenceUnavailable, propagate
+    from longtime.measure.reference_runs import ReferenceUnavailable, propagate
 
     problem = registry.problem_class(problem_name)()
     row: dict[str, Any] = {"problem": problem_name, "invariant": invariant, "scheme": "heyoka",
@@ -145,20 +146,20 @@ def heyoka_row(problem_name: str, invariant: str, times: np.ndarray) -> dict[str
     try:
         import heyoka  # noqa: F401
     except ImportError:
-        row.update(status="skipped", message="heyoka is not installed")
+        row.update(status=Status.SKIPPED, message="heyoka is not installed")
         return row
     c0 = time.process_time()
     try:
         states, stopped = propagate(problem, np.asarray(times, dtype=float), "double", budget_s=600.0)
     except ReferenceUnavailable as exc:
-        row.update(status="failed", message=str(exc))
+        row.update(status=Status.FAILED, message=str(exc))
         return row
     row["cpu_s"] = time.process_time() - c0
     t = times[:len(states)]
     err = relative_error(problem.invariants(t, states)[invariant])
     fit = growth_fields("e", t, err, float(times[0]))
-    row.update(status="ok" if stopped is None else "timeout", alpha=fit["e.growth"], alpha_ci=fit["e.growth_ci"],
-               law=fit["e.growth_class"], error_max=float(np.max(err)))
+    row.update(status=Status.OK if stopped is None else Status.TIMEOUT, alpha=fit["e.growth"],
+               alpha_ci=fit["e.growth_ci"], law=fit["e.growth_class"], error_max=float(np.max(err)))
     return row
 
 

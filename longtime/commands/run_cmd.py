@@ -5,8 +5,10 @@ import dataclasses
 import sys
 
 from longtime.commands.common import add_selection, exec_options, notices, selection, warn_broken
-from longtime.execution.cells import check_size, expand
+from longtime.core.status import Status
+from longtime.execution.cells import expand
 from longtime.execution.lifecycle import command_line
+from longtime.execution.sizes import check_size
 from longtime.execution.store import Store
 from longtime.reporting.report import render
 
@@ -36,7 +38,7 @@ def cmd_run(args) -> int:
     rows, _ = run_cells(cells, store=store, command=command_line(args), executor=executor,
                         options=options)
     print(render(rows, args.format))  # json: every row with the contract's keys (report.complete)
-    if any(r["status"] == "failed" for r in rows):
+    if any(r["status"] == Status.FAILED for r in rows):
         return 1
     if options.cost == "instructions":  # asked for counts and got none: said, and exit 3
         from longtime.execution.valgrind import EXIT_NOTHING_COUNTED, nothing_counted

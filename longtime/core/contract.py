@@ -19,6 +19,7 @@ from typing import Any
 from numba.core.registry import CPUDispatcher
 
 from longtime.core.params import InputError, Param
+from longtime.core.status import Status
 
 # capability name -> attribute(s) of a problem that provide it
 CAPABILITIES: dict[str, tuple[str, ...]] = {
@@ -207,7 +208,7 @@ def check_samples(scheme: str, problem: Any, traj: Any, t_final: float) -> str |
         value = getattr(traj, name)
         if not (isinstance(value, (int, float, np.floating)) and np.isfinite(value) and value >= 0):
             return f"{scheme} returned {name}={value!r}: a time must be finite and >= 0"
-    if traj.status == "ok":
+    if traj.status == Status.OK:
         if abs(t[-1] - t_final) > 1e-9 * scale:
             return (f"{scheme} says ok but its samples end at t={t[-1]:.17g}, before t_final={t_final:g} "
                     f"(a run that stops early is a timeout or failed)")

@@ -20,13 +20,15 @@ import math
 import numba
 import numpy as np
 
+from longtime.core.status import Code
+
 # counters: one int64 array per run, filled by the compiled code
 STEPS, RHS_EVALS, NL_ITERS, REJECTED, FALLBACKS, JAC_EVALS, EXTRA1, EXTRA2 = range(8)
 N_COUNTERS = 8
 COUNTER_NAMES = ("steps", "rhs_evals", "nl_iters", "rejected", "fallbacks", "jac_evals")
 
-# status codes returned by loops and steps
-OK, DIVERGED, FAILED, BUFFER_FULL, TIMEOUT = 0, 1, 2, 3, 4
+# status codes returned by loops and steps (longtime.core.status.Code: their home)
+OK, DIVERGED, FAILED, BUFFER_FULL, TIMEOUT = Code.OK, Code.DIVERGED, Code.FAILED, Code.BUFFER_FULL, Code.TIMEOUT
 EPS = float(np.finfo(float).eps)
 
 

@@ -12,7 +12,8 @@ import numpy as np
 
 from longtime.core import drivers
 from longtime.core.params import InputError, Param, check_time_span, resolve
-from longtime.core.problem import BLOWUP_MESSAGE, Problem
+from longtime.core.problem import Problem
+from longtime.core.status import Status, blew_up_at
 from longtime.core.timing import Timing, timed_runs
 from longtime.core.trajectory import Trajectory, run_digest
 
@@ -148,7 +149,7 @@ class Integrator(ABC):
         finally:
             self._deadline = None
         _judge_growth(problem, first)
-        if len(cpu) == 1 < timing.repeats and first.status == "ok" and wall[0] > Timing.ONCE_ABOVE:
+        if len(cpu) == 1 < timing.repeats and first.status == Status.OK and wall[0] > Timing.ONCE_ABOVE:
             note = f"timed once: one run takes {wall[0]:.3g} s"
             first.message = f"{first.message}; {note}" if first.message else note
         first.cpu_s, first.wall_s = min(cpu), min(wall)
@@ -172,9 +173,9 @@ def _judge_growth(problem: Problem, traj: Trajectory) -> None:
     """A problem whose solution grows bounds the compiled loops only near overflow; its samples
     are judged here against the bound that follows the solution (Problem.size_bound): past
     it, the run diverged there (the samples end at the first state beyond, as the drivers')."""
-    if not problem.grows or traj.status not in ("ok", "timeout"):
+    if not problem.grows or traj.status not in (Status.OK, Status.TIMEOUT):
         return
     k = problem.first_blowup(traj.u, traj.t)
     if k is not None:
         traj.t, traj.u = traj.t[:k + 1], traj.u[:k + 1]
-        traj.status, traj.message = "diverged", BLOWUP_MESSAGE.format(t=traj.t[-1])
+        traj.status, traj.message = Status.DIVERGED, blew_up_at(traj.t[-1])

@@ -77,8 +77,7 @@ import numpy as np
 
 from longtime.core.contract import CAPABILITIES, check_problem_definition
 from longtime.core.params import Param, check_state, resolve
-
-BLOWUP_MESSAGE = "state blew up (non-finite or beyond the problem's bound) at t={t:.6g}"
+from longtime.core.status import BLOWUP as BLOWUP_MESSAGE  # noqa: F401 (its home; read from here too)
 
 
 def separable_rhs(grad_T: Callable, grad_V: Callable) -> Callable:
@@ -265,8 +264,8 @@ class Problem(ABC):
     def metrics_bytes(self, samples: int) -> int:
         """Peak bytes the metrics of ``samples`` recorded states allocate beside the samples
         (the reference's states, differences and norms, the invariants' values): the up-front
-        size check (cells.check_size) counts them. A problem whose invariants allocate more
-        per sample (toda's Lax matrices) says so here."""
+        size check (longtime.execution.sizes.check_size) counts them. A problem whose
+        invariants allocate more per sample (toda's Lax matrices) says so here."""
         return 4 * samples * self.dim * 8
 
     @property

@@ -18,10 +18,8 @@ from typing import Any, Callable, Iterable, Mapping
 from longtime.core.fmt import missing, number
 from longtime.core.params import ROLES
 from longtime.core.roles import ROW_PARAMETERS
+from longtime.core.status import STATUSES
 
-# the statuses of a row: what became of its cell
-OK, DIVERGED, FAILED, TIMEOUT, SKIPPED = "ok", "diverged", "failed", "timeout", "skipped"
-STATUSES = (OK, DIVERGED, FAILED, TIMEOUT, SKIPPED)
 # the growth classes of an error (longtime.measure.growth): the power law's classes by
 # increasing exponent, then the verdicts that are not a power law
 POWER_CLASSES = ("bounded", "sqrt", "linear", "quadratic", "faster")
@@ -87,6 +85,7 @@ class Field:
     optional: bool = True
     values: tuple[str, ...] = ()  # the values a text may take (empty: any)
     bounds: tuple[float, float] | None = None  # the range [low, high] a number must lie in
+    spec: str = ""  # a number's format spec (".2f"); empty: longtime.core.fmt.number's 4 significant digits
 
     def __post_init__(self) -> None:
         if self.kind not in TYPES:
@@ -110,9 +109,14 @@ class Field:
         return None
 
     def format(self, value: Any) -> str:
-        """``value`` as text: a dash for null or a non-finite number."""
+        """``value`` as text, the one way every report shows this field: a dash for null or a
+        non-finite number, a number (or each of a list) in the field's ``spec`` where it has one."""
         if missing(value):
             return "-"
+        if self.spec and _is_number(value):
+            return format(value, self.spec)
+        if self.spec and self.kind == "floats" and isinstance(value, list):
+            return ", ".join("-" if missing(v) else format(v, self.spec) for v in value)
         return TYPES[self.kind][2](value)
 
 
@@ -239,12 +243,13 @@ FAMILIES: tuple[Field, ...] = (
     Field("NAME.final", "float", "1", f"the last sample's value of {_INVARIANT}"),
     Field("NAME.t_1pct", "float", "time", f"the first time {_INVARIANT} passes 1 %"),
     Field("NAME.t_50pct", "float", "time", f"the first time {_INVARIANT} passes 50 %"),
-    Field("NAME.growth", "float", "1", f"alpha, the power law's exponent fitted to {_GROWTH}"),
-    Field("NAME.growth_ci", "floats", "1", "alpha's interval [low, high]"),
+    # an exponent is shown to two decimals
+    Field("NAME.growth", "float", "1", f"alpha, the power law's exponent fitted to {_GROWTH}", spec=".2f"),
+    Field("NAME.growth_ci", "floats", "1", "alpha's interval [low, high]", spec=".2f"),
     Field("NAME.growth_class", "str", "", f"the growth class of {_GROWTH}: bounded, sqrt, linear, ...",
           values=GROWTH_CLASSES),
     Field("NAME.growth_reason", "str", "", "what the growth class rests on, or why it is undetermined"),
-    Field("NAME.growth_windows", "floats", "1", f"the local slopes of {_GROWTH}, earliest first"),
+    Field("NAME.growth_windows", "floats", "1", f"the local slopes of {_GROWTH}, earliest first", spec=".2f"),
     Field("NAME.saturated_t", "float", "time", f"the first time {_GROWTH} reached saturation"),
     Field("diag.NAME.max", "float", "1", "the largest change of the diagnostic NAME"),
     Field("diag.NAME.final", "float", "1", "the change of the diagnostic NAME at the last sample"),
@@ -273,9 +278,10 @@ def field(name: str, counters: Iterable[str] = ()) -> Field | None:
 
 
 def formatted(name: str, value: Any) -> str:
-    """Row field ``name``'s ``value`` as a person reads it (its ``Field.format``: a dash for
-    null); a value of a field the row does not declare, as a number (longtime.core.fmt.number)."""
-    declared = field(name)
+    """Field ``name``'s ``value`` as a person reads it (its ``Field.format``: a dash for null):
+    a row field's, else a check's or an ensemble record's (CHECK_FIELDS, ENSEMBLE_FIELDS); a
+    value of a field none declares, as a number (longtime.core.fmt.number)."""
+    declared = field(name) or _RECORD_FIELDS.get(name)
     return number(value) if declared is None else declared.format(value)
 
 
@@ -290,7 +296,7 @@ CHECK_FIELDS: tuple[Field, ...] = (
     Field("check_role", "str", "", "what the re-run tests", values=CHECK_ROLES),
     Field("check_group", "str", "", "the decision the group's re-runs test"),
     Field("check_kind", "str", "", "the class of problem the check covers"),
-    Field("check_target", "float", "1", "the target error of the decision"),
+    Field("check_target", "float", "1", "the target error of the decision (a decade: 1e-06)", spec="g"),
     Field("predicted_error", "float", "1", "the error predicted at the horizon (null: no prediction)"),
     Field("predicted_bound", "bool", "", "whether the predicted error is an upper bound"),
     Field("predicted_cpu_s", "float", "s", "the CPU time predicted at the horizon", bounds=(0.0, math.inf)),
@@ -323,6 +329,9 @@ ENSEMBLE_FIELDS: tuple[Field, ...] = (
     Field("distance", "float", "1", "the distance between the distributions", bounds=(0.0, math.inf)),
     Field("distinguishable", "bool", "", "whether the distance stands above the floor"),
 )
+
+# the fields of the records beside the rows that the row does not declare, by name
+_RECORD_FIELDS: dict[str, Field] = {f.name: f for f in (*CHECK_FIELDS, *ENSEMBLE_FIELDS)}
 
 
 def record_problems(record: Any, fields: Iterable[Field], counters: Iterable[str] | None = None) -> list[str]:

@@ -6,6 +6,7 @@ from typing import Any
 
 from longtime.core.fmt import positive
 from longtime.core.roles import row_fields
+from longtime.core.status import Status
 
 
 def setting(row: dict[str, Any]) -> str:
@@ -29,6 +30,6 @@ def main_t_final(rows: list[dict[str, Any]]) -> float | None:
     """The final time most of a problem's ok rows ran to (a sweep may add a few long runs)."""
     counts: dict[float, int] = {}
     for r in rows:
-        if r.get("status") == "ok" and positive(r.get("t_final")):
+        if r.get("status") == Status.OK and positive(r.get("t_final")):
             counts[r["t_final"]] = counts.get(r["t_final"], 0) + 1
     return max(sorted(counts), key=lambda t: counts[t]) if counts else None

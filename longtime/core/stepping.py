@@ -14,17 +14,15 @@ from typing import Any, Callable
 
 import numpy as np
 
-from longtime.core import drivers, rowschema
+from longtime.core import drivers
 from longtime.core.integrator import Integrator
 from longtime.core.kernel_cache import cached_kernel
 from longtime.core.params import Param
-from longtime.core.problem import BLOWUP_MESSAGE, Problem
+from longtime.core.problem import Problem
 from longtime.core.progress import RunProgress
+from longtime.core.status import STATUS_OF_CODE, blew_up_at, step_failed_at, time_limit_at
 from longtime.core.trajectory import Trajectory
 
-# the compiled drivers' status codes -> the row statuses they end in
-STATUS_NAMES = {drivers.OK: rowschema.OK, drivers.DIVERGED: rowschema.DIVERGED, drivers.FAILED: rowschema.FAILED,
-                drivers.TIMEOUT: rowschema.TIMEOUT}
 # fixed-step runs go in chunks: the first of FIRST_CHUNK steps, then sized to take about
 # CHUNK_SECONDS each (a call into compiled code costs microseconds: no measurable slowdown)
 FIRST_CHUNK = 10_000
@@ -109,7 +107,7 @@ class FixedStepIntegrator(Integrator):
             chunk = max(FIRST_CHUNK, int(chunk * CHUNK_SECONDS / max(w1, 1e-9)))
         watch.close()
         return Trajectory(
-            status=STATUS_NAMES[status], message=_status_message(status, t_end, _solves(self)), t=out_t[:n],
+            status=STATUS_OF_CODE[status], message=_status_message(status, t_end, _solves(self)), t=out_t[:n],
             u=out_u[:n], cpu_s=cpu, wall_s=wall, counters=self._counters(counters),
             min_dt=dt, max_dt=dt)
 
@@ -188,12 +186,12 @@ class AdaptiveIntegrator(Integrator):
             f = np.empty(dim)
             problem.rhs(t, u, problem.params, f)
             if not np.isfinite(f).all():
-                message = f"step failed at t={t:.6g}: the right-hand side is not finite there (NaN or inf)"
+                message = step_failed_at(t, "the right-hand side is not finite there (NaN or inf)")
             elif not np.isfinite(u_new).all():
-                message = (f"step failed at t={t:.6g}: the steps tried from there gave a non-finite state "
-                           f"(a right-hand side that is not finite within the step, or a diverging iteration)")
+                message = step_failed_at(t, "the steps tried from there gave a non-finite state (a right-hand "
+                                            "side that is not finite within the step, or a diverging iteration)")
         return Trajectory(
-            status=STATUS_NAMES[status], message=message, t=np.concatenate(ts),
+            status=STATUS_OF_CODE[status], message=message, t=np.concatenate(ts),
             u=np.concatenate(us), cpu_s=cpu, wall_s=wall, counters=self._counters(counters),
             min_dt=float(hstats[0]) if steps else None, max_dt=float(hstats[1]) if steps else None)
 
@@ -209,10 +207,10 @@ def _status_message(status: int, t: float, solves: bool = True) -> str:
     a nonlinear system (an implicit stage, whose solve can fail), else only a step size
     underflow fails a step."""
     if status == drivers.TIMEOUT:
-        return f"time limit reached at t={t:.6g}"
+        return time_limit_at(t)
     if status == drivers.DIVERGED:
-        return BLOWUP_MESSAGE.format(t=t)
+        return blew_up_at(t)
     if status == drivers.FAILED:
         why = "nonlinear solve did not converge or step size underflow" if solves else "step size underflow"
-        return f"step failed at t={t:.6g} ({why})"
+        return step_failed_at(t, f"({why})")
     return ""

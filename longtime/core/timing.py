@@ -10,6 +10,7 @@ from typing import Any, Callable, ClassVar
 import numpy as np
 
 from longtime.core.params import InputError
+from longtime.core.status import Status
 from longtime.core.trajectory import Trajectory, same_run
 
 
@@ -101,13 +102,13 @@ def timed_runs(run: Callable[[], Trajectory], timing: Timing,
     the deadline cuts short ends them too (the first run stands)."""
     first = run()
     cpu, wall = [first.cpu_s], [first.wall_s]
-    while first.status != "timeout" and timing.wants_another(wall) and not (
+    while first.status != Status.TIMEOUT and timing.wants_another(wall) and not (
             deadline is not None and time.monotonic() > deadline):
         again = run()
-        if again.status == "timeout":
+        if again.status == Status.TIMEOUT:
             break  # the deadline cut a repeat short: the first run stands
         if not same_run(first, again):
-            first.status = "failed"
+            first.status = Status.FAILED
             first.message = (f"non-deterministic: timed run {len(cpu) + 1} did not reproduce "
                              f"the first run's states bitwise")
             break

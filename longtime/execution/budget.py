@@ -34,8 +34,10 @@ from typing import Any, Iterable
 
 from longtime.core import registry
 from longtime.core.fmt import number
+from longtime.core.status import TOO_SLOW
 from longtime.core.stepping import FixedStepIntegrator
-from longtime.execution.cells import Cell, cell_size
+from longtime.execution.cells import Cell
+from longtime.execution.sizes import cell_size
 
 # seconds a compiled RK4 step costs per state component (measured on the main job's problems:
 # docs/performance.md)
@@ -54,8 +56,6 @@ PEER_TOL = 1e-10
 CELL_OVERHEAD_S = 0.5
 # the start of every note the budget leaves in a row's message (the report finds them by it)
 NOTE = "budget:"
-# the start of a skipped peer row's message whose cheapest setting is estimated past CELL_BUDGET_S
-TOO_SLOW = "too slow for the default matrix:"
 
 
 @dataclasses.dataclass(frozen=True)

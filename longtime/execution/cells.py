@@ -23,26 +23,20 @@ from longtime.core.outputs import to_stderr
 from longtime.core.params import InputError, check_time_span, unknown_parameter
 from longtime.core.problem import Problem
 from longtime.core.roles import ROW_PARAMETERS
+from longtime.core.status import Status
 from longtime.core.stepping import FixedStepIntegrator
 from longtime.core.timing import Timing
 from longtime.core.trajectory import Trajectory
 from longtime.execution import limits
+from longtime.execution.sizes import DEFAULT_MAX_SAMPLES, cell_size, check_size, check_step, sweep_steps, working_set  # noqa: F401 (their home is sizes; read from here too)
 from longtime.execution.tempdirs import disk_full
 from longtime.measure import lyapunov, metrics
 from longtime.measure.metrics import O1_ERROR
-from longtime.measure.reference import ReferenceUnavailable, budget_seconds, has_reference, trusted_reference
+from longtime.measure.reference import has_reference, trusted_reference
+from longtime.measure.reference_runs import ReferenceUnavailable, budget_seconds
 
-DEFAULT_MAX_SAMPLES = 100_001
 # a cell stops (a 'timeout' row) after this many seconds unless --time-limit says otherwise
 DEFAULT_TIME_LIMIT = 600.0
-# the problems' sweep_dt put a scheme of up to this order in its asymptotic range; one of a
-# higher order p also sweeps p - SWEEP_ORDER doublings of the largest step (``sweep_steps``)
-SWEEP_ORDER = 5
-# a cell beyond these is refused up front, unless --allow-large
-MAX_STEPS = 10**9
-# beyond this many steps a run's 64-bit step counters overflow: refused even with --allow-large
-MAX_COUNTED_STEPS = rowschema.MAX_COUNT
-MAX_SAMPLE_BYTES = 4 * 2**30
 
 
 @dataclass(frozen=True)
@@ -272,48 +266,6 @@ def _scheme_cells(pname: str, pcls, problem: Problem, psets: dict, iname: str, t
     return cells
 
 
-def sweep_steps(pcls: type[Problem], icls: type[Integrator], t_final: float) -> list[float]:
-    """The default sweep's steps of ``icls`` on ``pcls``: the problem's ``sweep_dt``, and for a
-    scheme of declared order p above SWEEP_ORDER its largest step doubled p - SWEEP_ORDER
-    times more (those within the span), so that the sweep crosses the scheme's asymptotic
-    range above the round-off floor: kahan-li-8 on kepler is on the floor from dt 0.005 to
-    0.02, where it has no order, and its local slopes from 0.02 to 0.16 are 7.9, 8.05, 8.34."""
-    steps = [float(x) for x in pcls.sweep_dt]
-    order = icls.order
-    if not steps or order is None or order <= SWEEP_ORDER:
-        return steps
-    span = float(t_final) - pcls.t0
-    larger = [max(steps) * 2**k for k in range(1, int(order) - SWEEP_ORDER + 1)]
-    return [h for h in larger[::-1] if h <= span] + steps
-
-
-def check_step(problem: str, scheme: str, settings: Mapping[str, Any], t_final: float) -> None:
-    """A fixed step larger than the span is refused: one step of the span would be taken and
-    the row labelled with the larger dt (dt 1, 5 and 10 over a span of 1 give one row thrice)."""
-    pcls, icls = registry.problem_class(problem), registry.integrator_class(scheme)
-    if not issubclass(icls, FixedStepIntegrator):
-        return
-    given = settings.get("dt")
-    dt = float(pcls.default_dt if given is None else given)
-    span = float(t_final) - pcls.t0
-    if dt > span * (1 + 1e-9):
-        what = f"--dt {dt:g}" if given is not None else f"the default step dt={dt:g} of {problem}"
-        raise InputError(f"{what}: larger than the span t_final - t0 = {span:g} ({problem} x {scheme}); "
-                         f"a fixed step must be <= the span (pass a smaller --dt or a larger --t-final)")
-
-
-def check_span(problem: str, t_final: float, argument: str) -> None:
-    """A final time a run can reach: one whose span at the problem's default step is more
-    steps than a run can count (MAX_COUNTED_STEPS, which ``check_size`` refuses even with
-    --allow-large) is an InputError naming ``argument`` (how the front end spells it)."""
-    pcls = registry.problem_class(problem)
-    try:
-        steps = (float(t_final) - pcls.t0) / pcls.default_dt
-    except OverflowError:
-        steps = math.inf
-    if not steps <= MAX_COUNTED_STEPS:
-        raise InputError(f"{argument}: about {steps:.3g} steps of {problem}'s step dt={pcls.default_dt:g}, more than "
-                         f"a run can count ({MAX_COUNTED_STEPS:.3g}): no run reaches it")
 
 
 def base_row(cell: Cell) -> dict[str, Any]:
@@ -366,7 +318,7 @@ def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool
              keep: dict[str, Any] | None = None, reference_budget_s: float | None = None) -> dict[str, Any]:
     """Run one cell, timed by ``timing`` (default: ``Timing()``, the repeated timing of
     every row); every outcome is a row, nothing raises. Its heyoka reference gets
-    ``reference_budget_s`` wall seconds (default: longtime.measure.reference.budget_seconds).
+    ``reference_budget_s`` wall seconds (default: longtime.measure.reference_runs.budget_seconds).
     Past ``time_limit`` seconds (None: no limit) the integration stops where it got: a ``timeout`` row.
     ``keep``, a dict,
     receives what the row was measured from (``problem``, ``integrator``, ``trajectory``,
@@ -388,14 +340,14 @@ def declared(cell: Cell, row: dict[str, Any]) -> dict[str, Any]:
     if isinstance(row.get("parameters"), str):
         failed["parameters"] = row["parameters"]
     refused = f"the scheme's row is refused: {'; '.join(wrong)}"
-    failed.update(status=rowschema.FAILED, message="; ".join(m for m in (refused, cell.note) if m))
+    failed.update(status=Status.FAILED, message="; ".join(m for m in (refused, cell.note) if m))
     return failed
 
 
 def implausible(cell: Cell, row: Mapping[str, Any]) -> list[str]:
     """The counts of a row that its run cannot have taken (none: they can): a run that reached
     past t0 in no step, a fixed-step run of more steps than its span holds at its step."""
-    if row.get("status") in (rowschema.SKIPPED, rowschema.FAILED) or not isinstance(row.get("steps"), int):
+    if row.get("status") in (Status.SKIPPED, Status.FAILED) or not isinstance(row.get("steps"), int):
         return []
     pcls = registry.problem_class(cell.problem)
     steps, reached = row["steps"], row.get("t_reached")
@@ -416,7 +368,7 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
     row = base_row(cell)
     deadline = time.monotonic() + time_limit if time_limit else None
     if cell.skip_reason:
-        row.update(status="skipped", message=cell.skip_reason)
+        row.update(status=Status.SKIPPED, message=cell.skip_reason)
         return row
     try:
         problem, integrator = build(cell)
@@ -430,19 +382,19 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
         row["parameters"] = json.dumps(used, sort_keys=True, default=str)
         unsafe = _probe_step(integrator, problem)
         if unsafe:
-            row.update(status="failed", message=unsafe)
+            row.update(status=Status.FAILED, message=unsafe)
             return row
         with phases.phase("integration", f"{cell.problem} x {cell.integrator}"):
             traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
                                         timing=timing or Timing(), deadline=deadline)
-        if traj.status == "timeout":
+        if traj.status == Status.TIMEOUT:
             traj.message = f"{traj.message} (cell time limit {time_limit:g} s: --time-limit)"
-        if traj.status == "diverged":
+        if traj.status == Status.DIVERGED:
             traj.message = "; ".join(m for m in (traj.message, contract.nan_note(problem, traj.t, traj.u)) if m)
         t_end = problem.default_t_final if cell.t_final is None else cell.t_final
         wrong = contract.check_samples(cell.integrator, problem, traj, t_end)
         if wrong:  # samples that cannot be measured are a fault, never a row that reads ok
-            row.update(status="failed", message=wrong)
+            row.update(status=Status.FAILED, message=wrong)
             return row
         ref, trust, note = None, None, ""
         if reference and has_reference(problem):
@@ -458,8 +410,8 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
                 note = trust.message(float(traj.t[-1]))
             except ReferenceUnavailable as exc:
                 note = f"no reference: {exc}"
-            if budget < full and time.monotonic() >= hard and traj.status != "timeout":
-                traj.status = "timeout"
+            if budget < full and time.monotonic() >= hard and traj.status != Status.TIMEOUT:
+                traj.status = Status.TIMEOUT
                 traj.message = "; ".join(m for m in (traj.message, (
                     f"the reference check passed the cell's hard time limit of {limits.hard_limit(time_limit):g} s "
                     f"(--time-limit {time_limit:g} s + grace) after the integration")) if m)
@@ -478,15 +430,15 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
                                                f"the solution is not followed") if m)
         row["message"] = "; ".join(m for m in (traj.message, note, row["message"]) if m)  # + metrics' notes
     except MemoryError as exc:  # past the worker's memory limit (longtime.execution.limits), or the machine's
-        row["status"] = "failed"
+        row["status"] = Status.FAILED
         row["message"] = limits.memory_message(exc)
     except OSError as exc:
         if no_space(exc):  # the machine's fault, not the cell's: never stored as its row
             raise disk_full(exc, f"running {cell.problem} x {cell.integrator}") from None
-        row["status"] = "failed"
+        row["status"] = Status.FAILED
         row["message"] = "".join(traceback.format_exception_only(type(exc), exc)).strip()
     except OverflowError as exc:  # Python's float arithmetic past double precision (omega=1e308, squared)
-        row["status"] = "failed"
+        row["status"] = Status.FAILED
         where = traceback.extract_tb(exc.__traceback__)[-1]
         settings = json.dumps({**cell.problem_settings, **cell.integrator_settings}, sort_keys=True, default=str)
         row["message"] = (f"OverflowError: {exc} in {where.name} ({os.path.basename(where.filename)}:{where.lineno}): "
@@ -494,25 +446,13 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
                           f"double precision there")
     except (Exception, SystemExit) as exc:  # a failing cell never takes the matrix down
         # (a plugin's sys.exit too; os.abort or a segfault need a process per cell)
-        row["status"] = "failed"
+        row["status"] = Status.FAILED
         row["message"] = "".join(traceback.format_exception_only(type(exc), exc)).strip()
     if cell.note:  # the settings the default matrix's budget moved, said where the row is read
         row["message"] = "; ".join(m for m in (row["message"], cell.note) if m)
     return row
 
 
-def working_set(integrator: Integrator, problem: Problem, traj: Trajectory) -> int:
-    """The bytes a run touches, roughly: its samples, its state and the scratch array its
-    steps use (``work_shape``); the calibration of a row beyond the caches takes the memory
-    workload (longtime.execution.calibration)."""
-    size = traj.t.nbytes + traj.u.nbytes + 2 * 8 * problem.dim
-    shape = getattr(integrator, "work_shape", None)
-    if shape is not None:
-        try:
-            size += 8 * int(math.prod(shape(problem)))
-        except Exception:  # a scheme whose scratch depends on more than the problem: its samples count
-            pass
-    return int(size)
 
 
 # (scheme class, problem class, dimension) -> why the plugin's step cannot run, or None
@@ -529,67 +469,3 @@ def _probe_step(integrator: Integrator, problem: Problem) -> str | None:
     if key not in _PROBED:
         _PROBED[key] = contract.probe_step_kernel(integrator, problem)
     return _PROBED[key]
-
-
-def cell_size(cell: Cell, dims: dict[str, int]) -> tuple[int, float, float]:
-    """(state dimension, estimated steps, step) of a cell: steps = (t_final - t0) / dt with
-    the cell's dt, or the problem's default step for adaptive schemes (a rough size).
-    ``dims`` caches the dimension of each problem setting across calls."""
-    pcls = registry.problem_class(cell.problem)
-    key = json.dumps(cell.problem_settings, sort_keys=True, default=str) + cell.problem
-    if key not in dims:
-        dims[key] = pcls(**cell.problem_settings).dim
-    dt = float(cell.integrator_settings.get("dt") or pcls.default_dt)
-    span = float(cell.t_final if cell.t_final is not None else pcls.default_t_final) - pcls.t0
-    try:
-        steps = span / dt
-    except OverflowError:  # 1e308 / 1e-300
-        steps = math.inf
-    return dims[key], steps, dt
-
-
-@to_stderr  # plugin code runs here: its output is not the contract's
-def check_size(cells: Iterable[Cell], max_samples: int = DEFAULT_MAX_SAMPLES,
-               memory_limit: int | None = None, allow_large: bool = False) -> None:
-    """Refuse, before anything runs, a cell whose estimated step count passes MAX_STEPS,
-    whose recorded samples pass MAX_SAMPLE_BYTES, or whose samples and what its metrics
-    allocate (``Problem.metrics_bytes``) pass ``memory_limit`` (the cell's, --memory-limit)
-    (``--allow-large`` skips this). Steps are (t_final - t0) / dt, with the problem's default
-    step for adaptive schemes (a rough size); samples as the integrator keeps them (see
-    Integrator.integrate). A cell of more than MAX_COUNTED_STEPS steps is refused even with
-    ``allow_large``."""
-    from longtime.core.integrator import SAMPLE_BUDGET
-
-    dims: dict[str, int] = {}
-    problems: dict[str, Problem] = {}
-    for cell in cells:
-        if cell.skip_reason:
-            continue
-        dim, steps, dt = cell_size(cell, dims)
-        given = cell.integrator_settings.get("dt")
-        step = f"dt={dt:g}" if given else f"steps of about the problem's dt={dt:g}"
-        what = f"{cell.problem} x {cell.integrator} ({step}, t_final={cell.t_final:g})"
-        if not steps <= MAX_COUNTED_STEPS:
-            raise InputError(f"{what}: about {steps:.3g} steps, more than a run can count ({MAX_COUNTED_STEPS:.3g}, "
-                             f"even with --allow-large): lower --t-final or raise the step")
-        if allow_large:
-            continue
-        if not steps <= MAX_STEPS:
-            raise InputError(f"{what}: about {steps:.3g} steps, over the limit of {MAX_STEPS:.0e}; "
-                             f"pass --allow-large to run it anyway")
-        samples = min(steps + 1, max_samples, max(2001, SAMPLE_BUDGET // dim))
-        size = samples * (dim + 1) * 8
-        if size > MAX_SAMPLE_BYTES:
-            raise InputError(f"{what}: its samples need about {size / 2**30:.3g} GiB (dimension {dim}), over "
-                             f"the limit of {MAX_SAMPLE_BYTES / 2**30:g} GiB; pass --allow-large to run it "
-                             f"anyway (or lower --max-samples)")
-        if memory_limit:
-            key = json.dumps(cell.problem_settings, sort_keys=True, default=str) + cell.problem
-            if key not in problems:
-                problems[key] = registry.problem_class(cell.problem)(**cell.problem_settings)
-            need = size + problems[key].metrics_bytes(int(samples))
-            if need > memory_limit:
-                raise InputError(f"{what}: its samples and metrics need about {limits.gib(need)} (dimension {dim}, "
-                                 f"{int(samples)} samples), over the cell's memory limit of "
-                                 f"{limits.gib(memory_limit)} (--memory-limit); lower --max-samples, raise "
-                                 f"--memory-limit or pass --allow-large to run it anyway")

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from longtime.core.fmt import positive
+from longtime.core.status import Status
 from longtime.execution import calibration
 from longtime.measure.instability import INITIAL_ROUNDING
 from longtime.predict.checks import CHECK_BUDGET_S, CHECK_REFERENCE_S, CHECKS, judge_ranks
@@ -168,7 +169,8 @@ def _judged_until(problem, horizon: float) -> float:
     """``horizon``, or the end of the reference's trusted horizon where its check over
     [t0, horizon] (cached, within CHECK_REFERENCE_S) ends before it: a check past it would
     not be judged."""
-    from longtime.measure.reference import ReferenceUnavailable, reference_check
+    from longtime.measure.reference import reference_check
+    from longtime.measure.reference_runs import ReferenceUnavailable
 
     try:
         return min(horizon, reference_check(problem, horizon, CHECK_REFERENCE_S).horizon)
@@ -287,7 +289,8 @@ def reference_seconds_per_t(v: Verdict) -> float:
     if v.measure is None or not v.measure.solution:
         return 0.0
     from longtime.execution.cells import build, cell_of_row
-    from longtime.measure.reference import ReferenceUnavailable, check_seconds_per_t
+    from longtime.measure.reference import check_seconds_per_t
+    from longtime.measure.reference_runs import ReferenceUnavailable
 
     row = next(s.row for s in v.candidates)
     problem = build(cell_of_row(row))[0]
@@ -311,7 +314,7 @@ def check_row(c: PlannedCheck, row: dict[str, Any]) -> dict[str, Any]:
     s, horizon, m = c.setting, c.horizon, c.measure
     # a growth check's claim is pointwise: the error at the horizon, not the largest over [0, T]
     field = "final_error" if c.role == "growth" else m.field
-    ok = row.get("status") == "ok"
+    ok = row.get("status") == Status.OK
     measured = (row.get(field) if c.role == "growth" else error_kept(row, m)) if ok else None
     if (c.role == "growth" or m.solution) and measured is not None \
             and not (row.get("error_horizon") or 0) >= horizon * (1 - 1e-9):

@@ -40,6 +40,7 @@ import numpy as np
 
 from longtime.core import registry
 from longtime.core.roles import ROW_PARAMETERS
+from longtime.core.status import Status
 from longtime.measure import ensemble, lyapunov
 
 MEMBERS = 8
@@ -63,7 +64,7 @@ def chaotic_problems(rows: Iterable[dict[str, Any]]) -> list[str]:
     """The problems of ``rows`` that the step covers: chaotic, with a heyoka system, a
     declared chaotic state and an ok row."""
     out = []
-    for name in sorted({r["problem"] for r in rows if r.get("status") == "ok"}):
+    for name in sorted({r["problem"] for r in rows if r.get("status") == Status.OK}):
         try:
             pcls = registry.problem_class(name)
         except Exception:  # a plugin's problem no longer installed: nothing to run
@@ -97,7 +98,7 @@ def pick_rows(rows: list[dict[str, Any]], problem) -> dict[str, dict[str, Any]]:
     first where two are as near: the default sweep's, not the long-time cell)."""
     out: dict[str, dict[str, Any]] = {}
     for scheme in sorted({r["integrator"] for r in rows}):
-        mine = [r for r in rows if r["integrator"] == scheme and r.get("status") == "ok"
+        mine = [r for r in rows if r["integrator"] == scheme and r.get("status") == Status.OK
                 and isinstance(r.get("cpu_s"), (int, float)) and r.get("t_final")]
         if not mine:
             continue
@@ -132,7 +133,7 @@ def measure_problem(name: str, rows: list[dict[str, Any]], members: int = MEMBER
         return {**base, "integrator": row["integrator"], **kept, "row_t_final": row.get("t_final"), **fields}
 
     if t_lyap is None:
-        return [record(r, status="skipped", note=f"no chaos measured from this state: {found['lyapunov_note']}")
+        return [record(r, status=Status.SKIPPED, note=f"no chaos measured from this state: {found['lyapunov_note']}")
                 for r in picks.values()]
     rows_t = max(r["t_final"] for r in picks.values()) if picks else problem.default_t_final
     span = min(max(rows_t, SPAN_LYAPUNOV * t_lyap), max(problem.default_t_final, rows_t))
@@ -143,11 +144,11 @@ def measure_problem(name: str, rows: list[dict[str, Any]], members: int = MEMBER
         reference, others = ensemble.reference_pools(problem, t_final, members, SIZE, SEED, WINDOW, REFERENCE_S,
                                                      others=FLOOR_ENSEMBLES)
     except Exception as exc:  # no heyoka ensemble within its budget: said, not fatal
-        return [record(r, status="failed", note=f"heyoka's ensemble: {type(exc).__name__}: {exc}")
+        return [record(r, status=Status.FAILED, note=f"heyoka's ensemble: {type(exc).__name__}: {exc}")
                 for r in picks.values()]
     floors = [ensemble.distance(other, reference) for other in others]
     if any(f is None for f in floors):
-        return [record(r, status="failed", note="the reference's observable does not vary over the window")
+        return [record(r, status=Status.FAILED, note="the reference's observable does not vary over the window")
                 for r in picks.values()]
     floor = max(floors)
     base.update(floor=floor, floors=floors)
@@ -158,39 +159,39 @@ def measure_problem(name: str, rows: list[dict[str, Any]], members: int = MEMBER
     for scheme, row in order:
         estimate = row["cpu_s"] * span / row["t_final"] * members
         if estimate > SCHEME_S:
-            out.append(record(row, status="skipped", note=f"its members are estimated at {estimate:.2g} s of CPU "
+            out.append(record(row, status=Status.SKIPPED, note=f"its members are estimated at {estimate:.2g} s of CPU "
                                                          f"(its row's), above the step's {SCHEME_S:g} s a scheme"))
             continue
         if spent > PROBLEM_S:
-            out.append(record(row, status="skipped", note=f"the step's {PROBLEM_S:g} s of CPU for the problem were "
-                                                         f"spent (the cheaper schemes first)"))
+            out.append(record(row, status=Status.SKIPPED, note=f"the step's {PROBLEM_S:g} s of CPU for the problem "
+                                                                f"were spent (the cheaper schemes first)"))
             continue
         cell = cell_of_row(row)
         _, integrator = build(Cell(name, scheme, settings, cell.integrator_settings))
         reason = integrator.incompatibility(problem)
         if reason:
-            out.append(record(row, status="skipped", note=reason))
+            out.append(record(row, status=Status.SKIPPED, note=reason))
             continue
         start = time.process_time()
         try:
             pool, counts = ensemble.scheme_pool(problem, integrator, t_final, members, SIZE, SEED, WINDOW,
                                                 deadline=time.monotonic() + DEADLINE_S)
         except Exception as exc:  # a scheme's fault is its record's status, never a number
-            pool, counts = None, {"failed": 1}
+            pool, counts = None, {Status.FAILED: 1}
             note = f"{type(exc).__name__}: {exc}"
         else:
             note = ""
         cpu = time.process_time() - start
         spent += cpu
         if pool is None:
-            status = next((s for s in ("failed", "timeout", "diverged") if counts.get(s)), "failed")
+            status = next((s for s in (Status.FAILED, Status.TIMEOUT, Status.DIVERGED) if counts.get(s)), Status.FAILED)
             ran = sum(counts.values())
-            note = note or (f"member {ran} of {members} {status}" + (" (past the step's deadline)"
-                                                                     if status == "timeout" else "") + "; no distance")
+            deadline = " (past the step's deadline)" if status == Status.TIMEOUT else ""
+            note = note or f"member {ran} of {members} {status}{deadline}; no distance"
             out.append(record(row, status=status, member_status=counts, cpu_s=cpu, note=note))
             continue
         d = ensemble.distance(pool, reference)
-        out.append(record(row, status="ok", distance=d, member_status=counts, cpu_s=cpu,
+        out.append(record(row, status=Status.OK, distance=d, member_status=counts, cpu_s=cpu,
                           distinguishable=ensemble.distinguishable(d, floor)))
     return sorted(out, key=lambda r: r["integrator"])
 
@@ -217,7 +218,7 @@ def summary(records: list[dict[str, Any]]) -> dict[str, str]:
         if first.get("floor") is None:
             out[name] = f"not measured: {first.get('note') or 'no reference ensemble'}"
             continue
-        ok = [r for r in mine if r.get("status") == "ok" and r.get("distance") is not None]
+        ok = [r for r in mine if r.get("status") == Status.OK and r.get("distance") is not None]
         apart = sorted((r for r in ok if r.get("distinguishable")), key=lambda r: -r["distance"])
         others = Counter(r.get("status") for r in mine if r not in ok)
         text = (f"{len(ok) - len(apart)} of {len(ok)} schemes as heyoka (distance <= {ensemble.FLOOR_FACTOR:g} x the "

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from typing import Iterator
 
 from longtime.core.cache import no_space
+from longtime.core.status import Status
 from longtime.execution import child as children
 from longtime.execution import tempdirs
 from longtime.execution.cells import Cell, RunSpec, base_row, run_cell
@@ -80,7 +81,7 @@ def _finish(running: _Cell, timed_out: bool, timeout: float | None) -> dict:
         row = base_row(running.cell)
         elapsed = time.perf_counter() - running.started
         if timed_out:
-            row.update(status="timeout",
+            row.update(status=Status.TIMEOUT,
                        message=f"cell exceeded its time limit of {timeout:g} s (process killed after "
                                f"{elapsed:.1f} s, its start-up included)")
             return row
@@ -88,7 +89,7 @@ def _finish(running: _Cell, timed_out: bool, timeout: float | None) -> dict:
             tail = child.stderr().strip().splitlines()
             raise tempdirs.DiskFull(tail[-1] if tail else f"no space left on the disk for the row of "
                                     f"{running.cell.problem} x {running.cell.integrator}")
-        row.update(status="failed", message=child.failure("cell process"))
+        row.update(status=Status.FAILED, message=child.failure("cell process"))
         return row
     finally:
         child.remove()

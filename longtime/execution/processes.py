@@ -41,6 +41,7 @@ from typing import Any, Callable, Iterable
 
 from longtime.core import phases
 from longtime.core.params import InputError
+from longtime.core.status import Status
 from longtime.core.timing import Timing
 from longtime.execution import child as children
 from longtime.execution import tempdirs
@@ -65,7 +66,7 @@ TIMED_IN = "timed_in"
 ALONE = "its own process"
 # the statuses of a timing process's run that end it before its end (a time limit passed, the
 # process paused or killed): a lost sample, never evidence that the run differs
-LOST = ("timeout",)
+LOST = (Status.TIMEOUT,)
 
 
 def max_processes() -> int:
@@ -98,7 +99,7 @@ def timed_elsewhere(row: dict[str, Any]) -> bool:
     """Whether other processes time this row's cell: an ``ok`` run with a time and a digest,
     short enough to have been repeated (``Timing.ONCE_ABOVE``)."""
     wall = row.get("wall_s")
-    return (row.get("status") == "ok" and isinstance(row.get("cpu_s"), (int, float))
+    return (row.get("status") == Status.OK and isinstance(row.get("cpu_s"), (int, float))
             and bool(row.get("samples_digest")) and isinstance(wall, (int, float)) and wall <= Timing.ONCE_ABOVE)
 
 
@@ -134,17 +135,17 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing, time_limit: 
             problem, integrator = build(cell)
             t_final = problem.default_t_final if cell.t_final is None else cell.t_final
             prepared.append((problem, integrator, t_final))
-            out.append({"status": "ok", "message": None, "cpu_s_samples": [], "wall_s_samples": [],
+            out.append({"status": Status.OK, "message": None, "cpu_s_samples": [], "wall_s_samples": [],
                         "samples_digest": None, "pid": os.getpid()})
             if reference is not None:
                 out[-1]["reference_s_samples"] = []
         except (Exception, SystemExit) as exc:
             prepared.append(None)
-            out.append({"status": "failed", "message": f"{type(exc).__name__}: {exc}", "pid": os.getpid()})
+            out.append({"status": Status.FAILED, "message": f"{type(exc).__name__}: {exc}", "pid": os.getpid()})
     start, rounds, stopped = time.monotonic(), 0, set()
     while rounds < MAX_ROUNDS:
         spreading = time.monotonic() - start < SPREAD_S
-        active = [k for k, p in enumerate(prepared) if p is not None and out[k]["status"] == "ok"
+        active = [k for k, p in enumerate(prepared) if p is not None and out[k]["status"] == Status.OK
                   and k not in stopped and (
             len(out[k]["cpu_s_samples"]) < timing.least_runs or spreading
             or (len(out[k]["cpu_s_samples"]) < timing.repeats and sum(out[k]["wall_s_samples"]) < timing.min_time))]
@@ -161,21 +162,22 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing, time_limit: 
                     traj = integrator.integrate(problem, t_final, max_samples=max_samples, timing=Timing(repeats=1),
                                                 deadline=deadline)
             except (Exception, SystemExit) as exc:
-                record.update(status="failed", message=f"{type(exc).__name__}: {exc}")
+                record.update(status=Status.FAILED, message=f"{type(exc).__name__}: {exc}")
                 continue
             digest = traj.extra.get("samples_digest")
-            if traj.status == "timeout":  # stopped, not finished: no sample, and nothing to compare
+            if traj.status == Status.TIMEOUT:  # stopped, not finished: no sample, and nothing to compare
                 if not record["cpu_s_samples"]:
-                    record.update(status="timeout", message=f"the run passed the time limit in this process "
+                    record.update(status=Status.TIMEOUT, message=f"the run passed the time limit in this process "
                                                             f"({traj.message})", samples_digest=None)
                 else:
                     stopped.add(k)  # the runs timed so far stand
                 continue
-            if traj.status != "ok" or (record["samples_digest"] is not None and digest != record["samples_digest"]):
+            if traj.status != Status.OK or (record["samples_digest"] is not None
+                                            and digest != record["samples_digest"]):
                 if not record["cpu_s_samples"]:
                     record.update(status=traj.status, message=traj.message, samples_digest=digest)
                 else:  # a repeat that differs from the first run: the first run's digest stands
-                    record.update(status="failed", message=(
+                    record.update(status=Status.FAILED, message=(
                         f"non-deterministic: timed run {len(record['cpu_s_samples']) + 1} did not "
                         f"reproduce the first run's states bitwise ({traj.status})"))
                 continue
@@ -187,7 +189,7 @@ def time_cells(cells: list[Cell], max_samples: int, timing: Timing, time_limit: 
         rounds += 1
     for record in out:
         walls = record.pop("wall_s_samples", None)
-        if record["status"] == "ok" and walls:
+        if record["status"] == Status.OK and walls:
             record.update(cpu_s=min(record["cpu_s_samples"]), wall_s=min(walls))
             if reference is not None:
                 record["cpu_ratio"] = paired_ratio(record["cpu_s_samples"], record["reference_s_samples"])
@@ -222,12 +224,12 @@ def merge(row: dict[str, Any], others: list[dict[str, Any]], processes: int) -> 
     mins, walls, samples = [row["cpu_s"]], [row.get("wall_s")], list(row.get("cpu_s_samples") or [row["cpu_s"]])
     missing = []
     for o in others:
-        if o.get("status") == "ok" and o.get("samples_digest") == row.get("samples_digest"):
+        if o.get("status") == Status.OK and o.get("samples_digest") == row.get("samples_digest"):
             mins.append(o["cpu_s"])
             walls.append(o["wall_s"])
             samples += o["cpu_s_samples"]
-        elif o.get("status") not in LOST and (o.get("status") == "ok" or o.get("samples_digest")):
-            row["status"] = "failed"
+        elif o.get("status") not in LOST and (o.get("status") == Status.OK or o.get("samples_digest")):
+            row["status"] = Status.FAILED
             row["message"] = "; ".join(m for m in (
                 row.get("message"), f"non-deterministic: the run timed in another process (pid {o.get('pid')}) did "
                                     f"not reproduce this row's run bitwise ({o.get('status')})") if m)
@@ -248,7 +250,7 @@ def merge(row: dict[str, Any], others: list[dict[str, Any]], processes: int) -> 
                    cpu_s_median=samples[n // 2] if n % 2 else 0.5 * (samples[n // 2 - 1] + samples[n // 2]))
         if isinstance(row.get("calibration_cpu_s"), (int, float)) and row["calibration_cpu_s"] > 0:
             row["cpu_s_calibrated"] = row["cpu_s"] / row["calibration_cpu_s"]
-    if len(mins) < processes and row.get("status") == "ok":
+    if len(mins) < processes and row.get("status") == Status.OK:
         why = f": {missing[0]}" if missing else ""
         note = f"timed in {len(mins)} of {processes} processes{why}"
         row["message"] = f"{row['message']}; {note}" if row.get("message") else note
@@ -270,7 +272,7 @@ def alone_why(row: dict[str, Any], processes: int) -> str:
     process only."""
     if processes <= 1:
         return "one process asked (--processes 1)"
-    if row.get("status") != "ok":
+    if row.get("status") != Status.OK:
         return f"the run ended {row.get('status')}"
     wall = row.get("wall_s")
     if isinstance(wall, (int, float)) and wall > Timing.ONCE_ABOVE:
@@ -318,7 +320,7 @@ def across_processes(pairs: Iterable[tuple[Cell, dict[str, Any]]], processes: in
     with phases.phase("timing processes"):  # this process while they run
         results = run_children(cells, processes - 1, spec, jobs, budget, on_progress=on_progress)
     for k, (cell, row) in enumerate(todo):
-        merge(row, [res[k] if res is not None else {"status": "failed", "message": err}
+        merge(row, [res[k] if res is not None else {"status": Status.FAILED, "message": err}
                     for res, err in results], processes)
     return cells
 
@@ -391,7 +393,7 @@ def _without(cells: list[Cell], culprit: int, why: str, spec: RunSpec, timeout: 
     ((results, again),) = run_children(rest, 1, spec, 1, timeout, paired)
     if results is None:
         return None, again
-    results.insert(culprit, {"status": "failed", "message": f"{why}, in this cell", "pid": None})
+    results.insert(culprit, {"status": Status.FAILED, "message": f"{why}, in this cell", "pid": None})
     return results, ""
 
 

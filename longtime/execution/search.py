@@ -22,6 +22,7 @@ from typing import Callable
 
 from longtime.core import registry, roles
 from longtime.core.params import InputError
+from longtime.core.status import Status
 from longtime.execution.cells import Cell, build, run_cell
 from longtime.execution.store import Store
 
@@ -85,7 +86,7 @@ def accuracy_parameter(scheme: str) -> str:
 
 def _error(row: dict, metric: str) -> float:
     value = row.get(metric)
-    return float(value) if row.get("status") == "ok" and value is not None else math.inf
+    return float(value) if row.get("status") == Status.OK and value is not None else math.inf
 
 
 class Matcher:
@@ -113,10 +114,10 @@ class Matcher:
         """The best CPU of ``repeat`` runs (a run longer than 5 s is not repeated)."""
         best = first
         for _ in range(self.repeat - 1):
-            if best.get("status") != "ok" or (best.get("cpu_s") or 0.0) > 5.0:
+            if best.get("status") != Status.OK or (best.get("cpu_s") or 0.0) > 5.0:
                 break
             row = run_cell(cell, max_samples=MATCH_SAMPLES)
-            if row.get("status") == "ok" and row["cpu_s"] < best["cpu_s"]:
+            if row.get("status") == Status.OK and row["cpu_s"] < best["cpu_s"]:
                 best = row
         best = {**best, "match_role": role, "match_target": self.target, "cpu_runs": self.repeat}
         if self.store is not None:
@@ -164,7 +165,7 @@ class Matcher:
                         f"{tried[above]:.3g} ({runs[above][1]['status']}); "
                         f"the largest {name} below the target is shown")
         cell, row = runs[value]
-        searched = {v: r.get("mean_dt") for v, (_, r) in sorted(runs.items()) if r.get("status") == "ok"}
+        searched = {v: r.get("mean_dt") for v, (_, r) in sorted(runs.items()) if r.get("status") == Status.OK}
         row = self.timed(cell, row, "matched")
         row.update(match_parameter=name, match_value=value, match_note=note, match_evals=len(tried),
                    match_mean_steps=searched)
@@ -181,7 +182,7 @@ def search_mean_step(run_row: Callable[[Cell], dict], problem: str, scheme: str,
 
     def mean_step(value: float) -> float:
         rows[value] = run_row(Cell(problem, scheme, {}, {**(settings or {}), parameter: value}, t_final))
-        return (rows[value].get("mean_dt") or 0.0) if rows[value].get("status") == "ok" else 0.0
+        return (rows[value].get("mean_dt") or 0.0) if rows[value].get("status") == Status.OK else 0.0
 
     tried = bracket_and_bisect(mean_step, start, target_step, factor=100.0, close=math.log(1.03),
                                max_evals=max_evals)

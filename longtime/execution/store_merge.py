@@ -9,6 +9,7 @@ from contextlib import closing
 from pathlib import Path
 from typing import Any, Iterable
 
+from longtime.core import rowschema
 from longtime.core.params import InputError
 from longtime.execution.matrix import PHASES_FIELD
 from longtime.execution.store import Store, StoreError
@@ -16,6 +17,10 @@ from longtime.execution.store import Store, StoreError
 # the tables that hang off a run (every one with a run_id column), in the order they are copied;
 # rows go through the store's row check (``_copy_rows``), the others are added where missing
 _RUN_TABLES = ("planned", "started", "rows", "calibrations", "checks", "ensembles")
+# the records beside the rows that are checked as the store checks one it adds: table -> (what
+# a record is, its JSON column, its fields)
+_RECORDS = {"checks": ("check", "row", rowschema.CHECK_FIELDS),
+            "ensembles": ("ensemble", "record", rowschema.ENSEMBLE_FIELDS)}
 # the row check's reason without the row's names, and a wrong value's part without the value
 _ROW_OF = re.compile(r"^row of .*? x .*?: ")
 _WRONG_VALUE = re.compile(r"^([^:]+): \w+ .*, (not .+)$")
@@ -36,13 +41,16 @@ def merge_stores(sources: Iterable[str | os.PathLike], into: str | os.PathLike) 
     finished) is copied as it stands, with status ``running``; a later merge adds the rest.
 
     Every row is checked as the store checks a row it adds (``Store.add_row``): a row refused
-    is not copied, and counted by its reason (``refused``).
+    is not copied, and counted by its reason (``refused``); so are the checks and ensemble
+    records, checked as ``Store.add_check`` and ``Store.add_ensemble`` check them
+    (``refused_records``: "check: reason" or "ensemble: reason" -> records refused).
 
     Returns one record per run of the sources: ``store``, ``run`` (its id there), ``id`` (its id
     in ``into``; None when it was there already and nothing changed), ``copy`` (its id in
     ``into``), ``merged`` (``copied``, ``updated`` or ``unchanged``), ``status`` (in the source),
     ``added`` (rows added), ``replaced`` (rows completed), ``differ`` (rows that differ, left as
-    they were), ``refused`` (reason -> rows refused) and ``status_was`` (the copy's status
+    they were), ``refused`` (reason -> rows refused), ``refused_records`` (the checks' and
+    ensemble records' reasons -> records refused) and ``status_was`` (the copy's status
     before an update, else None)."""
     into_path = Path(into).absolute()
     sources = [Path(s) for s in sources]
@@ -86,7 +94,8 @@ def _merge_run(con: sqlite3.Connection, out: sqlite3.Connection, target: Store, 
     """Copy the run ``run`` of the store ``con`` (at ``path``) and everything of it into ``out``,
     or bring its copy there up to date."""
     record = {"store": str(path), "run": run["id"], "id": None, "copy": None, "merged": "unchanged",
-              "status": run["status"], "status_was": None, "added": 0, "replaced": 0, "differ": 0, "refused": {}}
+              "status": run["status"], "status_was": None, "added": 0, "replaced": 0, "differ": 0, "refused": {},
+              "refused_records": {}}
     identity = _run_identity(run["started"], run["command"], run["git_commit"], run["versions"], run["machine"])
     new_id = copies.get(identity)
     if new_id is None:
@@ -109,6 +118,8 @@ def _merge_run(con: sqlite3.Connection, out: sqlite3.Connection, target: Store, 
             _copy_rows(out, target, fetched, new_id, record)
             continue
         for item in fetched:
+            if table in _RECORDS and not _record_holds(item, *_RECORDS[table], record["refused_records"]):
+                continue
             values = {k: item[k] for k in item.keys()}
             values["run_id"] = new_id
             names = ", ".join(values)
@@ -119,6 +130,21 @@ def _merge_run(con: sqlite3.Connection, out: sqlite3.Connection, target: Store, 
     if record["merged"] != "unchanged":
         record["id"] = new_id
     return record
+
+
+def _record_holds(item: sqlite3.Row, what: str, column: str, fields: tuple[rowschema.Field, ...],
+                  refused: dict[str, int]) -> bool:
+    """Whether the stored record ``item`` (a check or an ensemble record, JSON in ``column``)
+    holds against its declared fields (rowschema.record_problems); else it is counted in
+    ``refused`` under ``what`` and the kind of its first problem."""
+    try:
+        wrong = rowschema.record_problems(json.loads(item[column]), fields)
+    except (TypeError, ValueError, RecursionError) as exc:  # not JSON (or not text)
+        wrong = [f"not JSON ({type(exc).__name__})"]
+    if wrong:
+        reason = f"{what}: {_kind('; '.join(wrong))}"
+        refused[reason] = refused.get(reason, 0) + 1
+    return not wrong
 
 
 def _new_run(out: sqlite3.Connection, run: dict[str, Any], path: Path) -> int:

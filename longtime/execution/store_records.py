@@ -8,6 +8,7 @@ from contextlib import closing
 from typing import Any, Iterable
 
 from longtime.core import rowschema
+from longtime.core.status import Status
 from longtime.execution.cells import Cell
 from longtime.execution.store_schema import StoreError, now
 
@@ -63,7 +64,7 @@ class RunRecords:
         distance (ok) or why not; kept apart from the rows (no cell of the matrix). A
         StoreError names each field that is not the declared row's or an ensemble record's
         (rowschema.ENSEMBLE_FIELDS): nothing is written then."""
-        if record.get("status") != "ok" and record.get("distance") is not None:
+        if record.get("status") != Status.OK and record.get("distance") is not None:
             raise ValueError(f"an ensemble record of status {record.get('status')!r} carries a distance")
         what = f"the ensemble of {record.get('problem')} x {record.get('integrator')} (run {run_id})"
         self._refuse_wrong(record, rowschema.ENSEMBLE_FIELDS, what, run_id)

@@ -36,6 +36,7 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from longtime.core import registry
+from longtime.core.status import Status
 from longtime.core.stepping import AdaptiveIntegrator, FixedStepIntegrator
 from longtime.execution import child as children
 from longtime.execution import jobfiles, tempdirs
@@ -106,7 +107,7 @@ def instruction_fields(pairs: Iterable[tuple[Cell, dict[str, Any]]], max_samples
     for cell, row in pairs:
         status = row.get("status")
         reason = None
-        if status != "ok":
+        if status != Status.OK:
             reason = f"the timed run's status is {status}: only a complete run is counted"
         else:
             reason = not_isolated(cell.integrator)
@@ -287,7 +288,7 @@ def _run_one(cell: Cell, max_samples: int, where: str) -> dict[str, Any]:
     _counted_loops(integrator)
     t_final = problem.default_t_final if cell.t_final is None else cell.t_final
     traj = integrator.integrate(problem, t_final, max_samples=max_samples)
-    if traj.status != "ok":
+    if traj.status != Status.OK:
         return {"reason": f"the run {where} ended {traj.status}: {traj.message}"}
     return {"steps": traj.steps, "digest": traj.extra.get("samples_digest")}
 

@@ -23,10 +23,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from longtime.core.drivers import FAILED, OK, RHS_EVALS, state_scale
+from longtime.core.drivers import FAILED, OK, state_scale
 from longtime.core.params import Param
 from longtime.core.stepping import FixedStepIntegrator
-from longtime.integrators.implicit_rk import ImplicitRungeKutta, sweep_done
+from longtime.integrators.implicit_rk import ImplicitRungeKutta, sweep_done, sweeps_status
 
 
 def gauss_legendre(nodes: int) -> tuple[np.ndarray, np.ndarray]:
@@ -67,8 +67,7 @@ class AVF(FixedStepIntegrator):
             scale = state_scale(u)
             rhs(t, u, params, g)  # the first guess: u_{n+1} = u_n + h f(u_n)
             evals = 1
-            converged = False
-            best, stale = np.inf, 0
+            done, best, stale = False, np.inf, 0
             for sweep in range(max_iter):
                 for m in range(n):
                     total[m] = 0.0
@@ -85,10 +84,8 @@ class AVF(FixedStepIntegrator):
                     g[m] = total[m]
                 done, best, stale = sweep_done(delta, best, stale, scale, brouwer, counters)
                 if done:
-                    converged = True
                     break
-            counters[RHS_EVALS] += evals
-            if not converged:
+            if sweeps_status(done, evals, counters) != OK:
                 return FAILED
             for m in range(n):
                 u[m] += h * g[m]

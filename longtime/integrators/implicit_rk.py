@@ -62,6 +62,15 @@ def sweep_done(delta, best, stale, scale, brouwer, counters):
     return iteration_done(delta, best, stale, scale, brouwer), best, stale
 
 
+@numba.njit(cache=True, inline="always")
+def sweeps_status(done, evals, counters):
+    """The end of a step's fixed-point sweeps (the stages here, avf's averaged slope): its
+    ``evals`` right-hand side evaluations counted; OK where the last sweep ended the
+    iteration (``done``: ``sweep_done``), else FAILED (the step is not taken)."""
+    counters[RHS_EVALS] += evals
+    return OK if done else FAILED
+
+
 class ImplicitRungeKutta(FixedStepIntegrator):
     A: np.ndarray
     b: np.ndarray
@@ -100,8 +109,7 @@ class ImplicitRungeKutta(FixedStepIntegrator):
             for i in range(1, s):
                 copy_into(work[i], work[0])
             evals = 1
-            converged = False
-            best, stale = np.inf, 0
+            done, best, stale = False, np.inf, 0
             for sweep in range(max_iter):
                 delta = 0.0
                 for i in range(s):
@@ -117,10 +125,8 @@ class ImplicitRungeKutta(FixedStepIntegrator):
                 evals += s
                 done, best, stale = sweep_done(delta, best, stale, scale, brouwer, counters)
                 if done:
-                    converged = True
                     break
-            counters[RHS_EVALS] += evals
-            if not converged:
+            if sweeps_status(done, evals, counters) != OK:
                 return FAILED
             add_weighted_slopes(u, h, b, work, compensated, work[s + 2])
             return OK

@@ -25,6 +25,7 @@ import numpy as np
 
 from longtime.core.integrator import Integrator
 from longtime.core.problem import Problem
+from longtime.core.status import Status
 
 DEFAULT_MEMBERS = 16
 DEFAULT_SIZE = 1e-6
@@ -66,7 +67,7 @@ def _late(t: np.ndarray, values: np.ndarray, t0: float, t_final: float, window: 
 
 def _reference_pool(problem: Problem, states: list[np.ndarray], t_final: float, window: float,
                     budget_s: float | None = None) -> np.ndarray:
-    from longtime.measure.reference import propagate
+    from longtime.measure.reference_runs import propagate
 
     grid = np.linspace(problem.t0, t_final, GRID)
     pool = []
@@ -85,16 +86,16 @@ def reference_pools(problem: Problem, t_final: float, members: int, size: float,
     + 2, ...) that the floor is measured against, cached beside the references (their key:
     the problem, its settings, state and ODE, heyoka's version; here also the ensemble's own
     parameters): every scheme of a problem is compared with the same pools, computed once."""
-    from longtime.measure import reference
+    from longtime.measure import reference_files
 
     key = repr((float(t_final), members, size, seed, window, GRID, others))
-    path = reference.cache_path(problem, "ensemble", key)
-    found = reference.load_cached(path, lambda: _read_pools(path))
+    path = reference_files.cache_path(problem, "ensemble", key)
+    found = reference_files.load_cached(path, lambda: _read_pools(path))
     if found is not None:
         return found
     pools = [_reference_pool(problem, initial_states(problem, members, size, seed + k), t_final, window, budget_s)
              for k in range(others + 1)]
-    reference.save_cached(path, **{f"pool{k}": pool for k, pool in enumerate(pools)})
+    reference_files.save_cached(path, **{f"pool{k}": pool for k, pool in enumerate(pools)})
     return pools[0], pools[1:]
 
 
@@ -115,7 +116,7 @@ def scheme_pool(problem: Problem, scheme: Integrator, t_final: float, members: i
         with _started_at(problem, state):
             traj = scheme.integrate(problem, t_final, max_samples=MAX_SAMPLES, deadline=deadline)
         counts[traj.status] = counts.get(traj.status, 0) + 1
-        if traj.status != "ok":
+        if traj.status != Status.OK:
             return None, counts
         pool.append(_late(traj.t, observable(problem, traj.t, traj.u)[1], problem.t0, t_final, window))
     return np.concatenate(pool), counts
@@ -144,7 +145,7 @@ def measure(problem: Problem, scheme: Integrator, t_final: float, members: int =
     for state in states:
         with _started_at(problem, state):
             traj = scheme.integrate(problem, t_final, max_samples=MAX_SAMPLES)
-        if traj.status != "ok":
+        if traj.status != Status.OK:
             lost += 1
             continue
         pool.append(_late(traj.t, observable(problem, traj.t, traj.u)[1], problem.t0, t_final, window))

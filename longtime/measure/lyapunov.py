@@ -65,16 +65,16 @@ def separations(problem: Problem, t_span: float, budget_s: float, cached_only: b
     where the budget ran out), cached beside the references: the Lyapunov exponent's data,
     and summed, the growth of a perturbation (longtime.measure.instability).
     ``cached_only``: None where they are not cached (nothing is integrated)."""
-    from longtime.measure import reference
+    from longtime.measure import reference_files
 
-    path = reference.cache_path(problem, "lyapunov", repr(float(t_span)), repr((SEPARATION, INTERVALS, BLOCKS)),
-                                 suffix=".npy")
-    logs = reference.load_cached(path, lambda: np.load(path))
+    path = reference_files.cache_path(problem, "lyapunov", repr(float(t_span)),
+                                      repr((SEPARATION, INTERVALS, BLOCKS)), suffix=".npy")
+    logs = reference_files.load_cached(path, lambda: np.load(path))
     if logs is None and cached_only:
         return None
     if logs is None:
         logs = _separations(problem, t_span, budget_s)
-        reference.save_cached(path, logs)
+        reference_files.save_cached(path, logs)
     return logs
 
 
@@ -82,7 +82,7 @@ def _separations(problem: Problem, t_span: float, budget_s: float) -> np.ndarray
     """ln(d / d0) of each interval (NaN from where the budget ran out)."""
     import time
 
-    from longtime.measure import reference
+    from longtime.measure import reference_runs
 
     if problem.heyoka_system is None:
         raise ValueError(f"problem {problem.name} has no heyoka system: its Lyapunov exponent is not measured")
@@ -92,7 +92,7 @@ def _separations(problem: Problem, t_span: float, budget_s: float) -> np.ndarray
     deadline = time.perf_counter() + budget_s
     # the reference's own integrator (double, tolerance eps), compiled once per process for the
     # reference and copied here: measuring the exponent compiles nothing more
-    base = reference.start_integrator(problem, "double", deadline)
+    base = reference_runs.start_integrator(problem, "double", deadline)
     ta_u, ta_v = copy.deepcopy(base), copy.deepcopy(base)
     ta_u.state[:] = u0
     ta_v.state[:] = u0 + d0 * w / np.linalg.norm(w)

@@ -48,6 +48,7 @@ import numpy as np
 
 from longtime.core.contract import check_name
 from longtime.core.problem import Problem
+from longtime.core.status import Status
 from longtime.core.trajectory import Trajectory
 from longtime.measure.growth import growth_fields
 from longtime.measure.lyapunov import predictability
@@ -219,7 +220,8 @@ def motion_window(problem: Problem, t_end: float, trust: Trust | None) -> tuple[
     """(times, reference states) at WINDOW_POINTS log-spaced times of [t0, t0 + W], W = the
     run's span / 100 (its first hundredth, where the reference is trusted), for
     ``motion_scale``; None where the reference cannot give them."""
-    from longtime.measure.reference import ReferenceUnavailable, reference_states
+    from longtime.measure.reference import reference_states
+    from longtime.measure.reference_runs import ReferenceUnavailable
 
     span = min(float(t_end - problem.t0), float(trust.horizon - problem.t0)) if trust else float(t_end - problem.t0)
     if trust is None or not span > 0:
@@ -418,7 +420,7 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
     # a diverged run ends on a non-finite state: measure the finite part (until the blow-up)
     finite = int(np.argmin(np.isfinite(U).all(axis=1))) if not np.isfinite(U).all() else t.size
     t, U = t[:finite], U[:finite]
-    diverged = traj.status == "diverged"
+    diverged = traj.status == Status.DIVERGED
     if finite == 0:
         return row
     notes: list[str] = []

@@ -50,6 +50,7 @@ from typing import Any, Iterable
 
 from longtime.core.fmt import positive
 from longtime.core.roles import row_fields
+from longtime.core.status import Status
 from longtime.measure.lyapunov import past_predictability
 from longtime.numerics.loglog import fit_slope
 
@@ -275,7 +276,7 @@ def _approaching(slopes: list[float], declared: int | None) -> bool:
 
 def _fit(members: list[dict]) -> tuple[dict | None, dict]:
     """(the fit of one sweep or None, why not: {"reason", "dropped"})."""
-    ok = [r for r in members if r.get("status") == "ok"]
+    ok = [r for r in members if r.get("status") == Status.OK]
     if not ok:
         counts: dict[str, int] = {}
         for r in members:
@@ -373,7 +374,7 @@ def left_out(rows: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
     finals: dict[tuple, set] = {}
     for members in _groups(rows):
         pair = (members[0]["problem"], members[0]["integrator"])
-        if all(r.get("status") == "skipped" for r in members):
+        if all(r.get("status") == Status.SKIPPED for r in members):
             continue
         finals.setdefault(pair, set()).add(members[0].get("t_final"))
         fit, reason = _fit(members)

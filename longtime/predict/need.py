@@ -38,6 +38,7 @@ from typing import Any
 
 from longtime.core.fmt import positive
 from longtime.core.rowtext import main_t_final, setting
+from longtime.core.status import Status
 from longtime.measure.lyapunov import past_predictability
 from longtime.predict.decision import TARGETS, keepers, verdicts
 from longtime.predict.settings import SOLUTION_FIELDS
@@ -73,7 +74,7 @@ class Need:
 def pareto_field(rows: list[dict[str, Any]]) -> str | None:
     """The error a problem's Pareto front ranks by: the first of PARETO_FIELDS that an ok row
     of ``rows`` has."""
-    ok = [r for r in rows if r.get("status") == "ok"]
+    ok = [r for r in rows if r.get("status") == Status.OK]
     return next((f for f in PARETO_FIELDS if any(positive(r.get(f)) for r in ok)), None)
 
 
@@ -144,5 +145,5 @@ def _least(ratios: dict[tuple, float], key: tuple, ratio: float) -> None:
 def _on_front_candidate(row: dict[str, Any], field: str, t_main: float | None) -> bool:
     """An ok row at its problem's main final time with a CPU time and an error in ``field``
     (a chaotic problem's row past its predictability horizon has no L2 accuracy to offer)."""
-    return (row.get("status") == "ok" and positive(row.get("cpu_s")) and positive(row.get(field))
+    return (row.get("status") == Status.OK and positive(row.get("cpu_s")) and positive(row.get(field))
             and row.get("t_final") == t_main and not (field == "l2_error" and past_predictability(row)))

@@ -44,6 +44,7 @@ import numpy as np
 
 from longtime.core.fmt import positive
 from longtime.core.rowtext import setting
+from longtime.core.status import Status
 from longtime.measure.growth import SATURATION
 from longtime.predict.checks import CHECK_ERROR_FACTOR
 
@@ -123,7 +124,7 @@ class Measure:
 def solution_measure(rows: Iterable[dict[str, Any]], with_law: bool = False) -> Measure | None:
     """The solution error's Measure where ok rows have one (the first of SOLUTION_FIELDS
     that one has; ``with_law``: with its growth class too), else None."""
-    ok = [r for r in rows if r.get("status") == "ok"]
+    ok = [r for r in rows if r.get("status") == Status.OK]
     for name in SOLUTION_FIELDS:
         if any(positive(r.get(name)) and (r.get("error.growth_class") or not with_law) for r in ok):
             ref = next((r.get("reference") for r in ok if r.get("reference")), None)
@@ -140,7 +141,7 @@ def measure(rows: Iterable[dict[str, Any]]) -> Measure | None:
     found = solution_measure(rows, with_law=True)
     if found is not None:
         return found
-    ok = [r for r in rows if r.get("status") == "ok"]
+    ok = [r for r in rows if r.get("status") == Status.OK]
     names = [k[: -len(".growth_class")] for r in ok for k in r if k.endswith(".growth_class")
              and r.get(k) and k != "error.growth_class" and positive(r.get(k[: -len(".growth_class")] + ".max"))]
     if not names:
@@ -395,7 +396,7 @@ def settings(rows: Iterable[dict[str, Any]], m: Measure) -> list[Setting]:
     """The candidates of one problem's rows: ok rows that kept the solution, with the
     measured error, a CPU time, a final time and a growth class; one per setting (scheme and
     parameters), its longest run, with a cost model from all its runs' lengths."""
-    rows = [r for r in rows if r.get("status") == "ok" and not r.get("check_of")
+    rows = [r for r in rows if r.get("status") == Status.OK and not r.get("check_of")
             and positive(r.get("cpu_s")) and positive(r.get("t_final"))]
     by_setting: dict[tuple[str, str], list[dict[str, Any]]] = {}
     for r in rows:

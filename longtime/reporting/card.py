@@ -18,6 +18,8 @@ import statistics
 from typing import Any, Iterable
 
 from longtime.core.fmt import positive
+from longtime.core.rowschema import formatted
+from longtime.core.status import Status
 from longtime.reporting.markup import escape, slug
 
 NOT_MEASURED = "not measured"
@@ -70,7 +72,7 @@ def _growth(rows: list[dict]) -> dict[str, dict[str, Any]]:
     from longtime.reporting.report import growth_names, setting
 
     out = {}
-    ok = [r for r in rows if r.get("status") == "ok"]
+    ok = [r for r in rows if r.get("status") == Status.OK]
     for name in growth_names(ok):
         have = [r for r in ok if r.get(f"{name}.growth_class")]
         if not have:
@@ -82,7 +84,7 @@ def _growth(rows: list[dict]) -> dict[str, dict[str, Any]]:
 
 
 def _per_step(rows: list[dict]) -> dict[str, Any]:
-    ok = [r for r in rows if r.get("status") == "ok" and isinstance(r.get("steps"), int) and r["steps"] > 0]
+    ok = [r for r in rows if r.get("status") == Status.OK and isinstance(r.get("steps"), int) and r["steps"] > 0]
     rhs = [r["rhs_evals"] / r["steps"] for r in ok if isinstance(r.get("rhs_evals"), (int, float))]
     ins = [r["instructions_per_step"] for r in ok if positive(r.get("instructions_per_step"))]
     return {"rhs_evals_per_step": statistics.median(rhs) if rhs else None,
@@ -98,7 +100,7 @@ def _pareto(rows: list[dict], name: str) -> list[dict[str, Any]]:
     if not field:
         return []
     t_main = main_t_final(rows)
-    mine = [r for r in rows if r.get("integrator") == name and r.get("status") == "ok" and positive(r.get("cpu_s"))
+    mine = [r for r in rows if r.get("integrator") == name and r.get("status") == Status.OK and positive(r.get("cpu_s"))
             and positive(r.get(field)) and r.get("t_final") == t_main]
     out = []
     for p in pareto(rows, field):
@@ -128,13 +130,13 @@ def card(scheme: Any, rows: Iterable[dict] | None = None, *, structure: bool = T
     for problem in sorted({r["problem"] for r in rows if r.get("integrator") == name}):
         all_rows = [r for r in rows if r["problem"] == problem]
         mine = [r for r in all_rows if r.get("integrator") == name]
-        if all(r.get("status") == "skipped" for r in mine):  # the scheme cannot treat the problem
+        if all(r.get("status") == Status.SKIPPED for r in mine):  # the scheme cannot treat the problem
             problems.append({"problem": problem, "cells": len(mine), "ok": 0, "statuses": ["skipped"],
                              "does_not_apply": _skip_reason(mine), "orders": [], "growth": {},
                              "rhs_evals_per_step": None, "instructions_per_step": None, "pareto": []})
             continue
         problems.append({"problem": problem, "cells": len(mine), "does_not_apply": None,
-                         "ok": sum(r.get("status") == "ok" for r in mine),
+                         "ok": sum(r.get("status") == Status.OK for r in mine),
                          "statuses": sorted({str(r.get("status")) for r in mine}),
                          "orders": orders.get(problem, []), "growth": _growth(mine), **_per_step(mine),
                          "pareto": _pareto(all_rows, name)})
@@ -211,7 +213,8 @@ def _per_step_text(p: dict) -> str:
     ins = p["instructions_per_step"]
     return (f"rhs evaluations per step {rhs:.3g}" if rhs is not None
             else f"rhs evaluations per step {NOT_MEASURED}") + \
-        (f", instructions per step {ins:.4g}" if ins is not None else f", instructions per step {NOT_MEASURED}")
+        (f", instructions per step {formatted('instructions_per_step', ins)}" if ins is not None
+         else f", instructions per step {NOT_MEASURED}")
 
 
 def _structure_text(s: dict | None) -> str:
@@ -256,8 +259,8 @@ def _problem_lines(p: dict, full: bool = True) -> list[tuple[str, str]]:
         orders = "undetermined (below)"
     else:
         orders = "; ".join(_order_text(o) for o in p["orders"]) or "no sweep"
-    growth = ", ".join(f"{'solution error' if n == 'error' else n} {g['class']}" for n, g in p["growth"].items()) \
-        or "no growth law"
+    growth = ", ".join(f"{'solution error' if n == 'error' else n} {formatted(f'{n}.growth_class', g['class'])}"
+                       for n, g in p["growth"].items()) or "no growth law"
     return [("observed order", orders), ("growth (longest run)", growth), ("cost", _per_step_text(p)),
             ("Pareto front", _pareto_text(p["pareto"]))]
 

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from longtime.core.roles import row_columns
+from longtime.core.status import Status
 from longtime.measure.instructions import count_factor
 
 # set above the spread measured between runs of identical code, alone and beside CPU-bound
@@ -91,7 +92,7 @@ def compare_rows(a: dict, b: dict, factor: float = TIME_FACTOR, error_factor: fl
     either way, the time gets no verdict ("not comparable", ``not_comparable`` says why)."""
     out: dict[str, Any] = {k: a.get(k) for k in MATCH_KEYS}
     out.update(status_a=a.get("status"), status_b=b.get("status"), regressions=[], improvements=[])
-    if a.get("status") == "ok" and b.get("status") != "ok":
+    if a.get("status") == Status.OK and b.get("status") != Status.OK:
         out["regressions"].append(f"status ok -> {b.get('status')}")
     if _number(a.get("cpu_s")) and _number(b.get("cpu_s")) and a["cpu_s"] > 0:
         out.update(cpu_a=a["cpu_s"], cpu_b=b["cpu_s"], cpu_ratio=b["cpu_s"] / a["cpu_s"],
@@ -101,7 +102,7 @@ def compare_rows(a: dict, b: dict, factor: float = TIME_FACTOR, error_factor: fl
     out["time_verdict"] = None
     if _number(a.get("cpu_s_calibrated")) and _number(b.get("cpu_s_calibrated")) and a["cpu_s_calibrated"] > 0:
         out["cpu_calibrated_ratio"] = b["cpu_s_calibrated"] / a["cpu_s_calibrated"]
-    if timed is not None and timed[1] > 0 and a.get("status") == "ok" and b.get("status") == "ok":
+    if timed is not None and timed[1] > 0 and a.get("status") == Status.OK and b.get("status") == Status.OK:
         basis, ta, tb = timed
         ratio = tb / ta
         out.update(time_basis=basis, time_a=ta, time_b=tb, time_ratio=ratio)
@@ -164,7 +165,7 @@ def _judge_instructions(out: dict, a: dict, b: dict, factor: float) -> None:
     counted; None when a run has no count)."""
     out["instruction_verdict"] = None
     ia, ib = a.get("instructions"), b.get("instructions")
-    if not (_number(ia) and _number(ib) and ia > 0 and a.get("status") == "ok" and b.get("status") == "ok"):
+    if not (_number(ia) and _number(ib) and ia > 0 and a.get("status") == Status.OK and b.get("status") == Status.OK):
         return
     if a.get("instructions_tool") != b.get("instructions_tool"):
         out["instruction_verdict"] = "other tool"

@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 from typing import Any, Sequence
 
+from longtime.core.status import Status
 from longtime.reporting.figures.results import FIGURE_GROUPS, figure_inputs, problem_figures
 from longtime.reporting.figures.style import styles
 
@@ -23,7 +24,7 @@ def stability_schemes(rows: list[dict]) -> tuple[dict[str, list | None], dict[st
 
     wanted: dict[str, set | None] = {}
     for r in rows:
-        if r.get("status") == "skipped":
+        if r.get("status") == Status.SKIPPED:
             wanted.setdefault(r["integrator"], None)
             continue
         n = r.get("order")

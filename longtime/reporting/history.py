@@ -53,6 +53,7 @@ from typing import Any
 
 from longtime.core.roles import ROW_PARAMETERS
 from longtime.core.rowschema import formatted
+from longtime.core.status import Status
 from longtime.execution.calibration import stream_median
 from longtime.measure.instructions import count_factor
 from longtime.reporting import machines
@@ -165,8 +166,8 @@ def process_factor(points: list[dict[str, Any]], factor: float) -> float:
     spread between processes (``cpu_s_process_spread``), at least ``factor``, and at least
     ``CELL_FACTOR`` where a run was timed in its own process (``timed_in``)."""
     spreads = sorted(p[SPREAD_FIELD] for p in points
-                     if p.get("status") == "ok" and isinstance(p.get(SPREAD_FIELD), (int, float)))
-    if any(p.get("status") == "ok" and one_process(p) for p in points):
+                     if p.get("status") == Status.OK and isinstance(p.get(SPREAD_FIELD), (int, float)))
+    if any(p.get("status") == Status.OK and one_process(p) for p in points):
         factor = max(factor, CELL_FACTOR)  # a run timed in its own process has no spread to judge by
     if not spreads:
         return factor
@@ -237,7 +238,7 @@ def history(store, problems=None, schemes=None, sets: dict[str, str] | None = No
             field = spec["field"]
             if only is not None and field not in only:
                 continue
-            values = [p[field] if p["status"] == "ok" and isinstance(p.get(field), (int, float))
+            values = [p[field] if p["status"] == Status.OK and isinstance(p.get(field), (int, float))
                       and not (field == TIME_FIELD and p.get("not_comparable")) else None for p in points]
             for s in _steps_apart(values, points, field, spec):
                 p = points[s["index"]]
@@ -266,7 +267,7 @@ def mark_bandwidth(points: list[dict[str, Any]], factor: float) -> None:
     groups: dict[tuple, list[dict[str, Any]]] = {}
     for p in points:
         p.update(bandwidth_ratio=None, not_comparable=None)
-        if p["stream_cpu_s"] and p["status"] == "ok":
+        if p["stream_cpu_s"] and p["status"] == Status.OK:
             groups.setdefault((p.get("machine"), p["stream_bytes"]), []).append(p)
     for members in groups.values():
         if len(members) < 2:

@@ -11,8 +11,9 @@ from __future__ import annotations
 from typing import Any
 
 from longtime.core.fmt import positive
+from longtime.core.rowschema import formatted
 from longtime.core.rowtext import main_t_final, setting
-from longtime.execution.budget import TOO_SLOW
+from longtime.core.status import TOO_SLOW, Status
 from longtime.predict.settings import Measure, error_kept, solution_measure
 
 # the error the table asks of each library's settings (the verdict's measure: max_error, the
@@ -35,10 +36,10 @@ def _cell(rows: list[dict[str, Any]], t_main: float, target: float, m: Measure |
     """(the library's cell, the CPU seconds of its entry or None where it has none)."""
     if not rows:
         return "not run on this problem", None
-    ran = [r for r in rows if r.get("status") == "ok"]
-    slow = [r for r in rows if r.get("status") == "timeout" and r.get("t_final") == t_main]
+    ran = [r for r in rows if r.get("status") == Status.OK]
+    slow = [r for r in rows if r.get("status") == Status.TIMEOUT and r.get("t_final") == t_main]
     if not ran and not slow:
-        if all(r.get("status") == "skipped" for r in rows):
+        if all(r.get("status") == Status.SKIPPED for r in rows):
             if any("pip install" in str(r.get("message")) for r in rows):
                 return "not installed", None
             estimated = next((str(r["message"]) for r in rows if str(r.get("message")).startswith(TOO_SLOW)), None)
@@ -50,7 +51,7 @@ def _cell(rows: list[dict[str, Any]], t_main: float, target: float, m: Measure |
     if not main and slow:
         return _too_slow(slow, t_main), None
     if not main:
-        return f"only shorter runs (t_final {min(r['t_final'] for r in ran):.3g}: the budget)", None
+        return f"only shorter runs (t_final {formatted('t_final', min(r['t_final'] for r in ran))}: the budget)", None
     errors = {id(r): error_kept(r, m) if m is not None else None for r in main}
     kept = [r for r in main if not r.get("solution_lost") and positive(r.get("cpu_s"))
             and errors[id(r)] is not None and errors[id(r)] <= target]
@@ -62,7 +63,8 @@ def _cell(rows: list[dict[str, Any]], t_main: float, target: float, m: Measure |
         text = f"none keeps it (best {errors[id(r)]:.2g}: {r['integrator']} {setting(r)})".replace("  ", " ")
         return (f"{text}; {_too_slow(slow, t_main)}" if slow else text), None
     r = min(kept, key=lambda r: r["cpu_s"])
-    text = f"{r['integrator']} {setting(r)}: {r['cpu_s']:.3g} s ({errors[id(r)]:.1g})".replace("  ", " ")
+    cpu = formatted("cpu_s", r["cpu_s"])
+    text = f"{r['integrator']} {setting(r)}: {cpu} s ({errors[id(r)]:.1g})".replace("  ", " ")
     return text, float(r["cpu_s"])
 
 
@@ -70,10 +72,10 @@ def _too_slow(slow: list[dict[str, Any]], t_main: float) -> str:
     """'too slow: cvode-bdf tol=1e-13 ran 3.1 s for t=250 of 500' from the timeout rows at T
     (the one that got furthest)."""
     r = max(slow, key=lambda r: r.get("t_reached") or 0.0)
-    spent = r.get("cpu_s") if positive(r.get("cpu_s")) else r.get("wall_s")
-    spent_text = f"{spent:.3g} s" if positive(spent) else "its time limit"
-    reached = r.get("t_reached")
-    reached_text = f"t={reached:.3g} of {t_main:.4g}" if reached is not None else f"less than {t_main:.4g}"
+    spent = next((f for f in ("cpu_s", "wall_s") if positive(r.get(f))), None)
+    spent_text = f"{formatted(spent, r[spent])} s" if spent else "its time limit"
+    reached, t_text = r.get("t_reached"), formatted("t_final", t_main)
+    reached_text = f"t={formatted('t_reached', reached)} of {t_text}" if reached is not None else f"less than {t_text}"
     return f"too slow: {r['integrator']} {setting(r)} ran {spent_text} for {reached_text}".replace("  ", " ")
 
 
@@ -98,7 +100,7 @@ def library_table(rows: list[dict[str, Any]], target: float = TARGET) -> tuple[l
                  for lib in libraries]
         best = min((cpu for _, cpu in found if cpu is not None), default=None)
         cells = [text if cpu is None else f"{text} {_ratio(cpu, best)}" for text, cpu in found]
-        body.append([problem, f"{t_main:.4g}", *cells])
+        body.append([problem, formatted("t_final", t_main), *cells])
     return ["problem", "T", *libraries], body
 
 

@@ -28,6 +28,7 @@ import json
 from html import escape
 from typing import Any, Callable
 
+from longtime.core.status import Status
 from longtime.execution.calibration import drift
 from longtime.execution.run_environment import machine_key
 
@@ -91,7 +92,7 @@ def cross_machine(rows: list[dict[str, Any]], runs: list[dict[str, Any]], calibr
     cells: dict[Any, dict[str, Any]] = {}
     for row in sorted(rows, key=lambda r: r.get("run_id") or 0):  # a machine's latest run last: it stays
         machine = by_run.get(row.get("run_id"))
-        if machine is None or row.get("status") != "ok":
+        if machine is None or row.get("status") != Status.OK:
             continue
         cell = cells.setdefault(key(row), {"cell": name(row), "machines": {}})
         cell["machines"][machine["label"]] = _figures(row, machine)

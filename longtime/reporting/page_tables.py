@@ -3,6 +3,8 @@ stored rows: the Pareto front, the growth classes, the chaos and ensemble tables
 observed orders, the capability matrix and the stability intervals."""
 from __future__ import annotations
 
+from longtime.core.rowschema import formatted
+from longtime.core.status import Status
 from longtime.reporting.markup import escape, num, table
 from longtime.reporting.report import (
     format_counts,
@@ -21,11 +23,12 @@ def pareto_table(rows: list[dict]) -> str:
     front = pareto(rows, field) if field else []
     if not front:
         return '<p class="note">No ok row with an error and a CPU time.</p>'
-    body = [[target_text(p), p["best"]["integrator"], setting(p["best"]), num(p["best"]["cpu_s"]),
+    body = [[target_text(p), p["best"]["integrator"], setting(p["best"]), formatted("cpu_s", p["best"]["cpu_s"]),
              (f"{p['next']['integrator']} ({setting(p['next'])})" if p["next"] else "none"),
              (f"x{p['slower']:.3g}" if p["slower"] else "-")] for p in pareto_groups(front)]
     return (f'<p class="note">For each target, the fastest ok row whose {escape(field)} meets it over t_final = '
-            f'{main_t_final(rows):.6g} (CPU: the minimum of the repeats) and the fastest other scheme meeting it.</p>'
+            f'{formatted("t_final", main_t_final(rows))} (CPU: the minimum of the repeats) and the fastest other '
+            'scheme meeting it.</p>'
             + table([f"{field} <=", "fastest scheme", "setting", "CPU s", "next best scheme", "next is slower"],
                      body))
 
@@ -37,11 +40,11 @@ def growth_cell(row: dict, name: str) -> str:
     if not cls:
         return "<td>-</td>"
     alpha, ci = row.get(f"{name}.growth"), row.get(f"{name}.growth_ci")
-    fit = f"alpha {alpha:.2f}" if isinstance(alpha, (int, float)) else ""  # exponents: two decimals
+    fit = f"alpha {formatted(f'{name}.growth', alpha)}" if isinstance(alpha, (int, float)) else ""
     if fit and isinstance(ci, list) and len(ci) == 2 and all(isinstance(c, (int, float)) for c in ci):
-        fit += f" [{ci[0]:.2f}, {ci[1]:.2f}]"
+        fit += f" [{formatted(f'{name}.growth_ci', ci)}]"
     if cls == "saturated" and row.get(f"{name}.saturated_t") is not None:
-        fit += f" (before t = {num(row[f'{name}.saturated_t'])})"
+        fit += f" (before t = {formatted(f'{name}.saturated_t', row[f'{name}.saturated_t'])})"
     reason = row.get(f"{name}.growth_reason") or ""
     title = "; ".join(x for x in (fit, reason) if x)
     if cls == "undetermined":
@@ -80,15 +83,17 @@ def chaos_table(rows: list[dict]) -> str | None:
     predictability horizon), in time and in Lyapunov times."""
     from longtime.core.rowtext import setting
 
-    chaotic = [r for r in rows if "predictability_t" in r and r.get("status") == "ok"]
+    chaotic = [r for r in rows if "predictability_t" in r and r.get("status") == Status.OK]
     if not chaotic:
         return None
     first = next((r for r in chaotic if r.get("lyapunov_note")), chaotic[0])
     t_lyap = first.get("lyapunov_time")
-    head = (f"Lyapunov time {num(t_lyap)} ({escape(first.get('lyapunov_note') or '')})" if t_lyap else
+    head = (f"Lyapunov time {formatted('lyapunov_time', t_lyap)} ({escape(first.get('lyapunov_note') or '')})"
+            if t_lyap else
             f"No Lyapunov time: {escape(first.get('lyapunov_note') or 'not measured')}")
-    body = [[r["integrator"], setting(r) or "-", num(r.get("t_final")), num(r.get("predictability_t")),
-             num(r.get("predictability_lyapunov")), r.get("predictability_note") or ""]
+    body = [[r["integrator"], setting(r) or "-",
+             *(formatted(f, r.get(f)) for f in ("t_final", "predictability_t", "predictability_lyapunov")),
+             r.get("predictability_note") or ""]
             for r in sorted(chaotic, key=lambda r: (r["integrator"], r.get("t_final") or 0, str(setting(r))))]
     return (f'<p class="note">{head}. Past its predictability horizon (the first time its solution error '
             "reaches 0.5) a row's L2 error measures a lost solution: it enters no order fit and no Pareto front; "
@@ -115,25 +120,28 @@ def ensemble_table(records: list[dict]) -> str | None:
     if first.get("floor") is None:
         return f'<p class="note">No ensemble distance from {escape(state)}: {escape(first.get("note") or "")}.</p>'
     floor = first["floor"]
-    head = (f"{first['members']} members from {escape(state)}, perturbed by a seeded relative {first['size']:g}, "
-            f"integrated to t = {num(first.get('t_final'), 4)} ({num(first.get('span_lyapunov'))} Lyapunov times "
-            f"of that state, one is {num(first.get('lyapunov_time'))}) by each scheme at the setting shown (its "
+    head = (f"{first['members']} members from {escape(state)}, perturbed by a seeded relative "
+            f"{formatted('size', first['size'])}, integrated to t = {formatted('t_final', first.get('t_final'))} "
+            f"({formatted('span_lyapunov', first.get('span_lyapunov'))} Lyapunov times of that state, one is "
+            f"{formatted('lyapunov_time', first.get('lyapunov_time'))}) by each scheme at the setting shown (its "
             f"row's nearest the default) and by heyoka. Observable: <code>{escape(first.get('observable') or '')}"
             f"</code>, pooled over the members and the last {first['window']:.0%} of the span. Distance: the "
             f"1-Wasserstein distance between the scheme's and heyoka's pools over the standard deviation of "
             f"heyoka's (0: the same distribution, 1: a shift by a standard deviation). Floor: the same between "
-            f"two heyoka ensembles of other seeds ({num(floor)}), what a finite ensemble shows by itself. Told "
+            f"two heyoka ensembles of other seeds ({formatted('floor', floor)}), what a finite ensemble shows by "
+            f"itself. Told "
             f"apart: a distance above {FLOOR_FACTOR:g} x the floor. A scheme one of whose members diverged, "
             f"failed or passed the step's deadline has that status and no distance "
             f"(<code>longtime matrix --no-ensemble</code> skips the step; docs/metrics.md, \"Chaos\").")
-    ok = sorted((r for r in records if r.get("status") == "ok" and r.get("distance") is not None),
+    ok = sorted((r for r in records if r.get("status") == Status.OK and r.get("distance") is not None),
                 key=lambda r: r["distance"])
     rest = sorted((r for r in records if r not in ok), key=lambda r: (r.get("status") or "", r["integrator"]))
     body = []
     for r in ok:
         apart = r["distance"] > FLOOR_FACTOR * floor
         body.append([f"<td>{escape(r['integrator'])}</td>", f"<td>{escape(setting(r) or '-')}</td>",
-                     f'<td class="num">{num(r["distance"])}</td>', f'<td class="num">{num(floor)}</td>',
+                     f'<td class="num">{formatted("distance", r["distance"])}</td>',
+                     f'<td class="num">{formatted("floor", floor)}</td>',
                      f'<td class="num">{num(r["distance"] / floor) if floor > 0 else "-"}</td>',
                      f'<td class="{"flag" if apart else "ok"}">{"told apart" if apart else "as heyoka"}</td>'])
     for r in rest:
@@ -157,13 +165,15 @@ def orders_table(fits: list[dict]) -> str | None:
                      f'<td class="num">{f["observed_order"]:.2f}</td>',
                      f'<td class="num">{"-" if ci is None else f"+- {ci:.2f}"}</td>',
                      "<td>" + escape(f"{len(f['order_points'])} ({f['order_error_field']} vs {f['order_variable']}: "
-                                 f"{num(f['order_points'][0][0])} .. {num(f['order_points'][-1][0])})") + "</td>",
+                                 f"{formatted(f['order_variable'], f['order_points'][0][0])} .. "
+                                 f"{formatted(f['order_variable'], f['order_points'][-1][0])})") + "</td>",
                      f"<td>{flag}</td>"])
     return table(["scheme", *(["N"] if with_n else []), "declared", "observed", "95 % interval", "points used", ""],
                   body, raw=True)
 
 
-ABBREVIATIONS = {"ok": "ok", "skipped": "-", "diverged": "div", "failed": "fail", "timeout": "t/o"}
+ABBREVIATIONS = {Status.OK: "ok", Status.SKIPPED: "-", Status.DIVERGED: "div", Status.FAILED: "fail",
+                 Status.TIMEOUT: "t/o"}
 
 
 def capability_matrix(rows: list[dict]) -> str:
@@ -180,13 +190,14 @@ def capability_matrix(rows: list[dict]) -> str:
                 cells.append('<td class="skipped" title="not in this run"></td>')
                 continue
             counts = status_counts(mine)
-            worst = next(st for st in ("failed", "timeout", "diverged", "skipped", "ok") if counts.get(st))
+            worst = next(st for st in (Status.FAILED, Status.TIMEOUT, Status.DIVERGED, Status.SKIPPED, Status.OK)
+                         if counts.get(st))
             title = format_counts(counts)
             text = ABBREVIATIONS[worst]
-            lost = sum(1 for r in mine if r.get("status") == "ok" and r.get("solution_lost"))
-            if worst == "skipped":
+            lost = sum(1 for r in mine if r.get("status") == Status.OK and r.get("solution_lost"))
+            if worst == Status.SKIPPED:
                 title = "skipped: " + str(mine[0].get("message") or "").removeprefix(s + " ")
-            elif worst != "ok":
+            elif worst != Status.OK:
                 text += f" {counts[worst]}/{len(mine)}"
             elif lost:  # ran to the end, but the error reached O(1): not an ok answer
                 worst, text = "lost", "lost" if lost == len(mine) else f"lost {lost}/{len(mine)}"

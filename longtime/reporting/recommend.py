@@ -12,6 +12,7 @@ from typing import Any, Iterable
 from longtime.core.fmt import positive
 from longtime.core.params import InputError
 from longtime.core.rowtext import setting
+from longtime.core.status import Status
 from longtime.measure.instability import Growth
 from longtime.predict.checks import CHECK_COST_FACTOR, CHECK_ERROR_FACTOR, check_holds
 from longtime.predict.decision import Decision, decide, predictability, run_command
@@ -252,7 +253,7 @@ def _invariant_lines(rows: list[dict[str, Any]]) -> list[str]:
     """What can be said past the predictability horizon without a pointwise error: each
     invariant's smallest stored relative error (the largest over its run), with its setting and
     how far it ran."""
-    ok = [r for r in rows if r.get("status") == "ok"]
+    ok = [r for r in rows if r.get("status") == Status.OK]
     names = sorted({k[: -len(".growth_class")] for r in ok for k in r if k.endswith(".growth_class")
                     and k != "error.growth_class" and positive(r.get(k[: -len(".growth_class")] + ".max"))})
     out = []
@@ -276,7 +277,7 @@ def measured_growth(rows: list[dict[str, Any]], problem: str, horizon: float,
     from longtime.execution.cells import build, cell_of_row
     from longtime.measure import instability
 
-    row = next((r for r in rows if r.get("problem") == problem and r.get("status") == "ok"
+    row = next((r for r in rows if r.get("problem") == problem and r.get("status") == Status.OK
                 and positive(r.get("l2_error"))), None)
     if row is None or not positive(horizon):  # no pointwise error to bound
         return None
@@ -325,7 +326,7 @@ def _statistical_lines(problem: str, ensembles: Iterable[dict[str, Any]], where:
     command that measures them."""
     from longtime.measure.ensemble import distinguishable
 
-    ok = [e for e in ensembles if e.get("problem") == problem and e.get("status") == "ok"
+    ok = [e for e in ensembles if e.get("problem") == problem and e.get("status") == Status.OK
           and e.get("distance") is not None]
     if not ok:
         return [f"  statistically: no ensemble of {problem} in the store; `longtime ensemble -p {problem}{where}` "

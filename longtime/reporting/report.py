@@ -17,6 +17,7 @@ from longtime.core.fmt import positive
 from longtime.core.roles import ROW_PARAMETERS, row_columns
 from longtime.core.rowschema import formatted
 from longtime.core.rowtext import main_t_final, setting  # noqa: F401 (their home; read from here too)
+from longtime.core.status import STATUSES, Status
 from longtime.measure.lyapunov import past_predictability
 from longtime.predict.decision import verdicts
 from longtime.predict.need import PARETO_FIELDS, pareto_field  # noqa: F401 (their home; read from here too)
@@ -55,7 +56,7 @@ def problem_table(df: pd.DataFrame) -> pd.DataFrame:
     cols += [c for c in COST_COLUMNS if c in df and df[c].notna().any()]
     out = df[cols].copy()
     return out.sort_values(["status", "cpu_s"] if "cpu_s" in out else ["status"],
-                           key=lambda s: s.map(lambda v: v != "ok") if s.name == "status" else s,
+                           key=lambda s: s.map(lambda v: v != Status.OK) if s.name == "status" else s,
                            na_position="last")
 
 
@@ -92,14 +93,13 @@ def render(rows: list[dict[str, Any]], fmt: str = "table") -> str:
         else:
             text = _formatted(table).to_string(index=False)
         parts.append(f"== {problem}: accuracy against cost ({len(sub)} rows) ==\n{text}")
-        notes = sub[sub["status"].isin(["skipped", "failed", "diverged", "timeout"])]
+        notes = sub[sub["status"].isin([Status.SKIPPED, Status.FAILED, Status.DIVERGED, Status.TIMEOUT])]
         for _, r in notes.iterrows():
             parts.append(f"  {r['status']}: {r['integrator']}: {r['message']}")
     return "\n\n".join(parts)
 
 
 # ------------------------------------------------------------------ the summary read first
-STATUSES = ("ok", "diverged", "failed", "timeout", "skipped")
 # the accuracy a Pareto front ranks by is the first of PARETO_FIELDS present (the solution
 # error where a reference exists, the largest error over the run first, else the energy
 # drift): longtime.predict.need
@@ -127,7 +127,7 @@ def pareto(rows: list[dict[str, Any]], field: str | None = None) -> list[dict[st
     reached O(1) has no L2 accuracy to offer (``lyapunov.past_predictability``)."""
     field = field or pareto_field(rows)
     t_main = main_t_final(rows)
-    ok = [r for r in rows if r.get("status") == "ok" and positive(r.get("cpu_s")) and positive(r.get(field))
+    ok = [r for r in rows if r.get("status") == Status.OK and positive(r.get("cpu_s")) and positive(r.get(field))
           and r.get("t_final") == t_main and not (field in SOLUTION_FIELDS and past_predictability(r))]
     out = []
     for target in DECADES:
@@ -170,7 +170,8 @@ def growth_settings(rows: list[dict[str, Any]]) -> list[tuple[str, list[dict[str
     """One scheme's ok rows with a growth class, as (setting text, rows): the longest run
     first (then the smallest step). The setting names t_final where the scheme ran to
     more than one."""
-    mine = [r for r in rows if r.get("status") == "ok" and any(k.endswith(".growth_class") and r.get(k) for k in r)]
+    mine = [r for r in rows if r.get("status") == Status.OK
+            and any(k.endswith(".growth_class") and r.get(k) for k in r)]
     several = len({r.get("t_final") for r in mine}) > 1
     mine.sort(key=lambda r: (-(r.get("t_final") or 0.0), r.get("dt") or 0.0, r.get("tol") or 0.0, setting(r)))
     out: list[tuple[str, list[dict[str, Any]]]] = []
@@ -237,7 +238,7 @@ def _growth_counts(rows: list[dict[str, Any]]) -> list[str]:
         counts: dict[str, int] = {}
         for r in rows:
             c = r.get(f"{n}.growth_class")
-            if r.get("status") == "ok" and c:
+            if r.get("status") == Status.OK and c:
                 counts[c] = counts.get(c, 0) + 1
         text = ", ".join(f"{k} {counts[k]}" for k in sorted(counts, key=lambda k: -counts[k]))
         out.append(f"growth of {'the solution error' if n == 'error' else n} per setting: {text}")
@@ -308,14 +309,15 @@ LOST = "ok but error O(1), the solution not followed"
 def not_ok(rows: list[dict[str, Any]]) -> dict[str, list[str]]:
     """Rows that did not run to the end, or lost the solution, folded: 'skipped (needs
     constraints, which toda does not provide)' -> schemes; 'diverged' -> ['rk4 (2 of 3)', ...]."""
-    kinds = [(s, lambda r, s=s: r.get("status") == s) for s in ("skipped", "diverged", "failed", "timeout")]
-    kinds.append((LOST, lambda r: r.get("status") == "ok" and bool(r.get("solution_lost"))))
+    kinds = [(s, lambda r, s=s: r.get("status") == s)
+             for s in (Status.SKIPPED, Status.DIVERGED, Status.FAILED, Status.TIMEOUT)]
+    kinds.append((LOST, lambda r: r.get("status") == Status.OK and bool(r.get("solution_lost"))))
     out: dict[str, list[str]] = {}
     for kind, of_kind in kinds:
         for scheme in sorted({r["integrator"] for r in rows if of_kind(r)}):
             mine = [r for r in rows if r["integrator"] == scheme]
             bad = [r for r in mine if of_kind(r)]
-            if kind == "skipped":
+            if kind == Status.SKIPPED:
                 why = str(bad[0].get("message") or "").removeprefix(scheme + " ")
                 out.setdefault(f"skipped ({why})", []).append(scheme)
             else:

@@ -6,6 +6,7 @@ from __future__ import annotations
 from typing import Any, Iterable
 
 from longtime.core.rowtext import setting
+from longtime.core.status import Status
 from longtime.measure.lyapunov import past_predictability
 from longtime.predict.decision import verdicts
 from longtime.predict.settings import SOLUTION_FIELDS
@@ -186,7 +187,7 @@ def count_lines(rows: list[dict[str, Any]], orders: bool = True) -> list[str]:
     lines = [f"{len(rows)} cells: {format_counts(status_counts(rows))}"]
     skipped: dict[str, list[tuple[str, str]]] = {}
     for r in rows:
-        if r.get("status") == "skipped":
+        if r.get("status") == Status.SKIPPED:
             why = str(r.get("message") or "no reason stored").removeprefix(f"{r['integrator']} ")
             why = re.sub(rf"\b{re.escape(r['problem'])}\b", "the problem", why)
             skipped.setdefault(why, []).append((r["problem"], r["integrator"]))
@@ -195,7 +196,7 @@ def count_lines(rows: list[dict[str, Any]], orders: bool = True) -> list[str]:
         by_count = sorted(skipped.items(), key=lambda kv: -len(kv[1]))
         needs = "; ".join(f"{_need(why)} {len(pairs)}" for why, pairs in by_count)
         lines += _wrap(f"  skipped {total}, does not apply: {needs} (`--full` names the pairs)")
-    for status in ("diverged", "failed", "timeout"):
+    for status in (Status.DIVERGED, Status.FAILED, Status.TIMEOUT):
         bad = [r for r in rows if r.get("status") == status]
         reasons: dict[str, list[tuple[str, str]]] = {}
         for r in bad:
@@ -204,7 +205,7 @@ def count_lines(rows: list[dict[str, Any]], orders: bool = True) -> list[str]:
             reasons.setdefault(first[:90], []).append((r["problem"], r["integrator"]))
         for why, pairs in sorted(reasons.items(), key=lambda kv: -len(kv[1])):
             lines += _wrap(f"  {status} {len(pairs)} ({why}): {_pairs_text(sorted(set(pairs)), ONE_LINE)}")
-    lost = [(r["problem"], r["integrator"]) for r in rows if r.get("status") == "ok" and r.get("solution_lost")]
+    lost = [(r["problem"], r["integrator"]) for r in rows if r.get("status") == Status.OK and r.get("solution_lost")]
     if lost:
         lines += _wrap(f"  ok but lost the solution {len(lost)} (error O(1) at the end): "
                        f"{_pairs_text(sorted(set(lost)), ONE_LINE)}")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from longtime.core.rowschema import formatted
 from longtime.core.rowtext import setting
 from longtime.predict.checks import CHECK_COST_FACTOR, check_holds, check_summary
 from longtime.predict.decision import Decision, Verdict, deciding_run
@@ -17,26 +18,28 @@ def failed_first(checks: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def check_text(c: dict[str, Any]) -> str:
-    """One check as a line: 'rk4 dt=0.01 to t = 1.26e4 (best; ...): error 3e-6 predicted,
-    2.5e-6 measured; CPU ...: held'."""
+    """One check as a line: 'rk4 dt=0.01 to t = 1.260e+04 (best; ...): error 3.000e-06
+    predicted, 2.500e-06 measured; CPU ...: held', each field as it formats (rowschema.formatted)."""
     holds = check_holds(c)
     verdict = {True: "held", False: "MISSED", None: "not judged"}[holds]
     me, pe = c.get("measured_error"), c.get("predicted_error")
     role = c.get("check_role")
     if role in ("chaos", "growth"):
-        error = f"error above {c['check_target']:g} predicted, {'-' if me is None else f'{me:.2g}'} measured"
+        error = (f"error above {formatted('check_target', c['check_target'])} predicted, "
+                 f"{formatted('measured_error', me)} measured")
     else:
         at_most = "at most " if c.get("predicted_bound") and pe is not None else ""
-        error = (f"error {at_most}{'-' if pe is None else f'{pe:.2g}'} predicted, "
-                 f"{'-' if me is None else f'{me:.2g}'} measured")
+        error = (f"error {at_most}{formatted('predicted_error', pe)} predicted, "
+                 f"{formatted('measured_error', me)} measured")
     rank = ""
     if c.get("rank_held") is not None:
         rank = f"; rank {'held' if c['rank_held'] else 'MISSED'} against {', '.join(c.get('rank_rivals') or [])}"
         if c.get("rank_lost_to"):
             rank += f" (cheaper by more than x{CHECK_COST_FACTOR:g}: {', '.join(c['rank_lost_to'])})"
-    return (f"{c['integrator']} {setting(c)} to t = {c['t_final']:.4g} ({role + '; ' if role else ''}"
-            f"{c.get('check_law')}): {error}; CPU {c['predicted_cpu_s']:.3g} s predicted, "
-            f"{c.get('cpu_s') or float('nan'):.3g} s measured{rank}: {verdict}")
+    return (f"{c['integrator']} {setting(c)} to t = {formatted('t_final', c['t_final'])} "
+            f"({role + '; ' if role else ''}{c.get('check_law')}): {error}; "
+            f"CPU {formatted('predicted_cpu_s', c['predicted_cpu_s'])} s predicted, "
+            f"{formatted('cpu_s', c.get('cpu_s'))} s measured{rank}: {verdict}")
 
 
 def horizon_groups(v: Verdict, horizon: float) -> list[tuple[float, float, Decision]]:

@@ -8,6 +8,7 @@ from typing import Sequence
 import numpy as np
 
 from longtime.core.params import InputError
+from longtime.core.status import Status
 from longtime.reporting.figures import plain_ticks, pyplot, run, save
 
 
@@ -44,7 +45,7 @@ def drift(out: Path, formats: Sequence[str] = ("png", "svg"), problems: list[str
             step = dt if dt is not None else problem.default_dt
             has_dt = "dt" in registry.integrator_class(scheme).parameters
             label = scheme + (f" (dt={step:g})" if step and has_dt else "")
-            if traj.status != "ok":
+            if traj.status != Status.OK:
                 label += f" [{traj.status} at t={traj.t_reached:.4g}]"
             # the first scheme on top: oscillating curves of later ones must not hide it
             ax.semilogy(traj.t[ok], err[ok], lw=0.6, label=label, color=colours[scheme], zorder=len(schemes) - i,

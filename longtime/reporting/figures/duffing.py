@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Iterable, Sequence
 
 from longtime.core.params import InputError
+from longtime.core.status import Status
 from longtime.reporting.figures import plain_ticks, pyplot, run, save
 from longtime.reporting.paper import DUFFING_C
 
@@ -34,7 +35,7 @@ def duffing_phase(out: Path, formats: Sequence[str] = ("png", "svg"), schemes: l
         _, traj = run("duffing-forced", scheme, dt, tf, {**(problem_settings or {}), "c": c}, max_samples=200_001)
         keep = traj.t >= min(t_start, 0.5 * tf)
         ax.plot(traj.u[keep, 0], traj.u[keep, 1], lw=0.25, color="C0", rasterized=True)
-        status = "" if traj.status == "ok" else f" [{traj.status}]"
+        status = "" if traj.status == Status.OK else f" [{traj.status}]"
         ax.set_title(f"c = {c:g}{status}")
         ax.set_xlabel("u")
         ax.set_ylabel("u'")

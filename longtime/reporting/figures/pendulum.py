@@ -15,6 +15,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from longtime.core.params import InputError
+from longtime.core.status import Status
 from longtime.reporting.figures import check_formats, pyplot, run, save
 
 DEFAULT_SCHEMES = ("dirac-2", "euler")
@@ -67,7 +68,7 @@ def pendulum_region(schemes: Sequence[str] | None = None, dt: float | None = Non
             ax = axes[r, c]
             keep = traj.t <= T * (1 + 1e-12)
             t, U = traj.t[keep], traj.u[keep]
-            status = "" if traj.status == "ok" or traj.t[-1] >= T else f" ({traj.status} at t={traj.t[-1]:.3g})"
+            status = "" if traj.status == Status.OK or traj.t[-1] >= T else f" ({traj.status} at t={traj.t[-1]:.3g})"
             ax.set_title(f"{name}, T = {T:g}{status}", fontsize=10)
             if space == "angles":
                 th1, th2 = problem.angles(U)

@@ -21,6 +21,7 @@ import numpy as np
 
 from longtime.core.fmt import positive
 from longtime.core.phases import phase
+from longtime.core.status import Status
 from longtime.reporting.figures import pyplot
 from longtime.reporting.figures.style import (
     GREY,
@@ -81,7 +82,7 @@ def _order(row: dict) -> int | None:
 def work_precision_svg(rows: list[dict], field: str, style: dict, cost: str = "cpu_s") -> str | None:
     """``field`` against the cost of each ok row: ``cpu_s`` (the minimum of the repeats, a
     bar to the slowest) or ``instructions`` (the count under Valgrind, --cost instructions)."""
-    ok = [r for r in rows if r.get("status") == "ok" and positive(r.get(cost)) and positive(r.get(field))]
+    ok = [r for r in rows if r.get("status") == Status.OK and positive(r.get(cost)) and positive(r.get(field))]
     if not ok:
         return None
     from matplotlib.collections import LineCollection
@@ -128,7 +129,8 @@ def representative(rows: list[dict]) -> dict[str, dict]:
 
     out = {}
     for scheme in sorted({r["integrator"] for r in rows}):
-        ok = [r for r in rows if r["integrator"] == scheme and r.get("status") == "ok" and positive(r.get("cpu_s"))]
+        ok = [r for r in rows if r["integrator"] == scheme and r.get("status") == Status.OK
+              and positive(r.get("cpu_s"))]
         if all(isinstance(r.get("steps"), int) and r["steps"] > 0 for r in ok):
             ok.sort(key=lambda r: (r["steps"], str(r.get("t_final")), setting_text(r), str(r.get("parameters"))))
         else:

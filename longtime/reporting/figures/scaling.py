@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from longtime.core.status import Status
 from longtime.reporting.figures import plain_ticks, pyplot, save
 
 
@@ -15,7 +16,7 @@ def scaling_figure(scaling, orders, problem: str, out_dir: Path, metric: str = "
     fig, axes = plt.subplots(1, panels, figsize=(5.5 * panels, 4.2), squeeze=False)
     ax = axes[0, 0]
     for scheme, per in scaling.items():
-        pts = sorted((d, r["cpu_s"]) for d, r in per.items() if r["status"] == "ok" and r.get("cpu_s"))
+        pts = sorted((d, r["cpu_s"]) for d, r in per.items() if r["status"] == Status.OK and r.get("cpu_s"))
         if pts:
             ax.loglog(*zip(*pts), "o-", label=scheme)
     sizes = sorted({d for per in scaling.values() for d in per})
@@ -31,7 +32,7 @@ def scaling_figure(scaling, orders, problem: str, out_dir: Path, metric: str = "
     ax.legend()
     if orders:
         ax = axes[0, 1]
-        ok = sorted((n, r) for n, r in orders.items() if r["status"] == "ok" and r.get("cpu_s"))
+        ok = sorted((n, r) for n, r in orders.items() if r["status"] == Status.OK and r.get("cpu_s"))
         if ok:
             ax.semilogy([n for n, _ in ok], [r["cpu_s"] for _, r in ok], "o-", color="C0", label="CPU s")
             err_ax = ax.twinx()

@@ -6,6 +6,7 @@ from typing import Sequence
 
 from longtime.core.fmt import positive
 from longtime.core.params import InputError, check_choice
+from longtime.core.status import Status
 from longtime.reporting.figures import pyplot, save
 
 DRIFT_METRICS = ("H.max", "H.mean")
@@ -53,7 +54,7 @@ def work_precision(out: Path, formats: Sequence[str] = ("png", "svg"), rows: lis
     one curve per scheme (its points: the swept dt / tol / eps_res / N), from stored rows."""
     check_choice("metric", metric, DRIFT_METRICS)
     rows = _store_rows(db, run) if rows is None else rows
-    rows = [r for r in rows if r.get("status") == "ok" and positive(r.get("cpu_s"))]
+    rows = [r for r in rows if r.get("status") == Status.OK and positive(r.get("cpu_s"))]
     if problems:
         rows = [r for r in rows if r["problem"] in problems]
     if schemes:
