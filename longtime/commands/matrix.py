@@ -93,6 +93,15 @@ def quick(args) -> None:
     args.no_html = args.no_html or args.html is None
 
 
+def quick_text(args) -> str:
+    """What --quick runs and what it leaves out, and where the rest is."""
+    left = [what for what, out in (("timing processes (--processes N)", args.processes == 1),
+                                   ("results page (--html DIR)", args.no_html),
+                                   ("checks (--checks N)", not args.checks)) if out]
+    return (f"quick matrix: {', '.join(args.problem)} x {', '.join(args.integrator)}"
+            + (f"; no {', no '.join(left)}" if left else "") + "; `longtime matrix` runs the full one")
+
+
 def cmd_matrix(args) -> int:
     phases.since_process_start("startup")  # the interpreter, the imports, the plugins
     if args.quick:
@@ -103,6 +112,8 @@ def cmd_matrix(args) -> int:
     if args.timing is None:  # the main job times by need (longtime.execution.processes.by_need)
         options = dataclasses.replace(options, retime="need")
     shown = Progress(on=not args.no_progress)
+    if args.quick:
+        shown.say(quick_text(args))
     page_wanted = not args.no_report and not args.no_html
     spec = MainJobSpec(selection=matrix_selection(args) if args.resume is None else Selection(), resume=args.resume,
                        executor=executor, options=options, db=args.db, command=command_line(args),
