@@ -44,8 +44,8 @@ ALL = "all"
 
 
 def check_options(*, max_samples: Any, repeats: Any, min_time: Any, time_limit: Any, memory_limit: Any,
-                  allow_large: Any, jobs: Any = 0, executor: str | None = None, default_sweep: Any = False
-                  ) -> int | None:
+                  allow_large: Any, jobs: Any = 0, executor: str | None = None, default_sweep: Any = False,
+                  progress: Any = False) -> int | None:
     """The options of ``solve`` and ``sweep``, checked as the command line checks its flags;
     returns the memory limit in bytes (None: none)."""
     check_number("max_samples", max_samples, integer=True, minimum=2)
@@ -53,7 +53,7 @@ def check_options(*, max_samples: Any, repeats: Any, min_time: Any, time_limit: 
     check_number("min_time", min_time, minimum=0, maximum=MAX_SECONDS)
     check_number("time_limit", time_limit, minimum=0, maximum=MAX_SECONDS, none=True)  # 0 or None: no limit
     check_number("jobs", jobs, integer=True, minimum=0)
-    for name, value in (("allow_large", allow_large), ("default_sweep", default_sweep)):
+    for name, value in (("allow_large", allow_large), ("default_sweep", default_sweep), ("progress", progress)):
         if not isinstance(value, (bool, np.bool_)):
             raise InputError(f"{name}={value!r} is not valid: expected True or False")
     if executor is not None:
@@ -243,7 +243,7 @@ def sweep(problems: Any, schemes: Any, *, t_final: Any = None, executor: str = "
           min_time: float = Timing.min_time, time_limit: float | None = DEFAULT_TIME_LIMIT,
           default_sweep: bool = False, allow_large: bool = False,
           memory_limit: float | str | None = DEFAULT_MEMORY_LIMIT, processes: int | None = None,
-          cost: str = "time", **sweeps: Any):
+          cost: str = "time", progress: bool = True, **sweeps: Any):
     """The matrix problems x schemes x every value of each parameter (a value or a list) as
     a pandas DataFrame, one row per cell. ``executor`` is serial, process (default), isolated
     or dask; ``store`` a path (or Store) appends the run to that store as ``longtime run``
@@ -251,7 +251,9 @@ def sweep(problems: Any, schemes: Any, *, t_final: Any = None, executor: str = "
     longtime run's --memory-limit (GiB, "25%", 0 or None for none). ``processes`` (default
     ``$LONGTIME_PROCESSES`` or 3): the processes that time each cell, as ``--processes``.
     ``cost="instructions"`` also counts each ok cell's integration under Valgrind, all cells
-    in one Valgrind process (``--cost instructions``).
+    in one Valgrind process (``--cost instructions``). ``progress`` shows the cells' progress
+    on stderr as ``longtime run`` does (a bar on a terminal; elsewhere a line as each phase
+    starts, one every 30 s and one as it ends); ``progress=False``: nothing.
 
     A script that calls ``sweep`` outside ``if __name__ == "__main__":`` would be run again
     by each worker of the process pool: there the cells run serially, and one line on
@@ -266,7 +268,7 @@ def sweep(problems: Any, schemes: Any, *, t_final: Any = None, executor: str = "
 
     memory = check_options(max_samples=max_samples, repeats=repeats, min_time=min_time, time_limit=time_limit,
                            memory_limit=memory_limit, allow_large=allow_large, jobs=jobs, executor=executor,
-                           default_sweep=default_sweep)
+                           default_sweep=default_sweep, progress=progress)
     check_cost(cost)
     processes = default_processes() if processes is None else check_processes(processes, "processes")
     cells = cells_for(problems, schemes, t_final, sweeps, default_sweep=default_sweep, caller="sweep",
@@ -286,7 +288,8 @@ def sweep(problems: Any, schemes: Any, *, t_final: Any = None, executor: str = "
     command = "sweep " + shlex.join([f"{k}={v}" for k, v in
                                      {"problems": problems, "schemes": schemes, "t_final": t_final,
                                       **sweeps}.items() if v is not None])
-    rows, run_id = run_cells(cells, store=store, command=command, executor=executor, options=options)
+    rows, run_id = run_cells(cells, store=store, command=command, executor=executor, options=options,
+                             progress=progress)
     return frame(store.rows(run_id) if store is not None else rows)
 
 
@@ -486,15 +489,21 @@ def recommend(problem: Any, error: float, horizon: float, rows: Any = None, *, d
 
 
 # ------------------------------------------------------------------ the main job
-def main_job(spec: Any = None, *, html: Any = None, page: bool = True, full: bool = False):
+def main_job(spec: Any = None, *, html: Any = None, page: bool = True, full: bool = False, progress: bool = True):
     """Run the main job ``spec`` (a longtime.execution.main_job.MainJobSpec; default: every
     default problem x every scheme over the default sweep), then its results page (into
     ``html``, default longtime-report/run-RUN_ID beside the store; ``page=False``: none) and
     its report, as `longtime matrix` does: a longtime.reporting.main_job_report.MainJobReport
-    (``job``: the run id, rows, checks and ensembles; ``page``; ``text``)."""
+    (``job``: the run id, rows, checks and ensembles; ``page``; ``text``). ``progress``
+    shows each phase on stderr as `longtime matrix` does; ``progress=False``: nothing."""
+    from longtime.core.progress import Progress
     from longtime.execution.main_job import MainJobSpec, run_main_job
     from longtime.reporting.figures_ahead import FiguresAhead
     from longtime.reporting.main_job_report import page_and_report
 
-    job = run_main_job(spec if spec is not None else MainJobSpec(), ahead=FiguresAhead if page else None)
-    return page_and_report(job, html, page=page, full=full)
+    if not isinstance(progress, (bool, np.bool_)):
+        raise InputError(f"progress={progress!r} is not valid: expected True or False")
+    shown = Progress(on=bool(progress))
+    job = run_main_job(spec if spec is not None else MainJobSpec(), progress=shown,
+                       ahead=FiguresAhead if page else None)
+    return page_and_report(job, html, page=page, full=full, progress=shown)

@@ -65,7 +65,8 @@ def assert_order(scheme: Any, problem: Any, order: float, *, dts: Sequence[float
     check_number("order", order, positive=True)
     check_number("slack", slack, minimum=0.0)
     dts = list(dts) if dts is not None else default_dts(problem, scheme, t_final)
-    rows = sweep(problem, scheme, t_final=t_final, executor=executor, repeats=1, min_time=0.0, dt=dts, **settings)
+    rows = sweep(problem, scheme, t_final=t_final, executor=executor, repeats=1, min_time=0.0, dt=dts,
+                 progress=False, **settings)
     found = convergence(rows)
     if isinstance(found, list):
         raise AssertionError(f"assert_order: the settings give {len(found)} sweeps; give one value per "

@@ -38,6 +38,8 @@ from longtime.testing import assert_order
     (lambda: longtime.convergence("kepler"), ["convergence: rows=str is not valid"]),
     (lambda: assert_order("verlet", "kepler", float("nan")), ["order=nan is not valid", "> 0"]),
     (lambda: assert_order("verlet", "kepler", "2"), ["order='2' is not valid"]),
+    (lambda: longtime.sweep("kepler", "verlet", dt=0.1, progress="yes"), ["progress='yes' is not valid"]),
+    (lambda: longtime.main_job(progress=None), ["progress=None is not valid"]),
 ], ids=lambda x: "" if callable(x) else x[0][:30])
 def test_bad_arguments_are_input_errors_naming_them(call, words):
     with pytest.raises(InputError) as info:
@@ -347,3 +349,15 @@ def test_schemes_all_is_every_scheme_that_applies():
     assert names <= set(registry.integrators())
     swept = cells_for(["harmonic"], "all", t_final=1.0, settings={"dt": [0.1, 0.05]})
     assert {c.integrator_settings.get("dt") for c in swept if c.integrator == "verlet"} == {0.1, 0.05}
+
+
+def test_sweep_shows_its_progress_on_stderr_unless_told_not_to(capsys):
+    """A sweep from Python says on stderr what it runs, as `longtime run` does (lines where
+    stderr is no terminal); ``progress=False`` says nothing; stdout stays empty."""
+    small = dict(executor="serial", dt=[0.02, 0.01], t_final=2.0, processes=1)
+    assert len(longtime.sweep("kepler", "verlet", **small)) == 2
+    out = capsys.readouterr()
+    assert "longtime: cells: started, 0 of 2 cells" in out.err and "cells: done (2 cells" in out.err
+    assert out.out == ""
+    assert len(longtime.sweep("kepler", "verlet", progress=False, **small)) == 2
+    assert capsys.readouterr().err == ""

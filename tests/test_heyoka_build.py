@@ -74,6 +74,15 @@ def test_a_compile_past_its_time_is_given_up(no_heyoka_cache):
     assert time.perf_counter() - start < 2.0
 
 
+def test_a_deadline_already_past_gives_up_at_once_and_says_so():
+    # a caller passes the seconds left before its deadline: past it, that is negative
+    problem = registry.problems()["kepler"]()
+    with pytest.raises(heyoka_build.CompileTimeout) as info:
+        heyoka_build.taylor_adaptive(problem, problem.u0.copy(), timeout_s=-1.2)
+    assert "time limit was reached before heyoka's compile of kepler" in str(info.value)
+    assert "-1.2" not in str(info.value)
+
+
 @pytest.mark.parametrize("name", ["kepler", "figure-eight"])
 def test_compact_mode_is_the_same_taylor_method(name):
     # compact mode changes how heyoka's code is laid out, not the method: at the reference's

@@ -25,3 +25,19 @@ def test_import_and_plugin_discovery_compile_nothing(tmp_path):
     assert int(n_problems) >= 12 and int(n_schemes) >= 21
     assert int(n_dispatchers) > 20  # the probe does see the kernels
     assert compiled.strip() == "[]"
+
+
+def test_plugin_discovery_leaves_kdvs_fft_until_a_kdv_is_made():
+    # every problem's module is imported to register it: kdv's FFT (rocket-fft, scipy.fft)
+    # is imported with the first KdV, and its kernels then find it
+    probe = textwrap.dedent('''
+        import sys
+        from longtime.core import registry
+        registry.problem_class("kepler")
+        print(sorted(m for m in ("rocket_fft", "scipy.fft") if m in sys.modules))
+        registry.problem_class("kdv")(d=8)
+        print(sorted(m for m in ("rocket_fft", "scipy.fft") if m in sys.modules))
+    ''')
+    res = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.split("\n")[:2] == ["[]", "['rocket_fft', 'scipy.fft']"]

@@ -106,6 +106,34 @@ def test_page_leads_with_the_verdict(page):
     assert text.find("<figcaption>Run 1: the reference workload") > text.find('<h2 id="about">')
 
 
+def test_the_answers_say_why_which_library_names_another_setting(page):
+    """The Answers (predicted a hundred times past the runs) and "Which library" (measured at
+    the runs' final time) ask different questions: where the library table's cheapest setting
+    is not the answer, the Answers section names it and why; where it is, nothing is added."""
+    from longtime.predict.decision import verdicts
+    from longtime.reporting.libraries import cheapest_kept
+    from longtime.reporting.page_answers import example_answer, why_not_library_best
+
+    path, rows = page
+    text = path.read_text()
+    answers = text[text.find('<h2 id="answers">'):text.find('<h2 id="libraries">')]
+    for p, v in verdicts(rows).items():
+        mine = [r for r in rows if r["problem"] == p]
+        found = example_answer(v)
+        library = cheapest_kept(mine)
+        if found is None or library is None:
+            continue
+        t, h, d = found
+        note = f"{p}: Which library&#x27;s cheapest, {library['integrator']}"
+        why = why_not_library_best(v, t, h, d.best, mine)
+        assert (note in answers) == (why is not None), (p, why)
+        # an answer other than the library's setting: the line names that setting and a reason
+        other = next(c for c in v.candidates if c.scheme != library["integrator"])
+        said = why_not_library_best(v, t, h, other, mine)
+        assert said.startswith(f"Which library's cheapest, {library['integrator']}"), said
+        assert re.search(r"not predicted up to T|predicted O\(1\)|past \d|dearer than|no candidate", said), said
+
+
 def _browser():
     found = next((shutil.which(b) for b in BROWSERS if shutil.which(b)), None)
     if found is None:

@@ -565,3 +565,18 @@ def test_a_run_short_against_its_problems_horizon_is_not_extrapolated():
     # a problem not installed here: no horizon to judge by, the class's factor alone
     elsewhere = {**short, "problem": "not-installed-here"}
     assert S.settings([elsewhere], S.measure([elsewhere]))[0].reach == 500.0
+
+
+def test_an_answers_parameters_run_it_again_as_its_run_command_does():
+    """``Recommendation.parameters``: the answer's setting as keywords of longtime.solve, the
+    parameters its `longtime run` command names (a recorded one its scheme does not take left
+    out), its other settings beside them; {} without an answer."""
+    rec = R.recommend([LINEAR], "harmonic", 1e-3, 1e3)
+    assert rec.answered and rec.scheme == "rk4" and rec.parameters == {"dt": 0.1}
+    assert D.run_command(rec.decision.best, 1e3) == ["longtime", "run", "-p", "harmonic", "-i", "rk4",
+                                                     "--dt", "0.1", "--t-final", "1000"]
+    other = {**LINEAR, "order": 12.0, "settings": '{"w": 2.0}'}  # rk4 takes no order
+    rec = R.recommend([other], "harmonic", 1e-3, 1e3)
+    assert rec.parameters == {"dt": 0.1, "w": 2.0}
+    assert D.run_command(rec.decision.best, 1e3)[6:] == ["--dt", "0.1", "--set", "w=2.0", "--t-final", "1000"]
+    assert not R.recommend([{**LINEAR, "status": "diverged"}], "harmonic", 1e-3, 1e3).parameters

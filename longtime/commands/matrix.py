@@ -18,7 +18,10 @@ from longtime.predict.checks import CHECKS
 
 # ``longtime matrix --quick``: a first answer in about a minute (warm caches): two problems
 # whose answers the report states, the schemes of the main families (splitting, explicit and
-# implicit Runge-Kutta, adaptive, the Taylor reference), each over its default sweep
+# implicit Runge-Kutta, adaptive, the Taylor reference), each over its default sweep. Its cells
+# cost little next to the fixed work of a run, so what it leaves out is that work: the fresh
+# processes that time cells again (each cell is timed in the worker that ran it) and the
+# results page (`--html DIR` asks for it; `longtime report --html DIR` writes it later)
 QUICK_PROBLEMS = ("harmonic", "kepler")
 QUICK_SCHEMES = ("verlet", "yoshida6", "rk4", "gauss4", "rk45", "dop853", "heyoka")
 
@@ -28,9 +31,10 @@ def add_parser(subparsers) -> None:
     add_selection(p, required=False)
     p.add_argument("--quick", action="store_true",
                    help=f"a first answer in about a minute: {', '.join(QUICK_PROBLEMS)} x "
-                        f"{', '.join(QUICK_SCHEMES)} over the default sweep (-p and -i replace them), no "
-                        f"ensembles and no checks unless --checks asks; `longtime matrix` without it runs the "
-                        f"full matrix")
+                        f"{', '.join(QUICK_SCHEMES)} over the default sweep (-p and -i replace them), each "
+                        f"cell timed in its worker only unless --processes asks for more, no results page "
+                        f"unless --html asks, no ensembles and no checks unless --checks asks; `longtime "
+                        f"matrix` without it runs the full matrix")
     p.add_argument("--resume", type=int, nargs="?", const=0, default=None, metavar="RUN_ID",
                    help="finish an interrupted run (default: the newest incomplete run of matrix or run)")
     p.add_argument("--no-progress", action="store_true")
@@ -76,14 +80,26 @@ def matrix_cells(args) -> tuple[list, list]:
 
 
 def quick(args) -> None:
-    """--quick: the quick matrix's problems and schemes where -p and -i do not name them, no
-    checks where --checks does not ask for them, no ensembles."""
+    """--quick: the quick matrix's problems and schemes where -p and -i do not name them, one
+    timing process where --processes does not ask for more, no results page where --html
+    does not ask for one, no checks where --checks does not ask for them, no ensembles."""
     if args.resume is not None:
         raise InputError("--quick and --resume: --resume finishes the run it names as it was planned")
     args.problem = args.problem or list(QUICK_PROBLEMS)
     args.integrator = args.integrator or list(QUICK_SCHEMES)
     args.checks = 0 if args.checks is None else args.checks
     args.no_ensemble = True
+    args.processes = args.processes or 1
+    args.no_html = args.no_html or args.html is None
+
+
+def quick_text(args) -> str:
+    """What --quick runs and what it leaves out, and where the rest is."""
+    left = [what for what, out in (("timing processes (--processes N)", args.processes == 1),
+                                   ("results page (--html DIR)", args.no_html),
+                                   ("checks (--checks N)", not args.checks)) if out]
+    return (f"quick matrix: {', '.join(args.problem)} x {', '.join(args.integrator)}"
+            + (f"; no {', no '.join(left)}" if left else "") + "; `longtime matrix` runs the full one")
 
 
 def cmd_matrix(args) -> int:
@@ -96,6 +112,8 @@ def cmd_matrix(args) -> int:
     if args.timing is None:  # the main job times by need (longtime.execution.processes.by_need)
         options = dataclasses.replace(options, retime="need")
     shown = Progress(on=not args.no_progress)
+    if args.quick:
+        shown.say(quick_text(args))
     page_wanted = not args.no_report and not args.no_html
     spec = MainJobSpec(selection=matrix_selection(args) if args.resume is None else Selection(), resume=args.resume,
                        executor=executor, options=options, db=args.db, command=command_line(args),

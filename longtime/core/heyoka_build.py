@@ -48,8 +48,12 @@ def compact_mode(problem: Problem, fp_type: Any = np.float64, reference: bool = 
 def taylor_adaptive(problem: Problem, state: np.ndarray, timeout_s: float | None = None, **kwargs: Any):
     """heyoka.taylor_adaptive for ``problem``'s heyoka system from ``state`` (keyword
     arguments go to heyoka; ``compact_mode`` defaults to ``compact_mode(problem, fp_type)``).
-    Raises CompileTimeout after ``timeout_s`` seconds (None: no limit); KeyboardInterrupt
+    Raises CompileTimeout after ``timeout_s`` seconds (None: no limit; 0 or less: at once,
+    the caller's deadline having passed); KeyboardInterrupt
     reaches the caller while it waits."""
+    if timeout_s is not None and timeout_s <= 0:  # a deadline already past: no compile to give up on
+        raise CompileTimeout(f"the time limit was reached before heyoka's compile of {problem.name} (dimension "
+                             f"{problem.dim}) began")
     import heyoka as hy
 
     variables, rhs = problem.heyoka_system()

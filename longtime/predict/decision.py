@@ -171,27 +171,34 @@ def deciding_run(s: Setting, horizon: float, db: str | None = None) -> str:
     return shlex.join(run_command(s, max(horizon, 10 * s.span), db))
 
 
-def run_command(s: Setting, t_final: float, db: str | None = None) -> list[str]:
-    """``longtime run`` of ``s``'s setting to ``t_final``, as arguments: the row's parameters
-    that its scheme takes (a recorded one it does not, heyoka's order, is left out), its
-    other settings."""
+def run_settings(row: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The parameters that run ``row``'s setting again: its swept ones that its scheme takes
+    (a recorded one it does not, heyoka's order, is left out) and its other settings."""
     from longtime.core import registry
 
-    row = s.row
     try:
         takes = set(registry.integrator_class(row["integrator"]).parameters)
     except Exception:  # a scheme no longer registered: every recorded parameter
         takes = set(ROW_PARAMETERS)
-    parts = ["longtime", "run", "-p", row["problem"], "-i", row["integrator"]]
-    for k in ROW_PARAMETERS:
-        v = row.get(k)
-        if positive(v) and k in takes:
-            parts += [flag(k), f"{int(v)}" if k == "order" else f"{v:g}"]
-    if row.get("settings"):
-        import json
+    given = {k: int(row[k]) if k == "order" else row[k] for k in ROW_PARAMETERS
+             if positive(row.get(k)) and k in takes}
+    if not row.get("settings"):
+        return given, {}
+    import json
 
-        for k, v in json.loads(row["settings"]).items():
-            parts += ["--set", f"{k}={v}"]
+    return given, dict(json.loads(row["settings"]))
+
+
+def run_command(s: Setting, t_final: float, db: str | None = None) -> list[str]:
+    """``longtime run`` of ``s``'s setting to ``t_final``, as arguments: the row's parameters
+    that its scheme takes (a recorded one it does not, heyoka's order, is left out), its
+    other settings."""
+    parts = ["longtime", "run", "-p", s.row["problem"], "-i", s.row["integrator"]]
+    given, others = run_settings(s.row)
+    for k, v in given.items():
+        parts += [flag(k), f"{v}" if k == "order" else f"{v:g}"]
+    for k, v in others.items():
+        parts += ["--set", f"{k}={v}"]
     parts += ["--t-final", f"{t_final:g}"]
     if db:
         parts += ["--db", db]

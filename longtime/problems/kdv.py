@@ -55,8 +55,6 @@ import math
 
 import numba
 import numpy as np
-import scipy.fft
-from rocket_fft.lowlevel import c2r, r2c
 
 from longtime.core.drivers import copy_into
 from longtime.core.params import InputError, Param
@@ -78,7 +76,20 @@ _AXES = np.zeros(1, dtype=np.int64)  # the transforms run along axis 0
 
 # ---------------------------------------------------------------- compiled FFT kernels
 # rocket-fft's low-level r2c / c2r (pocketfft inside) write into arrays we pass, at any
-# length n (not only powers of two)
+# length n (not only powers of two). They are imported with the first KdV made (``_load_fft``),
+# not with the module: the registry imports every problem's module, and rocket-fft with
+# scipy.fft would be most of that import's time for every command, kdv run or not. The
+# kernels read them as globals when numba compiles them, which needs a KdV's params first.
+c2r = r2c = None
+
+
+def _load_fft() -> None:
+    global c2r, r2c
+    if c2r is None:
+        from rocket_fft.lowlevel import c2r as _c2r
+        from rocket_fft.lowlevel import r2c as _r2c
+
+        c2r, r2c = _c2r, _r2c
 
 
 @numba.njit(cache=True)
@@ -185,6 +196,8 @@ def _taylor(t0, u, params, coeffs, work):
 
 def _grid_size(modes: int, dealias: str) -> int:
     """The smallest fast FFT length on which the kept product modes are alias-free."""
+    import scipy.fft
+
     cutoff = modes if dealias == "3/2" else (2 * modes) // 3
     return scipy.fft.next_fast_len(max(3 * cutoff + 1, 2 * modes + 1, 8), real=True)
 
@@ -218,6 +231,7 @@ class KdV(Problem):
         d = self.settings["d"]
         if d % 2:
             raise InputError(f"problem 'kdv': d={d} is not valid: must be even (d = 2M modes)")
+        _load_fft()
         self.modes = d // 2
         self.grid = _grid_size(self.modes, self.settings["dealias"])
         self.cutoff = self.modes if self.settings["dealias"] == "3/2" else (2 * self.modes) // 3
@@ -251,12 +265,16 @@ class KdV(Problem):
 
     def values(self, U, n_points=None):
         """u(x_j) at x_j = j X / n_points, for states U (n, dim)."""
+        import scipy.fft
+
         n_points = n_points or 2 * self.modes + 1
         C = self.to_coefficients(U)
         return scipy.fft.irfft(C * n_points, n=n_points, axis=1)
 
     def soliton_coefficients(self):
         """Fourier coefficients of the (periodically prolonged) soliton u0, |m| <= M."""
+        import scipy.fft
+
         n_fine = max(4096, 1 << (8 * self.modes).bit_length())
         x = PERIOD_X * np.arange(n_fine) / n_fine
         x = np.where(x >= PERIOD_X / 2, x - PERIOD_X, x)
@@ -282,6 +300,8 @@ class KdV(Problem):
         ux2 = np.sum((self.wavenumbers * np.abs(C * self.sigma)) ** 2, axis=1)
         # u^3 has modes up to 3M: its mean is exact on any grid of more than 3M points; the
         # next fast FFT length is taken (3M+2 itself may have a large prime factor)
+        import scipy.fft
+
         n3 = scipy.fft.next_fast_len(3 * self.modes + 2, real=True)
         chunk = max(1, 2_000_000 // n3)  # bounded memory for long sample sets
         cube = np.concatenate([PERIOD_X * np.mean(self.values(U[i:i + chunk], n3) ** 3, axis=1)

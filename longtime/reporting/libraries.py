@@ -53,8 +53,7 @@ def _cell(rows: list[dict[str, Any]], t_main: float, target: float, m: Measure |
     if not main:
         return f"only shorter runs (t_final {formatted('t_final', min(r['t_final'] for r in ran))}: the budget)", None
     errors = {id(r): error_kept(r, m) if m is not None else None for r in main}
-    kept = [r for r in main if not r.get("solution_lost") and positive(r.get("cpu_s"))
-            and errors[id(r)] is not None and errors[id(r)] <= target]
+    kept = _kept(main, target, errors)
     if not kept:
         measured = [r for r in main if errors[id(r)] is not None]
         if not measured:
@@ -66,6 +65,24 @@ def _cell(rows: list[dict[str, Any]], t_main: float, target: float, m: Measure |
     cpu = formatted("cpu_s", r["cpu_s"])
     text = f"{r['integrator']} {setting(r)}: {cpu} s ({errors[id(r)]:.1g})".replace("  ", " ")
     return text, float(r["cpu_s"])
+
+
+def _kept(main: list[dict[str, Any]], target: float, errors: dict[int, float | None]) -> list[dict[str, Any]]:
+    """The rows of ``main`` that keep the solution and ``target`` (their ``errors``, by id) and have a CPU time."""
+    return [r for r in main if not r.get("solution_lost") and positive(r.get("cpu_s"))
+            and errors[id(r)] is not None and errors[id(r)] <= target]
+
+
+def cheapest_kept(rows: list[dict[str, Any]], target: float = TARGET) -> dict[str, Any] | None:
+    """The cheapest row of one problem's ``rows``, of any library, that keeps ``target`` at the
+    problem's main final time: the "best" entry of its row in ``library_table`` (None: none)."""
+    t_main = main_t_final(rows)
+    m = solution_measure(rows)
+    if t_main is None or m is None:
+        return None
+    main = [r for r in rows if r.get("status") == "ok" and r.get("t_final") == t_main]
+    kept = _kept(main, target, {id(r): error_kept(r, m) for r in main})
+    return min(kept, key=lambda r: r["cpu_s"]) if kept else None
 
 
 def _too_slow(slow: list[dict[str, Any]], t_main: float) -> str:

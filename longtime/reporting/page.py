@@ -37,6 +37,12 @@ from longtime.reporting.figures.results import figures_drawing
 from longtime.reporting.figures.style import styles
 from longtime.reporting.figures_ahead import FiguresAhead, stability_schemes
 from longtime.reporting.markup import CSS, SCRIPT, escape, num, slug, table
+from longtime.reporting.page_answers import (
+    answers_section,
+    example_answer,
+    libraries_section,
+    no_answer_text,
+)
 from longtime.reporting.page_tables import (
     capability_matrix,
     chaos_table,
@@ -107,7 +113,7 @@ def _verdict_section(p: str, v, mine: list[dict], style: dict | None = None) -> 
         return head + (f'<p class="note">No verdict: no ok row with an error, a growth class and a CPU time '
                        f'(<code>longtime matrix -p {escape(p)}</code> measures them).</p>')
     out = [head]
-    example = _example(v)
+    example = example_answer(v)
     if example:
         t, h, d = example
         b, r = d.best, d.runner_up
@@ -119,7 +125,7 @@ def _verdict_section(p: str, v, mine: list[dict], style: dict | None = None) -> 
                    f'<span class="note">Any other target and horizon: the map below, or <code>longtime recommend -p '
                    f'{escape(p)} --error E --horizon T</code>.</span></p>')
     else:
-        out.append(f'<p class="answer">{escape(_no_answer(v))}.</p>')
+        out.append(f'<p class="answer">{escape(no_answer_text(v))}.</p>')
     fig = winner_map_svg(v, style)
     if fig:
         out.append(f'<figure class="plot">{fig}<figcaption>Winner map: for each target ({escape(v.measure.text)}) '
@@ -156,72 +162,6 @@ def _verdict_section(p: str, v, mine: list[dict], style: dict | None = None) -> 
                          "<ul>" + "".join(f"<li>{escape(check_text(c))}</li>" for c in failed_first(v.checks))
                          + "</ul>", open_=check_counts(v.checks)["failed"] > 0))
     return "".join(out)
-
-
-def _example(v):
-    """(target, horizon, decision) of a verdict's example answer: at a hundred times the
-    runs' final time, 1e-6 where predicted (else the middle of the targets predicted there);
-    None where no target is predicted there."""
-    h = v.horizons[min(2, len(v.horizons) - 1)]
-    met = [t for t in v.targets if v.grid[(t, h)].best is not None]
-    if not met:
-        return None
-    t = 1e-6 if 1e-6 in met else met[len(met) // 2]
-    return t, h, v.grid[(t, h)]
-
-
-def _no_answer(v) -> str:
-    """Why a verdict has no example answer: past the predictability horizon, or no setting."""
-    h = v.horizons[min(2, len(v.horizons) - 1)]
-    chaotic = next((d for (_, h_), d in v.grid.items() if h_ == h and d.limit is not None), None)
-    if chaotic is not None:  # past the predictability horizon: no pointwise answer, and why
-        return f"No pointwise answer up to T = {h:.3g}: {chaotic.limit.text()}"
-    return f"No setting is predicted to keep any target up to T = {h:.3g}"
-
-
-def _answers_section(problems: list[str], found: dict) -> str:
-    """The first screen's answer: one row per problem, its example answer (the verdict's
-    first line) with its CPU and the runner-up's ratio; the verdict below says more."""
-    body = []
-    for p in problems:
-        v = found[p]
-        link = f'<a href="#verdict-{slug(p)}">{escape(p)}</a>'
-        if v.measure is None or not v.candidates:
-            body.append([link, '<td colspan="5">no verdict: no ok row with an error, a growth class and a CPU '
-                               "time</td>"])
-            continue
-        example = _example(v)
-        if example is None:
-            body.append([link, f'<td colspan="5">{escape(_no_answer(v))}</td>'])
-            continue
-        t, h, d = example
-        b, r = d.best, d.runner_up
-        body.append([link, f"<td>{escape(v.measure.field)} &le; {t:.0e} up to T = {h:.3g}</td>",
-                     f"<td><b>{escape(b.text)}</b></td>", f'<td class="num">{b.cpu_at(h):.3g}</td>',
-                     f'<td class="num">{b.error_at(h):.2g}</td>',
-                     f"<td>{escape(r.text)} (x{r.cpu_at(h) / b.cpu_at(h):.3g})</td>" if r else "<td>none</td>"])
-    rows = "".join("<tr>" + (f"<td>{c[0]}</td>" + "".join(c[1:])) + "</tr>" for c in body)
-    head = "".join(f"<th>{h}</th>" for h in ("problem", "target", "cheapest setting", "CPU s", "predicted error",
-                                             "runner-up (its CPU)"))
-    return (f'<h2 id="answers">Answers</h2><table class="answers"><tr>{head}</tr>{rows}</table>'
-            '<p class="note">Per problem, the cheapest stored setting predicted to keep the target up to T '
-            '(a hundred times the runs\' final time); any other target and horizon: <a href="#verdict">the '
-            "verdicts</a> below.</p>")
-
-
-def _libraries_section(rows: list[dict]) -> str:
-    """Which library for each problem: its cheapest measured setting that keeps the target."""
-    from longtime.reporting.libraries import TARGET, library_table
-
-    header, body = library_table(rows)
-    return (f'<h2 id="libraries">Which library</h2><p class="note">Per problem and library, the cheapest ok '
-            f"setting measured to keep its solution error (max_error: the largest error of any block of the "
-            f"state over [0, T], relative to its motion) &le; {TARGET:g} over the problem's main run (T: the "
-            f"final time most of its rows ran to), its CPU seconds, its error and its CPU as a multiple of the "
-            f"cheapest library's; or why the library has none (too slow: a run stopped at the time limit, the "
-            f"seconds it ran and how far it got, or its cheapest setting estimated past a cell's budget). "
-            f"Measured rows only, no extrapolation.</p>"
-            + table(header, body))
 
 
 def _checks_section(checks: list[dict]) -> str:
@@ -374,7 +314,7 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
            + ('<a href="#cards">scheme cards</a>' if cards else "")
            + '<a href="#evidence">evidence</a>' + ('<a href="#history">history</a>' if history else "")
            + '<a href="#capabilities">capability matrix</a><a href="#about">run and machine</a></nav>',
-           _answers_section(problems, found), _libraries_section(rows),
+           answers_section(problems, found, rows), libraries_section(rows),
            '<h2 id="verdict">Verdict</h2>'
            '<p class="note">Per problem, the cheapest stored setting predicted to keep a target error '
            'up to a horizon T: '

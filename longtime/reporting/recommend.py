@@ -15,7 +15,7 @@ from longtime.core.rowtext import setting
 from longtime.core.status import Status
 from longtime.measure.instability import Growth
 from longtime.predict.checks import CHECK_COST_FACTOR, CHECK_ERROR_FACTOR, check_holds
-from longtime.predict.decision import Decision, decide, predictability, run_command
+from longtime.predict.decision import Decision, decide, predictability, run_command, run_settings
 from longtime.predict.settings import LOST, Measure, Setting, measure, settings
 
 # ``longtime recommend``'s exit code where the store determines no answer (no setting is
@@ -48,6 +48,15 @@ class Recommendation:
     @property
     def setting(self) -> str | None:
         return setting(self.decision.best.row) if self.decision.best else None
+
+    @property
+    def parameters(self) -> dict[str, Any]:
+        """The answer's setting as keywords of ``longtime.solve`` (``dt``, ``tol``, ``order``,
+        and its other settings), to run it again; {} without an answer."""
+        if not self.decision.best:
+            return {}
+        given, others = run_settings(self.decision.best.row)
+        return {**others, **given}
 
     @property
     def predicted_error(self) -> float | None:
