@@ -36,6 +36,7 @@ from longtime.execution.cells import (
     expand,
     run_cell,
 )
+from longtime.measure.orders import Order
 
 # the memory a cell may use unless memory_limit= says otherwise: longtime run's default
 DEFAULT_MEMORY_LIMIT = f"{limits.MEMORY_SHARE:.0%}"
@@ -323,63 +324,6 @@ def records(rows: Any, caller: str = "rows") -> list[dict[str, Any]]:
 
 def _missing(v: Any) -> bool:
     return v is None or (isinstance(v, float) and v != v)
-
-
-@dataclass(frozen=True)
-class Order:
-    """The observed order of one sweep (one problem, one scheme, one final time and setting):
-    ``value`` (the least-squares slope of log error against log step; None when no order
-    could be fitted, ``reason`` says why), ``ci`` its 95 % half-width (an order
-    needs 3 points), ``points`` the (step, error) pairs used, ``dropped`` the (step, error, why)
-    pairs left out (floors, above 0.1, pre-asymptotic), ``declared`` the scheme's declared
-    order and ``flag`` (a determined order misses it beyond its interval and 0.1, and its
-    local slopes do not reach it; an
-    undetermined one is never flagged), ``slopes`` the local slopes between successive
-    points above the floors (by increasing step). An undetermined order (the local slopes
-    still trend: pre-asymptotic) has ``value`` None and its ``reason`` lists the slopes."""
-
-    problem: str
-    scheme: str
-    value: float | None
-    ci: float | None
-    points: list[tuple[float, float]]
-    dropped: list[tuple[float, float, str]]
-    declared: int | None
-    flag: bool = False
-    error_field: str | None = None
-    variable: str | None = None
-    t_final: float | None = None
-    settings: str | None = None
-    reason: str | None = None
-    slopes: list[float] = field(default_factory=list)
-
-    @property
-    def determined(self) -> bool:
-        return self.value is not None
-
-    @property
-    def interval(self) -> tuple[float, float] | None:
-        if self.value is None or self.ci is None:
-            return None
-        return (self.value - self.ci, self.value + self.ci)
-
-    def __str__(self) -> str:
-        head = f"{self.scheme} on {self.problem}: "
-        if self.value is None:
-            return head + f"order undetermined ({self.reason})" + (
-                f", declared {self.declared}" if self.declared is not None else "")
-        from longtime.measure.orders import local_slopes, order_text
-
-        text = head + "observed order " + order_text(self.value, self.ci, len(self.points),
-                                                     local_slopes(self.points), 3)  # +- its 95 % interval
-        text += f", declared {self.declared}" if self.declared is not None else ""
-        if self.flag:
-            text += " (MISSES the declared order beyond its interval and 0.1)"
-        text += f"; {len(self.points)} points used ({self.error_field} against {self.variable} "
-        text += ", ".join(f"{x:.3g}" for x, _ in self.points) + ")"
-        if self.dropped:
-            text += "; dropped: " + ", ".join(f"{self.variable}={x:.3g} ({why})" for x, _, why in self.dropped)
-        return text
 
 
 def orders(rows: Any) -> list[Order]:

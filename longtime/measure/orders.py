@@ -41,10 +41,11 @@ A determined order is the least-squares slope over the range with a 95 % interva
 t on the slope's standard error). It is flagged when it differs from the declared order by
 more than its interval and ``ORDER_TOLERANCE``, and its local slopes, widened by as much, do
 not reach the declared order (``_flagged``). An undetermined order is never flagged.
-``order_text`` is the one way an order is printed.
+``order_text`` is the one way an order is printed; ``Order`` is one sweep's fit as the API returns it.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any, Iterable
 
@@ -397,3 +398,58 @@ def left_out(rows: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
 def left_out_text(entries: list[dict[str, Any]]) -> str:
     """'verlet (every point above 0.1); rk4 (no ok row (3 diverged))'."""
     return "; ".join(f"{m['integrator']} ({m['reason']})" for m in entries)
+
+
+@dataclasses.dataclass(frozen=True)
+class Order:
+    """The observed order of one sweep (one problem, one scheme, one final time and setting):
+    ``value`` (the least-squares slope of log error against log step; None when no order
+    could be fitted, ``reason`` says why), ``ci`` its 95 % half-width (an order
+    needs 3 points), ``points`` the (step, error) pairs used, ``dropped`` the (step, error, why)
+    pairs left out (floors, above 0.1, pre-asymptotic), ``declared`` the scheme's declared
+    order and ``flag`` (a determined order misses it beyond its interval and 0.1, and its
+    local slopes do not reach it; an
+    undetermined one is never flagged), ``slopes`` the local slopes between successive
+    points above the floors (by increasing step). An undetermined order (the local slopes
+    still trend: pre-asymptotic) has ``value`` None and its ``reason`` lists the slopes."""
+
+    problem: str
+    scheme: str
+    value: float | None
+    ci: float | None
+    points: list[tuple[float, float]]
+    dropped: list[tuple[float, float, str]]
+    declared: int | None
+    flag: bool = False
+    error_field: str | None = None
+    variable: str | None = None
+    t_final: float | None = None
+    settings: str | None = None
+    reason: str | None = None
+    slopes: list[float] = dataclasses.field(default_factory=list)
+
+    @property
+    def determined(self) -> bool:
+        return self.value is not None
+
+    @property
+    def interval(self) -> tuple[float, float] | None:
+        if self.value is None or self.ci is None:
+            return None
+        return (self.value - self.ci, self.value + self.ci)
+
+    def __str__(self) -> str:
+        head = f"{self.scheme} on {self.problem}: "
+        if self.value is None:
+            return head + f"order undetermined ({self.reason})" + (
+                f", declared {self.declared}" if self.declared is not None else "")
+        text = head + "observed order " + order_text(self.value, self.ci, len(self.points),
+                                                     local_slopes(self.points), 3)  # +- its 95 % interval
+        text += f", declared {self.declared}" if self.declared is not None else ""
+        if self.flag:
+            text += " (MISSES the declared order beyond its interval and 0.1)"
+        text += f"; {len(self.points)} points used ({self.error_field} against {self.variable} "
+        text += ", ".join(f"{x:.3g}" for x, _ in self.points) + ")"
+        if self.dropped:
+            text += "; dropped: " + ", ".join(f"{self.variable}={x:.3g} ({why})" for x, _, why in self.dropped)
+        return text

@@ -80,7 +80,7 @@ def cheapest_kept(rows: list[dict[str, Any]], target: float = TARGET) -> dict[st
     m = solution_measure(rows)
     if t_main is None or m is None:
         return None
-    main = [r for r in rows if r.get("status") == "ok" and r.get("t_final") == t_main]
+    main = [r for r in rows if r.get("status") == Status.OK and r.get("t_final") == t_main]
     kept = _kept(main, target, {id(r): error_kept(r, m) for r in main})
     return min(kept, key=lambda r: r["cpu_s"]) if kept else None
 
