@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from longtime.core.fmt import positive
+from longtime.core.status import Status
 from longtime.predict.settings import SOLUTION_FIELDS, Setting
 
 # the default wall-time budget of the runs (``longtime recommend --budget``)
@@ -120,7 +121,7 @@ def _judge(s: Setting, row: dict[str, Any], field: str, target: float, horizon: 
     """The error ``field`` the run measured up to ``horizon`` (only where its reference was
     trusted to the horizon) and whether it keeps ``target``."""
     cpu = row.get("cpu_s") if positive(row.get("cpu_s")) else None
-    if row.get("status") != "ok":
+    if row.get("status") != Status.OK:
         return Measured(s, row, None, cpu, False, f"{row.get('status')}: {row.get('message') or ''}".strip(": "))
     error = row.get(field)
     if not positive(error):

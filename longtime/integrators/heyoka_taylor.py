@@ -24,6 +24,7 @@ from longtime.core import heyoka_build
 from longtime.core.integrator import Integrator
 from longtime.core.params import Param
 from longtime.core.problem import BLOWUP_MESSAGE
+from longtime.core.status import Status, time_limit_at
 from longtime.core.trajectory import Trajectory
 
 # compiled taylor_adaptive objects, by (problem identity, tol, high_accuracy)
@@ -87,7 +88,7 @@ class Heyoka(Integrator):
         try:
             ta = self.compiled(problem, None if deadline is None else deadline - time.monotonic())
         except heyoka_build.CompileTimeout as exc:
-            return Trajectory(status="timeout", message=f"time limit reached before the first step: {exc}",
+            return Trajectory(status=Status.TIMEOUT, message=f"time limit reached before the first step: {exc}",
                               t=grid[:1], u=problem.u0[None, :].copy(), cpu_s=0.0, wall_s=0.0)
         if deadline is not None:
             stopped = self._guard(ta, problem, grid, deadline, self.fp)
@@ -102,7 +103,7 @@ class Heyoka(Integrator):
             outcome, min_h, max_h, nsteps, _, states = ta.propagate_grid(grid.astype(self.fp))
             cpu, wall = time.process_time() - c0, time.perf_counter() - w0
         except Exception as exc:  # heyoka raises on invalid grids or states
-            return Trajectory(status="failed", message=f"heyoka: {exc}", t=grid[:1],
+            return Trajectory(status=Status.FAILED, message=f"heyoka: {exc}", t=grid[:1],
                               u=problem.u0[None, :].copy(), cpu_s=0.0, wall_s=0.0)
         states = np.asarray(states, dtype=float)
         # heyoka fills the grid points it did not reach with NaN; beyond the problem's bound
@@ -111,10 +112,10 @@ class Heyoka(Integrator):
         n, status, message = grid.size, "ok", ""
         if first is not None:
             n = first + 1  # keep the first bad sample, as the drivers do
-            status = "diverged"
+            status = Status.DIVERGED
             message = BLOWUP_MESSAGE.format(t=grid[n - 1])
-        if outcome != hy.taylor_outcome.time_limit and status == "ok":
-            status, message = "failed", f"heyoka stopped with outcome {outcome} at t={float(ta.time):.6g}"
+        if outcome != hy.taylor_outcome.time_limit and status == Status.OK:
+            status, message = Status.FAILED, f"heyoka stopped with outcome {outcome} at t={float(ta.time):.6g}"
             n = max(1, min(n, int(np.searchsorted(grid, float(ta.time), side="right"))))
         steps = int(nsteps)
         return Trajectory(
@@ -145,6 +146,6 @@ class Heyoka(Integrator):
         if reached > grid[n - 1]:  # where it got, between grid times
             t, u = np.r_[t, reached], np.vstack([u, np.asarray(ta.state, dtype=float)])
         # the cost of what it did, timed with the guard's callback (the row is a timeout)
-        return Trajectory(status="timeout", message=f"time limit reached at t={reached:.6g}", t=t, u=u,
+        return Trajectory(status=Status.TIMEOUT, message=time_limit_at(reached), t=t, u=u,
                           cpu_s=cpu, wall_s=wall, counters={"steps": steps},
                           min_dt=float(min_h) if steps else None, max_dt=float(max_h) if steps else None)

@@ -39,6 +39,7 @@ import numpy as np
 from longtime.core.integrator import Integrator
 from longtime.core.params import Param
 from longtime.core.problem import BLOWUP_MESSAGE
+from longtime.core.status import Status, time_limit_at
 from longtime.core.stepping import cached_sample_steps
 from longtime.core.trajectory import Trajectory
 
@@ -128,10 +129,10 @@ class Rebound(Integrator):
         first = problem.first_blowup(u)
         if first is not None:
             t, u = t[:first + 1], u[:first + 1]
-            status, message = "diverged", "; ".join(m for m in (BLOWUP_MESSAGE.format(t=t[-1]), message) if m)
+            status, message = Status.DIVERGED, "; ".join(m for m in (BLOWUP_MESSAGE.format(t=t[-1]), message) if m)
         # a run that did not finish reports the REBOUND calls and steps of its sampled run
         dt_range = (None, None)
-        if status == "ok":
+        if status == Status.OK:
             with warnings.catch_warnings():  # said once, from the sampled run
                 warnings.simplefilter("ignore")
                 sim, cpu, wall, dt_range = self._timed(problem, t_final)
@@ -139,7 +140,7 @@ class Rebound(Integrator):
             xyz, v = np.zeros((1, sim.N, 3)), np.zeros((1, sim.N, 3))
             sim.serialize_particle_data(xyz=xyz[0], vxvyvz=v[0])
             if not np.array_equal(self.states(problem, xyz, v)[0].view(np.int64), u[-1].view(np.int64)):
-                status = "failed"
+                status = Status.FAILED
                 message = ("non-deterministic: REBOUND's timed run to t_final did not reproduce the "
                            "sampled run's final state bitwise")
         counters = {"steps": int(steps)}
@@ -208,10 +209,10 @@ class ReboundFixed(Rebound):
                     break
                 if (j + 1) % DEADLINE_EVERY == 0 and k < nsteps and self._deadline is not None \
                         and time.monotonic() > self._deadline:
-                    status, message = "timeout", f"time limit reached at t={ts[-1]:.6g}"
+                    status, message = Status.TIMEOUT, time_limit_at(ts[-1])
                     break
         except Exception as exc:  # REBOUND raises on an integration error
-            status, message = "failed", f"REBOUND {self.integrator}: {exc} (t={ts[-1]:.6g})"
+            status, message = Status.FAILED, f"REBOUND {self.integrator}: {exc} (t={ts[-1]:.6g})"
         n = len(ts)
         u = self.states(problem, xyz[:n], v[:n])
         u[0] = problem.u0
@@ -313,16 +314,16 @@ class ReboundIAS15(Rebound):
                 here.stop()  # REBOUND stops after this step
 
         sim.heartbeat = heartbeat
-        status, message = "ok", ""
+        status, message = Status.OK, ""
         c0, w0 = time.process_time(), time.perf_counter()
         try:
             sim.integrate(float(t_final), exact_finish_time=1)
         except Exception as exc:  # REBOUND raises on an integration error
             if not outcome["timeout"]:
-                status, message = "failed", f"REBOUND ias15: {exc} (t={float(sim.t):.6g})"
+                status, message = Status.FAILED, f"REBOUND ias15: {exc} (t={float(sim.t):.6g})"
         cpu, wall = time.process_time() - c0, time.perf_counter() - w0
         if outcome["timeout"]:
-            status, message = "timeout", f"time limit reached at t={ts[-1]:.6g}"
+            status, message = Status.TIMEOUT, time_limit_at(ts[-1])
         t, xyz, v = np.array(ts), np.array(xs), np.array(vs)
         if t.size > max_samples:  # every stride-th step and the last
             stride = -(-(t.size - 1) // (max_samples - 1))

@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from longtime.core.files import NotWritten, write_atomic
+from longtime.core.status import Status
 from longtime.measure.orders import left_out, observed_orders
 from longtime.reporting.figures.results import figures_drawing
 from longtime.reporting.figures.style import styles
@@ -243,7 +244,7 @@ def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: l
         out.append(_fold("Chaos: Lyapunov time and predictability horizons", chaos))
     spread = ensemble_table([e for e in ensembles if e.get("problem") == p])
     if spread:
-        ok = [e for e in ensembles if e.get("problem") == p and e.get("status") == "ok"]
+        ok = [e for e in ensembles if e.get("problem") == p and e.get("status") == Status.OK]
         told = sum(1 for e in ok if e.get("distinguishable"))
         out.append(_fold(f"Chaos: ensemble distance to heyoka's distribution ({len(ok) - told} of {len(ok)} "
                          f"measured schemes as heyoka)", spread, open_=True))
