@@ -223,6 +223,9 @@ def test_a_peer_too_slow_for_the_default_matrix_is_a_timeout_row_which_library_s
     assert "the default matrix's time limit of 0.5 s" in row["message"] and budget.TOO_SLOW in row["message"]
     text, cpu = _cell([row], 1000.0, 1e-6, None)
     assert cpu is None and text.startswith("too slow: scipy-rk23 tol=1e-07 ran ") and " of 1000" in text
+    # on a loaded machine the wall seconds the limit counts are said beside the CPU seconds
+    text, _ = _cell([{**row, "cpu_s": 2.5, "wall_s": 15.0}], 1000.0, 1e-6, None)
+    assert "ran 2.5 s CPU in 15 s wall for t=" in text
 
 
 def test_a_peer_too_slow_whose_run_cannot_be_stopped_is_skipped_with_the_estimate():
