@@ -32,18 +32,28 @@ def test_a_python_stepped_peer_costs_more_per_step_than_a_compiled_loop():
     assert budget.run_seconds(dop) > budget.CELL_BUDGET_S  # fpu's sweep horizon is over the budget
 
 
-def test_fpu_dop853_runs_a_shorter_horizon_the_rest_of_fpu_does_not_move():
+def test_fpu_dop853_runs_fewer_settings_at_the_full_horizon_the_rest_of_fpu_does_not_move():
     full = expand(["fpu"], ["dop853", "verlet", "gauss6"], default_sweep=True)
     cells, moves = budget.fit(full)
     assert [(m.problem, m.integrator) for m in moves] == [("fpu", "dop853")]
-    assert "t_final 1000 -> 200" in moves[0].setting
+    assert moves[0].setting == "tol=1e-12 left out"  # the costliest tolerance, never the horizon
     dop = [c for c in cells if c.integrator == "dop853"]
-    assert len(dop) == 3 and {c.t_final for c in dop} == {200.0}
+    assert [c.integrator_settings["tol"] for c in dop] == [1e-6, 1e-9] and {c.t_final for c in dop} == {1000.0}
     assert all(c.note.startswith(budget.NOTE) and "--full-sweep" in c.note for c in dop)
     assert all(budget.run_seconds(c) <= budget.CELL_BUDGET_S for c in dop)
     others = [c for c in cells if c.integrator != "dop853"]
     assert others == [c for c in full if c.integrator != "dop853"]  # settings and keys unchanged
     assert all(c.note is None for c in others)
+
+
+def test_a_fixed_step_sweep_over_the_budget_runs_a_shorter_horizon(monkeypatch):
+    full = expand(["fpu"], ["verlet"], default_sweep=True)
+    worst = max(budget.run_seconds(c) for c in full)
+    monkeypatch.setattr(budget, "CELL_BUDGET_S", worst / 3)
+    cells, moves = budget.fit(full)
+    assert len(moves) == 1 and moves[0].setting == "t_final 1000 -> 200"
+    assert {c.t_final for c in cells} == {200.0} and len(cells) == len(full)
+    assert all(budget.run_seconds(c) <= budget.CELL_BUDGET_S for c in cells)
 
 
 def test_every_pair_of_the_default_matrix_keeps_a_row():
@@ -55,6 +65,11 @@ def test_every_pair_of_the_default_matrix_keeps_a_row():
     slow = {(c.problem, c.integrator) for c in budgeted if c.skip_reason and c.skip_reason.startswith(budget.TOO_SLOW)}
     assert ran | slow == {(c.problem, c.integrator) for c in full if not c.skip_reason}
     assert ("fpu", "dop853") in ran
+    # a scheme that chooses its own steps runs its problem's sweep horizon, whatever the budget left out
+    for c in budgeted:
+        pcls = registry.problem_class(c.problem)
+        if budget.adaptive(c.integrator) and c.t_final != pcls.long_t_final:
+            assert c.t_final == (pcls.sweep_t_final or pcls.default_t_final), c
     moved = {(m.problem, m.integrator) for m in moves}
     # cells of unmoved pairs are exactly the full sweep's
     keep = [c.key for c in budgeted if (c.problem, c.integrator) not in moved]
@@ -62,11 +77,11 @@ def test_every_pair_of_the_default_matrix_keeps_a_row():
 
 
 def test_full_sweep_restores_the_default_sweep():
-    full, moves = plan("-p", "fpu", "-i", "dop853", "--full-sweep")
-    assert moves == [] and {c.t_final for c in full} == {1000.0} and len(full) == 3
-    assert all(c.note is None for c in full)
-    budgeted, moves = plan("-p", "fpu", "-i", "dop853")
-    assert {c.t_final for c in budgeted} == {200.0} and len(moves) == 1
+    full, moves = plan("-p", "fpu", "-i", "dop853,scipy-rk23", "--full-sweep")
+    assert moves == [] and {c.t_final for c in full} == {1000.0} and len(full) == 6
+    assert all(c.note is None and c.time_limit is None for c in full)
+    budgeted, moves = plan("-p", "fpu", "-i", "dop853,scipy-rk23")
+    assert {c.t_final for c in budgeted} == {1000.0} and len(budgeted) == 3 and len(moves) == 2
 
 
 def test_a_given_final_time_is_never_moved():
@@ -85,19 +100,19 @@ def test_a_long_time_cell_over_its_budget_is_left_out_and_said(monkeypatch):
     assert all("long-time cell" in c.note for c in cells)
 
 
-def test_the_note_is_not_part_of_the_key_and_survives_the_store():
-    cell = Cell("fpu", "dop853", {}, {"tol": 1e-6}, 200.0, note="budget: t_final 1000 -> 200")
+def test_the_note_and_time_limit_are_not_part_of_the_key_and_survive_the_store():
+    cell = Cell("fpu", "dop853", {}, {"tol": 1e-6}, 200.0, note="budget: t_final 1000 -> 200", time_limit=15.0)
     assert cell.key == Cell("fpu", "dop853", {}, {"tol": 1e-6}, 200.0).key
     assert Cell.from_dict(cell.to_dict()) == cell
-    assert "note" not in Cell("fpu", "dop853", {}, {"tol": 1e-6}, 200.0).to_dict()
+    assert not {"note", "time_limit"} & set(Cell("fpu", "dop853", {}, {"tol": 1e-6}, 200.0).to_dict())
 
 
 def test_the_report_names_what_the_budget_moved():
     cells, _ = budget.fit(expand(["fpu"], ["dop853"], default_sweep=True))
     rows = [{**base_row(c), "status": "ok", "message": c.note} for c in cells]
     text = summary(rows, orders=False)
-    assert "moved by the default matrix's budget: dop853 t_final 1000 -> 200" in text
-    assert "--full-sweep runs 1000" in text
+    assert "moved by the default matrix's budget: dop853 tol=1e-12 left out" in text
+    assert "--full-sweep runs them" in text
 
 
 def test_the_moves_are_one_line_as_the_job_starts_and_each_with_full(capsys):
@@ -109,7 +124,7 @@ def test_the_moves_are_one_line_as_the_job_starts_and_each_with_full(capsys):
     say_moves(moves + [left])
     short = capsys.readouterr().err.strip().splitlines()
     assert len(short) == 1 and "moved 2 setting(s)" in short[0] and "1 long-time cell(s) left out" in short[0]
-    assert f"1 over {budget.CELL_BUDGET_S:g} s" in short[0] and "--full" in short[0]
+    assert "1 pair(s) run fewer settings" in short[0] and "--full" in short[0]
     say_moves(moves + [left], full=True)
     listed = capsys.readouterr().err.strip().splitlines()
     assert len(listed) == 3 and listed[1].strip() == moves[0].text() and listed[2].strip() == left.text()

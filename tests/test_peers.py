@@ -182,42 +182,82 @@ def test_the_peers_default_sweep_crosses_the_targets_and_is_budgeted():
 def test_a_peer_over_its_budget_runs_fewer_settings_never_a_shorter_horizon():
     from longtime.execution import budget
 
-    full = expand(["toda", "outer-solar-system", "fpu"], ["scipy-rk23", "scipy-rk45", "cvode-adams"],
+    full = expand(["toda", "outer-solar-system", "fpu"], ["scipy-rk23", "scipy-rk45", "cvode-adams", "dop853"],
                   default_sweep=True)
     cells, moves = budget.fit(full)
     ran = [c for c in cells if not c.skip_reason]
     mains = {p: registry.problem_class(p).sweep_t_final for p in ("toda", "outer-solar-system", "fpu")}
     assert ran and all(c.t_final == mains[c.problem] for c in ran)  # the horizon every scheme runs
-    # every pair keeps at least its cheapest setting, the loosest tolerance, or is too slow for the
-    # default matrix even there: then each of its cells is a skipped row that says so
+    # every pair keeps at least its cheapest setting, the loosest tolerance
     pairs = {(c.problem, c.integrator) for c in full if not c.skip_reason}
-    slow = {(c.problem, c.integrator) for c in cells if c.skip_reason and c.skip_reason.startswith(budget.TOO_SLOW)}
-    assert pairs == {(c.problem, c.integrator) for c in ran} | slow
-    assert not slow & {(c.problem, c.integrator) for c in ran}
+    assert pairs == {(c.problem, c.integrator) for c in ran}
     assert moves and all("left out" in m.setting for m in moves)
     for m in moves:  # what was left out is estimated over the budget, and the cells kept say so
         kept = [c for c in ran if (c.problem, c.integrator) == (m.problem, m.integrator)]
         assert all(budget.NOTE in c.note and m.setting in c.note for c in kept)
-    # the cheapest setting of a pair kept is its loosest tolerance; fpu x scipy-rk23 is estimated
-    # at tens of seconds a run to t = 1000 even there, past a cell's budget: too slow
-    assert ("fpu", "scipy-rk23") in slow
-    for pair in {(c.problem, c.integrator) for c in ran}:
+    for pair in pairs:
         tols = [c.integrator_settings["tol"] for c in ran if (c.problem, c.integrator) == pair]
-        assert max(peer_common.TOLERANCES) in tols
-    for c in cells:
-        if (c.problem, c.integrator) in slow:
-            assert "--full-sweep runs it" in c.skip_reason and "estimated" in c.skip_reason
+        assert max(registry.integrator_class(pair[1]).sweep["tol"]) in tols
+    # fpu x scipy-rk23 is estimated at tens of seconds a run to t = 1000 even at its loosest
+    # tolerance, past a cell's budget: that one setting runs the horizon under a time limit
+    slow = [c for c in ran if c.time_limit is not None]
+    assert [(c.problem, c.integrator, c.integrator_settings) for c in slow if c.integrator == "scipy-rk23"] == [
+        ("fpu", "scipy-rk23", {"tol": 1e-7})]
+    assert all(c.time_limit == budget.SLOW_LIMIT_S and budget.TOO_SLOW in c.note for c in slow)
+    assert all(budget.run_seconds(c) > budget.CELL_BUDGET_S for c in slow)
 
 
-def test_a_peer_too_slow_for_the_default_matrix_is_said_so_in_which_library():
+def test_a_peer_too_slow_for_the_default_matrix_is_a_timeout_row_which_library_shows():
+    import dataclasses
+
+    from longtime.execution import budget
+    from longtime.execution.cells import run_cell
+    from longtime.reporting.libraries import _cell
+
+    cells, _ = budget.fit(expand(["fpu"], ["scipy-rk23"], default_sweep=True))
+    assert len(cells) == 1 and cells[0].time_limit == budget.SLOW_LIMIT_S and cells[0].t_final == 1000.0
+    # the same cell under a shorter limit of its own (the test's time): a measured timeout row
+    # at the full horizon, saying how far it got and that the budget's limit stopped it
+    row = run_cell(dataclasses.replace(cells[0], time_limit=0.5), reference=False)
+    assert row["status"] == "timeout" and row["t_final"] == 1000.0 and 0.0 < row["t_reached"] < 1000.0
+    assert "the default matrix's time limit of 0.5 s" in row["message"] and budget.TOO_SLOW in row["message"]
+    text, cpu = _cell([row], 1000.0, 1e-6, None)
+    assert cpu is None and text.startswith("too slow: scipy-rk23 tol=1e-07 ran ") and " of 1000" in text
+    # on a loaded machine the wall seconds the limit counts are said beside the CPU seconds
+    text, _ = _cell([{**row, "cpu_s": 2.5, "wall_s": 15.0}], 1000.0, 1e-6, None)
+    assert "ran 2.5 s CPU in 15 s wall for t=" in text
+
+
+def test_a_peer_too_slow_whose_run_cannot_be_stopped_is_skipped_with_the_estimate():
     from longtime.execution import budget
     from longtime.execution.cells import base_row
     from longtime.reporting.libraries import _cell
 
-    cells, _ = budget.fit(expand(["fpu"], ["scipy-rk23"], default_sweep=True))
+    cells, _ = budget.fit(expand(["fpu"], ["diffrax-reversible-heun"], default_sweep=True))
+    assert not registry.integrator_class("diffrax-reversible-heun").stops_at_deadline
+    if not has_diffrax:
+        return
+    assert len(cells) == 3 and all(c.skip_reason.startswith(budget.TOO_SLOW) for c in cells)
     rows = [{**base_row(c), "status": "skipped", "message": c.skip_reason} for c in cells]
-    text, cpu = _cell(rows, registry.problem_class("fpu").sweep_t_final, 1e-6, None)
+    text, cpu = _cell(rows, 1000.0, 1e-6, None)
     assert cpu is None and text.startswith("too slow: about ") and "estimated for t_final 1000" in text
+
+
+def test_every_peer_row_of_a_default_matrix_slice_runs_the_full_horizon():
+    from longtime.commands.cli import build_parser
+    from longtime.commands.matrix import matrix_cells
+    from longtime.core.timing import Timing
+    from longtime.execution.cells import run_cell
+
+    schemes = ["dop853", "scipy-rk45"] + (["cvode-adams"] if has_sundials else [])
+    cells, _ = matrix_cells(build_parser().parse_args(["matrix", "-p", "linear-test", "-i", ",".join(schemes)]))
+    pcls = registry.problem_class("linear-test")
+    horizon = pcls.sweep_t_final or pcls.default_t_final
+    assert {c.integrator for c in cells} == set(schemes) and all(not c.skip_reason for c in cells)
+    for cell in cells:
+        row = run_cell(cell, reference=False, timing=Timing(repeats=1))
+        assert row["status"] == "ok", (cell, row["message"])
+        assert row["t_final"] == horizon and row["t_reached"] == pytest.approx(horizon, rel=1e-12), cell
 
 
 @needs_sundials

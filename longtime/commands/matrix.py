@@ -46,11 +46,12 @@ def add_parser(subparsers) -> None:
                    help="folder of the results page (default: longtime-report/run-RUN_ID beside the store)")
     p.add_argument("--no-html", action="store_true", help="do not write the results page")
     p.add_argument("--full-sweep", action="store_true",
-                   help=f"run the default sweep as it is: without it, a pair whose default cells are "
+                   help=f"run the default sweep as it is: without it, a fixed-step pair whose default cells are "
                         f"estimated above {budget.CELL_BUDGET_S:g} s a run runs them over a shorter horizon, "
-                        f"a library peer's settings estimated above its own budget are left out (never its "
-                        f"horizon), and a long-time cell above {budget.LONG_CELL_BUDGET_S:g} s is left out (the "
-                        f"report names each move)")
+                        f"an adaptive scheme's or a library peer's settings estimated above its budget are left out "
+                        f"(never its horizon; its cheapest runs under a {budget.SLOW_LIMIT_S:g} s time limit where "
+                        f"even that one is estimated above {budget.CELL_BUDGET_S:g} s), and a long-time cell above "
+                        f"{budget.LONG_CELL_BUDGET_S:g} s is left out (the report names each move)")
     p.add_argument("--checks", type=cli_args.integer("--checks", 0), default=None, metavar="N",
                    help="re-run N of the verdicts' predictions past the rows' final times and store predicted "
                         "against measured error and cost (default 6; 0: none)")

@@ -52,7 +52,7 @@ class Integrator(ABC):
       resolved); ``sweep``: the default matrix's sweep of parameters other than dt;
     - ``kind``: ``fixed``, ``adaptive`` or ``external``; ``library``: whose method runs;
     - ``extra_counters``, ``long_runs``, ``step_cost``, ``python_step_s``,
-      ``cell_budget_s`` and ``notice``: see their comments below.
+      ``cell_budget_s``, ``stops_at_deadline`` and ``notice``: see their comments below.
 
     Methods a subclass implements:
 
@@ -100,6 +100,9 @@ class Integrator(ABC):
     # the default matrix's estimated seconds of one run of a cell for this scheme, where it is
     # shorter than the budget's CELL_BUDGET_S (the library peers: many rows, a short budget each)
     cell_budget_s: ClassVar[float | None] = None
+    # whether a run stops at the deadline (``self._deadline``) where it got; False for a
+    # library whose loop cannot be stopped from outside: it is looked at after the call
+    stops_at_deadline: ClassVar[bool] = True
 
     # what a reader of stored rows must know about the name (rows it meant before a
     # correction): `longtime list` shows it, and `run` and `report` say it on stderr

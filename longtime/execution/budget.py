@@ -1,5 +1,6 @@
 """The default matrix's budget: each default cell's integration is estimated before it runs,
-and a pair whose default sweep would pass the budget runs it over a shorter horizon.
+and a pair whose default sweep would pass the budget runs fewer settings (a scheme that
+chooses its own steps) or a shorter horizon (a fixed-step scheme).
 
 The estimate is the size ``check_size`` refuses oversized runs by (steps of the cell's dt, or
 of the problem's default step for a scheme that chooses its own), times a cost per step:
@@ -8,22 +9,28 @@ of the problem's default step for a scheme that chooses its own), times a cost p
 DOP853: about a tenth of a millisecond a step whatever the problem). It is rough, a factor
 of a few either way, and only decides which pairs move.
 
-What moves: the sweep of a pair whose costliest cell is estimated above CELL_BUDGET_S runs
-at the longest of the shorter horizons HORIZON_FRACTIONS of its problem's sweep horizon at
-which every cell of the sweep fits (never shorter than its largest step); the long-time cell
-of such a pair (a problem's ``long_t_final``) is left out when it is estimated above
-LONG_CELL_BUDGET_S. Every pair keeps its sweep's rows; nothing else changes. Each moved
-cell carries a note (``Cell.note``, kept in its row's message) naming the setting it had,
-and the report lists them; ``longtime matrix --full-sweep`` runs the default sweep as it is.
+What moves: the sweep of a fixed-step pair whose costliest cell is estimated above
+CELL_BUDGET_S runs at the longest of the shorter horizons HORIZON_FRACTIONS of its problem's
+sweep horizon at which every cell of the sweep fits (never shorter than its largest step);
+the long-time cell of such a pair (a problem's ``long_t_final``) is left out when it is
+estimated above LONG_CELL_BUDGET_S. Every pair keeps its sweep's rows; nothing else changes.
+Each moved cell carries a note (``Cell.note``, kept in its row's message) naming the setting
+it had, and the report lists them; ``longtime matrix --full-sweep`` runs the default sweep as
+it is.
 
-A scheme with its own ``cell_budget_s`` (the library peers: scipy's, SUNDIALS' and diffrax's,
-whose many rows must not lengthen the main job much) is never moved to a shorter horizon, so
+A scheme that chooses its own steps (``adaptive``: a library peer, scipy's, SUNDIALS' and
+diffrax's, with its own ``cell_budget_s`` so that its many rows do not lengthen the main job
+much, or an adaptive scheme, under CELL_BUDGET_S) is never moved to a shorter horizon, so
 that it is compared with the other schemes over the same run: the settings of its sweep
-estimated above its budget are left out instead (an adaptive peer of order p at tolerance tol
-is estimated at the problem's default step's count times PEER_TOL ** (1 / 5) / tol ** (1 / p):
+estimated above its budget are left out instead (a scheme of order p at tolerance tol is
+estimated at the problem's default step's count times PEER_TOL ** (1 / 5) / tol ** (1 / p):
 a 5th-order method at PEER_TOL takes about the default step; p is 5 where the method's order
-is variable), always keeping its cheapest setting. A kept setting that cannot reach
-the horizon within the cell's time limit is a ``timeout`` row, which says how far it got.
+is variable), always keeping its cheapest setting. Where even that one is estimated above
+CELL_BUDGET_S, it runs the horizon under a time limit of SLOW_LIMIT_S (``Cell.time_limit``)
+and the others are left out: a run that cannot reach the horizon within it is a ``timeout``
+row saying how far it got in how many seconds, which "Which library" shows as too slow. A
+scheme whose run cannot be stopped at a time limit (``stops_at_deadline`` False: CVODE's and
+diffrax's one compiled call) is skipped there instead, its rows giving the estimate.
 Horizons and sweeps given on the command line (--t-final, --dt, ...) are never moved.
 """
 from __future__ import annotations
@@ -56,6 +63,10 @@ PEER_TOL = 1e-10
 CELL_OVERHEAD_S = 0.5
 # the start of every note the budget leaves in a row's message (the report finds them by it)
 NOTE = "budget:"
+# the time limit of a run of that cheapest setting: one cell's budget, so that a library too slow
+# for the default matrix costs it no more than one cell (the estimates are rough, off by a factor
+# of a few either way, and the limit is on the wall clock of a possibly loaded machine)
+SLOW_LIMIT_S = CELL_BUDGET_S
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,7 +87,7 @@ def run_seconds(cell: Cell, dims: dict[str, int] | None = None) -> float:
     dim, steps, _ = cell_size(cell, {} if dims is None else dims)
     icls = registry.integrator_class(cell.integrator)
     tol = cell.integrator_settings.get("tol")
-    if icls.cell_budget_s is not None and tol and "dt" not in cell.integrator_settings:
+    if adaptive(cell.integrator) and tol and "dt" not in cell.integrator_settings:
         steps *= PEER_TOL ** 0.2 / float(tol) ** (1.0 / (icls.order or 5))
     return steps * (icls.python_step_s + dim * icls.step_cost * COMPONENT_STEP_S)
 
@@ -96,6 +107,13 @@ def cell_seconds(cell: Cell, timing: Any, dims: dict[str, int] | None = None) ->
         return CELL_OVERHEAD_S
     timed = run if run > timing.ONCE_ABOVE else max(timing.least_runs * run, min(timing.min_time, timing.repeats * run))
     return CELL_OVERHEAD_S + run + timed
+
+
+def adaptive(scheme: str) -> bool:
+    """Whether ``scheme`` chooses its own steps (a library peer or an adaptive scheme): its
+    sweep is never moved to a shorter horizon, its costly settings are left out instead."""
+    icls = registry.integrator_class(scheme)
+    return icls.cell_budget_s is not None or not issubclass(icls, FixedStepIntegrator)
 
 
 def cell_budget(scheme: str) -> float:
@@ -126,7 +144,7 @@ def fit(cells: list[Cell], given_t_final: bool = False,
         long_ = [i for i in members if i not in sweep]
         worst = max((run_seconds(cells[i], dims) for i in sweep), default=0.0)
         budget = cell_budget(scheme)
-        if registry.integrator_class(scheme).cell_budget_s is not None:  # a library peer: fewer settings
+        if adaptive(scheme):  # a library peer or an adaptive scheme: fewer settings, the same horizon
             swept = set(registry.integrator_class(scheme).sweep)
             if not given_t_final and not (given & swept) and worst > budget:
                 _fewer_settings(problem, scheme, sweep, cells, out, moves, dims, budget)
@@ -191,17 +209,31 @@ def _horizon_text(cell: Cell) -> str:
 
 def _too_slow(problem: str, scheme: str, sweep: list[int], cells: list[Cell], out: list, moves: list[Move],
               cost: dict[int, float]) -> None:
-    """A peer none of whose settings runs the horizon within CELL_BUDGET_S (the estimate of
-    its cheapest): its cells become skipped rows saying so, never a shorter horizon, and
-    --full-sweep runs them."""
+    """A scheme none of whose settings is estimated to run the horizon within CELL_BUDGET_S:
+    its cheapest setting runs the horizon under a time limit of SLOW_LIMIT_S (past it a
+    ``timeout`` row that says how far it got, so that a measured row, not the estimate, says
+    whether it is too slow), the others are left out, never a shorter horizon. A scheme whose
+    run cannot be stopped at its deadline (``stops_at_deadline``) would run on past that
+    limit: its cells are skipped rows giving the estimate instead. --full-sweep runs them
+    all without either."""
     cheapest = min(sweep, key=lambda i: cost[i])
-    horizon = _horizon_text(cells[cheapest])
-    reason = (f"{TOO_SLOW} about {cost[cheapest]:.3g} s a run estimated for t_final {horizon} at its cheapest "
-              f"setting ({setting_text(cells[cheapest])}), over the default matrix's {CELL_BUDGET_S:g} s a cell; "
-              f"--full-sweep runs it")
-    moves.append(Move(problem, scheme, "left out of the default matrix", reason))
-    for i in sweep:
-        out[i] = dataclasses.replace(cells[i], skip_reason=reason)
+    reason = (f"{TOO_SLOW} about {cost[cheapest]:.3g} s a run estimated for t_final {_horizon_text(cells[cheapest])} "
+              f"at its cheapest setting ({setting_text(cells[cheapest])}), over the default matrix's "
+              f"{CELL_BUDGET_S:g} s a cell")
+    if not registry.integrator_class(scheme).stops_at_deadline:
+        moves.append(Move(problem, scheme, "left out of the default matrix", reason))
+        for i in sweep:
+            out[i] = dataclasses.replace(cells[i], skip_reason=f"{reason} (its run cannot be stopped at a time "
+                                                                f"limit); --full-sweep runs it")
+        return
+    others = [i for i in sweep if i != cheapest]
+    left = f"; {', '.join(setting_text(cells[i]) for i in others)} left out" if others else ""
+    setting = f"{setting_text(cells[cheapest])} under a time limit of {SLOW_LIMIT_S:g} s{left}"
+    moves.append(Move(problem, scheme, setting, reason))
+    for i in others:
+        out[i] = None
+    out[cheapest] = dataclasses.replace(cells[cheapest], time_limit=SLOW_LIMIT_S)
+    _say(out, [cheapest], f"{NOTE} {setting} ({reason}; --full-sweep runs {'them' if others else 'it'} unlimited)")
 
 
 def setting_text(cell: Cell) -> str:
@@ -248,20 +280,37 @@ def notes(rows: Iterable[dict[str, Any]]) -> dict[tuple[str, str], str]:
 
 def summary(moves: list[Move]) -> str:
     """What the budget moved, in one line: how many pairs' sweeps run to a shorter horizon,
-    by the budget they passed, and how many long-time cells are left out."""
+    by the budget they passed, how many pairs run fewer settings, how many run only their
+    cheapest setting under SLOW_LIMIT_S, how many are skipped as too slow, and how many
+    long-time cells are left out."""
     shorter: dict[float, int] = {}
-    left_out = 0
+    fewer = limited = skipped = long_out = 0
     for m in moves:
         if m.setting.startswith("t_final"):
             budget = cell_budget(m.integrator)
             shorter[budget] = shorter.get(budget, 0) + 1
+        elif m.setting.startswith("long-time cell"):
+            long_out += 1
+        elif m.reason.startswith(TOO_SLOW):
+            if "time limit" in m.setting:
+                limited += 1
+            else:
+                skipped += 1
         else:
-            left_out += 1
+            fewer += 1
     parts = []
     if shorter:
         over = ", ".join(f"{n} over {b:g} s" for b, n in sorted(shorter.items(), key=lambda kv: -kv[0]))
         parts.append(f"{sum(shorter.values())} pair(s)' sweeps to a shorter t_final (a run estimated "
                      f"over its cell budget: {over})")
-    if left_out:
-        parts.append(f"{left_out} long-time cell(s) left out (a run estimated over {LONG_CELL_BUDGET_S:g} s)")
+    if fewer:
+        parts.append(f"{fewer} pair(s) run fewer settings (the settings estimated over their cell budget left out)")
+    if limited:
+        parts.append(f"{limited} pair(s) run only their cheapest setting under a time limit of {SLOW_LIMIT_S:g} s "
+                     f"(estimated over {CELL_BUDGET_S:g} s)")
+    if skipped:
+        parts.append(f"{skipped} pair(s) skipped (estimated over {CELL_BUDGET_S:g} s at their cheapest setting, and "
+                     f"their run cannot be stopped at a time limit)")
+    if long_out:
+        parts.append(f"{long_out} long-time cell(s) left out (a run estimated over {LONG_CELL_BUDGET_S:g} s)")
     return f"the default matrix's budget moved {len(moves)} setting(s): " + "; ".join(parts)

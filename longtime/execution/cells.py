@@ -73,6 +73,9 @@ class Cell:
     # why the cell's settings differ from the default sweep's (the default matrix's budget,
     # longtime.execution.budget): its row's message ends with it; not part of the key
     note: str | None = None
+    # the cell's own time limit in seconds (the budget's, for a setting estimated too slow for
+    # the default matrix), below the run's: past it the row is ``timeout``; not part of the key
+    time_limit: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         d = {
@@ -85,6 +88,8 @@ class Cell:
         }
         if self.note:
             d["note"] = self.note
+        if self.time_limit is not None:
+            d["time_limit"] = float(self.time_limit)
         return d
 
     @property
@@ -92,12 +97,14 @@ class Cell:
         d = self.to_dict()
         d.pop("skip_reason")
         d.pop("note", None)
+        d.pop("time_limit", None)
         return json.dumps(d, sort_keys=True)
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "Cell":
         return cls(d["problem"], d["integrator"], dict(d["problem_settings"]),
-                   dict(d["integrator_settings"]), d["t_final"], d.get("skip_reason"), d.get("note"))
+                   dict(d["integrator_settings"]), d["t_final"], d.get("skip_reason"), d.get("note"),
+                   d.get("time_limit"))
 
 
 def check_set_keys(sets: Mapping[str, Any], problem_names: Iterable[str],
@@ -366,6 +373,9 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
                   keep: dict[str, Any] | None, reference_budget_s: float | None) -> dict[str, Any]:
     """run_cell's row as measured (before it is checked against the declared row)."""
     row = base_row(cell)
+    own = cell.time_limit is not None and (not time_limit or cell.time_limit < time_limit)
+    if own:  # the cell's own limit is the tighter one
+        time_limit = cell.time_limit
     deadline = time.monotonic() + time_limit if time_limit else None
     if cell.skip_reason:
         row.update(status=Status.SKIPPED, message=cell.skip_reason)
@@ -388,7 +398,9 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
             traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
                                         timing=timing or Timing(), deadline=deadline)
         if traj.status == Status.TIMEOUT:
-            traj.message = f"{traj.message} (cell time limit {time_limit:g} s: --time-limit)"
+            limit = (f"the default matrix's time limit of {time_limit:g} s for a setting estimated too slow for it"
+                     if own else f"cell time limit {time_limit:g} s: --time-limit")
+            traj.message = f"{traj.message} ({limit})"
         if traj.status == Status.DIVERGED:
             traj.message = "; ".join(m for m in (traj.message, contract.nan_note(problem, traj.t, traj.u)) if m)
         t_end = problem.default_t_final if cell.t_final is None else cell.t_final

@@ -69,6 +69,7 @@ class Diffrax(Integrator):
     sweep = {"tol": peer_common.TOLERANCES}
     python_step_s = 2e-6  # a compiled step (no Python per step); its compile is outside the timing
     cell_budget_s = peer_common.CELL_BUDGET_S  # the default matrix's budget of a peer (execution.budget)
+    stops_at_deadline = False  # one compiled call: the deadline is looked at after it
 
     def incompatibility(self, problem):
         reason = super().incompatibility(problem)
@@ -189,6 +190,7 @@ class Diffrax(Integrator):
         timed_out = deadline is not None and time.monotonic() > deadline
         traj = peer_common.trajectory(problem, f"diffrax {self.solver}", grid, ys, cpu, wall,
                                       {"rejected": rejected}, max_samples, failure=failure, timed_out=timed_out,
+                                      stoppable=False,
                                       extra={"compile_s": compile_s, "peer_overhead_s": overhead})
         traj.counters["steps"] = accepted  # the solver's steps, not the grid's samples
         traj.min_dt = traj.max_dt = None  # diffrax does not report its step sizes

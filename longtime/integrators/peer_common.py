@@ -126,18 +126,21 @@ def thin(t: np.ndarray, u: np.ndarray, max_samples: int) -> tuple[np.ndarray, np
 
 def trajectory(problem, library: str, t: np.ndarray, u: np.ndarray, cpu: float, wall: float,
                counters: dict[str, int], max_samples: int, failure: str | None = None,
-               timed_out: bool = False, extra: dict[str, Any] | None = None) -> Trajectory:
+               timed_out: bool = False, extra: dict[str, Any] | None = None, stoppable: bool = True) -> Trajectory:
     """The row's trajectory from the accepted steps (t, u) a library recorded: cut at a
     blow-up, else ``timeout`` (stopped at the cell's deadline) or ``failed`` (the library's
     ``failure`` message), thinned evenly to ``max_samples``; ``counters['steps']`` is set from
-    the steps recorded."""
+    the steps recorded. ``stoppable``: the library's loop stops at the deadline (else a run past
+    it ran on to where it ended, and its message says so)."""
     status, message = "ok", ""
     first = problem.first_blowup(u)
     if first is not None:
         t, u = t[:first + 1], u[:first + 1]
         status, message = "diverged", BLOWUP_MESSAGE.format(t=t[-1])
     elif timed_out:
-        status, message = "timeout", f"stopped at t={t[-1]:.6g}: past the cell's time limit"
+        status, message = "timeout", (f"stopped at t={t[-1]:.6g}: past the cell's time limit" if stoppable else
+                                      f"ran to t={t[-1]:.6g} past the cell's time limit ({library}'s loop cannot "
+                                      f"be stopped from outside)")
     elif failure is not None:
         status, message = "failed", f"{library}: {failure} (t={t[-1]:.6g})"
     steps = t.size - 1

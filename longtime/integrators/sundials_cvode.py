@@ -65,6 +65,7 @@ class CVODE(Integrator):
     sweep = {"tol": peer_common.TOLERANCES}
     python_step_s = 5e-6  # CVODE's step in C and its calls of the compiled wrappers
     cell_budget_s = peer_common.CELL_BUDGET_S  # the default matrix's budget of a peer (execution.budget)
+    stops_at_deadline = False  # one compiled call: the deadline is looked at after it
 
     def incompatibility(self, problem):
         reason = super().incompatibility(problem)
@@ -119,6 +120,7 @@ class CVODE(Integrator):
         traj = peer_common.trajectory(
             problem, f"CVODE {self.method}", t, u, cpu, wall, counters, max_samples,
             failure=None if result.success else f"{result.message} (status {result.status})", timed_out=timed_out,
+            stoppable=False,
             extra={"peer_overhead_s": overhead})
         traj.counters["steps"] = _STEPS[key] if result.success else traj.counters["steps"]
         traj.min_dt = traj.max_dt = None  # the samples' spacing, not CVODE's steps

@@ -211,8 +211,9 @@ def count_lines(rows: list[dict[str, Any]], orders: bool = True) -> list[str]:
                        f"{_pairs_text(sorted(set(lost)), ONE_LINE)}")
     moved = notes(rows)
     if moved:
-        lines += _wrap(f"  moved by the default matrix's budget {len(moved)} (a run over its seconds runs to a "
-                       f"shorter t_final): {_pairs_text(sorted(moved), ONE_LINE)}")
+        lines += _wrap(f"  moved by the default matrix's budget {len(moved)} (a run over its seconds: fewer "
+                       f"settings, a time limit, or a shorter t_final for a fixed step): "
+                       f"{_pairs_text(sorted(moved), ONE_LINE)}")
     alone = sum(1 for r in rows if left_out(r))
     if alone:
         lines += _wrap(f"  timed in its own process only {alone} (dominated by more than x{NEED_FACTOR:g} on every "
