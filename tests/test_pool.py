@@ -1,10 +1,12 @@
 """Worker processes (longtime.execution.pool): the --jobs rule and the pool of resident children."""
 import os
+import signal
 
 import pytest
 
 from longtime.execution.child import CallFailed
 from longtime.execution.pool import worker_pool, workers
+from longtime.integrators.splitting import Verlet
 
 
 def test_jobs_rule():
@@ -31,3 +33,34 @@ def test_pool_runs_calls_in_other_processes_and_a_crash_costs_one_worker():
         assert again not in (first, os.getpid())
         assert pool.pids() == [again]
     assert pool.pids() == []
+
+
+class KillsItsWorker(Verlet):
+    """Verlet that SIGKILLs its own process at dt = 0.05."""
+
+    name = "pool-kills-its-worker"
+    summary = "Verlet that kills its process at one step"
+
+    def integrate(self, problem, t_final, max_samples=100_001, timing=None, deadline=None):
+        if abs(self.dt_for(problem) - 0.05) < 1e-12:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return super().integrate(problem, t_final, max_samples=max_samples, timing=timing, deadline=deadline)
+
+
+@pytest.mark.slow
+def test_a_killed_worker_costs_its_cell_and_the_matrix_goes_on():
+    """The process executor: a cell that SIGKILLs its worker is a failed row naming the
+    signal; the batch's other cells run on a fresh worker, the other worker's rows stand."""
+    from longtime.core import registry
+    from longtime.core.integrator import Timing
+    from longtime.execution.cells import expand
+    from longtime.execution.matrix import ExecOptions, run_matrix
+
+    registry.register(KillsItsWorker)
+    cells = expand(["harmonic"], [KillsItsWorker.name, "rk4"], sweeps={"dt": [0.1, 0.05, 0.025]}, t_final=2.0)
+    options = ExecOptions(jobs=2, timing=Timing(repeats=1, min_time=0.0), processes=1)
+    rows = {(r["integrator"], r["dt"]): r for r in run_matrix(cells, None, None, "process", options)}
+    assert len(rows) == 6
+    killed = rows[(KillsItsWorker.name, 0.05)]
+    assert killed["status"] == "failed" and "SIGKILL" in killed["message"], killed
+    assert all(r["status"] == "ok" for key, r in rows.items() if key != (KillsItsWorker.name, 0.05)), rows

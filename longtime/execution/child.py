@@ -276,10 +276,10 @@ class CallFailed(RuntimeError):
 
 
 class Resident:
-    """A long-lived child that runs batches of cells (``run``) as a pool worker does, and
-    calls (``call``), keeping its compiled kernels between them. A cell that passes the hard limit of its
-    time limit is killed with the child (a ``timeout`` row), a cell that ends the child gets
-    a ``failed`` row naming how, and the batch's other cells run on in a fresh child; a cell
+    """A long-lived child that runs batches of cells (``run``) and calls (``call``), keeping
+    its compiled kernels between them. A cell that passes the hard limit of its time limit
+    is killed with the child (a ``timeout`` row), a cell that ends the child gets a
+    ``failed`` row naming how, and the batch's other cells run on in a fresh child; a cell
     that runs into the memory limit has its row, and the child is replaced after the batch
     (its heap may stay fragmented near the limit). The child dies with the thread that
     started it: use one ``Resident`` per thread."""

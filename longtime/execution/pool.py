@@ -25,12 +25,13 @@ def worker_pool(workers: int, spec=None):
 
 
 def unguarded_main() -> str | None:
-    """Why the process pool cannot start here, or None when it can: a spawned worker runs the
-    main module again, and a script that calls longtime outside ``if __name__ ==
-    "__main__":`` would then call it again in every worker (multiprocessing's "bootstrapping
-    phase" RuntimeError). Found from the stack: the main module's top level is running, at a
-    statement that is not that guard. A notebook, ``python -c`` and the REPL have no file to
-    run again; a worker bootstrapping a script says so."""
+    """Why a local Dask cluster cannot start here, or None when it can: a worker that
+    multiprocessing spawns runs the main module again, and a script that calls longtime
+    outside ``if __name__ == "__main__":`` would then call it again in every worker
+    (multiprocessing's "bootstrapping phase" RuntimeError). Found from the stack: the main
+    module's top level is running, at a statement that is not that guard. A notebook,
+    ``python -c`` and the REPL have no file to run again; a worker bootstrapping a script
+    says so."""
     import ast
     import sys
 
