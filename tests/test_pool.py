@@ -1,4 +1,5 @@
 """Worker processes (longtime.execution.pool): the --jobs rule and the pool of resident children."""
+import errno
 import os
 import signal
 
@@ -47,7 +48,6 @@ class KillsItsWorker(Verlet):
         return super().integrate(problem, t_final, max_samples=max_samples, timing=timing, deadline=deadline)
 
 
-@pytest.mark.slow
 def test_a_killed_worker_costs_its_cell_and_the_matrix_goes_on():
     """The process executor: a cell that SIGKILLs its worker is a failed row naming the
     signal; the batch's other cells run on a fresh worker, the other worker's rows stand."""
@@ -64,3 +64,29 @@ def test_a_killed_worker_costs_its_cell_and_the_matrix_goes_on():
     killed = rows[(KillsItsWorker.name, 0.05)]
     assert killed["status"] == "failed" and "SIGKILL" in killed["message"], killed
     assert all(r["status"] == "ok" for key, r in rows.items() if key != (KillsItsWorker.name, 0.05)), rows
+
+
+class NoSpace(Verlet):
+    """Verlet whose run finds no space left on the disk."""
+
+    name = "pool-no-space"
+    summary = "Verlet that meets a full disk"
+
+    def integrate(self, problem, t_final, max_samples=100_001, timing=None, deadline=None):
+        raise OSError(errno.ENOSPC, "No space left on device", "/full")
+
+
+def test_a_worker_without_disk_space_interrupts_the_run_and_stores_no_row():
+    """A full disk in a worker is the machine's fault, not the cell's: DiskFull (the run is
+    interrupted, --resume completes it), never a failed row."""
+    from longtime.core import registry
+    from longtime.core.integrator import Timing
+    from longtime.execution.cells import expand
+    from longtime.execution.matrix import ExecOptions, run_matrix
+    from longtime.execution.tempdirs import DiskFull
+
+    registry.register(NoSpace)
+    cells = expand(["harmonic"], [NoSpace.name], sweeps={"dt": [0.1, 0.05]}, t_final=1.0)
+    options = ExecOptions(jobs=2, timing=Timing(repeats=1, min_time=0.0), processes=1)
+    with pytest.raises(DiskFull, match="no space"):
+        run_matrix(cells, None, None, "process", options)

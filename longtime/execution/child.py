@@ -54,6 +54,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from longtime.core import registry
+from longtime.core.cache import no_space
 from longtime.execution import jobfiles, tempdirs
 from longtime.execution.cells import Cell, RunSpec, base_row
 from longtime.execution.limits import (
@@ -321,10 +322,7 @@ class Resident:
             if kind == "raised":
                 raise value
             return value
-        if line == b"":  # its answer channel closed: it ends, and is named by how
-            with contextlib.suppress(subprocess.TimeoutExpired):
-                child.proc.wait(timeout=5)
-        child.kill()
+        self._reap(child, line)
         why = child.failure("worker process")
         self.close()
         raise CallFailed(f"{getattr(fn, '__qualname__', fn)}: {why}")
@@ -370,7 +368,7 @@ class Resident:
         result = child.result() if line == b"done" else None
         if result is not None:
             return dict(zip((c.key for c in cells), result))
-        child.kill()  # ended, or its result cannot be read: the rows it wrote, cell by cell
+        self._reap(child, line)  # ended, or its result cannot be read: the rows it wrote, cell by cell
         done = {Cell.from_dict(cell).key: row for cell, row in jobfiles.finished_rows(child.folder)}
         running = [Cell.from_dict(c) for c in jobfiles.running_cells(child.folder)]
         if killed:
@@ -386,6 +384,20 @@ class Resident:
             done[cell.key] = {**base_row(cell), "status": "failed", "message": why}
         self.close()
         return done
+
+    def _reap(self, child: Child, line: bytes | None) -> None:
+        """A child that gave no answer ended (or is killed): its answer channel closed
+        (``line`` empty) when it ends on its own, so it is given a moment to, and named by
+        how. One that ended for want of disk space (``tempdirs.NO_SPACE_EXIT``) is a fault of
+        the machine, not of its cell: ``DiskFull``, and the child is gone."""
+        if line == b"":
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                child.proc.wait(timeout=5)
+        child.kill()
+        if child.proc.returncode == tempdirs.NO_SPACE_EXIT:
+            tail = child.stderr().strip().splitlines()
+            self.close()
+            raise tempdirs.DiskFull(tail[-1] if tail else "no space left on the disk for a worker's files")
 
     def _ask(self, child: Child, limit: float | None, hang_s: float | None = STARTUP_S) -> bytes | None:
         """Send the child its job and wait for its answer: ``b"done"``, ``b""`` when it ended,
@@ -529,10 +541,17 @@ def serve(folder: str, job: Job) -> None:
     answers.flush()
     for _ in sys.stdin.buffer:
         job = read_job(folder)
-        if job.kind == "call":
-            answer_call(folder)
-        else:
-            write_result(folder, run_batch(job.cells, job.spec, folder))
+        try:
+            if job.kind == "call":
+                answer_call(folder)
+            else:
+                write_result(folder, run_batch(job.cells, job.spec, folder))
+        except (OSError, tempdirs.DiskFull) as exc:  # no space for its files: not the cells' fault
+            if not (no_space(exc) or isinstance(exc, tempdirs.DiskFull)):
+                raise
+            print(tempdirs.disk_full(exc, "a worker wrote its files"), file=sys.stderr)
+            sys.stderr.flush()
+            os._exit(tempdirs.NO_SPACE_EXIT)
         answers.write(b"done\n")
         answers.flush()
     sys.stderr.flush()
