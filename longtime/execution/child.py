@@ -130,6 +130,7 @@ class Child:
     proc: subprocess.Popen
     started: float = field(default_factory=time.monotonic)
     unreadable: str = ""  # why its result file could not be read, where it could not
+    relayed: int = 0  # bytes of its stderr passed on to this process's (``Resident``)
 
     @property
     def pid(self) -> int:
@@ -206,6 +207,22 @@ class Child:
         """Kill the child if it runs and remove its folder: it leaves no file."""
         self.kill()
         shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def relay_stderr(child: Child) -> None:
+    """What a long-lived child wrote on its stderr since the last relay (a warning, a
+    plugin's output, a crash's report), passed on to this process's stderr, where a process
+    pool's workers would have written it."""
+    try:
+        with open(child.folder / jobfiles.STDERR, "rb") as err:
+            err.seek(child.relayed)
+            data = err.read()
+    except OSError:
+        return
+    child.relayed += len(data)
+    if data:
+        sys.stderr.write(data.decode(errors="replace"))
+        sys.stderr.flush()
 
 
 def start(folder: Path, prefix: tuple[str, ...] | list[str] = (), env: dict[str, str] | None = None,
@@ -315,7 +332,10 @@ class Resident:
         child.clear()
         write_job(child.folder, "call", [], spec)
         jobfiles.write(child.folder / jobfiles.CALL, pickle.dumps((fn, args)))
-        line = self._ask(child, None, hang_s=None)
+        try:
+            line = self._ask(child, None, hang_s=None)
+        finally:
+            relay_stderr(child)
         outcome = child.folder / jobfiles.OUTCOME
         if line == b"done" and outcome.exists():
             kind, value = pickle.loads(outcome.read_bytes())
@@ -365,6 +385,7 @@ class Resident:
         finally:
             if watchdog is not None:
                 watchdog.stop()  # joined: a kill it made is in ``killed``
+            relay_stderr(child)
         result = child.result() if line == b"done" else None
         if result is not None:
             return dict(zip((c.key for c in cells), result))
