@@ -3,7 +3,7 @@ DataFrame, ``convergence`` (the observed order of a sweep), ``work_precision`` (
 Pareto table) and ``main_job`` (`longtime matrix`'s run, results page and report). A
 problem or a scheme is a registered name, a class or an instance: a class defined in memory
 is registered for the session (``registry.register``, checked as an entry point is) and
-found by the process pool's workers too.
+found by the process executor's workers too.
 
 ``longtime run`` is a layer over this module: its cells come from ``cells_for`` and run
 through ``run_cells``, as ``sweep``'s do, and ``solve`` runs a cell with the arguments the
@@ -257,8 +257,10 @@ def sweep(problems: Any, schemes: Any, *, t_final: Any = None, executor: str = "
     starts, one every 30 s and one as it ends); ``progress=False``: nothing.
 
     A script that calls ``sweep`` outside ``if __name__ == "__main__":`` would be run again
-    by each worker of the process pool: there the cells run serially, and one line on
-    stderr says why (``pool.unguarded_main``); a notebook keeps the pool."""
+    by each worker of a local Dask cluster (spawned by multiprocessing): there the cells
+    run serially, and one line on stderr says why (``pool.unguarded_main``); a notebook
+    keeps the cluster. The process executor's workers (``python -m
+    longtime.execution.child``) never run the script."""
     import sys
 
     from longtime.execution.matrix import ExecOptions, check_cost
@@ -277,11 +279,11 @@ def sweep(problems: Any, schemes: Any, *, t_final: Any = None, executor: str = "
     check_size(cells, max_samples, memory, allow_large=allow_large)
     if store is not None and not isinstance(store, Store):
         store = Store(store)
-    if executor in ("process", "dask"):
+    if executor == "dask":
         why = unguarded_main()
         if why:
             print(f"longtime.sweep: running the cells serially: {why} (put the call under that guard for "
-                  f"the process pool)", file=sys.stderr)
+                  f"the Dask cluster)", file=sys.stderr)
             executor = "serial"
     options = ExecOptions(jobs=jobs if executor != "serial" else 0, max_samples=max_samples,
                           timing=Timing(repeats=repeats, min_time=min_time), time_limit=time_limit or None,

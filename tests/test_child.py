@@ -56,6 +56,22 @@ def test_every_kind_of_job_names_the_function_its_child_runs():
         children.write_job(Path("/nonexistent"), "nope", [], RunSpec())
 
 
+def test_a_call_job_returns_its_outcome_pickled():
+    """A one-off child of a ``call`` job runs the pickled function and writes what it returned
+    (or raised) beside the job."""
+    import pickle
+
+    from longtime.execution import jobfiles
+
+    folder = tempdirs.make("cell")
+    children.write_job(folder, "call", [], RunSpec())
+    jobfiles.write(folder / jobfiles.CALL, pickle.dumps((divmod, (7, 2))))
+    child = children.start(folder)
+    assert child.wait(120)
+    assert pickle.loads((folder / jobfiles.OUTCOME).read_bytes()) == ("returned", (3, 1))
+    child.remove()
+
+
 def test_a_child_that_dies_is_named_by_its_signal_and_leaves_no_file(tmp_path):
     """A job of a kind the child does not run (a child of another longtime): it exits with
     code 1, its one line naming the kind, and the parent says so."""

@@ -140,7 +140,7 @@ def test_idle_workers_take_extra_work_only_once_every_batch_is_handed_out():
         return extra, (name,), lambda out: results.__setitem__(name, out)
 
     with ThreadPoolExecutor(2) as pool:
-        for batch, fut in scheduled(pool, 2, batches, run, idle_work=idle_work):
+        for batch, fut in scheduled(pool, 2, batches, lambda batch: pool.submit(run, batch), idle_work=idle_work):
             seen.append(fut.result())
             if len(seen) == len(batches):  # ready once the caller has the last rows, nothing running
                 tasks.extend(["a", "bad", "b"])

@@ -362,7 +362,8 @@ def test_a_closed_stdout_is_quiet():
 # --- SIGTERM, SIGHUP and temp folders -----------------------------------------------------------
 
 def _pool_folders(tmp: Path) -> list[Path]:
-    return sorted(tmp.glob("longtime-pool-*"))
+    """The folders of the process executor's workers (one each, child.Resident)."""
+    return sorted(tmp.glob("longtime-cell-*"))
 
 
 def _pool_matrix(tmp_path, *extra):
@@ -380,7 +381,7 @@ def _pool_matrix(tmp_path, *extra):
                              "--executor", "process", "--db", str(db), "--no-progress", "--no-report", *extra],
                             env={**os.environ, "TMPDIR": str(tmp)}, stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True, preexec_fn=default_hup)
-    _wait_for(lambda: any(len(list(f.glob("running-*"))) == 2 for f in _pool_folders(tmp))
+    _wait_for(lambda: sum(len(list(f.glob("running-*"))) for f in _pool_folders(tmp)) == 2
               or proc.poll() is not None, 120, "two running cells")
     assert proc.poll() is None, proc.communicate()[1]
     return proc, db, tmp
@@ -390,7 +391,7 @@ def _pool_matrix(tmp_path, *extra):
 @pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGHUP, 129)])
 def test_sigterm_and_sighup_are_handled_like_ctrl_c(tmp_path, sig, code):
     """SIGTERM and SIGHUP are handled like Ctrl-C: the run is marked interrupted (not left 'running')
-    and its pool folder, with row files, does not stay in the temp folder."""
+    and its workers' folders, with their files, do not stay in the temp folder."""
     proc, db, tmp = _pool_matrix(tmp_path)
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=30)
@@ -404,14 +405,14 @@ def test_sigterm_and_sighup_are_handled_like_ctrl_c(tmp_path, sig, code):
 
 @pytest.mark.slow
 def test_a_later_run_removes_the_folders_of_killed_processes(tmp_path):
-    """A later run removes the pool folder a killed (kill -9) matrix left in the temp folder; a live
-    process's folder stays."""
+    """A later run removes the workers' folders a killed (kill -9) matrix left in the temp folder;
+    a live process's folder stays."""
     proc, _, tmp = _pool_matrix(tmp_path)
     proc.kill()
     proc.wait()
-    (left,) = _pool_folders(tmp)
-    assert f"-{proc.pid}-" in left.name
-    live = tmp / f"longtime-pool-{os.getpid()}-mine"  # a live process's folder stays
+    left = _pool_folders(tmp)
+    assert len(left) == 2 and all(f"-{proc.pid}-" in f.name for f in left)
+    live = tmp / f"longtime-cell-{os.getpid()}-mine"  # a live process's folder stays
     live.mkdir()
     res = longtime({**os.environ, "TMPDIR": str(tmp)}, "run", *QUICK, "--cell-timeout", "120", "--no-store")
     assert res.returncode == 0, res.stderr

@@ -1,9 +1,13 @@
-"""Worker processes (longtime.execution.pool): the --jobs rule and the spawned pool."""
+"""Worker processes (longtime.execution.pool): the --jobs rule and the pool of resident children."""
+import errno
 import os
-import subprocess
-import sys
+import signal
 
-from longtime.execution.pool import spawn_pool, workers
+import pytest
+
+from longtime.execution.child import CallFailed
+from longtime.execution.pool import worker_pool, workers
+from longtime.integrators.splitting import Verlet
 
 
 def test_jobs_rule():
@@ -15,40 +19,74 @@ def test_jobs_rule():
     assert workers(0, tasks=10**6) == cores
 
 
-def test_spawned_pool_runs_in_other_processes():
-    with spawn_pool(1) as pool:
-        assert pool.submit(os.getpid).result(timeout=120) != os.getpid()
-        assert pool._mp_context.get_start_method() == "spawn"
+def test_pool_runs_calls_in_other_processes_and_a_crash_costs_one_worker():
+    """A call runs in a child; what it raises comes back; a call that kills its child fails
+    alone (naming the signal) and the next call runs in a fresh child."""
+    with worker_pool(1) as pool:
+        first = pool.submit(os.getpid).result(timeout=120)
+        assert first != os.getpid()
+        assert pool.submit(os.getpid).result(timeout=120) == first  # the same child, kept
+        with pytest.raises(KeyError):
+            pool.submit({}.__getitem__, "x").result(timeout=120)
+        with pytest.raises(CallFailed, match="SIGKILL"):
+            pool.submit(os.kill, first, 9).result(timeout=120)
+        again = pool.submit(os.getpid).result(timeout=120)
+        assert again not in (first, os.getpid())
+        assert pool.pids() == [again]
+    assert pool.pids() == []
 
 
-TRACKER_KILLED = """
-import os, signal, sys, time
-from multiprocessing import resource_tracker
+class KillsItsWorker(Verlet):
+    """Verlet that SIGKILLs its own process at dt = 0.05."""
+
+    name = "pool-kills-its-worker"
+    summary = "Verlet that kills its process at one step"
+
+    def integrate(self, problem, t_final, max_samples=100_001, timing=None, deadline=None):
+        if abs(self.dt_for(problem) - 0.05) < 1e-12:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return super().integrate(problem, t_final, max_samples=max_samples, timing=timing, deadline=deadline)
 
 
-def double(x):
-    return 2 * x
+def test_a_killed_worker_costs_its_cell_and_the_matrix_goes_on():
+    """The process executor: a cell that SIGKILLs its worker is a failed row naming the
+    signal; the batch's other cells run on a fresh worker, the other worker's rows stand."""
+    from longtime.core import registry
+    from longtime.core.integrator import Timing
+    from longtime.execution.cells import expand
+    from longtime.execution.matrix import ExecOptions, run_matrix
+
+    registry.register(KillsItsWorker)
+    cells = expand(["harmonic"], [KillsItsWorker.name, "rk4"], sweeps={"dt": [0.1, 0.05, 0.025]}, t_final=2.0)
+    options = ExecOptions(jobs=2, timing=Timing(repeats=1, min_time=0.0), processes=1)
+    rows = {(r["integrator"], r["dt"]): r for r in run_matrix(cells, None, None, "process", options)}
+    assert len(rows) == 6
+    killed = rows[(KillsItsWorker.name, 0.05)]
+    assert killed["status"] == "failed" and "SIGKILL" in killed["message"], killed
+    assert all(r["status"] == "ok" for key, r in rows.items() if key != (KillsItsWorker.name, 0.05)), rows
 
 
-if __name__ == "__main__":
-    from longtime.execution.pool import spawn_pool
+class NoSpace(Verlet):
+    """Verlet whose run finds no space left on the disk."""
 
-    with spawn_pool(2) as pool:
-        assert list(pool.map(double, range(4))) == [0, 2, 4, 6]
-        os.kill(resource_tracker._resource_tracker._pid, signal.SIGKILL)
-        time.sleep(0.5)
-        assert list(pool.map(double, range(4))) == [0, 2, 4, 6]
-    print("done")
-"""
+    name = "pool-no-space"
+    summary = "Verlet that meets a full disk"
+
+    def integrate(self, problem, t_final, max_samples=100_001, timing=None, deadline=None):
+        raise OSError(errno.ENOSPC, "No space left on device", "/full")
 
 
-def test_a_killed_resource_tracker_costs_one_line_and_no_traceback(tmp_path):
-    """multiprocessing's resource tracker killed while a pool runs: the pool goes on, and the
-    tracker started in its place prints no KeyError traceback for the names it never saw."""
-    script = tmp_path / "killed_tracker.py"
-    script.write_text(TRACKER_KILLED)
-    res = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300)
-    assert res.returncode == 0 and res.stdout.strip() == "done", res.stderr
-    assert "Traceback" not in res.stderr and "KeyError" not in res.stderr, res.stderr
-    assert res.stderr.strip().splitlines() == [
-        "warning: multiprocessing's resource tracker process had ended (killed?); a new one runs"]
+def test_a_worker_without_disk_space_interrupts_the_run_and_stores_no_row():
+    """A full disk in a worker is the machine's fault, not the cell's: DiskFull (the run is
+    interrupted, --resume completes it), never a failed row."""
+    from longtime.core import registry
+    from longtime.core.integrator import Timing
+    from longtime.execution.cells import expand
+    from longtime.execution.matrix import ExecOptions, run_matrix
+    from longtime.execution.tempdirs import DiskFull
+
+    registry.register(NoSpace)
+    cells = expand(["harmonic"], [NoSpace.name], sweeps={"dt": [0.1, 0.05]}, t_final=1.0)
+    options = ExecOptions(jobs=2, timing=Timing(repeats=1, min_time=0.0), processes=1)
+    with pytest.raises(DiskFull, match="no space"):
+        run_matrix(cells, None, None, "process", options)

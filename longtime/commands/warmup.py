@@ -18,7 +18,7 @@ from longtime.core import cli_args, registry, roles
 from longtime.core.stepping import FixedStepIntegrator
 from longtime.core.timing import Timing
 from longtime.execution.cells import Cell, build, expand
-from longtime.execution.pool import spawn_pool
+from longtime.execution.pool import worker_pool
 from longtime.execution.pool import workers as pool_workers
 
 
@@ -67,8 +67,9 @@ def warmup(cells: list[Cell], jobs: int = 0) -> list[dict[str, Any]]:
     if workers <= 1:
         return [r for batch in batches for r in _warm_batch(batch)]
     results = []
-    with spawn_pool(workers) as pool:
-        for _, future in scheduled(pool, workers, batches, _warm_batch):  # no function compiled twice at once
+    with worker_pool(workers) as pool:
+        # no function compiled twice at once
+        for _, future in scheduled(pool, workers, batches, lambda batch: pool.submit(_warm_batch, batch)):
             results.extend(future.result())
     return results
 

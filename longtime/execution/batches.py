@@ -1,8 +1,8 @@
 """Batches of cells as one worker runs them: the cells of one problem x scheme pair
 together (a worker compiles the pair's kernel once), largest first, each row calibrated
-against the machine's speed and, with a folder, written there as it finishes (a pool broken
-by another worker's crash loses nothing finished). The process pool and the Dask executor
-both run their batches here."""
+against the machine's speed and, with a folder, written there as it finishes (a worker that
+dies mid-batch loses nothing finished). The resident children of the process executor and
+of the Dask executor (``longtime.execution.child.Resident``) run their batches here."""
 from __future__ import annotations
 
 import time
@@ -44,8 +44,8 @@ def calibrated_row(here: calibration.Calibrator, cell: Cell, spec: RunSpec) -> d
 def run_batch(cells: list[Cell], spec: RunSpec, folder: str | None = None) -> list[dict]:
     """Rows of ``cells`` in this worker, run as ``spec`` says (its memory limit is the
     worker's, set where the worker starts). With ``folder``, the cell in progress and each finished
-    row are also written there, so that a pool broken by another worker's crash loses
-    nothing finished and knows which cells were running."""
+    row are also written there, so that a worker that dies mid-batch loses nothing finished
+    and its parent knows which cell it died in."""
     rows = []
     here = calibration.here()
     here.start()

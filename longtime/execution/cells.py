@@ -411,7 +411,7 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
         ref, trust, note = None, None, ""
         if reference and has_reference(problem):
             # the reference check is part of the cell: it gets what is left of the cell's hard
-            # limit (the time limit and its grace, where the pool's watchdog would kill the cell)
+            # limit (the time limit and its grace, where the worker's watchdog would kill the cell)
             full = budget_seconds() if reference_budget_s is None else reference_budget_s
             hard = None if deadline is None else deadline + limits.grace(time_limit)
             left = None if hard is None else max(hard - time.monotonic(), 0.0)

@@ -6,7 +6,7 @@ parent (``tempdirs``), which the parent removes when the child is done; its file
 ``longtime.execution.jobfiles``, which writes them whole or not at all) are:
 
 - ``job.json``: what to run, the only file of this kind (``write_job``): its format's
-  ``version``, its ``kind`` (``time``, ``cell``, ``count``, ``batches``), the parent's
+  ``version``, its ``kind`` (``time``, ``cell``, ``count``, ``batches``, ``call``), the parent's
   process id, the cells, the run options (``RunSpec``) and options of the kind;
 - ``session.pkl`` and ``sys_path.json``: the classes registered from Python in the parent
   (pickled by value) and where their modules import from;
@@ -15,7 +15,9 @@ parent (``tempdirs``), which the parent removes when the child is done; its file
   has finished, so that a child that dies or hangs is named on the cell it was in;
 - ``result.json``: the result, written whole or not at all (``write_result``);
   ``records.jsonl``: one line per cell as each ends (``add_record``), for a child whose
-  results must survive its own death (Valgrind's).
+  results must survive its own death (Valgrind's);
+- ``call.pkl`` and ``outcome.pkl``: a ``call`` job's function with its arguments, and what
+  it returned or raised (pickled: the function by reference, as a process pool sends it).
 
 A child dies with the thread that started it (``PR_SET_PDEATHSIG``, ``limits``), runs in
 its own process group (a kill reaches whatever it started), and ends on ``os._exit``, which
@@ -25,9 +27,12 @@ Every child is ``python -m longtime.execution.child FOLDER`` (``start``): it rea
 and runs the child's side of its kind (``KINDS``: the timing processes', an isolated cell's,
 Valgrind's, a resident child's), which lives beside the parent's side of that kind.
 
-``Resident`` is a child that lives on and runs batch after batch of cells (a Dask worker's):
-it keeps its compiled kernels, and is replaced only when a cell passes its time limit (it is
-killed), ends the process, or runs into the memory limit.
+``Resident`` is a child that lives on and runs job after job (batches of cells, calls): it
+keeps its compiled kernels, and is replaced only when a cell passes its time limit (it is
+killed), ends the process, or runs into the memory limit. ``ResidentPool`` is N of them, one
+per thread of this process: the default executor's workers (``longtime.execution.matrix``),
+warmup's, the results page's and ``pool.run_tasks``'; a Dask worker runs its batches on its own
+``resident()``. A crash costs the one child and its cell, never the other workers.
 """
 from __future__ import annotations
 
@@ -35,6 +40,7 @@ import contextlib
 import importlib
 import json
 import os
+import pickle
 import select
 import shutil
 import signal
@@ -42,11 +48,13 @@ import subprocess
 import sys
 import threading
 import time
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from longtime.core import registry
+from longtime.core.cache import no_space
 from longtime.execution import jobfiles, tempdirs
 from longtime.execution.cells import Cell, RunSpec, base_row
 from longtime.execution.limits import (
@@ -63,7 +71,8 @@ JOB_VERSION = 1
 # the child's side of each kind of job: "module:function", called with (folder, job) in the
 # child; a child imports only the module its kind runs
 KINDS = {"time": "longtime.execution.processes:run_job", "cell": "longtime.execution.isolation:run_job",
-         "count": "longtime.execution.valgrind:run_job", "batches": "longtime.execution.child:serve"}
+         "count": "longtime.execution.valgrind:run_job", "batches": "longtime.execution.child:serve",
+         "call": "longtime.execution.child:run_call"}
 STDERR_TAIL = 600  # characters of a dead child's stderr kept in the message that names it
 POLL_S = 0.05
 
@@ -121,6 +130,7 @@ class Child:
     proc: subprocess.Popen
     started: float = field(default_factory=time.monotonic)
     unreadable: str = ""  # why its result file could not be read, where it could not
+    relayed: int = 0  # bytes of its stderr passed on to this process's (``Resident``)
 
     @property
     def pid(self) -> int:
@@ -199,6 +209,22 @@ class Child:
         shutil.rmtree(self.folder, ignore_errors=True)
 
 
+def relay_stderr(child: Child) -> None:
+    """What a long-lived child wrote on its stderr since the last relay (a warning, a
+    plugin's output, a crash's report), passed on to this process's stderr, where a process
+    pool's workers would have written it."""
+    try:
+        with open(child.folder / jobfiles.STDERR, "rb") as err:
+            err.seek(child.relayed)
+            data = err.read()
+    except OSError:
+        return
+    child.relayed += len(data)
+    if data:
+        sys.stderr.write(data.decode(errors="replace"))
+        sys.stderr.flush()
+
+
 def start(folder: Path, prefix: tuple[str, ...] | list[str] = (), env: dict[str, str] | None = None,
           pipes: bool = False, dies_at_start: bool = True) -> Child:
     """Start ``python -m longtime.execution.child FOLDER`` (under ``prefix``, such as
@@ -259,11 +285,19 @@ def add_record(folder: str | Path, key: str, item: dict[str, Any]) -> None:
 
 
 # ------------------------------------------------------------------ a child that runs batch after batch
+class Stopped(RuntimeError):
+    """A job handed to a ``Resident`` that has been stopped (its pool shut down)."""
+
+
+class CallFailed(RuntimeError):
+    """A ``call`` whose child ended without its outcome (killed, a segfault, os._exit)."""
+
+
 class Resident:
-    """A long-lived child that runs batches of cells (``run``) as a pool worker does,
-    keeping its compiled kernels between them. A cell that passes the hard limit of its
-    time limit is killed with the child (a ``timeout`` row), a cell that ends the child gets
-    a ``failed`` row naming how, and the batch's other cells run on in a fresh child; a cell
+    """A long-lived child that runs batches of cells (``run``) and calls (``call``), keeping
+    its compiled kernels between them. A cell that passes the hard limit of its time limit
+    is killed with the child (a ``timeout`` row), a cell that ends the child gets a
+    ``failed`` row naming how, and the batch's other cells run on in a fresh child; a cell
     that runs into the memory limit has its row, and the child is replaced after the batch
     (its heap may stay fragmented near the limit). The child dies with the thread that
     started it: use one ``Resident`` per thread."""
@@ -275,6 +309,7 @@ class Resident:
     def __init__(self) -> None:
         self.child: Child | None = None
         self.memory_limit: int | None = None
+        self.stopped = False
 
     def run(self, cells: list[Cell], spec: RunSpec) -> list[dict]:
         rows: dict[str, dict] = {}
@@ -289,7 +324,32 @@ class Resident:
             self.close()
         return [rows[c.key] for c in cells]
 
+    def call(self, fn: Callable, args: tuple, spec: RunSpec) -> Any:
+        """``fn(*args)`` in the child (under ``spec``'s memory limit, without a time limit):
+        what it returns, or the exception it raises; ``CallFailed`` naming how the child
+        ended where it gave no outcome (then it is replaced on the next job)."""
+        child = self._child(spec)
+        child.clear()
+        write_job(child.folder, "call", [], spec)
+        jobfiles.write(child.folder / jobfiles.CALL, pickle.dumps((fn, args)))
+        try:
+            line = self._ask(child, None, hang_s=None)
+        finally:
+            relay_stderr(child)
+        outcome = child.folder / jobfiles.OUTCOME
+        if line == b"done" and outcome.exists():
+            kind, value = pickle.loads(outcome.read_bytes())
+            if kind == "raised":
+                raise value
+            return value
+        self._reap(child, line)
+        why = child.failure("worker process")
+        self.close()
+        raise CallFailed(f"{getattr(fn, '__qualname__', fn)}: {why}")
+
     def _child(self, spec: RunSpec) -> Child:
+        if self.stopped:
+            raise Stopped("the worker was stopped")
         if self.child is not None and (self.child.ended() or self.memory_limit != spec.memory_limit):
             self.close()
         if self.child is None:
@@ -297,7 +357,18 @@ class Resident:
             write_job(folder, "batches", [], spec)
             self.child = start(folder, pipes=True, dies_at_start=False)
             self.memory_limit = spec.memory_limit
+            self._ready(self.child)
         return self.child
+
+    def _ready(self, child: Child) -> None:
+        """Wait (at most STARTUP_S) for a new child's ``ready``: it has read its standing job,
+        so the job file is the next job's to write. A child that ends or hangs before it is
+        named by the job it is then sent (``_ask``)."""
+        fd, deadline = child.proc.stdout.fileno(), time.monotonic() + self.STARTUP_S
+        while time.monotonic() < deadline:
+            if select.select([fd], [], [], POLL_S)[0]:
+                child.proc.stdout.readline()
+                return
 
     def _batch(self, child: Child, cells: list[Cell], spec: RunSpec) -> dict[str, dict]:
         """The rows of ``cells`` run in ``child``: all of them when the batch ends whole; else
@@ -314,10 +385,11 @@ class Resident:
         finally:
             if watchdog is not None:
                 watchdog.stop()  # joined: a kill it made is in ``killed``
+            relay_stderr(child)
         result = child.result() if line == b"done" else None
         if result is not None:
             return dict(zip((c.key for c in cells), result))
-        child.kill()  # ended, or its result cannot be read: the rows it wrote, cell by cell
+        self._reap(child, line)  # ended, or its result cannot be read: the rows it wrote, cell by cell
         done = {Cell.from_dict(cell).key: row for cell, row in jobfiles.finished_rows(child.folder)}
         running = [Cell.from_dict(c) for c in jobfiles.running_cells(child.folder)]
         if killed:
@@ -334,9 +406,24 @@ class Resident:
         self.close()
         return done
 
-    def _ask(self, child: Child, limit: float | None) -> bytes | None:
+    def _reap(self, child: Child, line: bytes | None) -> None:
+        """A child that gave no answer ended (or is killed): its answer channel closed
+        (``line`` empty) when it ends on its own, so it is given a moment to, and named by
+        how. One that ended for want of disk space (``tempdirs.NO_SPACE_EXIT``) is a fault of
+        the machine, not of its cell: ``DiskFull``, and the child is gone."""
+        if line == b"":
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                child.proc.wait(timeout=5)
+        child.kill()
+        if child.proc.returncode == tempdirs.NO_SPACE_EXIT:
+            tail = child.stderr().strip().splitlines()
+            self.close()
+            raise tempdirs.DiskFull(tail[-1] if tail else "no space left on the disk for a worker's files")
+
+    def _ask(self, child: Child, limit: float | None, hang_s: float | None = STARTUP_S) -> bytes | None:
         """Send the child its job and wait for its answer: ``b"done"``, ``b""`` when it ended,
-        None when no cell began within STARTUP_S (the child hangs outside any cell)."""
+        None when no cell began within ``hang_s`` (the child hangs outside any cell; None:
+        wait for ever)."""
         try:
             child.proc.stdin.write(b"go\n")
             child.proc.stdin.flush()
@@ -348,16 +435,76 @@ class Resident:
         while True:
             if select.select([fd], [], [], POLL_S)[0]:
                 return child.proc.stdout.readline().strip()
+            if hang_s is None:
+                continue
             if jobfiles.running_markers(child.folder):
                 quiet_since = time.monotonic()
-            elif time.monotonic() - quiet_since > self.STARTUP_S + (limit or 0):
+            elif time.monotonic() - quiet_since > hang_s + (limit or 0):
                 return None
 
     def close(self) -> None:
         """Stop the child and remove its folder."""
-        if self.child is not None:
-            self.child.remove()
-            self.child = None
+        child, self.child = self.child, None
+        if child is not None:
+            child.remove()
+
+    def stop(self) -> None:
+        """Close the child, and start no other: a job it is running ends (its thread's
+        ``run`` or ``call`` raises ``Stopped``, or returns what it has), the next is refused."""
+        self.stopped = True
+        self.close()
+
+
+class ResidentPool:
+    """``workers`` resident children, one per thread of a thread pool of this process, as a
+    process pool's workers are: ``submit(fn, *args)`` runs ``fn(*args)`` in one of them (a
+    ``call``), ``submit_cells(cells)`` a batch of cells (``Resident.run``: a crash or a hard
+    time limit costs its cell, the child is replaced, the batch goes on). Every child runs
+    under ``spec``'s memory limit (and a batch as ``spec`` says), dies with its thread (so
+    with this process), and is stopped at ``shutdown``; a job then running ends at once."""
+
+    def __init__(self, workers: int, spec: RunSpec | None = None):
+        self.spec = spec or RunSpec()
+        self._threads = ThreadPoolExecutor(max_workers=max(1, workers), thread_name_prefix="longtime-worker")
+        self._local = threading.local()
+        self._residents: list[Resident] = []
+        self._lock = threading.Lock()
+
+    def _resident(self) -> Resident:
+        one = getattr(self._local, "resident", None)
+        if one is None:
+            one = self._local.resident = Resident()
+            with self._lock:
+                self._residents.append(one)
+        return one
+
+    def submit(self, fn: Callable, *args: Any) -> Future:
+        return self._threads.submit(lambda: self._resident().call(fn, args, self.spec))
+
+    def submit_cells(self, cells: list[Cell]) -> Future:
+        return self._threads.submit(lambda: self._resident().run(cells, self.spec))
+
+    def pids(self) -> list[int]:
+        """The process ids of the children that run."""
+        with self._lock:
+            return [one.child.pid for one in self._residents if one.child is not None and not one.child.ended()]
+
+    def shutdown(self) -> None:
+        """Stop every child (killed: after the last result it only spares their interpreter's
+        teardown; after Ctrl-C or an error it returns at once even while a child is stuck in
+        compiled code) and the threads, the jobs not started cancelled."""
+        with self._lock:
+            residents = list(self._residents)
+        for one in residents:
+            with contextlib.suppress(Exception):
+                one.stop()
+        self._threads.shutdown(wait=False, cancel_futures=True)
+
+    def __enter__(self) -> "ResidentPool":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.shutdown()
 
 
 _RESIDENTS: dict[int, Resident] = {}
@@ -401,8 +548,9 @@ def main(folder: str) -> None:
 
 
 def serve(folder: str, job: Job) -> None:
-    """The resident child: a batch for each line on stdin (the job file says which cells),
-    ``done`` on the answer channel when its rows are written; ends at end of file."""
+    """The resident child: a job for each line on stdin (the job file says which: a
+    ``batches`` job's cells, a ``call``), ``done`` on the answer channel when its rows or its
+    outcome are written; ends at end of file."""
     from longtime.core import phases
     from longtime.execution.batches import run_batch
 
@@ -410,12 +558,47 @@ def serve(folder: str, job: Job) -> None:
     answers = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)  # what a plugin prints goes to stderr, never into the answers
     enter(folder, job)
+    answers.write(b"ready\n")  # the job file is read: the parent may write the next
+    answers.flush()
     for _ in sys.stdin.buffer:
         job = read_job(folder)
-        rows = run_batch(job.cells, job.spec, folder)
-        write_result(folder, rows)
+        try:
+            if job.kind == "call":
+                answer_call(folder)
+            else:
+                write_result(folder, run_batch(job.cells, job.spec, folder))
+        except (OSError, tempdirs.DiskFull) as exc:  # no space for its files: not the cells' fault
+            if not (no_space(exc) or isinstance(exc, tempdirs.DiskFull)):
+                raise
+            print(tempdirs.disk_full(exc, "a worker wrote its files"), file=sys.stderr)
+            sys.stderr.flush()
+            os._exit(tempdirs.NO_SPACE_EXIT)
         answers.write(b"done\n")
         answers.flush()
+    sys.stderr.flush()
+    os._exit(0)
+
+
+def answer_call(folder: str | Path) -> None:
+    """Run the call in ``folder`` (``CALL``) and write what it returned or raised
+    (``OUTCOME``); an outcome that cannot be pickled goes back as a RuntimeError naming it."""
+    fn, args = pickle.loads((Path(folder) / jobfiles.CALL).read_bytes())
+    try:
+        outcome = ("returned", fn(*args))
+    except Exception as exc:  # the caller's to handle; SystemExit and the like end the child
+        outcome = ("raised", exc)
+    try:
+        data = pickle.dumps(outcome)
+    except Exception as exc:
+        data = pickle.dumps(("raised", RuntimeError(f"{type(outcome[1]).__name__}: {outcome[1]} "
+                                                    f"(not picklable: {exc})")))
+    jobfiles.write(Path(folder) / jobfiles.OUTCOME, data)
+
+
+def run_call(folder: str, job: Job) -> None:
+    """The child's side of a one-off ``call`` job: the call's outcome written, then exit."""
+    enter(folder, job)
+    answer_call(folder)
     sys.stderr.flush()
     os._exit(0)
 

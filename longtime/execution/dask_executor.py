@@ -192,7 +192,7 @@ def dask_cluster(cells: list[Cell], options) -> Iterator[tuple[Cell, dict]]:
 
 
 def run_batch_limited(cells: list[Cell], spec: RunSpec) -> list[dict]:
-    """A batch's rows on a Dask worker under the process pool's limits, run in the worker's
+    """A batch's rows on a Dask worker under the process executor's limits, run in the worker's
     long-lived child process (longtime.execution.child.Resident, one per worker thread),
     which keeps its compiled kernels from batch to batch: a cell past the hard limit of
     ``spec.time_limit`` is killed with the child (a ``timeout`` row) and the child replaced,

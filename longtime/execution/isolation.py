@@ -10,7 +10,7 @@ child's whole process group when the time limit passes (a ``timeout`` row) and r
 child's exit code or signal and the end of its stderr (a ``failed`` row).
 
 The price is one interpreter start and one kernel compilation per cell (about a second):
-use this executor for untrusted or unstable plugins and time limits, the process pool for
+use this executor for untrusted or unstable plugins and time limits, the process executor for
 speed.
 """
 from __future__ import annotations
@@ -32,7 +32,7 @@ from longtime.execution.child import Child
 
 POLL_S = 0.05
 # a child's start-up (Python, numpy, numba, the plugins) before its cell begins: its time limit
-# counts from the cell's start, as the pool's watchdog counts it, and this bounds the start-up
+# counts from the cell's start, as the worker's watchdog counts it, and this bounds the start-up
 STARTUP_S = 120.0
 
 

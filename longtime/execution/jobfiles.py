@@ -2,8 +2,9 @@
 
 A child process's folder (``longtime.execution.child``) holds its job (``JOB``), the
 session beside it (``SESSION``, ``SYS_PATH``), its stderr (``STDERR``), its mark
-(``MARK``), its result (``RESULT``) and its records (``RECORDS``). A folder where batches run
-(a pool's, a resident child's: ``longtime.execution.batches``) also holds, per worker process,
+(``MARK``), its result (``RESULT``) and its records (``RECORDS``); a ``call`` job's function
+and arguments (``CALL``) and what it returned or raised (``OUTCOME``), both pickled. A
+resident child's folder, where batches run (``longtime.execution.batches``), also holds
 the marker of the cell it is in (``running-PID``: the cell, as JSON), each finished row
 (``row-KEY.json``: the cell and its row, KEY a digest of the cell's key) and the marker of a
 cell whose worker the watchdog killed (``killed-PID``, ``longtime.execution.limits``).
@@ -29,12 +30,14 @@ STDERR = "stderr.txt"
 MARK = "current"
 RESULT = "result.json"
 RECORDS = "records.jsonl"
+CALL = "call.pkl"
+OUTCOME = "outcome.pkl"
 RUNNING = "running-"
 ROW = "row-"
 KILLED = "killed-"
 # what one job leaves in the folder besides the job itself (``clear``); the hidden temporary
 # files of a writer killed mid-write among them
-LEFTOVERS = (RESULT, RECORDS, MARK, f"{ROW}*", f"{RUNNING}*", f"{KILLED}*", ".*.tmp")
+LEFTOVERS = (RESULT, RECORDS, MARK, CALL, OUTCOME, f"{ROW}*", f"{RUNNING}*", f"{KILLED}*", ".*.tmp")
 
 
 def write(path: str | os.PathLike, data: str | bytes) -> None:

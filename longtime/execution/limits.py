@@ -5,7 +5,7 @@ compiled steps and the row keeps what it reached. A cell stuck where no driver l
 compiled step that never returns, a plugin's Python, the metrics, the reference) is ended
 from outside: cells run in worker processes, each writes a marker file when it starts a
 cell (``running-PID``, see ``batches.run_batch`` and ``jobfiles``), and a ``Watchdog`` thread in the parent
-kills a worker whose cell has run past its hard limit, ``time_limit + GRACE_S +
+(``child.Resident``'s) kills a worker whose cell has run past its hard limit, ``time_limit + GRACE_S +
 GRACE_SHARE * time_limit`` (``hard_limit``), and records a ``timeout`` row for that cell.
 
 Memory: each worker runs under ``RLIMIT_DATA`` (its heap and anonymous mappings), by default
@@ -223,6 +223,11 @@ def call_limited(func: Callable[..., Any], *args: Any, time_limit: float | None,
     limit = hard_limit(time_limit)
     if limit is None or not hasattr(os, "fork"):
         return func(*args)
+    # a fork, not a child of longtime.execution.child: the calls take live objects (a
+    # plugin's problem and scheme instances, of classes that may be defined only in this
+    # process, as a notebook's are) that a fresh interpreter cannot unpickle, and the forked
+    # child reuses the kernels this process has compiled for them. The fork runs only the
+    # call and exits (os._exit): no thread of this process runs in it.
     read_end, write_end = os.pipe()
     pid = os.fork()
     if pid == 0:  # the child: never returns into the caller's code
@@ -274,21 +279,15 @@ def call_limited(func: Callable[..., Any], *args: Any, time_limit: float | None,
     return value
 
 
-def worker_init(parent: int, memory_limit: int | None) -> None:
-    """Initializer of a pool worker: it dies with its parent and runs under the memory limit."""
-    die_with_parent(parent)
-    set_memory_limit(memory_limit)
-
-
 class Watchdog:
-    """Kills a pool worker whose cell has run longer than ``limit`` seconds.
+    """Kills a worker whose cell has run longer than ``limit`` seconds.
 
     Workers write ``running-PID`` (the cell, as JSON) into ``folder`` when a cell starts and
     remove it when the cell ends; the file's age is the cell's. Past the limit the watchdog
-    claims the marker (renamed to ``killed-PID``, so the pool's recovery does not run that
-    cell again), kills the worker and calls ``record(cell_dict, elapsed)``, which stores the
-    cell's ``timeout`` row where the recovery finds it. Killing a worker breaks the pool:
-    the caller recovers the rows finished and re-runs the cells that were running."""
+    claims the marker (renamed to ``killed-PID``: the cell is not taken for one that ended
+    its worker), kills the worker and calls ``record(cell_dict, elapsed)``, which gives the
+    cell its ``timeout`` row (``child.Resident``: the batch's other cells go on in a fresh
+    worker)."""
 
     def __init__(self, folder: str | Path, limit: float, record: Callable[[dict[str, Any], float], None]):
         self.folder, self.limit, self.record = Path(folder), limit, record

@@ -2,7 +2,8 @@
 
 An executor is a function ``(cells, options) -> iterator of (cell, row)`` yielding rows as
 they complete, in any order. ``serial`` runs in this process; ``process`` (the default)
-on a pool of local worker processes, each keeping its compiled kernels across cells.
+on local long-lived worker processes (``longtime.execution.child.ResidentPool``), each keeping
+its compiled kernels across cells.
 Rows are written to the store one transaction each, so an interruption loses nothing
 already measured.
 """
@@ -10,12 +11,8 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import os
-import shutil
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from concurrent.futures.process import BrokenProcessPool
+from concurrent.futures import FIRST_COMPLETED, Future, wait
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, Callable, Iterator
 
 from longtime.core import phases, registry
@@ -23,8 +20,8 @@ from longtime.core.cache import no_space
 from longtime.core.params import InputError, check_choice
 from longtime.core.progress import Progress
 from longtime.core.timing import Timing
-from longtime.execution import budget, calibration, jobfiles, tempdirs
-from longtime.execution.batches import batches_by_pair, calibrated_row, run_batch
+from longtime.execution import budget, calibration
+from longtime.execution.batches import batches_by_pair, calibrated_row
 from longtime.execution.cells import (
     DEFAULT_MAX_SAMPLES,
     DEFAULT_TIME_LIMIT,
@@ -33,17 +30,8 @@ from longtime.execution.cells import (
     base_row,
     run_cell,
 )
-from longtime.execution.isolation import run_isolated
-from longtime.execution.limits import (
-    Watchdog,
-    default_memory_limit,
-    hard_limit,
-    memory_limited,
-    signal_relay,
-    timeout_message,
-    worker_init,
-)
-from longtime.execution.pool import spawn_pool
+from longtime.execution.child import ResidentPool
+from longtime.execution.limits import default_memory_limit, hard_limit, memory_limited, signal_relay
 from longtime.execution.pool import workers as pool_workers
 from longtime.execution.processes import RETIME, across_processes, by_need, default_processes, timed_elsewhere
 from longtime.execution.store import Store
@@ -71,10 +59,10 @@ class ExecOptions:
     retime: str = "all"
     # called with each cell as it starts in this process (the store marks it started)
     on_start: Callable[[Cell], None] | None = None
-    # work for a pool worker that has no cell left to run (the results page's figures and
+    # work for a worker process that has no cell left to run (the results page's figures and
     # stability intervals): returns (picklable function, its arguments, a callback taking
-    # its result), or None when there is none for now; the process pool asks again as rows
-    # come in
+    # its result), or None when there is none for now; the process executor asks again as
+    # rows come in
     idle_work: Callable[[], "IdleTask | None"] | None = None
 
     def workers(self) -> int:
@@ -158,22 +146,22 @@ class CompileOnce:
         self.compiled |= self.running.pop(id(batch), frozenset())
 
 
-def scheduled(pool, workers: int, batches: list[list[Cell]], fn: Callable, *args,
+def scheduled(pool, workers: int, batches: list[list[Cell]], submit: Callable[[list[Cell]], Future],
               idle_work: Callable[[], IdleTask | None] | None = None) -> Iterator[tuple[list[Cell], Future]]:
-    """(batch, its finished future of ``fn(batch, *args)``) as they complete on ``pool``, the
-    batches handed out in CompileOnce's order, one per idle worker: each worker gets its next
-    batch before the caller sees the last one's result. A pool that breaks gets no more.
-    Once every batch is handed out, a worker that would idle runs ``idle_work``'s tasks
-    instead (never beside a waiting batch, so they take no time from a timed cell); their
-    results go to their callbacks, and the caller sees only the batches."""
-    order, futures, broken = CompileOnce(batches), {}, False
+    """(batch, its finished future, ``submit(batch)``) as they complete, the batches handed
+    out in CompileOnce's order, one per idle worker: each worker gets its next batch before
+    the caller sees the last one's result. Once every batch is handed out, a worker that
+    would idle runs ``idle_work``'s tasks instead (``pool.submit(function, *arguments)``;
+    never beside a waiting batch, so they take no time from a timed cell); their results go
+    to their callbacks, and the caller sees only the batches."""
+    order, futures = CompileOnce(batches), {}
     idle: dict[Future, Callable[[Any], None]] = {}
 
     def fill() -> None:
-        while order and not broken and len(futures) + len(idle) < workers:
+        while order and len(futures) + len(idle) < workers:
             batch = order.take()
-            futures[pool.submit(fn, batch, *args)] = batch
-        while idle_work is not None and not order and not broken and len(futures) + len(idle) < workers:
+            futures[submit(batch)] = batch
+        while idle_work is not None and not order and len(futures) + len(idle) < workers:
             task = idle_work()
             if task is None:
                 break
@@ -186,10 +174,8 @@ def scheduled(pool, workers: int, batches: list[list[Cell]], fn: Callable, *args
         finished = [(futures.pop(fut), fut) for fut in ready if fut in futures]
         for batch, fut in finished:
             order.finished(batch)
-            broken = broken or isinstance(fut.exception(), BrokenProcessPool)
         for fut in (f for f in ready if f in idle):
             callback = idle.pop(fut)
-            broken = broken or isinstance(fut.exception(), BrokenProcessPool)
             if fut.exception() is None:  # a failed task is only not done ahead: its owner does it later
                 callback(fut.result())
         fill()  # ahead of the caller's turn: no worker idles while it stores rows
@@ -197,45 +183,13 @@ def scheduled(pool, workers: int, batches: list[list[Cell]], fn: Callable, *args
         fill()  # idle work the caller's new rows made ready
 
 
-def _worker_init(parent: int, memory_limit: int | None, session: bytes | None = None) -> None:
-    phases.since_process_start("worker start")  # a spawned interpreter and its imports
-    worker_init(parent, memory_limit)  # dies with its parent, under the memory limit
-    if session is not None:  # classes registered from Python in the parent (registry.register)
-        registry.restore_session(session)
-
-
-def _record_timeout(folder: str, time_limit: float) -> Callable[[dict, float], None]:
-    """The watchdog's record of a cell whose worker it killed: a ``timeout`` row file, where
-    the pool's recovery reads the rows of a broken pool (unless the cell's own row is there)."""
-
-    def record(cell_dict: dict, elapsed: float) -> None:
-        cell = Cell.from_dict(cell_dict)
-        if jobfiles.row_file(folder, cell.key).exists():  # it ended just ahead of the kill: its own row stands
-            return
-        row = {**base_row(cell), "status": "timeout", "message": timeout_message(time_limit, elapsed)}
-        jobfiles.write_row(folder, cell.key, cell.to_dict(), row)
-
-    return record
-
-
-def _stop(pool: ProcessPoolExecutor) -> None:
-    """Shut the pool down, its workers killed first. After Ctrl-C or an error this returns at
-    once even while a worker is stuck in compiled code (the interpreter's exit would wait
-    for it); after the last result, when the workers have nothing left, it only spares
-    their interpreter's exit (numba's and LLVM's teardown: 0.7 to 1.1 s of a main job's wall
-    time, measured)."""
-    for proc in list((getattr(pool, "_processes", None) or {}).values()):  # no public API for this
-        with contextlib.suppress(Exception):
-            proc.kill()
-    pool.shutdown(wait=False, cancel_futures=True)
-
-
 def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
-    """Batches of cells on a pool of worker processes. A worker that dies (a segfault, os.abort,
-    out of memory) breaks the whole pool: the rows finished before are kept, the cells that
-    were running then are re-run each in its own process (longtime.execution.isolation: only the one
-    that crashes again gets a ``failed`` row, naming its signal), and the rest go on a fresh
-    pool."""
+    """Batches of cells on ``workers`` long-lived worker processes (a ``ResidentPool``: one
+    child each, ``python -m longtime.execution.child``, keeping its compiled kernels from
+    batch to batch), each under the memory limit and the hard time limit of a cell. A worker
+    that dies (a segfault, os.abort, SIGKILL, out of memory) or is killed past the hard limit
+    costs that worker and its one cell (a ``failed`` or ``timeout`` row naming what
+    happened): a fresh worker takes the batch's other cells, and the other workers go on."""
     runnable = [c for c in cells if not c.skip_reason]
     for cell in cells:
         if cell.skip_reason:
@@ -243,67 +197,20 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
     if not runnable:
         return
     workers = min(options.workers(), len(runnable))
-    limit = hard_limit(options.time_limit)
-    if workers == 1 and limit is None:  # no limit to enforce: this process is the worker
+    if workers == 1 and hard_limit(options.time_limit) is None:  # no limit to enforce: this process is the worker
         yield from serial(runnable, options)
         return
-    try:
-        folder = str(tempdirs.make("pool"))  # removed below, or by a later run if this one is killed
-    except OSError as exc:
-        if no_space(exc):
-            raise disk_full(exc, "making the pool's temp folder") from None
-        raise
-    done: set[str] = set()
-    remaining = runnable
-    with phases.phase("pool"):  # this process while the pool runs: storing rows, waiting
-        try:
-            while remaining:
-                broken = False
-                pool = spawn_pool(min(workers, len(remaining)), _worker_init,
-                                  (os.getpid(), options.memory_limit, registry.session_payload()))
-                watchdog = (Watchdog(folder, limit, _record_timeout(folder, options.time_limit)).start() if limit
-                            else None)
-                try:
-                    for batch, fut in scheduled(pool, workers, batches_by_pair(remaining), run_batch,
-                                                options.run_spec(), folder, idle_work=options.idle_work):
-                        try:
-                            rows = fut.result()
-                        except BrokenProcessPool:  # some worker died: sorted out below
-                            broken = True
-                            continue
-                        except Exception as exc:  # the batch could not be sent or returned
-                            if no_space(exc) or isinstance(exc, DiskFull):  # a full temp folder: not the cells'
-                                raise disk_full(exc, "a worker wrote its cell's files") from None
-                            rows = [{**base_row(c), "status": "failed",
-                                     "message": f"worker process failed: {exc!r}"} for c in batch]
-                        for c, row in zip(batch, rows):
-                            if c.key not in done:
-                                done.add(c.key)
-                                yield c, row
-                finally:
-                    if watchdog is not None:
-                        watchdog.stop()
-                    _stop(pool)
-                if not broken:
-                    break
-                # rows the broken pool's workers finished but could not return
-                for cell_dict, row in jobfiles.finished_rows(folder):
-                    cell = Cell.from_dict(cell_dict)
-                    if cell.key not in done:
-                        done.add(cell.key)
-                        yield cell, row
-                suspects = [Cell.from_dict(c) for c in jobfiles.running_cells(folder)]
-                suspects = [c for c in suspects if c.key not in done]
-                for path in Path(folder).iterdir():
-                    path.unlink()
-                if not suspects:  # broken outside any cell: one process per cell, no endless retries
-                    suspects = [c for c in remaining if c.key not in done]
-                for cell, row in run_isolated(suspects, options.run_spec(), limit, workers):
-                    done.add(cell.key)
-                    yield cell, row
-                remaining = [c for c in remaining if c.key not in done]
-        finally:
-            shutil.rmtree(folder, ignore_errors=True)
+    with phases.phase("pool"), ResidentPool(workers, options.run_spec()) as pool:  # storing rows, waiting
+        for batch, fut in scheduled(pool, workers, batches_by_pair(runnable), pool.submit_cells,
+                                    idle_work=options.idle_work):
+            try:
+                rows = fut.result()
+            except Exception as exc:  # the batch could not be written or read back
+                if no_space(exc) or isinstance(exc, DiskFull):  # a full temp folder: not the cells'
+                    raise disk_full(exc, "a worker wrote its cell's files") from None
+                rows = [{**base_row(c), "status": "failed", "message": f"worker process failed: {exc!r}"}
+                        for c in batch]
+            yield from zip(batch, rows)
 
 
 def isolated(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:

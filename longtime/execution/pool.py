@@ -1,12 +1,8 @@
-"""Worker processes: how many a ``--jobs`` value means, and the process pool every command
+"""Worker processes: how many a ``--jobs`` value means, and the pool of them every command
 that fans work out uses (the matrix, warmup, the round-off study, the results page)."""
 from __future__ import annotations
 
-import multiprocessing
 import os
-import sys
-import warnings
-from concurrent.futures import ProcessPoolExecutor
 from typing import Any, Callable, Iterator
 
 
@@ -17,59 +13,25 @@ def workers(jobs: int, tasks: int | None = None) -> int:
     return max(1, n if tasks is None else min(n, tasks))
 
 
-def spawn_pool(workers: int, initializer: Callable | None = None, initargs: tuple = ()) -> ProcessPoolExecutor:
-    """A pool of ``workers`` spawned processes: a fork after numba's or heyoka's threads (or a
-    Dask client's) have started can deadlock, so no pool forks."""
-    guard_resource_tracker()
-    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=initializer, initargs=initargs)
+def worker_pool(workers: int, spec=None):
+    """``workers`` worker processes (``longtime.execution.child.ResidentPool``): each a fresh
+    interpreter (``python -m longtime.execution.child``, never a fork: a fork after numba's or
+    heyoka's threads, or a Dask client's, have started can deadlock) that lives from task to
+    task; ``submit(fn, *args)`` as a process pool's, and a task that crashes its worker
+    (``CallFailed``) costs that worker only."""
+    from longtime.execution.child import ResidentPool
 
-
-def guard_resource_tracker() -> None:
-    """Keep multiprocessing's resource tracker (the process that cleans up the pool's
-    semaphores) quiet when it was killed: the one started in its place never saw what the
-    dead one tracked, and would print a KeyError traceback for each name this process then
-    unregisters. Those names are not sent to it, and its start is said in one line. Where the
-    tracker is not the one this knows (another Python), nothing changes."""
-    from multiprocessing import resource_tracker as rt
-
-    tracker = getattr(rt, "_resource_tracker", None)
-    if tracker is None or not hasattr(tracker, "_pid") or getattr(tracker, "_longtime_guarded", False):
-        return
-    owners: dict[tuple[str, str], Any] = {}  # (name, type) -> the tracker process it was registered with
-    ensure, register, unregister = tracker.ensure_running, tracker.register, tracker.unregister
-
-    def ensure_running() -> None:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            ensure()
-        if caught:
-            print("warning: multiprocessing's resource tracker process had ended (killed?); a new one runs",
-                  file=sys.stderr)
-
-    def registered(name: str, rtype: str) -> None:
-        ensure_running()
-        register(name, rtype)
-        owners[(name, rtype)] = tracker._pid
-
-    def unregistered(name: str, rtype: str) -> None:
-        ensure_running()
-        if owners.pop((name, rtype), tracker._pid) == tracker._pid:  # else a dead tracker's: unknown here
-            unregister(name, rtype)
-
-    tracker.ensure_running = rt.ensure_running = ensure_running
-    tracker.register = rt.register = registered
-    tracker.unregister = rt.unregister = unregistered
-    tracker._longtime_guarded = True
+    return ResidentPool(workers, spec)
 
 
 def unguarded_main() -> str | None:
-    """Why the process pool cannot start here, or None when it can: a spawned worker runs the
-    main module again, and a script that calls longtime outside ``if __name__ ==
-    "__main__":`` would then call it again in every worker (multiprocessing's "bootstrapping
-    phase" RuntimeError). Found from the stack: the main module's top level is running, at a
-    statement that is not that guard. A notebook, ``python -c`` and the REPL have no file to
-    run again; a worker bootstrapping a script says so."""
+    """Why a local Dask cluster cannot start here, or None when it can: a worker that
+    multiprocessing spawns runs the main module again, and a script that calls longtime
+    outside ``if __name__ == "__main__":`` would then call it again in every worker
+    (multiprocessing's "bootstrapping phase" RuntimeError). Found from the stack: the main
+    module's top level is running, at a statement that is not that guard. A notebook,
+    ``python -c`` and the REPL have no file to run again; a worker bootstrapping a script
+    says so."""
     import ast
     import sys
 
@@ -109,7 +71,7 @@ def _is_main_guard(stmt) -> bool:
 
 def run_tasks(fn: Callable, tasks: list[tuple], jobs: int, scheduler: str | None = None) -> Iterator[tuple[tuple, Any]]:
     """Yield (task, fn(*task)) as the tasks finish: on the Dask cluster at ``scheduler``, else
-    on a pool of ``workers(jobs)`` spawned processes (in this process when that is one).
+    on a ``worker_pool`` of ``workers(jobs)`` processes (in this process when that is one).
     The studies that fan out independent runs (round-off, the breakdown horizon) use it."""
     if scheduler:
         try:
@@ -133,7 +95,7 @@ def run_tasks(fn: Callable, tasks: list[tuple], jobs: int, scheduler: str | None
         for task in tasks:
             yield task, fn(*task)
         return
-    with spawn_pool(n) as pool:
+    with worker_pool(n) as pool:
         futures = {pool.submit(fn, *task): task for task in tasks}
         for fut in finished(futures):
             yield futures[fut], fut.result()

@@ -372,9 +372,9 @@ def figures_drawing(by_problem: dict[str, list[dict]], style: dict, drift: bool,
 
         yield here
         return
-    from longtime.execution.pool import spawn_pool
+    from longtime.execution.pool import worker_pool
 
-    with spawn_pool(processes) as pool:
+    with worker_pool(processes) as pool:
         intervals = [pool.submit(interval_texts, {s: o}, True) for s, o in missing.items()]
         drawn = {p: pool.submit(problem_figures, rows, style, drift, groups) for p, (rows, groups) in todo.items()}
 
