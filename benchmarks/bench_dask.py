@@ -3,7 +3,7 @@
 The goal: a LocalCluster of 2 single-threaded workers reaches at least 80 % of the process
 pool's throughput (cells per wall second) on the same sweep of short cells, with the default
 time and memory limits in force (on Dask each worker runs its batches in a long-lived child
-process, longtime.execution.child.Resident). The sweep is toda, kepler, henon-heiles,
+process, longtime.execution.resident.Resident). The sweep is toda, kepler, henon-heiles,
 harmonic and duffing-2 x rk4, verlet, gauss4 and yoshida6 x ``cells / 20`` steps from 0.005
 to 0.05, to t = 20: short cells, where an executor's own cost (task dispatch, process
 starts, pickling) shows. Timing is cut to three repeats (no --min-time) and each executor

@@ -1,4 +1,4 @@
-"""Dask workers' long-lived children (longtime.execution.child.Resident): batches run one after
+"""Dask workers' long-lived children (longtime.execution.resident.Resident): batches run one after
 the other in the same child; a spinning cell ends at its hard limit as a timeout row and the
 child is replaced; no child (nor its folder) outlives its cluster or a killed worker."""
 import json
@@ -21,7 +21,8 @@ import json, os, signal, time
 from distributed import Client, LocalCluster
 from longtime.core.integrator import Timing
 from longtime.execution.cells import Cell
-from longtime.execution.child import RunSpec, resident_pids
+from longtime.execution.child import RunSpec
+from longtime.execution.resident import resident_pids
 from longtime.execution.dask_executor import run_batch_limited
 
 

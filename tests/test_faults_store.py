@@ -362,7 +362,7 @@ def test_a_closed_stdout_is_quiet():
 # --- SIGTERM, SIGHUP and temp folders -----------------------------------------------------------
 
 def _pool_folders(tmp: Path) -> list[Path]:
-    """The folders of the process executor's workers (one each, child.Resident)."""
+    """The folders of the process executor's workers (one each, resident.Resident)."""
     return sorted(tmp.glob("longtime-cell-*"))
 
 

@@ -5,8 +5,8 @@ import signal
 
 import pytest
 
-from longtime.execution.child import CallFailed
 from longtime.execution.pool import worker_pool, workers
+from longtime.execution.resident import CallFailed
 from longtime.integrators.splitting import Verlet
 
 

@@ -13,12 +13,6 @@ PACKAGE = Path(__file__).resolve().parents[1] / "longtime"
 LITERAL = re.compile(r"""(?<!solver\.)status["')\]]*\s*(==|!=|=|\bin\b|\bnot in\b)\s*[(\[]?\s*"""
                      r"""["'](ok|diverged|failed|timeout|skipped)["']|["']status["']:\s*["'](ok|diverged|failed|"""
                      r"""timeout|skipped)["']|\bstatus, message = ["']""")
-# modules other work edits at the same time, still spelling statuses as literals: each entry
-# goes once its module reads longtime.core.status
-NOT_YET = {
-    "execution/child.py", "execution/dask_executor.py", "execution/matrix.py",
-    "integrators/diffrax_ode.py", "integrators/peer_common.py", "integrators/sundials_cvode.py",
-}
 
 
 def test_the_row_declares_the_statuses_and_the_codes_end_in_them():
@@ -47,12 +41,9 @@ def test_no_module_spells_a_row_status_as_a_literal():
     found = []
     for path in sorted(PACKAGE.rglob("*.py")):
         name = path.relative_to(PACKAGE).as_posix()
-        if name == "core/status.py" or name in NOT_YET:
+        if name == "core/status.py":
             continue
         for k, line in enumerate(path.read_text().splitlines(), 1):
             if LITERAL.search(line):
                 found.append(f"{name}:{k}: {line.strip()}")
     assert found == [], "read the status from longtime.core.status.Status:\n" + "\n".join(found)
-    # an entry of NOT_YET that needs no exception any more goes
-    assert all((PACKAGE / name).exists() and any(LITERAL.search(line) for line in (PACKAGE / name).read_text()
-                                                 .splitlines()) for name in NOT_YET)

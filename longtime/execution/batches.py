@@ -2,7 +2,7 @@
 together (a worker compiles the pair's kernel once), largest first, each row calibrated
 against the machine's speed and, with a folder, written there as it finishes (a worker that
 dies mid-batch loses nothing finished). The resident children of the process executor and
-of the Dask executor (``longtime.execution.child.Resident``) run their batches here."""
+of the Dask executor (``longtime.execution.resident.Resident``) run their batches here."""
 from __future__ import annotations
 
 import time

@@ -27,10 +27,11 @@ import shutil
 from typing import Iterator
 
 from longtime.core.params import InputError
+from longtime.core.status import Status
 from longtime.execution import tempdirs
 from longtime.execution.cells import Cell, RunSpec, base_row, run_cell
-from longtime.execution.child import resident
 from longtime.execution.limits import hard_limit
+from longtime.execution.resident import resident
 
 
 class ExecutorLost(RuntimeError):
@@ -181,7 +182,7 @@ def dask_cluster(cells: list[Cell], options) -> Iterator[tuple[Cell, dict]]:
                 if isinstance(exc, DiskFull) or no_space(exc):  # the worker's disk, not the cells
                     raise disk_full(exc, "a Dask worker ran its cells") from None
                 # the batch raised, or killed allowed-failures workers (KilledWorker)
-                rows = [{**base_row(c), "status": "failed", "message": f"dask task failed: {exc!r}"}
+                rows = [{**base_row(c), "status": Status.FAILED, "message": f"dask task failed: {exc!r}"}
                         for c in batch]
             left -= len(batch)
             yield from zip(batch, rows)
@@ -193,7 +194,7 @@ def dask_cluster(cells: list[Cell], options) -> Iterator[tuple[Cell, dict]]:
 
 def run_batch_limited(cells: list[Cell], spec: RunSpec) -> list[dict]:
     """A batch's rows on a Dask worker under the process executor's limits, run in the worker's
-    long-lived child process (longtime.execution.child.Resident, one per worker thread),
+    long-lived child process (longtime.execution.resident.Resident, one per worker thread),
     which keeps its compiled kernels from batch to batch: a cell past the hard limit of
     ``spec.time_limit`` is killed with the child (a ``timeout`` row) and the child replaced,
     a cell past ``spec.memory_limit`` fails (``failed: memory limit``) and the child is

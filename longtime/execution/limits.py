@@ -5,7 +5,7 @@ compiled steps and the row keeps what it reached. A cell stuck where no driver l
 compiled step that never returns, a plugin's Python, the metrics, the reference) is ended
 from outside: cells run in worker processes, each writes a marker file when it starts a
 cell (``running-PID``, see ``batches.run_batch`` and ``jobfiles``), and a ``Watchdog`` thread in the parent
-(``child.Resident``'s) kills a worker whose cell has run past its hard limit, ``time_limit + GRACE_S +
+(``resident.Resident``'s) kills a worker whose cell has run past its hard limit, ``time_limit + GRACE_S +
 GRACE_SHARE * time_limit`` (``hard_limit``), and records a ``timeout`` row for that cell.
 
 Memory: each worker runs under ``RLIMIT_DATA`` (its heap and anonymous mappings), by default
@@ -25,6 +25,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
+from longtime.core.status import MEMORY_LIMIT  # how the message of a cell stopped by its memory limit begins
 from longtime.execution import jobfiles
 
 # the hard limit of a cell: its --time-limit, plus this many seconds, plus this share of it
@@ -162,7 +163,6 @@ def memory_argument_api(value) -> int | None:
     return int(value * 2**30) or None
 
 
-MEMORY_LIMIT = "memory limit"  # how the message of a cell stopped by its memory limit begins
 
 
 def hit_memory_limit(row: dict) -> bool:
@@ -286,7 +286,7 @@ class Watchdog:
     remove it when the cell ends; the file's age is the cell's. Past the limit the watchdog
     claims the marker (renamed to ``killed-PID``: the cell is not taken for one that ended
     its worker), kills the worker and calls ``record(cell_dict, elapsed)``, which gives the
-    cell its ``timeout`` row (``child.Resident``: the batch's other cells go on in a fresh
+    cell its ``timeout`` row (``resident.Resident``: the batch's other cells go on in a fresh
     worker)."""
 
     def __init__(self, folder: str | Path, limit: float, record: Callable[[dict[str, Any], float], None]):

@@ -2,7 +2,7 @@
 
 An executor is a function ``(cells, options) -> iterator of (cell, row)`` yielding rows as
 they complete, in any order. ``serial`` runs in this process; ``process`` (the default)
-on local long-lived worker processes (``longtime.execution.child.ResidentPool``), each keeping
+on local long-lived worker processes (``longtime.execution.resident.ResidentPool``), each keeping
 its compiled kernels across cells.
 Rows are written to the store one transaction each, so an interruption loses nothing
 already measured.
@@ -19,6 +19,7 @@ from longtime.core import phases, registry
 from longtime.core.cache import no_space
 from longtime.core.params import InputError, check_choice
 from longtime.core.progress import Progress
+from longtime.core.status import Status
 from longtime.core.timing import Timing
 from longtime.execution import budget, calibration
 from longtime.execution.batches import batches_by_pair, calibrated_row
@@ -30,10 +31,10 @@ from longtime.execution.cells import (
     base_row,
     run_cell,
 )
-from longtime.execution.child import ResidentPool
 from longtime.execution.limits import default_memory_limit, hard_limit, memory_limited, signal_relay
 from longtime.execution.pool import workers as pool_workers
 from longtime.execution.processes import RETIME, across_processes, by_need, default_processes, timed_elsewhere
+from longtime.execution.resident import ResidentPool
 from longtime.execution.store import Store
 from longtime.execution.tempdirs import DiskFull, disk_full
 
@@ -208,7 +209,7 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
             except Exception as exc:  # the batch could not be written or read back
                 if no_space(exc) or isinstance(exc, DiskFull):  # a full temp folder: not the cells'
                     raise disk_full(exc, "a worker wrote its cell's files") from None
-                rows = [{**base_row(c), "status": "failed", "message": f"worker process failed: {exc!r}"}
+                rows = [{**base_row(c), "status": Status.FAILED, "message": f"worker process failed: {exc!r}"}
                         for c in batch]
             yield from zip(batch, rows)
 

@@ -14,12 +14,12 @@ def workers(jobs: int, tasks: int | None = None) -> int:
 
 
 def worker_pool(workers: int, spec=None):
-    """``workers`` worker processes (``longtime.execution.child.ResidentPool``): each a fresh
+    """``workers`` worker processes (``longtime.execution.resident.ResidentPool``): each a fresh
     interpreter (``python -m longtime.execution.child``, never a fork: a fork after numba's or
     heyoka's threads, or a Dask client's, have started can deadlock) that lives from task to
     task; ``submit(fn, *args)`` as a process pool's, and a task that crashes its worker
     (``CallFailed``) costs that worker only."""
-    from longtime.execution.child import ResidentPool
+    from longtime.execution.resident import ResidentPool
 
     return ResidentPool(workers, spec)
 

@@ -30,6 +30,7 @@ from longtime.core import phases
 from longtime.core.cache import cache_dir
 from longtime.core.integrator import Integrator
 from longtime.core.params import Param
+from longtime.core.status import Status, time_limit_at
 from longtime.core.trajectory import Trajectory
 from longtime.integrators import peer_common
 
@@ -169,7 +170,7 @@ class Diffrax(Integrator):
         overhead = self.overhead(problem)
         deadline = self._deadline
         if deadline is not None and time.monotonic() > deadline:
-            return Trajectory(status="timeout", message="time limit reached before the first step", t=grid[:1],
+            return Trajectory(status=Status.TIMEOUT, message=time_limit_at(None), t=grid[:1],
                               u=problem.u0[None, :].copy(), cpu_s=0.0, wall_s=0.0,
                               extra={"compile_s": compile_s, "peer_overhead_s": overhead})
         u0, params = np.asarray(problem.u0), np.asarray(problem.params)

@@ -21,6 +21,7 @@ import numpy as np
 
 from longtime.core.jitcache import Unfreezable, cacheable, fingerprint
 from longtime.core.problem import BLOWUP_MESSAGE
+from longtime.core.status import Status
 from longtime.core.trajectory import Trajectory
 
 # the default matrix's tolerances of an adaptive peer: from the table's 1e-6 to the 1e-10 at
@@ -132,17 +133,17 @@ def trajectory(problem, library: str, t: np.ndarray, u: np.ndarray, cpu: float, 
     ``failure`` message), thinned evenly to ``max_samples``; ``counters['steps']`` is set from
     the steps recorded. ``stoppable``: the library's loop stops at the deadline (else a run past
     it ran on to where it ended, and its message says so)."""
-    status, message = "ok", ""
+    status, message = Status.OK, ""
     first = problem.first_blowup(u)
     if first is not None:
         t, u = t[:first + 1], u[:first + 1]
-        status, message = "diverged", BLOWUP_MESSAGE.format(t=t[-1])
+        status, message = Status.DIVERGED, BLOWUP_MESSAGE.format(t=t[-1])
     elif timed_out:
-        status, message = "timeout", (f"stopped at t={t[-1]:.6g}: past the cell's time limit" if stoppable else
+        status, message = Status.TIMEOUT, (f"stopped at t={t[-1]:.6g}: past the cell's time limit" if stoppable else
                                       f"ran to t={t[-1]:.6g} past the cell's time limit ({library}'s loop cannot "
                                       f"be stopped from outside)")
     elif failure is not None:
-        status, message = "failed", f"{library}: {failure} (t={t[-1]:.6g})"
+        status, message = Status.FAILED, f"{library}: {failure} (t={t[-1]:.6g})"
     steps = t.size - 1
     dts = np.diff(t)
     t, u = thin(t, u, max_samples)

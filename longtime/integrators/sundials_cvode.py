@@ -29,6 +29,7 @@ import numpy as np
 
 from longtime.core.integrator import Integrator
 from longtime.core.params import Param
+from longtime.core.status import Status, time_limit_at
 from longtime.core.trajectory import Trajectory
 from longtime.integrators import peer_common
 from longtime.integrators.peer_common import compiled
@@ -109,7 +110,7 @@ class CVODE(Integrator):
         overhead = self.overhead(problem)
         deadline = self._deadline
         if deadline is not None and time.monotonic() > deadline:
-            return Trajectory(status="timeout", message="time limit reached before the first step", t=grid[:1],
+            return Trajectory(status=Status.TIMEOUT, message=time_limit_at(None), t=grid[:1],
                               u=problem.u0[None, :].copy(), cpu_s=0.0, wall_s=0.0,
                               extra={"peer_overhead_s": overhead})
         result, cpu, wall = peer_common.timed(lambda: solver.solve(grid, problem.u0.copy()))
