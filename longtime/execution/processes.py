@@ -338,7 +338,10 @@ def across_processes(pairs: Iterable[tuple[Cell, dict[str, Any]]], processes: in
     if not todo:
         return []
     cells = [c for c, _ in todo]
-    budget = START_S + 10 * sum(float(r["wall_s"]) * len(r.get("cpu_s_samples") or [1]) for _, r in todo)
+    # each fresh process runs a cell up to ``spec.timing.repeats`` times, however few runs its
+    # row's own process took (a screening: ``row_timing``)
+    budget = START_S + 10 * sum(float(r["wall_s"]) * max(spec.timing.repeats, len(r.get("cpu_s_samples") or [1]))
+                                for _, r in todo)
     with phases.phase("timing processes"):  # this process while they run
         results = run_children(cells, processes - 1, spec, jobs, budget, on_progress=on_progress)
     for k, (cell, row) in enumerate(todo):
