@@ -2,6 +2,8 @@
 the fresh timing processes time again, what a row says of how it was timed, and how compare
 and history judge a cell timed in its own process. Synthetic rows and timing processes
 replaced by a stub: nothing is integrated, nothing is timed."""
+import dataclasses
+
 import pytest
 
 from longtime.execution import processes
@@ -120,3 +122,66 @@ def test_a_setting_the_verdict_picks_past_its_run_is_timed_again_though_off_the_
     verlet, rk4 = need(rows)
     assert rk4.retime and verlet.retime
     assert not need([rows[0], {**rows[1], "H.growth_class": "bounded"}])[0].retime  # x2.5 off every front
+
+
+def _timings(monkeypatch, options):
+    """The timing the rows' processes get and the one the fresh timing processes get, from
+    run_matrix under ``options`` (the executor and the timing processes replaced by stubs:
+    nothing runs)."""
+    from longtime.execution import matrix
+
+    seen = {}
+
+    def executor(cells, opts):
+        seen["rows"] = opts.timing
+        for cell in cells:  # one contender row, timed again in the fresh processes
+            yield cell, {**_row("verlet", 0.1, 1e-3, 0.1), "repeats": 1, "cpu_s_samples": [0.1]}
+
+    def fresh(pairs, count, spec, jobs=1, on_progress=None, alone=None):
+        seen["fresh"] = spec.timing
+        return []
+
+    monkeypatch.setitem(matrix.EXECUTORS, "serial", executor)
+    monkeypatch.setattr(matrix, "across_processes", fresh)
+    matrix.run_matrix([Cell("harmonic", "verlet", {}, {"dt": 0.1}, 10.0)], None, None, "serial", options)
+    return seen["rows"], seen["fresh"]
+
+
+def test_the_rows_processes_screen_under_timing_by_need_and_time_in_full_under_timing_all(monkeypatch):
+    from longtime.core.timing import Timing
+    from longtime.execution.main_job import MainJobSpec
+    from longtime.execution.matrix import ExecOptions
+
+    split = Timing().per_process(3)  # 7 repeats and 0.2 s split among 3 processes
+    assert (split.repeats, split.least_runs) == (3, 1) and split.min_time == pytest.approx(0.2 / 3)
+    # the main job's default: one run in the row's process, a few where the runs are under 0.01 s
+    rows, fresh = _timings(monkeypatch, dataclasses.replace(MainJobSpec().options, processes=3))
+    assert rows == Timing(repeats=3, min_time=0.01, min_runs=1) == split.screening()
+    assert (rows.least_runs, rows.wants_another([0.02]), rows.wants_another([0.002])) == (1, False, True)
+    assert not rows.wants_another([0.002, 0.002, 0.002])  # at most SCREEN_RUNS
+    assert fresh == split  # the contenders, timed again at today's rules
+    # --timing all: every process times at the split timing, the row's own as well
+    rows, fresh = _timings(monkeypatch, ExecOptions(processes=3, retime="all"))
+    assert rows == fresh == split
+    # the command line: matrix times by need unless --timing all; run times all
+    from longtime.commands.cli import build_parser
+    from longtime.commands.matrix import matrix_options
+
+    parser = build_parser()
+    assert matrix_options(parser.parse_args(["matrix", "--processes", "3"]), "process").retime == "need"
+    full = matrix_options(parser.parse_args(["matrix", "--processes", "3", "--timing", "all"]), "process")
+    assert full.retime == "all" and _timings(monkeypatch, full)[0] == split
+    # one process (--processes 1): nothing is timed again, so the row's process times in full
+    rows, _ = _timings(monkeypatch, ExecOptions(processes=1, retime="need"))
+    assert rows == Timing()
+    # a screening never asks for more than the timing it screens for
+    assert Timing(repeats=1, min_time=0.0).screening() == Timing(repeats=1, min_time=0.0, min_runs=1)
+
+
+def test_a_row_left_in_its_own_process_says_how_many_runs_timed_it():
+    row = {**_row("rk4", 0.1, 1e-3, 0.42), "repeats": 1}
+    processes.one_process(row, "not on the front by x4.2")
+    assert row["timed_in"] == "its own process, 1 run: not on the front by x4.2"
+    row = {**_row("rk4", 0.1, 1e-3, 0.42), "repeats": 3}
+    processes.one_process(row, "one process asked (--processes 1)")
+    assert row["timed_in"] == "its own process, 3 runs: one process asked (--processes 1)"

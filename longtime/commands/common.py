@@ -92,8 +92,8 @@ def add_selection(p: argparse.ArgumentParser, required: bool) -> None:
     p.add_argument("--timing", choices=RETIME, default=None,
                    help="which cells those fresh processes time again: need, those whose time could change an "
                         f"answer (within x{NEED_FACTOR:g} of a front of error against CPU of their problem, or named "
-                        "by a verdict or a check; the rest keep their own process's time, and each row's timed_in "
-                        "says which and why), or all (default: need for matrix, all for run)")
+                        "by a verdict or a check; the rest keep their own process's time, a run or a few, and each "
+                        "row's timed_in says which and why), or all (default: need for matrix, all for run)")
     p.add_argument("--min-time", type=cli_args.seconds("--min-time", allow_zero=True), default=Timing.min_time,
                    metavar="SECONDS",
                    help=f"repeat a cell's timed run until the timed total passes this "

@@ -14,6 +14,7 @@ from longtime.execution import budget
 from longtime.execution.calibration import drift_text
 from longtime.execution.lifecycle import command_line
 from longtime.execution.main_job import MainJobSpec, Selection, plan, run_main_job
+from longtime.execution.matrix import ExecOptions
 from longtime.predict.checks import CHECKS
 
 # ``longtime matrix --quick``: a first answer in about a minute (warm caches): two problems
@@ -80,6 +81,15 @@ def matrix_cells(args) -> tuple[list, list]:
     return plan(matrix_selection(args), exec_options(args, args.executor or "process"))
 
 
+def matrix_options(args, executor: str) -> ExecOptions:
+    """How ``longtime matrix`` runs its cells: the run options of its flags, timing by need
+    (longtime.execution.processes.by_need) unless ``--timing`` says otherwise."""
+    options = exec_options(args, executor)
+    if args.timing is None:
+        options = dataclasses.replace(options, retime="need")
+    return options
+
+
 def quick(args) -> None:
     """--quick: the quick matrix's problems and schemes where -p and -i do not name them, one
     timing process where --processes does not ask for more, no results page where --html
@@ -109,9 +119,7 @@ def cmd_matrix(args) -> int:
         quick(args)
     warn_broken()
     executor = args.executor or "process"
-    options = exec_options(args, executor)
-    if args.timing is None:  # the main job times by need (longtime.execution.processes.by_need)
-        options = dataclasses.replace(options, retime="need")
+    options = matrix_options(args, executor)
     shown = Progress(on=not args.no_progress)
     if args.quick:
         shown.say(quick_text(args))

@@ -177,8 +177,8 @@ FIELDS: tuple[Field, ...] = (
     Field("samples_digest", "str", "", "a digest of the run's samples, which every timed run must reproduce"),
     Field("cpu_s_processes", "floats", "s", "each timing process's minimum (the row's own process first)"),
     Field("cpu_s_process_spread", "float", "1", "max / min of the fresh timing processes' minima"),
-    Field("timed_in", "str", "", "how the cell was timed: 'N processes', or 'its own process: ' and why (a cell "
-                                 "whose time changes no answer: by how much a front dominates it)"),
+    Field("timed_in", "str", "", "how the cell was timed: 'N processes', or 'its own process, N runs: ' and why "
+                                 "(a cell whose time changes no answer: by how much a front dominates it)"),
     Field("phases_missing", "strs", "", "the phases after the cell's run that have not run for it yet"),
     Field("cpu_s_calibrated", "float", "1", "cpu_s over the calibration workload that fits the row"),
     Field("calibration_cpu_s", "float", "s", "the CPU time of that calibration workload"),

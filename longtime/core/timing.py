@@ -36,6 +36,12 @@ class Timing:
     # once: repeating a 10^8-step cell would cost minutes for a spread that is small at that
     # length (the row says so)
     ONCE_ABOVE: ClassVar[float] = 1.0
+    # a screening timing (``screening``) repeats a run only while the timed total is below this
+    # (wall seconds): a run of a few milliseconds, which one disturbance can double, is timed
+    # a few times; a longer one once
+    SCREEN_TIME: ClassVar[float] = 0.01
+    # and at most this many times
+    SCREEN_RUNS: ClassVar[int] = 3
 
     def __post_init__(self) -> None:
         if isinstance(self.repeats, bool) or not isinstance(self.repeats, (int, np.integer)) \
@@ -82,6 +88,15 @@ class Timing:
         runs = self.MIN_RUNS if self.min_runs is None else self.min_runs
         return Timing(repeats=max(1, math.ceil(self.repeats / processes)), min_time=self.min_time / processes,
                       min_runs=max(1, math.ceil(runs / processes)))
+
+    def screening(self) -> "Timing":
+        """The timing of a run whose time only has to decide by a factor of 2 whether it is
+        timed again (the process that measures a cell's row, where the fresh processes time
+        again only the cells whose time could change an answer: longtime.predict.need): one
+        run, repeated while the timed total is below ``SCREEN_TIME``, at most ``SCREEN_RUNS``
+        runs, and never more, or longer, than this timing asks."""
+        return Timing(repeats=min(self.repeats, self.SCREEN_RUNS), min_time=min(self.min_time, self.SCREEN_TIME),
+                      min_runs=1)
 
     def to_dict(self) -> dict[str, Any]:
         """The timing as JSON for a child process (``from_dict`` reads it back whole)."""

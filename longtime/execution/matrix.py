@@ -33,7 +33,14 @@ from longtime.execution.cells import (
 )
 from longtime.execution.limits import default_memory_limit, hard_limit, memory_limited, signal_relay
 from longtime.execution.pool import workers as pool_workers
-from longtime.execution.processes import RETIME, across_processes, by_need, default_processes, timed_elsewhere
+from longtime.execution.processes import (
+    RETIME,
+    across_processes,
+    by_need,
+    default_processes,
+    row_timing,
+    timed_elsewhere,
+)
 from longtime.execution.resident import ResidentPool
 from longtime.execution.store import Store
 from longtime.execution.tempdirs import DiskFull, disk_full
@@ -283,11 +290,13 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
     # the timing processes start on this machine: a Dask cluster's rows are timed where they
     # ran, in one process
     processes = 1 if executor == "dask" else options.processes
-    options = dataclasses.replace(options, timing=options.timing.per_process(processes))
     if options.max_samples < 2:
         raise InputError(f"max_samples={options.max_samples} is not valid: must be >= 2")
     check_cost(options.cost)
     check_choice("retime", options.retime, RETIME)
+    # the rows' processes time as row_timing says; the fresh timing processes, the split timing
+    first = row_timing(options.timing, processes, options.retime)
+    options = dataclasses.replace(options, timing=options.timing.per_process(processes))
     run = get_executor(executor)
     if store is not None and run_id is not None and options.on_start is None:
         options = dataclasses.replace(options, on_start=lambda cell: store.mark_started(run_id, cell))
@@ -296,13 +305,13 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
     storing = store is not None and run_id is not None
     later = [PROCESSES_PHASE] + ([COUNTS_PHASE] if options.cost == "instructions" else [])
     dims: dict[str, int] = {}
-    cost = {c.key: budget.cell_seconds(c, options.timing, dims) for c in cells}  # the time left weighs them
+    cost = {c.key: budget.cell_seconds(c, first, dims) for c in cells}  # the time left weighs them
     with shown.phase("cells", total=len(cells), unit="cells", costs=sum(cost.values())):
         here = calibration.here(reset=True)  # the machine's speed ahead of the cells, and after them
         if storing:
             store.add_calibrations(run_id, [here.take("before")])
             here.handed()
-        for cell, row in run(cells, options):
+        for cell, row in run(cells, dataclasses.replace(options, timing=first)):
             points = calibration.take_points(row)
             rows[cell.key] = row
             if storing:

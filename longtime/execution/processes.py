@@ -28,8 +28,10 @@ process only (its cost dwarfs the spread; the row says so); a cell that did not 
 is not timed again. Timing by need (``by_need``, the main job's default: ``RETIME``,
 ``--timing``) leaves out, besides, the cells whose timing could change no answer
 (longtime.predict.need: dominated by more than its FACTOR on every front of error against
-CPU); ``--timing all`` times every cell again. Each row says how it was timed (``timed_in``:
-"3 processes", or "its own process: " and why).
+CPU), and the rows' own processes then time a run only as far as that factor-2 decision
+needs (``row_timing``); ``--timing all`` times every cell again, at the split timing in
+every process. Each row says how it was timed (``timed_in``: "3 processes", or "its own
+process, N runs: " and why).
 """
 from __future__ import annotations
 
@@ -93,6 +95,18 @@ def default_processes() -> int:
     """``$LONGTIME_PROCESSES`` or ``DEFAULT_PROCESSES``."""
     value = os.environ.get(ENV)
     return DEFAULT_PROCESSES if not value else check_processes(value, f"${ENV}")
+
+
+def row_timing(timing: Timing, processes: int, retime: str) -> Timing:
+    """How the process that measures a cell's row times its run, for a cell timed in
+    ``processes`` processes under ``retime``: ``timing`` split among them
+    (``Timing.per_process``), as each fresh process times it; under timing by need ("need",
+    with fresh processes) the split timing's screening (``Timing.screening``: a run or a
+    few), since that time only decides by a factor of 2 whether the cell is within reach of
+    a front (longtime.predict.need), and a contender's time is taken again in the fresh
+    processes, at the split timing."""
+    split = timing.per_process(processes)
+    return split.screening() if retime == "need" and processes > 1 else split
 
 
 def timed_elsewhere(row: dict[str, Any]) -> bool:
@@ -254,8 +268,10 @@ def merge(row: dict[str, Any], others: list[dict[str, Any]], processes: int) -> 
         why = f": {missing[0]}" if missing else ""
         note = f"timed in {len(mins)} of {processes} processes{why}"
         row["message"] = f"{row['message']}; {note}" if row.get("message") else note
-    row[TIMED_IN] = f"{len(mins)} processes" if len(mins) > 1 else \
-        f"{ALONE}: {missing[0] if missing else 'the others gave no time'}"
+    if len(mins) > 1:
+        row[TIMED_IN] = f"{len(mins)} processes"
+    else:
+        timed_alone(row, missing[0] if missing else "the others gave no time")
 
 
 def one_process(row: dict[str, Any], why: str) -> None:
@@ -264,7 +280,15 @@ def one_process(row: dict[str, Any], why: str) -> None:
     if isinstance(row.get("cpu_s"), (int, float)):
         row.setdefault("cpu_s_processes", [row["cpu_s"]])
         row.setdefault("cpu_s_process_spread", None)
-        row[TIMED_IN] = f"{ALONE}: {why}"
+        timed_alone(row, why)
+
+
+def timed_alone(row: dict[str, Any], why: str) -> None:
+    """``row``'s ``timed_in`` for a time taken in its own process only: how many timed runs
+    (its ``repeats``, where it has them) and ``why``."""
+    runs = row.get("repeats")
+    counted = f", {runs} run{'' if runs == 1 else 's'}" if isinstance(runs, int) and runs > 0 else ""
+    row[TIMED_IN] = f"{ALONE}{counted}: {why}"
 
 
 def alone_why(row: dict[str, Any], processes: int) -> str:
@@ -316,7 +340,10 @@ def across_processes(pairs: Iterable[tuple[Cell, dict[str, Any]]], processes: in
     if not todo:
         return []
     cells = [c for c, _ in todo]
-    budget = START_S + 10 * sum(float(r["wall_s"]) * len(r.get("cpu_s_samples") or [1]) for _, r in todo)
+    # each fresh process runs a cell up to ``spec.timing.repeats`` times, however few runs its
+    # row's own process took (a screening: ``row_timing``)
+    budget = START_S + 10 * sum(float(r["wall_s"]) * max(spec.timing.repeats, len(r.get("cpu_s_samples") or [1]))
+                                for _, r in todo)
     with phases.phase("timing processes"):  # this process while they run
         results = run_children(cells, processes - 1, spec, jobs, budget, on_progress=on_progress)
     for k, (cell, row) in enumerate(todo):

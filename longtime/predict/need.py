@@ -24,11 +24,13 @@ decade). A cell is a contender, and is timed again, where
   says which of its cells an answer could read, so every one is timed again.
 
 Every other cell is dominated: some cell of its problem meets every target it meets, or
-its error, for less than 1 / ``FACTOR`` of its CPU. A cell's time measured in one process
-is at most about twice what several processes measure (a slow moment of the machine slows
-work through the caches by up to twice: docs/performance.md, "Two speeds"), and noise only
-adds time, so a cell dominated by more than ``FACTOR`` = 2 in its own process's time is
-dominated in any timing; its row says by how much (``timed_in``).
+its error, for less than 1 / ``FACTOR`` of its CPU. Under timing by need a cell's own
+process times its run only as far as this decision needs (a run or a few:
+longtime.core.timing.Timing.screening). A cell's time measured in one process is at most
+about twice what several processes measure (a slow moment of the machine slows work through
+the caches by up to twice: docs/performance.md, "Two speeds"), and noise only adds time, so a
+cell dominated by more than ``FACTOR`` = 2 in its own process's time is dominated in any
+timing; its row says by how much and how many runs timed it (``timed_in``).
 """
 from __future__ import annotations
 
