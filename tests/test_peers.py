@@ -220,7 +220,7 @@ def test_a_peer_too_slow_for_the_default_matrix_is_a_timeout_row_which_library_s
     # at the full horizon, saying how far it got and that the budget's limit stopped it
     row = run_cell(dataclasses.replace(cells[0], time_limit=0.5), reference=False)
     assert row["status"] == "timeout" and row["t_final"] == 1000.0 and 0.0 < row["t_reached"] < 1000.0
-    assert "the default matrix's time limit of 0.5 s" in row["message"] and budget.TOO_SLOW in row["message"]
+    assert "0.5 s: the default matrix's time limit" in row["message"] and budget.TOO_SLOW in row["message"]
     text, cpu = _cell([row], 1000.0, 1e-6, None)
     assert cpu is None and text.startswith("too slow: scipy-rk23 tol=1e-07 ran ") and " of 1000" in text
     # on a loaded machine the wall seconds the limit counts are said beside the CPU seconds

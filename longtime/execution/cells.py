@@ -398,7 +398,7 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
             traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
                                         timing=timing or Timing(), deadline=deadline)
         if traj.status == Status.TIMEOUT:
-            limit = (f"the default matrix's time limit of {time_limit:g} s for a setting estimated too slow for it"
+            limit = (f"{time_limit:g} s: the default matrix's time limit for a setting estimated too slow"
                      if own else f"cell time limit {time_limit:g} s: --time-limit")
             traj.message = f"{traj.message} ({limit})"
         if traj.status == Status.DIVERGED:

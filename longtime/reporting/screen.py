@@ -202,7 +202,7 @@ def count_lines(rows: list[dict[str, Any]], orders: bool = True) -> list[str]:
         for r in bad:
             first = str(r.get("message") or "no message stored").split(";")[0].strip()
             first = re.sub(r"\s*\b(at|near|from|to) t ?= ?[-+0-9.e]+", "", first)  # the reason, not where
-            reasons.setdefault(first[:90], []).append((r["problem"], r["integrator"]))
+            reasons.setdefault(first, []).append((r["problem"], r["integrator"]))
         for why, pairs in sorted(reasons.items(), key=lambda kv: -len(kv[1])):
             lines += _wrap(f"  {status} {len(pairs)} ({why}): {_pairs_text(sorted(set(pairs)), ONE_LINE)}")
     lost = [(r["problem"], r["integrator"]) for r in rows if r.get("status") == Status.OK and r.get("solution_lost")]
