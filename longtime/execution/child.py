@@ -45,7 +45,6 @@ from pathlib import Path
 from typing import Any
 
 from longtime.core import registry
-from longtime.core.cache import no_space
 from longtime.execution import jobfiles, tempdirs
 from longtime.execution.cells import Cell, RunSpec
 from longtime.execution.limits import (
@@ -303,11 +302,9 @@ def serve(folder: str, job: Job) -> None:
             else:
                 write_result(folder, run_batch(job.cells, job.spec, folder))
         except (OSError, tempdirs.DiskFull) as exc:  # no space for its files: not the cells' fault
-            if not (no_space(exc) or isinstance(exc, tempdirs.DiskFull)):
+            if not tempdirs.out_of_space(exc):
                 raise
-            print(tempdirs.disk_full(exc, "a worker wrote its files"), file=sys.stderr)
-            sys.stderr.flush()
-            os._exit(tempdirs.NO_SPACE_EXIT)
+            tempdirs.exit_out_of_space(exc, "a worker wrote its files")
         answers.write(b"done\n")
         answers.flush()
     sys.stderr.flush()

@@ -176,10 +176,9 @@ def dask_cluster(cells: list[Cell], options) -> Iterator[tuple[Cell, dict]]:
                     where = f"the Dask scheduler {options.scheduler}" if options.scheduler else "the local Dask cluster"
                     raise ExecutorLost(f"{where} was lost ({type(exc).__name__}): {left} of {len(runnable)} "
                                        f"cells not run, none of them stored") from None
-                from longtime.core.cache import no_space
-                from longtime.execution.tempdirs import DiskFull, disk_full
+                from longtime.execution.tempdirs import disk_full, out_of_space
 
-                if isinstance(exc, DiskFull) or no_space(exc):  # the worker's disk, not the cells
+                if out_of_space(exc):  # the worker's disk, not the cells
                     raise disk_full(exc, "a Dask worker ran its cells") from None
                 # the batch raised, or killed allowed-failures workers (KilledWorker)
                 rows = [{**base_row(c), "status": Status.FAILED, "message": f"dask task failed: {exc!r}"}

@@ -149,10 +149,8 @@ def run_job(folder: str, job: children.Job) -> None:
         row = run_cell(cell, job.spec.max_samples, timing=job.spec.timing, time_limit=job.spec.time_limit)
         children.write_result(folder, row)
     except (OSError, tempdirs.DiskFull) as exc:
-        if not (no_space(exc) or isinstance(exc, tempdirs.DiskFull)):
+        if not tempdirs.out_of_space(exc):
             raise
-        print(tempdirs.disk_full(exc, "writing the row"), file=sys.stderr)
-        sys.stderr.flush()
-        os._exit(tempdirs.NO_SPACE_EXIT)
+        tempdirs.exit_out_of_space(exc, "writing the row")
     sys.stderr.flush()
     os._exit(0)  # skip interpreter teardown: a thread a plugin left running cannot hang us

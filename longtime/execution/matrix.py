@@ -16,7 +16,6 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Iterator
 
 from longtime.core import phases, registry
-from longtime.core.cache import no_space
 from longtime.core.params import InputError, check_choice
 from longtime.core.progress import Progress
 from longtime.core.status import Status
@@ -43,7 +42,7 @@ from longtime.execution.processes import (
 )
 from longtime.execution.resident import ResidentPool
 from longtime.execution.store import Store
-from longtime.execution.tempdirs import DiskFull, disk_full
+from longtime.execution.tempdirs import disk_full, out_of_space
 
 
 @dataclass
@@ -214,7 +213,7 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
             try:
                 rows = fut.result()
             except Exception as exc:  # the batch could not be written or read back
-                if no_space(exc) or isinstance(exc, DiskFull):  # a full temp folder: not the cells'
+                if out_of_space(exc):  # a full temp folder: not the cells'
                     raise disk_full(exc, "a worker wrote its cell's files") from None
                 rows = [{**base_row(c), "status": Status.FAILED, "message": f"worker process failed: {exc!r}"}
                         for c in batch]

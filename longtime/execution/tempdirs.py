@@ -11,8 +11,12 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import sys
 import tempfile
 from pathlib import Path
+from typing import NoReturn
+
+from longtime.core.cache import no_space
 
 KINDS = ("pool", "cell", "valgrind", "timing", "dask")
 # a cell process's exit code when a write found no space (sysexits' EX_TEMPFAIL: try again later)
@@ -33,6 +37,20 @@ def disk_full(exc: BaseException, what: str) -> DiskFull:
     where = f" ({exc.filename})" if isinstance(exc, OSError) and exc.filename else ""
     return DiskFull(f"no space left on the disk while {what}{where}: "
                     f"{getattr(exc, 'strerror', None) or exc}")
+
+
+def out_of_space(exc: BaseException) -> bool:
+    """Whether ``exc`` is the disk's fault, not the cell's: a DiskFull, or a write that found
+    no space."""
+    return isinstance(exc, DiskFull) or no_space(exc)
+
+
+def exit_out_of_space(exc: BaseException, what: str) -> NoReturn:
+    """A child process's end on ``exc`` (``out_of_space``) while doing ``what``: the reason
+    on stderr, exit NO_SPACE_EXIT, from which its parent raises DiskFull."""
+    print(disk_full(exc, what), file=sys.stderr)
+    sys.stderr.flush()
+    os._exit(NO_SPACE_EXIT)
 
 
 _NAME = re.compile(rf"longtime-(?:{'|'.join(KINDS)})-(\d+)-[^/]+")
