@@ -163,8 +163,6 @@ def memory_argument_api(value) -> int | None:
     return int(value * 2**30) or None
 
 
-
-
 def hit_memory_limit(row: dict) -> bool:
     """Whether ``row`` is of a cell stopped by its memory limit (``memory_message``)."""
     return str(row.get("message") or "").startswith(MEMORY_LIMIT)

@@ -56,6 +56,11 @@ class Resident:
         self.memory_limit: int | None = None
         self.stopped = False
 
+    @property
+    def pid(self) -> int | None:
+        """The process id of its child while one runs, else None."""
+        return self.child.pid if self.child is not None and not self.child.ended() else None
+
     def run(self, cells: list[Cell], spec: RunSpec) -> list[dict]:
         rows: dict[str, dict] = {}
         todo = list(cells)
@@ -232,7 +237,7 @@ class ResidentPool:
     def pids(self) -> list[int]:
         """The process ids of the children that run."""
         with self._lock:
-            return [one.child.pid for one in self._residents if one.child is not None and not one.child.ended()]
+            return [pid for pid in (one.pid for one in self._residents) if pid is not None]
 
     def shutdown(self) -> None:
         """Stop every child (killed: after the last result it only spares their interpreter's
@@ -269,7 +274,7 @@ def resident() -> Resident:
 def resident_pids() -> list[int]:
     """The process ids of this process's resident children that run."""
     with _RESIDENTS_LOCK:
-        return [one.child.pid for one in _RESIDENTS.values() if one.child is not None and not one.child.ended()]
+        return [pid for pid in (one.pid for one in _RESIDENTS.values()) if pid is not None]
 
 
 def close_residents() -> None:
