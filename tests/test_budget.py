@@ -120,7 +120,7 @@ def test_the_moves_are_one_line_as_the_job_starts_and_each_with_full(capsys):
 
     full = expand(["fpu"], ["dop853", "verlet"], default_sweep=True)
     _, moves = budget.fit(full)
-    left = budget.Move("fpu", "verlet", "long-time cell at t_final 1e+06 left out", "about 40 s a run")
+    left = budget.Move("fpu", "verlet", "long-time cell at t_final 1e+06 left out", "about 40 s a run", budget.LONG_OUT)
     say_moves(moves + [left])
     short = capsys.readouterr().err.strip().splitlines()
     assert len(short) == 1 and "moved 2 setting(s)" in short[0] and "1 long-time cell(s) left out" in short[0]

@@ -63,6 +63,9 @@ PEER_TOL = 1e-10
 CELL_OVERHEAD_S = 0.5
 # the start of every note the budget leaves in a row's message (the report finds them by it)
 NOTE = "budget:"
+# how a move changes a pair: its sweep to a shorter t_final, its long-time cell left out,
+# fewer settings, only its cheapest under SLOW_LIMIT_S, or skipped as too slow
+SHORTER, LONG_OUT, FEWER, LIMITED, SKIPPED = "shorter", "long-time cell out", "fewer", "limited", "skipped"
 # the time limit of a run of that cheapest setting: one cell's budget, so that a library too slow
 # for the default matrix costs it no more than one cell (the estimates are rough, off by a factor
 # of a few either way, and the limit is on the wall clock of a possibly loaded machine)
@@ -72,11 +75,12 @@ SLOW_LIMIT_S = CELL_BUDGET_S
 @dataclasses.dataclass(frozen=True)
 class Move:
     """One pair's setting that the budget moved: ``setting`` what it was and is now,
-    ``reason`` the estimate that moved it."""
+    ``reason`` the estimate that moved it, ``kind`` how (SHORTER, LONG_OUT, FEWER, LIMITED or SKIPPED)."""
     problem: str
     integrator: str
     setting: str
     reason: str
+    kind: str
 
     def text(self) -> str:
         return f"{self.problem} x {self.integrator}: {self.setting} ({self.reason})"
@@ -154,7 +158,7 @@ def fit(cells: list[Cell], given_t_final: bool = False,
                 setting = f"t_final {number(main)} -> {number(horizon)}"
                 reason = (f"about {worst:.3g} s a run at t_final {number(main)}, over the default "
                           f"matrix's {budget:g} s a cell")
-                moves.append(Move(problem, scheme, setting, reason))
+                moves.append(Move(problem, scheme, setting, reason, SHORTER))
                 note = f"{NOTE} {setting} ({reason}; --full-sweep runs {number(main)})"
                 for i in sweep:
                     out[i] = dataclasses.replace(cells[i], t_final=horizon, note=note)
@@ -163,7 +167,7 @@ def fit(cells: list[Cell], given_t_final: bool = False,
             if cost > LONG_CELL_BUDGET_S:
                 setting = f"long-time cell at t_final {number(cells[i].t_final)} left out"
                 reason = f"about {cost:.3g} s a run, over the {LONG_CELL_BUDGET_S:g} s of a long-time cell"
-                moves.append(Move(problem, scheme, setting, reason))
+                moves.append(Move(problem, scheme, setting, reason, LONG_OUT))
                 out[i] = None
                 note = f"{NOTE} {setting} ({reason}; --full-sweep runs it)"
                 _say(out, sweep, note)  # the pair's rows say it
@@ -189,7 +193,7 @@ def _fewer_settings(problem: str, scheme: str, sweep: list[int], cells: list[Cel
     setting = f"{left} left out"
     reason = (f"about {max(cost[i] for i in over):.3g} s a run at t_final {horizon}, over the "
               f"{budget:g} s a cell of a library peer")
-    moves.append(Move(problem, scheme, setting, reason))
+    moves.append(Move(problem, scheme, setting, reason, FEWER))
     note = f"{NOTE} {setting} ({reason}; --full-sweep runs them)"
     for i in over:
         out[i] = None
@@ -221,7 +225,7 @@ def _too_slow(problem: str, scheme: str, sweep: list[int], cells: list[Cell], ou
               f"at its cheapest setting ({setting_text(cells[cheapest])}), over the default matrix's "
               f"{CELL_BUDGET_S:g} s a cell")
     if not registry.integrator_class(scheme).stops_at_deadline:
-        moves.append(Move(problem, scheme, "left out of the default matrix", reason))
+        moves.append(Move(problem, scheme, "left out of the default matrix", reason, SKIPPED))
         for i in sweep:
             out[i] = dataclasses.replace(cells[i], skip_reason=f"{reason} (its run cannot be stopped at a time "
                                                                 f"limit); --full-sweep runs it")
@@ -229,7 +233,7 @@ def _too_slow(problem: str, scheme: str, sweep: list[int], cells: list[Cell], ou
     others = [i for i in sweep if i != cheapest]
     left = f"; {', '.join(setting_text(cells[i]) for i in others)} left out" if others else ""
     setting = f"{setting_text(cells[cheapest])} under a time limit of {SLOW_LIMIT_S:g} s{left}"
-    moves.append(Move(problem, scheme, setting, reason))
+    moves.append(Move(problem, scheme, setting, reason, LIMITED))
     for i in others:
         out[i] = None
     out[cheapest] = dataclasses.replace(cells[cheapest], time_limit=SLOW_LIMIT_S)
@@ -284,20 +288,11 @@ def summary(moves: list[Move]) -> str:
     cheapest setting under SLOW_LIMIT_S, how many are skipped as too slow, and how many
     long-time cells are left out."""
     shorter: dict[float, int] = {}
-    fewer = limited = skipped = long_out = 0
     for m in moves:
-        if m.setting.startswith("t_final"):
+        if m.kind == SHORTER:
             budget = cell_budget(m.integrator)
             shorter[budget] = shorter.get(budget, 0) + 1
-        elif m.setting.startswith("long-time cell"):
-            long_out += 1
-        elif m.reason.startswith(TOO_SLOW):
-            if "time limit" in m.setting:
-                limited += 1
-            else:
-                skipped += 1
-        else:
-            fewer += 1
+    fewer, limited, skipped, long_out = (sum(m.kind == k for m in moves) for k in (FEWER, LIMITED, SKIPPED, LONG_OUT))
     parts = []
     if shorter:
         over = ", ".join(f"{n} over {b:g} s" for b, n in sorted(shorter.items(), key=lambda kv: -kv[0]))
