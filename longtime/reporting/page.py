@@ -278,8 +278,7 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
     section (longtime.reporting.history.page_section). ``writer``: the command that wrote
     the page, named in its footer. ``ensembles``: the stored ensemble distances of the
     chaotic problems (each in its problem's evidence)."""
-    from longtime.predict.decision import verdicts
-    from longtime.reporting.recommend import map_growths
+    from longtime.reporting.recommend import map_verdicts
 
     ensembles = list(ensembles)
     problems = sorted({r["problem"] for r in rows})
@@ -296,7 +295,7 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
         fits = observed_orders(rows)
         missing = left_out(rows)
         counts = status_counts(rows)
-        found = verdicts(rows, checks, map_growths(rows))
+        found = map_verdicts(rows, checks)
         cards = _cards_section(rows)
         verdict_sections = [_verdict_section(p, found[p], by_problem[p], style) for p in problems]
         checked = _checks_section(checks)

@@ -15,7 +15,15 @@ from longtime.core.rowtext import setting
 from longtime.core.status import Status
 from longtime.measure.instability import Growth
 from longtime.predict.checks import CHECK_COST_FACTOR, CHECK_ERROR_FACTOR, check_holds
-from longtime.predict.decision import Decision, decide, predictability, run_command, run_settings
+from longtime.predict.decision import (
+    Decision,
+    Verdict,
+    decide,
+    predictability,
+    run_command,
+    run_settings,
+    verdicts,
+)
 from longtime.predict.settings import LOST, Measure, Setting, measure, settings
 
 # ``longtime recommend``'s exit code where the store determines no answer (no setting is
@@ -311,6 +319,12 @@ def map_growths(rows: list[dict[str, Any]]) -> dict[str, Growth]:
         if g is not None:
             out[p] = g
     return out
+
+
+def map_verdicts(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = ()) -> dict[str, Verdict]:
+    """Every problem's verdict as the page and the reports show it: each winner map bounded by
+    its problem's growth already measured (``map_growths``), as ``recommend`` bounds its answer."""
+    return verdicts(rows, checks, map_growths(rows))
 
 
 def _of_library(rows: list[dict[str, Any]], library: str, problem: str) -> tuple[list[dict[str, Any]], str]:

@@ -19,10 +19,9 @@ from longtime.core.rowschema import formatted
 from longtime.core.rowtext import main_t_final, setting  # noqa: F401 (their home; read from here too)
 from longtime.core.status import STATUSES, Status
 from longtime.measure.lyapunov import past_predictability
-from longtime.predict.decision import verdicts
 from longtime.predict.need import PARETO_FIELDS, pareto_field  # noqa: F401 (their home; read from here too)
 from longtime.predict.settings import SOLUTION_FIELDS
-from longtime.reporting.recommend import map_growths
+from longtime.reporting.recommend import map_verdicts
 from longtime.reporting.verdict import verdict_lines
 
 # the JSON contract (README.md, `--format json`): every row carries these keys (null where not applicable)
@@ -264,7 +263,7 @@ def summary(rows: list[dict[str, Any]], orders: bool = True, full: bool = False,
     fits = observed_orders(rows) if orders else []
     missing = left_out(rows) if orders else []
     moved = notes(rows)
-    found = verdicts(rows, checks, map_growths(rows))
+    found = map_verdicts(rows, checks)
     chaos = ensemble_summary(list(ensembles))
     for problem in sorted({r["problem"] for r in rows}):
         mine = [r for r in rows if r["problem"] == problem]

@@ -8,9 +8,8 @@ from typing import Any, Iterable
 from longtime.core.rowtext import setting
 from longtime.core.status import Status
 from longtime.measure.lyapunov import past_predictability
-from longtime.predict.decision import verdicts
 from longtime.predict.settings import SOLUTION_FIELDS
-from longtime.reporting.recommend import map_growths
+from longtime.reporting.recommend import map_verdicts
 from longtime.reporting.report import format_counts, pareto, pareto_field, render, status_counts, summary
 
 # the answer table's columns: (target error, horizon in units of the run's final time)
@@ -45,7 +44,7 @@ def answer_rows(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = (
     from longtime.reporting.verdict import decision_text
 
     out = []
-    for problem, v in verdicts(rows, checks, map_growths(rows)).items():
+    for problem, v in map_verdicts(rows, checks).items():
         mine = [r for r in rows if r.get("problem") == problem]
         chaotic = _chaotic(problem, mine)
         answers, costs = [], []
