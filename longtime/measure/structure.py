@@ -2,9 +2,9 @@
 
 One step Phi_h of the scheme's own compiled step (``stability.one_step``: the loop its runs
 use, from a fresh start; error control off for an adaptive scheme; an implicit scheme's
-stage iteration with the tightest stop it offers, ``stop=brouwer``: sweep until the
-increment is exactly 0 or stalls, so its map is exact to round-off) is measured from the
-state u0 of the first ``CANONICAL`` problem the scheme can step, with the step ``STEP``:
+stage iteration with its own stopping rule, by default at round-off, so the measured loop is
+the one the matrix's cells on that problem compiled already) is measured from the state u0
+of the first ``CANONICAL`` problem the scheme can step, with the step ``STEP``:
 
 - **Symplecticity defect** ||M^T J M - J||_2, M = dPhi_h/du0, J = [[0, I], [-I, 0]] for
   u = (q, p). The numba kernels are real, so M is taken by central differences (no complex
@@ -42,8 +42,6 @@ SAFETY = 10.0
 REVERSIBLE_ULPS = 64.0
 INVARIANT_STEPS = 100
 KEPT = 1e-12
-# an implicit scheme's stage iteration stopped at exactly 0 or stalled (its tightest stop)
-TIGHT = {"stop": "brouwer"}
 
 
 @dataclass
@@ -103,8 +101,8 @@ def reversibility_text(s: Any) -> str:
 
 
 def _instance(scheme: Any):
-    """The scheme as an instance to measure: its own settings, error control off, the
-    tightest stage iteration it offers."""
+    """The scheme as an instance to measure: its own settings (an implicit scheme's stopping
+    rule included), error control off."""
     from longtime.core import registry, roles
     from longtime.core.integrator import Integrator
     from longtime.measure.stability import OFF
@@ -120,10 +118,6 @@ def _instance(scheme: Any):
     chosen = cls(**given).settings
     given.update({k: chosen[k] for k in roles.with_role([cls], "order") if chosen.get(k) is not None})
     settings = {**given, **{k: OFF for k in roles.with_role([cls], "accuracy")}}
-    for key, value in TIGHT.items():
-        param = cls.parameters.get(key)
-        if param is not None and value in (getattr(param, "choices", None) or ()):
-            settings[key] = value
     settings.pop("dt", None)
     return cls(**settings)
 
