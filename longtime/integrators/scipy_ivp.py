@@ -1,12 +1,13 @@
-"""scipy's ``solve_ivp`` methods as external peers, stepped as solve_ivp steps them: ``dop853``
-(Hairer's 8(5,3) pair), ``scipy-rk23`` (Bogacki-Shampine 3(2)), ``scipy-rk45``
+"""scipy's integrators as external peers: ``dop853`` (Hairer's 8(5,3) pair, his code behind
+``scipy.integrate.ode``: the class's docstring) and solve_ivp's methods, stepped as solve_ivp
+steps them: ``scipy-rk23`` (Bogacki-Shampine 3(2)), ``scipy-rk45``
 (Dormand-Prince 5(4)), ``scipy-radau`` (Radau IIA, order 5), ``scipy-bdf`` (variable-order
 NDF/BDF 1-5) and ``scipy-lsoda`` (ODEPACK's LSODA: Adams/BDF switching).
 
 Each is called as its best users call it: the right-hand side is the problem's compiled
 (numba) rhs behind one compiled wrapper that returns a new array (solve_ivp's calling
 convention), and the implicit methods (Radau, BDF, LSODA) get the problem's compiled
-Jacobian the same way where the problem has one (else scipy's finite differences). The loop
+Jacobian the same way where the problem has one (else scipy's finite differences). Their loop
 is scipy's own Python step loop (``OdeSolver.step``, what solve_ivp runs when it is called
 without ``t_eval``, keeping every accepted step), written out so that the cell's deadline is
 checked as it goes; every accepted step is recorded (thinned to max_samples). Before the
@@ -161,8 +162,8 @@ class DOP853(ScipyIVP):
     """
 
     name = "dop853"
-    summary = ("scipy ode(f).set_integrator('dop853'): Hairer's DOP853 code, external peer: CPU includes a "
-               "Python call of the rhs per stage and of the step callback per step")
+    summary = ("scipy ode(f).set_integrator('dop853'): Hairer's DOP853 code, external peer: CPU includes the "
+               "overhead of a Python call of the rhs per stage and of the step callback per step")
     method = "DOP853"
     order = 8
     sweep = {"tol": (1e-6, 1e-9, 1e-12)}
