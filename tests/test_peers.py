@@ -112,6 +112,17 @@ def test_dop853_failures_are_failed_rows_with_hairers_reason(monkeypatch, kepler
     assert traj.status == "failed" and "step size becomes too small" in traj.message
     assert 0.9 < traj.t[-1] <= 1.0 and np.all(np.isfinite(traj.u))
 
+    @numba.njit
+    def raises_past_one(t, u, params, out):
+        if t > 1.0:
+            raise ZeroDivisionError("at the centre")
+        out[0], out[1], out[2], out[3] = u[2], u[3], -u[0], -u[1]
+
+    problem.rhs = raises_past_one
+    traj = DOP853(tol=1e-8).integrate(problem, 10.0)  # scipy's dop853 alone would never return
+    assert traj.status == "failed" and "the rhs raised ZeroDivisionError('at the centre')" in traj.message
+    assert 0.9 < traj.t[-1] <= 1.0
+
 
 @needs_sundials
 @pytest.mark.parametrize("name", CVODE)

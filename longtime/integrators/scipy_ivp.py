@@ -150,8 +150,9 @@ class DOP853(ScipyIVP):
     """Hairer's DOP853 code as scipy ships it, ``scipy.integrate.ode(f).set_integrator('dop853')``:
     the published 8(5,3) pair with Hairer's own step-size control, stiffness test and
     counters, its whole run in one call of compiled code. Its calls back into Python are the
-    rhs (12 a step: the compiled wrapper, its params bound by a lambda, since scipy would pass
-    ``set_f_params``'s to the callback too) and the ``solout`` callback after every accepted
+    rhs (12 a step: the compiled wrapper, its params bound by a Python function that turns an
+    exception, which scipy's dop853 would wait on forever, into NaN and a failed step) and the
+    ``solout`` callback after every accepted
     step, which records the step and returns -1 past the cell's deadline (looked at every
     DEADLINE_EVERY steps).
 
@@ -177,8 +178,17 @@ class DOP853(ScipyIVP):
 
         tol = self.settings["tol"]
         atol = tol if self.settings["atol"] is None else self.settings["atol"]
-        r = ode(lambda t, y: fun(t, y, params))  # scipy passes f's extra params to solout too
-        r.set_integrator("dop853", rtol=tol, atol=atol, nsteps=self.NSTEPS, **options)
+        raised = []
+
+        def f(t, y):  # scipy would pass set_f_params's params to solout too
+            try:
+                return fun(t, y, params)
+            except Exception as error:  # scipy's dop853 never returns from a raising f
+                raised.append(error)
+                return np.full_like(y, np.nan)  # the step fails: "step size becomes too small"
+
+        r = ode(f).set_integrator("dop853", rtol=tol, atol=atol, nsteps=self.NSTEPS, **options)
+        r.raised = raised
         r.set_solout(solout)
         return r.set_initial_value(u0, t0)
 
@@ -235,6 +245,8 @@ class DOP853(ScipyIVP):
         (r, _), cpu, wall = peer_common.timed(lambda: self._run(fun, params, problem.t0, u0.copy(), t_final, record))
         code = r.get_return_code()
         failure = None if r.successful() else r._integrator.messages.get(code, f"return code {code}")
+        if r.raised:
+            failure = f"the rhs raised {r.raised[0]!r}"
         nfev, _, _, rejected = (int(n) for n in r._integrator.iwork[16:20])  # NFCN, NSTEP, NACCPT, NREJCT
         counters = {"rhs_evals": nfev, "nl_iters": 0, "rejected": rejected, "fallbacks": 0, "jac_evals": 0}
         return peer_common.trajectory(
