@@ -18,6 +18,14 @@ def _installed_only(monkeypatch):
     monkeypatch.setattr(registry, "_session", {"problems": {}, "integrators": {}})
 
 
+@pytest.fixture
+def python_stepped_dop853(monkeypatch):
+    """dop853 costed as a peer stepped by a Python loop (solve_ivp's, about a tenth of a
+    millisecond a step): on fpu its costliest tolerance is then over a cell's budget, the
+    example of a peer that runs fewer settings."""
+    monkeypatch.setattr(registry.integrator_class("dop853"), "python_step_s", 1e-4)
+
+
 def plan(*argv: str):
     return matrix_cells(build_parser().parse_args(["matrix", *argv]))
 
@@ -26,13 +34,19 @@ def pairs(cells):
     return {(c.problem, c.integrator) for c in cells}
 
 
-def test_a_python_stepped_peer_costs_more_per_step_than_a_compiled_loop():
+def test_a_python_stepped_peer_costs_more_per_step_than_a_compiled_loop(python_stepped_dop853):
     dop, verlet = (Cell("fpu", s, {}, {}, 1000.0) for s in ("dop853", "verlet"))
     assert budget.run_seconds(dop) > 100 * budget.run_seconds(verlet)
     assert budget.run_seconds(dop) > budget.CELL_BUDGET_S  # fpu's sweep horizon is over the budget
 
 
-def test_fpu_dop853_runs_fewer_settings_at_the_full_horizon_the_rest_of_fpu_does_not_move():
+def test_fpu_dop853_on_hairers_code_runs_its_whole_sweep():
+    cells, moves = budget.fit(expand(["fpu"], ["dop853"], default_sweep=True))
+    assert moves == [] and [c.integrator_settings["tol"] for c in cells] == [1e-6, 1e-9, 1e-12]
+    assert {c.t_final for c in cells} == {1000.0} and all(c.time_limit is None for c in cells)
+
+
+def test_fpu_dop853_runs_fewer_settings_at_the_full_horizon_the_rest_of_fpu_does_not_move(python_stepped_dop853):
     full = expand(["fpu"], ["dop853", "verlet", "gauss6"], default_sweep=True)
     cells, moves = budget.fit(full)
     assert [(m.problem, m.integrator) for m in moves] == [("fpu", "dop853")]
@@ -76,7 +90,7 @@ def test_every_pair_of_the_default_matrix_keeps_a_row():
     assert keep == [c.key for c in full if (c.problem, c.integrator) not in moved]
 
 
-def test_full_sweep_restores_the_default_sweep():
+def test_full_sweep_restores_the_default_sweep(python_stepped_dop853):
     full, moves = plan("-p", "fpu", "-i", "dop853,scipy-rk23", "--full-sweep")
     assert moves == [] and {c.t_final for c in full} == {1000.0} and len(full) == 6
     assert all(c.note is None and c.time_limit is None for c in full)
@@ -107,7 +121,7 @@ def test_the_note_and_time_limit_are_not_part_of_the_key_and_survive_the_store()
     assert not {"note", "time_limit"} & set(Cell("fpu", "dop853", {}, {"tol": 1e-6}, 200.0).to_dict())
 
 
-def test_the_report_names_what_the_budget_moved():
+def test_the_report_names_what_the_budget_moved(python_stepped_dop853):
     cells, _ = budget.fit(expand(["fpu"], ["dop853"], default_sweep=True))
     rows = [{**base_row(c), "status": "ok", "message": c.note} for c in cells]
     text = summary(rows, orders=False)
@@ -115,7 +129,7 @@ def test_the_report_names_what_the_budget_moved():
     assert "--full-sweep runs them" in text
 
 
-def test_the_moves_are_one_line_as_the_job_starts_and_each_with_full(capsys):
+def test_the_moves_are_one_line_as_the_job_starts_and_each_with_full(capsys, python_stepped_dop853):
     from longtime.execution.main_job import say_moves
 
     full = expand(["fpu"], ["dop853", "verlet"], default_sweep=True)

@@ -77,6 +77,53 @@ def test_scipy_against_heyoka_on_kepler(name, kepler, heyoka_kepler):
     assert 0 < overhead < 50 * traj.cpu_s / traj.steps
 
 
+def test_dop853_counts_hairers_steps_and_its_rejections(kepler, heyoka_kepler):
+    error, traj = _error_against_heyoka("dop853", kepler, heyoka_kepler, t_final=10.0)
+    assert error < 1e-6, error  # tol 1e-8 over one and a half periods at e = 0.6
+    c = traj.counters
+    assert c["rejected"] > 0  # the pericentre passages reject steps, and they are counted
+    # Hairer's NFCN: 11 stages a step tried, one more (the next step's first) after an accepted
+    # one, the first step's first stage and the initial step's guess
+    assert c["rhs_evals"] == 12 * traj.steps + 11 * c["rejected"] + 2, c
+    assert c["rhs_evals"] >= 12 * traj.steps
+
+
+def test_dop853_failures_are_failed_rows_with_hairers_reason(monkeypatch, kepler):
+    from longtime.integrators.scipy_ivp import DOP853
+
+    monkeypatch.setattr(DOP853, "NSTEPS", 50)
+    traj = DOP853(tol=1e-10).integrate(kepler, 10.0)
+    assert traj.status == "failed" and "larger nsteps is needed" in traj.message
+    assert 0 < traj.steps <= 50 and traj.t[-1] < 10.0
+    monkeypatch.undo()
+
+    import numba
+
+    @numba.njit
+    def nan_past_one(t, u, params, out):  # kepler's rhs, NaN from t = 1 on
+        r3 = (u[0] * u[0] + u[1] * u[1]) ** 1.5
+        out[0], out[1], out[2], out[3] = u[2], u[3], -u[0] / r3, -u[1] / r3
+        if t > 1.0:
+            out[:] = np.nan
+
+    problem = registry.problem_class("kepler")()
+    problem.rhs = nan_past_one
+    traj = DOP853(tol=1e-8).integrate(problem, 10.0)
+    assert traj.status == "failed" and "step size becomes too small" in traj.message
+    assert 0.9 < traj.t[-1] <= 1.0 and np.all(np.isfinite(traj.u))
+
+    @numba.njit
+    def raises_past_one(t, u, params, out):
+        if t > 1.0:
+            raise ZeroDivisionError("at the centre")
+        out[0], out[1], out[2], out[3] = u[2], u[3], -u[0], -u[1]
+
+    problem.rhs = raises_past_one
+    traj = DOP853(tol=1e-8).integrate(problem, 10.0)  # scipy's dop853 alone would never return
+    assert traj.status == "failed" and "the rhs raised ZeroDivisionError('at the centre')" in traj.message
+    assert 0.9 < traj.t[-1] <= 1.0
+
+
 @needs_sundials
 @pytest.mark.parametrize("name", CVODE)
 def test_cvode_against_heyoka_on_kepler(name, kepler, heyoka_kepler):

@@ -6,7 +6,8 @@ The estimate is the size ``check_size`` refuses oversized runs by (steps of the 
 of the problem's default step for a scheme that chooses its own), times a cost per step:
 ``step_cost`` x the state dimension x COMPONENT_STEP_S in compiled code, plus the seconds
 ``python_step_s`` a step spends in Python (a peer stepped by a Python loop, scipy's
-DOP853: about a tenth of a millisecond a step whatever the problem). It is rough, a factor
+RK45: about a tenth of a millisecond a step whatever the problem; a library's compiled loop
+calling a Python rhs, scipy's DOP853: 3e-5 s). It is rough, a factor
 of a few either way, and only decides which pairs move.
 
 What moves: the sweep of a fixed-step pair whose costliest cell is estimated above

@@ -1,12 +1,13 @@
-"""scipy's ``solve_ivp`` methods as external peers, stepped as solve_ivp steps them: ``dop853``
-(Hairer's 8(5,3) pair), ``scipy-rk23`` (Bogacki-Shampine 3(2)), ``scipy-rk45``
+"""scipy's integrators as external peers: ``dop853`` (Hairer's 8(5,3) pair, his code behind
+``scipy.integrate.ode``: the class's docstring) and solve_ivp's methods, stepped as solve_ivp
+steps them: ``scipy-rk23`` (Bogacki-Shampine 3(2)), ``scipy-rk45``
 (Dormand-Prince 5(4)), ``scipy-radau`` (Radau IIA, order 5), ``scipy-bdf`` (variable-order
 NDF/BDF 1-5) and ``scipy-lsoda`` (ODEPACK's LSODA: Adams/BDF switching).
 
 Each is called as its best users call it: the right-hand side is the problem's compiled
 (numba) rhs behind one compiled wrapper that returns a new array (solve_ivp's calling
 convention), and the implicit methods (Radau, BDF, LSODA) get the problem's compiled
-Jacobian the same way where the problem has one (else scipy's finite differences). The loop
+Jacobian the same way where the problem has one (else scipy's finite differences). Their loop
 is scipy's own Python step loop (``OdeSolver.step``, what solve_ivp runs when it is called
 without ``t_eval``, keeping every accepted step), written out so that the cell's deadline is
 checked as it goes; every accepted step is recorded (thinned to max_samples). Before the
@@ -146,13 +147,111 @@ def _step_all(solver, most: int | None = None) -> int:
 
 
 class DOP853(ScipyIVP):
+    """Hairer's DOP853 code as scipy ships it, ``scipy.integrate.ode(f).set_integrator('dop853')``:
+    the published 8(5,3) pair with Hairer's own step-size control, stiffness test and
+    counters, its whole run in one call of compiled code. Its calls back into Python are the
+    rhs (12 a step: the compiled wrapper, its params bound by a Python function that turns an
+    exception, which scipy's dop853 would wait on forever, into NaN and a failed step) and the
+    ``solout`` callback after every accepted
+    step, which records the step and returns -1 past the cell's deadline (looked at every
+    DEADLINE_EVERY steps).
+
+    ``scipy-rk45`` stays ``solve_ivp``'s RK45 (the ``OdeSolver`` class its name says), not
+    ``ode('dopri5')``: Hairer's DOPRI5 chooses its steps by a stabilised (PI) controller
+    (beta = 0.04), RK45 by the standard one, so the two are different step sequences of the
+    same tableau, and RK45 is the class scipy's documentation points its users to.
+    """
+
     name = "dop853"
-    summary = ("scipy solve_ivp(method='DOP853'), external peer: CPU includes scipy's Python "
-               "overhead per step and per rhs call")
+    summary = ("scipy ode(f).set_integrator('dop853'): Hairer's DOP853 code, external peer: CPU includes the "
+               "overhead of a Python call of the rhs per stage and of the step callback per step")
     method = "DOP853"
     order = 8
     sweep = {"tol": (1e-6, 1e-9, 1e-12)}
     cell_budget_s = None  # the default matrix's budget for every scheme
+    python_step_s = 3e-5  # 12 Python calls of the compiled rhs and one of the step callback
+    NSTEPS = 2**31 - 1  # Hairer's NMAX: the cell's deadline, not a step count, ends a long run
+
+    def _ode(self, fun, params, t0: float, u0: np.ndarray, solout, **options):
+        """scipy's ode on the dop853 code at the scheme's tolerances, from (t0, u0)."""
+        from scipy.integrate import ode
+
+        tol = self.settings["tol"]
+        atol = tol if self.settings["atol"] is None else self.settings["atol"]
+        raised = []
+
+        def f(t, y):  # scipy would pass set_f_params's params to solout too
+            try:
+                return fun(t, y, params)
+            except Exception as error:  # scipy's dop853 never returns from a raising f
+                raised.append(error)
+                return np.full_like(y, np.nan)  # the step fails: "step size becomes too small"
+
+        r = ode(f).set_integrator("dop853", rtol=tol, atol=atol, nsteps=self.NSTEPS, **options)
+        r.raised = raised
+        r.set_solout(solout)
+        return r.set_initial_value(u0, t0)
+
+    def _run(self, fun, params, t0, u0, t_final, record=None, most=None, **options):
+        """Integrate from (t0, u0) to t_final; ``record(t, y)`` after each accepted step (and at
+        t0) returns True to stop. (ode, steps accepted)."""
+        import warnings
+
+        accepted = [-1]  # Hairer's code calls solout at t0 too
+
+        def solout(t, y):
+            accepted[0] += 1
+            if record is not None and record(t, y):
+                return -1
+            return -1 if most is not None and accepted[0] >= most else 0
+
+        r = self._ode(fun, params, t0, u0, solout, **options)
+        with warnings.catch_warnings():  # a failure is the row's message, not a warning
+            warnings.simplefilter("ignore")
+            r.integrate(t_final)
+        return r, accepted[0]
+
+    def overhead(self, problem) -> float:
+        """Seconds a step costs on u' = 0 of the problem's dimension (peer_common)."""
+        fun = compiled(rhs_function(peer_common.zero_rhs))
+        h = 1.0 / peer_common.OVERHEAD_STEPS
+
+        def measure():
+            (_, steps), cpu, _ = peer_common.timed(lambda: self._run(
+                fun, problem.params, 0.0, np.zeros(problem.dim), 1.0, first_step=h, max_step=h))
+            return cpu, steps
+
+        key = (self.name, problem.dim, tuple(sorted(self.settings.items())))
+        return peer_common.per_step_overhead(key, measure)
+
+    def _integrate(self, problem, t_final, max_samples):
+        fun = compiled(rhs_function(problem.rhs))
+        params, u0 = problem.params, problem.u0.copy()
+        fun(problem.t0, u0, params)  # compile outside the timing
+        peer_common.warm_once((self.name, tuple(sorted(self.settings.items())), problem.identity()),
+                              lambda: self._run(fun, params, problem.t0, u0.copy(), t_final, most=WARM_STEPS))
+        overhead = self.overhead(problem)
+        deadline = self._deadline
+        ts, ys = [], []
+        late = [False]
+
+        def record(t, y):
+            ts.append(t)
+            ys.append(y.copy())
+            if len(ts) % peer_common.DEADLINE_EVERY == 0 and deadline is not None and time.monotonic() > deadline:
+                late[0] = True
+            return late[0]
+
+        (r, _), cpu, wall = peer_common.timed(lambda: self._run(fun, params, problem.t0, u0.copy(), t_final, record))
+        code = r.get_return_code()
+        failure = None if r.successful() else r._integrator.messages.get(code, f"return code {code}")
+        if r.raised:
+            failure = f"the rhs raised {r.raised[0]!r}"
+        nfev, _, _, rejected = (int(n) for n in r._integrator.iwork[16:20])  # NFCN, NSTEP, NACCPT, NREJCT
+        counters = {"rhs_evals": nfev, "nl_iters": 0, "rejected": rejected, "fallbacks": 0, "jac_evals": 0}
+        return peer_common.trajectory(
+            problem, "scipy dop853", np.array(ts), np.array(ys), cpu, wall, counters, max_samples,
+            failure=failure, timed_out=late[0], extra={"peer_overhead_s": overhead})
 
 
 class ScipyRK23(ScipyIVP):
