@@ -7,7 +7,8 @@ import pytest
 
 from longtime.core import registry
 from longtime.core.trajectory import Trajectory
-from longtime.measure.metrics import BlockErrors, Blocks, evaluate, solution_errors, solution_lost
+from longtime.measure.block_errors import BlockErrors, Blocks
+from longtime.measure.metrics import evaluate, solution_errors, solution_lost
 
 # the outer solar system's bodies on circular orbits of their mean radii (AU) about the Sun,
 # G M = 2.959e-4 AU^3/day^2 (a synthetic reference: the per-block error reads its shape)
