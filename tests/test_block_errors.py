@@ -7,7 +7,8 @@ import pytest
 
 from longtime.core import registry
 from longtime.core.trajectory import Trajectory
-from longtime.measure.metrics import BlockErrors, Blocks, evaluate, solution_errors, solution_lost
+from longtime.measure.block_errors import BlockErrors, Blocks
+from longtime.measure.metrics import evaluate, solution_errors, solution_lost
 
 # the outer solar system's bodies on circular orbits of their mean radii (AU) about the Sun,
 # G M = 2.959e-4 AU^3/day^2 (a synthetic reference: the per-block error reads its shape)
@@ -151,3 +152,24 @@ def test_keeping_E_up_to_T_reads_the_largest_error_up_to_T():
     m_old = S.measure([old])
     assert m_old.field == "l2_error" and "RMS" in m_old.text
     assert S.error_kept(old, m_old, 50.0) == 1.2e-6
+
+
+def test_l2_at_some_samples_has_the_bits_of_the_whole_running_l2():
+    """A row reads the running l2_error only at its error curve's samples and the last one:
+    evaluated there alone, each value is the one the whole array holds, bit for bit, and
+    another run's whole l2 against the same reference and scales likewise."""
+    rng = np.random.default_rng(3)
+    t = np.linspace(0.0, 50.0, 2001)
+    ref = np.column_stack([np.cos(t), np.sin(t), 0.1 + 0.2 * t, np.cos(3 * t) * 1e-3])
+    U = ref + 1e-6 * rng.standard_normal(ref.shape).cumsum(axis=0)
+    window = (np.logspace(-3, 0, 101) * 0.5, ref[:101] + 0.0)
+    blocks = Blocks({"q": [0, 2], "p": [1], "r": [3]}, 4)  # out of order: the sums gather
+    whole = BlockErrors.of(t, U, ref, window, blocks)
+    full = whole.l2.copy()
+    rows = np.array([0, 5, 5, 700, 1999, 2000])
+    fresh = BlockErrors.of(t, U, ref, window, blocks)  # nothing evaluated at every sample yet
+    assert np.array_equal(fresh.l2_at(rows), full[rows])
+    other = U + 1e-7
+    assert np.array_equal(fresh.final_l2(other), BlockErrors.of(t, other, ref, window, blocks).l2[-1])
+    a, b = BlockErrors.each(t, U, ref, window, [Blocks.whole(4), Blocks({"all": range(4)}, 4)])
+    assert b.names == ["all"] and np.array_equal(a.l2, b.l2) and np.array_equal(a.pointwise, b.pointwise)

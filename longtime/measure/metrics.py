@@ -42,7 +42,7 @@ Non-finite values become null: a diverged run is a status, never a NaN in a tabl
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -50,6 +50,7 @@ from longtime.core.contract import check_name
 from longtime.core.problem import Problem
 from longtime.core.status import Status
 from longtime.core.trajectory import Trajectory
+from longtime.measure.block_errors import BlockErrors, Blocks, Motion
 from longtime.measure.growth import growth_fields
 from longtime.measure.lyapunov import predictability
 from longtime.measure.reference import Trust, trust_fields
@@ -60,8 +61,6 @@ DRIFT_POINTS = 80  # points of the drift curve each row keeps (drift_envelope)
 O1_ERROR = 0.5
 # a component whose samples a straight line in t explains to this fraction drifts (drifting_components)
 DRIFT_R2 = 0.9
-# a motion smaller than this fraction of the state's size is rounding: nothing moves
-STILL = 1e-8
 WINDOW_POINTS = 1001  # reference states at log-spaced times of the run's first hundredth (motion_window)
 
 
@@ -89,30 +88,6 @@ def relative_error(values: np.ndarray) -> np.ndarray:
     return num / den if den > 0 else num
 
 
-def detrended_ss(t: np.ndarray, states: np.ndarray) -> np.ndarray:
-    """The motion of ``states`` (samples x components) at times ``t``: at each sample k, the
-    sum over components of the squared residuals of the samples up to k about each
-    component's least-squares line in t (its mean and its drift taken out)."""
-    return detrended_components(t, states).sum(axis=1)
-
-
-def detrended_components(t: np.ndarray, states: np.ndarray) -> np.ndarray:
-    """``detrended_ss`` per component (samples x components), before the sum."""
-    t = np.asarray(t, dtype=float)
-    x = np.asarray(states, dtype=float)
-    t = t - t.mean()
-    x = x - x.mean(axis=0)  # centred first: the cumulative sums keep their digits
-    n = np.arange(1, t.size + 1, dtype=float)
-    st, stt = np.cumsum(t), np.cumsum(t * t)
-    sx, sxx, stx = np.cumsum(x, axis=0), np.cumsum(x * x, axis=0), np.cumsum(t[:, None] * x, axis=0)
-    ctt = stt - st**2 / n
-    cxx = sxx - sx**2 / n[:, None]
-    ctx = stx - st[:, None] * sx / n[:, None]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        trend = np.where(ctt[:, None] > 0, ctx**2 / ctt[:, None], 0.0)
-    return np.maximum(cxx - trend, 0.0)
-
-
 def motion_scale(t: np.ndarray, reference: np.ndarray, window: tuple[np.ndarray, np.ndarray] | None = None) -> float:
     """S, the RMS size of the reference's motion over its samples: sqrt(detrended_ss / n),
     the larger of that over the samples and over ``window`` ((times, states) at log-spaced
@@ -121,99 +96,6 @@ def motion_scale(t: np.ndarray, reference: np.ndarray, window: tuple[np.ndarray,
     (kepler's 10,001 samples over 10,000 periods): the window's times alias with no period."""
     reference = np.asarray(reference, dtype=float)
     return float(BlockErrors.of(t, reference, reference, window).scales[0])
-
-
-class Blocks:
-    """A partition of the state's components into named blocks (``Problem.blocks``), and
-    per-block sums of per-component arrays. ``Blocks.whole(dim)``: one block."""
-
-    def __init__(self, blocks: dict[str, Any], dim: int) -> None:
-        self.names = list(blocks)
-        groups = [np.asarray(list(v), dtype=np.int64).reshape(-1) for v in blocks.values()]
-        seen = np.concatenate(groups) if groups else np.empty(0, dtype=np.int64)
-        if not groups or any(g.size == 0 for g in groups) or seen.size != dim \
-                or not np.array_equal(np.sort(seen), np.arange(dim)):
-            raise ValueError(f"blocks {dict(zip(self.names, (g.tolist() for g in groups)))} are not a partition of "
-                             f"the state's {dim} components (each in exactly one non-empty block)")
-        self.order = seen  # the components, block by block
-        self.starts = np.cumsum([0] + [g.size for g in groups[:-1]])
-
-    @classmethod
-    def whole(cls, dim: int) -> "Blocks":
-        return cls({"u": range(dim)}, dim)
-
-    @classmethod
-    def of(cls, problem: Problem) -> "Blocks":
-        return cls(problem.blocks(), problem.dim)
-
-    def __len__(self) -> int:
-        return len(self.names)
-
-    def sum(self, x: np.ndarray) -> np.ndarray:
-        """Per-block sums over the last axis of ``x`` (..., components) -> (..., blocks)."""
-        return np.add.reduceat(np.asarray(x, dtype=float)[..., self.order], self.starts, axis=-1)
-
-
-class BlockErrors:
-    """The solution error of states ``U`` against ``reference`` at times ``t`` per block of
-    the state (``Blocks``; default one, the whole state), each relative to its own motion:
-
-    - ``scales`` (blocks,): S_b, ``motion_scale`` of the block's reference;
-    - ``pointwise`` (samples, blocks): |u_b - u_ref,b| / S_b;
-    - ``l2`` (samples, blocks): at each sample the l2_error of the samples up to it,
-      sqrt(sum |u_b - u_ref,b|^2 / the block's motion over those samples); at the last one
-      sqrt(mean |u_b - u_ref,b|^2) / S_b, the whole run's.
-
-    A block that does not move (a motion below STILL of its size) is measured against its
-    size, one whose reference is zero throughout as an absolute error."""
-
-    def __init__(self, names: list[str], scales: np.ndarray, pointwise: np.ndarray, l2: np.ndarray) -> None:
-        self.names, self.scales, self.pointwise, self.l2 = names, scales, pointwise, l2
-
-    @classmethod
-    def of(cls, t: np.ndarray, U: np.ndarray, reference: np.ndarray,
-           window: tuple[np.ndarray, np.ndarray] | None = None, blocks: Blocks | None = None) -> "BlockErrors":
-        return cls.each(t, U, reference, window, [blocks or Blocks.whole(np.shape(reference)[1])])[0]
-
-    @classmethod
-    def each(cls, t: np.ndarray, U: np.ndarray, reference: np.ndarray,
-             window: tuple[np.ndarray, np.ndarray] | None, partitions: list[Blocks]) -> list["BlockErrors"]:
-        """``of`` for each partition of the state, the per-component sums computed once."""
-        reference = np.asarray(reference, dtype=float)
-        n = np.arange(1, len(t) + 1, dtype=float)[:, None]
-        components = detrended_components(t, reference)  # (samples, components), cumulative
-        early = None
-        if window is not None and len(window[0]) >= 3 and np.isfinite(window[1]).all():
-            early = detrended_components(*window)[-1] / len(window[0])
-        U = np.asarray(U, dtype=float)
-        out = []
-        for blocks in partitions:  # per-block sums first: arrays of (samples, blocks) from here
-            motion = blocks.sum(components)
-            variance = motion[-1] / len(t)
-            if early is not None:
-                variance = np.maximum(variance, blocks.sum(early))
-                motion = np.maximum(motion, n * blocks.sum(early))
-            size = np.cumsum(blocks.sum(reference**2), axis=0)  # nothing moved yet: the block's size
-            still = ~(variance > STILL**2 * size[-1] / len(t))  # a motion below its rounding: nothing moves
-            variance = np.where(still, size[-1] / len(t), variance)
-            scales = np.where(variance > 0, np.sqrt(variance), 1.0)
-            diff = blocks.sum((U - reference) ** 2)
-            motion = np.where(motion > STILL**2 * size, motion, np.where(size > 0, size, n))
-            l2 = np.sqrt(np.cumsum(diff, axis=0) / motion)
-            l2[-1] = np.sqrt(diff.sum(axis=0) / len(t)) / scales  # the whole run's, with its motion scale
-            out.append(cls(blocks.names, scales, np.sqrt(diff) / scales, l2))
-        return out
-
-    @property
-    def largest(self) -> tuple[np.ndarray, np.ndarray]:
-        """(e, l2) of the largest block at each sample: the solution error."""
-        return self.pointwise.max(axis=1), self.l2.max(axis=1)
-
-    @property
-    def worst(self) -> str:
-        """The name of the block with the largest l2_error over the run."""
-        last = self.l2[-1]
-        return self.names[int(np.argmax(np.where(np.isfinite(last), last, np.inf)))]
 
 
 def motion_window(problem: Problem, t_end: float, trust: Trust | None) -> tuple[np.ndarray, np.ndarray] | None:
@@ -247,16 +129,16 @@ def solution_errors(t: np.ndarray, U: np.ndarray, reference: np.ndarray,
     return pointwise, l2, float(errors.scales[errors.names.index(errors.worst)])
 
 
-def drifting_components(t: np.ndarray, reference: np.ndarray) -> int:
+def drifting_components(t: np.ndarray, reference: np.ndarray, motion: Motion | None = None) -> int:
     """How many components of ``reference`` drift: their samples follow a straight line in t
     (coefficient of determination at least DRIFT_R2, charged-particle's x3 = 0.1 + 0.2 t)
     over the run; a component that oscillates about a mean over the run is no drift. The
-    verdict's checks cover a drift-dominated problem."""
+    verdict's checks cover a drift-dominated problem. ``motion``: the reference's
+    ``Motion``, whose centred times and states are read instead of centring them again."""
     t = np.asarray(t, dtype=float)
     if t.size < 3 or not np.ptp(t) > 0:
         return 0
-    x = t - t.mean()
-    y = reference - reference.mean(axis=0)
+    x, y = (motion.t, motion.x) if motion is not None else (t - t.mean(), reference - reference.mean(axis=0))
     slope = (x @ y) / (x @ x)
     explained = slope**2 * (x @ x)
     total = (y**2).sum(axis=0)
@@ -264,17 +146,18 @@ def drifting_components(t: np.ndarray, reference: np.ndarray) -> int:
     return int(np.sum(explained[moving] >= DRIFT_R2 * total[moving]))
 
 
-def error_curve(t: np.ndarray, pointwise: np.ndarray, l2: np.ndarray,
+def error_curve(t: np.ndarray, pointwise: np.ndarray, l2_at: Callable[[np.ndarray], np.ndarray],
                 points: int = DRIFT_POINTS) -> dict[str, Any] | None:
     """The solution error as a curve small enough to keep in the row: e(t)'s upper envelope
     (drift_envelope: ``t``, ``error``) and ``l2``, the l2_error over the samples up to each
-    of those times (6 significant digits). Predictions at a horizon within the run read it."""
+    of those times (6 significant digits; ``l2_at`` gives it at sample indices). Predictions
+    at a horizon within the run read it."""
     curve = drift_envelope("solution", t, pointwise, points, kind="curve")
     if curve is None:
         return None
     tau = t - t[0]
     idx = np.clip(np.searchsorted(tau, np.asarray(curve["t"]) * (1 + 1e-9), side="right") - 1, 0, t.size - 1)
-    curve["l2"] = [float(f"{l2[i]:.6g}") for i in idx]
+    curve["l2"] = [float(f"{v:.6g}") for v in l2_at(idx)]
     return curve
 
 
@@ -325,14 +208,11 @@ def drift_envelope(name: str, t: np.ndarray, err: np.ndarray, points: int = DRIF
             "error": [float(f"{e[i]:.6g}") for i in peaks]}
 
 
-def discretisation_error(problem: Problem, t: np.ndarray, reference: np.ndarray,
-                         window: tuple[np.ndarray, np.ndarray] | None) -> float | None:
-    """The l2_error of the problem's ``pde_solution`` against ``reference`` (the system's
-    solution) at the times ``t``, per block as a row's: how far the space discretisation
-    alone is from the PDE."""
-    pde = np.asarray(problem.pde_solution(t), dtype=float)
-    _, l2 = BlockErrors.of(t, pde, reference, window, Blocks.of(problem)).largest
-    return finite_or_none(l2[-1])
+def discretisation_error(problem: Problem, t: np.ndarray, errors: BlockErrors) -> float | None:
+    """The l2_error of the problem's ``pde_solution`` at the times ``t`` against the
+    reference (the system's solution) of the row's ``errors`` (its blocks and their motion
+    scales), as a row's: how far the space discretisation alone is from the PDE."""
+    return finite_or_none(errors.final_l2(problem.pde_solution(t)).max())
 
 
 def floor_fields(row: dict[str, Any], trust: Trust | None, reference: np.ndarray, scale: float,
@@ -456,16 +336,16 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
             window = motion_window(problem, float(t[k - 1]), trust)
             per_block, state = BlockErrors.each(t[:k], U[:k], reference[:k], window,
                                                 [Blocks.of(problem), Blocks.whole(problem.dim)])
-            rel, l2 = per_block.largest
-            row["l2_error"] = finite_or_none(l2[-1])
+            rel = per_block.pointwise.max(axis=1)
+            row["l2_error"] = finite_or_none(per_block.final_l2().max())
             row["max_error"] = finite_or_none(np.max(rel))
-            row["l2_error_state"] = finite_or_none(state.l2[-1, 0])
+            row["l2_error_state"] = finite_or_none(state.final_l2()[0])
             row["error_block"] = per_block.worst
             scale = float(per_block.scales[per_block.names.index(per_block.worst)])  # l2_error's motion
             if problem.pde_solution is not None:
-                row["discretisation_error"] = discretisation_error(problem, t[:k], reference[:k], window)
-            row["error_curve"] = error_curve(t[:k], rel, l2)
-            row["drifting_components"] = drifting_components(t[:k], reference[:k])
+                row["discretisation_error"] = discretisation_error(problem, t[:k], per_block)
+            row["error_curve"] = error_curve(t[:k], rel, lambda rows: per_block.l2_at(rows).max(axis=1))
+            row["drifting_components"] = drifting_components(t[:k], reference[:k], per_block.motion)
             # growth law of the error relative to the motion, up to the horizon
             row.update(growth_fields("error", t[:k], rel, problem.t0, diverged, steps=steps))
             row["error_horizon"] = float(t[k - 1])
