@@ -3,7 +3,9 @@ wrong type, a count no run takes) costs its own cell: the cell's row is a ``fail
 naming the field and why, every other row is stored and ``--resume`` finds nothing left."""
 import json
 
+import numpy as np
 import pytest
+from _plugins import install_plugin, longtime
 
 from longtime.commands.cli import main
 from longtime.core import registry, rowschema
@@ -18,6 +20,7 @@ SPOILS = {
     "evil-dict": (("extra", "reference", {"a": 1}), "reference"),
     "evil-float-count": (("counters", "rhs_evals", 1.5), "rhs_evals"),
     "evil-own-count": (("counters", "my_count", 3), "my_count"),
+    "evil-numpy-count": (("counters", "rhs_evals", np.int64(7)), "rhs_evals"),  # not JSON's integer
     "evil-negative-steps": (("counters", "steps", -5), "steps"),
     "evil-huge-steps": (("counters", "steps", 10**30), "steps"),
     "evil-many-steps": (("counters", "steps", 10**6), "steps"),  # 10 steps of dt 0.1 reach t = 1
@@ -73,3 +76,35 @@ def test_a_matrix_with_a_refused_row_stores_every_other_row_and_completes(execut
     assert "evil_field: not a declared row field" in rows["evil-field"]["message"]
     run = Store(db).runs()[-1]
     assert run["status"] == "done" and run["done"] == run["planned"] == 3  # nothing left for --resume
+
+
+EVIL_PLUGIN = """
+from longtime.integrators.explicit_rk import RK4
+
+
+class EvilField(RK4):
+    name = "evil-field"
+    summary = "RK4 whose trajectory carries a field the row does not declare"
+
+    def _integrate(self, problem, t_final, max_samples):
+        traj = super()._integrate(problem, t_final, max_samples)
+        traj.extra["evil_field"] = 1
+        return traj
+"""
+
+
+@pytest.mark.slow  # a local Dask cluster and an installed plugin
+def test_on_dask_a_refused_row_costs_its_cell_only(tmp_path):
+    """The same matrix on a local Dask cluster (the plugin installed, as Dask's workers need)."""
+    env, _ = install_plugin(tmp_path / "plugin", "longtime-evil-field",
+                            {"integrators": {"evil-field": "evil_field:EvilField"}}, {"evil_field.py": EVIL_PLUGIN})
+    db = tmp_path / "m.sqlite"
+    res = longtime(env, "matrix", "-p", "harmonic", "-i", "evil-field,rk4,verlet", "--dt", "0.1", "--t-final", "2",
+                   "--db", str(db), "--executor", "dask", "--jobs", "2", "--no-progress", "--no-html", "--no-report",
+                   "--repeats", "1", "--min-time", "0", "--processes", "1", "--checks", "0")
+    assert res.returncode == 0, res.stderr
+    rows = {r["integrator"]: r for r in Store(db).rows()}
+    assert {k: r["status"] for k, r in rows.items()} == {"evil-field": "failed", "rk4": "ok", "verlet": "ok"}
+    assert "evil_field: not a declared row field" in rows["evil-field"]["message"]
+    run = Store(db).runs()[-1]
+    assert run["status"] == "done" and run["done"] == run["planned"] == 3

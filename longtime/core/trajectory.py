@@ -45,7 +45,9 @@ def run_digest(traj: Trajectory) -> str:
     import hashlib
     import json
 
-    h = hashlib.sha1(json.dumps([traj.status, sorted(traj.counters.items())]).encode())
+    # a counter JSON cannot write (a plugin's numpy integer) is hashed by its repr: the row's
+    # check, not the digest, says what is wrong with it
+    h = hashlib.sha1(json.dumps([traj.status, sorted(traj.counters.items())], default=repr).encode())
     for x in (traj.t, traj.u):
         x = np.ascontiguousarray(x)
         h.update(repr((x.shape, x.dtype.str)).encode())

@@ -127,6 +127,9 @@ def _connect(options, n_cells: int):
     # this process, removed with the cluster (``_close``) or by a later process's sweep
     import dask
 
+    from longtime.execution.pool import guard_resource_tracker
+
+    guard_resource_tracker()  # the workers' processes are multiprocessing's: its tracker killed is one line
     scratch = tempdirs.make("dask")
     with dask.config.set({"temporary-directory": str(scratch)}):  # the scheduler's and the nannies' too
         cluster = LocalCluster(n_workers=min(options.workers(), n_cells), threads_per_worker=1,

@@ -24,6 +24,46 @@ def worker_pool(workers: int, spec=None):
     return ResidentPool(workers, spec)
 
 
+def guard_resource_tracker() -> None:
+    """Keep multiprocessing's resource tracker (the process that cleans up the semaphores of
+    the processes multiprocessing starts: a local Dask cluster's workers) quiet when it was
+    killed: the one started in its place never saw what the dead one tracked, and would print
+    a KeyError traceback for each name this process then unregisters. Those names are not
+    sent to it, and its start is said in one line. Where the tracker is not the one this
+    knows (another Python), nothing changes."""
+    import sys
+    import warnings
+    from multiprocessing import resource_tracker as rt
+
+    tracker = getattr(rt, "_resource_tracker", None)
+    if tracker is None or not hasattr(tracker, "_pid") or getattr(tracker, "_longtime_guarded", False):
+        return
+    owners: dict[tuple[str, str], Any] = {}  # (name, type) -> the tracker process it was registered with
+    ensure, register, unregister = tracker.ensure_running, tracker.register, tracker.unregister
+
+    def ensure_running() -> None:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            ensure()
+        if caught:
+            print("warning: multiprocessing's resource tracker process had ended (killed?); a new one runs",
+                  file=sys.stderr)
+
+    def registered(name: str, rtype: str) -> None:
+        ensure_running()
+        register(name, rtype)
+        owners[(name, rtype)] = tracker._pid
+
+    def unregistered(name: str, rtype: str) -> None:
+        ensure_running()
+        if owners.pop((name, rtype), tracker._pid) == tracker._pid:  # else a dead tracker's: unknown here
+            unregister(name, rtype)
+
+    tracker.ensure_running = rt.ensure_running = ensure_running
+    tracker.register = rt.register = registered
+    tracker.unregister = rt.unregister = unregistered
+    tracker._longtime_guarded = True
+
 def unguarded_main() -> str | None:
     """Why a local Dask cluster cannot start here, or None when it can: a worker that
     multiprocessing spawns runs the main module again, and a script that calls longtime
