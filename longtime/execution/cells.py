@@ -95,9 +95,7 @@ class Cell:
         }
         if self.note:
             d["note"] = self.note
-        if self.time_limit is not None:
-            d["time_limit"] = float(self.time_limit)
-        for name in ("bound", "cpu_bound", "bound_reason"):
+        for name in ("time_limit", "bound", "cpu_bound", "bound_reason"):
             if getattr(self, name) is not None:
                 d[name] = getattr(self, name)
         return d
@@ -106,8 +104,7 @@ class Cell:
     def key(self) -> str:
         d = self.to_dict()
         d.pop("skip_reason")
-        d.pop("note", None)
-        for name in ("time_limit", "bound", "cpu_bound", "bound_reason"):
+        for name in ("note", "time_limit", "bound", "cpu_bound", "bound_reason"):
             d.pop(name, None)
         return json.dumps(d, sort_keys=True)
 
@@ -408,15 +405,8 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
         with phases.phase("integration", f"{cell.problem} x {cell.integrator}"):
             traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
                                         timing=timing or Timing(), deadline=deadline, cpu_bound=cell.cpu_bound)
-        if traj.status == Status.TIMEOUT and cell.cpu_bound is not None and traj.cpu_s >= cell.cpu_bound:
-            # its own CPU seconds reached the bound (never said of a run the wall clock stopped)
-            t_end = problem.default_t_final if cell.t_final is None else cell.t_final
-            traj.message = (f"{BOUNDED} {cell.bound_reason} (t={float(traj.t[-1]):.6g} of {t_end:g} reached "
-                            f"in {traj.cpu_s:.3g} s CPU)")
-        elif traj.status == Status.TIMEOUT:
-            limit = (f"{time_limit:g} s: the default matrix's time limit for a setting estimated too slow"
-                     if own else f"cell time limit {time_limit:g} s: --time-limit")
-            traj.message = f"{traj.message} ({limit})"
+        if traj.status == Status.TIMEOUT:
+            traj.message = _stopped(cell, problem, traj, time_limit, own)
         if traj.status == Status.DIVERGED:
             traj.message = "; ".join(m for m in (traj.message, contract.nan_note(problem, traj.t, traj.u)) if m)
         t_end = problem.default_t_final if cell.t_final is None else cell.t_final
@@ -479,6 +469,18 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
     if cell.note:  # the settings the default matrix's budget moved, said where the row is read
         row["message"] = "; ".join(m for m in (row["message"], cell.note) if m)
     return row
+
+
+def _stopped(cell: Cell, problem: Problem, traj, time_limit: float | None, own: bool) -> str:
+    """A stopped run's message: at its chain's CPU bound where its own CPU seconds reached it
+    (never said of a run the wall clock stopped), else at its time limit (``own``: the cell's)."""
+    if cell.cpu_bound is not None and traj.cpu_s >= cell.cpu_bound:
+        t_end = problem.default_t_final if cell.t_final is None else cell.t_final
+        reached = f"t={float(traj.t[-1]):.6g} of {t_end:g} reached in {traj.cpu_s:.3g} s CPU"
+        return f"{BOUNDED} {cell.bound_reason} ({reached})"
+    limit = (f"{time_limit:g} s: the default matrix's time limit for a setting estimated too slow"
+             if own else f"cell time limit {time_limit:g} s: --time-limit")
+    return f"{traj.message} ({limit})"
 
 
 # (scheme class, problem class, dimension) -> why the plugin's step cannot run, or None
