@@ -458,7 +458,12 @@ def test_a_chain_whose_first_cells_miss_the_target_runs_every_setting_unbounded(
     assert chains.bounded(third) is third
     # one that keeps it bounds the later ones, in its chain only (another t_final is another chain)
     chains.saw(second, {**base_row(second), "status": "ok", "cpu_s": 0.25, "max_error": 1e-7, "solution_lost": False})
-    assert chains.bounded(third).cpu_bound == 0.5 and "dop853 tol=1e-06 (0.25 s)" in chains.bounded(third).bound_reason
+    assert chains.bounded(third).cpu_bound == 0.5
+    assert "x2 the CPU of scipy dop853 tol=1e-06 (0.25 s), which keeps" in chains.bounded(third).bound_reason
+    # a cheaper keeper lowers the bound; a scheme named after its library is not named twice
+    chains.saw(third, {**base_row(third), "status": "ok", "cpu_s": 0.1, "max_error": 1e-7, "solution_lost": False})
+    assert chains.bounded(first).cpu_bound == 0.2
+    assert "the CPU of scipy-rk45 tol=1e-10 (0.1 s)" in chains.bounded(first).bound_reason
     (other,) = _chain("kepler", [("scipy-rk45", 1e-10)], 40.0)
     assert chains.bounded(other) is other
 

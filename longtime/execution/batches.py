@@ -74,7 +74,8 @@ class Chains:
             return cell
         cpu, name = self.kept[key]
         library = key[3]
-        reason = (f"x{cell.bound:g} the CPU of {library} {name} ({cpu:.3g} s), which keeps {TARGET:g}: "
+        named = name if name.startswith(f"{library}-") else f"{library} {name}"  # "scipy dop853", "scipy-rk45"
+        reason = (f"x{cell.bound:g} the CPU of {named} ({cpu:.3g} s), which keeps {TARGET:g}: "
                   f"it cannot be {library}'s cheapest")
         return dataclasses.replace(cell, cpu_bound=cell.bound * cpu, bound_reason=reason)
 
