@@ -95,12 +95,18 @@ def test_full_sweep_restores_the_default_sweep(python_stepped_dop853):
     assert moves == [] and {c.t_final for c in full} == {1000.0} and len(full) == 6
     assert all(c.note is None and c.time_limit is None for c in full)
     budgeted, moves = plan("-p", "fpu", "-i", "dop853,scipy-rk23")
-    assert {c.t_final for c in budgeted} == {1000.0} and len(budgeted) == 3 and len(moves) == 2
+    assert {c.t_final for c in budgeted} == {1000.0} and len(budgeted) == 3
+    # two settings moved, and scipy's peers run as one chain (timing by need, the default)
+    assert [m.kind for m in moves].count(budget.CHAINED) == 1 and len(moves) == 3
+    assert all(c.bound is None for c in full) and all(c.bound == 2.0 for c in budgeted)
 
 
 def test_a_given_final_time_is_never_moved():
     cells, moves = plan("-p", "fpu", "-i", "dop853", "--t-final", "1000")
-    assert moves == [] and {c.t_final for c in cells} == {1000.0}
+    assert [m.kind for m in moves] == [budget.CHAINED] and {c.t_final for c in cells} == {1000.0}
+    # --timing all measures every setting to its end: no chain
+    cells, moves = plan("-p", "fpu", "-i", "dop853", "--t-final", "1000", "--timing", "all")
+    assert moves == [] and all(c.bound is None for c in cells)
 
 
 def test_a_long_time_cell_over_its_budget_is_left_out_and_said(monkeypatch):

@@ -427,3 +427,114 @@ def test_a_right_hand_side_that_turns_nan_fails_diffrax_at_its_smallest_step():
     row = longtime.sweep(_nan_harmonic(), ["diffrax-tsit5"], t_final=10.0, executor="serial", tol=1e-8).iloc[0]
     assert row["status"] == "failed" and "did not succeed" in row["message"]
     assert row["t_reached"] == pytest.approx(1.0, abs=0.01)
+
+
+def _chain(problem, settings, t_final):
+    """The chained cells (``Cell.bound``) of ``settings`` [(scheme, tol)] at ``t_final``."""
+    from longtime.execution.cells import Cell
+    from longtime.predict.need import FACTOR
+
+    return [Cell(problem, s, {}, {"tol": tol}, t_final, bound=FACTOR) for s, tol in settings]
+
+
+def test_the_main_jobs_peers_run_as_chains_cheapest_first_and_the_budget_says_so():
+    from longtime.execution import budget
+    from longtime.execution.batches import batches_by_pair
+    from longtime.predict.need import FACTOR
+
+    full = expand(["kepler"], ["dop853", "scipy-rk23", "scipy-rk45", "rk4"], default_sweep=True)
+    plain, plain_moves = budget.fit(full)
+    assert all(c.bound is None for c in plain) and not any(m.kind == budget.CHAINED for m in plain_moves)
+    cells, moves = budget.fit(full, chained=True)
+    peers = [c for c in cells if c.integrator != "rk4"]
+    assert peers and all(c.bound == FACTOR for c in peers) and all(c.bound is None for c in cells if c not in peers)
+    assert [m.integrator for m in moves if m.kind == budget.CHAINED] == ["scipy"]
+    assert "1 (problem, library) chain(s) of peers run cheapest first" in budget.summary(moves)
+    (chain,) = [b for b in batches_by_pair(cells) if b[0].bound]  # one worker runs scipy's settings on kepler
+    assert sorted(map(id, chain)) == sorted(map(id, peers))
+    cost = [budget.run_seconds(c) for c in chain]
+    assert cost == sorted(cost) and {c.integrator for c in chain} == {"dop853", "scipy-rk23", "scipy-rk45"}
+
+
+@pytest.mark.slow  # two runs with kepler's reference, and scipy's first imports
+def test_a_chain_stops_a_later_setting_at_factor_times_the_cpu_of_one_that_keeps_the_target():
+    from longtime.core.status import BOUNDED, bounded
+    from longtime.core.timing import Timing
+    from longtime.execution.batches import run_batch
+    from longtime.execution.cells import RunSpec
+    from longtime.predict.need import FACTOR
+
+    # dop853 at 1e-12 keeps 1e-6 on kepler; RK23 at 1e-10 takes tens of times its steps
+    keeper, later = run_batch(_chain("kepler", [("dop853", 1e-12), ("scipy-rk23", 1e-10)], 20.0),
+                              RunSpec(timing=Timing(repeats=1)))
+    assert keeper["status"] == "ok" and keeper["max_error"] <= 1e-6, keeper["message"]
+    assert later["status"] == "timeout" and bounded(later) and later["message"].startswith(BOUNDED)
+    assert later["cpu_s"] >= FACTOR * keeper["cpu_s"]  # its own CPU seconds reached the bound
+    assert 0.0 < later["t_reached"] < 20.0 and f"t={later['t_reached']:.6g} of 20 reached" in later["message"]
+    assert (f"x2 the CPU of scipy dop853 tol=1e-12 ({keeper['cpu_s']:.3g} s), which keeps 1e-06: it cannot be "
+            f"scipy's cheapest") in later["message"]
+
+
+def test_a_row_whose_cpu_did_not_reach_the_bound_is_never_called_stopped():
+    import dataclasses
+
+    from longtime.core.status import bounded
+    from longtime.execution.cells import run_cell
+
+    # the wall-clock limit stops it long before its (huge) CPU bound: a time limit's timeout
+    (cell,) = _chain("fpu", [("scipy-rk23", 1e-10)], 1000.0)
+    cell = dataclasses.replace(cell, cpu_bound=1e9, bound_reason="x2 the CPU of nothing", time_limit=0.2)
+    row = run_cell(cell, reference=False)
+    assert row["status"] == "timeout" and row["cpu_s"] < 1e9 and not bounded(row)
+    assert "time limit" in row["message"] and "x2 the CPU of nothing" not in row["message"]
+
+
+def test_a_chain_whose_first_cells_miss_the_target_runs_every_setting_unbounded():
+    from longtime.execution.batches import Chains
+    from longtime.execution.cells import base_row
+
+    first, second, third = _chain("kepler", [("dop853", 1e-3), ("dop853", 1e-6), ("scipy-rk45", 1e-10)], 20.0)
+    chains = Chains()
+    for cell, err in ((first, 1e-2), (second, 2e-6)):  # neither keeps 1e-6
+        assert chains.bounded(cell) is cell
+        chains.saw(cell, {**base_row(cell), "status": "ok", "cpu_s": 0.01, "max_error": err, "solution_lost": False})
+    assert chains.bounded(third) is third and third.cpu_bound is None
+    # a kept error with the solution lost, or a timeout, is no keeper either
+    chains.saw(second, {**base_row(second), "status": "ok", "cpu_s": 0.01, "max_error": 1e-7, "solution_lost": True})
+    chains.saw(second, {**base_row(second), "status": "timeout", "cpu_s": 0.01, "max_error": 1e-7})
+    assert chains.bounded(third) is third
+    # one that keeps it bounds the later ones, in its chain only (another t_final is another chain)
+    chains.saw(second, {**base_row(second), "status": "ok", "cpu_s": 0.25, "max_error": 1e-7, "solution_lost": False})
+    assert chains.bounded(third).cpu_bound == 0.5
+    assert "x2 the CPU of scipy dop853 tol=1e-06 (0.25 s), which keeps" in chains.bounded(third).bound_reason
+    # a cheaper keeper lowers the bound; a scheme named after its library is not named twice
+    chains.saw(third, {**base_row(third), "status": "ok", "cpu_s": 0.1, "max_error": 1e-7, "solution_lost": False})
+    assert chains.bounded(first).cpu_bound == 0.2
+    assert "the CPU of scipy-rk45 tol=1e-10 (0.1 s)" in chains.bounded(first).bound_reason
+    (other,) = _chain("kepler", [("scipy-rk45", 1e-10)], 40.0)
+    assert chains.bounded(other) is other
+
+
+def test_which_library_reads_a_row_stopped_at_its_bound_as_no_entry_and_no_failure():
+    from longtime.core.status import BOUNDED, Status, bounded
+    from longtime.reporting.libraries import library_table
+    from longtime.reporting.report import STOPPED, not_ok
+
+    def row(scheme, cpu, err, status="ok", message="", tol=1e-9):
+        return {"problem": "kepler", "integrator": scheme, "status": status, "t_final": 10.0, "cpu_s": cpu,
+                "max_error": err, "solution_lost": False, "tol": tol, "wall_s": cpu, "id": 1, "t_reached": 10.0,
+                "message": message}
+
+    stopped = row("scipy-rk23", 0.4, 1e-3, Status.TIMEOUT, f"{BOUNDED} x2 the CPU of scipy dop853 tol=1e-09 "
+                                                          f"(0.2 s), which keeps 1e-06: it cannot be scipy's cheapest")
+    stopped["t_reached"] = 4.0
+    slow = row("scipy-radau", 5.0, 1e-3, Status.TIMEOUT, "stopped at t=1: past the cell's time limit")
+    rows = [row("dop853", 0.2, 1e-7), stopped, row("rk4", 0.1, 1e-8)]
+    header, (kepler,) = library_table(rows)
+    assert dict(zip(header, kepler))["scipy"] == "dop853 tol=1e-09: 0.2 s (1e-07) x2"
+    assert bounded(stopped) and not bounded(slow)
+    # a time limit's timeout beside it is still said too slow where nothing keeps the target
+    header, (kepler,) = library_table([row("dop853", 0.2, 1e-3), stopped, slow])
+    assert "too slow: scipy-radau" in dict(zip(header, kepler))["scipy"]
+    folded = not_ok(rows + [slow])
+    assert folded[STOPPED] == ["scipy-rk23 (1 of 1)"] and folded["timeout"] == ["scipy-radau (1 of 1)"]

@@ -78,7 +78,7 @@ def matrix_selection(args) -> Selection:
 def matrix_cells(args) -> tuple[list, list]:
     """The cells of ``longtime matrix``'s selection, within the budget unless --full-sweep
     (longtime.execution.budget), sized (--allow-large aside), and what the budget moved."""
-    return plan(matrix_selection(args), exec_options(args, args.executor or "process"))
+    return plan(matrix_selection(args), matrix_options(args, args.executor or "process"))
 
 
 def matrix_options(args, executor: str) -> ExecOptions:

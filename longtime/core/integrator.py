@@ -103,6 +103,9 @@ class Integrator(ABC):
     # whether a run stops at the deadline (``self._deadline``) where it got; False for a
     # library whose loop cannot be stopped from outside: it is looked at after the call
     stops_at_deadline: ClassVar[bool] = True
+    # whether a run stops where it got once its own CPU seconds reach ``self._cpu_bound``: the
+    # default matrix bounds such a library peer's costlier settings (longtime.execution.batches)
+    stops_at_cpu_bound: ClassVar[bool] = False
 
     # what a reader of stored rows must know about the name (rows it meant before a
     # correction): `longtime list` shows it, and `run` and `report` say it on stderr
@@ -126,16 +129,22 @@ class Integrator(ABC):
 
     # the caller's deadline during integrate(), read by the drivers between chunks
     _deadline: float | None = None
+    # the CPU seconds one run may take (None: no bound), read by a scheme that stops at it
+    _cpu_bound: float | None = None
 
     def integrate(self, problem: Problem, t_final: float, max_samples: int = 100_001,
-                  timing: Timing | None = None, deadline: float | None = None) -> Trajectory:
+                  timing: Timing | None = None, deadline: float | None = None,
+                  cpu_bound: float | None = None) -> Trajectory:
         """Run the scheme from problem.u0 at t0 to t_final, timed by ``timing`` (default:
         a single run). Every timed repeat must reproduce the first run bitwise; one that
         does not turns the result into a ``failed`` trajectory ("non-deterministic").
 
         ``deadline`` is a time.monotonic() value: the shared drivers check it between
         chunks of compiled steps, and a run past it comes back with status ``timeout`` and
-        the samples up to where it got (no further repeats are timed)."""
+        the samples up to where it got (no further repeats are timed). ``cpu_bound``: the CPU
+        seconds one run may take, where the scheme ``stops_at_cpu_bound`` (a run stopped at
+        it is ``timeout`` with at least that many CPU seconds; a repeat stopped at it ends
+        the repeats, the first run standing)."""
         check_time_span(problem.t0, t_final)
         reason = self.incompatibility(problem)
         if reason:
@@ -145,12 +154,12 @@ class Integrator(ABC):
         timing = timing or Timing(repeats=1)
         # keep the samples under ~80 MB whatever the dimension (KdV at d = 512: ~19k samples)
         max_samples = min(int(max_samples), max(2001, SAMPLE_BUDGET // problem.dim))
-        self._deadline = deadline
+        self._deadline, self._cpu_bound = deadline, cpu_bound
         try:
             first, cpu, wall = timed_runs(lambda: self._integrate(problem, float(t_final), max_samples), timing,
                                           deadline)
         finally:
-            self._deadline = None
+            self._deadline = self._cpu_bound = None
         _judge_growth(problem, first)
         if len(cpu) == 1 < timing.repeats and first.status == Status.OK and wall[0] > Timing.ONCE_ABOVE:
             note = f"timed once: one run takes {wall[0]:.3g} s"

@@ -37,11 +37,14 @@ STATUS_OF_CODE = {Code.OK: Status.OK, Code.DIVERGED: Status.DIVERGED, Code.FAILE
                   Code.TIMEOUT: Status.TIMEOUT}
 
 # how the messages begin: a timeout's, a failed step's, a cell's stopped by its memory limit
-# (longtime.execution.limits), a cell the default matrix's budget skips (longtime.execution.budget)
+# (longtime.execution.limits), a cell the default matrix's budget skips (longtime.execution.budget),
+# a library peer's run stopped at its chain's CPU bound (a timeout that is no failure: a
+# cheaper setting of its library keeps the target; longtime.execution.batches)
 TIME_LIMIT = "time limit reached"
 STEP_FAILED = "step failed"
 MEMORY_LIMIT = "memory limit"
 TOO_SLOW = "too slow for the default matrix:"
+BOUNDED = "stopped at its library's bound:"
 # a diverged run's message at t (longtime.core.problem.BLOWUP_MESSAGE, as the library peers read it)
 BLOWUP = "state blew up (non-finite or beyond the problem's bound) at t={t:.6g}"
 
@@ -49,6 +52,12 @@ BLOWUP = "state blew up (non-finite or beyond the problem's bound) at t={t:.6g}"
 def time_limit_at(t: float | None) -> str:
     """A timeout's message: where the run got (None: before its first step)."""
     return f"{TIME_LIMIT} before the first step" if t is None else f"{TIME_LIMIT} at t={t:.6g}"
+
+
+def bounded(row: dict) -> bool:
+    """Whether ``row`` is a library peer's run stopped at its chain's CPU bound (BOUNDED): a
+    costlier setting than one of its library that keeps the target, not a failure."""
+    return row.get("status") == Status.TIMEOUT and str(row.get("message") or "").startswith(BOUNDED)
 
 
 def step_failed_at(t: float, why: str) -> str:

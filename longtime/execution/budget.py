@@ -33,6 +33,15 @@ row saying how far it got in how many seconds, which "Which library" shows as to
 scheme whose run cannot be stopped at a time limit (``stops_at_deadline`` False: CVODE's and
 diffrax's one compiled call) is skipped there instead, its rows giving the estimate.
 Horizons and sweeps given on the command line (--t-final, --dt, ...) are never moved.
+
+Chained (CHAINED, under timing by need, the main job's default): the cells of the library
+peers whose run stops at a CPU bound (``stops_at_cpu_bound``: scipy's) are marked
+``Cell.bound`` = ``need.FACTOR``, and each (problem, library, t_final) runs as one chain in
+one worker, cheapest estimated first (longtime.execution.batches): once a setting keeps
+"Which library"'s target (``need.TARGET``), each later one stops at FACTOR times that
+setting's CPU seconds (a ``timeout`` row that says so: it cannot be the library's
+cheapest). ``--timing all`` (measure everything) and --full-sweep run every setting to
+its end.
 """
 from __future__ import annotations
 
@@ -46,6 +55,7 @@ from longtime.core.status import TOO_SLOW
 from longtime.core.stepping import FixedStepIntegrator
 from longtime.execution.cells import Cell
 from longtime.execution.sizes import cell_size
+from longtime.predict.need import FACTOR, TARGET, library_of
 
 # seconds a compiled RK4 step costs per state component (measured on the main job's problems:
 # docs/performance.md)
@@ -65,8 +75,10 @@ CELL_OVERHEAD_S = 0.5
 # the start of every note the budget leaves in a row's message (the report finds them by it)
 NOTE = "budget:"
 # how a move changes a pair: its sweep to a shorter t_final, its long-time cell left out,
-# fewer settings, only its cheapest under SLOW_LIMIT_S, or skipped as too slow
+# fewer settings, only its cheapest under SLOW_LIMIT_S, or skipped as too slow; and a
+# library's peers on a problem run as a chain under a CPU bound (the module's text)
 SHORTER, LONG_OUT, FEWER, LIMITED, SKIPPED = "shorter", "long-time cell out", "fewer", "limited", "skipped"
+CHAINED = "chained"
 # the time limit of a run of that cheapest setting: one cell's budget, so that a library too slow
 # for the default matrix costs it no more than one cell (the estimates are rough, off by a factor
 # of a few either way, and the limit is on the wall clock of a possibly loaded machine)
@@ -126,13 +138,14 @@ def cell_budget(scheme: str) -> float:
     return registry.integrator_class(scheme).cell_budget_s or CELL_BUDGET_S
 
 
-def fit(cells: list[Cell], given_t_final: bool = False,
-        given: frozenset[str] = frozenset()) -> tuple[list[Cell], list[Move]]:
+def fit(cells: list[Cell], given_t_final: bool = False, given: frozenset[str] = frozenset(),
+        chained: bool = False) -> tuple[list[Cell], list[Move]]:
     """The default matrix's ``cells`` (``cells.expand`` with ``default_sweep``) within the
     budget, and what it moved. ``given_t_final``: the final times were given (nothing moves
     then but the long-time cells, which such a matrix does not have). ``given``: the
     parameters whose values were given (a peer's settings of a parameter given are never
-    left out)."""
+    left out). ``chained``: the peers' cells that stop at a CPU bound run as chains (the
+    module's text)."""
     dims: dict[str, int] = {}
     groups: dict[tuple, list[int]] = {}
     for i, c in enumerate(cells):
@@ -172,7 +185,27 @@ def fit(cells: list[Cell], given_t_final: bool = False,
                 out[i] = None
                 note = f"{NOTE} {setting} ({reason}; --full-sweep runs it)"
                 _say(out, sweep, note)  # the pair's rows say it
-    return [c for c in out if c is not None], moves
+    kept = [c for c in out if c is not None]
+    return (_chained(kept, moves) if chained else kept), moves
+
+
+def _chained(cells: list[Cell], moves: list[Move]) -> list[Cell]:
+    """``cells`` with the library peers' that stop at a CPU bound marked ``bound`` = FACTOR, a
+    CHAINED move per problem and library."""
+    out, chains = [], {}
+    for c in cells:
+        icls = registry.integrator_class(c.integrator)
+        if c.skip_reason or not icls.stops_at_cpu_bound or library_of(c.integrator) == "longtime":
+            out.append(c)
+            continue
+        out.append(dataclasses.replace(c, bound=FACTOR))
+        chains.setdefault((c.problem, library_of(c.integrator)), set()).add(c.integrator)
+    for (problem, library), schemes in sorted(chains.items()):
+        setting = f"{', '.join(sorted(schemes))} run as one chain, cheapest estimated first"
+        reason = (f"a setting stops at x{FACTOR:g} the CPU of an earlier one that keeps {TARGET:g}: it cannot be "
+                  f"{library}'s cheapest; --timing all runs it to the end")
+        moves.append(Move(problem, library, setting, reason, CHAINED))
+    return out
 
 
 def _fewer_settings(problem: str, scheme: str, sweep: list[int], cells: list[Cell], out: list,
@@ -309,4 +342,9 @@ def summary(moves: list[Move]) -> str:
                      f"their run cannot be stopped at a time limit)")
     if long_out:
         parts.append(f"{long_out} long-time cell(s) left out (a run estimated over {LONG_CELL_BUDGET_S:g} s)")
-    return f"the default matrix's budget moved {len(moves)} setting(s): " + "; ".join(parts)
+    chained = sum(m.kind == CHAINED for m in moves)
+    if chained:
+        parts.append(f"{chained} (problem, library) chain(s) of peers run cheapest first, a later setting stopped "
+                     f"at x{FACTOR:g} the CPU of one that keeps {TARGET:g} (--timing all runs them to the end)")
+    moved = len(moves) - chained
+    return f"the default matrix's budget moved {moved} setting(s): " + "; ".join(parts)

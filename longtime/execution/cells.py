@@ -23,7 +23,7 @@ from longtime.core.outputs import to_stderr
 from longtime.core.params import InputError, check_time_span, unknown_parameter
 from longtime.core.problem import Problem
 from longtime.core.roles import ROW_PARAMETERS
-from longtime.core.status import Status
+from longtime.core.status import BOUNDED, Status
 from longtime.core.stepping import FixedStepIntegrator
 from longtime.core.timing import Timing
 from longtime.core.trajectory import Trajectory
@@ -76,6 +76,13 @@ class Cell:
     # the cell's own time limit in seconds (the budget's, for a setting estimated too slow for
     # the default matrix), below the run's: past it the row is ``timeout``; not part of the key
     time_limit: float | None = None
+    # a library peer's cell of the default matrix that runs in its chain (the cells of its
+    # problem, library and t_final, cheapest first: longtime.execution.batches): the factor
+    # of the CPU seconds of an earlier setting of the chain that keeps the target past which it
+    # stops (``cpu_bound`` then, and ``bound_reason`` says why); not part of the key
+    bound: float | None = None
+    cpu_bound: float | None = None
+    bound_reason: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         d = {
@@ -88,23 +95,24 @@ class Cell:
         }
         if self.note:
             d["note"] = self.note
-        if self.time_limit is not None:
-            d["time_limit"] = float(self.time_limit)
+        for name in ("time_limit", "bound", "cpu_bound", "bound_reason"):
+            if getattr(self, name) is not None:
+                d[name] = getattr(self, name)
         return d
 
     @property
     def key(self) -> str:
         d = self.to_dict()
         d.pop("skip_reason")
-        d.pop("note", None)
-        d.pop("time_limit", None)
+        for name in ("note", "time_limit", "bound", "cpu_bound", "bound_reason"):
+            d.pop(name, None)
         return json.dumps(d, sort_keys=True)
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "Cell":
         return cls(d["problem"], d["integrator"], dict(d["problem_settings"]),
                    dict(d["integrator_settings"]), d["t_final"], d.get("skip_reason"), d.get("note"),
-                   d.get("time_limit"))
+                   d.get("time_limit"), d.get("bound"), d.get("cpu_bound"), d.get("bound_reason"))
 
 
 def check_set_keys(sets: Mapping[str, Any], problem_names: Iterable[str],
@@ -396,11 +404,9 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
             return row
         with phases.phase("integration", f"{cell.problem} x {cell.integrator}"):
             traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
-                                        timing=timing or Timing(), deadline=deadline)
+                                        timing=timing or Timing(), deadline=deadline, cpu_bound=cell.cpu_bound)
         if traj.status == Status.TIMEOUT:
-            limit = (f"{time_limit:g} s: the default matrix's time limit for a setting estimated too slow"
-                     if own else f"cell time limit {time_limit:g} s: --time-limit")
-            traj.message = f"{traj.message} ({limit})"
+            traj.message = _stopped(cell, problem, traj, time_limit, own)
         if traj.status == Status.DIVERGED:
             traj.message = "; ".join(m for m in (traj.message, contract.nan_note(problem, traj.t, traj.u)) if m)
         t_end = problem.default_t_final if cell.t_final is None else cell.t_final
@@ -465,6 +471,16 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
     return row
 
 
+def _stopped(cell: Cell, problem: Problem, traj, time_limit: float | None, own: bool) -> str:
+    """A stopped run's message: at its chain's CPU bound where its own CPU seconds reached it
+    (never said of a run the wall clock stopped), else at its time limit (``own``: the cell's)."""
+    if cell.cpu_bound is not None and traj.cpu_s >= cell.cpu_bound:
+        t_end = problem.default_t_final if cell.t_final is None else cell.t_final
+        reached = f"t={float(traj.t[-1]):.6g} of {t_end:g} reached in {traj.cpu_s:.3g} s CPU"
+        return f"{BOUNDED} {cell.bound_reason} ({reached})"
+    limit = (f"{time_limit:g} s: the default matrix's time limit for a setting estimated too slow"
+             if own else f"cell time limit {time_limit:g} s: --time-limit")
+    return f"{traj.message} ({limit})"
 
 
 # (scheme class, problem class, dimension) -> why the plugin's step cannot run, or None

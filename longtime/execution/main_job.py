@@ -90,8 +90,10 @@ def plan(selection: Selection, options: ExecOptions) -> tuple[list[Cell], list]:
                    time_limit=options.time_limit, memory_limit=options.memory_limit, default_sweep=True)
     moves = []
     if not selection.full_sweep:
+        # timing by need (the default) also bounds the library peers' chains; --timing all measures everything
         cells, moves = budget.fit(cells, given_t_final=selection.t_final is not None,
-                                  given=frozenset(selection.sweeps) | frozenset(selection.sets))
+                                  given=frozenset(selection.sweeps) | frozenset(selection.sets),
+                                  chained=options.retime == "need")
     check_size(cells, options.max_samples, options.memory_limit, allow_large=selection.allow_large)
     return cells, moves
 

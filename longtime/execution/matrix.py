@@ -21,7 +21,7 @@ from longtime.core.progress import Progress
 from longtime.core.status import Status
 from longtime.core.timing import Timing
 from longtime.execution import budget, calibration
-from longtime.execution.batches import batches_by_pair, calibrated_row
+from longtime.execution.batches import Chains, batches_by_pair, calibrated_row
 from longtime.execution.cells import (
     DEFAULT_MAX_SAMPLES,
     DEFAULT_TIME_LIMIT,
@@ -91,6 +91,7 @@ def serial(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict
     here = calibration.here()
     here.start()
     spec = options.run_spec()
+    chains = Chains()  # a chain's bound holds in any order of its cells (longtime.execution.batches)
     with signal_relay():
         for cell in cells:
             if options.on_start is not None and not cell.skip_reason:
@@ -98,7 +99,8 @@ def serial(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict
             # the cell runs in this process (a script's, a notebook's): under the memory limit a
             # worker has, lifted again before the row is handed on
             with memory_limited(options.memory_limit):
-                row = calibrated_row(here, cell, spec)
+                row = calibrated_row(here, chains.bounded(cell), spec)
+            chains.saw(cell, row)
             yield cell, row
 
 

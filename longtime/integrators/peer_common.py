@@ -33,6 +33,7 @@ CELL_BUDGET_S = 2.0
 SAMPLES = 10_001  # the samples of a row of a peer that saves at given times: heyoka's count
 OVERHEAD_STEPS = 200  # steps of the trivial run that measures the per-step overhead
 DEADLINE_EVERY = 256  # steps between two looks at the cell's deadline
+BOUND_EVERY = 16  # steps between two looks at a run's CPU bound (a multiple divides DEADLINE_EVERY)
 
 _OVERHEAD: dict[tuple, float] = {}
 # compiled wrappers of a problem's functions, by the fingerprint of their closure

@@ -67,6 +67,7 @@ class ScipyIVP(Integrator):
     sweep = {"tol": peer_common.TOLERANCES}
     python_step_s = 1e-4  # solve_ivp's step in Python and its Python calls of the rhs
     cell_budget_s = peer_common.CELL_BUDGET_S  # the default matrix's budget of a peer (execution.budget)
+    stops_at_cpu_bound = True  # its Python loop looks at the run's CPU seconds with the deadline
 
     def _functions(self, problem, rhs, jac):
         """solve_ivp's fun(t, y) and jac(t, y) (or None) around compiled rhs and jac."""
@@ -110,18 +111,24 @@ class ScipyIVP(Integrator):
         peer_common.warm_once((self.name, tuple(sorted(self.settings.items())), problem.identity()),
                               lambda: _step_all(self._solver(fun, jac, problem.t0, u0.copy(), t_final), WARM_STEPS))
         overhead = self.overhead(problem)
-        deadline = self._deadline
+        deadline, bound = self._deadline, self._cpu_bound
         ts, ys = [problem.t0], [u0.copy()]
 
         def run():
+            # the bound counts from here, after the timer's start: a run stopped at it has
+            # at least ``bound`` CPU seconds
+            cpu_end = None if bound is None else time.process_time() + bound
             solver = self._solver(fun, jac, problem.t0, u0.copy(), t_final)
             failure, timed_out = None, False
             while solver.status == "running":
                 failure = solver.step()
                 ts.append(solver.t)
                 ys.append(solver.y.copy())
-                if len(ts) % peer_common.DEADLINE_EVERY == 0 and deadline is not None \
-                        and time.monotonic() > deadline:
+                n = len(ts)
+                if n % peer_common.BOUND_EVERY == 0 and (
+                        (cpu_end is not None and time.process_time() >= cpu_end)
+                        or (n % peer_common.DEADLINE_EVERY == 0 and deadline is not None
+                            and time.monotonic() > deadline)):
                     timed_out = True
                     break
             return solver, failure, timed_out

@@ -43,10 +43,15 @@ from longtime.core.rowtext import main_t_final, setting
 from longtime.core.status import Status
 from longtime.measure.lyapunov import past_predictability
 from longtime.predict.decision import TARGETS, keepers, verdicts
-from longtime.predict.settings import SOLUTION_FIELDS
+from longtime.predict.settings import SOLUTION_FIELDS, Measure, error_kept
 
 # a cell within this factor of a front's CPU time is a contender (see the module's text)
 FACTOR = 2.0
+# the error "Which library" asks of each library's settings (longtime.reporting.libraries; the
+# verdict's measure: max_error, the largest error of any block of the state over the run,
+# relative to its motion); a library peer's cell that has spent FACTOR times the CPU of a
+# setting of its library that keeps it cannot be that library's answer (longtime.execution.batches)
+TARGET = 1e-6
 # the error fields a Pareto front ranks by, the first of them a problem's rows have
 # (``pareto_field``; longtime.reporting.report.pareto)
 PARETO_FIELDS = (*SOLUTION_FIELDS, "H.max", "I.max", "constraint.max")
@@ -71,6 +76,27 @@ class Need:
     retime: bool
     factor: float | None = None
     why: str = ""
+
+
+def library_of(scheme: str) -> str:
+    """The library whose method ``scheme`` runs (its class's ``library``; "longtime" for the
+    suite's own kernels, "unknown" for a scheme no longer installed)."""
+    from longtime.core import registry
+
+    try:
+        return str(getattr(registry.integrator_class(scheme), "library", "longtime"))
+    except Exception:  # a scheme of an old run that is no longer installed
+        return "unknown"
+
+
+def kept_error(row: dict[str, Any], m: Measure, target: float = TARGET) -> float | None:
+    """The error of ``row`` in ``m`` (``error_kept`` over its whole run) where it is an ok row
+    with a CPU time that keeps the solution and ``target``; else None. "Which library" reads
+    its entries by it, and the main job bounds a library peer's chain by it."""
+    if row.get("status") != Status.OK or row.get("solution_lost") or not positive(row.get("cpu_s")):
+        return None
+    error = error_kept(row, m)
+    return error if error is not None and error <= target else None
 
 
 def pareto_field(rows: list[dict[str, Any]]) -> str | None:

@@ -5,7 +5,9 @@ library's. Measured rows only, at the one final time most of the problem's rows 
 extrapolation, so that the libraries are compared on equal terms. A library without an entry
 says why: not installed, does not apply, too slow (a ``timeout`` row at that final time: the
 seconds it ran and how far it got), none of its settings keeps the target (its best error),
-or only shorter runs (the budget moved its rows)."""
+or only shorter runs (the budget moved its rows). A run stopped at its chain's CPU bound (the
+main job's library peers: ``status.bounded``) is neither an entry nor too slow: a cheaper
+setting of its library keeps the target, and that one is the library's entry."""
 from __future__ import annotations
 
 from typing import Any
@@ -13,25 +15,12 @@ from typing import Any
 from longtime.core.fmt import positive
 from longtime.core.rowschema import formatted
 from longtime.core.rowtext import main_t_final, setting
-from longtime.core.status import TOO_SLOW, Status
+from longtime.core.status import TOO_SLOW, Status, bounded
+from longtime.predict.need import TARGET, kept_error, library_of  # noqa: F401 (read from here too)
 from longtime.predict.settings import Measure, error_kept, solution_measure
 
-# the error the table asks of each library's settings (the verdict's measure: max_error, the
-# largest error of any block of the state over the run, relative to its motion)
-TARGET = 1e-6
 # a too-slow row's wall seconds are shown beside its CPU seconds past this many times them
 WALL_SHOWN = 1.5
-
-
-def library_of(scheme: str) -> str:
-    """The library whose method ``scheme`` runs (its class's ``library``; "longtime" for the
-    suite's own kernels, "unknown" for a scheme no longer installed)."""
-    from longtime.core import registry
-
-    try:
-        return str(getattr(registry.integrator_class(scheme), "library", "longtime"))
-    except Exception:  # a scheme of an old run that is no longer installed
-        return "unknown"
 
 
 def _cell(rows: list[dict[str, Any]], t_main: float, target: float, m: Measure | None) -> tuple[str, float | None]:
@@ -39,7 +28,9 @@ def _cell(rows: list[dict[str, Any]], t_main: float, target: float, m: Measure |
     if not rows:
         return "not run on this problem", None
     ran = [r for r in rows if r.get("status") == Status.OK]
-    slow = [r for r in rows if r.get("status") == Status.TIMEOUT and r.get("t_final") == t_main]
+    # a run stopped at its chain's CPU bound is no answer and not too slow: a cheaper setting of
+    # the library keeps the target (longtime.execution.batches)
+    slow = [r for r in rows if r.get("status") == Status.TIMEOUT and r.get("t_final") == t_main and not bounded(r)]
     if not ran and not slow:
         if all(r.get("status") == Status.SKIPPED for r in rows):
             if any("pip install" in str(r.get("message")) for r in rows):
@@ -55,7 +46,7 @@ def _cell(rows: list[dict[str, Any]], t_main: float, target: float, m: Measure |
     if not main:
         return f"only shorter runs (t_final {formatted('t_final', min(r['t_final'] for r in ran))}: the budget)", None
     errors = {id(r): error_kept(r, m) if m is not None else None for r in main}
-    kept = _kept(main, target, errors)
+    kept = _kept(main, target, m) if m is not None else []
     if not kept:
         measured = [r for r in main if errors[id(r)] is not None]
         if not measured:
@@ -69,10 +60,9 @@ def _cell(rows: list[dict[str, Any]], t_main: float, target: float, m: Measure |
     return text, float(r["cpu_s"])
 
 
-def _kept(main: list[dict[str, Any]], target: float, errors: dict[int, float | None]) -> list[dict[str, Any]]:
-    """The rows of ``main`` that keep the solution and ``target`` (their ``errors``, by id) and have a CPU time."""
-    return [r for r in main if not r.get("solution_lost") and positive(r.get("cpu_s"))
-            and errors[id(r)] is not None and errors[id(r)] <= target]
+def _kept(main: list[dict[str, Any]], target: float, m: Measure) -> list[dict[str, Any]]:
+    """The rows of ``main`` that keep the solution and ``target`` (``kept_error``) and have a CPU time."""
+    return [r for r in main if kept_error(r, m, target) is not None]
 
 
 def cheapest_kept(rows: list[dict[str, Any]], target: float = TARGET) -> dict[str, Any] | None:
@@ -83,7 +73,7 @@ def cheapest_kept(rows: list[dict[str, Any]], target: float = TARGET) -> dict[st
     if t_main is None or m is None:
         return None
     main = [r for r in rows if r.get("status") == Status.OK and r.get("t_final") == t_main]
-    kept = _kept(main, target, {id(r): error_kept(r, m) for r in main})
+    kept = _kept(main, target, m)
     return min(kept, key=lambda r: r["cpu_s"]) if kept else None
 
 

@@ -53,7 +53,7 @@ from longtime.reporting.page_tables import (
     pareto_table,
     stability_table,
 )
-from longtime.reporting.report import format_counts, not_ok, status_counts
+from longtime.reporting.report import STOPPED, format_counts, not_ok, status_counts
 
 PAGE_NAME = "index.html"
 FIGURES_DIR = "figures"  # the page's figures, beside index.html
@@ -205,10 +205,12 @@ def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: l
     out = [f'<h3 id="{slug(p)}">{escape(p)}</h3><p>{escape(format_counts(status_counts(mine)))}</p>']
     folded = not_ok(mine)
     if folded:  # open where something failed, diverged or lost the solution; skips alone stay folded
-        failed = sorted(k for k in folded if not k.startswith("skipped"))
+        failed = sorted(k for k in folded if not k.startswith("skipped") and k != STOPPED)
         skipped = sum(len(v) for k, v in folded.items() if k.startswith("skipped"))
+        stopped = len(folded.get(STOPPED, []))  # no failure: folded like the skips
         what = "; ".join([f"{k.split(' (')[0].split(',')[0]}: {len(folded[k])} schemes" for k in failed]
-                         + ([f"skipped: {skipped} schemes"] if skipped else []))
+                         + ([f"skipped: {skipped} schemes"] if skipped else [])
+                         + ([f"stopped at their library's bound: {stopped} schemes"] if stopped else []))
         out.append(_fold(f"Not run to the end, or the solution lost ({escape(what)})", "<ul>" + "".join(
             f"<li>{escape(why)}: {escape(', '.join(s))}</li>"
             for why, s in sorted(folded.items(), key=lambda kv: kv[0].startswith("skipped")))

@@ -4,7 +4,7 @@ observed orders, the capability matrix and the stability intervals."""
 from __future__ import annotations
 
 from longtime.core.rowschema import formatted
-from longtime.core.status import Status
+from longtime.core.status import Status, bounded
 from longtime.reporting.markup import escape, num, table
 from longtime.reporting.report import (
     format_counts,
@@ -190,15 +190,22 @@ def capability_matrix(rows: list[dict]) -> str:
                 cells.append('<td class="skipped" title="not in this run"></td>')
                 continue
             counts = status_counts(mine)
-            worst = next(st for st in (Status.FAILED, Status.TIMEOUT, Status.DIVERGED, Status.SKIPPED, Status.OK)
-                         if counts.get(st))
             title = format_counts(counts)
+            stopped = sum(map(bounded, mine))  # stopped at its library's bound: no failure, not the worst
+            if stopped:
+                counts[Status.TIMEOUT] -= stopped
+                title += (f"; {stopped} stopped at its library's bound"
+                          " (a cheaper setting of the library keeps the target)")
+            worst = next((st for st in (Status.FAILED, Status.TIMEOUT, Status.DIVERGED, Status.SKIPPED, Status.OK)
+                          if counts.get(st)), Status.OK)
             text = ABBREVIATIONS[worst]
             lost = sum(1 for r in mine if r.get("status") == Status.OK and r.get("solution_lost"))
             if worst == Status.SKIPPED:
                 title = "skipped: " + str(mine[0].get("message") or "").removeprefix(s + " ")
             elif worst != Status.OK:
                 text += f" {counts[worst]}/{len(mine)}"
+            elif stopped == len(mine):  # every run stopped at its library's bound
+                worst, text = "stopped", "stop"
             elif lost:  # ran to the end, but the error reached O(1): not an ok answer
                 worst, text = "lost", "lost" if lost == len(mine) else f"lost {lost}/{len(mine)}"
                 title += f"; {lost} of them lost the solution (error O(1) at the end)"
@@ -208,7 +215,8 @@ def capability_matrix(rows: list[dict]) -> str:
     rows_html = "".join("<tr>" + "".join(c) + "</tr>" for c in body)
     return ('<p class="note">Each cell: the worst outcome of the scheme on the problem (ok; lost: ran to the end '
             'with an error of O(1), the solution not followed; - skipped: does not apply; div diverged; fail failed; '
-            't/o timeout; blank: not in this run), with the counts and the reason of a skip in its title.</p>'
+            't/o timeout; stop: stopped at its library\'s bound, a cheaper setting of the library keeping the target; '
+            'blank: not in this run), with the counts and the reason of a skip in its title.</p>'
             f'<table class="capabilities"><tr><th>scheme \\ problem</th>{head}</tr>{rows_html}</table>')
 
 

@@ -17,7 +17,7 @@ from longtime.core.fmt import positive
 from longtime.core.roles import ROW_PARAMETERS, row_columns
 from longtime.core.rowschema import formatted
 from longtime.core.rowtext import main_t_final, setting  # noqa: F401 (their home; read from here too)
-from longtime.core.status import STATUSES, Status
+from longtime.core.status import STATUSES, Status, bounded
 from longtime.measure.lyapunov import past_predictability
 from longtime.predict.need import PARETO_FIELDS, pareto_field  # noqa: F401 (their home; read from here too)
 from longtime.predict.settings import SOLUTION_FIELDS
@@ -303,14 +303,18 @@ def summary(rows: list[dict[str, Any]], orders: bool = True, full: bool = False,
 
 # an ok row whose error reached O(1) (metrics.O1_ERROR): it ran to the end, but lost the solution
 LOST = "ok but error O(1), the solution not followed"
+# a library peer's run stopped at its chain's CPU bound (status.bounded): no failure
+STOPPED = "stopped at its library's bound (a cheaper setting of its library keeps the target: not its answer)"
 
 
 def not_ok(rows: list[dict[str, Any]]) -> dict[str, list[str]]:
     """Rows that did not run to the end, or lost the solution, folded: 'skipped (needs
-    constraints, which toda does not provide)' -> schemes; 'diverged' -> ['rk4 (2 of 3)', ...]."""
-    kinds = [(s, lambda r, s=s: r.get("status") == s)
+    constraints, which toda does not provide)' -> schemes; 'diverged' -> ['rk4 (2 of 3)', ...];
+    a run stopped at its chain's bound under STOPPED, not a timeout."""
+    kinds = [(s, lambda r, s=s: r.get("status") == s and not bounded(r))
              for s in (Status.SKIPPED, Status.DIVERGED, Status.FAILED, Status.TIMEOUT)]
     kinds.append((LOST, lambda r: r.get("status") == Status.OK and bool(r.get("solution_lost"))))
+    kinds.append((STOPPED, bounded))
     out: dict[str, list[str]] = {}
     for kind, of_kind in kinds:
         for scheme in sorted({r["integrator"] for r in rows if of_kind(r)}):

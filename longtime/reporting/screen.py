@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import Any, Iterable
 
 from longtime.core.rowtext import setting
-from longtime.core.status import Status
+from longtime.core.status import Status, bounded
 from longtime.measure.lyapunov import past_predictability
 from longtime.predict.settings import SOLUTION_FIELDS
 from longtime.reporting.recommend import map_verdicts
@@ -196,7 +196,7 @@ def count_lines(rows: list[dict[str, Any]], orders: bool = True) -> list[str]:
         needs = "; ".join(f"{_need(why)} {len(pairs)}" for why, pairs in by_count)
         lines += _wrap(f"  skipped {total}, does not apply: {needs} (`--full` names the pairs)")
     for status in (Status.DIVERGED, Status.FAILED, Status.TIMEOUT):
-        bad = [r for r in rows if r.get("status") == status]
+        bad = [r for r in rows if r.get("status") == status and not bounded(r)]
         reasons: dict[str, list[tuple[str, str]]] = {}
         for r in bad:
             first = str(r.get("message") or "no message stored").split(";")[0].strip()
@@ -204,6 +204,10 @@ def count_lines(rows: list[dict[str, Any]], orders: bool = True) -> list[str]:
             reasons.setdefault(first, []).append((r["problem"], r["integrator"]))
         for why, pairs in sorted(reasons.items(), key=lambda kv: -len(kv[1])):
             lines += _wrap(f"  {status} {len(pairs)} ({why}): {_pairs_text(sorted(set(pairs)), ONE_LINE)}")
+    stopped = sorted({(r["problem"], r["integrator"]) for r in rows if bounded(r)})
+    if stopped:  # no failure: a cheaper setting of the library keeps the target
+        lines += _wrap(f"  stopped at their library's bound {sum(map(bounded, rows))} (past x2 the CPU of a setting "
+                       f"of the same library that keeps the target: not its answer): {_pairs_text(stopped, ONE_LINE)}")
     lost = [(r["problem"], r["integrator"]) for r in rows if r.get("status") == Status.OK and r.get("solution_lost")]
     if lost:
         lines += _wrap(f"  ok but lost the solution {len(lost)} (error O(1) at the end): "
