@@ -475,6 +475,19 @@ def test_a_chain_stops_a_later_setting_at_factor_times_the_cpu_of_one_that_keeps
             f"scipy's cheapest") in later["message"]
 
 
+@pytest.mark.parametrize("scheme", ["dop853", "scipy-rk45"])
+def test_a_scipy_run_stops_where_its_own_cpu_seconds_reach_its_bound(scheme):
+    from longtime.core import registry
+
+    # Hairer's code (a callback per step) and solve_ivp's loop both look at the run's CPU seconds
+    problem = registry.problem_class("fpu")()
+    integrator = registry.integrator_class(scheme)(tol=1e-10)
+    assert integrator.stops_at_cpu_bound
+    traj = integrator.integrate(problem, 1000.0, cpu_bound=0.05)
+    assert traj.status == "timeout" and traj.cpu_s >= 0.05
+    assert problem.t0 < traj.t[-1] < 1000.0
+
+
 def test_a_row_whose_cpu_did_not_reach_the_bound_is_never_called_stopped():
     import dataclasses
 

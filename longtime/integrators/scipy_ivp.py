@@ -238,18 +238,28 @@ class DOP853(ScipyIVP):
         peer_common.warm_once((self.name, tuple(sorted(self.settings.items())), problem.identity()),
                               lambda: self._run(fun, params, problem.t0, u0.copy(), t_final, most=WARM_STEPS))
         overhead = self.overhead(problem)
-        deadline = self._deadline
+        deadline, bound = self._deadline, self._cpu_bound
         ts, ys = [], []
         late = [False]
+        cpu_end: list[float | None] = [None]
 
         def record(t, y):
             ts.append(t)
             ys.append(y.copy())
-            if len(ts) % peer_common.DEADLINE_EVERY == 0 and deadline is not None and time.monotonic() > deadline:
+            n = len(ts)
+            if n % peer_common.BOUND_EVERY == 0 and (
+                    (cpu_end[0] is not None and time.process_time() >= cpu_end[0])
+                    or (n % peer_common.DEADLINE_EVERY == 0 and deadline is not None
+                        and time.monotonic() > deadline)):
                 late[0] = True
             return late[0]
 
-        (r, _), cpu, wall = peer_common.timed(lambda: self._run(fun, params, problem.t0, u0.copy(), t_final, record))
+        def run():
+            # the bound counts from here, after the timer's start (as ScipyIVP's loop counts it)
+            cpu_end[0] = None if bound is None else time.process_time() + bound
+            return self._run(fun, params, problem.t0, u0.copy(), t_final, record)
+
+        (r, _), cpu, wall = peer_common.timed(run)
         code = r.get_return_code()
         failure = None if r.successful() else r._integrator.messages.get(code, f"return code {code}")
         if r.raised:
