@@ -403,10 +403,7 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
             row.update(status=Status.FAILED, message=unsafe)
             return row
         with phases.phase("integration", f"{cell.problem} x {cell.integrator}"):
-            # a bound only where the scheme honours one: a plugin's own integrate() that
-            # predates the keyword is called as before
-            bound = {"cpu_bound": cell.cpu_bound} if cell.cpu_bound is not None and integrator.stops_at_cpu_bound \
-                else {}
+            bound = {"cpu_bound": cell.cpu_bound} if integrator.stops_at_cpu_bound else {}  # a plugin's may predate it
             traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
                                         timing=timing or Timing(), deadline=deadline, **bound)
         if traj.status == Status.TIMEOUT:
