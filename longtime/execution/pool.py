@@ -64,6 +64,7 @@ def guard_resource_tracker() -> None:
     tracker.unregister = rt.unregister = unregistered
     tracker._longtime_guarded = True
 
+
 def unguarded_main() -> str | None:
     """Why a local Dask cluster cannot start here, or None when it can: a worker that
     multiprocessing spawns runs the main module again, and a script that calls longtime

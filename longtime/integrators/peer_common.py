@@ -35,6 +35,17 @@ OVERHEAD_STEPS = 200  # steps of the trivial run that measures the per-step over
 DEADLINE_EVERY = 256  # steps between two looks at the cell's deadline
 BOUND_EVERY = 16  # steps between two looks at a run's CPU bound (a multiple divides DEADLINE_EVERY)
 
+def stop_here(steps: int, cpu_end: float | None, deadline: float | None) -> bool:
+    """Whether a peer's Python loop, at ``steps`` recorded, stops: every BOUND_EVERY steps it
+    looks at the run's CPU bound (``cpu_end``, a ``time.process_time()`` value), every
+    DEADLINE_EVERY at the cell's deadline (a ``time.monotonic()`` value)."""
+    if steps % BOUND_EVERY:
+        return False
+    if cpu_end is not None and time.process_time() >= cpu_end:
+        return True
+    return steps % DEADLINE_EVERY == 0 and deadline is not None and time.monotonic() > deadline
+
+
 _OVERHEAD: dict[tuple, float] = {}
 # compiled wrappers of a problem's functions, by the fingerprint of their closure
 _WRAPPERS: dict[str, object] = {}

@@ -124,11 +124,7 @@ class ScipyIVP(Integrator):
                 failure = solver.step()
                 ts.append(solver.t)
                 ys.append(solver.y.copy())
-                n = len(ts)
-                if n % peer_common.BOUND_EVERY == 0 and (
-                        (cpu_end is not None and time.process_time() >= cpu_end)
-                        or (n % peer_common.DEADLINE_EVERY == 0 and deadline is not None
-                            and time.monotonic() > deadline)):
+                if peer_common.stop_here(len(ts), cpu_end, deadline):
                     timed_out = True
                     break
             return solver, failure, timed_out
@@ -246,11 +242,7 @@ class DOP853(ScipyIVP):
         def record(t, y):
             ts.append(t)
             ys.append(y.copy())
-            n = len(ts)
-            if n % peer_common.BOUND_EVERY == 0 and (
-                    (cpu_end[0] is not None and time.process_time() >= cpu_end[0])
-                    or (n % peer_common.DEADLINE_EVERY == 0 and deadline is not None
-                        and time.monotonic() > deadline)):
+            if peer_common.stop_here(len(ts), cpu_end[0], deadline):
                 late[0] = True
             return late[0]
 
