@@ -406,11 +406,11 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
             bound = {"cpu_bound": cell.cpu_bound} if integrator.stops_at_cpu_bound else {}  # a plugin's may predate it
             traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
                                         timing=timing or Timing(), deadline=deadline, **bound)
+        t_end = problem.default_t_final if cell.t_final is None else cell.t_final
         if traj.status == Status.TIMEOUT:
-            traj.message = _stopped(cell, problem, traj, time_limit, own)
+            traj.message = _stopped(cell, t_end, traj, time_limit, own)
         if traj.status == Status.DIVERGED:
             traj.message = "; ".join(m for m in (traj.message, contract.nan_note(problem, traj.t, traj.u)) if m)
-        t_end = problem.default_t_final if cell.t_final is None else cell.t_final
         wrong = contract.check_samples(cell.integrator, problem, traj, t_end)
         if wrong:  # samples that cannot be measured are a fault, never a row that reads ok
             row.update(status=Status.FAILED, message=wrong)
@@ -472,11 +472,10 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
     return row
 
 
-def _stopped(cell: Cell, problem: Problem, traj, time_limit: float | None, own: bool) -> str:
+def _stopped(cell: Cell, t_end: float, traj, time_limit: float | None, own: bool) -> str:
     """A stopped run's message: at its chain's CPU bound where its own CPU seconds reached it
     (never said of a run the wall clock stopped), else at its time limit (``own``: the cell's)."""
     if cell.cpu_bound is not None and traj.cpu_s >= cell.cpu_bound:
-        t_end = problem.default_t_final if cell.t_final is None else cell.t_final
         reached = f"t={float(traj.t[-1]):.6g} of {t_end:g} reached in {traj.cpu_s:.3g} s CPU"
         return f"{BOUNDED} {cell.bound_reason} ({reached})"
     limit = (f"{time_limit:g} s: the default matrix's time limit for a setting estimated too slow"
