@@ -13,7 +13,7 @@ h1{font-size:1.5em}h2{font-size:1.25em;border-bottom:1px solid #ccc;margin-top:2
 table{border-collapse:collapse;font-size:.85em;margin:.4em 0 1em}
 td,th{border:1px solid #ddd;padding:2px 6px;text-align:left;vertical-align:top}
 th{background:#f3f3f3}td.num{text-align:right;font-variant-numeric:tabular-nums}
-.ok{background:#e8f5e9}.skipped{background:#f5f5f5;color:#666}.diverged{background:#fff3e0}
+.ok{background:#e8f5e9}.skipped,.stopped{background:#f5f5f5;color:#666}.diverged{background:#fff3e0}
 .failed,.timeout{background:#ffebee}.lost{background:#fce4ec;color:#880e4f;font-weight:bold}
 .undetermined{background:#fff8e1}.flag{color:#b71c1c;font-weight:bold}
 figure{margin:.5em 0}figure svg,figure img{max-width:100%;height:auto}figcaption{font-size:.85em;color:#555}
