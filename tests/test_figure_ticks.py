@@ -1,5 +1,6 @@
 """The page's figures draw a wide log axis's minor ticks and minor grid as one artist each:
-the same locations and style matplotlib's tick objects would have."""
+the same locations and style matplotlib's tick objects would have; a narrow one labels its
+minor ticks, plainly near 1."""
 import numpy as np
 import pytest
 
@@ -54,3 +55,23 @@ def test_narrow_log_axis_keeps_its_labelled_minor_ticks():
     assert not isinstance(ax.yaxis.get_minor_locator(), NullLocator)
     assert len(ax.get_children()) == before
     plt.close(fig)
+
+
+def test_narrow_log_axis_labels_its_minor_ticks_plainly_near_one():
+    from longtime.reporting.figures import plain_log_ticks
+
+    plt, fig, ax = _axes([1.0, 30.0], [0.3, 6.0])
+    plain_log_ticks(ax)
+    fig.canvas.draw()
+    minor = {t.get_text() for t in ax.yaxis.get_ticklabels(minor=True)} - {""}
+    assert {"0.5", "2", "5"} <= minor and not any("×" in t for t in minor)
+    small = _minor_label_of(ax.yaxis, 2e-5)
+    assert small == "2×10⁻⁵"
+    plt.close(fig)
+
+
+def _minor_label_of(axis, value):
+    from longtime.reporting.figures import _minor_labels
+
+    axis.axes.set_ylim(1e-5, 9e-5)
+    return _minor_labels(axis)(value)

@@ -277,7 +277,7 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
     scheme cards, then the evidence (folded), the history, the capability matrix, the
     stability intervals and the run and machine; the figures are drawn on ``jobs``
     processes, but for those ``ahead`` drew from the same rows. ``history``: the history
-    section (longtime.reporting.history.page_section). ``writer``: the command that wrote
+    section (longtime.reporting.history_page). ``writer``: the command that wrote
     the page, named in its footer. ``ensembles``: the stored ensemble distances of the
     chaotic problems (each in its problem's evidence)."""
     from longtime.reporting.recommend import map_verdicts
@@ -437,7 +437,8 @@ def write_html(out_dir, rows: list[dict[str, Any]], store, run_ids: Iterable[int
     come from), its figures drawn on ``jobs`` processes (default: one per core) but for those
     drawn ``ahead`` (an figures_ahead.FiguresAhead); ``writer``: the command that writes it
     (the footer names it); returns its path."""
-    from longtime.reporting.history import machines_section, page_section
+    from longtime.reporting.history import machines_section
+    from longtime.reporting.history_page import page_section
 
     ids = sorted(set(run_ids) if run_ids is not None else {r.get("run_id") for r in rows if r.get("run_id")})
     runs = [{**r, "calibrations": store.calibrations(r["id"])} for r in store.runs() if r["id"] in ids]

@@ -43,8 +43,9 @@ def decade_label(value: float, _pos=None) -> str:
 
 
 def _minor_labels(axis):
-    """Labels of the minor ticks 2 and 5 x 10^k ('2×10⁻⁵') on an axis spanning less than two
-    decades, where the decades alone leave one label or none; none on a wider axis."""
+    """Labels of the minor ticks 2 and 5 x 10^k ('2×10⁻⁵', and '0.5', '2', '50' near 1) on an
+    axis spanning less than two decades, where the decades alone leave one label or none; none
+    on a wider axis."""
 
     def label(value: float, _pos=None) -> str:
         low, high = sorted(axis.get_view_interval())
@@ -54,6 +55,8 @@ def _minor_labels(axis):
         mantissa = round(value / 10.0**exponent)
         if mantissa not in (2, 5) or abs(value / (mantissa * 10.0**exponent) - 1.0) > 1e-6:
             return ""
+        if -1 <= exponent <= 2:
+            return f"{mantissa * 10.0**exponent:g}"
         return f"{mantissa}×" + decade_label(10.0**exponent)
 
     return label
