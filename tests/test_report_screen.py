@@ -77,3 +77,14 @@ def test_a_failed_check_is_named_with_its_reason():
              "l2_error": 1e-6, "dt": 0.01}]
     text = first_screen(rows, checks=[check])
     assert "failed: rk4 dt=0.01 on kepler to t = 1000 (best): CPU x2.2 the predicted" in text
+
+
+def test_the_counts_say_which_timeouts_stopped_at_their_librarys_bound():
+    from longtime.core.status import BOUNDED
+    from longtime.reporting.report import counts_text
+
+    rows = [{"status": "ok"}] * 3 + [{"status": "timeout", "message": f"{BOUNDED} x2 the CPU of ..."}] * 2
+    rows += [{"status": "timeout", "message": "passed its time limit of 10 s"}]
+    assert counts_text(rows) == "3 ok, 3 timeout (2 stopped at their library's bound)"
+    assert counts_text(rows[:3] + rows[-1:]) == "3 ok, 1 timeout"
+    assert counts_text([]) == "no rows"

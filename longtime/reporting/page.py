@@ -53,7 +53,7 @@ from longtime.reporting.page_tables import (
     pareto_table,
     stability_table,
 )
-from longtime.reporting.report import STOPPED, format_counts, not_ok, status_counts
+from longtime.reporting.report import STOPPED, counts_text, not_ok
 
 PAGE_NAME = "index.html"
 FIGURES_DIR = "figures"  # the page's figures, beside index.html
@@ -202,7 +202,7 @@ def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: l
               ensembles: list[dict] = ()) -> str:
     """One problem's evidence, each piece folded: the Pareto front, work-precision, orders,
     growth classes, drift and diagnostics; what did not run to the end stays open."""
-    out = [f'<h3 id="{slug(p)}">{escape(p)}</h3><p>{escape(format_counts(status_counts(mine)))}</p>']
+    out = [f'<h3 id="{slug(p)}">{escape(p)}</h3><p>{escape(counts_text(mine))}</p>']
     folded = not_ok(mine)
     if folded:  # open where something failed, diverged or lost the solution; skips alone stay folded
         failed = sorted(k for k in folded if not k.startswith("skipped") and k != STOPPED)
@@ -296,7 +296,6 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
     with figures_drawing(by_problem, style, drift, jobs, builtin, ahead) as drawn:
         fits = observed_orders(rows)
         missing = left_out(rows)
-        counts = status_counts(rows)
         found = map_verdicts(rows, checks)
         cards = _cards_section(rows)
         verdict_sections = [_verdict_section(p, found[p], by_problem[p], style) for p in problems]
@@ -307,7 +306,7 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
            '<meta name="viewport" content="width=device-width, initial-scale=1">',
            "<title>longtime results</title>", f"<style>{CSS}</style>", "</head><body>",
            "<h1>longtime: which scheme for this problem, horizon and accuracy</h1>",
-           f'<p class="lead"><b>{len(rows)} cells</b> ({escape(format_counts(counts))}) '
+           f'<p class="lead"><b>{len(rows)} cells</b> ({escape(counts_text(rows))}) '
            f'of run{"s" if len(runs) != 1 else ""} '
            f'{escape(ids)}. <a href="#about">The run, the machine and its calibration</a> are at the end.</p>',
            '<nav><b>Contents:</b> <a href="#answers">answers</a><a href="#libraries">which library</a>'

@@ -7,7 +7,7 @@ from longtime.core.rowschema import formatted
 from longtime.core.status import Status, bounded
 from longtime.reporting.markup import escape, num, table
 from longtime.reporting.report import (
-    format_counts,
+    counts_text,
     main_t_final,
     pareto,
     pareto_field,
@@ -190,7 +190,7 @@ def capability_matrix(rows: list[dict]) -> str:
                 cells.append('<td class="skipped" title="not in this run"></td>')
                 continue
             counts = status_counts(mine)
-            title = format_counts(counts)
+            title = counts_text(mine)
             stopped = sum(map(bounded, mine))  # stopped at its library's bound: no failure, not the worst
             if stopped:
                 counts[Status.TIMEOUT] -= stopped

@@ -112,9 +112,17 @@ def status_counts(rows: Iterable[dict[str, Any]]) -> dict[str, int]:
     return counts
 
 
-def format_counts(counts: dict[str, int]) -> str:
-    shown = [f"{n} {s}" for s, n in counts.items() if n]
+def format_counts(counts: dict[str, int], stopped: int = 0) -> str:
+    """'5 ok, 3 timeout (2 stopped at their library's bound)': ``stopped`` of the timeouts
+    are library peers' runs stopped at their chain's bound (``status.bounded``)."""
+    shown = [f"{n} {s}" + (f" ({stopped} stopped at their library's bound)" if stopped and s == Status.TIMEOUT else "")
+             for s, n in counts.items() if n]
     return ", ".join(shown) or "no rows"
+
+
+def counts_text(rows: list[dict[str, Any]]) -> str:
+    """The statuses of ``rows`` counted, as format_counts says them."""
+    return format_counts(status_counts(rows), sum(map(bounded, rows)))
 
 
 def pareto(rows: list[dict[str, Any]], field: str | None = None) -> list[dict[str, Any]]:
@@ -259,7 +267,7 @@ def summary(rows: list[dict[str, Any]], orders: bool = True, full: bool = False,
 
     if not rows:
         return "no rows"
-    parts = [f"{len(rows)} cells: {format_counts(status_counts(rows))}"]
+    parts = [f"{len(rows)} cells: {counts_text(rows)}"]
     fits = observed_orders(rows) if orders else []
     missing = left_out(rows) if orders else []
     moved = notes(rows)
@@ -267,7 +275,7 @@ def summary(rows: list[dict[str, Any]], orders: bool = True, full: bool = False,
     chaos = ensemble_summary(list(ensembles))
     for problem in sorted({r["problem"] for r in rows}):
         mine = [r for r in rows if r["problem"] == problem]
-        lines = [f"== {problem}: {format_counts(status_counts(mine))} =="]
+        lines = [f"== {problem}: {counts_text(mine)} =="]
         lines += verdict_lines(found[problem], full)
         failed = [f"  {why}: {', '.join(schemes)}" for why, schemes in sorted(not_ok(mine).items())]
         lines += failed  # what failed comes right after the verdict: it never falls to the cut below

@@ -10,7 +10,7 @@ from longtime.core.status import Status, bounded
 from longtime.measure.lyapunov import past_predictability
 from longtime.predict.settings import SOLUTION_FIELDS
 from longtime.reporting.recommend import map_verdicts
-from longtime.reporting.report import format_counts, pareto, pareto_field, render, status_counts, summary
+from longtime.reporting.report import counts_text, pareto, pareto_field, render, summary
 
 # the answer table's columns: (target error, horizon in units of the run's final time)
 ANSWER_TARGETS = ((1e-3, 100.0), (1e-6, 1.0), (1e-10, 1.0))
@@ -183,7 +183,7 @@ def count_lines(rows: list[dict[str, Any]], orders: bool = True) -> list[str]:
     from longtime.predict.need import FACTOR as NEED_FACTOR
     from longtime.predict.need import left_out
 
-    lines = [f"{len(rows)} cells: {format_counts(status_counts(rows))}"]
+    lines = [f"{len(rows)} cells: {counts_text(rows)}"]
     skipped: dict[str, list[tuple[str, str]]] = {}
     for r in rows:
         if r.get("status") == Status.SKIPPED:
