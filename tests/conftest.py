@@ -5,7 +5,8 @@ ensembles and long integrations) carry ``@pytest.mark.slow`` where they are (or
 ``pytestmark`` in a module whose every test is slow). The default run (README's test
 command) leaves them out; `python -m pytest -m slow` runs them, and CI runs both. At the end
 of a session, a test not marked slow that took over ``SLOW_UNMARKED_S`` seconds is named in
-the terminal summary."""
+the terminal summary. README's test command runs the default tests on every core
+(pytest-xdist's ``-n auto``); the slow run stays serial."""
 import os
 
 import pytest
@@ -33,6 +34,16 @@ def slow_unmarked(reports, marked_slow) -> list[tuple[str, float]]:
         took[report.nodeid] = took.get(report.nodeid, 0.0) + report.duration
     return sorted(((node, s) for node, s in took.items() if s > SLOW_UNMARKED_S and node not in marked_slow),
                   key=lambda item: -item[1])
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_configure(config):
+    """Under pytest-xdist (README's ``-n auto``) the benchmark cases run once, untimed:
+    timings taken beside other workers measure the load. Said here, before pytest-benchmark
+    warns of it; CI times them in a run of their own (.ci/run)."""
+    if config.pluginmanager.hasplugin("benchmark") and (
+            os.environ.get("PYTEST_XDIST_WORKER") or config.getoption("numprocesses", None)):
+        config.option.benchmark_disable = True
 
 
 def pytest_collection_modifyitems(config, items):

@@ -120,13 +120,14 @@ class ScipyIVP(Integrator):
             cpu_end = None if bound is None else time.process_time() + bound
             solver = self._solver(fun, jac, problem.t0, u0.copy(), t_final)
             failure, timed_out = None, False
-            while solver.status == "running":
-                failure = solver.step()
-                ts.append(solver.t)
-                ys.append(solver.y.copy())
-                if peer_common.stop_here(len(ts), cpu_end, deadline):
-                    timed_out = True
-                    break
+            with np.errstate(all="ignore"):  # a state gone non-finite is the row's status, not a warning
+                while solver.status == "running":
+                    failure = solver.step()
+                    ts.append(solver.t)
+                    ys.append(solver.y.copy())
+                    if peer_common.stop_here(len(ts), cpu_end, deadline):
+                        timed_out = True
+                        break
             return solver, failure, timed_out
 
         (solver, failure, timed_out), cpu, wall = peer_common.timed(run)
@@ -143,9 +144,10 @@ class ScipyIVP(Integrator):
 def _step_all(solver, most: int | None = None) -> int:
     """Step ``solver`` to its end (or ``most`` steps); the steps taken."""
     steps = 0
-    while solver.status == "running" and (most is None or steps < most):
-        solver.step()
-        steps += 1
+    with np.errstate(all="ignore"):
+        while solver.status == "running" and (most is None or steps < most):
+            solver.step()
+            steps += 1
     return steps
 
 
