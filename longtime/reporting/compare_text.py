@@ -9,16 +9,21 @@ from longtime.reporting.compare_cells import MATCH_KEYS
 from longtime.reporting.compare_machine import machine_text, unchecked_text
 
 
-def label(cell: dict) -> str:
+def label(cell: dict, digits: int | None = None, problem: bool = True) -> str:
     """Every setting that tells two cells apart (``compare.MATCH_KEYS``), t_final included,
-    each value to full precision: two cells never share a header."""
-    parts = [str(cell.get("problem")), str(cell.get("integrator"))]
+    each value to full precision: two cells never share a header. ``digits``: numbers to that
+    many digits instead (a table or a panel title, where the full label is a command away);
+    ``problem``: False leaves the problem out (a table under the problem's heading)."""
+    parts = [str(cell.get("problem"))] if problem else []
+    parts.append(str(cell.get("integrator")))
     for k in MATCH_KEYS[2:]:
         v = cell.get(k)
         if v is None or v == "":
             continue
         if k == "settings":
             parts.append(str(v))
+        elif isinstance(v, float) and digits is not None:
+            parts.append(f"{k}={v:.{digits}g}")
         elif isinstance(v, float):
             parts.append(f"{k}={v:.17g}" if float(f"{v:.6g}") != v else f"{k}={v:g}")
         else:

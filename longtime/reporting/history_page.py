@@ -14,6 +14,9 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from longtime.predict.need import PARETO_FIELDS
+from longtime.reporting.compare_cells import cell_key
+from longtime.reporting.compare_text import label
 from longtime.reporting.history import TIME_FIELD, history
 from longtime.reporting.markup import escape, slug, table
 
@@ -23,9 +26,6 @@ TABLE_ROWS = 15  # the steps a problem's table lists (the largest first); the re
 
 def repeated(store, rows: list[dict]) -> list[dict[str, Any]]:
     """The history of the cells of ``rows`` that more than one stored run holds."""
-    from longtime.reporting.compare_cells import cell_key
-    from longtime.reporting.report import PARETO_FIELDS
-
     keys = {cell_key(r) for r in rows}
     problems = sorted({r["problem"] for r in rows})
     schemes = sorted({r["integrator"] for r in rows})
@@ -35,8 +35,6 @@ def repeated(store, rows: list[dict]) -> list[dict[str, Any]]:
 
 def main_error(cell: dict) -> str | None:
     """The first error field of the report's Pareto fields that a run of ``cell`` has."""
-    from longtime.reporting.report import PARETO_FIELDS
-
     return next((f for f in PARETO_FIELDS if any(isinstance(p.get(f), (int, float)) for p in cell["runs"])), None)
 
 
@@ -44,21 +42,6 @@ def marked(cell: dict) -> list[dict[str, Any]]:
     """The steps of ``cell``'s calibrated time and main error."""
     err = main_error(cell)
     return [s for s in cell["steps"] if s["field"] in (TIME_FIELD, err)]
-
-
-def short_label(cell: dict, problem: bool = True) -> str:
-    """The scheme and every setting that tells two cells apart, numbers to 4 digits (the
-    table and the panels; ``longtime history`` names each to full precision)."""
-    from longtime.reporting.compare_cells import MATCH_KEYS
-
-    parts = [str(cell.get("problem"))] if problem else []
-    parts.append(str(cell.get("integrator")))
-    for k in MATCH_KEYS[2:]:
-        v = cell.get(k)
-        if v is None or v == "":
-            continue
-        parts.append(str(v) if k == "settings" else f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}")
-    return " ".join(parts)
 
 
 def _size(step: dict) -> float:
@@ -85,7 +68,8 @@ def page_section(store, rows: list[dict], style: dict) -> str | None:
     found = repeated(store, rows)
     if not found:
         return None
-    moved = [c for c in found if marked(c)]
+    steps_of = {id(c): marked(c) for c in found}
+    moved = [c for c in found if steps_of[id(c)]]
     runs = sorted({p["run_id"] for c in found for p in c["runs"]})
     out = ['<h2 id="history">History</h2>'
            f'<p class="note">{len(found)} cell{"s" if len(found) != 1 else ""} of this page '
@@ -96,7 +80,7 @@ def page_section(store, rows: list[dict], style: dict) -> str | None:
            'not a change of code.</p>']
     if not moved:
         return "\n".join(out)
-    top = sorted(moved, key=lambda c: -max(_size(s) for s in marked(c)))[:FIGURE_CELLS]
+    top = sorted(moved, key=lambda c: -max(map(_size, steps_of[id(c)])))[:FIGURE_CELLS]
     out.append(f'<figure class="plot">{_small_multiples(top, style)}<figcaption>The '
                f'{len(top)} cell{"s" if len(top) != 1 else ""} with the largest steps: calibrated CPU time (solid) '
                'and main error (dashed) relative to the first run, against the runs (labelled by commit); a '
@@ -104,8 +88,8 @@ def page_section(store, rows: list[dict], style: dict) -> str | None:
                '</figcaption></figure>')
     for problem in sorted({c["cell"]["problem"] for c in moved}):
         mine = [c for c in moved if c["cell"]["problem"] == problem]
-        steps = sorted(((c, s) for c in mine for s in marked(c)), key=lambda cs: -_size(cs[1]))
-        body = [[short_label(c["cell"], problem=False), "time" if s["field"] == TIME_FIELD else s["field"],
+        steps = sorted(((c, s) for c in mine for s in steps_of[id(c)]), key=lambda cs: -_size(cs[1]))
+        body = [[label(c["cell"], digits=4, problem=False), "time" if s["field"] == TIME_FIELD else s["field"],
                  f"x{s['ratio']:.3g}", s["kind"], _between(c, s)] for c, s in steps[:TABLE_ROWS]]
         more = len(steps) - len(body)
         out.append(f'<h3 id="history-{slug(problem)}">{escape(problem)}</h3><p class="note">{len(mine)} '
@@ -145,7 +129,7 @@ def _small_multiples(cells: list[dict], style: dict) -> str:
                     ax.plot([x_of[s["run_id"]]], [s["after"] / base], marker="^" if s["ratio"] > 1 else "v",
                             color="#b71c1c", ms=6, ls="none")
         ax.set_yscale("log")
-        ax.set_title(f"{c['cell']['problem']}\n{short_label(c['cell'], problem=False)}", fontsize=7)
+        ax.set_title(f"{c['cell']['problem']}\n{label(c['cell'], digits=4, problem=False)}", fontsize=7)
         ax.tick_params(which="both", labelsize=6)
         ax.grid(True, which="both", alpha=0.3)
     for ax in list(axes.flat)[len(cells):]:

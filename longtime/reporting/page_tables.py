@@ -7,7 +7,7 @@ from longtime.core.rowschema import formatted
 from longtime.core.status import Status, bounded
 from longtime.reporting.markup import escape, num, table
 from longtime.reporting.report import (
-    counts_text,
+    format_counts,
     main_t_final,
     pareto,
     pareto_field,
@@ -190,8 +190,8 @@ def capability_matrix(rows: list[dict]) -> str:
                 cells.append('<td class="skipped" title="not in this run"></td>')
                 continue
             counts = status_counts(mine)
-            title = counts_text(mine)
             stopped = sum(map(bounded, mine))  # stopped at its library's bound: no failure, not the worst
+            title = format_counts(counts, stopped)
             if stopped:
                 counts[Status.TIMEOUT] -= stopped
                 title += (f"; {stopped} stopped at its library's bound"
