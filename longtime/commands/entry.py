@@ -12,6 +12,9 @@ import sys
 
 
 def main() -> int:
+    from longtime.core import threads
+
+    threads.limit_this_process()  # before numpy loads: the cells run here (checks, serial) as in a worker
     try:
         from longtime.commands.cli import main as cli_main
 

@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from longtime.core import registry
+from longtime.core import registry, threads
 from longtime.execution import jobfiles, tempdirs
 from longtime.execution.cells import Cell, RunSpec
 from longtime.execution.limits import (
@@ -221,6 +221,7 @@ def start(folder: Path, prefix: tuple[str, ...] | list[str] = (), env: dict[str,
     it the child asks for it itself in ``enter``)."""
     argv = [*prefix, sys.executable, "-m", "longtime.execution.child", str(folder)]
     stream = subprocess.PIPE if pipes else subprocess.DEVNULL
+    env = threads.single_threaded(env)  # its cells' BLAS on the one core it is given
     with open(folder / jobfiles.STDERR, "wb") as err:
         proc = subprocess.Popen(argv, stdin=stream, stdout=stream, stderr=err, env=env, start_new_session=True,
                                 preexec_fn=kill_with_parent if dies_at_start else None)
