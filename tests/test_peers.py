@@ -247,11 +247,15 @@ def test_a_peer_over_its_budget_runs_fewer_settings_never_a_shorter_horizon():
         assert max(registry.integrator_class(pair[1]).sweep["tol"]) in tols
     # fpu x scipy-rk23 is estimated at tens of seconds a run to t = 1000 even at its loosest
     # tolerance, past a cell's budget: that one setting runs the horizon under a time limit
-    slow = [c for c in ran if c.time_limit is not None]
+    slow = [c for c in ran if c.time_limit == budget.SLOW_LIMIT_S]
     assert [(c.problem, c.integrator, c.integrator_settings) for c in slow if c.integrator == "scipy-rk23"] == [
         ("fpu", "scipy-rk23", {"tol": 1e-7})]
-    assert all(c.time_limit == budget.SLOW_LIMIT_S and budget.TOO_SLOW in c.note for c in slow)
+    assert all(budget.TOO_SLOW in c.note and "too slow" in c.limit_reason for c in slow)
     assert all(budget.run_seconds(c) > budget.CELL_BUDGET_S for c in slow)
+    # every other cell of a library peer runs under the peers' own limit
+    peers = {"scipy-rk23", "scipy-rk45", "cvode-adams"}
+    assert all(c.time_limit == budget.PEER_LIMIT_S for c in ran if c.integrator in peers and c not in slow)
+    assert all(c.time_limit is None for c in ran if c.integrator not in peers)
 
 
 def test_a_peer_too_slow_for_the_default_matrix_is_a_timeout_row_which_library_shows():

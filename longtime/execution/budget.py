@@ -83,6 +83,12 @@ CHAINED = "chained"
 # for the default matrix costs it no more than one cell (the estimates are rough, off by a factor
 # of a few either way, and the limit is on the wall clock of a possibly loaded machine)
 SLOW_LIMIT_S = CELL_BUDGET_S
+# the time limit of every other default cell of a library peer (``peer_limited``): its estimate
+# can be off by far more than a factor of a few (a peer's adaptive control, or its JIT compile,
+# which the limit counts), and a run that cannot be stopped (CVODE's, diffrax's one compiled
+# call) would otherwise go on to the run's --time-limit; past it the cell is a ``timeout`` row, or
+# is killed at its hard limit (longtime.execution.limits) where its run cannot stop itself
+PEER_LIMIT_S = 60.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -185,8 +191,15 @@ def fit(cells: list[Cell], given_t_final: bool = False, given: frozenset[str] = 
                 out[i] = None
                 note = f"{NOTE} {setting} ({reason}; --full-sweep runs it)"
                 _say(out, sweep, note)  # the pair's rows say it
-    kept = [c for c in out if c is not None]
+    kept = peer_limited([c for c in out if c is not None])
     return (_chained(kept, moves) if chained else kept), moves
+
+
+def peer_limited(cells: list[Cell]) -> list[Cell]:
+    """``cells`` with each library peer's that has no time limit of its own under PEER_LIMIT_S."""
+    return [dataclasses.replace(c, time_limit=PEER_LIMIT_S, limit_reason="of a library peer's cell")
+            if c.time_limit is None and not c.skip_reason and registry.integrator_class(c.integrator).cell_budget_s
+            else c for c in cells]
 
 
 def _chained(cells: list[Cell], moves: list[Move]) -> list[Cell]:
@@ -270,7 +283,8 @@ def _too_slow(problem: str, scheme: str, sweep: list[int], cells: list[Cell], ou
     moves.append(Move(problem, scheme, setting, reason, LIMITED))
     for i in others:
         out[i] = None
-    out[cheapest] = dataclasses.replace(cells[cheapest], time_limit=SLOW_LIMIT_S)
+    out[cheapest] = dataclasses.replace(cells[cheapest], time_limit=SLOW_LIMIT_S,
+                                        limit_reason="for a setting estimated too slow")
     _say(out, [cheapest], f"{NOTE} {setting} ({reason}; --full-sweep runs {'them' if others else 'it'} unlimited)")
 
 

@@ -62,6 +62,10 @@ class RunSpec:
                    time_limit=data.get("time_limit"), memory_limit=data.get("memory_limit"))
 
 
+# the fields that say how a cell runs, not what it is: in its dict where set, never in its key
+HOW = ("time_limit", "bound", "cpu_bound", "bound_reason", "limit_reason")
+
+
 @dataclass(frozen=True)
 class Cell:
     problem: str
@@ -73,8 +77,9 @@ class Cell:
     # why the cell's settings differ from the default sweep's (the default matrix's budget,
     # longtime.execution.budget): its row's message ends with it; not part of the key
     note: str | None = None
-    # the cell's own time limit in seconds (the budget's, for a setting estimated too slow for
-    # the default matrix), below the run's: past it the row is ``timeout``; not part of the key
+    # the cell's own time limit in seconds (the budget's: a setting estimated too slow for the
+    # default matrix, a library peer's cell), below the run's: past it the row is ``timeout``,
+    # and ``limit_reason`` says whose limit it is; not part of the key
     time_limit: float | None = None
     # a library peer's cell of the default matrix that runs in its chain (the cells of its
     # problem, library and t_final, cheapest first: longtime.execution.batches): the factor
@@ -83,28 +88,23 @@ class Cell:
     bound: float | None = None
     cpu_bound: float | None = None
     bound_reason: str | None = None
+    limit_reason: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        d = {
-            "problem": self.problem,
-            "integrator": self.integrator,
-            "problem_settings": dict(sorted(self.problem_settings.items())),
-            "integrator_settings": dict(sorted(self.integrator_settings.items())),
-            "t_final": self.t_final,
-            "skip_reason": self.skip_reason,
-        }
+        d = {"problem": self.problem, "integrator": self.integrator,
+             "problem_settings": dict(sorted(self.problem_settings.items())),
+             "integrator_settings": dict(sorted(self.integrator_settings.items())),
+             "t_final": self.t_final, "skip_reason": self.skip_reason}
         if self.note:
             d["note"] = self.note
-        for name in ("time_limit", "bound", "cpu_bound", "bound_reason"):
-            if getattr(self, name) is not None:
-                d[name] = getattr(self, name)
+        d.update({name: getattr(self, name) for name in HOW if getattr(self, name) is not None})
         return d
 
     @property
     def key(self) -> str:
         d = self.to_dict()
         d.pop("skip_reason")
-        for name in ("note", "time_limit", "bound", "cpu_bound", "bound_reason"):
+        for name in ("note", *HOW):
             d.pop(name, None)
         return json.dumps(d, sort_keys=True)
 
@@ -112,7 +112,7 @@ class Cell:
     def from_dict(cls, d: Mapping[str, Any]) -> "Cell":
         return cls(d["problem"], d["integrator"], dict(d["problem_settings"]),
                    dict(d["integrator_settings"]), d["t_final"], d.get("skip_reason"), d.get("note"),
-                   d.get("time_limit"), d.get("bound"), d.get("cpu_bound"), d.get("bound_reason"))
+                   **{name: d.get(name) for name in HOW})
 
 
 def check_set_keys(sets: Mapping[str, Any], problem_names: Iterable[str],
@@ -478,7 +478,7 @@ def _stopped(cell: Cell, t_end: float, traj, time_limit: float | None, own: bool
     if cell.cpu_bound is not None and traj.cpu_s >= cell.cpu_bound:
         reached = f"t={float(traj.t[-1]):.6g} of {t_end:g} reached in {traj.cpu_s:.3g} s CPU"
         return f"{BOUNDED} {cell.bound_reason} ({reached})"
-    limit = (f"{time_limit:g} s: the default matrix's time limit for a setting estimated too slow"
+    limit = (f"{time_limit:g} s: the default matrix's time limit {cell.limit_reason or 'of this cell'}"
              if own else f"cell time limit {time_limit:g} s: --time-limit")
     return f"{traj.message} ({limit})"
 

@@ -29,6 +29,7 @@ from longtime.execution import child as children
 from longtime.execution import tempdirs
 from longtime.execution.cells import Cell, RunSpec, base_row, run_cell
 from longtime.execution.child import Child
+from longtime.execution.limits import hard_limit
 
 POLL_S = 0.05
 # a child's start-up (Python, numpy, numba, the plugins) before its cell begins: its time limit
@@ -43,15 +44,23 @@ class _Cell:
     cell: Cell
     child: Child
     deadline: float
+    timeout: float | None  # seconds from its cell's start to the kill (None: never)
     started: float = field(default_factory=time.perf_counter)
     begun: bool = False  # the child has begun its cell (running_since)
 
-    def running_since(self, timeout: float | None) -> None:
+    def running_since(self) -> None:
         """Once the child has begun its cell (its mark), the time limit counts from then;
         before, from its start plus STARTUP_S."""
-        if timeout and not self.begun and self.child.marks():
+        if self.timeout and not self.begun and self.child.marks():
             self.begun = True
-            self.deadline = time.perf_counter() + timeout
+            self.deadline = time.perf_counter() + self.timeout
+
+
+def _kill_after(cell: Cell, timeout: float | None) -> float | None:
+    """Seconds from ``cell``'s start to its kill: ``timeout``, or the hard limit of the cell's own
+    time limit (the default matrix's library peers'), the sooner (None: neither)."""
+    kills = [x for x in (timeout, hard_limit(cell.time_limit)) if x]
+    return min(kills) if kills else None
 
 
 def _start(cell: Cell, spec: RunSpec, timeout: float | None) -> _Cell:
@@ -67,11 +76,12 @@ def _start(cell: Cell, spec: RunSpec, timeout: float | None) -> _Cell:
         if no_space(exc):
             raise tempdirs.disk_full(exc, f"writing the files of {cell.problem} x {cell.integrator}") from None
         raise
+    timeout = _kill_after(cell, timeout)
     deadline = time.perf_counter() + timeout + STARTUP_S if timeout else float("inf")
-    return _Cell(cell, child, deadline)
+    return _Cell(cell, child, deadline, timeout)
 
 
-def _finish(running: _Cell, timed_out: bool, timeout: float | None) -> dict:
+def _finish(running: _Cell, timed_out: bool) -> dict:
     """The row of a child that has ended (or was killed)."""
     child = running.child
     try:
@@ -82,7 +92,7 @@ def _finish(running: _Cell, timed_out: bool, timeout: float | None) -> dict:
         elapsed = time.perf_counter() - running.started
         if timed_out:
             row.update(status=Status.TIMEOUT,
-                       message=f"cell exceeded its time limit of {timeout:g} s (process killed after "
+                       message=f"cell exceeded its time limit of {running.timeout:g} s (process killed after "
                                f"{elapsed:.1f} s, its start-up included)")
             return row
         if child.proc.returncode == tempdirs.NO_SPACE_EXIT:  # no space for its row: not the cell's fault
@@ -115,12 +125,12 @@ def run_isolated(cells: list[Cell], spec: RunSpec, timeout: float | None = None,
                 running.append(_start(cell, spec, timeout))
             still = []
             for one in running:
-                one.running_since(timeout)
+                one.running_since()
                 if one.child.ended():
-                    yield one.cell, _finish(one, False, timeout)
+                    yield one.cell, _finish(one, False)
                 elif time.perf_counter() > one.deadline:
                     one.child.kill()
-                    yield one.cell, _finish(one, True, timeout)
+                    yield one.cell, _finish(one, True)
                 else:
                     still.append(one)
             if len(still) == len(running) and running:

@@ -6,7 +6,9 @@ compiled step that never returns, a plugin's Python, the metrics, the reference)
 from outside: cells run in worker processes, each writes a marker file when it starts a
 cell (``running-PID``, see ``batches.run_batch`` and ``jobfiles``), and a ``Watchdog`` thread in the parent
 (``resident.Resident``'s) kills a worker whose cell has run past its hard limit, ``time_limit + GRACE_S +
-GRACE_SHARE * time_limit`` (``hard_limit``), and records a ``timeout`` row for that cell.
+GRACE_SHARE * time_limit`` (``hard_limit``), and records a ``timeout`` row for that cell. A cell's
+time limit is the job's or the cell's own (``Cell.time_limit``: the default matrix's budget gives
+the library peers theirs), the tighter (``cell_limit``).
 
 Memory: each worker runs under ``RLIMIT_DATA`` (its heap and anonymous mappings), by default
 ``MEMORY_SHARE`` of the machine's memory (``--memory-limit`` changes it): an allocation
@@ -52,11 +54,21 @@ def grace(time_limit: float) -> float:
     return GRACE_S + GRACE_SHARE * time_limit
 
 
-def timeout_message(time_limit: float, elapsed: float) -> str:
-    """The message of a cell whose process was killed past the hard limit of ``time_limit``
-    after ``elapsed`` seconds."""
-    return (f"cell exceeded its hard time limit of {hard_limit(time_limit):g} s (--time-limit {time_limit:g} s "
-            f"+ grace {grace(time_limit):g} s) where the integration could not stop itself; "
+def cell_limit(time_limit: float | None, cell: dict[str, Any]) -> float | None:
+    """The time limit ``cell`` (a ``Cell.to_dict``) runs under: the job's ``time_limit`` or the
+    cell's own, the tighter (None: neither)."""
+    limits = [float(x) for x in (time_limit, cell.get("time_limit")) if x]
+    return min(limits) if limits else None
+
+
+def timeout_message(time_limit: float, elapsed: float, cell: dict[str, Any] | None = None) -> str:
+    """The message of a cell whose process was killed past the hard limit of its time limit
+    (``cell_limit`` of the job's ``time_limit`` and ``cell``'s own) after ``elapsed`` seconds."""
+    limit = cell_limit(time_limit, cell or {})
+    own = bool(cell) and limit != time_limit
+    which = "its own time limit" if own else "--time-limit"
+    return (f"cell exceeded its hard time limit of {hard_limit(limit):g} s ({which} {limit:g} s "
+            f"+ grace {grace(limit):g} s) where the integration could not stop itself; "
             f"its process was killed after {elapsed:.1f} s")
 
 
@@ -278,7 +290,8 @@ def call_limited(func: Callable[..., Any], *args: Any, time_limit: float | None,
 
 
 class Watchdog:
-    """Kills a worker whose cell has run longer than ``limit`` seconds.
+    """Kills a worker whose cell has run past its hard limit: ``hard_limit`` of the job's
+    ``time_limit`` or the cell's own, the tighter (``cell_limit``).
 
     Workers write ``running-PID`` (the cell, as JSON) into ``folder`` when a cell starts and
     remove it when the cell ends; the file's age is the cell's. Past the limit the watchdog
@@ -287,9 +300,11 @@ class Watchdog:
     cell its ``timeout`` row (``resident.Resident``: the batch's other cells go on in a fresh
     worker)."""
 
-    def __init__(self, folder: str | Path, limit: float, record: Callable[[dict[str, Any], float], None]):
-        self.folder, self.limit, self.record = Path(folder), limit, record
+    def __init__(self, folder: str | Path, time_limit: float | None,
+                 record: Callable[[dict[str, Any], float], None]):
+        self.folder, self.time_limit, self.record = Path(folder), time_limit, record
         self.killed = 0
+        self._limits: dict[tuple[str, float], tuple[float | None, dict[str, Any]]] = {}  # by marker and start
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._watch, name="longtime-watchdog", daemon=True)
 
@@ -315,11 +330,16 @@ class Watchdog:
                     self._check(marker)
 
     def _check(self, marker: Path) -> None:
-        elapsed = time.time() - marker.stat().st_mtime
-        if elapsed <= self.limit:
+        started = marker.stat().st_mtime
+        key = (marker.name, started)
+        if key not in self._limits:  # a cell begun: its marker read once
+            cell = json.loads(marker.read_text())
+            self._limits = {key: (hard_limit(cell_limit(self.time_limit, cell)), cell)}
+        limit, cell = self._limits[key]
+        elapsed = time.time() - started
+        if limit is None or elapsed <= limit:
             return
         pid = jobfiles.marker_pid(marker)
-        cell = json.loads(marker.read_text())
         marker.rename(jobfiles.killed_marker(marker))  # fails when the cell has just ended (its worker removed it)
         with contextlib.suppress(ProcessLookupError, PermissionError):
             os.kill(pid, signal.SIGKILL)

@@ -125,16 +125,13 @@ class Resident:
         those finished and the row of the cell the child ended in (or, where it ended outside
         any cell, of the first cell not finished), and the child is gone."""
         killed: list[tuple[dict, float]] = []
-        limit = hard_limit(spec.time_limit)
-        watchdog = Watchdog(child.folder, limit, lambda cell, elapsed: killed.append((cell, elapsed))) \
-            if limit else None
+        # a cell's own time limit (the default matrix's library peers') is watched without a job's
+        watchdog = Watchdog(child.folder, spec.time_limit, lambda cell, elapsed: killed.append((cell, elapsed)))
         try:
-            if watchdog is not None:
-                watchdog.start()
-            line = self._ask(child, limit)
+            watchdog.start()
+            line = self._ask(child, hard_limit(spec.time_limit))
         finally:
-            if watchdog is not None:
-                watchdog.stop()  # joined: a kill it made is in ``killed``
+            watchdog.stop()  # joined: a kill it made is in ``killed``
             relay_stderr(child)
         result = child.result() if line == b"done" else None
         if result is not None:
@@ -146,7 +143,7 @@ class Resident:
             cell = Cell.from_dict(killed[0][0])
             if cell.key not in done:  # else it ended just ahead of the kill: its own row stands
                 done[cell.key] = {**base_row(cell), "status": Status.TIMEOUT,
-                                  "message": timeout_message(spec.time_limit, killed[0][1])}
+                                  "message": timeout_message(spec.time_limit, killed[0][1], killed[0][0])}
         elif any(c.key not in done for c in cells):
             why = child.failure("cell process") if line is not None else \
                 f"the cell process did not answer within {self.STARTUP_S:g} s of its start or its last cell"
