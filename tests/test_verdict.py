@@ -399,6 +399,23 @@ def test_a_checks_reference_cost_is_known_before_it_runs():
     assert XC.reference_seconds_per_t(D.problem_verdict("harmonic", inv)) == 0.0  # no reference needed
 
 
+def test_a_checks_reference_rate_is_measured_once_a_machine(tmp_path, monkeypatch):
+    """The rate is measured on the first main job of a machine and read back by the next ones
+    (its measure is seconds of the main process on every run); another machine measures it again."""
+    from longtime.execution import run_environment
+    from longtime.measure import reference
+
+    monkeypatch.setenv("LONGTIME_CACHE_DIR", str(tmp_path))
+    calls = []
+    monkeypatch.setattr(reference, "check_seconds_per_t", lambda *a, **k: calls.append(a) or 2.5e-4)
+    v = D.problem_verdict("harmonic", ROWS)
+    assert XC.reference_seconds_per_t(v) == 2.5e-4 and XC.reference_seconds_per_t(v) == 2.5e-4
+    assert len(calls) == 1
+    here = run_environment.this_machine()
+    monkeypatch.setattr(run_environment, "this_machine", lambda: {**here, "node": "another-host"})
+    assert XC.reference_seconds_per_t(v) == 2.5e-4 and len(calls) == 2
+
+
 def test_a_horizon_within_the_run_reads_the_error_reached_there():
     # rk4's error curve: the l2_error up to t grows linearly to its run's 1e-6 at t = 100
     curve = {"curve": "solution", "t": [1.0, 10.0, 50.0, 100.0], "error": [1e-8, 1e-7, 5e-7, 1e-6],

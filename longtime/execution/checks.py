@@ -285,19 +285,33 @@ def reference_seconds_per_t(v: Verdict) -> float:
     """The wall seconds per unit of t that a check of ``v``'s problem spends on its
     reference: 0 for an invariant's error (no reference), else the reference check's
     heyoka runs timed over ten times the problem's main final time
-    (longtime.measure.reference.check_seconds_per_t)."""
+    (longtime.measure.reference.check_seconds_per_t). It only tells whether a check fits its
+    budget, so a rate measured on this machine is kept beside the references and read back by
+    the next main job (its measure costs seconds of the main process, serially, on every run)."""
     if v.measure is None or not v.measure.solution:
         return 0.0
+    import numpy as np
+
     from longtime.execution.cells import build, cell_of_row
+    from longtime.execution.run_environment import machine_key, this_machine
     from longtime.measure.reference import check_seconds_per_t
+    from longtime.measure.reference_files import cache_path, load_cached, save_cached
     from longtime.measure.reference_runs import ReferenceUnavailable
 
     row = next(s.row for s in v.candidates)
     problem = build(cell_of_row(row))[0]
+    span, budget_s = 10 * v.t_main, CHECK_REFERENCE_S / 10
+    path = cache_path(problem, "check-seconds-per-t", repr(span), repr(budget_s), repr(machine_key(this_machine())),
+                      suffix=".npy")
+    kept = load_cached(path, lambda: float(np.load(path)))
+    if kept is not None:
+        return kept
     try:
-        return check_seconds_per_t(problem, 10 * v.t_main, budget_s=CHECK_REFERENCE_S / 10)
+        rate = check_seconds_per_t(problem, span, budget_s=budget_s)
     except ReferenceUnavailable:
         return math.inf  # its reference cannot be run here: no check of it is planned
+    save_cached(path, np.array(rate))  # inf too: nothing reached within the budget is a measure
+    return rate
 
 
 def _calibrated(cpu_s: float | None, row: dict[str, Any]) -> float | None:
