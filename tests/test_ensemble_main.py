@@ -117,3 +117,28 @@ def test_the_main_job_stores_them_and_a_past_run_s_page_shows_them(tmp_path, cap
     assert "Chaos: ensemble distance" in (again / "index.html").read_text()
     assert main([*args, "--no-ensemble", "--no-html"]) == 0
     assert Store(db, readonly=True).ensembles(2) == []
+
+
+def test_the_process_pool_measures_them_while_the_matrix_runs(tmp_path, monkeypatch, capsys):
+    """On the process executor a chaotic problem's ensembles are measured by a pool worker
+    once its last cell is stored, not again after the matrix: the main process measures none,
+    and the store holds the same record as a serial run's."""
+    from longtime.commands.cli import main
+
+    called = []
+    measure = ensembles.measure_problem
+    monkeypatch.setattr(ensembles, "measure_problem", lambda *a, **k: called.append(a[0]) or measure(*a, **k))
+    db = tmp_path / "m.sqlite"
+    args = ["matrix", "-p", "henon-heiles", "-i", "verlet", "--dt", "0.05", "--t-final", "500", "--db", str(db),
+            "--checks", "0", "--no-progress", "--repeats", "1", "--processes", "1", "--no-html"]
+    assert main([*args, "--jobs", "2"]) == 0
+    assert called == []  # measured in a worker
+    [ahead] = Store(db, readonly=True).ensembles(1)
+    assert main([*args, "--executor", "serial"]) == 0
+    assert called == ["henon-heiles"]
+    [serial] = Store(db, readonly=True).ensembles(2)
+    assert ahead["integrator"] == serial["integrator"] == "verlet"
+    assert ahead["status"] == serial["status"] and ahead["lyapunov_time"] == serial["lyapunov_time"]
+    if ahead["status"] == "ok":
+        # seeded members: the same measure wherever it ran (to the rounding of a BLAS reduction)
+        assert ahead["distance"] == pytest.approx(serial["distance"], rel=1e-12)

@@ -196,16 +196,58 @@ def measure_problem(name: str, rows: list[dict[str, Any]], members: int = MEMBER
     return sorted(out, key=lambda r: r["integrator"])
 
 
-def run(store, run_id: int | None, rows: list[dict[str, Any]], members: int = MEMBERS) -> list[dict[str, Any]]:
+def run(store, run_id: int | None, rows: list[dict[str, Any]], members: int = MEMBERS,
+        ahead: "Ahead | None" = None) -> list[dict[str, Any]]:
     """Measure every covered problem of ``rows`` and store each record (``store`` None: not
-    stored); returns the records."""
+    stored); returns the records. A problem ``ahead`` measured already is not measured again."""
     out = []
     for name in chaotic_problems(rows):
-        for rec in measure_problem(name, rows, members):
+        found = ahead.records.get(name) if ahead is not None else None
+        for rec in measure_problem(name, rows, members) if found is None else found:
             if store is not None:
                 store.add_ensemble(run_id, rec)
             out.append(rec)
     return out
+
+
+def measured_ahead(name: str, rows: list[dict[str, Any]], members: int) -> list[dict[str, Any]]:
+    """``measure_problem`` in a pool worker, its time recorded as the ensembles'."""
+    from longtime.core import phases
+
+    with phases.phase("ensembles", name):
+        return measure_problem(name, rows, members)
+
+
+class Ahead:
+    """The ensembles measured while the matrix still runs: a covered problem's once its last
+    cell is stored, by a pool worker that has no cell left (``task`` is idle work of the process
+    pool, ``add`` sees each row as it is stored), so that the step after the matrix finds them
+    done (``run``'s ``ahead``). They read the rows as their own processes stored them, before
+    the timing processes time the cells again: the rows' CPU times, which only order and
+    budget the schemes' members, are those of one process."""
+
+    def __init__(self, cells: Iterable, members: int = MEMBERS):
+        self.members = members
+        self.left = Counter(c.problem for c in cells)
+        self.rows: dict[str, list[dict[str, Any]]] = {}
+        self.ready: list[str] = []
+        self.records: dict[str, list[dict[str, Any]]] = {}
+
+    def add(self, cell, row: dict[str, Any]) -> None:
+        """A stored row of ``cell``."""
+        self.rows.setdefault(cell.problem, []).append(dict(row))
+        self.left[cell.problem] -= 1
+        if self.left[cell.problem] == 0 and chaotic_problems(self.rows[cell.problem]):
+            self.ready.append(cell.problem)
+
+    def task(self):
+        """(the function, its arguments, where its records go) of a problem whose rows are all
+        in, or None."""
+        if not self.ready:
+            return None
+        name = self.ready.pop(0)
+        return measured_ahead, (name, self.rows.pop(name), self.members), \
+            lambda records: self.records.__setitem__(name, records)
 
 
 def summary(records: list[dict[str, Any]]) -> dict[str, str]:

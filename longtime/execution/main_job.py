@@ -153,12 +153,18 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
             print(f"run {run_id}: {len(cells)} cells into {store.path}", file=sys.stderr)
         if died:
             run_matrix(died, store, run_id, "isolated", options)
+        idle = []  # what workers that have no cell left do: the page's figures, the ensembles
         if ahead is not None and spec.executor == "process" and spec.resume is None:
-            # the page's figures on workers that have no cell left
             made = ahead(cells, run_id, timed_again=options.processes > 1)
-            options = dataclasses.replace(options, idle_work=made.task)
-        run_matrix(cells, store, run_id, spec.executor, options,
-                   progress=shown, on_row=made.add if made is not None else None)
+            idle.append(made)
+        early = ensembles.Ahead(cells) if spec.ensembles and spec.executor == "process" and spec.resume is None \
+            else None
+        if early is not None:
+            idle.append(early)
+        if idle:
+            options = dataclasses.replace(options, idle_work=lambda: next(filter(None, (w.task() for w in idle)), None))
+        run_matrix(cells, store, run_id, spec.executor, options, progress=shown,
+                   on_row=(lambda cell, row: [w.add(cell, row) for w in idle]) if idle else None)
         if spec.resume is not None:  # the rows stored before the interruption, timed and counted
             complete_phases(store, run_id, options)
         if spec.checks:  # a few of the verdicts' predictions re-run past the rows' final times
@@ -166,7 +172,7 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
         if spec.ensembles:  # chaotic problems: each scheme's ensemble distance to heyoka's
             try:
                 with phases.phase("ensembles"), shown.phase("ensembles", detail="chaotic problems' ensembles"):
-                    ensembles.run(store, run_id, store.rows(run_id))
+                    ensembles.run(store, run_id, store.rows(run_id), ahead=early)
             except (InputError, OSError, ValueError, RuntimeError) as exc:  # the rows are stored; this is extra
                 print(f"warning: ensembles not measured: {type(exc).__name__}: {exc}", file=sys.stderr)
     return _result(store, run_id, ahead=made)
