@@ -61,7 +61,7 @@ def cell_limit(time_limit: float | None, cell: dict[str, Any]) -> float | None:
     return min(limits) if limits else None
 
 
-def timeout_message(time_limit: float, elapsed: float, cell: dict[str, Any] | None = None) -> str:
+def timeout_message(time_limit: float | None, elapsed: float, cell: dict[str, Any] | None = None) -> str:
     """The message of a cell whose process was killed past the hard limit of its time limit
     (``cell_limit`` of the job's ``time_limit`` and ``cell``'s own) after ``elapsed`` seconds."""
     limit = cell_limit(time_limit, cell or {})
