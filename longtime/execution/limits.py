@@ -304,7 +304,8 @@ class Watchdog:
                  record: Callable[[dict[str, Any], float], None]):
         self.folder, self.time_limit, self.record = Path(folder), time_limit, record
         self.killed = 0
-        self._limits: dict[tuple[str, float], tuple[float | None, dict[str, Any]]] = {}  # by marker and start
+        # the cell in progress, its marker read once: (marker name, its start, its hard limit, the cell)
+        self._cell: tuple[str, float, float | None, dict[str, Any]] | None = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._watch, name="longtime-watchdog", daemon=True)
 
@@ -331,11 +332,10 @@ class Watchdog:
 
     def _check(self, marker: Path) -> None:
         started = marker.stat().st_mtime
-        key = (marker.name, started)
-        if key not in self._limits:  # a cell begun: its marker read once
+        if self._cell is None or self._cell[:2] != (marker.name, started):  # a cell begun
             cell = json.loads(marker.read_text())
-            self._limits = {key: (hard_limit(cell_limit(self.time_limit, cell)), cell)}
-        limit, cell = self._limits[key]
+            self._cell = (marker.name, started, hard_limit(cell_limit(self.time_limit, cell)), cell)
+        _, _, limit, cell = self._cell
         elapsed = time.time() - started
         if limit is None or elapsed <= limit:
             return

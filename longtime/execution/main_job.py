@@ -154,11 +154,11 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
         if died:
             run_matrix(died, store, run_id, "isolated", options)
         idle = []  # what workers that have no cell left do: the page's figures, the ensembles
-        if ahead is not None and spec.executor == "process" and spec.resume is None:
+        pooled = spec.executor == "process" and spec.resume is None
+        if ahead is not None and pooled:
             made = ahead(cells, run_id, timed_again=options.processes > 1)
             idle.append(made)
-        early = ensembles.Ahead(cells) if spec.ensembles and spec.executor == "process" and spec.resume is None \
-            else None
+        early = ensembles.Ahead(cells) if spec.ensembles and pooled else None
         if early is not None:
             idle.append(early)
         if idle:
