@@ -119,10 +119,10 @@ def test_the_main_job_stores_them_and_a_past_run_s_page_shows_them(tmp_path, cap
     assert Store(db, readonly=True).ensembles(2) == []
 
 
-def test_the_process_pool_measures_them_while_the_matrix_runs(tmp_path, monkeypatch, capsys):
-    """On the process executor a chaotic problem's ensembles are measured by a pool worker
-    once its last cell is stored, not again after the matrix: the main process measures none,
-    and the store holds the same record as a serial run's."""
+def test_the_process_executor_measures_them_in_a_worker(tmp_path, monkeypatch, capsys):
+    """On the process executor a chaotic problem's ensembles are measured by a worker beside
+    the checks, once the rows are timed: the main process measures none, and the store holds
+    the same record as a serial run's."""
     from longtime.commands.cli import main
 
     called = []

@@ -353,12 +353,14 @@ def check_row(c: PlannedCheck, row: dict[str, Any]) -> dict[str, Any]:
 
 def run_checks(store, run_id: int, rows: list[dict[str, Any]], options=None,
                limit: int = CHECKS, budget_s: float = CHECK_BUDGET_S,
-               reference_s: float = CHECK_REFERENCE_S, total_s: float = CHECKS_TOTAL_S) -> list[dict[str, Any]]:
-    """Run ``plan_checks``'s checks of ``rows`` (each a cell at its horizon, one at a time in
-    this process, under ``options``' time limit, timed by at most TIMED_RUNS - 1 runs after
-    its warm-up, its reference given
-    ``reference_s`` wall seconds), judge each group's rank (``judge_ranks``) and store each
-    with its prediction (``Store.add_check``); returns the stored checks."""
+               reference_s: float = CHECK_REFERENCE_S, total_s: float = CHECKS_TOTAL_S,
+               pool=None) -> list[dict[str, Any]]:
+    """Run ``plan_checks``'s checks of ``rows`` (each a cell at its horizon under ``options``'
+    time limit, timed by at most TIMED_RUNS - 1 runs after its warm-up, its reference given
+    ``reference_s`` wall seconds: on ``pool``'s workers, a worker_pool, each in a worker as
+    the matrix's cells are, else one at a time in this process), judge each group's rank
+    (``judge_ranks``) and store each with its prediction (``Store.add_check``); returns the
+    stored checks."""
     from longtime.core.integrator import Timing
     from longtime.execution.cells import cell_of_row, run_cell
     from longtime.execution.matrix import ExecOptions
@@ -369,18 +371,33 @@ def run_checks(store, run_id: int, rows: list[dict[str, Any]], options=None,
     options = options or ExecOptions()
     # the warm-up and TIMED_RUNS - 1 timed runs at most (the checks' time estimate), no minimum time
     timing = Timing(repeats=min(options.timing.repeats, TIMED_RUNS - 1), min_time=0.0)
-    records, cells = [], []
     here = calibration.here()  # the machine's speed now: a check's CPU is judged calibrated
     point = here.points[-1] if here.points and not here.due() else calibration.measure("checks")
-    for c in plan:
-        cell = cell_of_row(c.setting.row, t_final=c.horizon)
-        row = run_cell(cell, options.max_samples, timing=timing, time_limit=options.time_limit,
-                       reference_budget_s=reference_s)
+    cells = [cell_of_row(c.setting.row, t_final=c.horizon) for c in plan]
+    args = [(cell, options.max_samples, True, timing, options.time_limit, None, reference_s) for cell in cells]
+    if pool is None:
+        measured = [run_cell(*a) for a in args]
+    else:  # the costliest first, so that the workers end together
+        order = sorted(range(len(plan)), key=lambda k: -plan[k].predicted_cpu())
+        futures = {k: pool.submit(run_cell, *args[k]) for k in order}
+        measured = [_outcome(futures[k], cells[k]) for k in range(len(plan))]
+    records = []
+    for c, row in zip(plan, measured):
         calibration.annotate(row, [point], point["t"])
         records.append(check_row(c, row))
-        cells.append(cell)
     judge_ranks(records)
     if store is not None:
         for cell, record in zip(cells, records):
             store.add_check(run_id, cell, record)
     return records
+
+
+def _outcome(future, cell) -> dict[str, Any]:
+    """A check's row from its worker, or its ``failed`` row where the worker gave none (it
+    died, or the call failed): the check then measured nothing."""
+    from longtime.execution.cells import base_row
+
+    try:
+        return future.result()
+    except Exception as exc:
+        return {**base_row(cell), "status": Status.FAILED, "message": f"worker process failed: {exc!r}"}

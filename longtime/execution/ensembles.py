@@ -211,7 +211,7 @@ def run(store, run_id: int | None, rows: list[dict[str, Any]], members: int = ME
 
 
 def measured_ahead(name: str, rows: list[dict[str, Any]], members: int) -> list[dict[str, Any]]:
-    """``measure_problem`` in a pool worker, its time recorded as the ensembles'."""
+    """``measure_problem`` in a worker, its time recorded as the ensembles'."""
     from longtime.core import phases
 
     with phases.phase("ensembles", name):
@@ -219,30 +219,20 @@ def measured_ahead(name: str, rows: list[dict[str, Any]], members: int) -> list[
 
 
 class Ahead:
-    """The ensembles measured while the matrix still runs: a covered problem's once its last
-    cell is stored, by a pool worker that has no cell left (``task`` is idle work of the process
-    pool, ``add`` sees each row as it is stored), so that the step after the matrix finds them
-    done (``run``'s ``ahead``). They read the rows as their own processes stored them, before
-    the timing processes time the cells again: the rows' CPU times, which only order and
-    budget the schemes' members, are those of one process."""
+    """The ensembles measured by the main job's workers beside its checks, once the timing
+    processes have timed the rows (``task`` hands out each covered problem's measure), so
+    that ``run`` finds them done (its ``ahead``). They read the rows as stored, as ``run``
+    does: the same records wherever they are measured."""
 
-    def __init__(self, cells: Iterable, members: int = MEMBERS):
+    def __init__(self, rows: list[dict[str, Any]], members: int = MEMBERS):
         self.members = members
-        self.left = Counter(c.problem for c in cells)
-        self.rows: dict[str, list[dict[str, Any]]] = {}
-        self.ready: list[str] = []
+        self.ready = chaotic_problems(rows)
+        self.rows = {name: [r for r in rows if r["problem"] == name] for name in self.ready}
         self.records: dict[str, list[dict[str, Any]]] = {}
 
-    def add(self, cell, row: dict[str, Any]) -> None:
-        """A stored row of ``cell``."""
-        self.rows.setdefault(cell.problem, []).append(dict(row))
-        self.left[cell.problem] -= 1
-        if self.left[cell.problem] == 0 and chaotic_problems(self.rows[cell.problem]):
-            self.ready.append(cell.problem)
-
     def task(self):
-        """(the function, its arguments, where its records go) of a problem whose rows are all
-        in, or None."""
+        """(the function, its arguments, where its records go) of a covered problem not handed
+        out yet, or None."""
         if not self.ready:
             return None
         name = self.ready.pop(0)

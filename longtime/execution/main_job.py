@@ -7,10 +7,11 @@ The job is one frozen value, ``MainJobSpec``; what it ran comes back as ``MainJo
 the run id, its rows, its checks and its ensembles, read from the store."""
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import sys
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Iterator, Mapping
 
 from longtime.core import cli_args, phases, registry
 from longtime.core.params import InputError
@@ -20,6 +21,7 @@ from longtime.execution.cells import Cell, check_size, expand
 from longtime.execution.checks import run_checks
 from longtime.execution.lifecycle import recorded_run
 from longtime.execution.matrix import PHASES_FIELD, ExecOptions, complete_phases, run_matrix
+from longtime.execution.pool import Queued, worker_pool
 from longtime.execution.run_environment import this_machine
 from longtime.execution.store import Store, machine_text, other_machine, recorded_machine
 from longtime.predict.checks import CHECKS, check_budget, check_summary
@@ -106,7 +108,8 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
     of these extra: a failure is a warning on stderr, the rows stay stored). ``progress``
     shows its phases (default: none). ``ahead(cells, run_id, timed_again=...)``, for a new run
     on the process executor, makes the work the pool's idle workers take (``task``) and is
-    given each stored row (``add``): the results page's figures drawn ahead."""
+    given each stored row (``add``), then the rows once timed (``timed``), after which its
+    tasks run beside the checks: the results page's figures drawn ahead."""
     shown = progress or Progress(on=False)
     options = spec.options
     for name, folder in spec.writable:  # refused before the store is opened (or made) and any cell runs
@@ -153,22 +156,28 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
             print(f"run {run_id}: {len(cells)} cells into {store.path}", file=sys.stderr)
         if died:
             run_matrix(died, store, run_id, "isolated", options)
-        idle = []  # what workers that have no cell left do: the page's figures, the ensembles
         pooled = spec.executor == "process" and spec.resume is None
-        if ahead is not None and pooled:
+        if ahead is not None and pooled:  # what workers that have no cell left do: the page's figures
             made = ahead(cells, run_id, timed_again=options.processes > 1)
-            idle.append(made)
-        early = ensembles.Ahead(cells) if spec.ensembles and pooled else None
-        if early is not None:
-            idle.append(early)
-        if idle:
-            options = dataclasses.replace(options, idle_work=lambda: next(filter(None, (w.task() for w in idle)), None))
+            options = dataclasses.replace(options, idle_work=made.task)
         run_matrix(cells, store, run_id, spec.executor, options, progress=shown,
-                   on_row=(lambda cell, row: [w.add(cell, row) for w in idle]) if idle else None)
+                   on_row=made.add if made is not None else None)
         if spec.resume is not None:  # the rows stored before the interruption, timed and counted
             complete_phases(store, run_id, options)
-        if spec.checks:  # a few of the verdicts' predictions re-run past the rows' final times
-            _check(store, run_id, options, spec.checks, shown)
+        early = None
+        with _workers(spec, options) as queued:  # the checks' runs, the ensembles, the page's last figures
+            if queued is not None:
+                rows = store.rows(run_id)
+                early = ensembles.Ahead(rows) if spec.ensembles else None
+                if made is not None:
+                    made.timed(rows)
+                for owner in filter(None, (early, made)):  # the ensembles first: the longest tasks
+                    queued.take(owner)
+            if spec.checks:  # a few of the verdicts' predictions re-run past the rows' final times
+                _check(store, run_id, options, spec.checks, shown, queued.pool if queued is not None else None)
+            if queued is not None:
+                with phases.phase("ensembles"):  # waiting for the workers' ensembles and figures
+                    queued.finish()
         if spec.ensembles:  # chaotic problems: each scheme's ensemble distance to heyoka's
             try:
                 with phases.phase("ensembles"), shown.phase("ensembles", detail="chaotic problems' ensembles"):
@@ -176,6 +185,19 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
             except (InputError, OSError, ValueError, RuntimeError) as exc:  # the rows are stored; this is extra
                 print(f"warning: ensembles not measured: {type(exc).__name__}: {exc}", file=sys.stderr)
     return _result(store, run_id, ahead=made)
+
+
+@contextlib.contextmanager
+def _workers(spec: MainJobSpec, options: ExecOptions) -> Iterator[Queued | None]:
+    """On the process executor, once the timing processes are done: a pool of workers (one
+    per core) for the checks' runs, each timed in a worker as the cells were, and the tasks
+    queued beside them (``Queued``); else None (the checks and the ensembles run in this
+    process)."""
+    if spec.executor != "process" or not (spec.checks or spec.ensembles):
+        yield None
+        return
+    with worker_pool(options.workers(), options.run_spec()) as pool:
+        yield Queued(pool)
 
 
 def check_same_machine(store: Store, run: dict, here: dict) -> None:
@@ -189,13 +211,14 @@ def check_same_machine(store: Store, run: dict, here: dict) -> None:
                          f"here (matrix without --resume)")
 
 
-def _check(store: Store, run_id: int, options: ExecOptions, limit: int, shown: Progress) -> None:
+def _check(store: Store, run_id: int, options: ExecOptions, limit: int, shown: Progress, pool=None) -> None:
     """Re-run up to ``limit`` of the verdicts' predictions (longtime.execution.checks), each
-    within the rows' check budget; the summary on stderr, a failure a warning."""
+    within the rows' check budget, on ``pool``'s workers (None: in this process); the
+    summary on stderr, a failure a warning."""
     rows = store.rows(run_id)
     try:
         with shown.phase("checks", detail=f"up to {limit} predictions re-run past the rows' final times"):
-            checks = run_checks(store, run_id, rows, options, limit=limit, budget_s=check_budget(rows))
+            checks = run_checks(store, run_id, rows, options, limit=limit, budget_s=check_budget(rows), pool=pool)
     except (InputError, OSError, ValueError) as exc:  # the rows are stored; the checks are extra
         print(f"warning: predictions not checked: {type(exc).__name__}: {exc}", file=sys.stderr)
         checks = []

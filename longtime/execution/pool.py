@@ -140,3 +140,30 @@ def run_tasks(fn: Callable, tasks: list[tuple], jobs: int, scheduler: str | None
         futures = {pool.submit(fn, *task): task for task in tasks}
         for fut in finished(futures):
             yield futures[fut], fut.result()
+
+
+class Queued:
+    """Tasks that their owners hand out (an owner's ``task()``: (function, its arguments,
+    where its result goes), or None when it has no more), all queued at once on the workers
+    of ``pool`` (a ``worker_pool``) beside the caller's own jobs; ``finish`` waits for them
+    and gives each result to its owner. A task that fails, or whose worker dies, is only not
+    done: its owner does that work later itself."""
+
+    def __init__(self, pool) -> None:
+        self.pool = pool
+        self.pending: list[tuple[Any, Callable[[Any], None]]] = []
+
+    def take(self, owner) -> None:
+        """Queue every task ``owner`` has now."""
+        while (task := owner.task()) is not None:
+            fn, args, done = task
+            self.pending.append((self.pool.submit(fn, *args), done))
+
+    def finish(self) -> None:
+        for future, done in self.pending:
+            try:
+                result = future.result()
+            except Exception:  # not done here: its owner does it
+                continue
+            done(result)
+        self.pending = []

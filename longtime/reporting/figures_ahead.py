@@ -70,8 +70,10 @@ class FiguresAhead:
     (``figure_inputs``: a resumed run's page has older rows too), an interval only for the
     same N; it does the others itself. ``timed_again``: the rows' cells are timed again in
     other processes after the matrix (``--processes`` above 1), which changes their CPU
-    times, so the work-precision figures are left to the page; the drift figures, which
-    read the kept curves, are drawn ahead."""
+    times, so the work-precision figures wait for ``timed``: given the rows as stored once
+    the timing processes timed them, it makes them tasks too (the main job hands them to
+    the workers that run its checks); the drift figures, which read the kept curves, are
+    drawn ahead."""
 
     def __init__(self, cells: Sequence, run_id: int | None, drift: bool = True, timed_again: bool = False):
         self.run_id, self.drift = run_id, drift
@@ -84,7 +86,9 @@ class FiguresAhead:
         self.rows: dict[str, list[dict]] = {}
         self.outcomes: dict[str, list[dict]] = {}  # per scheme: what stability_schemes reads
         self.ready: list[tuple[str, str]] = []
-        self.drawn: dict[str, tuple[dict[str, str], dict]] = {}  # problem -> (its inputs, its figures)
+        # problem -> (the inputs of each group drawn, its figures)
+        self.drawn: dict[str, tuple[dict[str, str], dict]] = {}
+        self.later: list[tuple[str, list[dict], tuple[str, ...]]] = []  # (problem, its rows, groups): ``timed``'s
         self.intervals: dict[str, tuple[Any, str | None]] = {}  # scheme -> (its N, its text)
 
     def add(self, cell, row: dict) -> None:
@@ -104,16 +108,37 @@ class FiguresAhead:
         while self.ready:
             kind, name = self.ready.pop(0)
             if kind == "problem":
-                rows = self.rows.pop(name)
-                inputs = figure_inputs(rows, self.style, self.drift)
-                return problem_figures, (rows, self.style, self.drift, self.groups), \
-                    lambda figs: self.drawn.__setitem__(name, (inputs, figs))
+                return self._figures_task(name, self.rows.pop(name), self.groups)
             builtin, _ = stability_schemes(self.outcomes.pop(name))
             if name in builtin:  # a plugin's is read from the cache only (see stability_schemes)
                 orders = builtin[name]
                 return scheme_ahead, (name, orders), \
                     lambda texts: self.intervals.__setitem__(name, (orders, texts.get(name)))
+        if self.later:
+            return self._figures_task(*self.later.pop(0))
         return None
+
+    def timed(self, rows: list[dict]) -> None:
+        """The rows as the store gives them back once the timing processes timed them again:
+        the groups of figures left to this moment (the work-precision figures, when
+        ``timed_again``) become tasks, each problem's drawn from its rows here, the most
+        rows first."""
+        left = tuple(g for g in FIGURE_GROUPS if g not in self.groups)
+        if not left:
+            return
+        by_problem: dict[str, list[dict]] = {}
+        for r in rows:
+            by_problem.setdefault(r["problem"], []).append(r)
+        self.later = [(p, mine, left) for p, mine in sorted(by_problem.items(), key=lambda kv: -len(kv[1]))]
+
+    def _figures_task(self, name: str, rows: list[dict], groups: tuple[str, ...]):
+        inputs = figure_inputs(rows, self.style, self.drift)
+
+        def done(figs: dict) -> None:
+            had, drawn = self.drawn.get(name, ({}, {}))
+            self.drawn[name] = ({**had, **{g: inputs[g] for g in groups}}, {**drawn, **figs})
+
+        return problem_figures, (rows, self.style, self.drift, groups), done
 
     def figures(self, problem: str, rows: list[dict], style: dict, drift: bool) -> dict | None:
         """The figures drawn ahead for ``problem``, of each group drawn from the inputs these
@@ -123,7 +148,7 @@ class FiguresAhead:
             return None
         now = figure_inputs(rows, style, drift)
         found = {f: figs[f] for g, fields in FIGURE_GROUPS.items()
-                 if inputs[g] == now[g] and all(f in figs for f in fields) for f in fields}
+                 if inputs.get(g) == now[g] and all(f in figs for f in fields) for f in fields}
         return found or None
 
     def interval(self, scheme: str, orders) -> str | None:

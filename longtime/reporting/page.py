@@ -36,6 +36,7 @@ from longtime.core.status import Status
 from longtime.measure.orders import left_out, observed_orders
 from longtime.reporting.figures.results import figures_drawing
 from longtime.reporting.figures.style import styles
+from longtime.reporting.figures.verdict import winner_map_svg
 from longtime.reporting.figures_ahead import FiguresAhead, stability_schemes
 from longtime.reporting.markup import CSS, SCRIPT, escape, num, slug, table
 from longtime.reporting.page_answers import (
@@ -100,13 +101,12 @@ def _fold(summary: str, body: str, open_: bool = False) -> str:
     return f'<details{" open" if open_ else ""}><summary>{summary}</summary>{body}</details>'
 
 
-def _verdict_section(p: str, v, mine: list[dict], style: dict | None = None) -> str:
-    """One problem's verdict: an example answer, the winner map (in the page's ``style``),
-    the winners as a table (folded) and the settings whose law does not extrapolate, each
-    with its deciding run."""
+def _verdict_section(p: str, v, mine: list[dict], style: dict | None = None, fig: str | None = None) -> str:
+    """One problem's verdict: an example answer, the winner map ``fig`` (winner_map_svg of
+    ``v`` in the page's ``style``), the winners as a table (folded) and the settings whose
+    law does not extrapolate, each with its deciding run."""
     from longtime.predict.checks import check_counts, check_summary
     from longtime.predict.decision import deciding_run
-    from longtime.reporting.figures.verdict import winner_map_svg
     from longtime.reporting.verdict import check_text, decision_text, failed_first, horizon_groups
 
     head = f'<h3 id="verdict-{slug(p)}">{escape(p)}</h3>'
@@ -127,7 +127,6 @@ def _verdict_section(p: str, v, mine: list[dict], style: dict | None = None) -> 
                    f'{escape(p)} --error E --horizon T</code>.</span></p>')
     else:
         out.append(f'<p class="answer">{escape(no_answer_text(v))}.</p>')
-    fig = winner_map_svg(v, style)
     if fig:
         out.append(f'<figure class="plot">{fig}<figcaption>Winner map: for each target ({escape(v.measure.text)}) '
                    f"and horizon T, the scheme of the cheapest setting predicted to keep it (its setting written "
@@ -293,13 +292,15 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
 
     builtin, plugins = stability_schemes(rows) if stability else ({}, {})
     # the figures drawn on other processes while this one does the rest
-    with figures_drawing(by_problem, style, drift, jobs, builtin, ahead) as drawn:
+    with figures_drawing(by_problem, style, drift, jobs, builtin, ahead, later=len(problems)) as (drawn, draw):
+        found = map_verdicts(rows, checks)
+        # the winner maps drawn beside the rest (a map costs what a work-precision figure does)
+        maps = {p: draw(winner_map_svg, found[p], style) for p in problems}
         fits = observed_orders(rows)
         missing = left_out(rows)
-        found = map_verdicts(rows, checks)
         cards = _cards_section(rows)
-        verdict_sections = [_verdict_section(p, found[p], by_problem[p], style) for p in problems]
         checked = _checks_section(checks)
+        verdict_sections = [_verdict_section(p, found[p], by_problem[p], style, maps[p]()) for p in problems]
         figures, intervals = drawn()
     ids = ", ".join(str(r["id"]) for r in runs) or "-"
     out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',

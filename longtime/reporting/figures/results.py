@@ -336,16 +336,19 @@ def problem_figures(rows: list[dict[str, Any]], style: dict, drift: bool = True,
 
 @contextlib.contextmanager
 def figures_drawing(by_problem: dict[str, list[dict]], style: dict, drift: bool, jobs: int,
-                    stability: dict[str, list | None], ahead: Any = None
-                    ) -> Iterator[Callable[[], tuple[dict[str, dict], dict[str, str]]]]:
+                    stability: dict[str, list | None], ahead: Any = None, later: int = 0
+                    ) -> Iterator[tuple[Callable[[], tuple[dict[str, dict], dict[str, str]]], Callable[..., Callable]]]:
     """Start problem_figures of every problem, and the interval texts of the ``stability``
-    schemes (measured where not cached); yield the function that returns them ({problem:
-    figures}, {scheme: text}), so that the caller does its own work meanwhile. The groups of
-    figures ``ahead`` drew from the same inputs (``figure_inputs``) are taken as they are, and
-    the intervals it found at the same N. matplotlib spends about a third of a second a
-    figure, and a scheme's stability interval about a second when not cached, all of it in
-    Python, so only processes run them beside the caller: up to ``jobs`` of them, where the
-    work outweighs their start-up; else the returned function does the work itself."""
+    schemes (measured where not cached); yield (the function that returns them ({problem:
+    figures}, {scheme: text}), ``draw``), so that the caller does its own work meanwhile.
+    ``draw(fn, *args)`` hands one of the ``later`` figures the caller makes once it has their
+    inputs (the winner maps) to the same processes and returns the function that gives its
+    result. The groups of figures ``ahead`` drew from the same inputs (``figure_inputs``)
+    are taken as they are, and the intervals it found at the same N. matplotlib spends
+    about a third of a second a figure, and a scheme's stability interval about a second
+    when not cached, all of it in Python, so only processes run them beside the caller: up
+    to ``jobs`` of them, where the work outweighs their start-up; else the work is done
+    here."""
     from longtime.measure.stability import cached_texts, interval_texts
 
     figures, todo = {}, {}
@@ -360,7 +363,8 @@ def figures_drawing(by_problem: dict[str, list[dict]], style: dict, drift: bool,
     texts.update(found)
     # the work in seconds, as a process's start-up is: a problem's drift figures (one to a
     # dozen panels) cost a few work-precision figures
-    work = INTERVAL_S * len(missing) + sum(FIGURE_S * (1 + DRIFT_FIGURES * ("drift" in g)) for _, g in todo.values())
+    work = INTERVAL_S * len(missing) + sum(FIGURE_S * (1 + DRIFT_FIGURES * ("drift" in g)) for _, g in todo.values()) \
+        + FIGURE_S * later
     # a process where it has at least twice its start-up to do
     processes = 0 if jobs <= 1 or work < POOL_START_S else min(jobs, math.ceil(work / (2 * POOL_START_S)))
     if not processes:
@@ -370,7 +374,11 @@ def figures_drawing(by_problem: dict[str, list[dict]], style: dict, drift: bool,
             texts.update(interval_texts(missing, compute=True))
             return figures, texts
 
-        yield here
+        def now(fn, *args):
+            result = fn(*args)
+            return lambda: result
+
+        yield here, now
         return
     from longtime.execution.pool import worker_pool
 
@@ -385,7 +393,7 @@ def figures_drawing(by_problem: dict[str, list[dict]], style: dict, drift: bool,
                 figures[p].update(f.result())
             return figures, texts
 
-        yield collected
+        yield collected, lambda fn, *args: pool.submit(fn, *args).result
 
 
 def calibration_svg(points: list[dict[str, Any]]) -> str | None:
