@@ -43,10 +43,11 @@ from longtime.reporting.report import (
 DRIFT_BUDGET_S = 2.0  # stored cpu_s above which a drift curve is not recomputed for the page
 DRIFT_PROBLEM_BUDGET_S = 10.0  # and the stored cpu_s of the curves re-run for one problem, in all
 DRIFT_SAMPLES = 2001
-# figures_drawing's estimate of its work, seconds of one process: a work-precision figure, a
-# problem's drift figures in work-precision figures, a stability interval not cached, and
-# the start of a pool's process (an interpreter importing matplotlib and longtime)
-FIGURE_S, DRIFT_FIGURES, INTERVAL_S, POOL_START_S = 0.3, 2.0, 1.0, 3.0
+# figures_drawing's estimate of its work, seconds of one process: a work-precision figure (a
+# winner map costs about as much), a problem's drift figures in work-precision figures, a
+# stability interval not cached, and the start of a pool's process (an interpreter importing
+# longtime, then matplotlib: docs/performance.md, "The page and its figures")
+FIGURE_S, DRIFT_FIGURES, INTERVAL_S, POOL_START_S = 0.3, 2.0, 1.0, 1.5
 MAX_PANELS = 12  # invariants (or diagnostics) a drift figure draws; the caption names the rest
 
 
@@ -334,6 +335,11 @@ def problem_figures(rows: list[dict[str, Any]], style: dict, drift: bool = True,
     return out
 
 
+def matplotlib_loaded() -> None:
+    """Import pyplot (a figure process's first work)."""
+    pyplot()
+
+
 @contextlib.contextmanager
 def figures_drawing(by_problem: dict[str, list[dict]], style: dict, drift: bool, jobs: int,
                     stability: dict[str, list | None], ahead: Any = None, later: int = 0
@@ -383,6 +389,8 @@ def figures_drawing(by_problem: dict[str, list[dict]], style: dict, drift: bool,
     from longtime.execution.pool import worker_pool
 
     with worker_pool(processes) as pool:
+        for _ in range(processes):  # each process starts and imports matplotlib now, not at its first figure
+            pool.submit(matplotlib_loaded)
         intervals = [pool.submit(interval_texts, {s: o}, True) for s, o in missing.items()]
         drawn = {p: pool.submit(problem_figures, rows, style, drift, groups) for p, (rows, groups) in todo.items()}
 
