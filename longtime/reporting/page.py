@@ -29,7 +29,7 @@ import json
 import re
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 from longtime.core.files import NotWritten, write_atomic
 from longtime.core.status import Status
@@ -269,14 +269,14 @@ def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: l
 
 def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bool = True,
                stability: bool = True, jobs: int = 1, ahead: FiguresAhead | None = None,
-               history: str | None = None, checks: Iterable[dict[str, Any]] = (),
+               history: str | Callable[[], str | None] | None = None, checks: Iterable[dict[str, Any]] = (),
                writer: str = "report --html", ensembles: Iterable[dict[str, Any]] = ()) -> str:
     """The page's HTML for ``rows`` (of the ``runs`` whose metadata closes it), led by the
     verdict of each problem (``checks``: the stored checks of its predictions), then the
     scheme cards, then the evidence (folded), the history, the capability matrix, the
     stability intervals and the run and machine; the figures are drawn on ``jobs``
     processes, but for those ``ahead`` drew from the same rows. ``history``: the history
-    section (longtime.reporting.history_page). ``writer``: the command that wrote
+    section (longtime.reporting.history_page), or the function that makes it. ``writer``: the command that wrote
     the page, named in its footer. ``ensembles``: the stored ensemble distances of the
     chaotic problems (each in its problem's evidence)."""
     from longtime.reporting.recommend import map_verdicts
@@ -300,6 +300,7 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
         missing = left_out(rows)
         cards = _cards_section(rows)
         checked = _checks_section(checks)
+        history = history() if callable(history) else history
         verdict_sections = [_verdict_section(p, found[p], by_problem[p], style, maps[p]()) for p in problems]
         figures, intervals = drawn()
     ids = ", ".join(str(r["id"]) for r in runs) or "-"
@@ -385,7 +386,7 @@ def figure_files(page: str) -> tuple[str, dict[str, bytes]]:
 
 def write_page(out_dir: str | Path, rows: list[dict[str, Any]], runs: list[dict[str, Any]],
                drift: bool = True, jobs: int = 1, ahead: FiguresAhead | None = None,
-               history: str | None = None, checks: Iterable[dict[str, Any]] = (),
+               history: str | Callable[[], str | None] | None = None, checks: Iterable[dict[str, Any]] = (),
                writer: str = "report --html", ensembles: Iterable[dict[str, Any]] = ()) -> Path:
     """Write ``out_dir``/index.html and its figures (drawn on ``jobs`` processes, or
     ``ahead``) in ``out_dir``/figures; return the page's path."""
@@ -445,8 +446,11 @@ def write_html(out_dir, rows: list[dict[str, Any]], store, run_ids: Iterable[int
     checks = [c for i in ids for c in store.checks(i)]
     problems = {r["problem"] for r in rows}
     ensembles = [e for i in ids for e in store.ensembles(i) if e["problem"] in problems]
-    history = page_section(store, rows, styles(sorted({r["integrator"] for r in rows})))
-    history = "\n".join(filter(None, (history, machines_section(store, rows)))) or None  # several machines
+
+    def history() -> str | None:  # the page writes it while its figure processes draw
+        section = page_section(store, rows, styles(sorted({r["integrator"] for r in rows})))
+        return "\n".join(filter(None, (section, machines_section(store, rows)))) or None  # several machines
+
     from longtime.execution.pool import workers
 
     return write_page(out_dir, rows, runs, jobs=workers(jobs or 0), ahead=ahead, history=history, checks=checks,

@@ -357,40 +357,42 @@ def figures_drawing(by_problem: dict[str, list[dict]], style: dict, drift: bool,
     here."""
     from longtime.measure.stability import cached_texts, interval_texts
 
-    figures, todo = {}, {}
-    for p, rows in by_problem.items():
-        figures[p] = (ahead.figures(p, rows, style, drift) if ahead is not None else None) or {}
-        groups = tuple(g for g, fields in FIGURE_GROUPS.items() if not all(f in figures[p] for f in fields))
-        if groups:
-            todo[p] = (rows, groups)
-    texts = {s: ahead.interval(s, o) for s, o in stability.items()} if ahead is not None else {}
-    texts = {s: text for s, text in texts.items() if text is not None}
-    found, missing = cached_texts({s: o for s, o in stability.items() if s not in texts})
-    texts.update(found)
-    # the work in seconds, as a process's start-up is: a problem's drift figures (one to a
-    # dozen panels) cost a few work-precision figures
-    work = INTERVAL_S * len(missing) + sum(FIGURE_S * (1 + DRIFT_FIGURES * ("drift" in g)) for _, g in todo.values()) \
-        + FIGURE_S * later
-    # a process where it has at least twice its start-up to do
-    processes = 0 if jobs <= 1 or work < POOL_START_S else min(jobs, math.ceil(work / (2 * POOL_START_S)))
-    if not processes:
-        def here():
-            for p, (rows, groups) in todo.items():
-                figures[p].update(problem_figures(rows, style, drift, groups))
-            texts.update(interval_texts(missing, compute=True))
-            return figures, texts
+    with contextlib.ExitStack() as stack:
+        pool = None
+        # the processes start first where the later figures alone are work enough for them:
+        # they boot while this one finds what was drawn ahead
+        early = _processes(FIGURE_S * later, jobs)
+        if early:
+            pool = stack.enter_context(_figure_pool(early))
+        figures, todo = {}, {}
+        for p, rows in by_problem.items():
+            figures[p] = (ahead.figures(p, rows, style, drift) if ahead is not None else None) or {}
+            groups = tuple(g for g, fields in FIGURE_GROUPS.items() if not all(f in figures[p] for f in fields))
+            if groups:
+                todo[p] = (rows, groups)
+        texts = {s: ahead.interval(s, o) for s, o in stability.items()} if ahead is not None else {}
+        texts = {s: text for s, text in texts.items() if text is not None}
+        found, missing = cached_texts({s: o for s, o in stability.items() if s not in texts})
+        texts.update(found)
+        # the work in seconds, as a process's start-up is: a problem's drift figures (one to a
+        # dozen panels) cost a few work-precision figures
+        work = INTERVAL_S * len(missing) + sum(FIGURE_S * (1 + DRIFT_FIGURES * ("drift" in g))
+                                               for _, g in todo.values()) + FIGURE_S * later
+        if pool is None and _processes(work, jobs):
+            pool = stack.enter_context(_figure_pool(_processes(work, jobs)))
+        if pool is None:
+            def here():
+                for p, (rows, groups) in todo.items():
+                    figures[p].update(problem_figures(rows, style, drift, groups))
+                texts.update(interval_texts(missing, compute=True))
+                return figures, texts
 
-        def now(fn, *args):
-            result = fn(*args)
-            return lambda: result
+            def now(fn, *args):
+                result = fn(*args)
+                return lambda: result
 
-        yield here, now
-        return
-    from longtime.execution.pool import worker_pool
-
-    with worker_pool(processes) as pool:
-        for _ in range(processes):  # each process starts and imports matplotlib now, not at its first figure
-            pool.submit(matplotlib_loaded)
+            yield here, now
+            return
         intervals = [pool.submit(interval_texts, {s: o}, True) for s, o in missing.items()]
         drawn = {p: pool.submit(problem_figures, rows, style, drift, groups) for p, (rows, groups) in todo.items()}
 
@@ -402,6 +404,22 @@ def figures_drawing(by_problem: dict[str, list[dict]], style: dict, drift: bool,
             return figures, texts
 
         yield collected, lambda fn, *args: pool.submit(fn, *args).result
+
+
+def _processes(work: float, jobs: int) -> int:
+    """The figure processes for ``work`` seconds: one where it has at least twice a process's
+    start-up to do, up to ``jobs``; 0 below one start-up (the caller draws it)."""
+    return 0 if jobs <= 1 or work < POOL_START_S else min(jobs, math.ceil(work / (2 * POOL_START_S)))
+
+
+@contextlib.contextmanager
+def _figure_pool(processes: int):
+    from longtime.execution.pool import worker_pool
+
+    with worker_pool(processes) as pool:
+        for _ in range(processes):  # each process starts and imports matplotlib now, not at its first figure
+            pool.submit(matplotlib_loaded)
+        yield pool
 
 
 def calibration_svg(points: list[dict[str, Any]]) -> str | None:
