@@ -90,3 +90,28 @@ def test_a_worker_without_disk_space_interrupts_the_run_and_stores_no_row():
     options = ExecOptions(jobs=2, timing=Timing(repeats=1, min_time=0.0), processes=1)
     with pytest.raises(DiskFull, match="no space"):
         run_matrix(cells, None, None, "process", options)
+
+
+class _Owner:
+    """Hands out its tasks, and keeps what came back."""
+
+    def __init__(self, tasks):
+        self.tasks, self.got = list(tasks), []
+
+    def task(self):
+        if not self.tasks:
+            return None
+        fn, args = self.tasks.pop(0)
+        return fn, args, self.got.append
+
+
+def test_queued_tasks_give_their_results_to_their_owner_and_a_failed_one_is_only_not_done():
+    from longtime.execution.pool import Queued
+
+    owner = _Owner([(abs, (-3,)), ({}.__getitem__, ("x",)), (abs, (-5,))])
+    with worker_pool(2) as pool:
+        queued = Queued(pool)
+        queued.take(owner)
+        assert owner.tasks == [] and owner.got == []  # queued, none given yet
+        queued.finish()
+    assert owner.got == [3, 5]  # the task that raised is left out: its owner does it

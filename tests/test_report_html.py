@@ -389,3 +389,31 @@ def test_the_page_and_its_figures_are_replaced_together(tmp_path, monkeypatch):
     # a write that succeeds leaves the new page's figures only
     write_folder(tmp_path, second, more)
     assert sorted(f"figures/{f.name}" for f in (tmp_path / "figures").iterdir()) == sorted(more)
+
+
+def test_figures_left_to_the_timed_rows_are_tasks_once_the_rows_are_timed():
+    """With the cells timed again after the matrix, the work-precision figures wait for the
+    timed rows (``timed``); the page then takes them, with the drift figures drawn before."""
+    from longtime.execution.cells import Cell
+    from longtime.reporting.figures.results import FIGURE_GROUPS
+    from longtime.reporting.figures_ahead import FiguresAhead
+
+    cells = [Cell("harmonic", "rk4", {}, {}, 10.0)]
+    ahead = FiguresAhead(cells, run_id=3, timed_again=True)
+    ahead.add(cells[0], {"problem": "harmonic", "integrator": "rk4", "status": "ok", "cpu_s": 0.1,
+                         "drift_curve": [[0.0, 1.0], [0.0, 1e-9]]})  # a kept curve: what the drift figure reads
+    fn, (rows, style, drift, groups), done = ahead.task()
+    assert groups == ("drift",)
+    done({f: f"<{f}>" for f in FIGURE_GROUPS["drift"]})
+    assert ahead.task()[0].__name__ == "scheme_ahead" and ahead.task() is None
+    timed = [{**rows[0], "cpu_s": 0.08}]  # the row as the timing processes left it
+    assert set(ahead.figures("harmonic", timed, style, drift)) == set(FIGURE_GROUPS["drift"])
+    ahead.timed(timed)
+    fn, (later_rows, _, _, groups), done = ahead.task()
+    assert fn.__name__ == "problem_figures" and later_rows == timed and groups == ("work_precision",)
+    assert ahead.task() is None
+    done({f: f"<{f}>" for f in FIGURE_GROUPS["work_precision"]})
+    every = {f for fields in FIGURE_GROUPS.values() for f in fields}
+    assert set(ahead.figures("harmonic", timed, style, drift)) == every
+    # other rows than the timed ones: the work-precision figures are the page's to draw
+    assert set(ahead.figures("harmonic", [{**timed[0], "cpu_s": 0.2}], style, drift)) == set(FIGURE_GROUPS["drift"])
