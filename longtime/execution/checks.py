@@ -363,7 +363,7 @@ def run_checks(store, run_id: int, rows: list[dict[str, Any]], options=None,
     stored checks."""
     from longtime.core.integrator import Timing
     from longtime.execution.cells import cell_of_row, run_cell
-    from longtime.execution.matrix import ExecOptions
+    from longtime.execution.matrix import ExecOptions, worker_failed
 
     plan = plan_checks(rows, limit, budget_s, total_s=total_s)
     if not plan:
@@ -380,7 +380,12 @@ def run_checks(store, run_id: int, rows: list[dict[str, Any]], options=None,
     else:  # the costliest first, so that the workers end together
         order = sorted(range(len(plan)), key=lambda k: -plan[k].predicted_cpu())
         futures = {k: pool.submit(run_cell, *args[k]) for k in order}
-        measured = [_outcome(futures[k], cells[k]) for k in range(len(plan))]
+        measured = []
+        for k, cell in enumerate(cells):
+            try:
+                measured.append(futures[k].result())
+            except Exception as exc:  # its worker gave no row: the check measured nothing
+                measured.append(worker_failed(cell, exc))
     records = []
     for c, row in zip(plan, measured):
         calibration.annotate(row, [point], point["t"])
@@ -390,14 +395,3 @@ def run_checks(store, run_id: int, rows: list[dict[str, Any]], options=None,
         for cell, record in zip(cells, records):
             store.add_check(run_id, cell, record)
     return records
-
-
-def _outcome(future, cell) -> dict[str, Any]:
-    """A check's row from its worker, or its ``failed`` row where the worker gave none (it
-    died, or the call failed): the check then measured nothing."""
-    from longtime.execution.cells import base_row
-
-    try:
-        return future.result()
-    except Exception as exc:
-        return {**base_row(cell), "status": Status.FAILED, "message": f"worker process failed: {exc!r}"}

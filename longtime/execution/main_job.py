@@ -165,26 +165,27 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
         if spec.resume is not None:  # the rows stored before the interruption, timed and counted
             complete_phases(store, run_id, options)
         early = None
+        # the rows as timed, read once: what the checks, the ensembles, the last figures and the result read
+        rows = store.rows(run_id)
         with _workers(spec, options) as queued:  # the checks' runs, the ensembles, the page's last figures
             if queued is not None:
-                rows = store.rows(run_id)
                 early = ensembles.Ahead(rows) if spec.ensembles else None
                 if made is not None:
                     made.timed(rows)
                 for owner in filter(None, (early, made)):  # the ensembles first: the longest tasks
                     queued.take(owner)
             if spec.checks:  # a few of the verdicts' predictions re-run past the rows' final times
-                _check(store, run_id, options, spec.checks, shown, queued.pool if queued is not None else None)
+                _check(store, run_id, rows, options, spec.checks, shown, queued.pool if queued is not None else None)
             if queued is not None:
                 with phases.phase("ensembles"):  # waiting for the workers' ensembles and figures
                     queued.finish()
         if spec.ensembles:  # chaotic problems: each scheme's ensemble distance to heyoka's
             try:
                 with phases.phase("ensembles"), shown.phase("ensembles", detail="chaotic problems' ensembles"):
-                    ensembles.run(store, run_id, store.rows(run_id), ahead=early)
+                    ensembles.run(store, run_id, rows, ahead=early)
             except (InputError, OSError, ValueError, RuntimeError) as exc:  # the rows are stored; this is extra
                 print(f"warning: ensembles not measured: {type(exc).__name__}: {exc}", file=sys.stderr)
-    return _result(store, run_id, ahead=made)
+    return _result(store, run_id, ahead=made, rows=rows)
 
 
 @contextlib.contextmanager
@@ -211,11 +212,11 @@ def check_same_machine(store: Store, run: dict, here: dict) -> None:
                          f"here (matrix without --resume)")
 
 
-def _check(store: Store, run_id: int, options: ExecOptions, limit: int, shown: Progress, pool=None) -> None:
-    """Re-run up to ``limit`` of the verdicts' predictions (longtime.execution.checks), each
-    within the rows' check budget, on ``pool``'s workers (None: in this process); the
-    summary on stderr, a failure a warning."""
-    rows = store.rows(run_id)
+def _check(store: Store, run_id: int, rows: list[dict], options: ExecOptions, limit: int, shown: Progress,
+           pool=None) -> None:
+    """Re-run up to ``limit`` of the verdicts' predictions of the run's stored ``rows``
+    (longtime.execution.checks), each within the rows' check budget, on ``pool``'s workers
+    (None: in this process); the summary on stderr, a failure a warning."""
     try:
         with shown.phase("checks", detail=f"up to {limit} predictions re-run past the rows' final times"):
             checks = run_checks(store, run_id, rows, options, limit=limit, budget_s=check_budget(rows), pool=pool)
@@ -226,8 +227,11 @@ def _check(store: Store, run_id: int, options: ExecOptions, limit: int, shown: P
         print(f"checks: {check_summary(checks)}", file=sys.stderr)
 
 
-def _result(store: Store, run_id: int, ran: bool = True, ahead: Any = None) -> MainJobResult:
-    return MainJobResult(store, run_id, store.rows(run_id), store.checks(run_id), store.ensembles(run_id), ran, ahead)
+def _result(store: Store, run_id: int, ran: bool = True, ahead: Any = None,
+            rows: list[dict[str, Any]] | None = None) -> MainJobResult:
+    """The job's result read from the store (``rows``: its rows, read already)."""
+    rows = store.rows(run_id) if rows is None else rows
+    return MainJobResult(store, run_id, rows, store.checks(run_id), store.ensembles(run_id), ran, ahead)
 
 
 def say_moves(moves: list, full: bool = False) -> None:

@@ -192,6 +192,12 @@ def scheduled(pool, workers: int, batches: list[list[Cell]], submit: Callable[[l
         fill()  # idle work the caller's new rows made ready
 
 
+def worker_failed(cell: Cell, exc: BaseException) -> dict:
+    """The ``failed`` row of a cell whose worker gave no row back (the batch or the call could
+    not be written or read back, or the worker died): it measured nothing."""
+    return {**base_row(cell), "status": Status.FAILED, "message": f"worker process failed: {exc!r}"}
+
+
 def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
     """Batches of cells on ``workers`` long-lived worker processes (a ``ResidentPool``: one
     child each, ``python -m longtime.execution.child``, keeping its compiled kernels from
@@ -217,8 +223,7 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
             except Exception as exc:  # the batch could not be written or read back
                 if out_of_space(exc):  # a full temp folder: not the cells'
                     raise disk_full(exc, "a worker wrote its cell's files") from None
-                rows = [{**base_row(c), "status": Status.FAILED, "message": f"worker process failed: {exc!r}"}
-                        for c in batch]
+                rows = [worker_failed(c, exc) for c in batch]
             yield from zip(batch, rows)
 
 

@@ -378,8 +378,9 @@ def figures_drawing(by_problem: dict[str, list[dict]], style: dict, drift: bool,
         # dozen panels) cost a few work-precision figures
         work = INTERVAL_S * len(missing) + sum(FIGURE_S * (1 + DRIFT_FIGURES * ("drift" in g))
                                                for _, g in todo.values()) + FIGURE_S * later
-        if pool is None and _processes(work, jobs):
-            pool = stack.enter_context(_figure_pool(_processes(work, jobs)))
+        processes = 0 if pool is not None else _processes(work, jobs)
+        if processes:
+            pool = stack.enter_context(_figure_pool(processes))
         if pool is None:
             def here():
                 for p, (rows, groups) in todo.items():
