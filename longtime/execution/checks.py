@@ -362,7 +362,7 @@ def run_checks(store, run_id: int, rows: list[dict[str, Any]], options=None,
     (``judge_ranks``) and store each with its prediction (``Store.add_check``); returns the
     stored checks."""
     from longtime.core.integrator import Timing
-    from longtime.execution.cells import cell_of_row, run_cell
+    from longtime.execution.cells import cell_of_row
     from longtime.execution.matrix import ExecOptions, worker_failed
 
     plan = plan_checks(rows, limit, budget_s, total_s=total_s)
@@ -371,27 +371,35 @@ def run_checks(store, run_id: int, rows: list[dict[str, Any]], options=None,
     options = options or ExecOptions()
     # the warm-up and TIMED_RUNS - 1 timed runs at most (the checks' time estimate), no minimum time
     timing = Timing(repeats=min(options.timing.repeats, TIMED_RUNS - 1), min_time=0.0)
-    here = calibration.here()  # the machine's speed now: a check's CPU is judged calibrated
-    point = here.points[-1] if here.points and not here.due() else calibration.measure("checks")
     cells = [cell_of_row(c.setting.row, t_final=c.horizon) for c in plan]
-    args = [(cell, options.max_samples, True, timing, options.time_limit, None, reference_s) for cell in cells]
+    args = [(cell, options.max_samples, timing, options.time_limit, reference_s) for cell in cells]
     if pool is None:
-        measured = [run_cell(*a) for a in args]
+        measured = [checked_run(*a) for a in args]
     else:  # the costliest first, so that the workers end together
         order = sorted(range(len(plan)), key=lambda k: -plan[k].predicted_cpu())
-        futures = {k: pool.submit(run_cell, *args[k]) for k in order}
+        futures = {k: pool.submit(checked_run, *args[k]) for k in order}
         measured = []
         for k, cell in enumerate(cells):
             try:
                 measured.append(futures[k].result())
             except Exception as exc:  # its worker gave no row: the check measured nothing
                 measured.append(worker_failed(cell, exc))
-    records = []
-    for c, row in zip(plan, measured):
-        calibration.annotate(row, [point], point["t"])
-        records.append(check_row(c, row))
+    records = [check_row(c, row) for c, row in zip(plan, measured)]
     judge_ranks(records)
     if store is not None:
         for cell, record in zip(cells, records):
             store.add_check(run_id, cell, record)
     return records
+
+
+def checked_run(cell, max_samples: int, timing, time_limit: float | None, reference_s: float) -> dict[str, Any]:
+    """A check's cell run (``run_cell``), its CPU calibrated by the speed of the process that
+    timed it (its calibration if recent, else one measured now): a check's CPU is judged in
+    calibrated units."""
+    from longtime.execution.cells import run_cell
+
+    here = calibration.here()
+    point = here.points[-1] if here.points and not here.due() else calibration.measure("checks")
+    row = run_cell(cell, max_samples, True, timing, time_limit, None, reference_s)
+    calibration.annotate(row, [point], point["t"])
+    return row
