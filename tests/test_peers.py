@@ -279,6 +279,50 @@ def test_a_peer_too_slow_for_the_default_matrix_is_a_timeout_row_which_library_s
     assert "ran 2.5 s CPU in 15 s wall for t=" in text
 
 
+def test_a_pace_projects_the_end_from_the_cpu_seconds_per_unit_of_t(monkeypatch):
+    from longtime.integrators import peer_common
+
+    clock = [100.0]
+    monkeypatch.setattr(peer_common.time, "process_time", lambda: clock[0])
+    pace = peer_common.Pace(20.0, 10.0, 1010.0)
+    clock[0] += 0.9  # before its first CPU second a run is never judged, however slow
+    assert not pace.beyond(10.001) and pace.projected is None
+    clock[0] += 0.1  # 1 s for 50 of 1000: 20 s to t_end, not past the bound
+    assert not pace.beyond(60.0) and pace.projected == pytest.approx(20.0) and not pace.stopped
+    clock[0] += 1.0  # 2 s for 80 of 1000: 25 s
+    assert pace.beyond(90.0) and pace.stopped and pace.projected == pytest.approx(25.0)
+    assert pace.message(90.0, 2.0).startswith("stopped on its pace: t=90 of 1010 reached in 2 s CPU")
+    assert "about 25 s CPU, past 20 s" in pace.message(90.0, 2.0)
+    clock[0] += 1.0  # no progress at all: an end never reached
+    assert pace.beyond(10.0) and pace.projected == float("inf")
+
+
+def test_a_too_slow_peer_stops_on_its_pace_and_which_library_says_where_its_pace_put_its_end():
+    import dataclasses
+
+    from longtime.core.status import PACED, bounded
+    from longtime.execution import budget
+    from longtime.execution.cells import run_cell
+    from longtime.integrators.peer_common import PACE_AFTER_S
+    from longtime.reporting.libraries import _cell
+
+    cells, _ = budget.fit(expand(["fpu"], ["scipy-rk23"], default_sweep=True))
+    assert cells[0].pace == budget.PACE_FACTOR and cells[0].time_limit == budget.SLOW_LIMIT_S
+    # a pace bound of 0.1 x a 60 s limit: RK23's pace at tol=1e-7 puts t = 1000 at tens of CPU
+    # seconds, so the run stops at its first look past PACE_AFTER_S, long before the wall limit
+    row = run_cell(dataclasses.replace(cells[0], time_limit=60.0, pace=0.1), reference=False)
+    assert row["status"] == "timeout" and row["message"].startswith(PACED) and not bounded(row)
+    assert row["cpu_s"] >= PACE_AFTER_S and row["pace_cpu_s"] > 6.0 and 0.0 < row["t_reached"] < 1000.0
+    assert "past 6 s (0.1 x the cell's time limit of 60 s for a setting estimated too slow)" in row["message"]
+    assert abs(row["pace_cpu_s"] / (row["cpu_s"] * 1000.0 / row["t_reached"]) - 1.0) < 0.05
+    text, cpu = _cell([row], 1000.0, 1e-6, None)
+    assert cpu is None and text.startswith("too slow: scipy-rk23 tol=1e-07 ran ")
+    assert " of 1000 (about " in text and " s to T at its pace)" in text
+    # a run whose pace keeps its end within the bound runs to it
+    short = run_cell(dataclasses.replace(cells[0], t_final=20.0, time_limit=60.0, pace=0.1), reference=False)
+    assert short["status"] == "ok" and short.get("pace_cpu_s") is None
+
+
 def test_a_peer_too_slow_whose_run_cannot_be_stopped_is_skipped_with_the_estimate():
     from longtime.execution import budget
     from longtime.execution.cells import base_row

@@ -186,6 +186,7 @@ FIELDS: tuple[Field, ...] = (
     Field("calibration_t", "float", "s", "the time (seconds since the epoch) of that calibration"),
     Field("peer_overhead_s", "float", "s", "a library peer's CPU time per step on the trivial rhs"),
     Field("compile_s", "float", "s", "the CPU time JAX took to compile or load the solve (diffrax)"),
+    Field("pace_cpu_s", "float", "s", "a run stopped on its pace: the CPU time its pace so far puts its t_final at"),
     _count("instructions", "", "instructions of the integration under Callgrind"),
     Field("instructions_per_step", "float", "", "instructions / steps"),
     Field("instructions_tool", "str", "", "Valgrind's version and the count's target"),

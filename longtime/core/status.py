@@ -39,12 +39,15 @@ STATUS_OF_CODE = {Code.OK: Status.OK, Code.DIVERGED: Status.DIVERGED, Code.FAILE
 # how the messages begin: a timeout's, a failed step's, a cell's stopped by its memory limit
 # (longtime.execution.limits), a cell the default matrix's budget skips (longtime.execution.budget),
 # a library peer's run stopped at its chain's CPU bound (a timeout that is no failure: a
-# cheaper setting of its library keeps the target; longtime.execution.batches)
+# cheaper setting of its library keeps the target; longtime.execution.batches), a run the
+# budget estimated too slow stopped once its pace put its end far past its time limit
+# (longtime.integrators.peer_common.Pace)
 TIME_LIMIT = "time limit reached"
 STEP_FAILED = "step failed"
 MEMORY_LIMIT = "memory limit"
 TOO_SLOW = "too slow for the default matrix:"
 BOUNDED = "stopped at its library's bound:"
+PACED = "stopped on its pace:"
 # a diverged run's message at t (longtime.core.problem.BLOWUP_MESSAGE, as the library peers read it)
 BLOWUP = "state blew up (non-finite or beyond the problem's bound) at t={t:.6g}"
 

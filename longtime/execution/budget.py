@@ -29,9 +29,11 @@ a 5th-order method at PEER_TOL takes about the default step; p is 5 where the me
 is variable), always keeping its cheapest setting. Where even that one is estimated above
 CELL_BUDGET_S, it runs the horizon under a time limit of SLOW_LIMIT_S (``Cell.time_limit``)
 and the others are left out: a run that cannot reach the horizon within it is a ``timeout``
-row saying how far it got in how many seconds, which "Which library" shows as too slow. A
-scheme whose run cannot be stopped at a time limit (``stops_at_deadline`` False: CVODE's and
-diffrax's one compiled call) is skipped there instead, its rows giving the estimate.
+row saying how far it got in how many seconds, which "Which library" shows as too slow (a
+scheme that stops at a CPU bound stops sooner, where its pace puts its end past PACE_FACTOR
+times that limit: ``Cell.pace``). A scheme whose run cannot be stopped at a time limit
+(``stops_at_deadline`` False: CVODE's and diffrax's one compiled call) is skipped there
+instead, its rows giving the estimate.
 Horizons and sweeps given on the command line (--t-final, --dt, ...) are never moved.
 
 Chained (CHAINED, under timing by need, the main job's default): the cells of the library
@@ -83,6 +85,13 @@ CHAINED = "chained"
 # for the default matrix costs it no more than one cell (the estimates are rough, off by a factor
 # of a few either way, and the limit is on the wall clock of a possibly loaded machine)
 SLOW_LIMIT_S = CELL_BUDGET_S
+# such a run of a scheme that stops on its pace (``stops_at_cpu_bound``) stops once its pace
+# (its CPU seconds per unit of t, after its first CPU second: ``peer_common.Pace``) puts its end
+# past this many times SLOW_LIMIT_S: it would pass its limit anyway, and where a library is too
+# slow, the limit's seconds of it confirm only that. The pace of a default cell's run after
+# its first second puts its end within x1.25 of where it ends (docs/performance.md): a run
+# that ends within its limit is stopped only if its pace quadruples past its first second
+PACE_FACTOR = 4.0
 # the time limit of every other default cell of a library peer (``peer_limited``): its estimate
 # can be off by far more than a factor of a few (a peer's adaptive control, or its JIT compile,
 # which the limit counts), and a run that cannot be stopped (CVODE's, diffrax's one compiled
@@ -263,7 +272,8 @@ def _too_slow(problem: str, scheme: str, sweep: list[int], cells: list[Cell], ou
     """A scheme none of whose settings is estimated to run the horizon within CELL_BUDGET_S:
     its cheapest setting runs the horizon under a time limit of SLOW_LIMIT_S (past it a
     ``timeout`` row that says how far it got, so that a measured row, not the estimate, says
-    whether it is too slow), the others are left out, never a shorter horizon. A scheme whose
+    whether it is too slow; stopped sooner where its pace puts its end past PACE_FACTOR times
+    that limit), the others are left out, never a shorter horizon. A scheme whose
     run cannot be stopped at its deadline (``stops_at_deadline``) would run on past that
     limit: its cells are skipped rows giving the estimate instead. --full-sweep runs them
     all without either."""
@@ -283,8 +293,9 @@ def _too_slow(problem: str, scheme: str, sweep: list[int], cells: list[Cell], ou
     moves.append(Move(problem, scheme, setting, reason, LIMITED))
     for i in others:
         out[i] = None
+    paced = PACE_FACTOR if registry.integrator_class(scheme).stops_at_cpu_bound else None
     out[cheapest] = dataclasses.replace(cells[cheapest], time_limit=SLOW_LIMIT_S,
-                                        limit_reason="for a setting estimated too slow")
+                                        limit_reason="for a setting estimated too slow", pace=paced)
     _say(out, [cheapest], f"{NOTE} {setting} ({reason}; --full-sweep runs {'them' if others else 'it'} unlimited)")
 
 

@@ -23,7 +23,7 @@ from longtime.core.outputs import to_stderr
 from longtime.core.params import InputError, check_time_span, unknown_parameter
 from longtime.core.problem import Problem
 from longtime.core.roles import ROW_PARAMETERS
-from longtime.core.status import BOUNDED, Status
+from longtime.core.status import Status
 from longtime.core.stepping import FixedStepIntegrator
 from longtime.core.timing import Timing
 from longtime.core.trajectory import Trajectory
@@ -63,7 +63,7 @@ class RunSpec:
 
 
 # the fields that say how a cell runs, not what it is: in its dict where set, never in its key
-HOW = ("time_limit", "bound", "cpu_bound", "bound_reason", "limit_reason")
+HOW = ("time_limit", "bound", "cpu_bound", "bound_reason", "limit_reason", "pace")
 
 
 @dataclass(frozen=True)
@@ -79,7 +79,8 @@ class Cell:
     note: str | None = None
     # the cell's own time limit in seconds (the budget's: a setting estimated too slow for the
     # default matrix, a library peer's cell), below the run's: past it the row is ``timeout``,
-    # and ``limit_reason`` says whose limit it is; not part of the key
+    # and ``limit_reason`` says whose limit it is; ``pace`` (a setting estimated too slow): the
+    # multiple of it past which its pace may not put its end (integrate's pace_bound); not in the key
     time_limit: float | None = None
     # a library peer's cell of the default matrix that runs in its chain (the cells of its
     # problem, library and t_final, cheapest first: longtime.execution.batches): the factor
@@ -89,6 +90,7 @@ class Cell:
     cpu_bound: float | None = None
     bound_reason: str | None = None
     limit_reason: str | None = None
+    pace: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         d = {"problem": self.problem, "integrator": self.integrator,
@@ -281,8 +283,6 @@ def _scheme_cells(pname: str, pcls, problem: Problem, psets: dict, iname: str, t
     return cells
 
 
-
-
 def base_row(cell: Cell) -> dict[str, Any]:
     s = cell.integrator_settings
     row = {"problem": cell.problem, "integrator": cell.integrator, "status": "", "message": "",
@@ -331,16 +331,14 @@ def integrate_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES) -> tuple[
 def run_cell(cell: Cell, max_samples: int = DEFAULT_MAX_SAMPLES, reference: bool = True,
              timing: Timing | None = None, time_limit: float | None = DEFAULT_TIME_LIMIT,
              keep: dict[str, Any] | None = None, reference_budget_s: float | None = None) -> dict[str, Any]:
-    """Run one cell, timed by ``timing`` (default: ``Timing()``, the repeated timing of
-    every row); every outcome is a row, nothing raises. Its heyoka reference gets
-    ``reference_budget_s`` wall seconds (default: longtime.measure.reference_runs.budget_seconds).
-    Past ``time_limit`` seconds (None: no limit) the integration stops where it got: a ``timeout`` row.
-    ``keep``, a dict,
-    receives what the row was measured from (``problem``, ``integrator``, ``trajectory``,
-    ``reference``: the trusted reference states, ``trust``), for ``longtime.solve``.
-    A row that does not hold against the declared row (a scheme's undeclared field, a value
-    of the wrong type, a count out of range) is the cell's ``failed`` row naming each wrong
-    field (``declared``): it costs its cell, never the run."""
+    """Run one cell, timed by ``timing`` (default: ``Timing()``, the repeated timing of every
+    row); every outcome is a row, nothing raises. Its heyoka reference gets ``reference_budget_s``
+    wall seconds (default: reference_runs.budget_seconds). Past ``time_limit`` seconds (None: no
+    limit) the integration stops where it got: a ``timeout`` row. ``keep``, a dict, receives what
+    the row was measured from (``problem``, ``integrator``, ``trajectory``, ``reference``: the
+    trusted reference states, ``trust``), for ``longtime.solve``. A row that does not hold against
+    the declared row (a scheme's undeclared field, a value of the wrong type, a count out of
+    range) is the cell's ``failed`` row naming each wrong field (``declared``): it costs its cell."""
     return declared(cell, _measured_row(cell, max_samples, reference, timing, time_limit, keep, reference_budget_s))
 
 
@@ -403,12 +401,11 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
             row.update(status=Status.FAILED, message=unsafe)
             return row
         with phases.phase("integration", f"{cell.problem} x {cell.integrator}"):
-            bound = {"cpu_bound": cell.cpu_bound} if integrator.stops_at_cpu_bound else {}  # a plugin's may predate it
-            traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples,
-                                        timing=timing or Timing(), deadline=deadline, **bound)
+            traj = integrator.integrate(problem, cell.t_final, max_samples=max_samples, timing=timing or Timing(),
+                                        deadline=deadline, **limits.run_bounds(cell, integrator))
         t_end = problem.default_t_final if cell.t_final is None else cell.t_final
         if traj.status == Status.TIMEOUT:
-            traj.message = _stopped(cell, t_end, traj, time_limit, own)
+            traj.message = limits.stopped_message(cell, t_end, traj, time_limit, own)
         if traj.status == Status.DIVERGED:
             traj.message = "; ".join(m for m in (traj.message, contract.nan_note(problem, traj.t, traj.u)) if m)
         wrong = contract.check_samples(cell.integrator, problem, traj, t_end)
@@ -470,17 +467,6 @@ def _measured_row(cell: Cell, max_samples: int, reference: bool, timing: Timing 
     if cell.note:  # the settings the default matrix's budget moved, said where the row is read
         row["message"] = "; ".join(m for m in (row["message"], cell.note) if m)
     return row
-
-
-def _stopped(cell: Cell, t_end: float, traj, time_limit: float | None, own: bool) -> str:
-    """A stopped run's message: at its chain's CPU bound where its own CPU seconds reached it
-    (never said of a run the wall clock stopped), else at its time limit (``own``: the cell's)."""
-    if cell.cpu_bound is not None and traj.cpu_s >= cell.cpu_bound:
-        reached = f"t={float(traj.t[-1]):.6g} of {t_end:g} reached in {traj.cpu_s:.3g} s CPU"
-        return f"{BOUNDED} {cell.bound_reason} ({reached})"
-    limit = (f"{time_limit:g} s: the default matrix's time limit {cell.limit_reason or 'of this cell'}"
-             if own else f"cell time limit {time_limit:g} s: --time-limit")
-    return f"{traj.message} ({limit})"
 
 
 # (scheme class, problem class, dimension) -> why the plugin's step cannot run, or None

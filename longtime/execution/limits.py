@@ -8,7 +8,9 @@ cell (``running-PID``, see ``batches.run_batch`` and ``jobfiles``), and a ``Watc
 (``resident.Resident``'s) kills a worker whose cell has run past its hard limit, ``time_limit + GRACE_S +
 GRACE_SHARE * time_limit`` (``hard_limit``), and records a ``timeout`` row for that cell. A cell's
 time limit is the job's or the cell's own (``Cell.time_limit``: the default matrix's budget gives
-the library peers theirs), the tighter (``cell_limit``).
+the library peers theirs), the tighter (``cell_limit``). A run stops itself besides at the
+bounds of its cell (``run_bounds``: its chain's CPU bound, its pace), and ``stopped_message``
+says which stopped it.
 
 Memory: each worker runs under ``RLIMIT_DATA`` (its heap and anonymous mappings), by default
 ``MEMORY_SHARE`` of the machine's memory (``--memory-limit`` changes it): an allocation
@@ -27,7 +29,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
-from longtime.core.status import MEMORY_LIMIT  # how the message of a cell stopped by its memory limit begins
+from longtime.core.status import BOUNDED, MEMORY_LIMIT, PACED  # how a stopped cell's message begins
 from longtime.execution import jobfiles
 
 # the hard limit of a cell: its --time-limit, plus this many seconds, plus this share of it
@@ -70,6 +72,30 @@ def timeout_message(time_limit: float | None, elapsed: float, cell: dict[str, An
     return (f"cell exceeded its hard time limit of {hard_limit(limit):g} s ({which} {limit:g} s "
             f"+ grace {grace(limit):g} s) where the integration could not stop itself; "
             f"its process was killed after {elapsed:.1f} s")
+
+
+def run_bounds(cell: Any, integrator: Any) -> dict[str, float | None]:
+    """The bounds a ``Cell``'s run stops at besides its time limit, for a scheme that stops at
+    them (``stops_at_cpu_bound``; a plugin's ``integrate`` may not know them): its chain's CPU
+    bound and its pace bound (``Cell.pace`` times its own time limit)."""
+    if not integrator.stops_at_cpu_bound:
+        return {}
+    pace = cell.pace * cell.time_limit if cell.pace and cell.time_limit else None
+    return {"cpu_bound": cell.cpu_bound, "pace_bound": pace}
+
+
+def stopped_message(cell: Any, t_end: float, traj: Any, time_limit: float | None, own: bool) -> str:
+    """A stopped run's message: at its chain's CPU bound where its own CPU seconds reached it
+    (never said of a run the wall clock stopped), on its pace, else at its time limit
+    (``own``: the ``Cell``'s, else the job's)."""
+    if cell.cpu_bound is not None and traj.cpu_s >= cell.cpu_bound:
+        reached = f"t={float(traj.t[-1]):.6g} of {t_end:g} reached in {traj.cpu_s:.3g} s CPU"
+        return f"{BOUNDED} {cell.bound_reason} ({reached})"
+    if traj.message.startswith(PACED):
+        return f"{traj.message} ({cell.pace:g} x the cell's time limit of {cell.time_limit:g} s {cell.limit_reason})"
+    limit = (f"{time_limit:g} s: the default matrix's time limit {cell.limit_reason or 'of this cell'}"
+             if own else f"cell time limit {time_limit:g} s: --time-limit")
+    return f"{traj.message} ({limit})"
 
 
 def machine_memory() -> int:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import math
 import time
 from typing import Any, Callable
 
@@ -21,7 +22,7 @@ import numpy as np
 
 from longtime.core.jitcache import Unfreezable, cacheable, fingerprint
 from longtime.core.problem import BLOWUP_MESSAGE
-from longtime.core.status import Status
+from longtime.core.status import PACED, Status
 from longtime.core.trajectory import Trajectory
 
 # the default matrix's tolerances of an adaptive peer: from the table's 1e-6 to the 1e-10 at
@@ -35,13 +36,50 @@ OVERHEAD_STEPS = 200  # steps of the trivial run that measures the per-step over
 DEADLINE_EVERY = 256  # steps between two looks at the cell's deadline
 BOUND_EVERY = 16  # steps between two looks at a run's CPU bound (a multiple divides DEADLINE_EVERY)
 
-def stop_here(steps: int, cpu_end: float | None, deadline: float | None) -> bool:
-    """Whether a peer's Python loop, at ``steps`` recorded, stops: every BOUND_EVERY steps it
-    looks at the run's CPU bound (``cpu_end``, a ``time.process_time()`` value), every
-    DEADLINE_EVERY at the cell's deadline (a ``time.monotonic()`` value)."""
+# a run under a pace bound is judged on its pace once it has run this many CPU seconds (its
+# first steps pay a library's caches and an adaptive start, which say little of its pace)
+PACE_AFTER_S = 1.0
+
+
+class Pace:
+    """A run's pace against its pace bound (``Integrator.integrate``'s ``pace_bound``, CPU
+    seconds): once it has run PACE_AFTER_S CPU seconds, ``beyond(t)`` says whether the CPU
+    seconds it spent per unit of t so far put its end, ``t_end``, past the bound, and keeps
+    that projection (``projected``) for its row. It counts from its making: make it where
+    the run starts."""
+
+    def __init__(self, bound_s: float, t0: float, t_end: float) -> None:
+        self.bound_s, self.t0, self.span = bound_s, t0, t_end - t0
+        self.start = time.process_time()
+        self.projected: float | None = None
+        self.stopped = False
+
+    def beyond(self, t: float) -> bool:
+        spent = time.process_time() - self.start
+        if spent < PACE_AFTER_S:
+            return False
+        done = (t - self.t0) / self.span
+        self.projected = spent / done if done > 0 else math.inf
+        self.stopped = self.projected > self.bound_s
+        return self.stopped
+
+    def message(self, t: float, cpu: float) -> str:
+        """The row's message where ``beyond`` stopped the run at ``t`` after ``cpu`` seconds."""
+        return (f"{PACED} t={t:.6g} of {self.t0 + self.span:g} reached in {cpu:.3g} s CPU, which puts "
+                f"t_final at about {self.projected:.3g} s CPU, past {self.bound_s:g} s")
+
+
+def stop_here(steps: int, cpu_end: float | None, deadline: float | None, pace: Pace | None = None,
+              t: float = 0.0) -> bool:
+    """Whether a peer's Python loop, at ``steps`` recorded and time ``t``, stops: every
+    BOUND_EVERY steps it looks at the run's CPU bound (``cpu_end``, a ``time.process_time()``
+    value) and its ``pace``, every DEADLINE_EVERY at the cell's deadline (a
+    ``time.monotonic()`` value)."""
     if steps % BOUND_EVERY:
         return False
     if cpu_end is not None and time.process_time() >= cpu_end:
+        return True
+    if pace is not None and pace.beyond(t):
         return True
     return steps % DEADLINE_EVERY == 0 and deadline is not None and time.monotonic() > deadline
 
@@ -139,17 +177,23 @@ def thin(t: np.ndarray, u: np.ndarray, max_samples: int) -> tuple[np.ndarray, np
 
 def trajectory(problem, library: str, t: np.ndarray, u: np.ndarray, cpu: float, wall: float,
                counters: dict[str, int], max_samples: int, failure: str | None = None,
-               timed_out: bool = False, extra: dict[str, Any] | None = None, stoppable: bool = True) -> Trajectory:
+               timed_out: bool = False, extra: dict[str, Any] | None = None, stoppable: bool = True,
+               pace: Pace | None = None) -> Trajectory:
     """The row's trajectory from the accepted steps (t, u) a library recorded: cut at a
-    blow-up, else ``timeout`` (stopped at the cell's deadline) or ``failed`` (the library's
-    ``failure`` message), thinned evenly to ``max_samples``; ``counters['steps']`` is set from
-    the steps recorded. ``stoppable``: the library's loop stops at the deadline (else a run past
-    it ran on to where it ended, and its message says so)."""
+    blow-up, else ``timeout`` (stopped at the cell's deadline, or on its ``pace``: its message
+    and ``pace_cpu_s`` say so) or ``failed`` (the library's ``failure`` message), thinned
+    evenly to ``max_samples``; ``counters['steps']`` is set from the steps recorded.
+    ``stoppable``: the library's loop stops at the deadline (else a run past it ran on to
+    where it ended, and its message says so)."""
+    extra = dict(extra or {})
     status, message = Status.OK, ""
     first = problem.first_blowup(u)
     if first is not None:
         t, u = t[:first + 1], u[:first + 1]
         status, message = Status.DIVERGED, BLOWUP_MESSAGE.format(t=t[-1])
+    elif timed_out and pace is not None and pace.stopped:
+        status, message = Status.TIMEOUT, pace.message(float(t[-1]), cpu)
+        extra["pace_cpu_s"] = pace.projected
     elif timed_out:
         status, message = Status.TIMEOUT, (f"stopped at t={t[-1]:.6g}: past the cell's time limit" if stoppable else
                                       f"ran to t={t[-1]:.6g} past the cell's time limit ({library}'s loop cannot "
@@ -162,4 +206,4 @@ def trajectory(problem, library: str, t: np.ndarray, u: np.ndarray, cpu: float, 
     return Trajectory(status=status, message=message, t=np.ascontiguousarray(t), u=np.ascontiguousarray(u),
                       cpu_s=cpu, wall_s=wall, counters={"steps": int(steps), **counters},
                       min_dt=float(dts.min()) if steps else None, max_dt=float(dts.max()) if steps else None,
-                      extra=dict(extra or {}))
+                      extra=extra)

@@ -111,13 +111,16 @@ class ScipyIVP(Integrator):
         peer_common.warm_once((self.name, tuple(sorted(self.settings.items())), problem.identity()),
                               lambda: _step_all(self._solver(fun, jac, problem.t0, u0.copy(), t_final), WARM_STEPS))
         overhead = self.overhead(problem)
-        deadline, bound = self._deadline, self._cpu_bound
+        deadline, bound, paced = self._deadline, self._cpu_bound, self._pace_bound
         ts, ys = [problem.t0], [u0.copy()]
+        pace = None
 
         def run():
-            # the bound counts from here, after the timer's start: a run stopped at it has
-            # at least ``bound`` CPU seconds
+            nonlocal pace
+            # the bound and the pace count from here, after the timer's start: a run stopped at
+            # the bound has at least ``bound`` CPU seconds
             cpu_end = None if bound is None else time.process_time() + bound
+            pace = None if paced is None else peer_common.Pace(paced, problem.t0, t_final)
             solver = self._solver(fun, jac, problem.t0, u0.copy(), t_final)
             failure, timed_out = None, False
             with np.errstate(all="ignore"):  # a state gone non-finite is the row's status, not a warning
@@ -125,7 +128,7 @@ class ScipyIVP(Integrator):
                     failure = solver.step()
                     ts.append(solver.t)
                     ys.append(solver.y.copy())
-                    if peer_common.stop_here(len(ts), cpu_end, deadline):
+                    if peer_common.stop_here(len(ts), cpu_end, deadline, pace, solver.t):
                         timed_out = True
                         break
             return solver, failure, timed_out
@@ -138,7 +141,7 @@ class ScipyIVP(Integrator):
         return peer_common.trajectory(
             problem, self.method, np.array(ts), np.array(ys), cpu, wall, counters, max_samples,
             failure=failure if solver.status == "failed" else None, timed_out=timed_out,
-            extra={"peer_overhead_s": overhead})
+            extra={"peer_overhead_s": overhead}, pace=pace)
 
 
 def _step_all(solver, most: int | None = None) -> int:
@@ -236,21 +239,23 @@ class DOP853(ScipyIVP):
         peer_common.warm_once((self.name, tuple(sorted(self.settings.items())), problem.identity()),
                               lambda: self._run(fun, params, problem.t0, u0.copy(), t_final, most=WARM_STEPS))
         overhead = self.overhead(problem)
-        deadline, bound = self._deadline, self._cpu_bound
+        deadline, bound, paced = self._deadline, self._cpu_bound, self._pace_bound
         ts, ys = [], []
         late = [False]
         cpu_end: list[float | None] = [None]
+        pace: list[peer_common.Pace | None] = [None]
 
         def record(t, y):
             ts.append(t)
             ys.append(y.copy())
-            if peer_common.stop_here(len(ts), cpu_end[0], deadline):
+            if peer_common.stop_here(len(ts), cpu_end[0], deadline, pace[0], t):
                 late[0] = True
             return late[0]
 
         def run():
-            # the bound counts from here, after the timer's start (as ScipyIVP's loop counts it)
+            # the bound and the pace count from here, after the timer's start (as ScipyIVP's loop counts them)
             cpu_end[0] = None if bound is None else time.process_time() + bound
+            pace[0] = None if paced is None else peer_common.Pace(paced, problem.t0, t_final)
             return self._run(fun, params, problem.t0, u0.copy(), t_final, record)
 
         (r, _), cpu, wall = peer_common.timed(run)
@@ -262,7 +267,7 @@ class DOP853(ScipyIVP):
         counters = {"rhs_evals": nfev, "nl_iters": 0, "rejected": rejected, "fallbacks": 0, "jac_evals": 0}
         return peer_common.trajectory(
             problem, "scipy dop853", np.array(ts), np.array(ys), cpu, wall, counters, max_samples,
-            failure=failure, timed_out=late[0], extra={"peer_overhead_s": overhead})
+            failure=failure, timed_out=late[0], extra={"peer_overhead_s": overhead}, pace=pace[0])
 
 
 class ScipyRK23(ScipyIVP):

@@ -80,7 +80,8 @@ def cheapest_kept(rows: list[dict[str, Any]], target: float = TARGET) -> dict[st
 def _too_slow(slow: list[dict[str, Any]], t_main: float) -> str:
     """'too slow: cvode-bdf tol=1e-13 ran 3.1 s for t=250 of 500' from the timeout rows at T
     (the one that got furthest): its CPU seconds, and its wall seconds beside them where they
-    are more than WALL_SHOWN times as many (a loaded machine: the time limit is on the wall)."""
+    are more than WALL_SHOWN times as many (a loaded machine: the time limit is on the wall);
+    for a run stopped on its pace, where its pace put T ('pace_cpu_s')."""
     r = max(slow, key=lambda r: r.get("t_reached") or 0.0)
     cpu, wall = r.get("cpu_s"), r.get("wall_s")
     spent = "cpu_s" if positive(cpu) else "wall_s" if positive(wall) else None
@@ -89,6 +90,8 @@ def _too_slow(slow: list[dict[str, Any]], t_main: float) -> str:
         spent_text = f"{formatted('cpu_s', cpu)} s CPU in {formatted('wall_s', wall)} s wall"
     reached, t_text = r.get("t_reached"), formatted("t_final", t_main)
     reached_text = f"t={formatted('t_reached', reached)} of {t_text}" if reached is not None else f"less than {t_text}"
+    if positive(r.get("pace_cpu_s")):
+        reached_text += f" (about {formatted('cpu_s', r['pace_cpu_s'])} s to T at its pace)"
     return f"too slow: {r['integrator']} {setting(r)} ran {spent_text} for {reached_text}".replace("  ", " ")
 
 
