@@ -34,12 +34,18 @@ rounding of a few eps per step:
 - a run whose samples span under 1.5 decades of t (two windows) is ``undetermined``.
 
 Without ``steps`` R is unknown: every error is held to the windows, and sqrt is not checked.
+
+The passes over every sample (the running maximum, the samples with tau > 0, whether M is
+positive in a window) and the reading of M at the log-spaced times are compiled loops
+(numba), written by hand where numpy makes a mask, a copy or a sort of the whole arrays
+for each; they select the same samples, so the fits see the same values.
 """
 from __future__ import annotations
 
 import math
 from typing import Any
 
+import numba
 import numpy as np
 
 from longtime.core.rowschema import GROWTH_CLASSES, POWER_CLASSES
@@ -66,13 +72,82 @@ def classify(alpha: float) -> str:
     return LIMITS[-1][1]
 
 
+@numba.njit(cache=True)
+def _running_max(err, level, running):
+    """(upto, above): ``upto`` the first sample where ``err`` is not finite (its size if
+    none); over the samples before it the running maximum into ``running``, as
+    np.maximum.accumulate (the later of two equal values, as numpy takes it); ``above`` the
+    first sample where it reaches ``level``, -1 if none. One pass instead of numpy's five."""
+    upto, above = err.size, -1
+    r = 0.0
+    for i in range(err.size):
+        v = err[i]
+        if not np.isfinite(v):
+            upto = i
+            break
+        r = r if i > 0 and r > v else v
+        running[i] = r
+        if above < 0 and r >= level:
+            above = i
+    return upto, above
+
+
+@numba.njit(cache=True)
+def _positive_from(tau):
+    """k where the samples with tau > 0 are exactly tau[k:] (sorted times), else -1."""
+    k = 0
+    while k < tau.size and not tau[k] > 0:
+        k += 1
+    for i in range(k, tau.size):
+        if not tau[i] > 0:
+            return -1
+    return k
+
+
+def _positive(tau: np.ndarray, m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``tau`` and ``m`` where tau > 0: views where those samples are a suffix, else copies."""
+    tau, m = np.ascontiguousarray(tau, dtype=float), np.ascontiguousarray(m, dtype=float)
+    k = _positive_from(tau)
+    if k >= 0:
+        return tau[k:], m[k:]
+    keep = tau > 0
+    return tau[keep], m[keep]
+
+
+@numba.njit(cache=True)
+def _any_positive(tau, m, lo, hi):
+    """Whether m > 0 at any sample with lo <= tau <= hi (stops at the first)."""
+    for i in range(tau.size):
+        if tau[i] >= lo and tau[i] <= hi and m[i] > 0:
+            return True
+    return False
+
+
+@numba.njit(cache=True)
+def _points_at(tau, m, grid):
+    """(tau, m) at the last sample at or before each of ``grid`` (times ascending: a binary
+    search as np.searchsorted's "right", clipped to the samples), each sample once in
+    order (np.unique), where m > 0."""
+    idx = np.empty(grid.size, dtype=np.int64)
+    for k in range(grid.size):
+        v = grid[k] * (1 + 1e-12)
+        lo, hi = 0, tau.size
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if tau[mid] <= v:
+                lo = mid + 1
+            else:
+                hi = mid
+        idx[k] = min(max(lo - 1, 0), tau.size - 1)
+    idx = np.unique(idx)
+    x, y = tau[idx], m[idx]
+    return x[y > 0], y[y > 0]
+
+
 def _read(tau: np.ndarray, m: np.ndarray, start: float, end: float, points: int) -> tuple[np.ndarray, np.ndarray]:
     """M at ``points`` log-spaced times of [start, end] (the last sample at or before each),
     each sample once, zeros dropped."""
-    grid = np.logspace(math.log10(start), math.log10(end), points)
-    idx = np.unique(np.clip(np.searchsorted(tau, grid * (1 + 1e-12), side="right") - 1, 0, tau.size - 1))
-    x, y = tau[idx], m[idx]
-    return x[y > 0], y[y > 0]
+    return _points_at(tau, m, np.logspace(math.log10(start), math.log10(end), points))
 
 
 def fit_power_law(tau: np.ndarray, running_max: np.ndarray) -> tuple[float, float, float] | None:
@@ -80,15 +155,18 @@ def fit_power_law(tau: np.ndarray, running_max: np.ndarray) -> tuple[float, floa
     window [tau_end / 10^DECADES, tau_end] (tau > 0, M nondecreasing); None with fewer than
     three distinct points. Zeros of M before its first nonzero value are dropped; an M that
     is 0 throughout is bounded (alpha 0). The interval is the residuals' alone."""
-    keep = tau > 0
-    tau, m = tau[keep], running_max[keep]
+    return _fit_power_law(*_positive(tau, running_max))
+
+
+def _fit_power_law(tau: np.ndarray, m: np.ndarray) -> tuple[float, float, float] | None:
+    """``fit_power_law`` of the samples with tau > 0 (``_positive``)."""
     if tau.size < 3:
         return None
     t_end = float(tau[-1])
     start = max(float(tau[0]), t_end / 10**DECADES)
     if not t_end > start:
         return None
-    if not np.any(m[tau >= start] > 0):
+    if not _any_positive(tau, m, start, math.inf):
         return 0.0, 0.0, 0.0
     x, y = _read(tau, m, start, t_end, FIT_POINTS)
     if x.size < 3 or np.ptp(x) == 0:
@@ -101,8 +179,11 @@ def window_slopes(tau: np.ndarray, running_max: np.ndarray) -> list[tuple[float,
     """(slope, 95 % half-width) of the running maximum on each of the last ``WINDOWS``
     windows of WINDOW_DECADES, WINDOW_SHIFT decades apart (earliest first) that lie within
     the samples; a window where M is 0 throughout has slope 0."""
-    keep = tau > 0
-    tau, m = tau[keep], running_max[keep]
+    return _window_slopes(*_positive(tau, running_max))
+
+
+def _window_slopes(tau: np.ndarray, m: np.ndarray) -> list[tuple[float, float]]:
+    """``window_slopes`` of the samples with tau > 0 (``_positive``)."""
     out: list[tuple[float, float]] = []
     if tau.size < 3:
         return out
@@ -113,7 +194,7 @@ def window_slopes(tau: np.ndarray, running_max: np.ndarray) -> list[tuple[float,
         if lo < float(tau[0]) * (1 - 1e-12):
             break
         x, y = _read(tau, m, lo, hi, WINDOW_POINTS)
-        if x.size == 0 and not np.any(m[(tau >= lo) & (tau <= hi)] > 0):
+        if x.size == 0 and not _any_positive(tau, m, lo, hi):
             out.append((0.0, 0.0))
             continue
         if x.size < 3 or np.ptp(x) == 0:
@@ -158,33 +239,31 @@ def growth_fields(name: str, t: np.ndarray, err: np.ndarray, t0: float,
                            f"{name}.growth_class": "diverged" if diverged else None,
                            f"{name}.growth_reason": None, f"{name}.growth_windows": None,
                            f"{name}.saturated_t": None}
-    t, err = np.asarray(t, dtype=float), np.asarray(err, dtype=float)
-    finite = np.isfinite(err)
-    upto = err.size if finite.all() else int(np.argmin(finite))
-    t, err = t[:upto], err[:upto]
-    if err.size < 3:
+    t, err = np.asarray(t, dtype=float), np.ascontiguousarray(err, dtype=float)
+    running = np.empty(err.size)
+    upto, above = _running_max(err, SATURATION, running)  # err up to its first non-finite value
+    if upto < 3:
         return out
-    running = np.maximum.accumulate(err)
-    above = np.flatnonzero(running >= SATURATION)
-    end = err.size
-    if above.size:
-        out[f"{name}.saturated_t"] = float(t[above[0]])
-        end = int(above[0])  # fit the part up to where the error meant nothing
+    end = upto
+    if above >= 0:
+        out[f"{name}.saturated_t"] = float(t[above])
+        end = above  # fit the part up to where the error meant nothing
     tau, m = t[:end] - t0, running[:end]
-    fit = fit_power_law(tau, m)
+    late = _positive(tau, m)
+    fit = _fit_power_law(*late)
     if fit is None:
         return out
     alpha, low, high = fit
-    windows = window_slopes(tau, m)
+    windows = _window_slopes(*late)
     out[f"{name}.growth"] = float(alpha)  # full precision: formats round, rows do not
     out[f"{name}.growth_ci"] = [float(min([low, *(a for a, _ in windows)])),
                                 float(max([high, *(a for a, _ in windows)]))]
     out[f"{name}.growth_windows"] = [float(a) for a, _ in windows]
     if diverged:
         return out
-    if above.size:
+    if above >= 0:
         out[f"{name}.growth_class"] = "saturated"
-        out[f"{name}.growth_reason"] = f"the error reached {SATURATION:g} at t = {t[above[0]]:.4g}"
+        out[f"{name}.growth_reason"] = f"the error reached {SATURATION:g} at t = {t[above]:.4g}"
         return out
     if float(m[-1]) == 0.0:
         out[f"{name}.growth_class"], out[f"{name}.growth_reason"] = "bounded", "the error stays 0"

@@ -44,6 +44,7 @@ from __future__ import annotations
 import math
 from typing import Any, Callable
 
+import numba
 import numpy as np
 
 from longtime.core.contract import check_name
@@ -141,7 +142,10 @@ def drifting_components(t: np.ndarray, reference: np.ndarray, motion: Motion | N
     x, y = (motion.t, motion.x) if motion is not None else (t - t.mean(), reference - reference.mean(axis=0))
     slope = (x @ y) / (x @ x)
     explained = slope**2 * (x @ x)
-    total = (y**2).sum(axis=0)
+    # numpy sums (samples, components >= 2) over the samples one sample after another, as
+    # the motion's cumulative sums do: its sums give the same bits without another pass
+    # (one component numpy sums pairwise)
+    total = motion.sum_of_squares() if motion is not None and y.shape[1] >= 2 else (y**2).sum(axis=0)
     moving = total > 0
     return int(np.sum(explained[moving] >= DRIFT_R2 * total[moving]))
 
@@ -157,8 +161,66 @@ def error_curve(t: np.ndarray, pointwise: np.ndarray, l2_at: Callable[[np.ndarra
         return None
     tau = t - t[0]
     idx = np.clip(np.searchsorted(tau, np.asarray(curve["t"]) * (1 + 1e-9), side="right") - 1, 0, t.size - 1)
-    curve["l2"] = [float(f"{v:.6g}") for v in l2_at(idx)]
+    curve["l2"] = six_digits(l2_at(idx))
     return curve
+
+
+def six_digits(values: np.ndarray) -> list[float]:
+    """``values`` rounded to 6 significant digits, as a row keeps a curve's points:
+    float(f"{v:.6g}") of each, computed in floating point where that is exact
+    (``_six_digits``), else by the formatting itself."""
+    values = np.ascontiguousarray(values, dtype=float).reshape(-1)
+    out, exact = np.empty(values.size), np.empty(values.size, dtype=np.bool_)
+    _six_digits(values, _POW10, out, exact)
+    rounded = out.tolist()
+    for i in np.flatnonzero(~exact).tolist():
+        rounded[i] = float(f"{float(values[i]):.6g}")
+    return rounded
+
+
+_POW10 = np.array([float(10**k) for k in range(23)])  # 10^0 .. 10^22, each exact in a double
+
+
+@numba.njit(cache=True)
+def _six_digits(values, pow10, out, exact):
+    """float(f"{v:.6g}") of each value where floating point gets it exactly, with
+    ``exact`` False elsewhere (0, not finite, below 1e-17 or from 1e28 on, or a product
+    within 1e-9 of a rounding tie or of a decade's ends). Python rounds |v| to the
+    6-digit decimal D = round(Y) 10^-p, Y = |v| 10^p in [1e5, 1e6), and reads D back to the
+    nearest double. Here y = |v| 10^p is one correctly rounded operation on exact
+    operands (10^p exact up to 10^22), so |y - Y| <= half an ulp of y (below 6e-11):
+    away from a tie round(y) = round(Y) = q, and q / 10^p (or q 10^-p) is one
+    correctly rounded operation on exact operands, the double nearest D. Written by hand:
+    a few operations per value instead of formatting and parsing a string."""
+    for i in range(values.size):
+        v = values[i]
+        a = abs(v)
+        exact[i] = False
+        out[i] = v
+        if not (a > 0 and a < np.inf):
+            continue
+        p = 5 - int(math.floor(math.log10(a)))
+        y = 0.0
+        for _ in range(2):  # log10's decade may be one off at a power of 10
+            if p > 22 or p < -22:
+                break
+            y = a * pow10[p] if p >= 0 else a / pow10[-p]
+            if y < 1e5:
+                p += 1
+            elif y >= 1e6:
+                p -= 1
+            else:
+                break
+        if not (1e5 + 1e-9 < y < 1e6 - 1e-9) or p > 22 or p < -22:
+            continue
+        whole = math.floor(y)
+        frac = y - whole  # exact: y and whole are within 1 of each other
+        if abs(frac - 0.5) < 1e-9:
+            continue
+        q = whole + 1.0 if frac > 0.5 else whole
+        r = q / pow10[p] if p >= 0 else q * pow10[-p]
+        out[i] = -r if v < 0 else r
+        exact[i] = True
 
 
 def time_mean(t: np.ndarray, y: np.ndarray) -> float:
@@ -195,17 +257,63 @@ def drift_envelope(name: str, t: np.ndarray, err: np.ndarray, points: int = DRIF
     but oscillating error keeps its peaks), 6 significant digits. The results page draws
     it; nothing has to be run again to show how the error grew. ``kind`` names the key
     that holds ``name`` ("invariant", or "diagnostic" for a diagnostic's curve)."""
-    tau = t - t[0]
-    keep = (tau > 0) & np.isfinite(err)
-    if keep.sum() < 2:
+    t, err = np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(err, dtype=float)
+    first, last = _kept_ends(t, err)
+    if first == last:  # fewer than two samples kept
         return None
-    tau, e = tau[keep], err[keep]
-    edges = np.logspace(np.log10(tau[0]), np.log10(tau[-1]), points + 1)
-    bins = np.clip(np.searchsorted(edges, tau, side="right") - 1, 0, points - 1)
-    starts = np.flatnonzero(np.r_[True, bins[1:] != bins[:-1]])  # tau is sorted: bins are runs
-    peaks = [int(a + np.argmax(e[a:b])) for a, b in zip(starts, np.r_[starts[1:], tau.size])]
-    return {kind: name, "t": [float(f"{tau[i]:.6g}") for i in peaks],
-            "error": [float(f"{e[i]:.6g}") for i in peaks]}
+    edges = np.logspace(np.log10(t[first] - t[0]), np.log10(t[last] - t[0]), points + 1)
+    peaks = np.empty(points, dtype=np.int64)
+    count = _envelope_peaks(t, err, edges, peaks)
+    if count < 0:  # times out of order: more runs than bins
+        peaks = np.empty(t.size, dtype=np.int64)
+        count = _envelope_peaks(t, err, edges, peaks)
+    peaks = peaks[:count]
+    return {kind: name, "t": six_digits(t[peaks] - t[0]), "error": six_digits(err[peaks])}
+
+
+@numba.njit(cache=True)
+def _kept_ends(t, err):
+    """(first, last): the first and the last sample that drift_envelope keeps (t - t[0] > 0,
+    err finite); (-1, -1) without one. Each scan stops at its first kept sample."""
+    first = last = -1
+    for i in range(t.size):
+        if t[i] - t[0] > 0 and np.isfinite(err[i]):
+            first = i
+            break
+    for i in range(t.size - 1, first - 1 if first >= 0 else t.size, -1):
+        if t[i] - t[0] > 0 and np.isfinite(err[i]):
+            last = i
+            break
+    return first, last
+
+
+@numba.njit(cache=True)
+def _envelope_peaks(t, err, edges, peaks):
+    """drift_envelope's peaks: over the kept samples (t - t[0] > 0, err finite), each in bin
+    searchsorted(edges, t - t[0], "right") - 1 clipped to the bins, the sample where err is
+    largest (the first of equals, as np.argmax) within each run of one bin, written to
+    ``peaks``; the count of runs, or -1 where ``peaks`` is too short. One pass instead of
+    numpy's masks, copies, bins and an argmax per run."""
+    bins = edges.size - 1
+    j = -1  # the last edge at or below tau: edges ascend, the samples move it a step or two
+    count, run, best = 0, -1, 0.0
+    for i in range(t.size):
+        tau, e = t[i] - t[0], err[i]
+        if not (tau > 0 and np.isfinite(e)):
+            continue
+        while j + 1 < edges.size and edges[j + 1] <= tau:
+            j += 1
+        while j >= 0 and edges[j] > tau:
+            j -= 1
+        b = min(max(j, 0), bins - 1)
+        if count == 0 or b != run:
+            if count == peaks.size:
+                return -1
+            peaks[count], run, best = i, b, e
+            count += 1
+        elif e > best:
+            peaks[count - 1], best = i, e
+    return count
 
 
 def discretisation_error(problem: Problem, t: np.ndarray, errors: BlockErrors) -> float | None:
@@ -336,7 +444,7 @@ def evaluate(problem: Problem, traj: Trajectory, reference: np.ndarray | None,
             window = motion_window(problem, float(t[k - 1]), trust)
             per_block, state = BlockErrors.each(t[:k], U[:k], reference[:k], window,
                                                 [Blocks.of(problem), Blocks.whole(problem.dim)])
-            rel = per_block.pointwise.max(axis=1)
+            rel = per_block.peak
             row["l2_error"] = finite_or_none(per_block.final_l2().max())
             row["max_error"] = finite_or_none(np.max(rel))
             row["l2_error_state"] = finite_or_none(state.final_l2()[0])
