@@ -151,7 +151,7 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
         store.run(spec.baseline)  # an unknown baseline is bad input, caught up front
         check_baseline(store, spec.baseline, cells)
     made = None
-    with recorded_run(store, spec.command, cells, run_id) as run_id, _workers(spec, options) as queued:
+    with recorded_run(store, spec.command, cells, run_id) as run_id:
         if spec.resume is None:
             print(f"run {run_id}: {len(cells)} cells into {store.path}", file=sys.stderr)
         if died:
@@ -160,26 +160,25 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
         if ahead is not None and pooled:  # what workers that have no cell left do: the page's figures
             made = ahead(cells, run_id, timed_again=options.processes > 1)
             options = dataclasses.replace(options, idle_work=made.task)
-        run_matrix(cells, store, run_id, spec.executor,
-                   options if queued is None else dataclasses.replace(options, pool=queued.pool),
-                   progress=shown, on_row=made.add if made is not None else None)
+        run_matrix(cells, store, run_id, spec.executor, options, progress=shown,
+                   on_row=made.add if made is not None else None)
         if spec.resume is not None:  # the rows stored before the interruption, timed and counted
             complete_phases(store, run_id, options)
         early = None
         # the rows as timed, read once: what the checks, the ensembles, the last figures and the result read
         rows = store.rows(run_id)
-        # the checks' runs, the ensembles, the page's last figures: on the cells' workers
-        if queued is not None:
-            early = ensembles.Ahead(rows) if spec.ensembles else None
-            if made is not None:
-                made.timed(rows)
-            for owner in filter(None, (early, made)):  # the ensembles first: the longest tasks
-                queued.take(owner)
-        if spec.checks:  # a few of the verdicts' predictions re-run past the rows' final times
-            _check(store, run_id, rows, options, spec.checks, shown, queued.pool if queued is not None else None)
-        if queued is not None:
-            with phases.phase("ensembles"):  # waiting for the workers' ensembles and figures
-                queued.finish()
+        with _workers(spec, options) as queued:  # the checks' runs, the ensembles, the page's last figures
+            if queued is not None:
+                early = ensembles.Ahead(rows) if spec.ensembles else None
+                if made is not None:
+                    made.timed(rows)
+                for owner in filter(None, (early, made)):  # the ensembles first: the longest tasks
+                    queued.take(owner)
+            if spec.checks:  # a few of the verdicts' predictions re-run past the rows' final times
+                _check(store, run_id, rows, options, spec.checks, shown, queued.pool if queued is not None else None)
+            if queued is not None:
+                with phases.phase("ensembles"):  # waiting for the workers' ensembles and figures
+                    queued.finish()
         if spec.ensembles:  # chaotic problems: each scheme's ensemble distance to heyoka's
             try:
                 with phases.phase("ensembles"), shown.phase("ensembles", detail="chaotic problems' ensembles"):
@@ -191,10 +190,10 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
 
 @contextlib.contextmanager
 def _workers(spec: MainJobSpec, options: ExecOptions) -> Iterator[Queued | None]:
-    """On the process executor: a pool of workers (one per core) that runs the cells, then,
-    once the timing processes are done (they wait meanwhile, idle, their kernels and imports
-    loaded), the checks' runs, each timed in a worker as the cells were, and the tasks queued
-    beside them (``Queued``); else None (the checks and the ensembles run in this process)."""
+    """On the process executor, once the timing processes are done: a pool of workers (one
+    per core) for the checks' runs, each timed in a worker as the cells were, and the tasks
+    queued beside them (``Queued``); else None (the checks and the ensembles run in this
+    process)."""
     if spec.executor != "process" or not (spec.checks or spec.ensembles):
         yield None
         return

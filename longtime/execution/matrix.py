@@ -71,10 +71,6 @@ class ExecOptions:
     # its result), or None when there is none for now; the process executor asks again as
     # rows come in
     idle_work: Callable[[], "IdleTask | None"] | None = None
-    # the workers the process executor runs the cells on where the caller keeps them for its
-    # own work after the cells (the main job's checks, ensembles and figures: a ResidentPool of
-    # ``workers()``, under the same memory limit); None: a pool of its own, for the cells only
-    pool: ResidentPool | None = None
 
     def workers(self) -> int:
         return pool_workers(self.jobs)
@@ -219,10 +215,8 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
     if workers == 1 and hard_limit(options.time_limit) is None:  # no limit to enforce: this process is the worker
         yield from serial(runnable, options)
         return
-    spec = options.run_spec()
-    kept = contextlib.nullcontext(options.pool) if options.pool is not None else ResidentPool(workers, spec)
-    with phases.phase("pool"), kept as pool:  # storing rows, waiting
-        for batch, fut in scheduled(pool, workers, batches_by_pair(runnable), lambda b: pool.submit_cells(b, spec),
+    with phases.phase("pool"), ResidentPool(workers, options.run_spec()) as pool:  # storing rows, waiting
+        for batch, fut in scheduled(pool, workers, batches_by_pair(runnable), pool.submit_cells,
                                     idle_work=options.idle_work):
             try:
                 rows = fut.result()

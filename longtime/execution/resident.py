@@ -228,9 +228,8 @@ class ResidentPool:
     def submit(self, fn: Callable, *args: Any) -> Future:
         return self._threads.submit(lambda: self._resident().call(fn, args, self.spec))
 
-    def submit_cells(self, cells: list[Cell], spec: RunSpec | None = None) -> Future:
-        """A batch of cells, run as ``spec`` says (default: the pool's)."""
-        return self._threads.submit(lambda: self._resident().run(cells, spec or self.spec))
+    def submit_cells(self, cells: list[Cell]) -> Future:
+        return self._threads.submit(lambda: self._resident().run(cells, self.spec))
 
     def pids(self) -> list[int]:
         """The process ids of the children that run."""
