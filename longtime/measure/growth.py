@@ -125,21 +125,10 @@ def _any_positive(tau, m, lo, hi):
 
 @numba.njit(cache=True)
 def _points_at(tau, m, grid):
-    """(tau, m) at the last sample at or before each of ``grid`` (times ascending: a binary
-    search as np.searchsorted's "right", clipped to the samples), each sample once in
-    order (np.unique), where m > 0."""
-    idx = np.empty(grid.size, dtype=np.int64)
-    for k in range(grid.size):
-        v = grid[k] * (1 + 1e-12)
-        lo, hi = 0, tau.size
-        while lo < hi:
-            mid = (lo + hi) // 2
-            if tau[mid] <= v:
-                lo = mid + 1
-            else:
-                hi = mid
-        idx[k] = min(max(lo - 1, 0), tau.size - 1)
-    idx = np.unique(idx)
+    """(tau, m) at the last sample at or before each of ``grid`` (times ascending), clipped
+    to the samples, each sample once in order (np.unique), where m > 0."""
+    idx = np.unique(np.minimum(np.maximum(np.searchsorted(tau, grid * (1 + 1e-12), side="right") - 1, 0),
+                               tau.size - 1))
     x, y = tau[idx], m[idx]
     return x[y > 0], y[y > 0]
 
