@@ -22,6 +22,7 @@ import sys
 def measure(cap: float) -> list[tuple[str, float | None, float, bool, float]]:
     """(cell, projection at the first look, whole run's CPU seconds, whether the cap cut it,
     its time limit) per paced cell of the default matrix."""
+    from longtime.core.status import Status
     from longtime.execution.cells import build
     from longtime.execution.main_job import Selection, plan
     from longtime.execution.matrix import ExecOptions
@@ -37,7 +38,7 @@ def measure(cap: float) -> list[tuple[str, float | None, float, bool, float]]:
         first = integrator.integrate(problem, t_final, pace_bound=0.0)
         whole = integrator.integrate(problem, t_final, cpu_bound=cap)
         name = f"{cell.problem} x {cell.integrator} {cell.integrator_settings}"
-        out.append((name, first.extra.get("pace_cpu_s"), whole.cpu_s, whole.status != "ok", cell.time_limit))
+        out.append((name, first.extra.get("pace_cpu_s"), whole.cpu_s, whole.status != Status.OK, cell.time_limit))
     return out
 
 

@@ -280,8 +280,6 @@ def test_a_peer_too_slow_for_the_default_matrix_is_a_timeout_row_which_library_s
 
 
 def test_a_pace_projects_the_end_from_the_cpu_seconds_per_unit_of_t(monkeypatch):
-    from longtime.integrators import peer_common
-
     clock = [100.0]
     monkeypatch.setattr(peer_common.time, "process_time", lambda: clock[0])
     pace = peer_common.Pace(20.0, 10.0, 1010.0)
@@ -295,6 +293,13 @@ def test_a_pace_projects_the_end_from_the_cpu_seconds_per_unit_of_t(monkeypatch)
     assert "about 25 s CPU, past 20 s" in pace.message(90.0, 2.0)
     clock[0] += 1.0  # no progress at all: an end never reached
     assert pace.beyond(10.0) and pace.projected == float("inf")
+    assert "no progress past t0, which puts t_final beyond any CPU time, past 20 s" in pace.message(10.0, 4.0)
+    # its row keeps no infinite projection: pace_cpu_s is null, the message says why
+    problem = registry.problem_class("harmonic")()
+    traj = peer_common.trajectory(problem, "scipy", np.array([0.0, 1e-9]), np.tile(problem.u0, (2, 1)), 4.0, 4.0,
+                                  {}, 100, timed_out=True, pace=pace)
+    assert traj.status == "timeout" and traj.message.startswith("stopped on its pace:")
+    assert traj.extra["pace_cpu_s"] is None
 
 
 def test_a_too_slow_peer_stops_on_its_pace_and_which_library_says_where_its_pace_put_its_end():

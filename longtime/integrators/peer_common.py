@@ -45,11 +45,11 @@ class Pace:
     """A run's pace against its pace bound (``Integrator.integrate``'s ``pace_bound``, CPU
     seconds): once it has run PACE_AFTER_S CPU seconds, ``beyond(t)`` says whether the CPU
     seconds it spent per unit of t so far put its end, ``t_end``, past the bound, and keeps
-    that projection (``projected``) for its row. It counts from its making: make it where
-    the run starts."""
+    that projection (``projected``; infinite where the run has not moved past t0) for its
+    row. It counts from its making: make it where the run starts."""
 
     def __init__(self, bound_s: float, t0: float, t_end: float) -> None:
-        self.bound_s, self.t0, self.span = bound_s, t0, t_end - t0
+        self.bound_s, self.t0, self.t_end = bound_s, t0, t_end
         self.start = time.process_time()
         self.projected: float | None = None
         self.stopped = False
@@ -58,15 +58,16 @@ class Pace:
         spent = time.process_time() - self.start
         if spent < PACE_AFTER_S:
             return False
-        done = (t - self.t0) / self.span
+        done = (t - self.t0) / (self.t_end - self.t0)
         self.projected = spent / done if done > 0 else math.inf
         self.stopped = self.projected > self.bound_s
         return self.stopped
 
     def message(self, t: float, cpu: float) -> str:
         """The row's message where ``beyond`` stopped the run at ``t`` after ``cpu`` seconds."""
-        return (f"{PACED} t={t:.6g} of {self.t0 + self.span:g} reached in {cpu:.3g} s CPU, which puts "
-                f"t_final at about {self.projected:.3g} s CPU, past {self.bound_s:g} s")
+        ahead = (f"which puts t_final at about {self.projected:.3g} s CPU" if math.isfinite(self.projected)
+                 else "no progress past t0, which puts t_final beyond any CPU time")
+        return f"{PACED} t={t:.6g} of {self.t_end:g} reached in {cpu:.3g} s CPU, {ahead}, past {self.bound_s:g} s"
 
 
 def stop_here(steps: int, cpu_end: float | None, deadline: float | None, pace: Pace | None = None,
@@ -193,7 +194,7 @@ def trajectory(problem, library: str, t: np.ndarray, u: np.ndarray, cpu: float, 
         status, message = Status.DIVERGED, BLOWUP_MESSAGE.format(t=t[-1])
     elif timed_out and pace is not None and pace.stopped:
         status, message = Status.TIMEOUT, pace.message(float(t[-1]), cpu)
-        extra["pace_cpu_s"] = pace.projected
+        extra["pace_cpu_s"] = pace.projected if math.isfinite(pace.projected) else None  # a row holds no inf
     elif timed_out:
         status, message = Status.TIMEOUT, (f"stopped at t={t[-1]:.6g}: past the cell's time limit" if stoppable else
                                       f"ran to t={t[-1]:.6g} past the cell's time limit ({library}'s loop cannot "
