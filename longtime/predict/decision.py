@@ -236,8 +236,9 @@ def problem_verdict(problem: str, rows: list[dict[str, Any]], checks: Iterable[d
         return Verdict(problem, m, [], t_main)
     cands = settings(mine, m)
     horizons = tuple(t_main * f for f in HORIZON_FACTORS)
-    grid = {(t, h): decide(cands, t, h, predictability(mine, t, growth) if m.solution else None)
-            for t in TARGETS for h in horizons}
+    # a target's predictability horizon is the same at every horizon of the map
+    limits = {t: predictability(mine, t, growth) if m.solution else None for t in TARGETS}
+    grid = {(t, h): decide(cands, t, h, limits[t]) for t in TARGETS for h in horizons}
     v = Verdict(problem, m, cands, t_main, TARGETS, horizons, grid,
                 [c for c in checks if c.get("problem") == problem])
     keep = v.reachable_targets()
