@@ -91,19 +91,26 @@ def _per_step(rows: list[dict]) -> dict[str, Any]:
             "instructions_per_step": statistics.median(ins) if ins else None}
 
 
-def _pareto(rows: list[dict], name: str) -> list[dict[str, Any]]:
+def _pareto(rows: list[dict], name: str, fronts: dict[str, tuple] | None = None) -> list[dict[str, Any]]:
     """Per accuracy decade of the problem's front: the fastest scheme and this scheme's best
-    CPU time over the fastest's (None where no row of it meets the target)."""
+    CPU time over the fastest's (None where no row of it meets the target). ``fronts``: each
+    problem's (field, main final time, front) as found for another card of the same rows,
+    and where this one's is found."""
     from longtime.reporting.report import main_t_final, pareto, pareto_field
 
-    field = pareto_field(rows)
+    problem = rows[0]["problem"]
+    if fronts is None or problem not in fronts:
+        field = pareto_field(rows)
+        found = (field, main_t_final(rows), pareto(rows, field) if field else [])
+        if fronts is not None:
+            fronts[problem] = found
+    field, t_main, front = found if fronts is None else fronts[problem]
     if not field:
         return []
-    t_main = main_t_final(rows)
     mine = [r for r in rows if r.get("integrator") == name and r.get("status") == Status.OK and positive(r.get("cpu_s"))
             and positive(r.get(field)) and r.get("t_final") == t_main]
     out = []
-    for p in pareto(rows, field):
+    for p in front:
         meets = [r["cpu_s"] for r in mine if r[field] <= p["target"]]
         out.append({"target": p["target"], "field": field, "fastest": p["best"]["integrator"],
                     "is_fastest": p["best"]["integrator"] == name,
@@ -112,10 +119,11 @@ def _pareto(rows: list[dict], name: str) -> list[dict[str, Any]]:
 
 
 def card(scheme: Any, rows: Iterable[dict] | None = None, *, structure: bool = True,
-         stability: bool = True) -> dict[str, Any]:
+         stability: bool = True, fronts: dict[str, tuple] | None = None) -> dict[str, Any]:
     """The card of ``scheme`` (a registered name, a class or an instance) from ``rows``
     (row dicts; None: the scheme alone). ``structure``/``stability``: measure the step map
-    and the stability interval (each takes a few compiled steps; the interval is cached)."""
+    and the stability interval (each takes a few compiled steps; the interval is cached).
+    ``fronts``: the problems' fronts shared between the cards of the same rows (``_pareto``)."""
     from longtime.measure import structure as structure_mod
     from longtime.measure.stability import interval_texts
 
@@ -126,9 +134,12 @@ def card(scheme: Any, rows: Iterable[dict] | None = None, *, structure: bool = T
                                  if stability else NOT_MEASURED)
     out["structure"] = structure_mod.measure(scheme).as_dict() if structure else None
     orders = _orders(rows, name)
+    by_problem: dict[str, list[dict]] = {}
+    for r in rows:
+        by_problem.setdefault(r["problem"], []).append(r)
     problems = []
     for problem in sorted({r["problem"] for r in rows if r.get("integrator") == name}):
-        all_rows = [r for r in rows if r["problem"] == problem]
+        all_rows = by_problem[problem]
         mine = [r for r in all_rows if r.get("integrator") == name]
         if all(r.get("status") == Status.SKIPPED for r in mine):  # the scheme cannot treat the problem
             problems.append({"problem": problem, "cells": len(mine), "ok": 0, "statuses": ["skipped"],
@@ -139,7 +150,7 @@ def card(scheme: Any, rows: Iterable[dict] | None = None, *, structure: bool = T
                          "ok": sum(r.get("status") == Status.OK for r in mine),
                          "statuses": sorted({str(r.get("status")) for r in mine}),
                          "orders": orders.get(problem, []), "growth": _growth(mine), **_per_step(mine),
-                         "pareto": _pareto(all_rows, name)})
+                         "pareto": _pareto(all_rows, name, fronts)})
     out["problems"] = problems
     return out
 
@@ -351,10 +362,11 @@ def cards_html(rows: list[dict], schemes: Iterable[str] | None = None, *, struct
     adds (plain text, escaped here)."""
     names = sorted(set(schemes) if schemes is not None else {r["integrator"] for r in rows})
     parts = []
+    fronts: dict[str, tuple] = {}  # each problem's front, found for the first card that reads it
     for name in names:
         try:
-            c = card(name, rows, structure=structure, stability=True) if stability else _cached_card(name, rows,
-                                                                                                   structure)
+            c = card(name, rows, structure=structure, stability=True, fronts=fronts) if stability else \
+                _cached_card(name, rows, structure, fronts)
         except Exception as exc:  # a scheme no longer installed: its rows still say what they say
             parts.append(f'<p class="note">{escape(name)}: no card ({escape(type(exc).__name__)}: '
                          f'{escape(exc)})</p>')
@@ -367,10 +379,10 @@ def cards_html(rows: list[dict], schemes: Iterable[str] | None = None, *, struct
     return '<section id="scheme-cards">' + CARD_CSS + note + "".join(parts) + "</section>"
 
 
-def _cached_card(name: str, rows: list[dict], structure: bool) -> dict[str, Any]:
+def _cached_card(name: str, rows: list[dict], structure: bool, fronts: dict[str, tuple]) -> dict[str, Any]:
     from longtime.measure.stability import cached_texts
 
-    c = card(name, rows, structure=structure, stability=False)
+    c = card(name, rows, structure=structure, stability=False, fronts=fronts)
     texts, _ = cached_texts({name: None})
     c["stability_interval"] = texts.get(name, NOT_MEASURED)
     return c
