@@ -26,6 +26,8 @@ TABLE_ROWS = 15  # the steps a problem's table lists (the largest first); the re
 
 def repeated(store, rows: list[dict]) -> list[dict[str, Any]]:
     """The history of the cells of ``rows`` that more than one stored run holds."""
+    if len(store.runs()) < 2:  # no cell is in two runs: the store's rows are not read
+        return []
     keys = {cell_key(r) for r in rows}
     problems = sorted({r["problem"] for r in rows})
     schemes = sorted({r["integrator"] for r in rows})
