@@ -34,9 +34,10 @@ from typing import Any, Callable, Iterable
 from longtime.core.files import NotWritten, write_atomic
 from longtime.core.status import Status
 from longtime.measure.orders import left_out, observed_orders
+from longtime.predict.decision import Verdict
 from longtime.reporting.figures.results import figures_drawing
 from longtime.reporting.figures.style import styles
-from longtime.reporting.figures.verdict import winner_map_svg
+from longtime.reporting.figures.verdict import checks_svg, winner_map_svg
 from longtime.reporting.figures_ahead import FiguresAhead, stability_schemes
 from longtime.reporting.markup import CSS, SCRIPT, escape, num, slug, table
 from longtime.reporting.page_answers import (
@@ -164,9 +165,10 @@ def _verdict_section(p: str, v, mine: list[dict], style: dict | None = None, fig
     return "".join(out)
 
 
-def _checks_section(checks: list[dict]) -> str:
+def _checks_section(checks: list[dict], figure: Callable[[], str | None]) -> str:
+    """The checked predictions: their summary, the failed ones, ``figure()`` (their figure,
+    ``checks_svg``, drawn beside the page)."""
     from longtime.predict.checks import check_holds, check_summary
-    from longtime.reporting.figures.verdict import checks_svg
     from longtime.reporting.verdict import check_text
 
     out = ['<h2 id="checks">Checked predictions</h2>']
@@ -178,7 +180,7 @@ def _checks_section(checks: list[dict]) -> str:
     failed = [c for c in checks if check_holds(c) is False]
     if failed:  # the checks that failed first, each in a line
         out.append('<p>Failed:</p><ul>' + "".join(f"<li>{escape(check_text(c))}</li>" for c in failed) + "</ul>")
-    fig = checks_svg(checks)
+    fig = figure()
     if fig:
         out.append(f'<figure class="plot">{fig}<figcaption>Each check: a winner of a map re-run at a horizon past its '
                    f"run, its predicted error against the measured one (filled: its CPU time within the predicted "
@@ -270,7 +272,8 @@ def _evidence(p: str, mine: list[dict], figs: dict, fits: list[dict], missing: l
 def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bool = True,
                stability: bool = True, jobs: int = 1, ahead: FiguresAhead | None = None,
                history: str | Callable[[], str | None] | None = None, checks: Iterable[dict[str, Any]] = (),
-               writer: str = "report --html", ensembles: Iterable[dict[str, Any]] = ()) -> str:
+               writer: str = "report --html", ensembles: Iterable[dict[str, Any]] = (),
+               verdicts: dict[str, Verdict] | None = None) -> str:
     """The page's HTML for ``rows`` (of the ``runs`` whose metadata closes it), led by the
     verdict of each problem (``checks``: the stored checks of its predictions), then the
     scheme cards, then the evidence (folded), the history, the capability matrix, the
@@ -278,7 +281,8 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
     processes, but for those ``ahead`` drew from the same rows. ``history``: the history
     section (longtime.reporting.history_page), or the function that makes it. ``writer``: the command that wrote
     the page, named in its footer. ``ensembles``: the stored ensemble distances of the
-    chaotic problems (each in its problem's evidence)."""
+    chaotic problems (each in its problem's evidence). ``verdicts``: ``map_verdicts`` of the
+    rows and checks, where the caller has them."""
     from longtime.reporting.recommend import map_verdicts
 
     ensembles = list(ensembles)
@@ -292,14 +296,16 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
 
     builtin, plugins = stability_schemes(rows) if stability else ({}, {})
     # the figures drawn on other processes while this one does the rest
-    with figures_drawing(by_problem, style, drift, jobs, builtin, ahead, later=len(problems)) as (drawn, draw):
-        found = map_verdicts(rows, checks)
-        # the winner maps drawn beside the rest (a map costs what a work-precision figure does)
+    with figures_drawing(by_problem, style, drift, jobs, builtin, ahead, later=len(problems) + 1) as (drawn, draw):
+        found = map_verdicts(rows, checks) if verdicts is None else verdicts
+        # the winner maps and the checks' figure drawn beside the rest (each costs what a
+        # work-precision figure does)
         maps = {p: draw(winner_map_svg, found[p], style) for p in problems}
+        checks_figure = draw(checks_svg, checks) if checks else (lambda: None)
         fits = observed_orders(rows)
         missing = left_out(rows)
         cards = _cards_section(rows)
-        checked = _checks_section(checks)
+        checked = _checks_section(checks, checks_figure)
         history = history() if callable(history) else history
         verdict_sections = [_verdict_section(p, found[p], by_problem[p], style, maps[p]()) for p in problems]
         figures, intervals = drawn()
@@ -387,11 +393,12 @@ def figure_files(page: str) -> tuple[str, dict[str, bytes]]:
 def write_page(out_dir: str | Path, rows: list[dict[str, Any]], runs: list[dict[str, Any]],
                drift: bool = True, jobs: int = 1, ahead: FiguresAhead | None = None,
                history: str | Callable[[], str | None] | None = None, checks: Iterable[dict[str, Any]] = (),
-               writer: str = "report --html", ensembles: Iterable[dict[str, Any]] = ()) -> Path:
+               writer: str = "report --html", ensembles: Iterable[dict[str, Any]] = (),
+               verdicts: dict[str, Verdict] | None = None) -> Path:
     """Write ``out_dir``/index.html and its figures (drawn on ``jobs`` processes, or
     ``ahead``) in ``out_dir``/figures; return the page's path."""
     page, files = figure_files(build_page(rows, runs, drift=drift, jobs=jobs, ahead=ahead, history=history,
-                                          checks=checks, writer=writer, ensembles=ensembles))
+                                          checks=checks, writer=writer, ensembles=ensembles, verdicts=verdicts))
     return write_folder(out_dir, page, files)
 
 
@@ -432,12 +439,14 @@ def write_folder(out_dir: str | Path, page: str, files: dict[str, bytes]) -> Pat
 
 
 def write_html(out_dir, rows: list[dict[str, Any]], store, run_ids: Iterable[int] | None = None,
-               jobs: int | None = None, ahead=None, writer: str = "report --html"):
+               jobs: int | None = None, ahead=None, writer: str = "report --html",
+               verdicts: dict[str, Verdict] | None = None):
     """The results page of ``rows`` into ``out_dir``/index.html, with the checks the store
     keeps of ``run_ids``' predictions, its metadata at the end (default: every run the rows
     come from), its figures drawn on ``jobs`` processes (default: one per core) but for those
     drawn ``ahead`` (an figures_ahead.FiguresAhead); ``writer``: the command that writes it
-    (the footer names it); returns its path."""
+    (the footer names it); ``verdicts``: ``map_verdicts`` of the rows and the checks the
+    store keeps of ``run_ids``, where the caller has them; returns its path."""
     from longtime.reporting.history import machines_section
     from longtime.reporting.history_page import page_section
 
@@ -454,4 +463,4 @@ def write_html(out_dir, rows: list[dict[str, Any]], store, run_ids: Iterable[int
     from longtime.execution.pool import workers
 
     return write_page(out_dir, rows, runs, jobs=workers(jobs or 0), ahead=ahead, history=history, checks=checks,
-                      writer=writer, ensembles=ensembles)
+                      writer=writer, ensembles=ensembles, verdicts=verdicts)

@@ -8,6 +8,7 @@ from typing import Any, Iterable
 from longtime.core.rowtext import setting
 from longtime.core.status import Status, bounded
 from longtime.measure.lyapunov import past_predictability
+from longtime.predict.decision import Verdict
 from longtime.predict.settings import SOLUTION_FIELDS
 from longtime.reporting.recommend import map_verdicts
 from longtime.reporting.report import counts_text, pareto, pareto_field, render, summary
@@ -35,16 +36,18 @@ def _chaotic(problem: str, rows: list[dict[str, Any]]) -> bool:
     return bool(getattr(cls, "chaotic", False)) and any(past_predictability(r) for r in rows)
 
 
-def answer_rows(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = ()) -> list[dict[str, Any]]:
+def answer_rows(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = (),
+                verdicts: dict[str, Verdict] | None = None) -> list[dict[str, Any]]:
     """Per problem, the cheapest setting predicted (longtime.reporting.verdict) to keep each
     of ANSWER_TARGETS' errors up to its horizon: {"problem", "field", "t_main", "answers":
     [text per target]}. A chaotic problem's target no setting keeps, once its rows lost the
-    solution, is NO_POINTWISE (its ensembles say what holds)."""
+    solution, is NO_POINTWISE (its ensembles say what holds). ``verdicts``: ``map_verdicts``
+    of these rows and checks, where the caller has them already."""
     from longtime.predict.decision import decide
     from longtime.reporting.verdict import decision_text
 
     out = []
-    for problem, v in map_verdicts(rows, checks).items():
+    for problem, v in (map_verdicts(rows, checks) if verdicts is None else verdicts).items():
         mine = [r for r in rows if r.get("problem") == problem]
         chaotic = _chaotic(problem, mine)
         answers, costs = [], []
@@ -269,7 +272,8 @@ def problem_line(problem: str, rows: list[dict[str, Any]], fits: list[dict[str, 
 
 
 def first_screen(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = (),
-                 ensembles: Iterable[dict[str, Any]] = (), page: str | None = None) -> str:
+                 ensembles: Iterable[dict[str, Any]] = (), page: str | None = None,
+                 verdicts: dict[str, Verdict] | None = None) -> str:
     """The default report (``longtime report``, the end of ``longtime matrix``): the answer
     table across problems, the counts with their reasons, a line or two per problem, the
     notes said once, where the rest is. At most about 80 lines at WIDTH columns for a main
@@ -280,7 +284,7 @@ def first_screen(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = 
     if not rows:
         return "no rows"
     checks = list(checks)
-    answers = answer_rows(rows, checks)
+    answers = answer_rows(rows, checks, verdicts)
     lines = _wrap("cheapest setting predicted to keep the error up to T (T: the run's final time; the error: the "
                   "solution's, the energy's where marked (H)), beneath it its predicted CPU time and the runner-up's "
                   "as a multiple of it; `longtime recommend -p P --error E --horizon T`:", "  ")
@@ -315,13 +319,14 @@ def first_screen(rows: list[dict[str, Any]], checks: Iterable[dict[str, Any]] = 
 
 def report_text(rows: list[dict[str, Any]], fmt: str = "table", full: bool = False,
                 checks: Iterable[dict[str, Any]] = (), ensembles: Iterable[dict[str, Any]] = (),
-                page: str | None = None) -> str:
+                page: str | None = None, verdicts: dict[str, Verdict] | None = None) -> str:
     """What ``longtime report`` prints: the first screen (format table: ``first_screen``;
     ``checks``: the stored checks of the verdicts' predictions; ``page``: the results page's
-    path, named at its end); with ``full`` every line of the summary per problem and the
+    path, named at its end; ``verdicts``: ``map_verdicts`` of the rows and checks, where the
+    caller has them); with ``full`` every line of the summary per problem and the
     full per-cell tables instead; csv, json and markdown are the full tables."""
     if fmt != "table":
         return render(rows, fmt)
     if not full:
-        return first_screen(rows, checks=checks, ensembles=ensembles, page=page)
+        return first_screen(rows, checks=checks, ensembles=ensembles, page=page, verdicts=verdicts)
     return summary(rows, full=True, checks=checks, ensembles=ensembles) + "\n\n" + render(rows, "table")

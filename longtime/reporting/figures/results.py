@@ -285,6 +285,10 @@ def _space_panels(fig, rows: int, cols: int) -> None:
 # settings' kept curves
 FIGURE_GROUPS = {"work_precision": ("field", "work_precision", "work_precision_instructions"),
                  "drift": ("drift", "drift_notes", "diagnostics", "diagnostics_notes")}
+# the curves a row keeps, which the work-precision figures never read (its points are the rows'
+# errors and costs, its front the rows' fields): most of a row's bytes, left out of that
+# group's digest
+CURVE_FIELDS = ("drift_curve", "drift_curves", "diag_curves", "error_curve")
 
 
 def figure_inputs(rows: list[dict[str, Any]], style: dict, drift: bool = True) -> dict[str, str]:
@@ -301,7 +305,8 @@ def figure_inputs(rows: list[dict[str, Any]], style: dict, drift: bool = True) -
         return [setting_text(row), *(row.get(k) for k in ("drift_curve", "drift_curves", "diag_curves"))]
 
     settings = [[scheme, style.get(scheme), drawn(row)] for scheme, row in drawn_settings(rows)] if drift else []
-    return {"work_precision": _digest([rows, style]),
+    points = [{k: v for k, v in r.items() if k not in CURVE_FIELDS} for r in rows]
+    return {"work_precision": _digest([points, style]),
             "drift": _digest([drift, any(r.get("diag_curves") for r in rows), settings])}
 
 
@@ -349,8 +354,9 @@ def figures_drawing(by_problem: dict[str, list[dict]], style: dict, drift: bool,
     figures}, {scheme: text}), ``draw``), so that the caller does its own work meanwhile.
     ``draw(fn, *args)`` hands one of the ``later`` figures the caller makes once it has their
     inputs (the winner maps) to the same processes and returns the function that gives its
-    result. The groups of figures ``ahead`` drew from the same inputs (``figure_inputs``)
-    are taken as they are, and the intervals it found at the same N. matplotlib spends
+    result (drawn by the caller where no process has started it by then). The groups of
+    figures ``ahead`` drew from the same inputs (``figure_inputs``) are taken as they are,
+    and the intervals it found at the same N. matplotlib spends
     about a third of a second a figure, and a scheme's stability interval about a second
     when not cached, all of it in Python, so only processes run them beside the caller: up
     to ``jobs`` of them, where the work outweighs their start-up; else the work is done
@@ -404,7 +410,13 @@ def figures_drawing(by_problem: dict[str, list[dict]], style: dict, drift: bool,
                 figures[p].update(f.result())
             return figures, texts
 
-        yield collected, lambda fn, *args: pool.submit(fn, *args).result
+        def draw(fn, *args):
+            future = pool.submit(fn, *args)
+            # a figure no process has started when its result is wanted is drawn here, where
+            # the caller would only wait
+            return lambda: fn(*args) if future.cancel() else future.result()
+
+        yield collected, draw
 
 
 def _processes(work: float, jobs: int) -> int:
