@@ -71,3 +71,20 @@ def test_the_api_main_job_writes_the_page_and_the_report(tmp_path):
     assert out.page_error is None and out.page == tmp_path / "page" / "index.html" and out.page.exists()
     assert "harmonic" in out.text and "verlet" in out.text
     assert len(out.job.rows) == len(plan(spec.selection, QUICK)[0])
+
+
+def test_the_rows_handed_on_as_the_timing_processes_end_are_the_rows_the_store_gives_back(tmp_path):
+    """The workers' ensembles start from the timed rows as the store updates them (run_matrix's
+    ``on_timed``, ``main_job.as_stored``): the chaotic problems' rows, the very records
+    ``Store.rows`` reads back afterwards (the ensembles read nothing else)."""
+    from longtime.execution.main_job import as_stored
+    from longtime.execution.matrix import run_matrix
+
+    cells, _ = plan(Selection(problems=("henon-heiles", "harmonic"), schemes=("verlet",), t_final=(20.0,)), QUICK)
+    store = Store(tmp_path / "s.sqlite")
+    run_id = store.begin_run("test", cells)
+    handed: list[dict] = []
+    run_matrix(cells, store, run_id, "serial", QUICK, on_timed=handed.extend)
+    read = [r for r in store.rows(run_id) if r["problem"] == "henon-heiles"]
+    assert read and len(handed) == len(cells)
+    assert as_stored(handed, run_id) == read  # harmonic, not chaotic, left out

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import json
+import os
 import sys
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterator, Mapping
@@ -151,7 +153,8 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
         store.run(spec.baseline)  # an unknown baseline is bad input, caught up front
         check_baseline(store, spec.baseline, cells)
     made = None
-    with recorded_run(store, spec.command, cells, run_id) as run_id:
+    with recorded_run(store, spec.command, cells, run_id) as run_id, contextlib.ExitStack() as workers_held:
+        after = _AfterTiming(spec, options, workers_held, run_id)
         if spec.resume is None:
             print(f"run {run_id}: {len(cells)} cells into {store.path}", file=sys.stderr)
         if died:
@@ -161,19 +164,19 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
             made = ahead(cells, run_id, timed_again=options.processes > 1)
             options = dataclasses.replace(options, idle_work=made.task)
         run_matrix(cells, store, run_id, spec.executor, options, progress=shown,
-                   on_row=made.add if made is not None else None)
+                   on_row=made.add if made is not None else None, on_timed=after.timed if pooled else None)
         if spec.resume is not None:  # the rows stored before the interruption, timed and counted
             complete_phases(store, run_id, options)
-        early = None
         # the rows as timed, read once: what the checks, the ensembles, the last figures and the result read
         rows = store.rows(run_id)
-        with _workers(spec, options) as queued:  # the checks' runs, the ensembles, the page's last figures
+        # the checks' runs, the ensembles, the page's last figures
+        queued = after.workers(rows)
+        early = after.ensembles
+        with workers_held:  # the workers end with the checks, the ensembles and the figures
             if queued is not None:
-                early = ensembles.Ahead(rows) if spec.ensembles else None
                 if made is not None:
                     made.timed(rows)
-                for owner in filter(None, (early, made)):  # the ensembles first: the longest tasks
-                    queued.take(owner)
+                    queued.take(made)
             if spec.checks:  # a few of the verdicts' predictions re-run past the rows' final times
                 _check(store, run_id, rows, options, spec.checks, shown, queued.pool if queued is not None else None)
             if queued is not None:
@@ -188,16 +191,58 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
     return _result(store, run_id, ahead=made, rows=rows)
 
 
+class _AfterTiming:
+    """The workers of the work after the timing processes (the checks' runs, the ensembles,
+    the page's last figures), held by ``held``: started as the timing processes end
+    (``timed``, run_matrix's ``on_timed``), the chaotic problems' ensembles queued on them
+    first (the longest tasks), while the rows are stored; or at ``workers``."""
+
+    def __init__(self, spec: MainJobSpec, options: ExecOptions, held: contextlib.ExitStack, run_id: int):
+        self.spec, self.options, self.held, self.run_id = spec, options, held, run_id
+        self.queued: Queued | None = None
+        self.started = False
+        self.ensembles: ensembles.Ahead | None = None
+
+    def timed(self, fresh: list[dict[str, Any]]) -> None:
+        """The timing processes are done (``fresh``: the rows as they are being stored)."""
+        self._start(lambda: as_stored(fresh, self.run_id), boot=True)
+
+    def workers(self, rows: list[dict[str, Any]]) -> Queued | None:
+        """The workers, started now where the timing processes did not (``rows``: as stored)."""
+        if not self.started:
+            self._start(lambda: rows, boot=False)
+        return self.queued
+
+    def _start(self, rows: Callable[[], list[dict[str, Any]]], boot: bool) -> None:
+        self.started = True
+        self.queued = self.held.enter_context(_workers(self.spec, self.options, boot=boot))
+        if self.queued is not None and self.spec.ensembles:
+            self.ensembles = ensembles.Ahead(rows())
+            self.queued.take(self.ensembles)
+
+
+def as_stored(rows: list[dict[str, Any]], run_id: int) -> list[dict[str, Any]]:
+    """The rows of the chaotic problems (what the ensembles read) among ``rows``, as the store
+    gives them back once it holds them (``Store.rows``: their JSON text read back, with their
+    ``run_id``), without reading the store."""
+    chaotic = set(ensembles.chaotic_problems(rows))
+    return [{"run_id": run_id, **json.loads(json.dumps(r))} for r in rows if r["problem"] in chaotic]
+
+
 @contextlib.contextmanager
-def _workers(spec: MainJobSpec, options: ExecOptions) -> Iterator[Queued | None]:
+def _workers(spec: MainJobSpec, options: ExecOptions, boot: bool = False) -> Iterator[Queued | None]:
     """On the process executor, once the timing processes are done: a pool of workers (one
     per core) for the checks' runs, each timed in a worker as the cells were, and the tasks
     queued beside them (``Queued``); else None (the checks and the ensembles run in this
-    process)."""
+    process). ``boot``: each worker started now (an interpreter and its imports), not at its
+    first task."""
     if spec.executor != "process" or not (spec.checks or spec.ensembles):
         yield None
         return
     with worker_pool(options.workers(), options.run_spec()) as pool:
+        if boot:
+            for _ in range(options.workers()):
+                pool.submit(os.getpid)
         yield Queued(pool)
 
 

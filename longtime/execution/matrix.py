@@ -286,12 +286,15 @@ def get_executor(name: str) -> Executor:
 
 def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, executor: str = "process",
                options: ExecOptions | None = None, progress: "bool | Progress" = False,
-               on_row: Callable[[Cell, dict], None] | None = None) -> list[dict]:
+               on_row: Callable[[Cell, dict], None] | None = None,
+               on_timed: Callable[[list[dict]], None] | None = None) -> list[dict]:
     """Run the cells, storing each row as it completes (then ``on_row(cell, row)``), then
     time them in ``options.processes - 1`` more processes (longtime.execution.processes), each
-    stored row updated with their times; returns the rows in cell order. ``progress`` (True,
-    or a longtime.core.progress.Progress) shows each phase on stderr: the cells, the timing
-    processes, the instruction counts."""
+    stored row updated with their times (``on_timed(rows)`` is given the rows as they are
+    then stored, once the timing processes and the calibration after them are done, before
+    the store is updated); returns the rows
+    in cell order. ``progress`` (True, or a longtime.core.progress.Progress) shows each phase
+    on stderr: the cells, the timing processes, the instruction counts."""
     options = options or ExecOptions()
     # the timing processes start on this machine: a Dask cluster's rows are timed where they
     # ran, in one process
@@ -340,12 +343,15 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
     with timing_phase:
         across_processes(found, processes, options.run_spec(), options.workers(), on_progress=shown.advance,
                          alone=alone)
-    for cell, row in found:
-        phase_done(row, PROCESSES_PHASE)
-        if storing:
-            store.update_row(run_id, cell, row)
-    if storing:
+    if storing:  # the machine's speed after the cells, before any other work starts
         store.add_calibrations(run_id, [here.take("after")])
+    for _, row in found:
+        phase_done(row, PROCESSES_PHASE)
+    if on_timed is not None:
+        on_timed([row for _, row in found])
+    if storing:
+        for cell, row in found:
+            store.update_row(run_id, cell, row)
     if options.cost == "instructions":  # after every timed run: Valgrind's process times nothing
         with shown.phase("instruction counts", detail=f"{len(found)} cells under Valgrind"):
             _add_instructions(cells, rows, store if storing else None, run_id, options)
