@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import json
 import os
 import sys
 from dataclasses import dataclass, field
@@ -25,7 +24,7 @@ from longtime.execution.lifecycle import recorded_run
 from longtime.execution.matrix import PHASES_FIELD, ExecOptions, complete_phases, run_matrix
 from longtime.execution.pool import Queued, worker_pool
 from longtime.execution.run_environment import this_machine
-from longtime.execution.store import Store, machine_text, other_machine, recorded_machine
+from longtime.execution.store import Store, as_read, machine_text, other_machine, recorded_machine
 from longtime.predict.checks import CHECKS, check_budget, check_summary
 
 
@@ -223,10 +222,9 @@ class _AfterTiming:
 
 def as_stored(rows: list[dict[str, Any]], run_id: int) -> list[dict[str, Any]]:
     """The rows of the chaotic problems (what the ensembles read) among ``rows``, as the store
-    gives them back once it holds them (``Store.rows``: their JSON text read back, with their
-    ``run_id``), without reading the store."""
+    gives them back once it holds them (``store.as_read``), without reading the store."""
     chaotic = set(ensembles.chaotic_problems(rows))
-    return [{"run_id": run_id, **json.loads(json.dumps(r))} for r in rows if r["problem"] in chaotic]
+    return [as_read(r, run_id) for r in rows if r["problem"] in chaotic]
 
 
 @contextlib.contextmanager

@@ -292,9 +292,9 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
     time them in ``options.processes - 1`` more processes (longtime.execution.processes), each
     stored row updated with their times (``on_timed(rows)`` is given the rows as they are
     then stored, once the timing processes and the calibration after them are done, before
-    the store is updated); returns the rows
-    in cell order. ``progress`` (True, or a longtime.core.progress.Progress) shows each phase
-    on stderr: the cells, the timing processes, the instruction counts."""
+    the store is updated); returns the rows in cell order. ``progress`` (True, or a
+    longtime.core.progress.Progress) shows each phase on stderr: the cells, the timing
+    processes, the instruction counts."""
     options = options or ExecOptions()
     # the timing processes start on this machine: a Dask cluster's rows are timed where they
     # ran, in one process

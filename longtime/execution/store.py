@@ -279,6 +279,12 @@ class Store(RunRecords):
         return out
 
 
+def as_read(row: dict[str, Any], run_id: int | None) -> dict[str, Any]:
+    """``row`` as ``Store.rows`` gives it back once stored in ``run_id``: its JSON text read
+    back, with its ``run_id``; no store is read."""
+    return {"run_id": run_id, **json.loads(json.dumps(row))}
+
+
 # the fields every reader of a stored row relies on: its names, status, parameters and texts
 READ_FIELDS = ("problem", "integrator", "status", *ROW_PARAMETERS, "t_final", "settings", "parameters", "message")
 

@@ -99,12 +99,13 @@ def _pareto(rows: list[dict], name: str, fronts: dict[str, tuple] | None = None)
     from longtime.reporting.report import main_t_final, pareto, pareto_field
 
     problem = rows[0]["problem"]
-    if fronts is None or problem not in fronts:
+    found = fronts.get(problem) if fronts is not None else None
+    if found is None:
         field = pareto_field(rows)
         found = (field, main_t_final(rows), pareto(rows, field) if field else [])
         if fronts is not None:
             fronts[problem] = found
-    field, t_main, front = found if fronts is None else fronts[problem]
+    field, t_main, front = found
     if not field:
         return []
     mine = [r for r in rows if r.get("integrator") == name and r.get("status") == Status.OK and positive(r.get("cpu_s"))

@@ -5,10 +5,10 @@ are; the page takes what was drawn from the rows it shows, and finds the rest in
 caches."""
 from __future__ import annotations
 
-import json
 from typing import Any, Sequence
 
 from longtime.core.status import Status
+from longtime.execution.store import as_read
 from longtime.reporting.figures.results import FIGURE_GROUPS, figure_inputs, problem_figures
 from longtime.reporting.figures.style import styles
 
@@ -93,7 +93,7 @@ class FiguresAhead:
 
     def add(self, cell, row: dict) -> None:
         """A stored row (kept as the store gives it back: JSON and its run id)."""
-        self.rows.setdefault(cell.problem, []).append({"run_id": self.run_id, **json.loads(json.dumps(row))})
+        self.rows.setdefault(cell.problem, []).append(as_read(row, self.run_id))
         self.outcomes.setdefault(cell.integrator, []).append(
             {k: row.get(k) for k in ("integrator", "status", "order")})
         for name in (("problem", cell.problem), ("scheme", cell.integrator)):
