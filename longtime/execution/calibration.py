@@ -218,6 +218,15 @@ class Calibrator:
     def due(self) -> bool:
         return not self.points or time.time() - self.points[-1]["t"] >= self.interval
 
+    def recent(self, phase: str) -> dict[str, Any]:
+        """This process's latest calibration where it is recent (``due`` not yet), else one
+        taken now and kept for the next caller; it rides on no row (the caller annotates its
+        own record with it)."""
+        if self.due():
+            with phases.phase("calibration"):
+                self.points.append(measure(phase))
+        return self.points[-1]
+
     def start(self) -> None:
         self._rows = []
         if self.due():

@@ -398,8 +398,7 @@ def checked_run(cell, max_samples: int, timing, time_limit: float | None, refere
     calibrated units."""
     from longtime.execution.cells import run_cell
 
-    here = calibration.here()
-    point = here.points[-1] if here.points and not here.due() else calibration.measure("checks")
+    point = calibration.here().recent("checks")
     row = run_cell(cell, max_samples, True, timing, time_limit, None, reference_s)
     calibration.annotate(row, [point], point["t"])
     return row
