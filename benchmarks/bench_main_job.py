@@ -86,6 +86,8 @@ BREAKDOWN = (
     ("report", ("report",)),
     ("main process while the pool runs", ("pool",)),
     ("main process while timing processes run", ("timing processes",)),
+    ("main process: the timed rows stored, read", ("store",)),
+    ("main process: the checks planned, judged", ("checks",)),
 )
 # the caches a cold run starts without; XDG_CACHE_HOME: heyoka keeps its compiled code there
 CACHE_VARIABLES = ("NUMBA_CACHE_DIR", "LONGTIME_CACHE_DIR", "XDG_CACHE_HOME")

@@ -167,7 +167,8 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
         if spec.resume is not None:  # the rows stored before the interruption, timed and counted
             complete_phases(store, run_id, options)
         # the rows as timed, read once: what the checks, the ensembles, the last figures and the result read
-        rows = store.rows(run_id)
+        with phases.phase("store"):
+            rows = store.rows(run_id)
         # the checks' runs, the ensembles, the page's last figures
         queued = after.workers(rows)
         early = after.ensembles
@@ -261,7 +262,8 @@ def _check(store: Store, run_id: int, rows: list[dict], options: ExecOptions, li
     (longtime.execution.checks), each within the rows' check budget, on ``pool``'s workers
     (None: in this process); the summary on stderr, a failure a warning."""
     try:
-        with shown.phase("checks", detail=f"up to {limit} predictions re-run past the rows' final times"):
+        with phases.phase("checks"), shown.phase("checks", detail=f"up to {limit} predictions re-run past the "
+                                                                  f"rows' final times"):
             checks = run_checks(store, run_id, rows, options, limit=limit, budget_s=check_budget(rows), pool=pool)
     except (InputError, OSError, ValueError) as exc:  # the rows are stored; the checks are extra
         print(f"warning: predictions not checked: {type(exc).__name__}: {exc}", file=sys.stderr)

@@ -350,8 +350,9 @@ def run_matrix(cells: list[Cell], store: Store | None, run_id: int | None, execu
     if on_timed is not None:
         on_timed([row for _, row in found])
     if storing:
-        for cell, row in found:
-            store.update_row(run_id, cell, row)
+        with phases.phase("store"):
+            for cell, row in found:
+                store.update_row(run_id, cell, row)
     if options.cost == "instructions":  # after every timed run: Valgrind's process times nothing
         with shown.phase("instruction counts", detail=f"{len(found)} cells under Valgrind"):
             _add_instructions(cells, rows, store if storing else None, run_id, options)

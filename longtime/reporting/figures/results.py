@@ -323,7 +323,7 @@ def problem_figures(rows: list[dict[str, Any]], style: dict, drift: bool = True,
     None), "drift_notes", "diagnostics" (SVG or None: the problem's diagnostics, where its
     rows keep them), "diagnostics_notes"}, of the ``groups`` (of FIGURE_GROUPS) asked for."""
     out: dict[str, Any] = {}
-    with phase("figures"):
+    with phase("figures", f"{rows[0]['problem'] if rows else '?'}: {', '.join(groups)}"):
         if "work_precision" in groups:
             field = pareto_field(rows)
             out.update({"field": field, "work_precision": None, "work_precision_instructions": None})
@@ -338,6 +338,13 @@ def problem_figures(rows: list[dict[str, Any]], style: dict, drift: bool = True,
                 if any(r.get("diag_curves") for r in rows):
                     out["diagnostics"], out["diagnostics_notes"] = drift_svg(rows, style, "diagnostic")
     return out
+
+
+def drawn_figure(fn: Callable[..., Any], *args: Any) -> Any:
+    """``fn(*args)``, a figure the page hands its figure processes, recorded as a "figures"
+    phase named by ``fn``."""
+    with phase("figures", fn.__name__):
+        return fn(*args)
 
 
 def matplotlib_loaded() -> None:
@@ -395,7 +402,7 @@ def figures_drawing(by_problem: dict[str, list[dict]], style: dict, drift: bool,
                 return figures, texts
 
             def now(fn, *args):
-                result = fn(*args)
+                result = drawn_figure(fn, *args)
                 return lambda: result
 
             yield here, now
@@ -411,10 +418,10 @@ def figures_drawing(by_problem: dict[str, list[dict]], style: dict, drift: bool,
             return figures, texts
 
         def draw(fn, *args):
-            future = pool.submit(fn, *args)
+            future = pool.submit(drawn_figure, fn, *args)
             # a figure no process has started when its result is wanted is drawn here, where
             # the caller would only wait
-            return lambda: fn(*args) if future.cancel() else future.result()
+            return lambda: drawn_figure(fn, *args) if future.cancel() else future.result()
 
         yield collected, draw
 
