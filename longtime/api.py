@@ -12,6 +12,7 @@ prints (timings aside).
 """
 from __future__ import annotations
 
+import contextlib
 import shlex
 import time
 from dataclasses import dataclass, field
@@ -450,6 +451,7 @@ def main_job(spec: Any = None, *, html: Any = None, page: bool = True, full: boo
     if not isinstance(progress, (bool, np.bool_)):
         raise InputError(f"progress={progress!r} is not valid: expected True or False")
     shown = Progress(on=bool(progress))
-    job = run_main_job(spec if spec is not None else MainJobSpec(), progress=shown,
-                       ahead=FiguresAhead if page else None)
-    return page_and_report(job, html, page=page, full=full, progress=shown)
+    with contextlib.ExitStack() as workers:  # the checks' workers draw the page's last figures
+        job = run_main_job(spec if spec is not None else MainJobSpec(), progress=shown,
+                           ahead=FiguresAhead if page else None, keep_workers=workers)
+        return page_and_report(job, html, page=page, full=full, progress=shown)

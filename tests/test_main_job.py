@@ -88,3 +88,26 @@ def test_the_rows_handed_on_as_the_timing_processes_end_are_the_rows_the_store_g
     read = [r for r in store.rows(run_id) if r["problem"] == "henon-heiles"]
     assert read and len(handed) == len(cells)
     assert as_stored(handed, run_id) == read  # harmonic, not chaotic, left out
+
+
+@pytest.mark.slow
+def test_the_workers_of_the_checks_stay_up_for_the_page_until_their_stack_closes(tmp_path):
+    """With ``keep_workers``, the main job's workers (those of its checks and of the figures
+    left to the timed rows) outlive the job, as what ``ahead`` made's ``workers``, until the
+    caller's stack closes: the page draws on them rather than on processes of its own."""
+    import contextlib
+    import os
+
+    from longtime.reporting.figures_ahead import FiguresAhead
+
+    options = ExecOptions(jobs=1, timing=Timing(repeats=1, min_time=0.0), processes=2)
+    spec = _spec(tmp_path / "s.sqlite", checks=1, executor="process", options=options)
+    with contextlib.ExitStack() as stack:
+        job = run_main_job(spec, ahead=FiguresAhead, keep_workers=stack)
+        workers = job.ahead.workers
+        assert workers is not None and workers.submit(os.getpid).result() in workers.pids()
+        # the figures left to the timed rows were drawn on them: the page finds them
+        harmonic = [r for r in job.rows if r["problem"] == "harmonic"]
+        assert job.ahead.figures("harmonic", harmonic, job.ahead.style, True)
+    with pytest.raises(RuntimeError):  # stopped with the stack
+        workers.submit(os.getpid)

@@ -417,3 +417,43 @@ def test_figures_left_to_the_timed_rows_are_tasks_once_the_rows_are_timed():
     assert set(ahead.figures("harmonic", timed, style, drift)) == every
     # other rows than the timed ones: the work-precision figures are the page's to draw
     assert set(ahead.figures("harmonic", [{**timed[0], "cpu_s": 0.2}], style, drift)) == set(FIGURE_GROUPS["drift"])
+
+
+def test_the_page_draws_on_the_main_jobs_workers_where_they_stay_up(monkeypatch):
+    """A main job whose workers stay up for the page (``FiguresAhead.workers``): the page's
+    figures go to them, and no figure process starts, however many figures there are."""
+    from concurrent.futures import Future
+
+    from longtime.reporting.figures import results
+
+    class Workers:  # runs each task at once, as an idle worker would
+        def __init__(self):
+            self.ran = []
+
+        def submit(self, fn, *args):
+            self.ran.append(args[0].__name__ if fn is results.drawn_figure else fn.__name__)
+            done = Future()
+            done.set_result(fn(*args))
+            return done
+
+    class Ahead:
+        workers = Workers()
+
+        def figures(self, *args):
+            return None
+
+        def interval(self, *args):
+            return None
+
+    def started(processes):
+        raise AssertionError(f"{processes} figure processes started beside the main job's workers")
+
+    def winner_map(name):
+        return f"<svg>{name}</svg>"
+
+    monkeypatch.setattr(results, "_figure_pool", started)
+    ahead = Ahead()
+    with results.figures_drawing({}, {}, True, 2, {}, ahead, later=100) as (drawn, draw):
+        assert draw(winner_map, "kepler")() == "<svg>kepler</svg>"
+        assert drawn() == ({}, {})
+    assert ahead.workers.ran == ["winner_map"]

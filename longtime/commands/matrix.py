@@ -3,6 +3,7 @@ interrupted run resumed, then its results page and report (longtime.reporting.ma
 and with --baseline its comparison with a stored run (exit 1 on a regression)."""
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import sys
 
@@ -132,14 +133,18 @@ def cmd_matrix(args) -> int:
     ahead = None
     if page_wanted:  # the page's figures, drawn on the pool's idle workers
         from longtime.reporting.figures_ahead import FiguresAhead as ahead
-    job = run_main_job(spec, progress=shown, ahead=ahead)
-    if not job.ran:  # a resumed run whose cells were all stored: marked done
-        return 0
-    page_error = None
-    if not args.no_report:
-        from longtime.reporting.main_job_report import page_and_report
+    out = None
+    # the workers of the checks draw the page's last figures, then end
+    with contextlib.ExitStack() as workers:
+        job = run_main_job(spec, progress=shown, ahead=ahead, keep_workers=workers)
+        if not job.ran:  # a resumed run whose cells were all stored: marked done
+            return 0
+        if not args.no_report:
+            from longtime.reporting.main_job_report import page_and_report
 
-        out = page_and_report(job, args.html, page=not args.no_html, full=args.full, progress=shown)
+            out = page_and_report(job, args.html, page=not args.no_html, full=args.full, progress=shown)
+    page_error = None
+    if out is not None:
         page_error = out.page_error
         print(out.text)
         print("\n" + wrapped(f"calibration: {drift_text(job.store.calibrations(job.run_id))}"))

@@ -102,7 +102,8 @@ def plan(selection: Selection, options: ExecOptions) -> tuple[list[Cell], list]:
 
 
 def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
-                 ahead: Callable[..., Any] | None = None) -> MainJobResult:
+                 ahead: Callable[..., Any] | None = None,
+                 keep_workers: contextlib.ExitStack | None = None) -> MainJobResult:
     """Run ``spec``: plan its cells (or take a resumed run's left cells, the rows that lack a
     phase, and the cells its process ended inside, each again in a process of its own), run
     them into the store, re-run ``spec.checks`` predictions and measure the ensembles (each
@@ -110,7 +111,10 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
     shows its phases (default: none). ``ahead(cells, run_id, timed_again=...)``, for a new run
     on the process executor, makes the work the pool's idle workers take (``task``) and is
     given each stored row (``add``), then the rows once timed (``timed``), after which its
-    tasks run beside the checks: the results page's figures drawn ahead."""
+    tasks run beside the checks: the results page's figures drawn ahead. With
+    ``keep_workers``, the workers of the checks stay up in it after the job, as what ``ahead``
+    made's ``workers``, for the page's last figures (they have drawn figures already: no
+    process starts for them)."""
     shown = progress or Progress(on=False)
     options = spec.options
     for name, folder in spec.writable:  # refused before the store is opened (or made) and any cell runs
@@ -172,7 +176,9 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
         # the checks' runs, the ensembles, the page's last figures
         queued = after.workers(rows)
         early = after.ensembles
-        with workers_held:  # the workers end with the checks, the ensembles and the figures
+        kept = keep_workers is not None and queued is not None and made is not None
+        # the workers end with the checks, the ensembles and the figures, or with the page
+        with contextlib.nullcontext() if kept else workers_held:
             if queued is not None:
                 if made is not None:
                     made.timed(rows)
@@ -182,6 +188,9 @@ def run_main_job(spec: MainJobSpec, progress: Progress | None = None,
             if queued is not None:
                 with phases.phase("ensembles"):  # waiting for the workers' ensembles and figures
                     queued.finish()
+        if kept:
+            made.workers = queued.pool
+            keep_workers.enter_context(workers_held.pop_all())
         if spec.ensembles:  # chaotic problems: each scheme's ensemble distance to heyoka's
             try:
                 with phases.phase("ensembles"), shown.phase("ensembles", detail="chaotic problems' ensembles"):

@@ -90,6 +90,9 @@ class FiguresAhead:
         self.drawn: dict[str, tuple[dict[str, str], dict]] = {}
         self.later: list[tuple[str, list[dict], tuple[str, ...]]] = []  # (problem, its rows, groups): ``timed``'s
         self.intervals: dict[str, tuple[Any, str | None]] = {}  # scheme -> (its N, its text)
+        # the main job's workers, where they stay up for the page (run_main_job's keep_workers):
+        # they draw its last figures, with matplotlib loaded already
+        self.workers: Any = None
 
     def add(self, cell, row: dict) -> None:
         """A stored row (kept as the store gives it back: JSON and its run id)."""

@@ -365,16 +365,18 @@ def figures_drawing(by_problem: dict[str, list[dict]], style: dict, drift: bool,
     figures ``ahead`` drew from the same inputs (``figure_inputs``) are taken as they are,
     and the intervals it found at the same N. matplotlib spends
     about a third of a second a figure, and a scheme's stability interval about a second
-    when not cached, all of it in Python, so only processes run them beside the caller: up
-    to ``jobs`` of them, where the work outweighs their start-up; else the work is done
+    when not cached, all of it in Python, so only processes run them beside the caller:
+    ``ahead``'s ``workers`` where it holds them (a main job's, up already), else up to ``jobs``
+    processes started here, where the work outweighs their start-up; else the work is done
     here."""
     from longtime.measure.stability import cached_texts, interval_texts
 
     with contextlib.ExitStack() as stack:
-        pool = None
-        # the processes start first where the later figures alone are work enough for them:
-        # they boot while this one finds what was drawn ahead
-        early = _processes(FIGURE_S * later, jobs)
+        # the main job's workers, where ``ahead`` holds them; else the processes start first
+        # where the later figures alone are work enough for them: they boot while this one
+        # finds what was drawn ahead
+        pool = getattr(ahead, "workers", None)
+        early = 0 if pool is not None else _processes(FIGURE_S * later, jobs)
         if early:
             pool = stack.enter_context(_figure_pool(early))
         figures, todo = {}, {}
