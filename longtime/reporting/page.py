@@ -35,7 +35,7 @@ from longtime.core.files import NotWritten, write_atomic
 from longtime.core.status import Status
 from longtime.measure.orders import left_out, observed_orders
 from longtime.predict.decision import Verdict
-from longtime.reporting.figures.results import figures_drawing
+from longtime.reporting.figures.results import calibration_svg, figures_drawing
 from longtime.reporting.figures.style import styles
 from longtime.reporting.figures.verdict import checks_svg, winner_map_svg
 from longtime.reporting.figures_ahead import FiguresAhead, stability_schemes
@@ -296,12 +296,14 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
 
     builtin, plugins = stability_schemes(rows) if stability else ({}, {})
     # the figures drawn on other processes while this one does the rest
-    with figures_drawing(by_problem, style, drift, jobs, builtin, ahead, later=len(problems) + 1) as (drawn, draw):
+    later = len(problems) + 1 + len(runs)  # the winner maps, the checks' figure, the calibrations'
+    with figures_drawing(by_problem, style, drift, jobs, builtin, ahead, later=later) as (drawn, draw):
         found = map_verdicts(rows, checks) if verdicts is None else verdicts
-        # the winner maps and the checks' figure drawn beside the rest (each costs what a
-        # work-precision figure does)
-        maps = {p: draw(winner_map_svg, found[p], style) for p in problems}
+        # the checks' figure, the winner maps and the run's calibrations drawn beside the rest
+        # (each costs what a work-precision figure does), in the order the page reads them
         checks_figure = draw(checks_svg, checks) if checks else (lambda: None)
+        maps = {p: draw(winner_map_svg, found[p], style) for p in problems}
+        calibrations = [draw(calibration_svg, r.get("calibrations") or []) for r in runs]
         fits = observed_orders(rows)
         missing = left_out(rows)
         cards = _cards_section(rows)
@@ -309,6 +311,7 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
         history = history() if callable(history) else history
         verdict_sections = [_verdict_section(p, found[p], by_problem[p], style, maps[p]()) for p in problems]
         figures, intervals = drawn()
+        calibration_figures = [(r, figure()) for r, figure in zip(runs, calibrations)]
     ids = ", ".join(str(r["id"]) for r in runs) or "-"
     out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
            '<meta name="viewport" content="width=device-width, initial-scale=1">',
@@ -349,20 +352,18 @@ def build_page(rows: list[dict[str, Any]], runs: list[dict[str, Any]], drift: bo
     if stab:
         out.append('<h2 id="stability">Linear stability</h2>' + stab)
     out.append('<h2 id="about">The run and the machine</h2>' + _meta(runs))
-    out += _calibration_figures(runs)
+    out += _calibration_figures(calibration_figures)
     out.append(f'<p class="note footer">Written {datetime.now(timezone.utc).isoformat(timespec="seconds")} by '
                f"<code>longtime {escape(writer)}</code>.</p>")
     out.append(f"<script>{SCRIPT}</script></body></html>")
     return "\n".join(out)
 
 
-def _calibration_figures(runs: list[dict[str, Any]]) -> list[str]:
-    """Per run with calibrations: how the machine's speed drifted during it."""
-    from longtime.reporting.figures.results import calibration_svg
-
+def _calibration_figures(drawn: list[tuple[dict[str, Any], str | None]]) -> list[str]:
+    """Per run with calibrations (``drawn``: each run and its ``calibration_svg``): how the
+    machine's speed drifted during it."""
     out = []
-    for r in runs:
-        fig = calibration_svg(r.get("calibrations") or [])
+    for r, fig in drawn:
         if fig:
             out.append(f'<figure class="plot">{fig}<figcaption>Run {r["id"]}: the reference workload\'s CPU time '
                        f"(the fastest of its repeats, a bar to the slowest) at each calibration; each row's "
