@@ -293,6 +293,9 @@ def test_a_pace_projects_the_end_from_the_cpu_seconds_per_unit_of_t(monkeypatch)
     assert "about 25 s CPU, past 20 s" in pace.message(90.0, 2.0)
     clock[0] += 1.0  # no progress at all: an end never reached
     assert pace.beyond(10.0) and pace.projected == float("inf")
+    early = peer_common.Pace(20.0, 10.0, 1010.0, after_s=0.25)  # judged from a quarter second
+    clock[0] += 0.25  # 0.25 s for 10 of 1000: 25 s
+    assert early.beyond(20.0) and early.projected == pytest.approx(25.0)
     assert "no progress past t0, which puts t_final beyond any CPU time, past 20 s" in pace.message(10.0, 4.0)
     # its row keeps no infinite projection: pace_cpu_s is null, the message says why
     problem = registry.problem_class("harmonic")()
@@ -510,22 +513,49 @@ def test_the_main_jobs_peers_run_as_chains_cheapest_first_and_the_budget_says_so
 
 
 @pytest.mark.slow  # two runs with kepler's reference, and scipy's first imports
-def test_a_chain_stops_a_later_setting_at_factor_times_the_cpu_of_one_that_keeps_the_target():
+@pytest.mark.parametrize("on_pace", [True, False])
+def test_a_chain_stops_a_later_setting_at_factor_times_the_cpu_of_one_that_keeps_the_target(on_pace, monkeypatch):
     from longtime.core.status import BOUNDED, bounded
     from longtime.core.timing import Timing
+    from longtime.execution import limits
     from longtime.execution.batches import run_batch
     from longtime.execution.cells import RunSpec
     from longtime.predict.need import FACTOR
 
+    if not on_pace:  # a pace never past the bound: the run goes on to the bound itself
+        monkeypatch.setattr(limits, "CHAIN_PACE", 1e9)
     # dop853 at 1e-12 keeps 1e-6 on kepler; RK23 at 1e-10 takes tens of times its steps
     keeper, later = run_batch(_chain("kepler", [("dop853", 1e-12), ("scipy-rk23", 1e-10)], 20.0),
                               RunSpec(timing=Timing(repeats=1)))
     assert keeper["status"] == "ok" and keeper["max_error"] <= 1e-6, keeper["message"]
     assert later["status"] == "timeout" and bounded(later) and later["message"].startswith(BOUNDED)
-    assert later["cpu_s"] >= FACTOR * keeper["cpu_s"]  # its own CPU seconds reached the bound
     assert 0.0 < later["t_reached"] < 20.0 and f"t={later['t_reached']:.6g} of 20 reached" in later["message"]
     assert (f"x2 the CPU of scipy dop853 tol=1e-12 ({keeper['cpu_s']:.3g} s), which keeps 1e-06: it cannot be "
             f"scipy's cheapest") in later["message"]
+    if not on_pace:
+        assert later["cpu_s"] >= FACTOR * keeper["cpu_s"]  # its own CPU seconds reached the bound
+        return
+    # judged on its pace once it spent the keeper's CPU seconds: its end projected past 4 x the bound
+    assert keeper["cpu_s"] <= later["cpu_s"] < FACTOR * keeper["cpu_s"]
+    assert later["pace_cpu_s"] > limits.CHAIN_PACE * FACTOR * keeper["cpu_s"]
+    assert (f"(on its pace: t={later['t_reached']:.6g} of 20 reached in {later['cpu_s']:.3g} s CPU, which puts "
+            f"t_final at about {later['pace_cpu_s']:.3g} s CPU") in later["message"]
+    assert later["message"].endswith("4 x the bound)") or "4 x the bound); " in later["message"]
+
+
+def test_a_chains_pace_is_judged_from_the_keepers_cpu_against_four_times_its_bound():
+    import dataclasses
+
+    from longtime.execution import limits
+
+    (cell,) = _chain("kepler", [("scipy-rk45", 1e-10)], 20.0)
+    assert limits.pace_bounds(cell) == (None, None, False)  # no keeper yet: no pace
+    bounded = dataclasses.replace(cell, cpu_bound=0.5)  # x2 a keeper's 0.25 s
+    assert limits.pace_bounds(bounded) == (2.0, 0.25, True)
+    slow = dataclasses.replace(cell, pace=4.0, time_limit=5.0)  # a setting estimated too slow
+    assert limits.pace_bounds(slow) == (20.0, None, False)
+    assert limits.pace_bounds(dataclasses.replace(slow, cpu_bound=0.5)) == (2.0, 0.25, True)  # the tighter
+    assert limits.pace_bounds(dataclasses.replace(slow, cpu_bound=10.0)) == (20.0, None, False)
 
 
 @pytest.mark.parametrize("scheme", ["dop853", "scipy-rk45"])

@@ -131,13 +131,16 @@ class Integrator(ABC):
     _deadline: float | None = None
     # the CPU seconds one run may take (None: no bound), read by a scheme that stops at it
     _cpu_bound: float | None = None
-    # the CPU seconds past which a run's pace may not put its end (None: no bound), read by
+    # the CPU seconds past which a run's pace may not put its end (None: no bound), and the
+    # CPU seconds after which its pace is judged (None: peer_common.PACE_AFTER_S), read by
     # the same schemes (longtime.integrators.peer_common.Pace)
     _pace_bound: float | None = None
+    _pace_after: float | None = None
 
     def integrate(self, problem: Problem, t_final: float, max_samples: int = 100_001,
                   timing: Timing | None = None, deadline: float | None = None,
-                  cpu_bound: float | None = None, pace_bound: float | None = None) -> Trajectory:
+                  cpu_bound: float | None = None, pace_bound: float | None = None,
+                  pace_after: float | None = None) -> Trajectory:
         """Run the scheme from problem.u0 at t0 to t_final, timed by ``timing`` (default:
         a single run). Every timed repeat must reproduce the first run bitwise; one that
         does not turns the result into a ``failed`` trajectory ("non-deterministic").
@@ -149,8 +152,8 @@ class Integrator(ABC):
         it is ``timeout`` with at least that many CPU seconds; a repeat stopped at it ends
         the repeats, the first run standing). ``pace_bound``: for the same schemes, the CPU
         seconds past which the pace of a run (its CPU seconds per unit of t so far, once it
-        has run ``peer_common.PACE_AFTER_S``) may not put t_final: a run whose pace does is
-        stopped there, ``timeout``."""
+        has run ``pace_after`` CPU seconds, default ``peer_common.PACE_AFTER_S``) may not put
+        t_final: a run whose pace does is stopped there, ``timeout``."""
         check_time_span(problem.t0, t_final)
         reason = self.incompatibility(problem)
         if reason:
@@ -161,11 +164,12 @@ class Integrator(ABC):
         # keep the samples under ~80 MB whatever the dimension (KdV at d = 512: ~19k samples)
         max_samples = min(int(max_samples), max(2001, SAMPLE_BUDGET // problem.dim))
         self._deadline, self._cpu_bound, self._pace_bound = deadline, cpu_bound, pace_bound
+        self._pace_after = pace_after
         try:
             first, cpu, wall = timed_runs(lambda: self._integrate(problem, float(t_final), max_samples), timing,
                                           deadline)
         finally:
-            self._deadline = self._cpu_bound = self._pace_bound = None
+            self._deadline = self._cpu_bound = self._pace_bound = self._pace_after = None
         _judge_growth(problem, first)
         if len(cpu) == 1 < timing.repeats and first.status == Status.OK and wall[0] > Timing.ONCE_ABOVE:
             note = f"timed once: one run takes {wall[0]:.3g} s"

@@ -12,8 +12,10 @@ runs under a CPU bound of ``Cell.bound`` (``need.FACTOR``) times that cell's CPU
 (the cheapest such cell's): a run whose own CPU seconds reach it has spent more than a
 setting of its library that keeps the target, so it cannot be the library's entry, and it
 stops there (a ``timeout`` row whose message begins with ``status.BOUNDED`` and says why
-and how far it got). The bound is on CPU seconds, never the wall clock: a loaded machine
-does not make the claim false."""
+and how far it got); so does a run that has spent that cell's CPU seconds where its pace
+puts its end past ``limits.CHAIN_PACE`` times the bound (its message says so, and where).
+The bound is on CPU seconds, never the wall clock: a loaded machine does not make the
+claim false."""
 from __future__ import annotations
 
 import dataclasses

@@ -42,8 +42,9 @@ peers whose run stops at a CPU bound (``stops_at_cpu_bound``: scipy's) are marke
 one worker, cheapest estimated first (longtime.execution.batches): once a setting keeps
 "Which library"'s target (``need.TARGET``), each later one stops at FACTOR times that
 setting's CPU seconds (a ``timeout`` row that says so: it cannot be the library's
-cheapest). ``--timing all`` (measure everything) and --full-sweep run every setting to
-its end.
+cheapest), or sooner, once it has spent that setting's CPU seconds, where its pace puts its
+end past ``limits.CHAIN_PACE`` times that bound (the row says so too). ``--timing all``
+(measure everything) and --full-sweep run every setting to its end.
 """
 from __future__ import annotations
 

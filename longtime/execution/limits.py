@@ -74,24 +74,48 @@ def timeout_message(time_limit: float | None, elapsed: float, cell: dict[str, An
             f"its process was killed after {elapsed:.1f} s")
 
 
+# a run of a library's chain under a CPU bound (``Cell.cpu_bound``: ``Cell.bound`` times the
+# CPU seconds of a setting of its library that keeps the target) is judged on its pace from
+# those CPU seconds on, and stops where its pace puts its end past this many times its bound:
+# its end then lies at about 8 times the CPU of that setting, where the bound's claim (it
+# cannot be its library's cheapest) needs only more than 1, so a pace off by a factor of 8
+# would not make the claim false; a run that reaches its bound is stopped there as before
+CHAIN_PACE = 4.0
+
+
 def run_bounds(cell: Any, integrator: Any) -> dict[str, float | None]:
     """The bounds a ``Cell``'s run stops at besides its time limit, for a scheme that stops at
     them (``stops_at_cpu_bound``; a plugin's ``integrate`` may not know them): its chain's CPU
-    bound and its pace bound (``Cell.pace`` times its own time limit)."""
+    bound, and its pace bound and the CPU seconds after which its pace is judged
+    (``pace_bounds``)."""
     if not integrator.stops_at_cpu_bound:
         return {}
+    pace, after, _ = pace_bounds(cell)
+    return {"cpu_bound": cell.cpu_bound, "pace_bound": pace, "pace_after": after}
+
+
+def pace_bounds(cell: Any) -> tuple[float | None, float | None, bool]:
+    """(pace bound, CPU seconds after which the pace is judged (None: the default), whether
+    the chain's bound set them): ``Cell.pace`` times the cell's own time limit (a setting
+    estimated too slow), or, tighter, CHAIN_PACE times its chain's CPU bound, judged from
+    the CPU seconds of the setting that kept the target (the bound over ``Cell.bound``)."""
     pace = cell.pace * cell.time_limit if cell.pace and cell.time_limit else None
-    return {"cpu_bound": cell.cpu_bound, "pace_bound": pace}
+    if cell.cpu_bound is not None and cell.bound and (pace is None or CHAIN_PACE * cell.cpu_bound < pace):
+        return CHAIN_PACE * cell.cpu_bound, cell.cpu_bound / cell.bound, True
+    return pace, None, False
 
 
 def stopped_message(cell: Any, t_end: float, traj: Any, time_limit: float | None, own: bool) -> str:
     """A stopped run's message: at its chain's CPU bound where its own CPU seconds reached it
-    (never said of a run the wall clock stopped), on its pace, else at its time limit
-    (``own``: the ``Cell``'s, else the job's)."""
+    (never said of a run the wall clock stopped) or its pace put its end past CHAIN_PACE
+    times it, on its pace, else at its time limit (``own``: the ``Cell``'s, else the job's)."""
     if cell.cpu_bound is not None and traj.cpu_s >= cell.cpu_bound:
         reached = f"t={float(traj.t[-1]):.6g} of {t_end:g} reached in {traj.cpu_s:.3g} s CPU"
         return f"{BOUNDED} {cell.bound_reason} ({reached})"
     if traj.message.startswith(PACED):
+        if pace_bounds(cell)[2]:
+            return (f"{BOUNDED} {cell.bound_reason} (on its pace:{traj.message[len(PACED):]}, "
+                    f"{CHAIN_PACE:g} x the bound)")
         return f"{traj.message} ({cell.pace:g} x the cell's time limit of {cell.time_limit:g} s {cell.limit_reason})"
     limit = (f"{time_limit:g} s: the default matrix's time limit {cell.limit_reason or 'of this cell'}"
              if own else f"cell time limit {time_limit:g} s: --time-limit")

@@ -43,20 +43,21 @@ PACE_AFTER_S = 1.0
 
 class Pace:
     """A run's pace against its pace bound (``Integrator.integrate``'s ``pace_bound``, CPU
-    seconds): once it has run PACE_AFTER_S CPU seconds, ``beyond(t)`` says whether the CPU
-    seconds it spent per unit of t so far put its end, ``t_end``, past the bound, and keeps
-    that projection (``projected``; infinite where the run has not moved past t0) for its
-    row. It counts from its making: make it where the run starts."""
+    seconds): once it has run ``after_s`` CPU seconds (None: PACE_AFTER_S), ``beyond(t)``
+    says whether the CPU seconds it spent per unit of t so far put its end, ``t_end``, past
+    the bound, and keeps that projection (``projected``; infinite where the run has not moved
+    past t0) for its row. It counts from its making: make it where the run starts."""
 
-    def __init__(self, bound_s: float, t0: float, t_end: float) -> None:
+    def __init__(self, bound_s: float, t0: float, t_end: float, after_s: float | None = None) -> None:
         self.bound_s, self.t0, self.t_end = bound_s, t0, t_end
+        self.after_s = PACE_AFTER_S if after_s is None else after_s
         self.start = time.process_time()
         self.projected: float | None = None
         self.stopped = False
 
     def beyond(self, t: float) -> bool:
         spent = time.process_time() - self.start
-        if spent < PACE_AFTER_S:
+        if spent < self.after_s:
             return False
         done = (t - self.t0) / (self.t_end - self.t0)
         self.projected = spent / done if done > 0 else math.inf

@@ -111,7 +111,7 @@ class ScipyIVP(Integrator):
         peer_common.warm_once((self.name, tuple(sorted(self.settings.items())), problem.identity()),
                               lambda: _step_all(self._solver(fun, jac, problem.t0, u0.copy(), t_final), WARM_STEPS))
         overhead = self.overhead(problem)
-        deadline, bound, paced = self._deadline, self._cpu_bound, self._pace_bound
+        deadline, bound, paced, after = self._deadline, self._cpu_bound, self._pace_bound, self._pace_after
         ts, ys = [problem.t0], [u0.copy()]
         pace = None
 
@@ -120,7 +120,7 @@ class ScipyIVP(Integrator):
             # the bound and the pace count from here, after the timer's start: a run stopped at
             # the bound has at least ``bound`` CPU seconds
             cpu_end = None if bound is None else time.process_time() + bound
-            pace = None if paced is None else peer_common.Pace(paced, problem.t0, t_final)
+            pace = None if paced is None else peer_common.Pace(paced, problem.t0, t_final, after)
             solver = self._solver(fun, jac, problem.t0, u0.copy(), t_final)
             failure, timed_out = None, False
             with np.errstate(all="ignore"):  # a state gone non-finite is the row's status, not a warning
@@ -239,7 +239,7 @@ class DOP853(ScipyIVP):
         peer_common.warm_once((self.name, tuple(sorted(self.settings.items())), problem.identity()),
                               lambda: self._run(fun, params, problem.t0, u0.copy(), t_final, most=WARM_STEPS))
         overhead = self.overhead(problem)
-        deadline, bound, paced = self._deadline, self._cpu_bound, self._pace_bound
+        deadline, bound, paced, after = self._deadline, self._cpu_bound, self._pace_bound, self._pace_after
         ts, ys = [], []
         late = [False]
         cpu_end: list[float | None] = [None]
@@ -255,7 +255,7 @@ class DOP853(ScipyIVP):
         def run():
             # the bound and the pace count from here, after the timer's start (as ScipyIVP's loop counts them)
             cpu_end[0] = None if bound is None else time.process_time() + bound
-            pace[0] = None if paced is None else peer_common.Pace(paced, problem.t0, t_final)
+            pace[0] = None if paced is None else peer_common.Pace(paced, problem.t0, t_final, after)
             return self._run(fun, params, problem.t0, u0.copy(), t_final, record)
 
         (r, _), cpu, wall = peer_common.timed(run)
