@@ -76,10 +76,11 @@ def timeout_message(time_limit: float | None, elapsed: float, cell: dict[str, An
 
 # a run of a library's chain under a CPU bound (``Cell.cpu_bound``: ``Cell.bound`` times the
 # CPU seconds of a setting of its library that keeps the target) is judged on its pace from
-# those CPU seconds on, and stops where its pace puts its end past this many times its bound:
-# its end then lies at about 8 times the CPU of that setting, where the bound's claim (it
-# cannot be its library's cheapest) needs only more than 1, so a pace off by a factor of 8
-# would not make the claim false; a run that reaches its bound is stopped there as before
+# those CPU seconds on, and stops where its pace puts its end past this many times its bound
+# (8 times that setting's CPU): it has then spent that setting's CPU seconds with less than
+# an eighth of its span covered, so it cannot be its library's cheapest, as a run that
+# reaches the bound cannot (docs/performance.md: every such run of a main job, run to its
+# end, took at least 4.9 times that setting's CPU); a run that reaches its bound stops there
 CHAIN_PACE = 4.0
 
 
