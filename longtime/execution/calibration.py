@@ -209,10 +209,15 @@ class Calibrator:
         self._new: list[dict[str, Any]] = []  # calibrations not yet handed to a row
 
     def take(self, phase: str) -> dict[str, Any]:
+        point = self._measured(phase)
+        self._new.append(point)
+        return point
+
+    def _measured(self, phase: str) -> dict[str, Any]:
+        """A calibration taken now, kept as this process's latest."""
         with phases.phase("calibration"):
             point = measure(phase)
         self.points.append(point)
-        self._new.append(point)
         return point
 
     def due(self) -> bool:
@@ -222,10 +227,7 @@ class Calibrator:
         """This process's latest calibration where it is recent (``due`` not yet), else one
         taken now and kept for the next caller; it rides on no row (the caller annotates its
         own record with it)."""
-        if self.due():
-            with phases.phase("calibration"):
-                self.points.append(measure(phase))
-        return self.points[-1]
+        return self._measured(phase) if self.due() else self.points[-1]
 
     def start(self) -> None:
         self._rows = []
