@@ -115,3 +115,37 @@ def test_queued_tasks_give_their_results_to_their_owner_and_a_failed_one_is_only
         assert owner.tasks == [] and owner.got == []  # queued, none given yet
         queued.finish()
     assert owner.got == [3, 5]  # the task that raised is left out: its owner does it
+
+
+@pytest.mark.parametrize("fails", [1, 2, 10**6])
+def test_a_batch_that_cannot_be_handed_to_its_worker_is_handed_again_once(monkeypatch, fails):
+    """Writing a batch's job is this process's work, not the cells': where it raises (a
+    moment of the machine) and then passes, the batch is handed again and its rows are
+    measured (with 2 failures: each batch's first hand-over, the second submitted before the
+    first is seen); where it raises again, its cells are failed rows naming why."""
+    import threading
+
+    from longtime.core import registry
+    from longtime.core.integrator import Timing
+    from longtime.execution.cells import expand
+    from longtime.execution.matrix import ExecOptions, run_matrix
+
+    payload, lock, calls = registry.session_payload, threading.Lock(), []
+
+    def flaky():  # the pool's first ``fails`` hand-overs raise
+        if threading.current_thread().name.startswith("longtime-worker"):
+            with lock:
+                calls.append(1)
+                if len(calls) <= fails:
+                    raise AssertionError()
+        return payload()
+
+    monkeypatch.setattr(registry, "session_payload", flaky)
+    cells = expand(["harmonic"], ["verlet", "rk4"], sweeps={"dt": [0.1, 0.05]}, t_final=1.0)
+    options = ExecOptions(jobs=1, timing=Timing(repeats=1, min_time=0.0), processes=1, time_limit=60.0)
+    rows = run_matrix(cells, None, None, "process", options)
+    if fails < 10**6:
+        assert [r["status"] for r in rows] == ["ok"] * 4, rows
+    else:
+        assert all(r["status"] == "failed" and r["message"] == "worker process failed: AssertionError()"
+                   for r in rows), rows

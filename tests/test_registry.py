@@ -108,3 +108,34 @@ def test_unknown_names_are_reported_together_with_the_closest(fake_points):
     registry.reload()
     with pytest.raises(InputError, match=r"'harmonik' \(did you mean harmonic\?\), 'zzz'"):
         registry.check_names("problem", ["harmonik", "zzz", "harmonic"])
+
+
+def test_the_session_is_pickled_whole_by_threads_that_start_workers_together(monkeypatch):
+    """A pool's threads start their workers together, each pickling the session's classes;
+    numba gives a compiled function its pickling id on first use, unguarded, so two threads
+    at once would fail one batch ("worker process failed: AssertionError()")."""
+    import threading
+
+    import numba
+
+    def pickled_together(threads: int = 8) -> list[BaseException]:
+        kernels = {f"k{i}": numba.njit(lambda x: x) for i in range(4)}  # fresh: no id yet
+        monkeypatch.setattr(registry, "_session", {"problems": kernels, "integrators": {}})
+        start, failed = threading.Barrier(threads), []
+
+        def one():
+            start.wait()
+            try:
+                registry.session_payload()
+            except BaseException as exc:  # noqa: BLE001  (what a worker's start would turn into a failed batch)
+                failed.append(exc)
+
+        team = [threading.Thread(target=one) for _ in range(threads)]
+        for t in team:
+            t.start()
+        for t in team:
+            t.join()
+        return failed
+
+    failures = [exc for _ in range(200) for exc in pickled_together()]
+    assert failures == []

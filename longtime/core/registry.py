@@ -7,6 +7,7 @@ the others go on.
 from __future__ import annotations
 
 import re
+import threading
 import traceback
 from dataclasses import dataclass
 from importlib.metadata import entry_points
@@ -32,6 +33,7 @@ _loaded: dict[str, dict[str, type]] | None = None
 _broken: list[BrokenPlugin] = []
 # classes registered from Python for this session (``register``): no entry point, no install
 _session: dict[str, dict[str, type]] = {"problems": {}, "integrators": {}}
+_PICKLING = threading.Lock()  # session_payload's
 
 
 @to_stderr  # a plugin's module runs as it loads: its output is not the contract's
@@ -158,12 +160,15 @@ def register(cls: type, name: str | None = None) -> str:
 def session_payload() -> bytes | None:
     """The session's registered classes, pickled by value where they live outside an
     importable module (cloudpickle): what a worker process needs to find them (None when
-    there are none)."""
+    there are none). One thread pickles at a time: a pool's threads start their workers
+    together, and numba gives a compiled function its pickling id on first use without a
+    lock of its own, so two pickling it at once fail."""
     if not any(_session.values()):
         return None
     import cloudpickle
 
-    return cloudpickle.dumps(_session)
+    with _PICKLING:
+        return cloudpickle.dumps(_session)
 
 
 def session_only(names) -> list[str]:

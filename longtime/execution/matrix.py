@@ -221,10 +221,23 @@ def process_pool(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell
             try:
                 rows = fut.result()
             except Exception as exc:  # the batch could not be written or read back
-                if out_of_space(exc):  # a full temp folder: not the cells'
-                    raise disk_full(exc, "a worker wrote its cell's files") from None
-                rows = [worker_failed(c, exc) for c in batch]
+                rows = _handed_again(pool, batch, exc)
             yield from zip(batch, rows)
+
+
+def _handed_again(pool: ResidentPool, batch: list[Cell], exc: Exception) -> list[dict]:
+    """The rows of a batch that could not be handed to its worker or read back (``exc``),
+    handed once more: that is this process's fault, not the cells', and it may pass (a
+    moment of the machine); failed rows naming it only where it happens again. A full temp
+    folder is the machine's: DiskFull, no row."""
+    if out_of_space(exc):
+        raise disk_full(exc, "a worker wrote its cell's files") from None
+    try:
+        return pool.submit_cells(batch).result()
+    except Exception as again:
+        if out_of_space(again):
+            raise disk_full(again, "a worker wrote its cell's files") from None
+        return [worker_failed(c, again) for c in batch]
 
 
 def isolated(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
