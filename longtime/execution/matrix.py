@@ -230,14 +230,14 @@ def _handed_again(pool: ResidentPool, batch: list[Cell], exc: Exception) -> list
     handed once more: that is this process's fault, not the cells', and it may pass (a
     moment of the machine); failed rows naming it only where it happens again. A full temp
     folder is the machine's: DiskFull, no row."""
+    try:
+        if not out_of_space(exc):  # a full disk is not handed again
+            return pool.submit_cells(batch).result()
+    except Exception as again:
+        exc = again
     if out_of_space(exc):
         raise disk_full(exc, "a worker wrote its cell's files") from None
-    try:
-        return pool.submit_cells(batch).result()
-    except Exception as again:
-        if out_of_space(again):
-            raise disk_full(again, "a worker wrote its cell's files") from None
-        return [worker_failed(c, again) for c in batch]
+    return [worker_failed(c, exc) for c in batch]
 
 
 def isolated(cells: list[Cell], options: ExecOptions) -> Iterator[tuple[Cell, dict]]:
